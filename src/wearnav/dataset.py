@@ -1,0 +1,207 @@
+"""Dataset folders: ``*.h5`` recordings plus ``manifest.csv`` (one row per recording).
+
+Write with :class:`DatasetWriter` (the simulator and every importer do), read with
+:meth:`Dataset.open`. A Dataset is an immutable view of a manifest: :meth:`Dataset.filter` and
+:meth:`Dataset.split` return narrower views of the same folder.
+
+The manifest columns are ``name, file, duration, devices, mode, subject, placement, scene,
+source, split, truth_points, fixes`` plus any extra metadata keys the writer was given;
+``devices`` is a ``;``-joined list of device names.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+import pandas as pd
+
+from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.recording import Recording
+
+MANIFEST = "manifest.csv"
+MANIFEST_COLUMNS = [
+    "name", "file", "duration", "devices", "mode", "subject", "placement", "scene", "source",
+    "split", "truth_points", "fixes",
+]
+
+
+def manifest_row(rec: Recording, file: str, split: str = "") -> dict:
+    row = {
+        "name": rec.name,
+        "file": file,
+        "duration": round(rec.duration, 3),
+        "devices": ";".join(rec.devices),
+        "mode": rec.meta.get("mode", ""),
+        "subject": rec.meta.get("subject", ""),
+        "placement": rec.meta.get("placement", ""),
+        "scene": rec.meta.get("scene", ""),
+        "source": rec.meta.get("source", ""),
+        "split": split or rec.meta.get("split", ""),
+        "truth_points": 0 if rec.truth is None else len(rec.truth),
+        "fixes": 0 if rec.fixes is None else len(rec.fixes),
+    }
+    return row
+
+
+def _write_csv_atomic(df: pd.DataFrame, path: Path) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        df.to_csv(tmp, index=False)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+class DatasetWriter:
+    """Adds recordings to a dataset folder; the manifest is written (atomically) on close.
+
+    >>> with DatasetWriter("out") as w:
+    ...     w.add(rec, split="train")
+    """
+
+    def __init__(self, root: str | Path):
+        self.root = Path(root)
+        self.root.mkdir(parents=True, exist_ok=True)
+        self.rows: list[dict] = []
+
+    def add(self, rec: Recording, split: str = "") -> Path:
+        if any(r["name"] == rec.name for r in self.rows):
+            raise ValidationError(f"duplicate recording name {rec.name!r}", self.root)
+        file = f"{rec.name}.h5"
+        path = rec.save(self.root / file)
+        self.rows.append(manifest_row(rec, file, split))
+        return path
+
+    def close(self) -> Path:
+        df = pd.DataFrame(self.rows)
+        for col in MANIFEST_COLUMNS:
+            if col not in df.columns:
+                df[col] = pd.Series(dtype=object)
+        path = self.root / MANIFEST
+        _write_csv_atomic(df[MANIFEST_COLUMNS], path)
+        return path
+
+    def __enter__(self) -> "DatasetWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+
+
+class Dataset:
+    """A view of a dataset folder: ``manifest`` (DataFrame), ``load(name)``, filters and splits."""
+
+    def __init__(self, root: Path, manifest: pd.DataFrame):
+        self.root = root
+        self.manifest = manifest.reset_index(drop=True)
+
+    @classmethod
+    def open(cls, root: str | Path) -> "Dataset":
+        root = Path(root)
+        if not root.is_dir():
+            raise MissingFileError("no such dataset folder", root)
+        path = root / MANIFEST
+        if not path.exists():
+            raise FormatError(f"not a wearnav dataset (no {MANIFEST})", root)
+        try:
+            df = pd.read_csv(path, dtype={"subject": str, "split": str, "mode": str,
+                                          "placement": str, "scene": str, "source": str})
+        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+            raise FormatError(f"unreadable manifest ({exc})", path) from None
+        missing = [c for c in ("name", "file", "duration", "devices") if c not in df.columns]
+        if missing:
+            raise FormatError(f"manifest lacks columns {missing}", path)
+        for col in MANIFEST_COLUMNS:
+            if col not in df.columns:
+                df[col] = ""
+        str_cols = ["devices", "mode", "subject", "placement", "scene", "source", "split"]
+        df[str_cols] = df[str_cols].fillna("").astype(str)
+        return cls(root, df)
+
+    # ---- views --------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.manifest)
+
+    @property
+    def names(self) -> list[str]:
+        return self.manifest["name"].tolist()
+
+    def _view(self, mask) -> "Dataset":
+        return Dataset(self.root, self.manifest[mask])
+
+    def filter(self, mode=None, subject=None, placement=None, devices=None, source=None) -> "Dataset":
+        """Keep recordings matching every given criterion.
+
+        Each of ``mode``, ``subject``, ``placement``, ``source`` is a value or a list of values;
+        ``devices`` is a list of device names that must all be present.
+        """
+        m = self.manifest
+        mask = pd.Series(True, index=m.index)
+        for col, want in (("mode", mode), ("subject", subject), ("placement", placement),
+                          ("source", source)):
+            if want is not None:
+                want = [want] if isinstance(want, str | int) else list(want)
+                mask &= m[col].isin([str(w) for w in want])
+        if devices is not None:
+            need = set([devices] if isinstance(devices, str) else devices)
+            mask &= m["devices"].map(lambda s: need <= set(s.split(";")))
+        return self._view(mask)
+
+    def split(self, *names: str) -> "Dataset":
+        """Recordings whose ``split`` is one of ``names`` (e.g. ``split("test", "test_unseen")``)."""
+        known = set(self.manifest["split"])
+        unknown = [n for n in names if n not in known]
+        if unknown:
+            raise ValidationError(f"unknown split {unknown}; this dataset has {sorted(known)}", self.root)
+        return self._view(self.manifest["split"].isin(names))
+
+    # ---- loading ------------------------------------------------------------------------
+    def path(self, name: str) -> Path:
+        rows = self.manifest[self.manifest["name"] == name]
+        if rows.empty:
+            raise ValidationError(f"no recording named {name!r}", self.root)
+        return self.root / rows["file"].iloc[0]
+
+    def load(self, name: str) -> Recording:
+        return Recording.load(self.path(name))
+
+    def __iter__(self) -> Iterator[Recording]:
+        for name in self.names:
+            yield self.load(name)
+
+    def summary(self) -> dict:
+        """Counts and totals for ``wearnav info``."""
+        m = self.manifest
+        def counts(col: str) -> dict:
+            return {k: int(v) for k, v in m[col].value_counts().sort_index().items() if k != ""}
+        devs: dict[str, int] = {}
+        for s in m["devices"]:
+            for d in s.split(";"):
+                devs[d] = devs.get(d, 0) + 1
+        return {
+            "root": str(self.root),
+            "recordings": len(m),
+            "total_duration_h": round(float(m["duration"].sum()) / 3600, 3),
+            "devices": devs,
+            "modes": counts("mode"),
+            "subjects": counts("subject"),
+            "placements": counts("placement"),
+            "splits": counts("split"),
+            "sources": counts("source"),
+            "with_truth": int((m["truth_points"].fillna(0) > 0).sum()),
+            "with_fixes": int((m["fixes"].fillna(0) > 0).sum()),
+        }
+
+
+def write_dataset(root: str | Path, recordings: Iterable[tuple[Recording, str]]) -> Dataset:
+    """Write (recording, split) pairs to ``root`` and open the result."""
+    with DatasetWriter(root) as w:
+        for rec, split in recordings:
+            w.add(rec, split)
+    return Dataset.open(root)

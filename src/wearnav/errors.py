@@ -1,0 +1,43 @@
+"""Errors raised on bad input. Each names the file (when known) and what is wrong, in one line.
+
+The CLI catches :class:`WearnavError`, prints ``str(err)`` and exits with code 2.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class WearnavError(Exception):
+    """Base class: ``source`` is the file or folder at fault (may be None), ``reason`` says why."""
+
+    def __init__(self, reason: str, source: str | Path | None = None):
+        self.reason = reason
+        self.source = None if source is None else str(source)
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        return f"{self.source}: {self.reason}" if self.source else self.reason
+
+    def with_source(self, source: str | Path) -> "WearnavError":
+        """The same error attributed to ``source`` (kept if one is already set)."""
+        if self.source is None:
+            self.source = str(source)
+            self.args = (str(self),)
+        return self
+
+
+class ValidationError(WearnavError):
+    """Values are wrong: shapes, non-finite numbers, unsorted time, implausible units."""
+
+
+class FormatError(WearnavError):
+    """A file is not in the expected format: unreadable, corrupt, missing or renamed columns."""
+
+
+class MissingFileError(WearnavError):
+    """A file or folder that was named does not exist."""
+
+
+class ConfigError(WearnavError):
+    """A configuration value or command-line option is invalid."""

@@ -1,0 +1,49 @@
+"""Importers: one module per real format, each turning the original files into Recordings.
+
+Every importer module defines ``read(src: Path, limit: int | None = None) -> Iterator[Recording]``
+yielding recordings (at most ``limit``) from a folder, file or archive in the dataset's original
+layout, and ``SPLIT`` is not guessed here: importers leave ``split`` empty unless the dataset
+defines one. Problems raise :mod:`wearnav.errors` exceptions naming the file.
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from types import ModuleType
+
+from wearnav.errors import ConfigError, MissingFileError
+
+FORMATS: dict[str, str] = {
+    "ilc2": "wearnav.importers.ilc2",
+    "ipin2023": "wearnav.importers.ipin2023",
+    "motionsense": "wearnav.importers.motionsense",
+    "uci-hapt": "wearnav.importers.uci_hapt",
+    "uji-phone-watch": "wearnav.importers.uji_phone_watch",
+    "oxford-steps": "wearnav.importers.oxford_steps",
+    "sensorlogger": "wearnav.importers.sensorlogger",
+}
+
+
+def get_importer(fmt: str) -> ModuleType:
+    if fmt not in FORMATS:
+        raise ConfigError(f"unknown format {fmt!r}; known: {', '.join(FORMATS)}")
+    return importlib.import_module(FORMATS[fmt])
+
+
+def import_dataset(fmt: str, src: str | Path, out: str | Path, limit: int | None = None,
+                   progress: bool = True):
+    """Read ``src`` with the ``fmt`` importer and write a dataset folder at ``out``."""
+    from tqdm import tqdm
+
+    from wearnav.dataset import Dataset, DatasetWriter
+
+    src = Path(src)
+    if not src.exists():
+        raise MissingFileError("no such file or folder", src)
+    module = get_importer(fmt)
+    with DatasetWriter(out) as writer:
+        for rec in tqdm(module.read(src, limit=limit), desc=f"import {fmt}", unit="rec",
+                        disable=not progress):
+            writer.add(rec, split=rec.meta.get("split", ""))
+    return Dataset.open(out)

@@ -1,0 +1,390 @@
+"""The one in-memory data model of wearnav and its HDF5 storage.
+
+A :class:`Recording` holds what one walk produced: the IMU stream of each worn device
+(:class:`DeviceStream`), optionally the true body trajectory (:class:`Trajectory`), noisy location
+fixes (:class:`Fixes`), interval labels and free metadata. Streams keep their own rates and clocks;
+resampling to a common clock is :mod:`wearnav.preprocess`'s job.
+
+Units are SI: seconds, metres, m/s² (accelerometer *including* gravity, device frame), rad/s.
+Quaternions are (w, x, y, z) and rotate device-frame vectors into the world frame (z up).
+
+Everything is validated on construction, so a Recording that exists is well-formed; loading a
+file re-validates and names the file in any error.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import pandas as pd
+
+from wearnav.errors import FormatError, MissingFileError, ValidationError
+
+FORMAT_NAME = "wearnav.recording"
+FORMAT_VERSION = 1
+CANONICAL_DEVICES = ("phone", "watch", "earbuds")
+LABEL_COLUMNS = ["start", "end", "kind", "value"]
+
+# |acc| of a device is dominated by gravity (9.81 m/s²). A median far outside this band means the
+# data is in g, has gravity removed, or is not an accelerometer at all.
+ACC_NORM_MEDIAN_RANGE = (6.0, 14.0)
+# Walking rarely exceeds a few rad/s; a median above this is almost surely deg/s.
+GYRO_NORM_MEDIAN_MAX = 15.0
+
+
+def _as_array(x, dtype, name: str) -> np.ndarray:
+    try:
+        return np.ascontiguousarray(np.asarray(x, dtype=dtype))
+    except (TypeError, ValueError) as exc:
+        raise ValidationError(f"{name}: cannot be read as {np.dtype(dtype).name} ({exc})") from None
+
+
+def _check_time(t: np.ndarray, name: str) -> None:
+    if t.ndim != 1:
+        raise ValidationError(f"{name}: time must be 1-D, got shape {t.shape}")
+    if t.size == 0:
+        raise ValidationError(f"{name}: is empty")
+    if not np.all(np.isfinite(t)):
+        raise ValidationError(f"{name}: time has non-finite values")
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        i = int(np.argmax(dt <= 0))
+        what = "duplicated" if dt[i] == 0 else "unsorted"
+        raise ValidationError(f"{name}: {what} timestamps at sample {i + 1} (t={t[i + 1]:.6f})")
+
+
+def _check_rows(a: np.ndarray | None, n: int, width: tuple[int, ...] | int, name: str) -> None:
+    if a is None:
+        return
+    widths = (width,) if isinstance(width, int) else width
+    if a.ndim != 2 or a.shape[0] != n or a.shape[1] not in widths:
+        want = " or ".join(f"({n},{w})" for w in widths)
+        raise ValidationError(f"{name}: shape {a.shape}, expected {want}")
+    if not np.all(np.isfinite(a)):
+        bad = int(np.argmax(~np.all(np.isfinite(a), axis=1)))
+        raise ValidationError(f"{name}: non-finite values (first at sample {bad})")
+
+
+@dataclass
+class DeviceStream:
+    """One device's IMU stream on its own clock.
+
+    ``gyro`` is None for accelerometer-only devices (never filled with fake zeros); ``quat`` is
+    the device's orientation world←device (w, x, y, z) when the device reports one; ``worn`` is
+    False where the device was taken off (samples may continue, e.g. lying on a table).
+    """
+
+    t: np.ndarray
+    acc: np.ndarray
+    gyro: np.ndarray | None = None
+    quat: np.ndarray | None = None
+    worn: np.ndarray | None = None
+    check_units: bool = field(default=True, repr=False)
+
+    def __post_init__(self) -> None:
+        self.t = _as_array(self.t, np.float64, "t")
+        self.acc = _as_array(self.acc, np.float32, "acc")
+        if self.gyro is not None:
+            self.gyro = _as_array(self.gyro, np.float32, "gyro")
+        if self.quat is not None:
+            self.quat = _as_array(self.quat, np.float32, "quat")
+        if self.worn is not None:
+            self.worn = _as_array(self.worn, bool, "worn")
+        self.validate()
+
+    def validate(self) -> None:
+        _check_time(self.t, "t")
+        n = self.t.size
+        _check_rows(self.acc, n, 3, "acc")
+        _check_rows(self.gyro, n, 3, "gyro")
+        _check_rows(self.quat, n, 4, "quat")
+        if self.quat is not None:
+            norm = np.linalg.norm(self.quat, axis=1)
+            if np.any(np.abs(norm - 1) > 0.05):
+                raise ValidationError("quat: not unit quaternions (|q| deviates from 1 by > 0.05)")
+            self.quat = (self.quat / norm[:, None]).astype(np.float32)
+        if self.worn is not None and self.worn.shape != (n,):
+            raise ValidationError(f"worn: shape {self.worn.shape}, expected ({n},)")
+        if self.check_units and n >= 10:
+            med = float(np.median(np.linalg.norm(self.acc, axis=1)))
+            lo, hi = ACC_NORM_MEDIAN_RANGE
+            if not lo <= med <= hi:
+                hint = " (looks like g, multiply by 9.80665)" if 0.6 < med < 1.4 else ""
+                raise ValidationError(
+                    f"acc: median |acc| is {med:.3g}, expected about 9.8 m/s² including gravity{hint}"
+                )
+            if self.gyro is not None:
+                gmed = float(np.median(np.linalg.norm(self.gyro, axis=1)))
+                if gmed > GYRO_NORM_MEDIAN_MAX:
+                    raise ValidationError(
+                        f"gyro: median |gyro| is {gmed:.3g} rad/s, implausible (deg/s instead of rad/s?)"
+                    )
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    @property
+    def rate(self) -> float:
+        """Median sampling rate in Hz (0 for a single sample)."""
+        return float(1.0 / np.median(np.diff(self.t))) if self.t.size > 1 else 0.0
+
+    @property
+    def has_gyro(self) -> bool:
+        return self.gyro is not None
+
+
+@dataclass
+class Trajectory:
+    """Positions over time in the recording's local world frame (metres, z up).
+
+    Dense truth (a simulator, VIO) or sparse surveyed waypoints alike; ``floor`` is an optional
+    per-point floor index for multi-storey indoor data.
+    """
+
+    t: np.ndarray
+    pos: np.ndarray
+    quat: np.ndarray | None = None
+    floor: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.t = _as_array(self.t, np.float64, "truth.t")
+        self.pos = _as_array(self.pos, np.float64, "truth.pos")
+        if self.quat is not None:
+            self.quat = _as_array(self.quat, np.float64, "truth.quat")
+        if self.floor is not None:
+            self.floor = _as_array(self.floor, np.float64, "truth.floor")
+        _check_time(self.t, "truth.t")
+        _check_rows(self.pos, self.t.size, (2, 3), "truth.pos")
+        _check_rows(self.quat, self.t.size, 4, "truth.quat")
+        if self.floor is not None and self.floor.shape != self.t.shape:
+            raise ValidationError(f"truth.floor: shape {self.floor.shape}, expected {self.t.shape}")
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+@dataclass
+class Fixes:
+    """Noisy location fixes (GNSS / network location), local frame metres.
+
+    ``accuracy`` is the device's reported horizontal accuracy radius in metres (NaN where the
+    source does not report one).
+    """
+
+    t: np.ndarray
+    pos: np.ndarray
+    accuracy: np.ndarray
+    floor: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.t = _as_array(self.t, np.float64, "fixes.t")
+        self.pos = _as_array(self.pos, np.float64, "fixes.pos")
+        self.accuracy = _as_array(self.accuracy, np.float64, "fixes.accuracy")
+        if self.floor is not None:
+            self.floor = _as_array(self.floor, np.float64, "fixes.floor")
+        _check_time(self.t, "fixes.t")
+        _check_rows(self.pos, self.t.size, (2, 3), "fixes.pos")
+        if self.accuracy.shape != self.t.shape:
+            raise ValidationError(f"fixes.accuracy: shape {self.accuracy.shape}, expected {self.t.shape}")
+        if self.floor is not None and self.floor.shape != self.t.shape:
+            raise ValidationError(f"fixes.floor: shape {self.floor.shape}, expected {self.t.shape}")
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+def make_labels(rows=None) -> pd.DataFrame:
+    """A labels table (columns start, end, kind, value) from rows or records; validated."""
+    df = pd.DataFrame(rows if rows is not None else [], columns=LABEL_COLUMNS)
+    df = df.astype({"start": float, "end": float, "kind": str, "value": str})
+    if len(df):
+        if not np.all(np.isfinite(df[["start", "end"]].to_numpy())):
+            raise ValidationError("labels: non-finite start/end")
+        if np.any(df["end"].to_numpy() < df["start"].to_numpy()):
+            raise ValidationError("labels: an interval ends before it starts")
+    return df.sort_values(["kind", "start"], kind="stable").reset_index(drop=True)
+
+
+@dataclass
+class Recording:
+    """One walk: devices, optional truth / fixes / labels, and metadata."""
+
+    name: str
+    devices: dict[str, DeviceStream]
+    truth: Trajectory | None = None
+    fixes: Fixes | None = None
+    labels: pd.DataFrame = field(default_factory=make_labels)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.name or "/" in self.name:
+            raise ValidationError(f"recording name {self.name!r} is empty or contains '/'")
+        if not self.devices:
+            raise ValidationError("recording has no device streams")
+        for dev, s in self.devices.items():
+            if not isinstance(s, DeviceStream):
+                raise ValidationError(f"device {dev!r} is not a DeviceStream")
+        self.labels = make_labels(self.labels)
+        try:
+            json.dumps(self.meta)
+        except TypeError as exc:
+            raise ValidationError(f"meta is not JSON-serialisable: {exc}") from None
+
+    # ---- time helpers -------------------------------------------------------------------
+    @property
+    def t_start(self) -> float:
+        return min(float(s.t[0]) for s in self.devices.values())
+
+    @property
+    def t_end(self) -> float:
+        return max(float(s.t[-1]) for s in self.devices.values())
+
+    @property
+    def duration(self) -> float:
+        return self.t_end - self.t_start
+
+    def label_at(self, kind: str, t: np.ndarray, default: str = "") -> np.ndarray:
+        """The label of ``kind`` in force at each time of ``t`` (``default`` where none)."""
+        t = np.asarray(t, dtype=np.float64)
+        out = np.full(t.shape, default, dtype=object)
+        for row in self.labels[self.labels["kind"] == kind].itertuples():
+            out[(t >= row.start) & (t < row.end)] = row.value
+        return out
+
+    # ---- storage ------------------------------------------------------------------------
+    def save(self, path: str | Path) -> Path:
+        """Write to one HDF5 file atomically (temporary file in the same folder, then rename)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.close(fd)
+        try:
+            with h5py.File(tmp, "w") as f:
+                self._write(f)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+    def _write(self, f: h5py.File) -> None:
+        f.attrs["format"] = FORMAT_NAME
+        f.attrs["version"] = FORMAT_VERSION
+        f.attrs["name"] = self.name
+        f.attrs["meta"] = json.dumps(self.meta)
+        f.attrs["units"] = "t: s; acc: m/s^2 incl. gravity, device frame; gyro: rad/s; pos: m; quat: w,x,y,z world<-device"
+        g = f.create_group("devices")
+        for dev, s in self.devices.items():
+            d = g.create_group(dev)
+            d.create_dataset("t", data=s.t)
+            d.create_dataset("acc", data=s.acc, compression="gzip", compression_opts=4)
+            for key in ("gyro", "quat"):
+                arr = getattr(s, key)
+                if arr is not None:
+                    d.create_dataset(key, data=arr, compression="gzip", compression_opts=4)
+            if s.worn is not None:
+                d.create_dataset("worn", data=s.worn)
+        if self.truth is not None:
+            tr = f.create_group("truth")
+            for key in ("t", "pos", "quat", "floor"):
+                arr = getattr(self.truth, key)
+                if arr is not None:
+                    tr.create_dataset(key, data=arr)
+        if self.fixes is not None:
+            fx = f.create_group("fixes")
+            for key in ("t", "pos", "accuracy", "floor"):
+                arr = getattr(self.fixes, key)
+                if arr is not None:
+                    fx.create_dataset(key, data=arr)
+        lab = f.create_group("labels")
+        str_t = h5py.string_dtype("utf-8")
+        lab.create_dataset("start", data=self.labels["start"].to_numpy(np.float64))
+        lab.create_dataset("end", data=self.labels["end"].to_numpy(np.float64))
+        lab.create_dataset("kind", data=self.labels["kind"].to_numpy(object), dtype=str_t)
+        lab.create_dataset("value", data=self.labels["value"].to_numpy(object), dtype=str_t)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Recording":
+        """Read a file written by :meth:`save`; any problem raises a WearnavError naming it."""
+        path = Path(path)
+        if not path.exists():
+            raise MissingFileError("no such file", path)
+        try:
+            with h5py.File(path, "r") as f:
+                if f.attrs.get("format") != FORMAT_NAME:
+                    raise FormatError("not a wearnav recording (missing 'format' attribute)", path)
+                return cls._read(f)
+        except (FormatError, ValidationError) as exc:
+            raise exc.with_source(path) from None
+        except OSError as exc:
+            raise FormatError(f"cannot read as HDF5 ({exc.__class__.__name__}: {exc})", path) from None
+        except KeyError as exc:
+            raise FormatError(f"corrupt recording: missing {exc}", path) from None
+
+    @classmethod
+    def _read(cls, f: h5py.File) -> "Recording":
+        def opt(g, key):
+            return g[key][()] if key in g else None
+
+        devices = {}
+        for dev, d in f["devices"].items():
+            try:
+                # Units were checked when the recording was made; don't refuse to open it.
+                devices[dev] = DeviceStream(
+                    t=d["t"][()], acc=d["acc"][()], gyro=opt(d, "gyro"), quat=opt(d, "quat"),
+                    worn=opt(d, "worn"), check_units=False,
+                )
+            except ValidationError as exc:
+                raise ValidationError(f"device {dev!r}: {exc.reason}") from None
+        truth = None
+        if "truth" in f:
+            g = f["truth"]
+            truth = Trajectory(g["t"][()], g["pos"][()], opt(g, "quat"), opt(g, "floor"))
+        fixes = None
+        if "fixes" in f:
+            g = f["fixes"]
+            fixes = Fixes(g["t"][()], g["pos"][()], g["accuracy"][()], opt(g, "floor"))
+        lab = f["labels"]
+        labels = pd.DataFrame({
+            "start": lab["start"][()],
+            "end": lab["end"][()],
+            "kind": [v.decode() if isinstance(v, bytes) else v for v in lab["kind"][()]],
+            "value": [v.decode() if isinstance(v, bytes) else v for v in lab["value"][()]],
+        })
+        return cls(
+            name=str(f.attrs["name"]), devices=devices, truth=truth, fixes=fixes,
+            labels=labels, meta=json.loads(f.attrs["meta"]),
+        )
+
+    def summary(self) -> dict[str, Any]:
+        """A plain dict describing the recording (what ``wearnav info`` prints)."""
+        out: dict[str, Any] = {
+            "name": self.name,
+            "duration_s": round(self.duration, 2),
+            "devices": {
+                dev: {
+                    "samples": len(s),
+                    "rate_hz": round(s.rate, 2),
+                    "gyro": s.has_gyro,
+                    "orientation": s.quat is not None,
+                    **({"worn_share": round(float(s.worn.mean()), 3)} if s.worn is not None else {}),
+                }
+                for dev, s in self.devices.items()
+            },
+            "truth_points": 0 if self.truth is None else len(self.truth),
+            "fixes": 0 if self.fixes is None else len(self.fixes),
+            "labels": {k: sorted(set(g["value"])) for k, g in self.labels.groupby("kind")},
+            "meta": self.meta,
+        }
+        return out

@@ -1,0 +1,42 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED_DATA = (ROOT / ".." / "shared" / "data").resolve()
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """The public recordings beside the project (CI has them there too)."""
+    if not SHARED_DATA.is_dir():
+        pytest.skip(f"real data not found at {SHARED_DATA}")
+    return SHARED_DATA
+
+
+def make_stream(n=200, rate=100.0, t0=0.0, seed=0, gyro=True, quat=True, worn=False):
+    rng = np.random.default_rng(seed)
+    t = t0 + np.arange(n) / rate
+    acc = np.tile([0.0, 0.0, 9.81], (n, 1)) + 0.1 * rng.standard_normal((n, 3))
+    return DeviceStream(
+        t=t, acc=acc,
+        gyro=0.05 * rng.standard_normal((n, 3)) if gyro else None,
+        quat=np.tile([1.0, 0, 0, 0], (n, 1)) if quat else None,
+        worn=np.ones(n, bool) if worn else None,
+    )
+
+
+@pytest.fixture
+def small_recording() -> Recording:
+    t = np.arange(0, 2.0, 0.1)
+    return Recording(
+        name="walk1",
+        devices={"phone": make_stream(), "earbuds": make_stream(50, 25.0, gyro=True, worn=True)},
+        truth=Trajectory(t, np.stack([t, 0.5 * t], 1)),
+        fixes=Fixes(t[::10], np.stack([t[::10], 0.5 * t[::10]], 1) + 1.0, np.full(2, 3.0)),
+        labels=[(0.0, 1.0, "activity", "walk"), (1.0, 2.0, "activity", "stand")],
+        meta={"subject": "u1", "mode": "STW", "placement": "HD", "source": "test"},
+    )

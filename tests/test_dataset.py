@@ -1,0 +1,62 @@
+import pandas as pd
+import pytest
+
+from wearnav.dataset import Dataset, DatasetWriter
+from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.recording import Recording
+
+from conftest import make_stream
+
+
+def _rec(name, subject, mode, devices=("phone", "watch")):
+    return Recording(name, {d: make_stream(seed=i) for i, d in enumerate(devices)},
+                     meta={"subject": subject, "mode": mode, "placement": "HD"})
+
+
+@pytest.fixture
+def ds(tmp_path):
+    with DatasetWriter(tmp_path / "d") as w:
+        w.add(_rec("a", "u1", "STW"), split="train")
+        w.add(_rec("b", "u1", "PVW", ("phone",)), split="val")
+        w.add(_rec("c", "u2", "STW", ("phone", "watch", "earbuds")), split="cross_subject")
+    return Dataset.open(tmp_path / "d")
+
+
+def test_manifest_and_load(ds):
+    assert isinstance(ds.manifest, pd.DataFrame)
+    assert ds.names == ["a", "b", "c"]
+    assert ds.manifest.loc[0, "devices"] == "phone;watch"
+    assert ds.manifest.loc[0, "duration"] == pytest.approx(1.99)
+    assert ds.load("c").meta["subject"] == "u2"
+    assert [r.name for r in ds] == ["a", "b", "c"]
+
+
+def test_filters_and_splits(ds):
+    assert ds.filter(mode="STW").names == ["a", "c"]
+    assert ds.filter(subject=["u2"]).names == ["c"]
+    assert ds.filter(devices=["phone", "watch"]).names == ["a", "c"]
+    assert ds.filter(mode="STW", devices=["earbuds"]).names == ["c"]
+    assert ds.split("train", "val").names == ["a", "b"]
+    assert ds.split("train").filter(mode="PVW").names == []
+    with pytest.raises(ValidationError, match="unknown split"):
+        ds.split("nonsense")
+
+
+def test_summary(ds):
+    s = ds.summary()
+    assert s["recordings"] == 3 and s["devices"]["phone"] == 3 and s["modes"] == {"PVW": 1, "STW": 2}
+
+
+def test_open_errors(tmp_path):
+    with pytest.raises(MissingFileError):
+        Dataset.open(tmp_path / "missing")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FormatError, match="manifest"):
+        Dataset.open(tmp_path / "empty")
+
+
+def test_duplicate_names_rejected(tmp_path):
+    w = DatasetWriter(tmp_path / "d")
+    w.add(_rec("a", "u1", "STW"))
+    with pytest.raises(ValidationError, match="duplicate"):
+        w.add(_rec("a", "u1", "STW"))
