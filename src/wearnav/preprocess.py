@@ -1,0 +1,166 @@
+"""From a Recording's per-device streams to one aligned multi-device array on a common clock.
+
+Order of operations per device (why): rotate to the world frame at the device's own rate (the
+orientation is best matched sample by sample), optionally subtract gravity, low-pass below the
+new Nyquist rate (so 100 Hz → 25 Hz does not alias the step harmonics), then interpolate onto the
+common clock. Devices that are absent, not yet started, stopped, or not worn are kept as zeros
+with ``mask`` False; they are never dropped, so a model always sees a fixed device layout.
+
+Suite-IN++ (paper 000, Sec. III-B/C) resamples phone, watch and earbuds to 25 Hz and rotates
+each IMU into the world frame with the device's orientation; these are the defaults.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal
+from scipy.spatial.transform import Rotation
+
+from wearnav.errors import ConfigError, ValidationError
+from wearnav.recording import DeviceStream, Recording
+
+GRAVITY = 9.80665
+CHANNELS = ("ax", "ay", "az", "gx", "gy", "gz")
+
+
+@dataclass(frozen=True)
+class PreprocessConfig:
+    """How streams become model input. Defaults follow Suite-IN++ (25 Hz, world frame)."""
+
+    rate: float = 25.0
+    devices: tuple[str, ...] = ("phone", "watch", "earbuds")
+    frame: str = "world"  # "world": rotate with each device's quat; "device": raw axes
+    remove_gravity: bool = False
+    lowpass: bool = True
+    # Streams whose start/end lie within this many seconds of the others' are treated as
+    # clock offsets (the clock is cut to their overlap); a stream starting or ending further
+    # inside is a device put on / taken off mid-walk and is masked instead of cutting the clock.
+    edge_tolerance: float = 2.0
+
+    def __post_init__(self) -> None:
+        if self.rate <= 0:
+            raise ConfigError(f"rate must be positive, got {self.rate}")
+        if self.frame not in ("world", "device"):
+            raise ConfigError(f"frame must be 'world' or 'device', got {self.frame!r}")
+        if not self.devices:
+            raise ConfigError("at least one device must be named")
+
+
+@dataclass
+class Aligned:
+    """A recording on a common clock: ``imu`` (devices × T × 6: acc xyz, gyro xyz), ``mask``
+    (devices × T, True where the device delivers data and is worn), and where the recording has
+    truth, ``pos`` (T × 2, horizontal truth position interpolated on the clock, NaN where the
+    truth does not cover the time)."""
+
+    name: str
+    t: np.ndarray
+    devices: tuple[str, ...]
+    imu: np.ndarray
+    mask: np.ndarray
+    pos: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+    recording: Recording | None = field(default=None, repr=False)
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    @property
+    def rate(self) -> float:
+        return float(1.0 / np.median(np.diff(self.t)))
+
+
+def common_span(rec: Recording, devices: tuple[str, ...], tol: float) -> tuple[float, float]:
+    """The common clock's [start, end]: the overlap of the streams, except that a stream that
+    starts or ends more than ``tol`` seconds inside the others' span (a device put on or taken
+    off mid-walk) does not shorten the clock."""
+    present = [rec.devices[d] for d in devices if d in rec.devices]
+    if not present:
+        raise ValidationError(f"{rec.name}: none of the devices {list(devices)} is in the recording "
+                              f"(it has {list(rec.devices)})")
+    starts = np.array([s.t[0] for s in present])
+    ends = np.array([s.t[-1] for s in present])
+    t0 = float(starts[starts <= starts.min() + tol].max())
+    t1 = float(ends[ends >= ends.max() - tol].min())
+    if t1 <= t0:
+        raise ValidationError(f"{rec.name}: device streams do not overlap in time")
+    return t0, t1
+
+
+def clock(t0: float, t1: float, rate: float) -> np.ndarray:
+    n = int(np.floor((t1 - t0) * rate + 1e-9)) + 1
+    return t0 + np.arange(n) / rate
+
+
+def _lowpass(x: np.ndarray, fs: float, target_rate: float) -> np.ndarray:
+    """Zero-phase Butterworth low-pass at 0.4 × the target rate (0.8 × its Nyquist)."""
+    cutoff = 0.4 * target_rate
+    if fs < 2.5 * cutoff or len(x) < 30:
+        return x
+    sos = signal.butter(4, cutoff, fs=fs, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=0)
+
+
+def stream_to_clock(s: DeviceStream, t: np.ndarray, cfg: PreprocessConfig,
+                    name: str = "") -> tuple[np.ndarray, np.ndarray]:
+    """One device's (T × 6) IMU on clock ``t`` and its (T,) mask."""
+    acc = s.acc.astype(np.float64)
+    gyro = s.gyro.astype(np.float64) if s.gyro is not None else np.zeros_like(acc)
+    if cfg.frame == "world" or cfg.remove_gravity:
+        if s.quat is None:
+            raise ConfigError(f"{name}: device has no orientation; use frame='device' without gravity removal")
+        rot = Rotation.from_quat(s.quat.astype(np.float64), scalar_first=True)
+    if cfg.frame == "world":
+        acc = rot.apply(acc)
+        gyro = rot.apply(gyro)
+        if cfg.remove_gravity:
+            acc[:, 2] -= GRAVITY
+    elif cfg.remove_gravity:
+        acc = acc - rot.inv().apply(np.array([0.0, 0.0, GRAVITY]))
+    x = np.concatenate([acc, gyro], axis=1)
+    if cfg.lowpass:
+        x = _lowpass(x, s.rate, cfg.rate)
+    out = np.stack([np.interp(t, s.t, x[:, k]) for k in range(6)], axis=1)
+    # A sample is valid inside the stream's span, away from gaps longer than 3 source samples,
+    # and where the device is worn.
+    mask = (t >= s.t[0]) & (t <= s.t[-1])
+    idx = np.clip(np.searchsorted(s.t, t), 1, len(s.t) - 1)
+    gap = s.t[idx] - s.t[idx - 1]
+    mask &= gap <= 3.0 / max(s.rate, 1e-9)
+    if s.worn is not None:
+        nearest = np.clip(np.searchsorted(s.t, t), 0, len(s.t) - 1)
+        mask &= s.worn[nearest]
+    if s.gyro is None:
+        out[:, 3:] = 0.0  # no gyro: zeros, and the model input says so only through the data
+    out[~mask] = 0.0
+    return out.astype(np.float32), mask
+
+
+def interpolate_position(truth_t: np.ndarray, truth_pos: np.ndarray, t: np.ndarray,
+                         max_gap: float = 1.0) -> np.ndarray:
+    """Horizontal truth at ``t`` by linear interpolation; NaN outside the truth or across gaps
+    longer than ``max_gap`` s (sparse waypoints are not interpolated into dense truth)."""
+    pos = np.stack([np.interp(t, truth_t, truth_pos[:, k]) for k in range(2)], axis=1)
+    idx = np.clip(np.searchsorted(truth_t, t), 1, max(len(truth_t) - 1, 1))
+    ok = (t >= truth_t[0]) & (t <= truth_t[-1])
+    if len(truth_t) > 1:
+        ok &= (truth_t[idx] - truth_t[idx - 1]) <= max_gap
+    pos[~ok] = np.nan
+    return pos
+
+
+def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig()) -> Aligned:
+    """Resample every configured device of ``rec`` onto one clock (see module docstring)."""
+    t0, t1 = common_span(rec, cfg.devices, cfg.edge_tolerance)
+    t = clock(t0, t1, cfg.rate)
+    imu = np.zeros((len(cfg.devices), t.size, 6), np.float32)
+    mask = np.zeros((len(cfg.devices), t.size), bool)
+    for i, dev in enumerate(cfg.devices):
+        if dev in rec.devices:
+            imu[i], mask[i] = stream_to_clock(rec.devices[dev], t, cfg, f"{rec.name}/{dev}")
+    pos = None
+    if rec.truth is not None:
+        pos = interpolate_position(rec.truth.t, rec.truth.pos, t)
+    return Aligned(rec.name, t, tuple(cfg.devices), imu, mask, pos, dict(rec.meta), rec)

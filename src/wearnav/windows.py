@@ -1,0 +1,134 @@
+"""Sliding windows over aligned recordings as a torch Dataset (the only windowing routine).
+
+As in RoNIN, sequences (:class:`wearnav.preprocess.Aligned`) know their data and the window
+dataset only indexes (sequence, start) pairs. As in TLIO, the interface may speak seconds and
+hertz (:meth:`WindowConfig.from_seconds`); they are converted to samples once, here.
+
+Targets follow Suite-IN++ (paper 000, Sec. IV-A): for window n covering samples
+[s, s+L−1], the displacement d = p(t_{s+L−1}) − p(t_s) of the horizontal truth, and the mean
+horizontal world velocity v = d / (t_{s+L−1} − t_s).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset as TorchDataset
+
+from wearnav.errors import ConfigError
+from wearnav.preprocess import Aligned, PreprocessConfig, align
+
+
+@dataclass(frozen=True)
+class WindowConfig:
+    """Window length and stride in samples of the aligned clock (Suite-IN++: L = 100 at 25 Hz)."""
+
+    window: int = 100
+    stride: int = 10
+    # "velocity": keep windows whose ends have truth; "class": keep windows with a label of
+    # ``label_kind``; None: keep every window (inference on recordings without truth).
+    target: str | None = "velocity"
+    label_kind: str | None = None
+    # A device counts as present in a window when it is present in at least this share of it.
+    min_present: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.window < 2 or self.stride < 1:
+            raise ConfigError(f"window must be ≥ 2 and stride ≥ 1 samples, got {self.window}/{self.stride}")
+        if self.target not in ("velocity", "class", None):
+            raise ConfigError(f"target must be 'velocity', 'class' or None, got {self.target!r}")
+        if self.target == "class" and not self.label_kind:
+            raise ConfigError("target 'class' needs label_kind (e.g. 'activity')")
+
+    @classmethod
+    def from_seconds(cls, window_s: float, stride_s: float, rate: float, **kw) -> "WindowConfig":
+        return cls(window=int(round(window_s * rate)), stride=max(1, int(round(stride_s * rate))), **kw)
+
+
+def _majority(idx: np.ndarray) -> int:
+    """Most frequent non-negative class index, or −1 if the window has no label."""
+    idx = idx[idx >= 0]
+    return int(np.bincount(idx).argmax()) if idx.size else -1
+
+
+class WindowDataset(TorchDataset):
+    """Windows of aligned sequences. Each item is a dict of tensors:
+
+    ``x`` (devices, L, 6), ``mask`` (devices,) 1.0 where the device is present, ``vel`` (2,)
+    and ``disp`` (2,) (NaN without truth), ``label`` (−1 without label), ``seq`` (index of the
+    sequence), ``t`` (window start and end times).
+    """
+
+    def __init__(self, sequences: Sequence[Aligned], cfg: WindowConfig = WindowConfig(),
+                 classes: Sequence[str] | None = None):
+        self.sequences = list(sequences)
+        self.cfg = cfg
+        self.classes = list(classes) if classes is not None else self._collect_classes()
+        class_index = {c: i for i, c in enumerate(self.classes)}
+        self._labels = []
+        for seq in self.sequences:
+            lab = np.full(len(seq), -1, np.int64)
+            if cfg.label_kind and seq.recording is not None:
+                names = seq.recording.label_at(cfg.label_kind, seq.t)
+                lab = np.array([class_index.get(n, -1) for n in names], np.int64)
+            self._labels.append(lab)
+        self.index = self._build_index()
+
+    def _collect_classes(self) -> list[str]:
+        if not self.cfg.label_kind:
+            return []
+        values = set()
+        for seq in self.sequences:
+            if seq.recording is not None:
+                lab = seq.recording.labels
+                values |= set(lab.loc[lab["kind"] == self.cfg.label_kind, "value"])
+        return sorted(values)
+
+    def _build_index(self) -> np.ndarray:
+        L, S = self.cfg.window, self.cfg.stride
+        rows = []
+        for i, seq in enumerate(self.sequences):
+            starts = np.arange(0, len(seq) - L + 1, S)
+            if self.cfg.target == "velocity":
+                if seq.pos is None:
+                    continue
+                ok = np.isfinite(seq.pos[starts, 0]) & np.isfinite(seq.pos[starts + L - 1, 0])
+                starts = starts[ok]
+            elif self.cfg.target == "class":
+                starts = np.array([s for s in starts if _majority(self._labels[i][s:s + L]) >= 0], np.int64)
+            rows.extend((i, int(s)) for s in starts)
+        return np.array(rows, np.int64).reshape(-1, 2)
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def __getitem__(self, k: int) -> dict[str, torch.Tensor]:
+        i, s = self.index[k]
+        seq, L = self.sequences[i], self.cfg.window
+        e = s + L - 1
+        present = seq.mask[:, s:s + L].mean(axis=1) >= self.cfg.min_present
+        x = seq.imu[:, s:s + L].copy()
+        x[~present] = 0.0
+        if seq.pos is not None:
+            disp = seq.pos[e] - seq.pos[s]
+        else:
+            disp = np.full(2, np.nan)
+        vel = disp / (seq.t[e] - seq.t[s])
+        return {
+            "x": torch.from_numpy(x),
+            "mask": torch.from_numpy(present.astype(np.float32)),
+            "vel": torch.as_tensor(vel, dtype=torch.float32),
+            "disp": torch.as_tensor(disp, dtype=torch.float32),
+            "label": torch.tensor(_majority(self._labels[i][s:s + L])),
+            "seq": torch.tensor(i),
+            "t": torch.tensor([seq.t[s], seq.t[e]], dtype=torch.float64),
+        }
+
+    @classmethod
+    def from_recordings(cls, recordings, pcfg: PreprocessConfig = PreprocessConfig(),
+                        wcfg: WindowConfig = WindowConfig(), classes=None) -> "WindowDataset":
+        """Align each recording (a Dataset view or any iterable of Recordings) and window them."""
+        return cls([align(r, pcfg) for r in recordings], wcfg, classes)

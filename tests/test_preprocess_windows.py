@@ -1,0 +1,116 @@
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from wearnav.errors import ConfigError, ValidationError
+from wearnav.preprocess import GRAVITY, PreprocessConfig, align, common_span
+from wearnav.recording import DeviceStream, Recording, Trajectory
+from wearnav.windows import WindowConfig, WindowDataset
+
+
+def rotating_device(rate, t0=0.0, t1=20.0, worn=None):
+    """A device yawing at 0.5 rad/s, with a fixed tilt, under a known world-frame acceleration."""
+    t = np.arange(t0, t1, 1.0 / rate)
+    rot = Rotation.from_euler("z", (0.5 * t)[:, None]) * Rotation.from_euler("x", 0.3)
+    acc_world = np.stack([0.5 * np.sin(2 * np.pi * 0.2 * t), 0.2 * np.ones_like(t), np.full_like(t, GRAVITY)], 1)
+    gyro_world = np.tile([0.0, 0.0, 0.5], (t.size, 1))
+    return DeviceStream(t=t, acc=rot.inv().apply(acc_world), gyro=rot.inv().apply(gyro_world),
+                        quat=rot.as_quat(scalar_first=True), worn=worn), acc_world
+
+
+def walk(devices, duration=20.0):
+    t = np.arange(0, duration + 1e-9, 0.01)
+    truth = Trajectory(t, np.stack([1.2 * t, 0.3 * t], 1))
+    return Recording("w", devices, truth=truth, labels=[(0, 10, "activity", "walk"), (10, 20, "activity", "stand")])
+
+
+def test_world_frame_recovers_world_acceleration_at_25hz():
+    phone, acc_world = rotating_device(100.0)
+    a = align(walk({"phone": phone}), PreprocessConfig(devices=("phone",)))
+    assert a.rate == pytest.approx(25.0)
+    assert a.imu.shape == (1, len(a.t), 6)
+    inner = slice(10, -10)  # away from filter edges
+    expect = np.stack([np.interp(a.t, phone.t, acc_world[:, k]) for k in range(3)], 1)
+    np.testing.assert_allclose(a.imu[0, inner, :3], expect[inner], atol=0.02)
+    np.testing.assert_allclose(a.imu[0, inner, 5], 0.5, atol=1e-3)
+    g = align(walk({"phone": phone}), PreprocessConfig(devices=("phone",), remove_gravity=True))
+    assert abs(np.median(g.imu[0, :, 2])) < 0.01
+
+
+def test_device_frame_option_keeps_raw_axes():
+    phone, _ = rotating_device(50.0)
+    a = align(walk({"phone": phone}), PreprocessConfig(devices=("phone",), frame="device", lowpass=False))
+    np.testing.assert_allclose(a.imu[0, 5, :3], phone.acc[np.searchsorted(phone.t, a.t[5])], atol=1e-4)
+
+
+def test_missing_device_is_zero_and_masked_not_dropped():
+    phone, _ = rotating_device(100.0)
+    a = align(walk({"phone": phone}))
+    assert a.devices == ("phone", "watch", "earbuds")
+    assert a.mask[0].all() and not a.mask[1:].any()
+    assert np.all(a.imu[1:] == 0)
+
+
+def test_device_removed_midwalk_is_masked_and_does_not_cut_the_clock():
+    phone, _ = rotating_device(100.0)
+    watch, _ = rotating_device(100.0, t1=8.0)  # stream stops at 8 s
+    n = int(20 * 25)
+    worn = np.ones(n, bool)
+    worn[n // 2:] = False  # earbuds taken off and left lying there at 10 s
+    ear, _ = rotating_device(25.0, worn=worn)
+    a = align(walk({"phone": phone, "watch": watch, "earbuds": ear}))
+    assert a.t[-1] > 19.0
+    assert a.mask[1, a.t < 7.9].all() and not a.mask[1, a.t > 8.1].any()
+    assert a.mask[2, a.t < 9.9].all() and not a.mask[2, a.t > 10.1].any()
+    assert np.all(a.imu[1, a.t > 8.1] == 0)
+
+
+def test_small_clock_offsets_are_cut_to_the_overlap():
+    phone, _ = rotating_device(100.0, t0=0.0, t1=20.0)
+    ear, _ = rotating_device(25.0, t0=0.4, t1=19.7)
+    rec = walk({"phone": phone, "earbuds": ear})
+    t0, t1 = common_span(rec, ("phone", "earbuds"), tol=2.0)
+    assert t0 == pytest.approx(0.4) and t1 == pytest.approx(ear.t[-1])
+    with pytest.raises(ValidationError, match="none of the devices"):
+        common_span(rec, ("watch",), tol=2.0)
+
+
+def test_world_frame_needs_orientation():
+    s = DeviceStream(t=np.arange(100) / 50, acc=np.tile([0, 0, 9.8], (100, 1)))
+    with pytest.raises(ConfigError, match="orientation"):
+        align(Recording("r", {"phone": s}), PreprocessConfig(devices=("phone",)))
+
+
+def test_window_targets_and_masks():
+    phone, _ = rotating_device(100.0)
+    watch, _ = rotating_device(100.0, t1=8.0)
+    rec = walk({"phone": phone, "watch": watch})
+    ds = WindowDataset.from_recordings([rec], wcfg=WindowConfig(window=100, stride=25, label_kind="activity"))
+    a = ds.sequences[0]
+    assert len(ds) == (len(a) - 100) // 25 + 1
+    item = ds[0]
+    assert item["x"].shape == (3, 100, 6)
+    np.testing.assert_allclose(item["vel"].numpy(), [1.2, 0.3], atol=1e-4)
+    dt = float(item["t"][1] - item["t"][0])
+    assert dt == pytest.approx(99 / 25)
+    np.testing.assert_allclose(item["disp"].numpy(), np.array([1.2, 0.3]) * dt, atol=1e-4)
+    assert item["mask"].tolist() == [1.0, 1.0, 0.0]
+    last = ds[len(ds) - 1]
+    assert last["mask"].tolist() == [1.0, 0.0, 0.0] and float(last["x"][1].abs().sum()) == 0.0
+    assert ds.classes == ["stand", "walk"]
+    assert item["label"].item() == 1 and last["label"].item() == 0
+
+
+def test_windows_without_truth():
+    phone, _ = rotating_device(100.0)
+    rec = Recording("r", {"phone": phone})
+    assert len(WindowDataset.from_recordings([rec], wcfg=WindowConfig())) == 0
+    ds = WindowDataset.from_recordings([rec], wcfg=WindowConfig(target=None))
+    assert len(ds) > 0 and np.isnan(ds[0]["vel"].numpy()).all()
+    with pytest.raises(ConfigError):
+        WindowConfig(target="class")
+
+
+def test_from_seconds():
+    c = WindowConfig.from_seconds(4.0, 0.4, 25.0)
+    assert (c.window, c.stride) == (100, 10)
