@@ -9,7 +9,6 @@ OUT ?= runs/demo
 # torch is installed first and pinned, so pip takes the CPU wheel and never pulls CUDA packages.
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
-	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q torch==2.13.0
 
 $(VENV)/.installed: $(BIN)/python pyproject.toml
