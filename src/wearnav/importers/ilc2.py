@@ -1,0 +1,290 @@
+"""Indoor Location Competition 2.0 (Microsoft / XYZ10) path traces.
+
+Layout read: ``<site>/<floor>/path_data_files/<trace>.txt`` (plain, ``.gz`` or ``.xz``), or any
+folder holding such traces, or one trace file. Each trace is tab-separated text:
+``#``-header lines (``startTime``, ``SiteID``, ``SiteName``, ``FloorId``, ``FloorName``, ``Brand``,
+``Model``, ``AndroidName``, sensor descriptions, ``endTime``) and data rows
+``unix_ms<TAB>TYPE<TAB>values...``.
+
+What becomes what:
+
+* ``TYPE_ACCELEROMETER`` (m/s², with gravity, device frame) → ``devices["phone"].acc``; its
+  timestamps are the stream clock.
+* ``TYPE_GYROSCOPE`` (rad/s, device frame) → ``gyro``.
+* ``TYPE_ROTATION_VECTOR`` (Android rotation vector: values x, y, z and, on some phones, w) →
+  ``quat`` (w, x, y, z), rotating device vectors into Android's world frame (x east, y magnetic
+  north, z up). When w is not logged it is rebuilt as ``sqrt(max(0, 1 - x² - y² - z²))`` exactly
+  as Android's ``SensorManager.getQuaternionFromVector`` does (w ≥ 0).
+* ``TYPE_WAYPOINT`` (x, y in metres) → sparse ``truth``: positions (M, 2) in the floor plan's own
+  metric frame (not geo-referenced, not north-aligned); ``truth.floor`` is the floor index from
+  ``FloorName`` (F1 → 0, F2 → 1, B1 → -1, the competition's convention; None when unparsable).
+* WiFi, iBeacon, magnetometer and uncalibrated-sensor rows are ignored.
+
+Clock: seconds relative to the earliest imported row of the trace (in practice the first
+waypoint, logged ~0.1 s before the first IMU sample); ``meta["t0_unix_ms"]`` keeps the absolute
+start so times can be put back on the Unix clock.
+
+Timestamps are handled explicitly, per row type: a sample whose timestamp repeats the previous
+one is dropped (the first is kept) and counted in ``meta["dropped_duplicates"]``; more than
+:data:`MAX_DUPLICATE_SHARE` of duplicates, or any timestamp going backwards, means the file is
+broken and raises. When gyroscope or rotation-vector rows are not on the accelerometer's
+timestamps they are interpolated onto them (linear; normalised linear for quaternions), and
+accelerometer samples they cannot cover (outside their span, or across a gap longer than
+:data:`MAX_INTERP_GAP_S`) are dropped and counted in ``meta["dropped_uncovered"]``. None of this
+happens in the shipped sample (no duplicates, identical clocks); it exists for users' copies.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
+from wearnav.importers.common import (
+    check_finite,
+    drop_duplicate_times,
+    find_file,
+    interp_onto,
+    quat_from_rotation_vector,
+    read_text,
+    strip_compression,
+)
+from wearnav.recording import DeviceStream, Recording, Trajectory
+
+SOURCE = "ilc2"
+LICENCE = "MIT (Copyright (c) 2017-2020 XYZ10, Inc.; Indoor Location Competition 2.0 sample data)"
+
+ACC, GYRO, ROTVEC, WAYPOINT = ("TYPE_ACCELEROMETER", "TYPE_GYROSCOPE", "TYPE_ROTATION_VECTOR",
+                               "TYPE_WAYPOINT")
+# Values each imported row type must carry after the timestamp and type columns.
+MIN_VALUES = {ACC: 3, GYRO: 3, ROTVEC: 3, WAYPOINT: 2}
+TRACE_SUFFIXES = (".txt", ".txt.gz", ".txt.xz")
+
+# ---- reading one trace ---------------------------------------------------------------------
+
+def _parse_header(lines: list[str]) -> dict[str, str]:
+    info: dict[str, str] = {}
+    sensors = []
+    for ln in lines:
+        fields = [f for f in ln.lstrip("#").strip().split("\t") if ":" in f]
+        pairs = dict(f.split(":", 1) for f in fields)
+        if "type" in pairs and "name" in pairs:
+            sensors.append(f"{pairs['name']} ({pairs.get('vendor', '?')})")
+        else:
+            info.update({k.strip(): v.strip() for k, v in pairs.items()})
+    if sensors:
+        info["sensors"] = "; ".join(sensors)
+    return info
+
+
+def _parse_rows(rows: list[str], what: str, path: Path) -> np.ndarray:
+    """Tab-separated rows ``ms<TAB>TYPE<TAB>v1...`` → float array (N, 1 + values)."""
+    n_values = MIN_VALUES[what]
+    try:
+        df = pd.read_csv(io.StringIO("\n".join(rows)), sep="\t", header=None)
+    except pd.errors.ParserError as exc:
+        raise FormatError(f"{what} rows: inconsistent number of fields ({exc})", path) from None
+    if df.shape[1] < 2 + n_values:
+        raise FormatError(f"{what} rows have {df.shape[1] - 2} values, expected at least {n_values}", path)
+    try:
+        arr = df.drop(columns=1).to_numpy(dtype=np.float64)
+    except (ValueError, TypeError) as exc:
+        raise FormatError(f"{what} rows: not a number ({exc})", path) from None
+    # Only the columns we use must be finite; a rotation vector's optional w and the accuracy
+    # column may be absent on some rows.
+    check_finite(arr[:, : 1 + n_values], f"{what} rows", path)
+    return arr
+
+
+def _floor_index(name: str) -> int | None:
+    """Floor name → index, competition convention: F1/1F/L1/G → 0, F2 → 1, B1 → -1."""
+    name = name.strip().upper()
+    if name in ("G", "GF"):
+        return 0
+    m = re.fullmatch(r"([FLB])(\d+)|(\d+)([FB])", name)
+    if not m:
+        return None
+    letter, num = (m.group(1), m.group(2)) if m.group(1) else (m.group(4), m.group(3))
+    n = int(num)
+    return -n if letter == "B" else n - 1
+
+
+def _map_size(trace: Path) -> list[float] | None:
+    """Floor-plan width/height (m) from ``../floor_info.json`` beside ``path_data_files``."""
+    if trace.parent.name != "path_data_files":
+        return None
+    info = trace.parent.parent / "floor_info.json"
+    try:
+        info = find_file(info)
+    except MissingFileError:
+        return None
+    try:
+        m = json.loads(read_text(info))["map_info"]
+        return [float(m["width"]), float(m["height"])]
+    except (ValueError, KeyError, TypeError) as exc:
+        raise FormatError(f"unreadable floor info ({exc.__class__.__name__}: {exc})", info) from None
+
+
+def read_trace(path: str | Path, root: Path | None = None) -> Recording:
+    """One ILC2 trace file (plain/.gz/.xz) → Recording named after the trace id.
+
+    ``root`` (the folder the import started from) only shortens ``meta["file"]``.
+    """
+    path = find_file(path)
+    try:
+        return _read_trace(path, root)
+    except WearnavError as exc:
+        raise exc.with_source(path) from None
+
+
+def _read_trace(path: Path, root: Path | None) -> Recording:
+    text = read_text(path)
+    if not text.strip():
+        raise FormatError("empty file", path)
+    header, rows = [], {ACC: [], GYRO: [], ROTVEC: [], WAYPOINT: []}
+    first_data = None
+    for ln in text.splitlines():
+        if not ln or ln.isspace():
+            continue
+        if ln[0] == "#":
+            header.append(ln)
+            continue
+        i = ln.find("\t")
+        j = ln.find("\t", i + 1)
+        bucket = rows.get(ln[i + 1: j] if j > 0 else ln[i + 1:])
+        if bucket is not None:
+            bucket.append(ln)
+        elif first_data is None:
+            first_data = ln
+    if not rows[ACC]:
+        seen = first_data or (header[0] if header else "")
+        raise FormatError(f"not an ILC2 trace: no {ACC} rows (first line: {seen[:60]!r})", path)
+
+    data = {k: _parse_rows(v, k, path) for k, v in rows.items() if v}
+    meta_dropped: dict[str, int] = {}
+    for k in list(data):
+        keep, n_dup = drop_duplicate_times(data[k][:, 0], k, path)
+        if n_dup:
+            meta_dropped[k] = n_dup
+            data[k] = data[k][keep]
+    t0_ms = min(int(a[0, 0]) for a in data.values())
+
+    def secs(a: np.ndarray) -> np.ndarray:
+        return (a[:, 0] - t0_ms) / 1000.0
+
+    acc = data[ACC]
+    t = secs(acc)
+    keep = np.ones(t.shape, bool)
+    gyro = quat = None
+    if GYRO in data:
+        gyro, ok = interp_onto(t, secs(data[GYRO]), data[GYRO][:, 1:4])
+        keep &= ok
+    if ROTVEC in data:
+        rv = data[ROTVEC]
+        # Column 4 is Android's optional w only when a row has two columns after z
+        # (x, y, z, w, accuracy); with one it is the accuracy.
+        has_w = rv.shape[1] >= 6 and bool(np.all(np.isfinite(rv[:, 4])))
+        q = quat_from_rotation_vector(rv[:, 1:5] if has_w else rv[:, 1:4], path, ROTVEC)
+        quat, ok = interp_onto(t, secs(rv), q, quaternion=True)
+        keep &= ok
+    n_uncovered = int((~keep).sum())
+    if n_uncovered:
+        if n_uncovered == t.size:
+            raise ValidationError("gyroscope / rotation vector do not overlap the accelerometer", path)
+        t, acc = t[keep], acc[keep]
+        gyro = None if gyro is None else gyro[keep]
+        quat = None if quat is None else quat[keep]
+    if t.size < 2:
+        raise FormatError(f"only {t.size} {ACC} sample(s)", path)
+
+    info = _parse_header(header)
+    # <site>/<floor>/path_data_files/<trace>: folder names stand in for missing header fields.
+    parts = path.resolve().parts
+    in_layout = len(parts) >= 4 and parts[-2] == "path_data_files"
+    floor_name = info.get("FloorName", parts[-3] if in_layout else "")
+    floor = _floor_index(floor_name) if floor_name else None
+    truth = None
+    if WAYPOINT in data:
+        wp = data[WAYPOINT]
+        truth = Trajectory(secs(wp), wp[:, 1:3],
+                           floor=None if floor is None else np.full(len(wp), float(floor)))
+
+    stream = DeviceStream(t=t, acc=acc[:, 1:4], gyro=gyro, quat=quat)
+    name = strip_compression(path)
+    name = name[: -len(".txt")] if name.endswith(".txt") else name
+    meta = {
+        "source": SOURCE,
+        "licence": LICENCE,
+        "mode": "walk",
+        "placement": "handheld",
+        "scene": "indoor",
+        "trace": name,
+        "site_id": info.get("SiteID", ""),
+        "site_name": info.get("SiteName", ""),
+        "site": parts[-4] if in_layout else "",
+        "floor_id": info.get("FloorId", ""),
+        "floor_name": floor_name,
+        "floor_index": floor,
+        "device": " ".join(x for x in (info.get("Brand", ""), info.get("Model", "")) if x),
+        "android": info.get("AndroidName", ""),
+        "app_version": info.get("VersionName", ""),
+        "sensors": info.get("sensors", ""),
+        "t0_unix_ms": t0_ms,
+        "start_time_unix_ms": int(info["startTime"]) if info.get("startTime", "").isdigit() else None,
+        "end_time_unix_ms": int(info["endTime"]) if info.get("endTime", "").isdigit() else None,
+        "truth_frame": "ILC2 floor-plan frame, metres (not geo-referenced)",
+        "quat_frame": "Android rotation vector: world = east, magnetic north, up",
+        "dropped_duplicates": meta_dropped,
+        "dropped_uncovered": n_uncovered,
+        "file": str(path.relative_to(root)) if root is not None and path.is_relative_to(root) else path.name,
+    }
+    size = _map_size(path)
+    if size is not None:
+        meta["map_size_m"] = size
+    return Recording(name=name, devices={"phone": stream}, truth=truth, meta=meta)
+
+
+# ---- finding traces ------------------------------------------------------------------------
+
+def find_traces(src: Path) -> list[Path]:
+    """Trace files under ``src``, sorted; prefer those in ``path_data_files`` folders.
+
+    A trace present both plain and compressed is taken once (the plain copy).
+    """
+    found: dict[Path, Path] = {}
+    for p in sorted(src.rglob("*")):
+        if p.is_file() and p.name.endswith(TRACE_SUFFIXES):
+            key = p.with_name(strip_compression(p))
+            if key not in found or p == key:
+                found[key] = p
+    files = sorted(found.values())
+    in_pdf = [p for p in files if p.parent.name == "path_data_files"]
+    return in_pdf or files
+
+
+def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
+    """ILC2 traces from a dataset folder (any level of site/floor/path_data_files) or one file."""
+    src = Path(src)
+    if src.is_file():
+        yield read_trace(src)
+        return
+    if not src.exists():
+        try:
+            path = find_file(src)  # a trace named without its .gz/.xz suffix
+        except MissingFileError:
+            raise MissingFileError("no such file or folder", src) from None
+        yield read_trace(path)
+        return
+    files = find_traces(src)
+    if not files:
+        raise FormatError("no ILC2 traces found (expected <site>/<floor>/path_data_files/*.txt[.gz])", src)
+    for n, path in enumerate(files):
+        if limit is not None and n >= limit:
+            return
+        yield read_trace(path, root=src)
