@@ -1,0 +1,169 @@
+"""Oxford Step Counter data set, ``validation`` part: phone accelerometer with step ground truth
+and the carrying position, two users × six placements.
+
+Original layout (``.gz`` / ``.xz`` copies read transparently)::
+
+    <root>/validation/user<N>_<placement>_<unix ms>.csv
+        timestamp (ns since boot), accx, accy, accz (m/s²), steps_algo, steps_groundtruth, steps_hw
+
+no header; the last three columns are running step counts (the app's algorithm, the
+ground-truth device, the phone's hardware step counter — all zero where the phone has none).
+``src`` may be ``<root>``, ``validation`` or one file. One Recording per file, named
+``oxford_<user>_<placement>_<unix ms>``, with one device ``phone``: accelerometer only
+(``gyro=None``), acc in m/s² as logged (Android sign: +9.8 up at rest; median |acc| 9.8–10.7).
+
+* Time: ``t`` = seconds since the first kept sample, from the logged nanosecond timestamps (the
+  phone's sensor-event clock, ns since boot; ``meta["t0_boot_ns"]``); ``meta["start_unix_ms"]``
+  is the file name's UNIX start time. The rate is whatever the timestamps say (≈100–108 Hz
+  median in this part, with per-sample jitter; ``meta["rate_hz"]``).
+* Two logging artefacts of the real files are repaired and counted in ``meta``: rows that
+  repeat the previous row exactly (same timestamp and values; 3 rows in 2 files, each followed
+  by a ~0.2 s gap) are dropped (``dropped_duplicate_rows``), and leading rows with acc exactly
+  (0, 0, 0) — the logger's placeholder before the first sensor event — are dropped
+  (``dropped_zero_rows``). A repeated timestamp with *different* values is refused.
+* Steps: each increment of ``steps_groundtruth`` is one ``step`` label row with zero length,
+  ``start = end =`` the time of the row where the count went up, value ``"step"`` (the count
+  rises by exactly one per event in the real files; a rise by k gives k rows at that time, so
+  the number of ``step`` rows always equals the count's total rise). The app's own detections
+  are ``step_algo`` rows in the same form, kept as a baseline, not as truth. Zero-length rows
+  keep events in the one labels table every recording has, exactly timed and countable; they
+  mark no samples in ``Recording.label_at`` (which is for intervals). The hardware counter
+  reports in batches, so only its first/last reading goes to ``meta["hw_step_counter"]``.
+* Placement: ``meta["placement"]`` and a ``placement`` label row over the whole file, with the
+  file name's word (hand, frontpocket, backpocket, neckpouch, bag, armband).
+
+The ``optimisation`` part of the upstream repository (``accelerometer.csv`` + ``stepcounter.csv``
+per folder) is not read: its ``stepcounter.csv`` is a ~10 Hz two-channel on/off signal rather
+than a list of step events, and no copy of it is at hand to check an interpretation against.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.importers.common import check_finite, read_csv
+from wearnav.recording import DeviceStream, Recording
+
+VALIDATION_DIR = "validation"
+FILE_RE = re.compile(r"^(user\d+)_([A-Za-z]+)_(\d{10,})\.csv(\.gz|\.xz)?$")
+FIELDS = ["timestamp_ns", "accx", "accy", "accz", "steps_algo", "steps_groundtruth", "steps_hw"]
+
+META = {
+    "source": "Oxford Step Counter DataSet (Oxford-step-counter/DataSet), validation traces",
+    "licence": "CC BY 4.0",
+    "url": "https://github.com/Oxford-step-counter/DataSet",
+    "device": "Android phone (validation README: Samsung S6), Step-Counter-Android-Implementation app",
+}
+
+
+def _files(src: Path) -> list[Path]:
+    if src.is_file():
+        if not FILE_RE.match(src.name):
+            raise FormatError(
+                "not an Oxford step-counter file (expected user<N>_<placement>_<unix ms>.csv)", src)
+        return [src]
+    for cand in (src / VALIDATION_DIR, src):
+        if cand.is_dir():
+            found: dict[str, Path] = {}
+            for f in cand.iterdir():
+                m = FILE_RE.match(f.name)
+                if m and f.is_file():
+                    key = f.name[: m.start(4)] if m.group(4) else f.name
+                    if key not in found or m.group(4) is None:
+                        found[key] = f
+            if found:
+                return [found[k] for k in sorted(found)]
+    raise FormatError(
+        f"no Oxford step-counter files ({VALIDATION_DIR}/user<N>_<placement>_<unix ms>.csv) found", src)
+
+
+def _events(t: np.ndarray, count: np.ndarray, what: str, path: Path) -> np.ndarray:
+    """Times of the rises of a running count (a rise by k gives k events)."""
+    rise = np.diff(count)
+    if np.any(rise < 0):
+        i = int(np.argmax(rise < 0)) + 1
+        raise FormatError(f"{what} count goes down at row {i} ({count[i - 1]} → {count[i]})", path)
+    idx = np.flatnonzero(rise) + 1
+    return np.repeat(t[idx], rise[idx - 1])
+
+
+def read_file(path: Path) -> Recording:
+    """One validation trace as a Recording."""
+    user, placement, start_ms = FILE_RE.match(path.name).groups()[:3]
+    df = read_csv(path, header=None)
+    if df.shape[1] != len(FIELDS):
+        raise FormatError(f"expected {len(FIELDS)} columns ({', '.join(FIELDS)}), found {df.shape[1]}", path)
+    df.columns = FIELDS
+    ts = pd.to_numeric(df["timestamp_ns"], errors="coerce").to_numpy(np.float64)
+    check_finite(ts, "timestamp", path)
+    ts_ns = df["timestamp_ns"].astype(np.int64).to_numpy()  # exact: float64 would round ns
+    acc = df[["accx", "accy", "accz"]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
+    check_finite(acc, "acc", path)
+    counts = df[FIELDS[4:]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
+    check_finite(counts, "step counts", path)
+    counts = counts.astype(np.int64)
+
+    # Logging artefacts: exact repeats of the previous row, and the all-zero placeholder rows
+    # written before the accelerometer's first event.
+    repeat = np.r_[False, (ts_ns[1:] == ts_ns[:-1]) & np.all(acc[1:] == acc[:-1], axis=1)
+                   & np.all(counts[1:] == counts[:-1], axis=1)]
+    zero = np.all(acc == 0.0, axis=1)
+    leading_zero = np.cumprod(zero).astype(bool)
+    keep = ~(repeat | leading_zero)
+    if not keep.any():
+        raise FormatError("no samples left after dropping all-zero placeholder rows", path)
+    ts_ns, acc, counts = ts_ns[keep], acc[keep], counts[keep]
+    dt = np.diff(ts_ns)
+    if np.any(dt <= 0):
+        i = int(np.argmax(dt <= 0)) + 1
+        what = "repeated timestamp with different values" if dt[i - 1] == 0 else "timestamps go backwards"
+        raise FormatError(f"{what} at row {int(np.flatnonzero(keep)[i])}", path)
+    t = (ts_ns - ts_ns[0]) / 1e9
+    steps = _events(t, counts[:, 1], "steps_groundtruth", path)
+    algo = _events(t, counts[:, 0], "steps_algo", path)
+    hw = counts[:, 2]
+    hw_nonzero = hw[hw > 0]
+    end = float(t[-1] + np.median(np.diff(t))) if t.size > 1 else float(t[-1])
+    labels = [(0.0, end, "placement", placement)]
+    labels += [(float(s), float(s), "step", "step") for s in steps]
+    labels += [(float(s), float(s), "step_algo", "step") for s in algo]
+    try:
+        stream = DeviceStream(t=t, acc=acc, gyro=None)
+        meta = {
+            **META,
+            "subject": user,
+            "placement": placement,
+            "start_unix_ms": int(start_ms),
+            "t0_boot_ns": int(ts_ns[0]),
+            "rate_hz": round(stream.rate, 3),
+            "steps_groundtruth": int(steps.size),
+            "steps_algo": int(algo.size),
+            "hw_step_counter": ([int(hw_nonzero[0]), int(hw_nonzero[-1])] if hw_nonzero.size else None),
+            "dropped_duplicate_rows": int(repeat.sum()),
+            "dropped_zero_rows": int((leading_zero & ~repeat).sum()),
+            "file": path.name,
+        }
+        return Recording(name=f"oxford_{user}_{placement}_{start_ms}", devices={"phone": stream},
+                         labels=labels, meta=meta)
+    except ValidationError as exc:
+        raise exc.with_source(path) from None
+
+
+def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
+    """Yield Oxford step-counter recordings (at most ``limit``) from a folder or one file."""
+    src = Path(src)
+    if not src.exists():
+        raise MissingFileError("no such file or folder", src)
+    files = _files(src)
+    if limit is not None and limit <= 0:
+        return
+    for count, path in enumerate(files, 1):
+        yield read_file(path)
+        if limit is not None and count >= limit:
+            return
