@@ -60,3 +60,22 @@ def test_duplicate_names_rejected(tmp_path):
     w.add(_rec("a", "u1", "STW"))
     with pytest.raises(ValidationError, match="duplicate"):
         w.add(_rec("a", "u1", "STW"))
+
+
+def test_failed_write_leaves_nothing_behind(tmp_path):
+    with pytest.raises(RuntimeError):
+        with DatasetWriter(tmp_path / "d") as w:
+            w.add(_rec("a", "u1", "STW"))
+            raise RuntimeError("importer broke halfway")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_rewrite_replaces_a_dataset_but_never_a_foreign_folder(tmp_path, ds):
+    with DatasetWriter(ds.root) as w:
+        w.add(_rec("z", "u3", "DLW"))
+    assert Dataset.open(ds.root).names == ["z"]
+    assert not list(ds.root.glob("a.h5"))
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("precious")
+    with pytest.raises(ValidationError, match="not a wearnav dataset"):
+        DatasetWriter(tmp_path / "mine")

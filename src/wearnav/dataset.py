@@ -12,6 +12,7 @@ source, split, truth_points, fixes`` plus any extra metadata keys the writer was
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -58,7 +59,11 @@ def _write_csv_atomic(df: pd.DataFrame, path: Path) -> None:
 
 
 class DatasetWriter:
-    """Adds recordings to a dataset folder; the manifest is written (atomically) on close.
+    """Writes recordings into a new dataset folder, all or nothing.
+
+    Recordings go to a hidden sibling folder; :meth:`close` writes the manifest and renames that
+    folder to ``root`` (replacing an earlier dataset there). An exception inside the ``with``
+    block removes the partial folder, so a failed import or simulation leaves nothing behind.
 
     >>> with DatasetWriter("out") as w:
     ...     w.add(rec, split="train")
@@ -66,25 +71,35 @@ class DatasetWriter:
 
     def __init__(self, root: str | Path):
         self.root = Path(root)
-        self.root.mkdir(parents=True, exist_ok=True)
+        if self.root.exists() and not (
+            self.root.is_dir() and ((self.root / MANIFEST).exists() or not any(self.root.iterdir()))
+        ):
+            raise ValidationError("exists and is not a wearnav dataset folder; not overwriting it", self.root)
+        self.root.parent.mkdir(parents=True, exist_ok=True)
+        self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.root.name}.", suffix=".partial", dir=self.root.parent))
         self.rows: list[dict] = []
 
-    def add(self, rec: Recording, split: str = "") -> Path:
+    def add(self, rec: Recording, split: str = "") -> None:
         if any(r["name"] == rec.name for r in self.rows):
             raise ValidationError(f"duplicate recording name {rec.name!r}", self.root)
         file = f"{rec.name}.h5"
-        path = rec.save(self.root / file)
+        rec.save(self.tmp / file)
         self.rows.append(manifest_row(rec, file, split))
-        return path
 
     def close(self) -> Path:
+        """Write the manifest and move the finished dataset into place; returns ``root``."""
         df = pd.DataFrame(self.rows)
         for col in MANIFEST_COLUMNS:
             if col not in df.columns:
                 df[col] = pd.Series(dtype=object)
-        path = self.root / MANIFEST
-        _write_csv_atomic(df[MANIFEST_COLUMNS], path)
-        return path
+        _write_csv_atomic(df[MANIFEST_COLUMNS], self.tmp / MANIFEST)
+        if self.root.exists():
+            shutil.rmtree(self.root)
+        os.replace(self.tmp, self.root)
+        return self.root
+
+    def abort(self) -> None:
+        shutil.rmtree(self.tmp, ignore_errors=True)
 
     def __enter__(self) -> "DatasetWriter":
         return self
@@ -92,6 +107,8 @@ class DatasetWriter:
     def __exit__(self, exc_type, exc, tb) -> None:
         if exc_type is None:
             self.close()
+        else:
+            self.abort()
 
 
 class Dataset:

@@ -2,8 +2,8 @@
 
 Every importer module defines ``read(src: Path, limit: int | None = None) -> Iterator[Recording]``
 yielding recordings (at most ``limit``) from a folder, file or archive in the dataset's original
-layout, and ``SPLIT`` is not guessed here: importers leave ``split`` empty unless the dataset
-defines one. Problems raise :mod:`wearnav.errors` exceptions naming the file.
+layout; ``meta["split"]`` is set only where the dataset itself defines one (IPIN's
+training/validation/testing trials). Problems raise :mod:`wearnav.errors` exceptions naming the file.
 """
 
 from __future__ import annotations
@@ -42,8 +42,14 @@ def import_dataset(fmt: str, src: str | Path, out: str | Path, limit: int | None
     if not src.exists():
         raise MissingFileError("no such file or folder", src)
     module = get_importer(fmt)
-    with DatasetWriter(out) as writer:
-        for rec in tqdm(module.read(src, limit=limit), desc=f"import {fmt}", unit="rec",
-                        disable=not progress):
-            writer.add(rec, split=rec.meta.get("split", ""))
+    bar = tqdm(module.read(src, limit=limit), desc=f"import {fmt}", unit="rec", disable=not progress)
+    try:
+        with DatasetWriter(out) as writer:
+            for rec in bar:
+                writer.add(rec, split=rec.meta.get("split", ""))
+    except BaseException:
+        bar.leave = False  # clear the bar so the error stays the only line
+        raise
+    finally:
+        bar.close()
     return Dataset.open(out)
