@@ -73,7 +73,8 @@ TRIAL_RE = re.compile(r"^(dws|ups|wlk|jog|sit|std)_(\d+)$")
 FILE_RE = re.compile(r"^sub_(\d+)\.csv(\.gz|\.xz)?$")
 
 META = {
-    "source": "MotionSense (Malekzadeh, Clegg, Cavallaro, Haddadi), A_DeviceMotion_data",
+    "source": "motionsense",
+    "dataset": "MotionSense (Malekzadeh, Clegg, Cavallaro, Haddadi), A_DeviceMotion_data",
     "licence": "MIT (official repository, (c) 2018 Mohammad Malekzadeh); no separate data "
                "licence stated (the Kaggle mirror lists ODbL)",
     "url": "https://github.com/mmalekzadeh/motion-sense",

@@ -55,7 +55,8 @@ FILE_RE = re.compile(r"^(user\d+)_([A-Za-z]+)_(\d{10,})\.csv(\.gz|\.xz)?$")
 FIELDS = ["timestamp_ns", "accx", "accy", "accz", "steps_algo", "steps_groundtruth", "steps_hw"]
 
 META = {
-    "source": "Oxford Step Counter DataSet (Oxford-step-counter/DataSet), validation traces",
+    "source": "oxford-steps",
+    "dataset": "Oxford Step Counter DataSet (Oxford-step-counter/DataSet), validation traces",
     "licence": "CC BY 4.0",
     "url": "https://github.com/Oxford-step-counter/DataSet",
     "device": "Android phone (validation README: Samsung S6), Step-Counter-Android-Implementation app",

@@ -45,7 +45,8 @@ ACC_RE = re.compile(r"^acc_exp(\d+)_user(\d+)\.txt(\.gz|\.xz)?$")
 LABEL_FIELDS = ["exp", "user", "activity", "start", "end"]
 
 META = {
-    "source": "UCI HAPT: Smartphone-Based Recognition of Human Activities and Postural "
+    "source": "uci-hapt",
+    "dataset": "UCI HAPT: Smartphone-Based Recognition of Human Activities and Postural "
               "Transitions v2.1 (Reyes-Ortiz, Oneto, Samà, Parra, Anguita), RawData",
     "licence": "CC BY 4.0 (UCI Machine Learning Repository)",
     "url": "https://archive.ics.uci.edu/dataset/341",

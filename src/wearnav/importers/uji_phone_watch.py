@@ -66,7 +66,8 @@ EXECUTION_COLUMNS = ["execution_id", "orientation", "first_turn", "second_turn"]
 MAX_CLOCK_RESIDUAL_S = 0.5
 
 META = {
-    "source": "Smartphone and smartwatch inertial measurements from heterogeneous subjects for "
+    "source": "uji-phone-watch",
+    "dataset": "Smartphone and smartwatch inertial measurements from heterogeneous subjects for "
               "human activity recognition (Matey-Sanz, Casteleyn, Granell), Universitat Jaume I",
     "licence": "CC BY 4.0",
     "url": "https://doi.org/10.5281/zenodo.8398688",
