@@ -47,17 +47,6 @@ def manifest_row(rec: Recording, file: str, split: str = "") -> dict:
     return row
 
 
-def _write_csv_atomic(df: pd.DataFrame, path: Path) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        df.to_csv(tmp, index=False)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 class DatasetWriter:
     """Writes recordings into a new dataset folder, all or nothing.
 
@@ -92,7 +81,7 @@ class DatasetWriter:
         for col in MANIFEST_COLUMNS:
             if col not in df.columns:
                 df[col] = pd.Series(dtype=object)
-        _write_csv_atomic(df[MANIFEST_COLUMNS], self.tmp / MANIFEST)
+        df[MANIFEST_COLUMNS].to_csv(self.tmp / MANIFEST, index=False)
         if self.root.exists():
             shutil.rmtree(self.root)
         os.replace(self.tmp, self.root)

@@ -15,8 +15,6 @@ file re-validates and names the file in any error.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.fileio import atomic_path
 
 FORMAT_NAME = "wearnav.recording"
 FORMAT_VERSION = 1
@@ -268,16 +267,8 @@ class Recording:
     def save(self, path: str | Path) -> Path:
         """Write to one HDF5 file atomically (temporary file in the same folder, then rename)."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
-        try:
-            with h5py.File(tmp, "w") as f:
-                self._write(f)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+            self._write(f)
         return path
 
     def _write(self, f: h5py.File) -> None:
