@@ -1,0 +1,221 @@
+"""Figures and the datasets page. PNGs are read back and checked for size and content."""
+
+from __future__ import annotations
+
+import os
+import stat
+
+import matplotlib.colors as mcolors
+from matplotlib import colormaps
+import matplotlib.image as mpimg
+import numpy as np
+import pytest
+
+from sensorlogger_fixture import write_export
+from synthetic import synthetic_recording
+from wearnav.dataset import Dataset, write_dataset
+from wearnav.errors import ValidationError, WearnavError
+from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
+from wearnav.report import (
+    ACC_COLOR,
+    FIX_COLOR,
+    GYRO_COLOR,
+    dataset_stats,
+    decimate_minmax,
+    plot_recording,
+    plot_trajectories,
+    stats_markdown,
+    write_datasets_report,
+)
+
+
+def _png(path):
+    assert path.exists() and path.stat().st_size > 10_000
+    img = mpimg.imread(path)
+    assert img.ndim == 3 and img.shape[2] in (3, 4)
+    return img[..., :3]
+
+
+def _pixels(img, color, min_alpha=0.5) -> int:
+    """How many pixels show ``color`` drawn over white with opacity >= min_alpha.
+
+    Antialiased lines are mostly blends p = a*c + (1-a)*white: estimate a from the channel that
+    tells the colour from white best, and count pixels that this blend reproduces."""
+    c = np.array(mcolors.to_rgb(color))
+    k = int(np.argmax(1 - c))
+    a = (1 - img[..., k]) / (1 - c[k])
+    blend = a[..., None] * c + (1 - a[..., None])
+    return int(np.sum((np.abs(img - blend).max(axis=-1) < 0.04) & (a >= min_alpha)))
+
+
+@pytest.fixture(scope="module")
+def full() -> Recording:
+    return synthetic_recording(duration=40.0, seed=1)
+
+
+def _bare(full: Recording) -> Recording:
+    s = full.devices["phone"]
+    return Recording("bare", {"phone": DeviceStream(s.t, s.acc)})
+
+
+def test_plot_recording_with_everything(full, tmp_path):
+    out = plot_recording(full, tmp_path / "fig" / "full.png")
+    img = _png(out)
+    h, w, _ = img.shape
+    assert w == 1760 and 900 < h < 1300  # 16 in at 110 dpi; three devices and label lanes
+    assert _pixels(img, ACC_COLOR) > 10_000       # three |acc| lines
+    assert _pixels(img, GYRO_COLOR) > 10_000      # three |gyro| lines
+    assert _pixels(img, FIX_COLOR) > 100          # fixes and their accuracy circles
+    assert _pixels(img, "tab:green") > 30         # start marker
+    # label lanes: one colour per value (4 values in 2 kinds), none of them a signal colour
+    dark2 = colormaps["Dark2"].colors
+    assert all(_pixels(img, c) > 500 for c in dark2[:4])
+    assert not any(p.name.startswith(".") for p in out.parent.iterdir())  # no temporary left
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~umask  # not mkstemp's 0600
+
+
+def test_plot_recording_without_truth_fixes_labels_gyro(full, tmp_path):
+    big = _png(plot_recording(full, tmp_path / "full.png"))
+    img = _png(plot_recording(_bare(full), tmp_path / "bare.png"))
+    assert img.shape[1] == 1760 and img.shape[0] < 0.6 * big.shape[0]
+    assert _pixels(img, ACC_COLOR) > 10_000
+    assert _pixels(img, FIX_COLOR) == 0
+    # no gyro line, only the "no gyroscope" note in that colour
+    assert 0 < _pixels(img, GYRO_COLOR) < 0.1 * _pixels(big, GYRO_COLOR)
+
+
+def test_not_worn_spans_are_shaded(full, tmp_path):
+    e = full.devices["earbuds"]
+    assert not e.worn.all()
+    always_worn = Recording("w", {**full.devices, "earbuds": DeviceStream(e.t, e.acc, e.gyro, e.quat)})
+    counts = []
+    for rec in (Recording("nw", dict(full.devices)), always_worn):
+        img = _png(plot_recording(rec, tmp_path / f"{rec.name}.png"))
+        grey = (np.ptp(img, axis=-1) < 0.02) & (img.mean(-1) > 0.75) & (img.mean(-1) < 0.9)
+        counts.append(int(grey.sum()))
+    assert counts[0] > 1.4 * counts[1]
+
+
+@pytest.mark.parametrize("what", ["truth_only", "fixes_only", "sparse_waypoints"])
+def test_plot_recording_partial(full, tmp_path, what):
+    t = np.arange(0.0, 40.0, 10.0)
+    rec = Recording(
+        what, dict(full.devices),
+        truth={"truth_only": full.truth, "fixes_only": None,
+               "sparse_waypoints": Trajectory(t, np.stack([t, t ** 1.2], 1), floor=[0, 0, 1, 1])}[what],
+        fixes=full.fixes if what == "fixes_only" else None,
+        meta={"subject": "u1"},
+    )
+    img = _png(plot_recording(rec, tmp_path / f"{what}.png"))
+    assert (_pixels(img, FIX_COLOR) > 100) == (what == "fixes_only")
+
+
+def test_decimation_keeps_extremes_and_breaks_gaps():
+    t = np.arange(0, 1000, 0.01)
+    t = t[(t < 400) | (t > 500)]
+    y = np.sin(t)
+    y[12345] = 50.0
+    tt, yy = decimate_minmax(t, y, max_points=2000)
+    assert len(tt) <= 2100
+    assert np.nanmax(yy) == 50.0 and np.nanmin(yy) == pytest.approx(-1.0, abs=1e-3)
+    # exactly one NaN break, inside the gap
+    nan = np.flatnonzero(np.isnan(tt))
+    assert len(nan) == 1 and tt[nan[0] - 1] < 400 and tt[nan[0] + 1] > 500
+    short_t, short_y = decimate_minmax(t[:100], y[:100])
+    np.testing.assert_array_equal(short_y, y[:100])
+
+
+def _dataset(tmp_path, n):
+    recs = [(synthetic_recording(name=f"r{i}", seed=i, duration=20.0 + 5 * i, devices=("phone",)), "")
+            for i in range(n)]
+    recs.append((Recording("no_truth", {"phone": recs[0][0].devices["phone"]}), ""))
+    return write_dataset(tmp_path / "ds", recs)
+
+
+def test_plot_trajectories_grid(tmp_path):
+    ds = _dataset(tmp_path, 6)
+    img = _png(plot_trajectories(ds, tmp_path / "grid.png"))            # 7 maps: 4 x 2
+    few = _png(plot_trajectories(ds, tmp_path / "few.png", max_recordings=3))  # 3 x 1
+    assert img.shape[1] > few.shape[1] and img.shape[0] > 1.7 * few.shape[0]
+    assert _pixels(img, "tab:green") > 6 * _pixels(few, "tab:green") / 3 * 0.8
+    empty = write_dataset(tmp_path / "empty", [])
+    with pytest.raises(ValidationError, match="empty"):
+        plot_trajectories(empty, tmp_path / "none.png")
+
+
+# ---- dataset statistics ---------------------------------------------------------------------
+
+def _stream(t, quat=False, gyro=True):
+    n = len(t)
+    return DeviceStream(t=t, acc=np.tile([0.0, 0.0, 9.81], (n, 1)),
+                        gyro=np.zeros((n, 3)) if gyro else None,
+                        quat=np.tile([1.0, 0, 0, 0], (n, 1)) if quat else None)
+
+
+@pytest.fixture
+def stats_ds(tmp_path):
+    """Hand-made: phone exactly 100 Hz; watch intervals alternating 19 / 21 ms (IQR 2 ms);
+    fixes = truth + (3, 4) m (error 5 m) except at one truth time with no fix within 2 s."""
+    recs = []
+    for i in range(2):
+        t_phone = np.arange(1000) * 0.01
+        t_watch = np.cumsum(np.tile([0.019, 0.021], 250))
+        t_truth = np.array([1.0, 2.0, 3.0, 9.0])
+        p_truth = np.stack([t_truth, 2 * t_truth], 1)
+        t_fix = np.arange(0.0, 5.0, 0.5)
+        fixes = Fixes(t_fix, np.stack([t_fix, 2 * t_fix], 1) + [3.0, 4.0], np.full(len(t_fix), 5.0))
+        recs.append((Recording(
+            f"rec{i}", {"phone": _stream(t_phone, quat=(i == 0)), "watch": _stream(t_watch, gyro=False)},
+            truth=Trajectory(t_truth, p_truth), fixes=fixes,
+            labels=[(0, 4, "activity", "walk"), (4, 9, "activity", "sit"), (2, 2, "step", "step")],
+            meta={"subject": "u7"}), ""))
+    return write_dataset(tmp_path / "stats", recs)
+
+
+def test_dataset_stats(stats_ds):
+    s = dataset_stats(stats_ds)
+    assert s["recordings"] == 2 and s["subjects"] == 1
+    assert s["duration_s"] == pytest.approx(2 * 10.0)  # phone from 0 s, watch to 10 s
+    ph, wa = s["devices"]["phone"], s["devices"]["watch"]
+    assert ph["samples"] == 2000 and ph["rate_hz"] == pytest.approx(100.0, rel=1e-4)
+    assert ph["jitter_iqr_ms"] == pytest.approx(0.0, abs=1e-3)
+    assert ph["orientation_share"] == pytest.approx(0.5) and ph["gyro_share"] == 1.0
+    assert wa["rate_hz"] == pytest.approx(50.0, rel=0.06)
+    assert wa["jitter_iqr_ms"] == pytest.approx(2.0, abs=0.01)
+    assert wa["gyro_share"] == 0.0 and wa["orientation_share"] == 0.0
+    assert s["labels"][("activity", "walk")] == {"intervals": 2, "duration_s": 8.0}
+    assert s["labels"][("step", "step")]["intervals"] == 2
+    assert s["truth_points"] == 8 and s["fixes"] == 20
+    fe = s["fix_error_m"]
+    assert fe["points"] == 6 and fe["recordings"] == 2  # t=9 has no fix within 2 s
+    assert fe["median"] == pytest.approx(5.0) and fe["p75"] == pytest.approx(5.0)
+    md = stats_markdown(s)
+    assert "| 2 | 1 | 20.0 s | 8 in 2 recordings | 20 |" in md
+    assert "| phone | 2 | 2,000 | 100.00 Hz |" in md
+    assert "median **5.00 m**, 75th percentile **5.00 m** over 6 points in 2 recordings" in md
+
+
+def test_write_datasets_report(tmp_path, monkeypatch):
+    data = tmp_path / "data"
+    write_export(synthetic_recording(duration=30.0, seed=2), data / "sl_exports" / "2023-11-14_22-13-20")
+    out, work = tmp_path / "docs" / "datasets.md", tmp_path / "work"
+    datasets = {"sl_exports": "sensorlogger", "not_here": "ilc2"}
+    with pytest.raises(WearnavError, match="1 dataset.*not_here: not found"):
+        write_datasets_report(data, out, work, progress=False, datasets=datasets)
+    text = out.read_text()
+    assert text.startswith("_Generated by `wearnav datasets-report --data ")
+    assert "## sl_exports (`sensorlogger`)" in text and "| earbuds | 1 | 750 | 25.00 Hz |" in text
+    assert "Not found" in text and "jitter = interquartile range" in text
+    assert "![sensorlogger: recording 2023-11-14_22-13-20](img/sensorlogger.png)" in text
+    _png(tmp_path / "docs" / "img" / "sensorlogger.png")
+    assert Dataset.open(work / "sensorlogger").names == ["2023-11-14_22-13-20"]
+
+    # a second run reuses the imported dataset instead of importing again
+    def no_import(*a, **k):
+        raise AssertionError("imported again")
+
+    monkeypatch.setattr("wearnav.importers.import_dataset", no_import)
+    write_datasets_report(data, out, work, progress=False, datasets={"sl_exports": "sensorlogger"})
+    assert "## sl_exports" in out.read_text() and "not_here" not in out.read_text()
