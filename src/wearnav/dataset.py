@@ -5,8 +5,9 @@ Write with :class:`DatasetWriter` (the simulator and every importer do), read wi
 :meth:`Dataset.split` return narrower views of the same folder.
 
 The manifest columns are ``name, file, duration, devices, mode, subject, placement, scene,
-source, split, truth_points, fixes`` plus any extra metadata keys the writer was given;
-``devices`` is a ``;``-joined list of device names.
+source, split, noise_level, truth_points, fixes``, taken from each recording's meta;
+``devices`` is a ``;``-joined list of device names and ``noise_level`` the location-fix noise
+level of simulated data (EasyTrack's L1/L2/L3).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from wearnav.recording import Recording
 MANIFEST = "manifest.csv"
 MANIFEST_COLUMNS = [
     "name", "file", "duration", "devices", "mode", "subject", "placement", "scene", "source",
-    "split", "truth_points", "fixes",
+    "split", "noise_level", "truth_points", "fixes",
 ]
 
 
@@ -41,6 +42,7 @@ def manifest_row(rec: Recording, file: str, split: str = "") -> dict:
         "scene": rec.meta.get("scene", ""),
         "source": rec.meta.get("source", ""),
         "split": split or rec.meta.get("split", ""),
+        "noise_level": rec.meta.get("noise_level", ""),
         "truth_points": 0 if rec.truth is None else len(rec.truth),
         "fixes": 0 if rec.fixes is None else len(rec.fixes),
     }
@@ -116,8 +118,8 @@ class Dataset:
         if not path.exists():
             raise FormatError(f"not a wearnav dataset (no {MANIFEST})", root)
         try:
-            df = pd.read_csv(path, dtype={"subject": str, "split": str, "mode": str,
-                                          "placement": str, "scene": str, "source": str})
+            df = pd.read_csv(path, dtype={c: str for c in ("subject", "split", "mode", "placement",
+                                                          "scene", "source", "noise_level")})
         except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
             raise FormatError(f"unreadable manifest ({exc})", path) from None
         missing = [c for c in ("name", "file", "duration", "devices") if c not in df.columns]
@@ -126,7 +128,7 @@ class Dataset:
         for col in MANIFEST_COLUMNS:
             if col not in df.columns:
                 df[col] = ""
-        str_cols = ["devices", "mode", "subject", "placement", "scene", "source", "split"]
+        str_cols = ["devices", "mode", "subject", "placement", "scene", "source", "split", "noise_level"]
         df[str_cols] = df[str_cols].fillna("").astype(str)
         return cls(root, df)
 
@@ -141,16 +143,18 @@ class Dataset:
     def _view(self, mask) -> "Dataset":
         return Dataset(self.root, self.manifest[mask])
 
-    def filter(self, mode=None, subject=None, placement=None, devices=None, source=None) -> "Dataset":
+    def filter(self, mode=None, subject=None, placement=None, devices=None, source=None,
+               noise_level=None) -> "Dataset":
         """Keep recordings matching every given criterion.
 
-        Each of ``mode``, ``subject``, ``placement``, ``source`` is a value or a list of values;
+        Each of ``mode``, ``subject``, ``placement``, ``source``, ``noise_level`` is a value or a
+        list of values;
         ``devices`` is a list of device names that must all be present.
         """
         m = self.manifest
         mask = pd.Series(True, index=m.index)
         for col, want in (("mode", mode), ("subject", subject), ("placement", placement),
-                          ("source", source)):
+                          ("source", source), ("noise_level", noise_level)):
             if want is not None:
                 want = [want] if isinstance(want, str | int) else list(want)
                 mask &= m[col].isin([str(w) for w in want])

@@ -110,7 +110,8 @@ class DeviceStream:
             norm = np.linalg.norm(self.quat, axis=1)
             if np.any(np.abs(norm - 1) > 0.05):
                 raise ValidationError("quat: not unit quaternions (|q| deviates from 1 by > 0.05)")
-            self.quat = (self.quat / norm[:, None]).astype(np.float32)
+            if np.any(np.abs(norm - 1) > 1e-6):  # leave float32-unit quaternions bit-exact
+                self.quat = (self.quat / norm[:, None]).astype(np.float32)
         if self.worn is not None and self.worn.shape != (n,):
             raise ValidationError(f"worn: shape {self.worn.shape}, expected ({n},)")
         if self.check_units and n >= 10:
@@ -293,7 +294,7 @@ class Recording:
             for key in ("t", "pos", "quat", "floor"):
                 arr = getattr(self.truth, key)
                 if arr is not None:
-                    tr.create_dataset(key, data=arr)
+                    tr.create_dataset(key, data=arr, compression="gzip", compression_opts=4)
         if self.fixes is not None:
             fx = f.create_group("fixes")
             for key in ("t", "pos", "accuracy", "floor"):
