@@ -1,0 +1,185 @@
+"""Configuration of one simulated walk: the subject's body and gait, and the walk's conditions.
+
+Defaults and ranges follow Suite-IN++ (Sec. III, Table II): phone and watch at 100 Hz, earbuds at
+25 Hz, walking modes STW/PVW/MVW/DRW/DLW, recording-level phone placements HD/MP/PK/BG, areas
+small (< 30 m), medium (< 50 m) and large (> 100 m).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any
+
+import numpy as np
+
+from wearnav.errors import ConfigError
+
+MODES = ("STW", "PVW", "MVW", "DRW", "DLW")
+# Recording-level phone placement (Suite-IN++ Table IV): handheld, multi-changed, pocket, bag.
+PLACEMENTS = ("HD", "MP", "PK", "BG")
+# Fine-grained phone placements (the "placement" label track).
+PHONE_HOLDS = ("texting", "swinging", "call", "front_pocket", "back_pocket", "bag")
+HOLDS_OF_PLACEMENT = {
+    "HD": ("texting", "swinging"),
+    "PK": ("front_pocket", "back_pocket"),
+    "BG": ("bag",),
+    "MP": ("texting", "swinging", "call", "front_pocket", "back_pocket"),
+}
+HAND_HOLDS = ("texting", "swinging", "call")
+# Side length ranges (m) of the square walking area per scene (Suite-IN++ Table I footnote).
+SCENES = {"small": (18.0, 30.0), "medium": (32.0, 50.0), "large": (100.0, 150.0)}
+NOISE_LEVELS = ("L1", "L2", "L3")
+DEVICES = ("phone", "watch", "earbuds")
+REMOVABLE = ("watch", "earbuds")
+REMOVAL_VARIANTS = ("table", "stop")
+
+
+@dataclass(frozen=True)
+class SubjectParams:
+    """One walker's body and gait. Amplitudes are of the torso (pelvis) unless named otherwise."""
+
+    name: str = "u1"
+    height_m: float = 1.75
+    speed_mps: float = 1.3  # preferred walking speed
+    cadence_hz: float = 1.9  # steps per second at the preferred speed
+    bounce_m: float = 0.035  # vertical peak-to-peak, at step frequency
+    sway_m: float = 0.04  # lateral peak-to-peak, at stride frequency (half the step frequency)
+    ripple_m: float = 0.015  # fore-aft peak-to-peak about the mean progression, at step frequency
+    bounce_harmonic: float = 0.08  # second-harmonic share of the bounce
+    impact_mm: float = 0.8  # heel-strike dip of the pelvis (a ~22 ms Gaussian), mm
+    ripple_phase_rad: float = 0.6
+    trunk_lean_deg: float = 5.0
+    trunk_yaw_deg: float = 3.0  # trunk rotation amplitude at stride frequency
+    trunk_roll_deg: float = 2.0
+    hip_swing_deg: float = 22.0  # thigh flexion/extension amplitude
+    arm_swing_deg: float = 15.0  # shoulder flexion/extension amplitude
+    elbow_deg: float = 20.0  # mean elbow flexion while walking
+    arm_lag_rad: float = -0.2  # arm swing phase relative to exact antiphase with the same-side leg
+    head_yaw_deg: float = 8.0  # std of slow looking-around
+    head_pitch_deg: float = 8.0  # mean downward gaze
+
+    @property
+    def step_length_m(self) -> float:
+        return self.speed_mps / self.cadence_hz
+
+
+def sample_subject(rng: np.random.Generator, name: str) -> SubjectParams:
+    """A random but plausible walker: speed 0.8–1.6 m/s, cadence 1.6–2.2 Hz, step 0.45–0.85 m."""
+    height = float(rng.uniform(1.55, 1.92))
+    while True:
+        speed = float(rng.uniform(0.85, 1.55))
+        cadence = float(rng.uniform(1.65, 2.15))
+        step = speed / cadence
+        # Step length scales with stature (about 0.26 H … 0.47 H at normal speeds).
+        if 0.45 <= step <= 0.85 and 0.25 * height <= step <= 0.47 * height:
+            break
+    return SubjectParams(
+        name=name,
+        height_m=round(height, 3),
+        speed_mps=round(speed, 3),
+        cadence_hz=round(cadence, 3),
+        bounce_m=round(float(rng.uniform(0.025, 0.05)), 4),
+        sway_m=round(float(rng.uniform(0.025, 0.055)), 4),
+        ripple_m=round(float(rng.uniform(0.01, 0.025)), 4),
+        bounce_harmonic=round(float(rng.uniform(0.0, 0.12)), 3),
+        impact_mm=round(float(rng.uniform(0.5, 1.2)), 3),
+        ripple_phase_rad=round(float(rng.uniform(0.2, 1.2)), 3),
+        trunk_lean_deg=round(float(rng.uniform(2.0, 9.0)), 2),
+        trunk_yaw_deg=round(float(rng.uniform(2.0, 5.0)), 2),
+        trunk_roll_deg=round(float(rng.uniform(1.0, 3.0)), 2),
+        hip_swing_deg=round(float(rng.uniform(18.0, 26.0)), 2),
+        arm_swing_deg=round(float(rng.uniform(10.0, 20.0)), 2),
+        elbow_deg=round(float(rng.uniform(12.0, 30.0)), 2),
+        arm_lag_rad=round(float(rng.uniform(-0.4, 0.1)), 3),
+        head_yaw_deg=round(float(rng.uniform(4.0, 12.0)), 2),
+        head_pitch_deg=round(float(rng.uniform(2.0, 15.0)), 2),
+    )
+
+
+@dataclass(frozen=True)
+class WalkConfig:
+    """Everything that defines one simulated recording, apart from the random seed.
+
+    ``phone_hold`` fixes the fine phone placement for the single-placement modes (None: drawn to
+    match ``placement``); ``removal`` is ``"<device>:<variant>"`` for DRW, variant ``table`` (the
+    device keeps streaming, lying still, ``worn`` False) or ``stop`` (its stream ends), None:
+    drawn. ``imu_noise=False`` gives ideal sensors (exact specific force, body rate and
+    orientation), for checking the physics.
+    """
+
+    name: str = "walk"
+    subject: SubjectParams = field(default_factory=SubjectParams)
+    mode: str = "STW"
+    placement: str = "HD"
+    scene: str = "medium"
+    area_m: float | None = None
+    duration_s: float = 60.0
+    noise_level: str = "L1"
+    devices: tuple[str, ...] = DEVICES
+    imu_noise: bool = True
+    speed_variation: float = 0.08  # relative std of the slow speed changes
+    phone_hold: str | None = None
+    removal: str | None = None
+    truth_rate_hz: float = 100.0
+    fix_rate_hz: float = 1.0
+    fix_correlation_s: float = 120.0
+
+    def __post_init__(self) -> None:
+        def bad(msg: str):
+            raise ConfigError(f"walk config {self.name!r}: {msg}")
+
+        if self.mode not in MODES:
+            bad(f"unknown mode {self.mode!r} (expected one of {', '.join(MODES)})")
+        if self.placement not in PLACEMENTS:
+            bad(f"unknown placement {self.placement!r} (expected one of {', '.join(PLACEMENTS)})")
+        if (self.placement == "MP") != (self.mode in ("PVW", "MVW")):
+            bad(f"placement MP goes with modes PVW/MVW and only with them (got {self.mode}/{self.placement})")
+        if self.scene not in SCENES:
+            bad(f"unknown scene {self.scene!r} (expected one of {', '.join(SCENES)})")
+        if self.noise_level not in NOISE_LEVELS:
+            bad(f"unknown noise level {self.noise_level!r} (expected one of {', '.join(NOISE_LEVELS)})")
+        unknown = [d for d in self.devices if d not in DEVICES]
+        if unknown or not self.devices or "phone" not in self.devices:
+            bad(f"devices must include 'phone' and come from {DEVICES}, got {self.devices}")
+        if not 20.0 <= self.duration_s <= 7200.0:
+            bad(f"duration_s must be within 20 … 7200 s, got {self.duration_s}")
+        if self.mode == "DLW" and self.duration_s < 28.0:
+            bad("DLW needs at least 28 s to fit walking around one daily-living episode")
+        if self.phone_hold is not None:
+            if self.phone_hold not in PHONE_HOLDS:
+                bad(f"unknown phone_hold {self.phone_hold!r} (expected one of {PHONE_HOLDS})")
+            if self.placement == "MP" or self.phone_hold not in HOLDS_OF_PLACEMENT[self.placement]:
+                bad(f"phone_hold {self.phone_hold!r} does not fit placement {self.placement}")
+        if self.removal is not None:
+            dev, _, variant = self.removal.partition(":")
+            if self.mode != "DRW":
+                bad("removal is only meaningful in mode DRW")
+            if dev not in REMOVABLE or variant not in REMOVAL_VARIANTS or dev not in self.devices:
+                bad(f"removal must be '<watch|earbuds>:<table|stop>' of a simulated device, got {self.removal!r}")
+        if self.mode == "DRW" and not any(d in self.devices for d in REMOVABLE):
+            bad("DRW needs a watch or earbuds to remove")
+        if self.area_m is not None and self.area_m < 16.0:
+            bad(f"area_m must be at least 16 m, got {self.area_m}")
+        if not 0.0 <= self.speed_variation <= 0.3:
+            bad(f"speed_variation must be within 0 … 0.3, got {self.speed_variation}")
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["devices"] = list(self.devices)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "WalkConfig":
+        d = dict(d)
+        known = {f.name for f in fields(cls)}
+        extra = set(d) - known
+        if extra:
+            raise ConfigError(f"unknown walk config keys {sorted(extra)}")
+        if "subject" in d and isinstance(d["subject"], dict):
+            d["subject"] = SubjectParams(**d["subject"])
+        if "devices" in d:
+            d["devices"] = tuple(d["devices"])
+        return cls(**d)
+
+    def replace(self, **changes) -> "WalkConfig":
+        return replace(self, **changes)

@@ -1,0 +1,129 @@
+"""Dataset presets and :func:`simulate_dataset`.
+
+The layout follows Suite-IN++ (Sec. V intro): subject ``u1`` walks all five modes; per mode its
+recordings are split 6:2:2 into train / val / test (so every split covers every mode); u1's
+recordings with the phone in a pocket (PK) or bag (BG) form ``test_unseen`` (never trained on,
+Table IV); every other subject's recordings form ``cross_subject`` (Sec. V-E).
+
+A dataset is a pure function of (preset, seed): subjects are drawn from the seed alone (so ``u1``
+is the same person in every preset), each recording gets its own walk seed, stored in its meta
+together with its full :class:`~wearnav.simulate.config.WalkConfig`, so any single recording can
+be regenerated with ``simulate_recording(WalkConfig.from_dict(meta["config"]), meta["seed"])``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from wearnav.dataset import Dataset, DatasetWriter
+from wearnav.errors import ConfigError
+from wearnav.simulate.config import MODES, NOISE_LEVELS, SCENES, WalkConfig, sample_subject
+from wearnav.simulate.walk import simulate_walk
+
+MAIN_SUBJECT = "u1"
+SPLIT_SHARES = (("train", 0.6), ("val", 0.2), ("test", 0.2))
+DEFAULT_PLACEMENT = {"STW": "HD", "PVW": "MP", "MVW": "MP", "DRW": "HD", "DLW": "HD"}
+
+
+@dataclass(frozen=True)
+class Preset:
+    """How much data to simulate. Counts are recordings; durations are drawn per recording."""
+
+    name: str
+    per_mode_main: int  # u1 recordings per mode (a multiple of 5 gives an exact 6:2:2 split)
+    unseen_per_placement: int  # u1 STW recordings with the phone in a pocket, and in a bag
+    cross_subjects: int  # further subjects, for the cross-subject test
+    per_mode_cross: int
+    duration_s: tuple[float, float]
+    scene_weights: tuple[float, float, float] = (0.4, 0.35, 0.25)  # small, medium, large
+
+
+PRESETS: dict[str, Preset] = {
+    # tests: every mode, device and split, ~17 min of data, a few seconds to simulate
+    "tiny": Preset("tiny", per_mode_main=5, unseen_per_placement=1, cross_subjects=1,
+                   per_mode_cross=1, duration_s=(28.0, 36.0)),
+    # the demo: a few minutes per mode, ~45 min of data
+    "small": Preset("small", per_mode_main=5, unseen_per_placement=1, cross_subjects=2,
+                    per_mode_cross=1, duration_s=(60.0, 90.0)),
+    # benchmarks: five subjects, ~3.3 h, recordings of 1.5–3.5 min (the paper's average is 2.8)
+    "default": Preset("default", per_mode_main=10, unseen_per_placement=3, cross_subjects=4,
+                      per_mode_cross=1, duration_s=(90.0, 210.0)),
+}
+
+
+@dataclass(frozen=True)
+class PlannedWalk:
+    config: WalkConfig
+    seed: int
+    split: str
+
+
+def get_preset(name: str) -> Preset:
+    if name not in PRESETS:
+        raise ConfigError(f"unknown simulator preset {name!r} (expected one of {', '.join(PRESETS)})")
+    return PRESETS[name]
+
+
+def _split_labels(n: int, rng: np.random.Generator) -> list[str]:
+    """n split names in shares 6:2:2 (largest-remainder rounding, val/test at least one each
+    when n ≥ 3), in random order."""
+    counts = {k: int(np.floor(share * n)) for k, share in SPLIT_SHARES}
+    if n >= 3:
+        for k in ("val", "test"):
+            counts[k] = max(counts[k], 1)
+    counts["train"] = n - counts["val"] - counts["test"]
+    labels = [k for k, _ in SPLIT_SHARES for _ in range(counts[k])]
+    return [str(x) for x in rng.permutation(labels)]
+
+
+def plan_dataset(preset: str | Preset, seed: int = 0) -> list[PlannedWalk]:
+    """The recordings a preset makes: configs, walk seeds and splits (nothing simulated yet)."""
+    p = get_preset(preset) if isinstance(preset, str) else preset
+    subj_rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
+    n_subjects = 1 + p.cross_subjects
+    subjects = [sample_subject(subj_rng, f"u{i + 1}") for i in range(n_subjects)]
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 2, sum(map(ord, p.name))]))
+    scenes = list(SCENES)
+
+    plan: list[tuple[WalkConfig, str]] = []
+
+    def add(subject, mode, placement, index, split):
+        cfg = WalkConfig(
+            name=f"{subject.name}_{mode}_{placement}_{index:03d}",
+            subject=subject, mode=mode, placement=placement,
+            scene=str(rng.choice(scenes, p=np.asarray(p.scene_weights) / sum(p.scene_weights))),
+            duration_s=round(float(rng.uniform(*p.duration_s)), 2),
+            noise_level=str(rng.choice(NOISE_LEVELS)),
+        )
+        plan.append((cfg, split))
+
+    main = subjects[0]
+    for mode in MODES:
+        for i, split in enumerate(_split_labels(p.per_mode_main, rng)):
+            add(main, mode, DEFAULT_PLACEMENT[mode], i, split)
+    for placement in ("PK", "BG"):
+        for i in range(p.unseen_per_placement):
+            add(main, "STW", placement, i, "test_unseen")
+    for subject in subjects[1:]:
+        for mode in MODES:
+            for i in range(p.per_mode_cross):
+                add(subject, mode, DEFAULT_PLACEMENT[mode], i, "cross_subject")
+    return [PlannedWalk(cfg, int(s), split) for (cfg, split), s in
+            zip(plan, np.random.SeedSequence([seed, 3]).generate_state(len(plan)))]
+
+
+def simulate_dataset(preset: str, out: str | Path, seed: int = 0, progress: bool = True) -> Dataset:
+    """Simulate a preset into the dataset folder ``out`` and open it."""
+    p = get_preset(preset)
+    plan = plan_dataset(p, seed)
+    out = Path(out)
+    with DatasetWriter(out) as writer:
+        for item in tqdm(plan, desc=f"simulate {p.name}", unit="rec", disable=not progress):
+            rec = simulate_walk(item.config, item.seed).recording
+            rec.meta.update({"split": item.split, "preset": p.name, "dataset_seed": int(seed)})
+            writer.add(rec, split=item.split)
+    return Dataset.open(out)
