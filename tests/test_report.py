@@ -219,3 +219,25 @@ def test_write_datasets_report(tmp_path, monkeypatch):
     monkeypatch.setattr("wearnav.importers.import_dataset", no_import)
     write_datasets_report(data, out, work, progress=False, datasets={"sl_exports": "sensorlogger"})
     assert "## sl_exports" in out.read_text() and "not_here" not in out.read_text()
+
+
+def test_walk_table_distance_and_label_noise(tmp_path):
+    import numpy as np
+
+    from wearnav.dataset import Dataset, DatasetWriter
+    from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
+    from wearnav.report import walk_table
+
+    t = np.arange(0, 10.001, 0.01)
+    truth = Trajectory(t, np.stack([t, np.zeros_like(t)], 1))  # 10 m east at 1 m/s
+    tf = np.arange(0, 11.0)
+    err = np.stack([0.3 * (np.arange(11) % 2), np.zeros(11)], 1)  # every 1-s label off by 30 cm
+    fixes = Fixes(tf, np.stack([tf, np.zeros(11)], 1) + err, np.full(11, 3.0))
+    imu = DeviceStream(t=t, acc=np.tile([0, 0, 9.81], (t.size, 1)))
+    with DatasetWriter(tmp_path / "d") as w:
+        w.add(Recording("a", {"phone": imu}, truth, fixes, meta={"mode": "STW"}))
+        w.add(Recording("b", {"phone": imu}, truth, meta={"mode": "DLW"}))
+    table = walk_table(Dataset.open(tmp_path / "d")).set_index("mode")
+    assert table.loc["STW", "distance_km"] == pytest.approx(0.01)
+    assert table.loc["STW", "fix_label_noise_median_cm"] == pytest.approx(30.0)
+    assert table.loc["DLW", "fix_label_noise_median_cm"] is None or np.isnan(table.loc["DLW", "fix_label_noise_median_cm"])

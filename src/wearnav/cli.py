@@ -105,7 +105,7 @@ def demo(
 ):
     """The main job on built-in data: simulate the small preset, summarise it, plot trajectories."""
     from wearnav.dataset import Dataset
-    from wearnav.report import plot_trajectories
+    from wearnav.report import plot_trajectories, walk_table
     from wearnav.simulate import simulate_dataset
 
     data_dir = out / "data"
@@ -115,8 +115,14 @@ def demo(
     else:
         ds = simulate_dataset("small", data_dir, seed=seed, progress=True)
     _echo_json(ds.summary())
+    for by in ("mode", "noise_level"):
+        table = walk_table(ds, by)
+        typer.echo(f"\nby {by} (fix label noise: median error of the 1-s displacements between "
+                   "location fixes; EasyTrack targets L1/L2/L3 = 21.6/27.6/33.5 cm):")
+        typer.echo(table.to_string(index=False))
+        table.to_csv(out / f"summary_by_{by}.csv", index=False)
     png = plot_trajectories(ds, out / "trajectories.png")
-    typer.echo(f"trajectory plot: {png}")
+    typer.echo(f"\ntrajectory plot: {png}")
 
 
 def main() -> None:

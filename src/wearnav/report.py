@@ -7,6 +7,7 @@ renamed, like every other output of wearnav.
 
 from __future__ import annotations
 
+import itertools
 import os
 import subprocess
 from pathlib import Path
@@ -287,10 +288,12 @@ def plot_recording(rec: Recording, out: Path) -> Path:
 # ---- a dataset ----------------------------------------------------------------------------
 
 def plot_trajectories(ds: Dataset, out: Path, max_recordings: int = 12) -> Path:
-    """A grid of small maps, the truth trajectory of each of the first ``max_recordings``."""
+    """A grid of small maps of truth trajectories: up to ``max_recordings``, taken in turn from
+    each walking mode so that every mode is shown."""
     if len(ds) == 0:
         raise ValidationError("dataset is empty, nothing to plot", ds.root)
-    names = ds.names[:max_recordings]
+    by_mode = ds.manifest.groupby("mode", sort=True)["name"].apply(list)
+    names = [n for row in itertools.zip_longest(*by_mode) for n in row if n is not None][:max_recordings]
     ncols = min(4, len(names))
     nrows = -(-len(names) // ncols)
     fig = Figure(figsize=(3.6 * ncols, 3.5 * nrows + 0.6), layout="constrained")
@@ -399,6 +402,34 @@ def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_
             "median": _pct(errs, 50), "p75": _pct(errs, 75), "max_gap_s": fix_max_gap,
         },
     }
+
+
+def walk_table(ds: Dataset, by: str = "mode") -> pd.DataFrame:
+    """Per value of manifest column ``by``: recordings, minutes, distance walked (dense truth) and
+    the median 1-s label noise of the location fixes (EasyTrack eq. 5–6, truth interpolated at
+    fix times)."""
+    from wearnav.simulate.fixes import label_noise
+
+    rows = []
+    for key, names in ds.manifest.groupby(by, sort=True)["name"]:
+        dist, noise, dur = 0.0, [], 0.0
+        for name in names:
+            rec = ds.load(name)
+            dur += rec.duration
+            if rec.truth is None:
+                continue
+            p = rec.truth.pos[:, :2]
+            dist += float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+            if rec.fixes is not None:
+                f = rec.fixes
+                inside = (f.t >= rec.truth.t[0]) & (f.t <= rec.truth.t[-1])
+                tp = np.stack([np.interp(f.t[inside], rec.truth.t, p[:, k]) for k in range(2)], 1)
+                noise.append(label_noise(f.pos[inside], tp))
+        n = np.concatenate(noise) if noise else np.empty(0)
+        rows.append({by: key or "-", "recordings": len(names), "minutes": round(dur / 60, 1),
+                     "distance_km": round(dist / 1000, 2),
+                     "fix_label_noise_median_cm": round(100 * float(np.median(n)), 1) if n.size else None})
+    return pd.DataFrame(rows)
 
 
 def _fmt_duration(s: float) -> str:
