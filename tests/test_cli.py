@@ -54,3 +54,11 @@ def test_corrupt_h5_is_one_line(tmp_path, monkeypatch, capsys):
     bad.write_bytes(b"\x89HDF\r\n\x1a\n truncated")
     code, _, err = run(monkeypatch, capsys, "info", bad)
     assert code == 2 and err.count("\n") == 1 and "bad.h5" in err
+
+
+def test_simulated_dataset_records_what_made_it(tmp_path, monkeypatch, capsys):
+    from wearnav.dataset import Dataset
+
+    run(monkeypatch, capsys, "simulate", "--preset", "tiny", "--out", tmp_path / "sim", "--seed", "5")
+    prov = Dataset.open(tmp_path / "sim").provenance
+    assert prov["generator"] == "wearnav.simulate" and prov["seed"] == 5 and prov["preset"]["name"] == "tiny"

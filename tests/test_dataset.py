@@ -79,3 +79,11 @@ def test_rewrite_replaces_a_dataset_but_never_a_foreign_folder(tmp_path, ds):
     (tmp_path / "mine" / "notes.txt").write_text("precious")
     with pytest.raises(ValidationError, match="not a wearnav dataset"):
         DatasetWriter(tmp_path / "mine")
+
+
+def test_provenance_is_saved_with_the_dataset(tmp_path):
+    with DatasetWriter(tmp_path / "d", {"generator": "test", "seed": 7}) as w:
+        w.add(_rec("a", "u1", "STW"))
+    prov = Dataset.open(tmp_path / "d").provenance
+    assert prov["generator"] == "test" and prov["seed"] == 7 and prov["recordings"] == 1
+    assert prov["wearnav"] and prov["created"]

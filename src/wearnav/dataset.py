@@ -19,11 +19,14 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import pandas as pd
+import yaml
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.provenance import provenance
 from wearnav.recording import Recording
 
 MANIFEST = "manifest.csv"
+PROVENANCE = "dataset.yaml"
 MANIFEST_COLUMNS = [
     "name", "file", "duration", "devices", "mode", "subject", "placement", "scene", "source",
     "split", "noise_level", "truth_points", "fixes",
@@ -52,16 +55,19 @@ def manifest_row(rec: Recording, file: str, split: str = "") -> dict:
 class DatasetWriter:
     """Writes recordings into a new dataset folder, all or nothing.
 
-    Recordings go to a hidden sibling folder; :meth:`close` writes the manifest and renames that
-    folder to ``root`` (replacing an earlier dataset there). An exception inside the ``with``
+    Recordings go to a hidden sibling folder; :meth:`close` writes the manifest and
+    ``dataset.yaml`` (what made the dataset: ``provenance`` given by the caller, e.g. the
+    simulator preset and seed or the importer and source, plus package version, commit and time)
+    and renames that folder to ``root`` (replacing an earlier dataset there). An exception inside the ``with``
     block removes the partial folder, so a failed import or simulation leaves nothing behind.
 
     >>> with DatasetWriter("out") as w:
     ...     w.add(rec, split="train")
     """
 
-    def __init__(self, root: str | Path):
+    def __init__(self, root: str | Path, provenance: dict | None = None):
         self.root = Path(root)
+        self.provenance = dict(provenance or {})
         if self.root.exists() and not (
             self.root.is_dir() and ((self.root / MANIFEST).exists() or not any(self.root.iterdir()))
         ):
@@ -84,6 +90,8 @@ class DatasetWriter:
             if col not in df.columns:
                 df[col] = pd.Series(dtype=object)
         df[MANIFEST_COLUMNS].to_csv(self.tmp / MANIFEST, index=False)
+        info = {**self.provenance, **provenance(), "recordings": len(self.rows)}
+        (self.tmp / PROVENANCE).write_text(yaml.safe_dump(info, sort_keys=False), encoding="utf-8")
         if self.root.exists():
             shutil.rmtree(self.root)
         os.replace(self.tmp, self.root)
@@ -131,6 +139,17 @@ class Dataset:
         str_cols = ["devices", "mode", "subject", "placement", "scene", "source", "split", "noise_level"]
         df[str_cols] = df[str_cols].fillna("").astype(str)
         return cls(root, df)
+
+    @property
+    def provenance(self) -> dict:
+        """Contents of ``dataset.yaml`` (empty for folders written before it existed)."""
+        path = self.root / PROVENANCE
+        if not path.exists():
+            return {}
+        try:
+            return yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+        except yaml.YAMLError as exc:
+            raise FormatError(f"unreadable ({exc})", path) from None
 
     # ---- views --------------------------------------------------------------------------
     def __len__(self) -> int:
@@ -209,9 +228,10 @@ class Dataset:
         }
 
 
-def write_dataset(root: str | Path, recordings: Iterable[tuple[Recording, str]]) -> Dataset:
+def write_dataset(root: str | Path, recordings: Iterable[tuple[Recording, str]],
+                  provenance: dict | None = None) -> Dataset:
     """Write (recording, split) pairs to ``root`` and open the result."""
-    with DatasetWriter(root) as w:
+    with DatasetWriter(root, provenance) as w:
         for rec, split in recordings:
             w.add(rec, split)
     return Dataset.open(root)

@@ -44,7 +44,8 @@ def import_dataset(fmt: str, src: str | Path, out: str | Path, limit: int | None
     module = get_importer(fmt)
     bar = tqdm(module.read(src, limit=limit), desc=f"import {fmt}", unit="rec", disable=not progress)
     try:
-        with DatasetWriter(out) as writer:
+        made_by = {"importer": fmt, "src": str(src.resolve()), "limit": limit}
+        with DatasetWriter(out, made_by) as writer:
             for rec in bar:
                 writer.add(rec, split=rec.meta.get("split", ""))
     except BaseException:

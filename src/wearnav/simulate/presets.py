@@ -13,6 +13,7 @@ be regenerated with ``simulate_recording(WalkConfig.from_dict(meta["config"]), m
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -121,7 +122,8 @@ def simulate_dataset(preset: str, out: str | Path, seed: int = 0, progress: bool
     p = get_preset(preset)
     plan = plan_dataset(p, seed)
     out = Path(out)
-    with DatasetWriter(out) as writer:
+    made_by = {"generator": "wearnav.simulate", "preset": dataclasses.asdict(p), "seed": int(seed)}
+    with DatasetWriter(out, made_by) as writer:
         for item in tqdm(plan, desc=f"simulate {p.name}", unit="rec", disable=not progress):
             rec = simulate_walk(item.config, item.seed).recording
             rec.meta.update({"split": item.split, "preset": p.name, "dataset_seed": int(seed)})
