@@ -354,3 +354,13 @@ def test_partial_exports(rec, tmp_path):
     assert phone.quat is None
     np.testing.assert_allclose(phone.acc, rec.devices["phone"].acc, atol=1e-4)
     np.testing.assert_allclose(phone.gyro, rec.devices["phone"].gyro, atol=1e-6)
+
+
+def test_gravity_counted_twice_is_caught(rec, tmp_path):
+    """Headphone acceleration that already holds gravity: |acc| ≈ 19.6 passes the generic units
+    band, the world-frame vertical mean does not."""
+    folder = write_export(rec, tmp_path / "android" / EXPORT, platform="android", standardised=True)
+    _edit_csv(folder / "Headphone.csv", lambda d: d.assign(
+        **{f"acceleration{a}": d[f"acceleration{a}"] + d[f"gravity{a}"] for a in "XYZ"}))
+    with pytest.raises(FormatError, match=r"Headphone\.csv: mean vertical specific force .* 19\.\d m/s²"):
+        list(read(folder))

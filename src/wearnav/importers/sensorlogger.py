@@ -147,6 +147,8 @@ KNOWN_FILES = ("Metadata.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv"
 SOURCE = "sensorlogger"
 # The world-frame mean of a device's specific force must lie this close to +z (gravity).
 TILT_TOLERANCE_DEG = 20.0
+# Tolerance on the mean world-vertical specific force (real phone data: 9.4–10.1 m/s²).
+MAX_VERTICAL_ERROR = 1.5
 # The gyroscope check on quaternions runs only after this much integrated rotation (rad).
 MIN_ROTATION_FOR_CHECK = 2.0
 # Largest relative mismatch between quaternion increments and gyro increments that still passes.
@@ -468,6 +470,14 @@ def _check_orientation(q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | N
     passing = [f for f in found if f[0]]
     if passing:
         _, _, label, r, _, _ = min(passing, key=lambda f: f[1])  # stable: world<-device on a tie
+        # Over a walk the mean vertical specific force is g; gravity counted twice (an
+        # acceleration column that already holds it) or not at all shows up here even when the
+        # median |acc| looks plausible.
+        vertical = float(r.apply(acc)[:, 2].mean())
+        if abs(vertical - G) > MAX_VERTICAL_ERROR:
+            raise FormatError(
+                f"mean vertical specific force in the world frame is {vertical:.1f} m/s², expected "
+                f"{G:.1f} (gravity counted twice or missing?)", path)
         return r.as_quat()[:, [3, 0, 1, 2]], label
     (_, _, _, _, tilt_a, res_a), (_, _, _, _, tilt_b, res_b) = found
     gyro_note = "" if res_a is None else f", gyro residual {res_a:.2f} ({res_b:.2f} inverse)"
