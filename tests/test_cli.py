@@ -27,7 +27,12 @@ def test_simulate_info_plot(tmp_path, monkeypatch, capsys):
     assert set(summary["modes"]) == {"STW", "PVW", "MVW", "DRW", "DLW"}
     assert set(summary["devices"]) == {"phone", "watch", "earbuds"}
     code, out, _ = run(monkeypatch, capsys, "info", tmp_path / "sim")
-    assert code == 0 and json.loads(out)["recordings"] == summary["recordings"]
+    info = json.loads(out)
+    assert code == 0 and info["recordings"] == summary["recordings"]
+    assert info["device_rates"]["phone"]["rate_hz"] == pytest.approx(100.0, abs=1.0)
+    assert info["device_rates"]["earbuds"]["rate_hz"] == pytest.approx(25.0, abs=0.5)
+    assert set(info["labels"]["mode"]) == {"STW", "PVW", "MVW", "DRW", "DLW"}
+    assert 0.2 < info["fix_error_at_truth_m"]["median"] < 10.0
     first = sorted((tmp_path / "sim").glob("*.h5"))[0]
     code, out, _ = run(monkeypatch, capsys, "info", first)
     info = json.loads(out)

@@ -42,14 +42,32 @@ def simulate(
 
 @app.command()
 def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset folder.")):
-    """Summarise a recording or a dataset."""
+    """Summarise a recording or a dataset (durations, device rates, labels, truth and fixes)."""
     from wearnav.dataset import Dataset
     from wearnav.recording import Recording
+    from wearnav.report import dataset_stats
 
-    if path.is_dir():
-        _echo_json(Dataset.open(path).summary())
-    else:
+    if not path.is_dir():
         _echo_json(Recording.load(path).summary())
+        return
+    ds = Dataset.open(path)
+    summary = ds.summary()
+    stats = dataset_stats(ds, progress=True)
+    summary["device_rates"] = {
+        dev: {"rate_hz": round(d["rate_hz"], 2), "jitter_iqr_ms": round(d["jitter_iqr_ms"], 3),
+              "gyro_share": round(d["gyro_share"], 3), "orientation_share": round(d["orientation_share"], 3)}
+        for dev, d in stats["devices"].items()
+    }
+    labels: dict = {}
+    for (kind, value), c in stats["labels"].items():
+        labels.setdefault(kind, {})[value] = c["intervals"]
+    summary["labels"] = labels
+    summary["truth_points"] = stats["truth_points"]
+    summary["fixes"] = stats["fixes"]
+    if stats["fix_error_m"]:
+        summary["fix_error_at_truth_m"] = {k: round(v, 3) if isinstance(v, float) else v
+                                           for k, v in stats["fix_error_m"].items()}
+    _echo_json(summary)
 
 
 @app.command("import")
