@@ -3,6 +3,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from wearnav.errors import WearnavError
 from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,3 +41,10 @@ def small_recording() -> Recording:
         labels=[(0.0, 1.0, "activity", "walk"), (1.0, 2.0, "activity", "stand")],
         meta={"subject": "u1", "mode": "STW", "placement": "HD", "source": "test"},
     )
+
+
+def error_line(exc: WearnavError) -> str:
+    """The error's message, asserting it is one line (as the CLI prints it)."""
+    msg = str(exc)
+    assert "\n" not in msg
+    return msg

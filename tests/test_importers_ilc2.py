@@ -11,8 +11,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from wearnav.dataset import Dataset
-from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
+from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.importers import ilc2, import_dataset
+
+from conftest import error_line
 
 F4_TRACE = "site1/F4/path_data_files/5ddb653fc5b77e0006b17906.txt.gz"
 B1_FLOOR = "site1/B1"
@@ -47,12 +49,6 @@ def rows_of(lines, kind):
 def write_trace(path, lines):
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
-
-
-def error_line(exc: WearnavError) -> str:
-    msg = str(exc)
-    assert "\n" not in msg
-    return msg
 
 
 # ---- real data -------------------------------------------------------------------------------

@@ -10,9 +10,11 @@ import pytest
 import scipy.io
 from scipy.spatial.transform import Rotation
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
+from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.importers import ipin2023
 from wearnav.importers.common import latlon_to_local
+
+from conftest import error_line
 
 LOGS = "01 Logfiles/01 IPIN2023_T3_TrainingTrials (training)"
 TRA = "02 Supplementary Materials/03 - Files for Matlab Tools/Trajectories"
@@ -61,12 +63,6 @@ def short_log(lines, n_data=3000):
     head = [ln for ln in lines if ln.startswith("%")]
     data = [ln for ln in lines if ln and not ln.startswith("%")][:n_data]
     return head + data
-
-
-def error_line(exc: WearnavError) -> str:
-    msg = str(exc)
-    assert "\n" not in msg
-    return msg
 
 
 # ---- real text log ---------------------------------------------------------------------------
