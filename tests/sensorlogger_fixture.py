@@ -15,9 +15,10 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
+from wearnav.recording import STANDARD_GRAVITY
 from wearnav.recording import Recording
 
-G = 9.80665
+G = STANDARD_GRAVITY
 EARTH_RADIUS_M = 6378137.0
 T0_NS = 1_700_000_000_123_456_789
 ORIGIN = (49.4480, 11.0955)  # lat, lon of the local frame's origin

@@ -13,9 +13,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from wearnav.recording import STANDARD_GRAVITY
 from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
 
-G = 9.80665
+G = STANDARD_GRAVITY
 RATES = {"phone": 100.0, "watch": 50.0, "earbuds": 25.0}
 OFF_EARS = (24.0, 30.0)  # earbuds out of the ears (laid flat) during this interval
 

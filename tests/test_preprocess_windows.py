@@ -3,7 +3,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.preprocess import GRAVITY, PreprocessConfig, align, common_span
+from wearnav.preprocess import PreprocessConfig, align, common_span
+from wearnav.recording import STANDARD_GRAVITY as GRAVITY
 from wearnav.recording import DeviceStream, Recording, Trajectory
 from wearnav.windows import WindowConfig, WindowDataset
 

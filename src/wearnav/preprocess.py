@@ -19,9 +19,8 @@ from scipy import signal
 from scipy.spatial.transform import Rotation
 
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.recording import DeviceStream, Recording
+from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Recording
 
-GRAVITY = 9.80665
 CHANNELS = ("ax", "ay", "az", "gx", "gy", "gz")
 
 
@@ -116,9 +115,9 @@ def stream_to_clock(s: DeviceStream, t: np.ndarray, cfg: PreprocessConfig,
         acc = rot.apply(acc)
         gyro = rot.apply(gyro)
         if cfg.remove_gravity:
-            acc[:, 2] -= GRAVITY
+            acc[:, 2] -= STANDARD_GRAVITY
     elif cfg.remove_gravity:
-        acc = acc - rot.inv().apply(np.array([0.0, 0.0, GRAVITY]))
+        acc = acc - rot.inv().apply(np.array([0.0, 0.0, STANDARD_GRAVITY]))
     x = np.concatenate([acc, gyro], axis=1)
     if cfg.lowpass:
         x = _lowpass(x, s.rate, cfg.rate)

@@ -31,6 +31,7 @@ FORMAT_VERSION = 1
 CANONICAL_DEVICES = ("phone", "watch", "earbuds")
 LABEL_COLUMNS = ["start", "end", "kind", "value"]
 
+STANDARD_GRAVITY = 9.80665  # m/s²; "g" of files that give acceleration in g
 # |acc| of a device is dominated by gravity (9.81 m/s²). A median far outside this band means the
 # data is in g (≈ 1), has gravity removed (≈ 0–3), or is not an accelerometer at all. The band is
 # wide on purpose: real data reaches 18.4 m/s² (MotionSense jogging, phone in a thigh pocket) and
@@ -118,7 +119,7 @@ class DeviceStream:
             med = float(np.median(np.linalg.norm(self.acc, axis=1)))
             lo, hi = ACC_NORM_MEDIAN_RANGE
             if not lo <= med <= hi:
-                hint = " (looks like g, multiply by 9.80665)" if 0.6 < med < 1.4 else ""
+                hint = f" (looks like g, multiply by {STANDARD_GRAVITY})" if 0.6 < med < 1.4 else ""
                 raise ValidationError(
                     f"acc: median |acc| is {med:.3g}, expected about 9.8 m/s² including gravity{hint}"
                 )

@@ -52,10 +52,10 @@ import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.importers.common import check_finite, find_file, read_csv, require_columns
+from wearnav.recording import STANDARD_GRAVITY as G  # Core Motion's unit of acceleration
 from wearnav.recording import DeviceStream, Recording
 
 RATE_HZ = 50.0
-G = 9.80665  # standard gravity: Core Motion's unit of acceleration
 ACTIVITIES = {
     "dws": "downstairs", "ups": "upstairs", "wlk": "walking",
     "jog": "jogging", "sit": "sitting", "std": "standing",

@@ -137,9 +137,9 @@ from wearnav.importers.common import (
     read_csv,
     strip_compression,
 )
+from wearnav.recording import STANDARD_GRAVITY as G  # UNITS.md: "Assumes `g` to be 9.80665ms-2"
 from wearnav.recording import DeviceStream, Fixes, Recording
 
-G = 9.80665  # UNITS.md: "Assumes `g` to be 9.80665ms-2"
 XYZ = ["x", "y", "z"]
 MOTION_FILES = ("Accelerometer.csv", "TotalAcceleration.csv", "WristMotion.csv", "Headphone.csv")
 KNOWN_FILES = ("Metadata.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv", "Location.csv",

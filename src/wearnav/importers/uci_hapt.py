@@ -36,10 +36,10 @@ import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.importers.common import check_finite, find_file, read_csv, read_text, strip_compression
+from wearnav.recording import STANDARD_GRAVITY as G  # the files' unit of acceleration
 from wearnav.recording import DeviceStream, Recording
 
 RATE_HZ = 50.0
-G = 9.80665
 RAW_DIR = "RawData"
 ACC_RE = re.compile(r"^acc_exp(\d+)_user(\d+)\.txt(\.gz|\.xz)?$")
 LABEL_FIELDS = ["exp", "user", "activity", "start", "end"]

@@ -26,10 +26,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wearnav.recording import STANDARD_GRAVITY as G  # sensor ranges and resolutions are in g
 from wearnav.simulate.geometry import apply, apply_t, exp_so3, log_so3, quat_wxyz, rot_z
 from wearnav.simulate.signals import smooth_noise
 
-GRAVITY = 9.81
+GRAVITY = 9.81  # the simulated world's local gravity (what the IMU measures), not the unit g
 G_WORLD = np.array([0.0, 0.0, -GRAVITY])
 DIFF_STEP_S = 1e-3
 
@@ -59,7 +60,6 @@ class ImuSpec:
     tilt_error_deg: float  # std of the orientation's slow tilt error
 
 
-G = 9.80665
 IMU_SPECS: dict[str, ImuSpec] = {
     "phone": ImuSpec(
         rate_hz=100.0, acc_noise=0.012, gyro_noise=0.0015, acc_bias=0.03, gyro_bias=0.002,
