@@ -226,7 +226,7 @@ def test_walk_table_distance_and_label_noise(tmp_path):
 
     from wearnav.dataset import Dataset, DatasetWriter
     from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
-    from wearnav.report import walk_table
+    from wearnav.report import walk_tables
 
     t = np.arange(0, 10.001, 0.01)
     truth = Trajectory(t, np.stack([t, np.zeros_like(t)], 1))  # 10 m east at 1 m/s
@@ -237,7 +237,7 @@ def test_walk_table_distance_and_label_noise(tmp_path):
     with DatasetWriter(tmp_path / "d") as w:
         w.add(Recording("a", {"phone": imu}, truth, fixes, meta={"mode": "STW"}))
         w.add(Recording("b", {"phone": imu}, truth, meta={"mode": "DLW"}))
-    table = walk_table(Dataset.open(tmp_path / "d")).set_index("mode")
+    table = walk_tables(Dataset.open(tmp_path / "d"), ("mode",))["mode"].set_index("mode")
     assert table.loc["STW", "distance_km"] == pytest.approx(0.01)
     assert table.loc["STW", "fix_label_noise_median_cm"] == pytest.approx(30.0)
     assert table.loc["DLW", "fix_label_noise_median_cm"] is None or np.isnan(table.loc["DLW", "fix_label_noise_median_cm"])

@@ -123,7 +123,7 @@ def demo(
 ):
     """The main job on built-in data: simulate the small preset, summarise it, plot trajectories."""
     from wearnav.dataset import Dataset
-    from wearnav.report import plot_trajectories, walk_table
+    from wearnav.report import plot_trajectories, walk_tables
     from wearnav.simulate import simulate_dataset
 
     data_dir = out / "data"
@@ -133,8 +133,7 @@ def demo(
     else:
         ds = simulate_dataset("small", data_dir, seed=seed, progress=True)
     _echo_json(ds.summary())
-    for by in ("mode", "noise_level"):
-        table = walk_table(ds, by)
+    for by, table in walk_tables(ds, ("mode", "noise_level")).items():
         typer.echo(f"\nby {by} (fix label noise: median error of the 1-s displacements between "
                    "location fixes; EasyTrack targets L1/L2/L3 = 21.6/27.6/33.5 cm):")
         typer.echo(table.to_string(index=False))

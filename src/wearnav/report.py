@@ -8,6 +8,7 @@ renamed, like every other output of wearnav.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterable
 import os
 from pathlib import Path
 
@@ -404,32 +405,36 @@ def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_
     }
 
 
-def walk_table(ds: Dataset, by: str = "mode") -> pd.DataFrame:
-    """Per value of manifest column ``by``: recordings, minutes, distance walked (dense truth) and
-    the median 1-s label noise of the location fixes (EasyTrack eq. 5–6, truth interpolated at
-    fix times)."""
+def walk_tables(ds: Dataset, by: Iterable[str] = ("mode",)) -> dict[str, pd.DataFrame]:
+    """For each manifest column in ``by``, a table per value: recordings, minutes, distance walked
+    (dense truth) and the median 1-s label noise of the location fixes (EasyTrack eq. 5–6, truth
+    interpolated at fix times). Each recording is loaded once, whatever ``by`` holds."""
+    from wearnav.preprocess import interpolate_position
     from wearnav.simulate.fixes import label_noise
 
-    rows = []
-    for key, names in ds.manifest.groupby(by, sort=True)["name"]:
-        dist, noise, dur = 0.0, [], 0.0
-        for name in names:
-            rec = ds.load(name)
-            dur += rec.duration
-            if rec.truth is None:
-                continue
+    per_rec = {}
+    for name in ds.names:
+        rec = ds.load(name)
+        dist, noise = 0.0, np.empty(0)
+        if rec.truth is not None:
             p = rec.truth.pos[:, :2]
-            dist += float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+            dist = float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
             if rec.fixes is not None:
-                f = rec.fixes
-                inside = (f.t >= rec.truth.t[0]) & (f.t <= rec.truth.t[-1])
-                tp = np.stack([np.interp(f.t[inside], rec.truth.t, p[:, k]) for k in range(2)], 1)
-                noise.append(label_noise(f.pos[inside], tp))
-        n = np.concatenate(noise) if noise else np.empty(0)
-        rows.append({by: key or "-", "recordings": len(names), "minutes": round(dur / 60, 1),
-                     "distance_km": round(dist / 1000, 2),
-                     "fix_label_noise_median_cm": round(100 * float(np.median(n)), 1) if n.size else None})
-    return pd.DataFrame(rows)
+                tp = interpolate_position(rec.truth.t, p, rec.fixes.t, max_gap=np.inf)
+                inside = np.isfinite(tp[:, 0])
+                noise = label_noise(rec.fixes.pos[inside], tp[inside])
+        per_rec[name] = (rec.duration, dist, noise)
+    tables = {}
+    for col in by:
+        rows = []
+        for key, names in ds.manifest.groupby(col, sort=True)["name"]:
+            dur, dist, noise = zip(*(per_rec[n] for n in names))
+            n = np.concatenate(noise)
+            rows.append({col: key or "-", "recordings": len(names), "minutes": round(sum(dur) / 60, 1),
+                         "distance_km": round(sum(dist) / 1000, 2),
+                         "fix_label_noise_median_cm": round(100 * float(np.median(n)), 1) if n.size else None})
+        tables[col] = pd.DataFrame(rows)
+    return tables
 
 
 def _fmt_duration(s: float) -> str:
