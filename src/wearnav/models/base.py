@@ -1,0 +1,34 @@
+"""The model contract (DESIGN.md, "Training and evaluation core").
+
+An odometry model maps world-frame IMU windows of a fixed device layout to a mean horizontal
+velocity; every auxiliary loss lives in the model's own :meth:`OdometryModel.loss`, so one
+LightningModule trains every odometry model.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor, nn
+from torch.nn import functional as F
+
+
+class OdometryModel(nn.Module):
+    """Base class. ``forward(x, mask)``: x (B, D, L, 6) world-frame acc+gyro, mask (B, D) with 1.0
+    where a device is present → velocity (B, 2) m/s. Models that are not learned (PDR) set
+    ``learned = False`` and may have no parameters."""
+
+    learned: bool = True
+
+    def forward(self, x: Tensor, mask: Tensor) -> Tensor:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def loss(self, batch: dict[str, Tensor]) -> tuple[Tensor, dict[str, Tensor]]:
+        """Total loss and its named parts. Default: MSE of the mean window velocity."""
+        vel = self(batch["x"], batch["mask"])
+        mse = F.mse_loss(vel, batch["vel"])
+        return mse, {"vel": mse}
+
+    @torch.no_grad()
+    def predict(self, x: Tensor, mask: Tensor) -> Tensor:
+        """Velocity (B, 2) for inference; the same as ``forward`` unless a model says otherwise."""
+        return self(x, mask)
