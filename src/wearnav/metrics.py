@@ -49,3 +49,71 @@ def errors_at_reference(t_est, pos_est, t_ref, pos_ref, max_gap: float) -> np.nd
     t_k = t_ref[keep]
     interp = np.stack([np.interp(t_k, t_est, p_est[:, k]) for k in range(2)], axis=1)
     return np.linalg.norm(interp - p_ref[keep], axis=1)
+
+
+def _common(t, pos_est, pos_true) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t = np.asarray(t, dtype=np.float64)
+    est = np.asarray(pos_est, dtype=np.float64)
+    true = np.asarray(pos_true, dtype=np.float64)
+    if est.shape != true.shape:
+        raise ValidationError(f"estimate {est.shape} and truth {true.shape} differ in shape")
+    t, est = _track(t, est, "estimate")
+    _, true = _track(t, true, "truth")
+    if t.size == 0:
+        raise ValidationError("empty trajectory")
+    return t, est, true
+
+
+def position_errors(t, pos_est, pos_true) -> np.ndarray:
+    """Per-timestamp horizontal position error ‖p̂(t) − p(t)‖ at common timestamps."""
+    _, est, true = _common(t, pos_est, pos_true)
+    return np.linalg.norm(est - true, axis=1)
+
+
+def ate(t, pos_est, pos_true) -> float:
+    """Absolute trajectory error: RMS of the 2-D position error at common timestamps, with no
+    alignment (the estimate starts at the true start; DESIGN.md "Metric definitions")."""
+    e = position_errors(t, pos_est, pos_true)
+    return float(np.sqrt(np.mean(e ** 2)))
+
+
+def rte(t, pos_est, pos_true, delta: float = 60.0) -> float:
+    """Relative trajectory error over ``delta`` seconds (DESIGN.md "Metric definitions").
+
+    For every start time t_i with t_i + Δ inside the sequence, e_i = ‖(p̂(t_j) − p̂(t_i)) −
+    (p(t_j) − p(t_i))‖ where t_j is the first sample at or after t_i + Δ (exactly t_i + Δ on a
+    uniform clock whose period divides Δ); RTE = RMS of e. A sequence shorter than Δ uses its
+    whole length once and scales that error by Δ / length (RoNIN's convention).
+    """
+    if not delta > 0:
+        raise ValidationError(f"RTE delta must be positive seconds, got {delta}")
+    t, est, true = _common(t, pos_est, pos_true)
+    length = t[-1] - t[0]
+    if length <= 0:
+        raise ValidationError("RTE needs a trajectory spanning a positive time")
+    tol = 1e-9 * max(1.0, abs(t[-1]))
+    if length + tol < delta:
+        e = (est[-1] - est[0]) - (true[-1] - true[0])
+        return float(np.linalg.norm(e) * delta / length)
+    j = np.searchsorted(t, t + delta - tol)
+    i = np.flatnonzero(j < t.size)
+    j = j[i]
+    e = (est[j] - est[i]) - (true[j] - true[i])
+    return float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))
+
+
+def error_cdf(errors) -> tuple[np.ndarray, np.ndarray]:
+    """Empirical CDF of per-timestamp position errors: sorted errors and P(error ≤ x)."""
+    e = np.sort(np.asarray(errors, dtype=np.float64).ravel())
+    if e.size == 0 or not np.all(np.isfinite(e)):
+        raise ValidationError("error CDF needs at least one finite error")
+    return e, np.arange(1, e.size + 1) / e.size
+
+
+def ade(disp_est, disp_true) -> float:
+    """Average displacement error: mean Euclidean error of per-segment displacements (EasyTrack)."""
+    est = np.asarray(disp_est, dtype=np.float64)
+    true = np.asarray(disp_true, dtype=np.float64)
+    if est.shape != true.shape or est.ndim != 2 or est.shape[0] == 0:
+        raise ValidationError(f"ADE needs matching (N, 2) displacements, got {est.shape} and {true.shape}")
+    return float(np.mean(np.linalg.norm(est[:, :2] - true[:, :2], axis=1)))
