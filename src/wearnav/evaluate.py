@@ -1,0 +1,202 @@
+"""Windows → predictions → integrated trajectory → per-sequence metrics → tables and plots.
+
+Every model is evaluated the same way: each test sequence is cut into windows (the training
+window length, stride ``eval_stride``), the model's velocity of each window is placed at the
+window's centre time, and the velocities are integrated from the true position at the first
+centre (Suite-IN++ eq. 8, :func:`wearnav.trajectory.integrate_velocity`). With dense truth the
+errors are ATE and RTE (DESIGN.md definitions, :mod:`wearnav.metrics`) over the span the windows
+cover; with sparse truth (waypoints) they are errors at the truth times only, and the report says
+so.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+from torch.utils.data import DataLoader
+
+from wearnav import metrics, runs
+from wearnav.errors import ValidationError
+from wearnav.fileio import atomic_path
+from wearnav.preprocess import Aligned, align
+from wearnav.trajectory import integrate_velocity
+from wearnav.windows import WindowConfig, WindowDataset
+
+# Truth sampled at least this densely counts as dense (ATE/RTE); sparser truth is scored at its points.
+DENSE_TRUTH_MAX_DT = 1.0
+# A sparse truth point is scored when a trajectory sample lies within this many seconds of it.
+SPARSE_MAX_GAP = 1.0
+PERCENTILES = (50, 75, 90, 95)
+
+_CACHE: dict[tuple, Aligned] = {}
+
+
+def load_sequences(view, cfg, progress: bool = False) -> list[Aligned]:
+    """Align every recording of a Dataset view for ``cfg`` (a TrainConfig). Aligned sequences are
+    cached per process by (file, preprocess config), so a suite preprocesses each recording once."""
+    from tqdm.auto import tqdm
+
+    pcfg = cfg.preprocess_config()
+    out = []
+    for name in tqdm(view.names, desc="preprocess", unit="rec", disable=not progress, leave=False):
+        path = view.path(name)
+        key = (str(path.resolve()), path.stat().st_mtime_ns, pcfg)
+        if key not in _CACHE:
+            _CACHE[key] = align(view.load(name), pcfg)
+        out.append(_CACHE[key])
+    return out
+
+
+@torch.no_grad()
+def predict_sequence(model, seq: Aligned, window: int, stride: int, batch: int = 512
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Window centre times (N,), predicted velocities (N, 2) and device presence (N, D)."""
+    wds = WindowDataset([seq], WindowConfig(window=window, stride=stride, target=None))
+    if len(wds) == 0:
+        return np.empty(0), np.empty((0, 2)), np.empty((0, len(seq.devices)))
+    device = next((p.device for p in model.parameters()), torch.device("cpu"))
+    ts, vs, ms = [], [], []
+    for b in DataLoader(wds, batch_size=batch, shuffle=False):
+        vs.append(model.predict(b["x"].to(device), b["mask"].to(device)).float().cpu().numpy())
+        ts.append(b["t"].mean(dim=1).numpy())
+        ms.append(b["mask"].numpy())
+    return np.concatenate(ts), np.concatenate(vs), np.concatenate(ms)
+
+
+def _is_dense(rec) -> bool:
+    return rec.truth is not None and len(rec.truth) > 1 and float(np.median(np.diff(rec.truth.t))) <= DENSE_TRUTH_MAX_DT
+
+
+def evaluate_sequence(model, seq: Aligned, window: int, stride: int, rte_delta: float = 60.0
+                      ) -> tuple[dict, pd.DataFrame]:
+    """Metrics of one sequence and its trajectory table (t, estimate x/y, truth x/y)."""
+    t_c, vel, present = predict_sequence(model, seq, window, stride)
+    rec = seq.recording
+    row = {"name": seq.name, "mode": str(seq.meta.get("mode", "")),
+           "subject": str(seq.meta.get("subject", "")),
+           "devices_present": float(present.sum(axis=1).mean()) if len(present) else 0.0}
+    if t_c.size < 2 or rec is None or rec.truth is None:
+        row["skipped"] = "too short for two windows or no truth"
+        return row, pd.DataFrame()
+    inside = (seq.t >= t_c[0]) & (seq.t <= t_c[-1])
+    if _is_dense(rec):
+        ok = inside & np.isfinite(seq.pos[:, 0])
+        # the longest stretch of truth inside the predictions (truth gaps split a walk)
+        idx = np.flatnonzero(ok)
+        if idx.size < 2:
+            row["skipped"] = "no truth under the predictions"
+            return row, pd.DataFrame()
+        breaks = np.flatnonzero(np.diff(idx) > 1)
+        runs_ = np.split(idx, breaks + 1)
+        idx = max(runs_, key=len)
+        t = seq.t[idx]
+        true = seq.pos[idx]
+        est = integrate_velocity(t_c, vel, t, true[0])
+        err = metrics.position_errors(t, est, true)
+        row.update(truth="dense", duration=float(t[-1] - t[0]),
+                   length_m=float(np.sum(np.linalg.norm(np.diff(true, axis=0), axis=1))),
+                   ate=metrics.ate(t, est, true), rte=metrics.rte(t, est, true, rte_delta),
+                   rte_delta=rte_delta, final_error=float(err[-1]))
+        traj = pd.DataFrame({"t": t, "x": est[:, 0], "y": est[:, 1], "x_true": true[:, 0],
+                             "y_true": true[:, 1], "error": err})
+        return row, traj
+    # sparse truth: start at the first truth point under the predictions, score at truth times
+    tt, tp = rec.truth.t, rec.truth.pos[:, :2]
+    first = np.flatnonzero((tt >= t_c[0]) & (tt <= t_c[-1]))
+    if first.size < 2:
+        row["skipped"] = "fewer than two truth points under the predictions"
+        return row, pd.DataFrame()
+    t = seq.t[(seq.t >= tt[first[0]]) & (seq.t <= t_c[-1])]
+    est = integrate_velocity(t_c, vel, t, tp[first[0]])
+    keep = first[1:]
+    err = metrics.errors_at_reference(t, est, tt[keep], tp[keep], SPARSE_MAX_GAP)
+    row.update(truth="sparse", duration=float(t[-1] - t[0]), points=int(err.size),
+               mean_error=float(err.mean()) if err.size else float("nan"),
+               median_error=float(np.median(err)) if err.size else float("nan"))
+    traj = pd.DataFrame({"t": t, "x": est[:, 0], "y": est[:, 1]})
+    return row, traj
+
+
+def summarise(rows: list[dict], errors: np.ndarray) -> dict:
+    """Mean/median ATE and RTE over sequences (Suite-IN++ and RoNIN average over sequences) and
+    percentiles of the per-timestamp error."""
+    df = pd.DataFrame([r for r in rows if "skipped" not in r])
+    out: dict = {"sequences": int(len(df)), "skipped": int(len(rows) - len(df))}
+    if len(df) and "ate" in df:
+        d = df.dropna(subset=["ate"])
+        out.update(ate_mean=float(d.ate.mean()), ate_median=float(d.ate.median()),
+                   rte_mean=float(d.rte.mean()), rte_median=float(d.rte.median()),
+                   rte_delta=float(d.rte_delta.iloc[0]) if len(d) else None,
+                   hours=float(d.duration.sum() / 3600), km=float(d.length_m.sum() / 1000))
+    if len(df) and "mean_error" in df:
+        d = df.dropna(subset=["mean_error"])
+        out.update(points=int(d.points.sum()), truth="sparse: errors at truth points only")
+    if errors.size:
+        out.update({f"error_p{p}": float(np.percentile(errors, p)) for p in PERCENTILES})
+    return out
+
+
+def evaluate_sequences(model, seqs: list[Aligned], window: int, stride: int, rte_delta: float = 60.0,
+                       progress: bool = False) -> tuple[dict, dict[str, pd.DataFrame]]:
+    """Per-sequence rows, the overall and per-walking-mode summaries, and the trajectories."""
+    from tqdm.auto import tqdm
+
+    rows, trajs = [], {}
+    for seq in tqdm(seqs, desc="evaluate", unit="seq", disable=not progress, leave=False):
+        row, traj = evaluate_sequence(model, seq, window, stride, rte_delta)
+        rows.append(row)
+        if len(traj):
+            trajs[seq.name] = traj
+    def errs(names):
+        e = [trajs[n]["error"].to_numpy() for n in names if n in trajs and "error" in trajs[n]]
+        return np.concatenate(e) if e else np.empty(0)
+    modes = sorted({r["mode"] for r in rows if r["mode"]})
+    result = {
+        "summary": summarise(rows, errs([r["name"] for r in rows])),
+        "by_mode": {m: summarise([r for r in rows if r["mode"] == m],
+                                 errs([r["name"] for r in rows if r["mode"] == m])) for m in modes},
+        "sequences": rows,
+    }
+    return result, trajs
+
+
+def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[str, ...] = ("test",),
+                 stride: int | None = None, rte_delta: float = 60.0, progress: bool = True,
+                 training: dict | None = None) -> dict:
+    """Evaluate a run folder's best model on ``splits`` of ``data`` (default: the training data);
+    write metrics.json, trajectories/<split>/<name>.csv and plots/. Returns the metrics."""
+    from wearnav.dataset import Dataset
+    from wearnav.models.registry import n_parameters
+    from wearnav.train.odometry import load_model
+
+    run = Path(run)
+    model, cfg = load_model(run)
+    ds = Dataset.open(data or cfg.data)
+    old = runs.read_metrics(run) if runs.is_complete(run) else {}
+    out = {"model": cfg.model, "run": run.name, "data": str(data or cfg.data),
+           "parameters": n_parameters(model), "window": cfg.window,
+           "eval_stride": stride or cfg.stride,
+           "training": training if training is not None else old.get("training", {}), "splits": {}}
+    out["splits"] = dict(old.get("splits", {})) if data is None or str(data) == old.get("data") else {}
+    for split in splits:
+        view = ds.split(split)
+        if len(view) == 0:
+            raise ValidationError(f"split {split!r} is empty (splits here: "
+                                  f"{sorted(set(ds.manifest['split'].astype(str)))})", ds.root)
+        seqs = load_sequences(view, cfg, progress)
+        t0 = time.perf_counter()
+        res, trajs = evaluate_sequences(model, seqs, cfg.window, stride or cfg.stride, rte_delta, progress)
+        res["wall_s"] = round(time.perf_counter() - t0, 2)
+        out["splits"][split] = res
+        for name, traj in trajs.items():
+            with atomic_path(run / "trajectories" / split / f"{name}.csv") as tmp:
+                traj.to_csv(tmp, index=False, float_format="%.4f")
+        from wearnav.plots_odometry import plot_run_split
+
+        plot_run_split(run / "plots", split, res, trajs, cfg.model)
+    runs.write_metrics(run, out)
+    return out

@@ -1,0 +1,115 @@
+"""Odometry figures: estimated vs true trajectories, position-error CDFs, ATE box plots.
+
+Drawn on matplotlib's Agg canvas (``Figure`` objects, no pyplot state) and written atomically,
+like every figure of wearnav.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from wearnav.fileio import atomic_path
+from wearnav.metrics import error_cdf
+
+MAX_TRAJECTORIES = 8
+
+
+def save(fig: Figure, out: Path, dpi: int = 110) -> Path:
+    FigureCanvasAgg(fig)
+    with atomic_path(out) as tmp:
+        fig.savefig(tmp, dpi=dpi, format="png")
+    return Path(out)
+
+
+def _pick(rows: list[dict], trajs: dict[str, pd.DataFrame], k: int) -> list[dict]:
+    """Up to ``k`` sequences, taken in turn from each walking mode so every mode is shown."""
+    by_mode: dict[str, list[dict]] = {}
+    for r in rows:
+        if r["name"] in trajs:
+            by_mode.setdefault(r["mode"], []).append(r)
+    picked: list[dict] = []
+    while len(picked) < k and any(by_mode.values()):
+        for m in sorted(by_mode):
+            if by_mode[m] and len(picked) < k:
+                picked.append(by_mode[m].pop(0))
+    return picked
+
+
+def plot_trajectories(rows, trajs, out: Path, title: str) -> Path | None:
+    picked = _pick(rows, trajs, MAX_TRAJECTORIES)
+    if not picked:
+        return None
+    ncols = min(4, len(picked))
+    nrows = -(-len(picked) // ncols)
+    fig = Figure(figsize=(3.6 * ncols, 3.5 * nrows + 0.6), layout="constrained")
+    for i, r in enumerate(picked):
+        ax = fig.add_subplot(nrows, ncols, i + 1)
+        tr = trajs[r["name"]]
+        if "x_true" in tr:
+            ax.plot(tr.x_true, tr.y_true, color="black", lw=1.0, label="truth")
+        ax.plot(tr.x, tr.y, color="tab:red", lw=1.0, label="estimate")
+        ax.plot(tr.x.iloc[0], tr.y.iloc[0], marker="*", color="tab:green", ms=10, mec="black", mew=0.5)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=7)
+        score = f"ATE {r['ate']:.2f} m" if "ate" in r else f"mean err {r.get('mean_error', float('nan')):.2f} m"
+        ax.set_title(f"{r['name']}\n{r['mode']} · {score}", fontsize=8)
+        if i == 0:
+            ax.legend(fontsize=7)
+    fig.suptitle(f"{title} (metres, start ★)", fontsize=11)
+    return save(fig, out)
+
+
+def plot_cdf(errors: dict[str, np.ndarray], out: Path, title: str) -> Path | None:
+    """One empirical CDF of per-timestamp position error per entry (a model, or a mode)."""
+    errors = {k: v for k, v in errors.items() if v.size}
+    if not errors:
+        return None
+    fig = Figure(figsize=(6, 4), layout="constrained")
+    ax = fig.add_subplot()
+    for name, e in errors.items():
+        x, p = error_cdf(e)
+        step = max(1, x.size // 2000)
+        ax.plot(x[::step], p[::step], label=name)
+    ax.set_xlabel("position error (m)")
+    ax.set_ylabel("P(error ≤ x)")
+    ax.set_ylim(0, 1)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title, fontsize=10)
+    return save(fig, out)
+
+
+def plot_box(values: dict[str, list[float]], out: Path, title: str, ylabel: str = "ATE (m)") -> Path | None:
+    values = {k: v for k, v in values.items() if len(v)}
+    if not values:
+        return None
+    fig = Figure(figsize=(max(4.0, 0.9 * len(values) + 2), 4), layout="constrained")
+    ax = fig.add_subplot()
+    ax.boxplot(list(values.values()), tick_labels=list(values.keys()))
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3, axis="y")
+    ax.tick_params(axis="x", labelsize=8, rotation=30)
+    ax.set_title(title, fontsize=10)
+    return save(fig, out)
+
+
+def plot_run_split(plots: Path, split: str, result: dict, trajs: dict[str, pd.DataFrame], model: str) -> None:
+    rows = result["sequences"]
+    plot_trajectories(rows, trajs, plots / f"{split}_trajectories.png", f"{model} on {split}")
+    by_mode: dict[str, list] = {}
+    for r in rows:
+        if r["name"] in trajs and "error" in trajs[r["name"]]:
+            by_mode.setdefault(r["mode"] or "all", []).append(trajs[r["name"]]["error"].to_numpy())
+    plot_cdf({m: np.concatenate(v) for m, v in sorted(by_mode.items())}, plots / f"{split}_error_cdf.png",
+             f"{model} on {split}: position error by walking mode")
+    ates: dict[str, list[float]] = {}
+    for r in rows:
+        if "ate" in r:
+            ates.setdefault(r["mode"] or "all", []).append(r["ate"])
+    plot_box(dict(sorted(ates.items())), plots / f"{split}_ate_box.png", f"{model} on {split}: ATE per sequence")

@@ -1,0 +1,1 @@
+"""LightningModules: odometry (velocity regression); classification and noisy-label training join here."""

@@ -1,0 +1,302 @@
+"""One LightningModule trains every odometry model (DESIGN.md, "Training and evaluation core").
+
+The module knows nothing about any model beyond the contract in :mod:`wearnav.models.base`: it
+calls ``model.loss(batch)`` to train and ``model(x, mask)`` to validate, so Suite-IN++'s eq. (25)
+terms and any other auxiliary loss stay inside the model. Checkpoints are selected and early
+stopping decided on the validation velocity MSE, the one figure every model shares.
+
+Reproducibility: every random draw of an epoch (shuffling, augmentation, dropout) is seeded
+from ``(seed, epoch)``, so a run killed mid-epoch and resumed from ``last.ckpt`` replays that
+epoch exactly and ends with the same weights and metrics as an uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import warnings
+import datetime as dt
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import lightning as L
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, Sampler
+
+from wearnav import runs
+from wearnav.errors import ConfigError, ValidationError
+from wearnav.models import registry
+from wearnav.preprocess import PreprocessConfig
+from wearnav.windows import WindowConfig, WindowDataset
+
+CHECKPOINTS = "checkpoints"
+BEST, LAST = "best.ckpt", "last.ckpt"
+DEFAULT_LR, DEFAULT_BATCH = 1e-3, 128
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything that decides a trained odometry model. Saved as YAML in the run folder.
+
+    ``lr`` / ``batch`` of None take the model's paper defaults (``model.default_lr`` /
+    ``model.default_batch``, else 1e-3 / 128). ``max_minutes`` bounds wall time (the run then ends
+    early and says so); it does not enter the run's hash.
+    """
+
+    model: str
+    data: str
+    devices: tuple[str, ...] = ("phone", "watch", "earbuds")
+    model_args: dict[str, Any] = field(default_factory=dict)
+    train_split: str = "train"
+    val_split: str = "val"
+    rate: float = 25.0
+    window: int = 100
+    stride: int = 10
+    epochs: int = 100
+    patience: int = 10
+    lr: float | None = None
+    batch: int | None = None
+    augment: tuple[str, ...] = ("random_yaw",)
+    seed: int = 0
+    max_minutes: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.epochs < 1:
+            raise ConfigError(f"epochs must be ≥ 1, got {self.epochs}")
+        if self.seed < 0:
+            raise ConfigError(f"seed must be ≥ 0, got {self.seed}")
+        if self.max_minutes is not None and not self.max_minutes > 0:
+            raise ConfigError(f"max time must be positive minutes, got {self.max_minutes}")
+        if not self.devices:
+            raise ConfigError("at least one device must be named")
+        if self.lr is not None and not self.lr > 0:
+            raise ConfigError(f"lr must be positive, got {self.lr}")
+        if self.batch is not None and self.batch < 1:
+            raise ConfigError(f"batch must be ≥ 1, got {self.batch}")
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TrainConfig":
+        names = {f.name: f for f in dataclasses.fields(cls)}
+        unknown = set(d) - set(names)
+        if unknown:
+            raise ConfigError(f"unknown training config keys: {sorted(unknown)}")
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+        return cls(**kw)
+
+    def preprocess_config(self) -> PreprocessConfig:
+        return PreprocessConfig(rate=self.rate, devices=tuple(self.devices))
+
+    def window_config(self, stride: int | None = None, target: str | None = "velocity") -> WindowConfig:
+        return WindowConfig(window=self.window, stride=stride or self.stride, target=target)
+
+
+HASH_EXCLUDE = ("max_minutes",)
+
+
+def build_model(cfg: TrainConfig) -> torch.nn.Module:
+    return registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, **cfg.model_args)
+
+
+class EpochSampler(Sampler[int]):
+    """A shuffling sampler whose permutation is a function of (seed, epoch) alone. Lightning calls
+    ``set_epoch`` before every epoch, also on a resumed run."""
+
+    def __init__(self, n: int, seed: int):
+        self.n, self.seed, self.epoch = n, seed, 0
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = epoch
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __iter__(self):
+        g = torch.Generator().manual_seed(self.seed * 100_003 + self.epoch)
+        return iter(torch.randperm(self.n, generator=g).tolist())
+
+
+class OdometryModule(L.LightningModule):
+    def __init__(self, model: torch.nn.Module, lr: float, augment: tuple[str, ...] = (), seed: int = 0):
+        super().__init__()
+        self.model = model
+        self.lr = lr
+        self.augment = tuple(augment)
+        self.seed = seed
+        self._gen = torch.Generator()
+
+    def on_train_epoch_start(self) -> None:
+        base = self.seed * 1_000_003 + self.current_epoch
+        torch.manual_seed(base)  # dropout and any other draw inside the model
+        self._gen.manual_seed(base + 7)
+
+    def training_step(self, batch, batch_idx):
+        if self.augment:
+            from wearnav import augment
+
+            batch = augment.apply(self.augment, batch, self._gen)
+        loss, parts = self.model.loss(batch)
+        n = batch["x"].shape[0]
+        self.log("train/loss", loss, prog_bar=True, batch_size=n)
+        for k, v in parts.items():
+            self.log(f"train/{k}", v, batch_size=n)
+        return loss
+
+    def validation_step(self, batch, batch_idx):
+        vel = self.model(batch["x"], batch["mask"])
+        mse = torch.mean((vel - batch["vel"]) ** 2)
+        self.log("val/vel_mse", mse, prog_bar=True, batch_size=batch["x"].shape[0])
+
+    def configure_optimizers(self):
+        return torch.optim.Adam(self.model.parameters(), lr=self.lr)
+
+
+def _loader(ds: WindowDataset, batch: int, shuffle_seed: int | None) -> DataLoader:
+    sampler = EpochSampler(len(ds), shuffle_seed) if shuffle_seed is not None else None
+    # Its own generator: creating a DataLoader iterator otherwise draws from the global RNG, at
+    # moments Lightning orders differently on a resumed epoch, which would shift dropout's draws.
+    return DataLoader(ds, batch_size=batch, sampler=sampler, num_workers=0, generator=torch.Generator())
+
+
+def _check_windows(ds: WindowDataset, what: str, data: str) -> None:
+    if len(ds) == 0:
+        raise ValidationError(f"no {what} windows with truth (is the split empty, or has the data no "
+                              "dense truth?)", data)
+
+
+def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
+    """Train ``cfg.model`` into run folder ``run`` (resuming from its last.ckpt if present).
+
+    Returns the training record that :func:`wearnav.evaluate.evaluate_run` merges into
+    metrics.json: epochs run, best epoch and validation MSE, wall time, seconds per epoch, what
+    stopped the run. Models that are not learned (PDR) are not fitted.
+    """
+    from lightning.pytorch.callbacks import EarlyStopping, ModelCheckpoint
+    from lightning.pytorch.loggers import CSVLogger
+
+    from wearnav.evaluate import load_sequences
+
+    run = Path(run)
+    L.seed_everything(cfg.seed, workers=True, verbose=False)  # before the weights are drawn
+    model = build_model(cfg)
+    spec = registry.get(cfg.model)
+    if not spec.learned:
+        return {"learned": False}
+    lr = cfg.lr or getattr(model, "default_lr", DEFAULT_LR)
+    batch = cfg.batch or getattr(model, "default_batch", DEFAULT_BATCH)
+    from wearnav.dataset import Dataset
+
+    ds = Dataset.open(cfg.data)
+    train_seqs = load_sequences(ds.split(cfg.train_split), cfg, progress)
+    val_view = ds.split(cfg.val_split)
+    if len(val_view) == 0:
+        raise ValidationError(f"split {cfg.val_split!r} is empty; name a validation split with --val-split",
+                              cfg.data)
+    val_seqs = load_sequences(val_view, cfg, progress)
+    train_ds = WindowDataset(train_seqs, cfg.window_config())
+    val_ds = WindowDataset(val_seqs, cfg.window_config())
+    _check_windows(train_ds, f"training ({cfg.train_split})", cfg.data)
+    _check_windows(val_ds, f"validation ({cfg.val_split})", cfg.data)
+
+    # Lightning's start-up chatter (accelerator lines, product tips) is not for our users.
+    logging.getLogger("lightning.pytorch.utilities.rank_zero").setLevel(logging.WARNING)
+    warnings.filterwarnings("ignore", message=r"Checkpoint directory .* exists and is not empty")
+    warnings.filterwarnings("ignore", message=r".*isinstance\(treespec, LeafSpec\)")
+    module = OdometryModule(model, lr, cfg.augment, cfg.seed)
+    ckpt_dir = run / CHECKPOINTS
+    checkpoint = ModelCheckpoint(dirpath=ckpt_dir, filename="best", monitor="val/vel_mse", mode="min",
+                                 save_last=True, enable_version_counter=False)
+    stopper = EarlyStopping(monitor="val/vel_mse", patience=cfg.patience, mode="min")
+    trainer = L.Trainer(
+        max_epochs=cfg.epochs,
+        max_time=dt.timedelta(minutes=cfg.max_minutes) if cfg.max_minutes else None,
+        callbacks=[checkpoint, stopper],
+        logger=CSVLogger(run, name="logs"),  # logs/version_N: one per attempt, a resume keeps the old
+        enable_progress_bar=progress,
+        enable_model_summary=False,
+        num_sanity_val_steps=0,
+        accelerator="auto",
+        devices=1,
+        default_root_dir=run,
+        deterministic=False,
+        log_every_n_steps=max(1, min(50, len(train_ds) // batch)),
+    )
+    last = ckpt_dir / LAST
+    resumed = last.is_file()
+    t0 = time.perf_counter()
+    trainer.fit(module, _loader(train_ds, batch, cfg.seed), _loader(val_ds, 1024, None),
+                ckpt_path=str(last) if last.is_file() else None)
+    wall = time.perf_counter() - t0
+    epochs = int(trainer.current_epoch)
+    stopped = ("early stopping" if stopper.stopped_epoch > 0 else
+               "max time" if cfg.max_minutes and epochs < cfg.epochs else "max epochs")
+    best = checkpoint.best_model_score
+    return {
+        "learned": True,
+        "lr": lr,
+        "batch": batch,
+        "train_windows": len(train_ds),
+        "val_windows": len(val_ds),
+        "epochs_run": epochs,
+        "stopped_by": stopped,
+        "best_val_vel_mse": None if best is None else float(best),
+        "wall_s": round(wall, 2),
+        "s_per_epoch": round(wall / max(epochs, 1), 2),
+        "resumed": resumed,
+        "accelerator": str(trainer.strategy.root_device),
+    }
+
+
+def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, TrainConfig]:
+    """The model of a run folder with its ``best`` (or ``last``) weights, in eval mode."""
+    from wearnav.errors import FormatError, MissingFileError
+
+    run = Path(run)
+    cfg = TrainConfig.from_dict(runs.read_config(run)["config"]["train"])
+    model = build_model(cfg)
+    if registry.get(cfg.model).learned:
+        path = run / CHECKPOINTS / which
+        if not path.is_file():
+            raise MissingFileError(f"no checkpoint {CHECKPOINTS}/{which} (was the run trained?)", run)
+        try:
+            ckpt = torch.load(path, map_location="cpu", weights_only=False)
+            state = {k.removeprefix("model."): v for k, v in ckpt["state_dict"].items()}
+            model.load_state_dict(state)
+        except Exception as exc:  # a torn or foreign file: one line, not a traceback
+            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise FormatError(f"corrupt or incompatible checkpoint: {msg}", path) from None
+    model.eval()
+    return model, cfg
+
+
+
+def run_record(cfg: TrainConfig) -> dict:
+    """What a run folder's config.yaml holds under ``config`` (and what its hash is taken of)."""
+    return {"train": runs.to_dict(cfg), "preprocess": runs.to_dict(cfg.preprocess_config())}
+
+
+def run_hash_exclude(record: dict) -> dict:
+    train = {k: v for k, v in record["train"].items() if k not in HASH_EXCLUDE}
+    return {**record, "train": train}
+
+
+def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
+    """Create (or reuse) run folder ``run`` for ``cfg``: a folder holding another config is refused,
+    so a resumed run never mixes two configurations."""
+    from wearnav.dataset import Dataset
+
+    run = Path(run)
+    record = run_record(cfg)
+    if (run / runs.CONFIG).is_file():
+        old = runs.read_config(run)["config"]
+        if run_hash_exclude(old) != run_hash_exclude(record):
+            raise ConfigError("holds a run of another configuration; choose another --out", run)
+        return run
+    if run.exists() and (not run.is_dir() or any(run.iterdir())):
+        raise ConfigError("exists and is not an empty folder or a run folder; choose another --out", run)
+    ds = Dataset.open(cfg.data)
+    run.mkdir(parents=True, exist_ok=True)
+    runs.write_config(run, record, {"data_provenance": ds.provenance})
+    return run

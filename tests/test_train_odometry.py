@@ -1,0 +1,135 @@
+"""The odometry training/evaluation core on the tiny simulator preset with a tiny model."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from torch import nn
+
+from wearnav import runs
+from wearnav.errors import ConfigError, FormatError, ValidationError
+from wearnav.evaluate import evaluate_run
+from wearnav.models.base import OdometryModel
+from wearnav.models.registry import register
+from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
+
+
+@register("test-mlp", task="odometry", layout="concat", description="tiny MLP used by the core's tests")
+class TinyMLP(OdometryModel):
+    def __init__(self, n_devices=3, window=100, hidden=16):
+        super().__init__()
+        self.net = nn.Sequential(nn.Flatten(), nn.Linear(n_devices * 6 * 2, hidden), nn.ReLU(),
+                                 nn.Dropout(0.1), nn.Linear(hidden, 2))
+
+    def forward(self, x, mask):
+        feats = torch.cat([x.mean(dim=2), x.std(dim=2)], dim=-1) * mask[..., None]
+        return self.net(feats)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    from wearnav.simulate import simulate_dataset
+
+    path = tmp_path_factory.mktemp("data") / "tiny"
+    simulate_dataset("tiny", path, seed=0)
+    return path
+
+
+def _cfg(tiny, **kw):
+    base = dict(model="test-mlp", data=str(tiny), epochs=3, patience=5, batch=64, lr=3e-3, augment=())
+    base.update(kw)
+    return TrainConfig(**base)
+
+
+def test_train_evaluate_writes_a_complete_run(tiny, tmp_path):
+    cfg = _cfg(tiny)
+    run = prepare_run(cfg, tmp_path / "run")
+    training = fit(cfg, run, progress=False)
+    assert training["epochs_run"] == 3 and training["train_windows"] > 500
+    assert (run / "checkpoints" / "best.ckpt").is_file() and (run / "checkpoints" / "last.ckpt").is_file()
+    m = evaluate_run(run, splits=("test",), progress=False, training=training)
+    assert runs.is_complete(run)
+    s = m["splits"]["test"]["summary"]
+    assert s["sequences"] == 5 and s["skipped"] == 0
+    # each sequence's ATE equals the RMS of its stored per-timestamp errors
+    for row in m["splits"]["test"]["sequences"]:
+        traj = np.loadtxt(run / "trajectories" / "test" / f"{row['name']}.csv", delimiter=",", skiprows=1)
+        assert row["ate"] == pytest.approx(np.sqrt(np.mean(traj[:, 5] ** 2)), rel=1e-3)
+        assert traj[0, 1] == pytest.approx(traj[0, 3]) and traj[0, 2] == pytest.approx(traj[0, 4])
+    assert set(m["splits"]["test"]["by_mode"]) == {"STW", "PVW", "MVW", "DRW", "DLW"}
+    for png in ("test_trajectories.png", "test_error_cdf.png", "test_ate_box.png"):
+        assert (run / "plots" / png).stat().st_size > 5000
+    doc = runs.read_config(run)
+    assert doc["config"]["train"]["model"] == "test-mlp" and doc["provenance"]["wearnav"]
+    assert json.loads((run / "metrics.json").read_text())["training"]["epochs_run"] == 3
+
+
+def test_learning_beats_a_zero_velocity_guess(tiny, tmp_path):
+    """Trained on the tiny preset, even the tiny model must predict speed better than standing still."""
+    cfg = _cfg(tiny, epochs=8)
+    run = prepare_run(cfg, tmp_path / "run")
+    fit(cfg, run, progress=False)
+    model, _ = load_model(run)
+    from wearnav.dataset import Dataset
+    from wearnav.evaluate import load_sequences
+    from wearnav.windows import WindowDataset
+
+    wds = WindowDataset(load_sequences(Dataset.open(tiny).split("test"), cfg), cfg.window_config())
+    b = next(iter(torch.utils.data.DataLoader(wds, batch_size=len(wds))))
+    with torch.no_grad():
+        speed_err = (model(b["x"], b["mask"]).norm(dim=1) - b["vel"].norm(dim=1)).abs().mean()
+    assert speed_err < 0.5 * b["vel"].norm(dim=1).mean()
+
+
+class _Kill(Exception):
+    pass
+
+
+def test_interrupted_and_resumed_run_ends_like_an_uninterrupted_one(tiny, tmp_path, monkeypatch):
+    import lightning as L
+
+    cfg = _cfg(tiny, epochs=3)
+    ref = prepare_run(cfg, tmp_path / "ref")
+    fit(cfg, ref, progress=False)
+    ref_m = evaluate_run(ref, progress=False)
+
+    # kill the second run in the middle of its second epoch
+    class Killer(L.Callback):
+        def on_train_batch_end(self, trainer, module, outputs, batch, batch_idx):
+            if trainer.current_epoch == 1 and batch_idx == 3:
+                raise _Kill()
+
+    orig = L.Trainer.__init__
+
+    def patched(self, *a, callbacks=(), **kw):
+        orig(self, *a, callbacks=[*callbacks, Killer()], **kw)
+
+    run = prepare_run(cfg, tmp_path / "resumed")
+    monkeypatch.setattr(L.Trainer, "__init__", patched)
+    with pytest.raises(_Kill):
+        fit(cfg, run, progress=False)
+    monkeypatch.setattr(L.Trainer, "__init__", orig)
+    assert (run / "checkpoints" / "last.ckpt").is_file()
+    training = fit(cfg, run, progress=False)
+    assert training["resumed"]
+    m = evaluate_run(run, progress=False)
+    for a, b in zip(ref_m["splits"]["test"]["sequences"], m["splits"]["test"]["sequences"]):
+        assert a["ate"] == pytest.approx(b["ate"], rel=1e-6)
+        assert a["rte"] == pytest.approx(b["rte"], rel=1e-6)
+
+
+def test_bad_configurations_are_one_line_errors(tiny, tmp_path):
+    with pytest.raises(ConfigError, match="unknown model"):
+        fit(_cfg(tiny, model="nope"), tmp_path / "r", progress=False)
+    with pytest.raises(ConfigError):
+        _cfg(tiny, epochs=0)
+    run = prepare_run(_cfg(tiny), tmp_path / "r2")
+    with pytest.raises(ConfigError, match="another configuration"):
+        prepare_run(_cfg(tiny, seed=1), run)
+    with pytest.raises(ValidationError, match="unknown split"):
+        fit(_cfg(tiny, val_split="nosuch"), tmp_path / "r3", progress=False)
+    (run / "checkpoints").mkdir(exist_ok=True)
+    (run / "checkpoints" / "best.ckpt").write_bytes(b"not a checkpoint")
+    with pytest.raises(FormatError, match="corrupt"):
+        load_model(run)
