@@ -116,6 +116,91 @@ def datasets_report(
     typer.echo(str(write_datasets_report(data, out, work)))
 
 
+def _devices(devices: str) -> tuple[str, ...]:
+    return tuple(d.strip() for d in devices.split(",") if d.strip())
+
+
+@app.command("models")
+def models_():
+    """List the registered models: name, task, device layout, parameters."""
+    from wearnav.models.registry import available, n_parameters
+
+    for spec in available():
+        try:
+            n = f"{n_parameters(spec.build(n_devices=3, window=100)):,}"
+        except Exception as exc:  # a model that cannot be built with defaults still gets listed
+            n = f"? ({type(exc).__name__})"
+        typer.echo(f"{spec.name:12s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
+
+
+@app.command()
+def train(
+    model: str = typer.Argument(..., help="A registered model (see `wearnav models`)."),
+    data: Path = typer.Option(..., "--data", help="Dataset folder with truth (e.g. from `wearnav simulate`)."),
+    out: Path = typer.Option(..., "--out", help="Run folder to write (resumed if it holds this run)."),
+    devices: str = typer.Option("phone,watch,earbuds", help="Device layout, comma-separated."),
+    epochs: int = typer.Option(100, help="Maximum epochs (early stopping may end sooner)."),
+    seed: int = typer.Option(0, help="Random seed."),
+    lr: Optional[float] = typer.Option(None, help="Learning rate (default: the model's paper value)."),
+    batch: Optional[int] = typer.Option(None, help="Batch size (default: the model's paper value)."),
+    patience: int = typer.Option(10, help="Early-stopping patience in epochs."),
+    max_time: Optional[float] = typer.Option(None, "--max-time", help="Stop training after this many minutes."),
+    evaluate: bool = typer.Option(True, help="Evaluate on the test split afterwards."),
+):
+    """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json)."""
+    from wearnav.evaluate import evaluate_run
+    from wearnav.train.odometry import TrainConfig, fit, prepare_run
+
+    cfg = TrainConfig(model=model, data=str(data), devices=_devices(devices), epochs=epochs, seed=seed,
+                      lr=lr, batch=batch, patience=patience, max_minutes=max_time)
+    run = prepare_run(cfg, out)
+    record = fit(cfg, run, progress=True)
+    _echo_json({"run": str(run), "training": record})
+    if evaluate:
+        m = evaluate_run(run, splits=("test",), training=record)
+        _echo_json({"test": m["splits"]["test"]["summary"]})
+
+
+@app.command("eval")
+def eval_(
+    run: Path = typer.Argument(..., help="A run folder written by `wearnav train`."),
+    data: Optional[Path] = typer.Option(None, "--data", help="Dataset to evaluate on (default: the training data)."),
+    split: str = typer.Option("test", help="Split(s) to evaluate, comma-separated."),
+):
+    """Evaluate a run: metrics.json, trajectories/*.csv and plots (trajectories, error CDF, ATE box)."""
+    from wearnav.evaluate import evaluate_run
+
+    m = evaluate_run(run, data=data, splits=_devices(split))
+    _echo_json({s: m["splits"][s]["summary"] for s in _devices(split)})
+    typer.echo(f"wrote {run / 'metrics.json'} and {run / 'plots'}")
+
+
+bench_app = typer.Typer(help="The papers' experiments as resumable suites of run folders.", no_args_is_help=True)
+app.add_typer(bench_app, name="bench")
+
+
+@bench_app.command("odometry")
+def bench_odometry(
+    data: Path = typer.Option(..., "--data", help="Simulated dataset (e.g. `wearnav simulate --preset default`)."),
+    out: Path = typer.Option(Path("runs/odometry"), "--out", help="Suite folder (run folders + results.md)."),
+    models: str = typer.Option(",".join(("suitein++", "suitein", "ronin", "ronin*", "pdr")),
+                               help="Models, comma-separated."),
+    epochs: int = typer.Option(100, help="Maximum epochs per model."),
+    max_time: Optional[float] = typer.Option(None, "--max-time", help="Minutes per model's training."),
+    seed: int = typer.Option(0),
+    docs: Optional[Path] = typer.Option(None, help="Also copy the results page here (e.g. docs/results.md)."),
+):
+    """Train and evaluate the odometry comparison; complete runs are skipped (the suite resumes)."""
+    from wearnav.bench.odometry import run_suite, suite_configs, write_suite_report
+
+    configs = suite_configs(data, _devices(models), epochs=epochs, max_minutes=max_time, seed=seed)
+    folders = run_suite(configs, out, echo=typer.echo)
+    note = (f"Data: `{data}`. Training: at most {epochs} epochs per model"
+            + (f" and {max_time:g} min" if max_time else "") + ", early stopping on validation velocity MSE.")
+    page = write_suite_report(folders, out, "Odometry comparison", note=note)
+    typer.echo(f"wrote {page}")
+
+
 @app.command()
 def demo(
     out: Path = typer.Option(Path("runs/demo"), "--out", help="Folder for the demo's outputs."),

@@ -11,6 +11,7 @@ so.
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -171,12 +172,14 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
     write metrics.json, trajectories/<split>/<name>.csv and plots/. Returns the metrics."""
     from wearnav.dataset import Dataset
     from wearnav.models.registry import n_parameters
-    from wearnav.train.odometry import load_model
+    from wearnav.train.odometry import TRAINING, load_model
 
     run = Path(run)
     model, cfg = load_model(run)
     ds = Dataset.open(data or cfg.data)
     old = runs.read_metrics(run) if runs.is_complete(run) else {}
+    if training is None and (run / TRAINING).is_file():
+        training = json.loads((run / TRAINING).read_text(encoding="utf-8"))
     out = {"model": cfg.model, "run": run.name, "data": str(data or cfg.data),
            "parameters": n_parameters(model), "window": cfg.window,
            "eval_stride": stride or cfg.stride,

@@ -77,8 +77,12 @@ def read_config(run: str | Path) -> dict:
     return doc
 
 
+def write_json(path: str | Path, obj: dict) -> Path:
+    return write_text_atomic(json.dumps(obj, indent=1, default=float), path)
+
+
 def write_metrics(run: str | Path, metrics: dict) -> Path:
-    return write_text_atomic(json.dumps(metrics, indent=1, default=float), Path(run) / METRICS)
+    return write_json(Path(run) / METRICS, metrics)
 
 
 def read_metrics(run: str | Path) -> dict:

@@ -34,6 +34,7 @@ from wearnav.windows import WindowConfig, WindowDataset
 
 CHECKPOINTS = "checkpoints"
 BEST, LAST = "best.ckpt", "last.ckpt"
+TRAINING = "training.json"  # what fit() measured; evaluate_run merges it into metrics.json
 DEFAULT_LR, DEFAULT_BATCH = 1e-3, 128
 
 
@@ -183,6 +184,7 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
     model = build_model(cfg)
     spec = registry.get(cfg.model)
     if not spec.learned:
+        runs.write_json(Path(run) / TRAINING, {"learned": False})
         return {"learned": False}
     lr = cfg.lr or getattr(model, "default_lr", DEFAULT_LR)
     batch = cfg.batch or getattr(model, "default_batch", DEFAULT_BATCH)
@@ -233,7 +235,7 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
     stopped = ("early stopping" if stopper.stopped_epoch > 0 else
                "max time" if cfg.max_minutes and epochs < cfg.epochs else "max epochs")
     best = checkpoint.best_model_score
-    return {
+    record = {
         "learned": True,
         "lr": lr,
         "batch": batch,
@@ -247,6 +249,8 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
         "resumed": resumed,
         "accelerator": str(trainer.strategy.root_device),
     }
+    runs.write_json(run / TRAINING, record)
+    return record
 
 
 def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, TrainConfig]:
