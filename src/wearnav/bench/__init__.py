@@ -1,0 +1,1 @@
+"""The papers' experiments as declarative suites of run configs, with their table builders."""
