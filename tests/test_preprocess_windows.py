@@ -115,3 +115,22 @@ def test_windows_without_truth():
 def test_from_seconds():
     c = WindowConfig.from_seconds(4.0, 0.4, 25.0)
     assert (c.window, c.stride) == (100, 10)
+
+
+def test_batched_fetch_equals_single_items(small_recording):
+    import torch
+
+    from wearnav.preprocess import PreprocessConfig
+    from wearnav.windows import WindowConfig, WindowDataset
+
+    wds = WindowDataset.from_recordings([small_recording], PreprocessConfig(frame="device", devices=("phone", "earbuds")),
+                                        WindowConfig(window=10, stride=3))
+    assert len(wds) > 3
+    batch = wds[[2, 0, 1]]
+    for j, k in enumerate([2, 0, 1]):
+        item = wds[k]
+        for key in item:
+            assert torch.equal(batch[key][j], item[key]) or (
+                torch.isnan(item[key]).all() and torch.isnan(batch[key][j]).all())
+    seen = [k for b in wds.loader(2, shuffle_seed=0) for k in b["t"][:, 0].tolist()]
+    assert sorted(seen) == sorted(wds[list(range(len(wds)))]["t"][:, 0].tolist())

@@ -76,7 +76,7 @@ def test_learning_beats_a_zero_velocity_guess(tiny, tmp_path):
     from wearnav.windows import WindowDataset
 
     wds = WindowDataset(load_sequences(Dataset.open(tiny).split("test"), cfg), cfg.window_config())
-    b = next(iter(torch.utils.data.DataLoader(wds, batch_size=len(wds))))
+    b = wds[list(range(len(wds)))]
     with torch.no_grad():
         speed_err = (model(b["x"], b["mask"]).norm(dim=1) - b["vel"].norm(dim=1)).abs().mean()
     assert speed_err < 0.5 * b["vel"].norm(dim=1).mean()

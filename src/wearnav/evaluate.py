@@ -18,7 +18,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import torch
-from torch.utils.data import DataLoader
 
 from wearnav import metrics, runs
 from wearnav.errors import ValidationError
@@ -61,7 +60,7 @@ def predict_sequence(model, seq: Aligned, window: int, stride: int, batch: int =
         return np.empty(0), np.empty((0, 2)), np.empty((0, len(seq.devices)))
     device = next((p.device for p in model.parameters()), torch.device("cpu"))
     ts, vs, ms = [], [], []
-    for b in DataLoader(wds, batch_size=batch, shuffle=False):
+    for b in wds.loader(batch):
         vs.append(model.predict(b["x"].to(device), b["mask"].to(device)).float().cpu().numpy())
         ts.append(b["t"].mean(dim=1).numpy())
         ms.append(b["mask"].numpy())

@@ -105,30 +105,81 @@ class WindowDataset(TorchDataset):
     def __len__(self) -> int:
         return len(self.index)
 
-    def __getitem__(self, k: int) -> dict[str, torch.Tensor]:
-        i, s = self.index[k]
-        seq, L = self.sequences[i], self.cfg.window
-        e = s + L - 1
-        present = seq.mask[:, s:s + L].mean(axis=1) >= self.cfg.min_present
-        x = seq.imu[:, s:s + L].copy()
-        x[~present] = 0.0
-        if seq.pos is not None:
-            disp = seq.pos[e] - seq.pos[s]
-        else:
-            disp = np.full(2, np.nan)
-        vel = disp / (seq.t[e] - seq.t[s])
+    def __getitem__(self, k) -> dict[str, torch.Tensor]:
+        """One window (``k`` an int) or a batch of windows (``k`` a sequence of ints; every tensor
+        then gains a leading batch axis). Batched fetching is the training data path: one call per
+        batch instead of one per window and a collate (see :class:`BatchSampler`)."""
+        if np.ndim(k) == 0:
+            b = self[[int(k)]]
+            return {key: v[0] for key, v in b.items()}
+        idx = self.index[np.asarray(k, np.int64)]
+        L = self.cfg.window
+        D = len(self.sequences[0].devices) if self.sequences else 0
+        x = np.empty((len(idx), D, L, 6), np.float32)
+        present = np.empty((len(idx), D), bool)
+        disp = np.full((len(idx), 2), np.nan)
+        dt = np.empty(len(idx))
+        t = np.empty((len(idx), 2))
+        label = np.empty(len(idx), np.int64)
+        for j, (i, s) in enumerate(idx):
+            seq, e = self.sequences[i], s + L - 1
+            present[j] = seq.mask[:, s:s + L].mean(axis=1) >= self.cfg.min_present
+            x[j] = seq.imu[:, s:s + L]
+            x[j, ~present[j]] = 0.0
+            if seq.pos is not None:
+                disp[j] = seq.pos[e] - seq.pos[s]
+            t[j] = seq.t[s], seq.t[e]
+            dt[j] = seq.t[e] - seq.t[s]
+            label[j] = _majority(self._labels[i][s:s + L])
         return {
             "x": torch.from_numpy(x),
             "mask": torch.from_numpy(present.astype(np.float32)),
-            "vel": torch.as_tensor(vel, dtype=torch.float32),
-            "disp": torch.as_tensor(disp, dtype=torch.float32),
-            "label": torch.tensor(_majority(self._labels[i][s:s + L])),
-            "seq": torch.tensor(i),
-            "t": torch.tensor([seq.t[s], seq.t[e]], dtype=torch.float64),
+            "vel": torch.from_numpy((disp / dt[:, None]).astype(np.float32)),
+            "disp": torch.from_numpy(disp.astype(np.float32)),
+            "label": torch.from_numpy(label),
+            "seq": torch.from_numpy(idx[:, 0].copy()),
+            "t": torch.from_numpy(t),
         }
+
+    def loader(self, batch: int, shuffle_seed: int | None = None) -> "torch.utils.data.DataLoader":
+        """A DataLoader that fetches whole batches (shuffled per epoch from ``shuffle_seed``, or in
+        order when None)."""
+        from torch.utils.data import DataLoader
+
+        # batch_size=None: each "index" the sampler yields is a list, fetched in one call. Its own
+        # generator: creating an iterator otherwise draws from the global RNG, at moments Lightning
+        # orders differently on a resumed epoch, which would shift dropout's draws.
+        return DataLoader(self, batch_size=None, sampler=BatchSampler(len(self), batch, shuffle_seed),
+                          num_workers=0, generator=torch.Generator())
 
     @classmethod
     def from_recordings(cls, recordings, pcfg: PreprocessConfig = PreprocessConfig(),
                         wcfg: WindowConfig = WindowConfig(), classes=None) -> "WindowDataset":
         """Align each recording (a Dataset view or any iterable of Recordings) and window them."""
         return cls([align(r, pcfg) for r in recordings], wcfg, classes)
+
+
+class BatchSampler(torch.utils.data.Sampler):
+    """Yields lists of window indices, ``batch`` at a time. With a seed the order is a permutation
+    that is a function of (seed, epoch) alone; Lightning calls :meth:`set_epoch` before every
+    epoch, also on a resumed run, so a resumed epoch replays exactly."""
+
+    def __init__(self, n: int, batch: int, seed: int | None = None):
+        if batch < 1:
+            raise ConfigError(f"batch must be ≥ 1, got {batch}")
+        self.n, self.batch, self.seed, self.epoch = n, batch, seed, 0
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = epoch
+
+    def __len__(self) -> int:
+        return -(-self.n // self.batch)
+
+    def __iter__(self):
+        if self.seed is None:
+            order = np.arange(self.n)
+        else:
+            g = torch.Generator().manual_seed(self.seed * 100_003 + self.epoch)
+            order = torch.randperm(self.n, generator=g).numpy()
+        for i in range(0, self.n, self.batch):
+            yield order[i:i + self.batch].tolist()

@@ -24,7 +24,6 @@ from typing import Any
 import lightning as L
 import numpy as np
 import torch
-from torch.utils.data import DataLoader, Sampler
 
 from wearnav import runs
 from wearnav.errors import ConfigError, ValidationError
@@ -101,24 +100,6 @@ def build_model(cfg: TrainConfig) -> torch.nn.Module:
     return registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, **cfg.model_args)
 
 
-class EpochSampler(Sampler[int]):
-    """A shuffling sampler whose permutation is a function of (seed, epoch) alone. Lightning calls
-    ``set_epoch`` before every epoch, also on a resumed run."""
-
-    def __init__(self, n: int, seed: int):
-        self.n, self.seed, self.epoch = n, seed, 0
-
-    def set_epoch(self, epoch: int) -> None:
-        self.epoch = epoch
-
-    def __len__(self) -> int:
-        return self.n
-
-    def __iter__(self):
-        g = torch.Generator().manual_seed(self.seed * 100_003 + self.epoch)
-        return iter(torch.randperm(self.n, generator=g).tolist())
-
-
 class OdometryModule(L.LightningModule):
     def __init__(self, model: torch.nn.Module, lr: float, augment: tuple[str, ...] = (), seed: int = 0):
         super().__init__()
@@ -152,13 +133,6 @@ class OdometryModule(L.LightningModule):
 
     def configure_optimizers(self):
         return torch.optim.Adam(self.model.parameters(), lr=self.lr)
-
-
-def _loader(ds: WindowDataset, batch: int, shuffle_seed: int | None) -> DataLoader:
-    sampler = EpochSampler(len(ds), shuffle_seed) if shuffle_seed is not None else None
-    # Its own generator: creating a DataLoader iterator otherwise draws from the global RNG, at
-    # moments Lightning orders differently on a resumed epoch, which would shift dropout's draws.
-    return DataLoader(ds, batch_size=batch, sampler=sampler, num_workers=0, generator=torch.Generator())
 
 
 def _check_windows(ds: WindowDataset, what: str, data: str) -> None:
@@ -228,7 +202,7 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
     last = ckpt_dir / LAST
     resumed = last.is_file()
     t0 = time.perf_counter()
-    trainer.fit(module, _loader(train_ds, batch, cfg.seed), _loader(val_ds, 1024, None),
+    trainer.fit(module, train_ds.loader(batch, cfg.seed), val_ds.loader(1024),
                 ckpt_path=str(last) if last.is_file() else None)
     wall = time.perf_counter() - t0
     epochs = int(trainer.current_epoch)
