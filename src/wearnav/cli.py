@@ -205,10 +205,14 @@ def bench_odometry(
 def demo(
     out: Path = typer.Option(Path("runs/demo"), "--out", help="Folder for the demo's outputs."),
     seed: int = typer.Option(0),
+    models: str = typer.Option("suitein++,ronin,pdr", help="Models to compare, comma-separated."),
+    minutes: float = typer.Option(2.5, help="Training minutes per learned model."),
 ):
-    """The main job on built-in data: simulate the small preset, summarise it, plot trajectories."""
+    """The main job on built-in data: simulate the small preset, train and compare odometry models,
+    write a report with trajectory plots (runs resume: a second call reuses finished runs)."""
+    from wearnav.bench.odometry import comparison_table, run_suite, suite_configs, write_suite_report
     from wearnav.dataset import Dataset
-    from wearnav.report import plot_trajectories, walk_tables
+    from wearnav.report import plot_trajectories
     from wearnav.simulate import simulate_dataset
 
     data_dir = out / "data"
@@ -217,14 +221,22 @@ def demo(
         typer.echo(f"using existing simulated dataset {data_dir}")
     else:
         ds = simulate_dataset("small", data_dir, seed=seed, progress=True)
-    _echo_json(ds.summary())
-    for by, table in walk_tables(ds, ("mode", "noise_level")).items():
-        typer.echo(f"\nby {by} (fix label noise: median error of the 1-s displacements between "
-                   "location fixes; EasyTrack targets L1/L2/L3 = 21.6/27.6/33.5 cm):")
-        typer.echo(table.to_string(index=False))
-        table.to_csv(out / f"summary_by_{by}.csv", index=False)
-    png = plot_trajectories(ds, out / "trajectories.png")
-    typer.echo(f"\ntrajectory plot: {png}")
+    s = ds.summary()
+    typer.echo(f"simulated {s['recordings']} recordings, {s['total_duration_h']:.2f} h; splits {s['splits']}")
+    plot_trajectories(ds, out / "truth_trajectories.png")
+    configs = suite_configs(data_dir, _devices(models), epochs=100, max_minutes=minutes, seed=seed, patience=5)
+    folders = run_suite(configs, out / "runs", splits=("test", "cross_subject"), echo=typer.echo)
+    note = (f"Built-in data: simulator preset `small` (seed {seed}). Demo budget: at most {minutes:g} min of "
+            "training per learned model on this machine, far below the paper's training; see "
+            "`wearnav bench odometry` for the full comparison.")
+    page = write_suite_report(folders, out, "wearnav demo: odometry on simulated walking",
+                              splits=("test", "cross_subject"), note=note)
+    for split in ("test", "cross_subject"):
+        table = comparison_table(folders, split)
+        cols = [c for c in ("model", "ATE", "RTE", "STW ATE", "DRW ATE", "epochs", "train s/epoch") if c in table]
+        typer.echo(f"\n{split} (metres):")
+        typer.echo(table[cols].to_string(index=False, float_format=lambda v: f"{v:.2f}"))
+    typer.echo(f"\nreport: {page} (trajectory plots per run under {out / 'runs'}/*/plots)")
 
 
 def main() -> None:
