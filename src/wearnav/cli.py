@@ -201,6 +201,17 @@ def bench_odometry(
     typer.echo(f"wrote {page}")
 
 
+@app.command("results")
+def results_(
+    suites: list[Path] = typer.Argument(..., help="Suite folders, each holding a generated results.md."),
+    out: Path = typer.Option(Path("docs/results.md"), "--out", help="The page to write."),
+):
+    """Stitch the suites' generated pages into one results page (figures copied to its img/)."""
+    from wearnav.bench.results import collect
+
+    typer.echo(str(collect(suites, out)))
+
+
 @app.command()
 def demo(
     out: Path = typer.Option(Path("runs/demo"), "--out", help="Folder for the demo's outputs."),
