@@ -124,6 +124,6 @@ def write_suite_report(folders, out: str | Path, title: str, splits=TEST_SPLITS,
         cdf = plot_cdf(errors_by_model(folders, split), out / f"{split}_error_cdf.png",
                        f"position error CDF, split {split}")
         box = plot_box(ate_by_model(folders, split), out / f"{split}_ate_box.png", f"ATE per sequence, split {split}")
-        lines += [f"![error CDF]({p.name})" for p in (cdf, box) if p] + [""]
+        lines += [f"![{p.stem}]({p.name})" for p in (cdf, box) if p] + [""]
     runs.write_json(out / "results.json", doc)
     return write_text_atomic("\n".join(lines), out / "results.md")

@@ -59,7 +59,7 @@ class TrainConfig:
     patience: int = 10
     lr: float | None = None
     batch: int | None = None
-    augment: tuple[str, ...] = ("random_yaw",)
+    augment: tuple[str, ...] = ("rotate_yaw",)
     seed: int = 0
     max_minutes: float | None = None
 

@@ -1,0 +1,80 @@
+"""`wearnav train / eval / bench odometry / results` end to end on the tiny preset, and their errors."""
+
+import json
+import sys
+from dataclasses import replace
+
+import pytest
+
+from wearnav import cli
+from wearnav.dataset import Dataset, DatasetWriter
+
+from test_train_odometry import TinyMLP  # noqa: F401  (registers "test-mlp")
+
+
+def run(monkeypatch, capsys, *args):
+    monkeypatch.setattr(sys, "argv", ["wearnav", *map(str, args)])
+    code = 0
+    try:
+        cli.main()
+    except SystemExit as e:
+        code = e.code or 0
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    from wearnav.simulate import simulate_dataset
+
+    path = tmp_path_factory.mktemp("data") / "tiny"
+    simulate_dataset("tiny", path, seed=1)
+    return path
+
+
+def test_train_then_eval(tiny, tmp_path, monkeypatch, capsys):
+    code, out, err = run(monkeypatch, capsys, "train", "test-mlp", "--data", tiny, "--out", tmp_path / "run",
+                         "--epochs", "2", "--batch", "64")
+    assert code == 0, err
+    assert (tmp_path / "run" / "metrics.json").is_file()
+    code, out, err = run(monkeypatch, capsys, "eval", tmp_path / "run", "--split", "test,cross_subject")
+    assert code == 0, err
+    summary = json.loads(out[: out.rindex("}") + 1])
+    assert summary["test"]["sequences"] == 5 and summary["cross_subject"]["sequences"] == 5
+    assert summary["test"]["ate_mean"] > 0
+    # the same command again resumes nothing and keeps the run's config
+    code, _, err = run(monkeypatch, capsys, "train", "test-mlp", "--data", tiny, "--out", tmp_path / "run",
+                       "--epochs", "3", "--batch", "64")
+    assert code == 2 and "another configuration" in err and err.count("\n") == 1
+
+
+def test_bench_suite_resumes_and_results_page(tiny, tmp_path, monkeypatch, capsys):
+    args = ("bench", "odometry", "--data", tiny, "--out", tmp_path / "suite", "--models", "test-mlp", "--epochs", "1")
+    code, out, err = run(monkeypatch, capsys, *args)
+    assert code == 0, err
+    assert "training" in out
+    code, out, err = run(monkeypatch, capsys, *args)
+    assert code == 0 and "complete, skipped" in out
+    page = (tmp_path / "suite" / "results.md").read_text()
+    assert "test-mlp" in page and "cross_subject" in page
+    code, out, err = run(monkeypatch, capsys, "results", tmp_path / "suite", "--out", tmp_path / "docs" / "results.md")
+    assert code == 0, err
+    doc = (tmp_path / "docs" / "results.md").read_text()
+    assert "## Odometry comparison" in doc and "img/suite_test_error_cdf.png" in doc
+    assert (tmp_path / "docs" / "img" / "suite_test_error_cdf.png").is_file()
+
+
+def test_one_line_errors(tiny, tmp_path, monkeypatch, capsys):
+    code, _, err = run(monkeypatch, capsys, "train", "no-such-model", "--data", tiny, "--out", tmp_path / "a")
+    assert code == 2 and "unknown model" in err and err.count("\n") == 1
+    assert not (tmp_path / "a").exists()
+    # a dataset without truth cannot train an odometry model
+    ds = Dataset.open(tiny)
+    with DatasetWriter(tmp_path / "notruth") as w:
+        for name in ds.names[:8]:
+            rec = ds.load(name)
+            w.add(replace(rec, truth=None), split=ds.manifest.set_index("name").loc[name, "split"])
+    code, _, err = run(monkeypatch, capsys, "train", "test-mlp", "--data", tmp_path / "notruth", "--out", tmp_path / "b")
+    assert code == 2 and "no training" in err and err.count("\n") == 1
+    code, _, err = run(monkeypatch, capsys, "eval", tmp_path / "nowhere")
+    assert code == 2 and "not a run folder" in err
