@@ -191,7 +191,7 @@ def _map_panel(ax, rec: Recording, compact: bool = False) -> None:
     if truth is not None:
         p = truth.pos[:, :2]
         step = max(1, len(p) // MAX_MAP_POINTS)
-        sparse = len(p) < 300 and (len(p) < 2 or np.median(np.diff(truth.t)) > 1.0)
+        sparse = len(p) < 300 and (len(p) < 2 or period(truth.t) > 1.0)
         if sparse:
             ax.plot(p[:, 0], p[:, 1], "-o", color=TRUTH_COLOR, lw=0.8, ms=3.5, mfc="white")
             handles.append(Line2D([], [], color=TRUTH_COLOR, marker="o", mfc="white", lw=0.8,
@@ -286,7 +286,7 @@ def plot_trajectories(ds: Dataset, out: Path, max_recordings: int = 12) -> Path:
         else:
             p = rec.truth.pos[:, :2]
             step = max(1, len(p) // MAX_MAP_POINTS)
-            sparse = len(p) < 300 and (len(p) < 2 or np.median(np.diff(rec.truth.t)) > 1.0)
+            sparse = len(p) < 300 and (len(p) < 2 or period(rec.truth.t) > 1.0)
             ax.plot(p[::step, 0], p[::step, 1], "-o" if sparse else "-", color=TRUTH_COLOR,
                     lw=0.9, ms=2.5, mfc="white")
             ax.plot(*p[0], marker="*", color="tab:green", ms=11, mec="black", mew=0.5)
