@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from wearnav.errors import ValidationError
-from wearnav.metrics import errors_at_reference
+from wearnav.metrics import errors_at_reference, label_noise
 
 T_EST = [0.0, 1.0, 2.0]
 P_EST = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]
@@ -58,3 +58,26 @@ def test_no_reference_in_reach_gives_empty_and_no_nan():
 def test_bad_input(args):
     with pytest.raises(ValidationError):
         errors_at_reference(*args)
+
+
+# ---- label noise (EasyTrack eqs. 5–7) ---------------------------------------------------------
+
+def test_label_noise_is_the_increment_of_the_fix_error():
+    t = np.arange(0.0, 6.0)
+    truth = np.stack([1.3 * t, 0.2 * t], 1)
+    err = np.array([[0, 0], [3, 4], [3, 4], [0, 0], [1, 0], [1, 0]], float)
+    # eq. 6: d_e,i = P_e,i+1 − P_e,i; a constant offset (i = 1 → 2, 4 → 5) is no label noise
+    np.testing.assert_allclose(label_noise(t, truth + err, t, truth), [5, 0, 5, 1, 0], atol=1e-12)
+
+
+def test_label_noise_interpolates_truth_at_fix_times_and_skips_fixes_without_truth():
+    t_true = np.arange(0.0, 10.01, 0.01)
+    truth = np.stack([t_true, np.zeros_like(t_true)], 1)
+    t_fix = np.array([0.5, 1.5, 2.5, 20.0])  # the last fix is after the truth ends
+    fix = np.stack([t_fix, np.zeros(4)], 1) + [[0, 0], [0, 0.3], [0, 0], [50, 50]]
+    np.testing.assert_allclose(label_noise(t_fix, fix, t_true, truth), [0.3, 0.3])
+    assert label_noise(t_fix[:1], fix[:1], t_true, truth).size == 0
+    # truth with a 5-s hole is trusted across it only if max_gap allows
+    hole = (t_true < 1.0) | (t_true > 6.0)
+    assert label_noise(t_fix, fix, t_true[hole], truth[hole]).size == 2
+    assert label_noise(t_fix, fix, t_true[hole], truth[hole], max_gap=1.0).size == 0

@@ -134,3 +134,20 @@ def test_batched_fetch_equals_single_items(small_recording):
                 torch.isnan(item[key]).all() and torch.isnan(batch[key][j]).all())
     seen = [k for b in wds.loader(2, shuffle_seed=0) for k in b["t"][:, 0].tolist()]
     assert sorted(seen) == sorted(wds[list(range(len(wds)))]["t"][:, 0].tolist())
+
+
+def test_gap_rules_of_streams_and_truth():
+    phone, _ = rotating_device(100.0)
+    keep = (phone.t < 5.0) | (phone.t >= 5.03) & ((phone.t < 10.0) | (phone.t >= 10.05))
+    holes = DeviceStream(t=phone.t[keep], acc=phone.acc[keep], gyro=phone.gyro[keep], quat=phone.quat[keep])
+    rec = walk({"phone": holes})
+    rec.truth = Trajectory(np.r_[np.arange(0, 12, 0.1), 14.0, 20.0],
+                           np.zeros((122, 2)))  # dense to 12 s, then waypoints 2 and 6 s apart
+    a = align(rec, PreprocessConfig(devices=("phone",)))
+    # 3 dropped samples (a 0.04 s interval, 4 periods) is a hole; 2 (0.03 s, 3 periods) is not
+    assert a.mask[0, (a.t > 5.0) & (a.t < 5.03)].all()
+    assert not a.mask[0, (a.t > 10.0) & (a.t < 10.04)].any()
+    assert np.all(a.imu[0, ~a.mask[0]] == 0)
+    # between the waypoints nothing is interpolated; on one (t = 14 s exactly) the truth is known
+    assert np.isfinite(a.pos[a.t < 11.9]).all() and np.isnan(a.pos[(a.t > 12.0) & (a.t != 14.0)]).all()
+    assert np.isfinite(a.pos[a.t == 14.0]).all() and (a.t == 14.0).sum() == 1

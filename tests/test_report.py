@@ -98,8 +98,13 @@ def test_not_worn_spans_are_shaded(full, tmp_path):
     assert counts[0] > 1.4 * counts[1]
 
 
+# The truth is drawn in black like the text; tests recolour it to see it alone.
+TRUTH_SEEN = "#ff00ff"
+
+
 @pytest.mark.parametrize("what", ["truth_only", "fixes_only", "sparse_waypoints"])
-def test_plot_recording_partial(full, tmp_path, what):
+def test_plot_recording_partial(full, tmp_path, monkeypatch, what):
+    monkeypatch.setattr("wearnav.report.plots.TRUTH_COLOR", TRUTH_SEEN)
     t = np.arange(0.0, 40.0, 10.0)
     rec = Recording(
         what, dict(full.devices),
@@ -110,6 +115,7 @@ def test_plot_recording_partial(full, tmp_path, what):
     )
     img = _png(plot_recording(rec, tmp_path / f"{what}.png"))
     assert (_pixels(img, FIX_COLOR) > 100) == (what == "fixes_only")
+    assert (_pixels(img, TRUTH_SEEN) > 300) == (what != "fixes_only")  # dense line or waypoints
 
 
 def test_decimation_keeps_extremes_and_breaks_gaps():
@@ -134,12 +140,14 @@ def _dataset(tmp_path, n):
     return write_dataset(tmp_path / "ds", recs)
 
 
-def test_plot_trajectories_grid(tmp_path):
+def test_plot_trajectories_grid(tmp_path, monkeypatch):
+    monkeypatch.setattr("wearnav.report.plots.TRUTH_COLOR", TRUTH_SEEN)
     ds = _dataset(tmp_path, 6)
     img = _png(plot_trajectories(ds, tmp_path / "grid.png"))            # 7 maps: 4 x 2
     few = _png(plot_trajectories(ds, tmp_path / "few.png", max_recordings=3))  # 3 x 1
     assert img.shape[1] > few.shape[1] and img.shape[0] > 1.7 * few.shape[0]
     assert _pixels(img, "tab:green") > 6 * _pixels(few, "tab:green") / 3 * 0.8
+    assert _pixels(img, TRUTH_SEEN) > 6 * 300 and _pixels(few, TRUTH_SEEN) > 3 * 300  # 6 / 3 truths
     empty = write_dataset(tmp_path / "empty", [])
     with pytest.raises(ValidationError, match="empty"):
         plot_trajectories(empty, tmp_path / "none.png")

@@ -10,9 +10,11 @@ from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError
 from wearnav.recording import ACC_NORM_MEDIAN_RANGE, Recording
 from wearnav.simulate import (LABEL_NOISE_MEDIAN_M, MODES, SCENES, FixNoise, WalkConfig,
-                              label_noise, plan_dataset, sample_subject, simulate_dataset,
+                              plan_dataset, sample_subject, simulate_dataset,
                               simulate_recording, simulate_walk)
-from wearnav.simulate.geometry import angle_between, apply, exp_so3, matrix_from_wxyz
+from wearnav.metrics import label_noise
+from wearnav.rotations import as_matrix as matrix_from_wxyz
+from wearnav.simulate.geometry import angle_between, apply, exp_so3
 from wearnav.simulate.imu import G_WORLD, IMU_SPECS
 from wearnav.simulate.path import plan_route
 
@@ -78,7 +80,9 @@ def test_resting_device_reads_plus_g_on_its_up_axis():
         f = s.acc[still].astype(np.float64)
         # a torso swaying slightly while standing still has ~zero acceleration
         np.testing.assert_allclose(f, 9.81 * up_in_device, atol=0.3, err_msg=dev)
-        assert np.allclose(G_WORLD, [0, 0, -9.81])
+        # and the device's own orientation output turns that reading into +g on world z
+        f_world = apply(matrix_from_wxyz(s.quat[still].astype(np.float64)), f)
+        np.testing.assert_allclose(f_world, np.tile(-G_WORLD, (len(f), 1)), atol=0.3, err_msg=dev)
 
 
 def test_noisy_imu_integration_drifts_realistically(noisy_walks, clean_walks):
@@ -104,19 +108,22 @@ def test_noisy_imu_integration_drifts_realistically(noisy_walks, clean_walks):
 def test_sensor_noise_matches_spec_and_earbuds_are_noisiest(noisy_walks):
     """While standing still before walking off, what is left after removing the true signal and
     the (constant) bias is white noise of the spec's size."""
+    measured = {"acc": {}, "gyro": {}}
     for key, w in noisy_walks.items():
         for dev, tru in w.devices.items():
             s, spec = w.recording.devices[dev], IMU_SPECS[dev]
             still = s.t < w.scenario.bouts[0][0] - 0.2
             assert still.sum() >= 10
-            for meas, true, sigma in ((s.acc, tru.specific_force, spec.acc_noise),
-                                      (s.gyro, tru.omega, spec.gyro_noise)):
+            for kind, meas, true, sigma in (("acc", s.acc, tru.specific_force, spec.acc_noise),
+                                            ("gyro", s.gyro, tru.omega, spec.gyro_noise)):
                 r = meas[still].astype(np.float64) - true[still]
                 std = (r - r.mean(0)).std(0).mean()
                 assert std == pytest.approx(sigma, rel=0.35), (key, dev, std, sigma)
-    specs = IMU_SPECS
-    assert specs["earbuds"].acc_noise > specs["watch"].acc_noise > specs["phone"].acc_noise
-    assert specs["earbuds"].gyro_noise > specs["watch"].gyro_noise > specs["phone"].gyro_noise
+                measured[kind].setdefault(dev, []).append(std)
+    # measured, not the spec table: the earbuds' signals are the noisiest, the phone's the cleanest
+    for kind, per_dev in measured.items():
+        m = {dev: np.mean(v) for dev, v in per_dev.items()}
+        assert m["earbuds"] > m["watch"] > m["phone"], (kind, m)
 
 
 def _integrate_gyro(R0, gyro, t):
@@ -301,6 +308,9 @@ def test_daily_living_stops_and_lowers_the_body():
             assert np.all(np.abs(np.diff(z)) < 0.02)  # smooth: < 2 m/s at 100 Hz
     walking = rec.label_at("activity", tr.t) == "walk"
     assert 0.6 < speed[walking].mean() < 1.8
+    # the smoothness check above ran: the walk has transitions into and out of standing
+    transitions = act.value.str.endswith("_to_stand") | act.value.str.startswith("stand_to_")
+    assert transitions.sum() >= 2, kinds
 
 
 def test_phone_placement_changes_are_smooth_motions(clean_walks):
@@ -320,13 +330,17 @@ def test_route_stays_inside_the_area():
         for seed in range(6):
             r = plan_route(np.random.default_rng(seed), area, 250.0)
             assert r.xy.min() >= 0 and r.xy.max() <= area
+    extent = {}
     for scene, (lo, hi) in SCENES.items():
         w = simulate_walk(_cfg(scene=scene, duration_s=60, devices=("phone",)), seed=9)
         a = w.recording.meta["area_m"]
         assert lo <= a <= hi
         xy = w.recording.truth.pos[:, :2]
         assert xy.min() > -0.5 and xy.max() < a + 0.5
-    assert SCENES["small"][1] <= 30 and SCENES["medium"][1] <= 50 and SCENES["large"][0] >= 100
+        extent[scene] = np.ptp(xy, axis=0).max()
+    # the scene really sets the space walked: in a large one the same minute goes further than
+    # the whole side of any small one
+    assert extent["large"] > SCENES["small"][1] > extent["small"], extent
 
 
 def test_subjects_and_gait_ranges():
@@ -354,7 +368,7 @@ def test_label_noise_median_matches_easytrack(level):
     t = np.arange(0.0, 30000.0)
     truth = np.stack([1.3 * t, np.zeros_like(t)], 1)
     fix = truth + noise.sample_error(t, np.random.default_rng(1))
-    med = np.median(label_noise(fix, truth))
+    med = np.median(label_noise(t, fix, t, truth))
     assert med == pytest.approx(LABEL_NOISE_MEDIAN_M[level], rel=0.10)
     err = fix - truth
     # a correlated process with a stationary std of metres, not white noise
@@ -370,7 +384,7 @@ def test_recording_fixes_have_the_configured_label_noise():
         w = simulate_walk(_cfg(duration_s=600, noise_level=level, devices=("phone",)), seed=12)
         fx = w.recording.fixes
         true_xy = w.body.evaluate(fx.t).chest[:, :2]
-        meds[level] = np.median(label_noise(fx.pos, true_xy))
+        meds[level] = np.median(label_noise(fx.t, fx.pos, fx.t, true_xy))
         assert meds[level] == pytest.approx(LABEL_NOISE_MEDIAN_M[level], rel=0.10)
         assert np.all(fx.accuracy > 1.0)
     assert meds["L3"] > meds["L1"]

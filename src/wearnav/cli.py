@@ -45,7 +45,7 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
     """Summarise a recording or a dataset (durations, device rates, labels, truth and fixes)."""
     from wearnav.dataset import Dataset
     from wearnav.recording import Recording
-    from wearnav.report import dataset_stats
+    from wearnav.report.stats import dataset_stats
 
     if not path.is_dir():
         _echo_json(Recording.load(path).summary())
@@ -94,7 +94,7 @@ def plot(
     """Plot a recording: device acc/gyro norms, label bands, and a map of truth and fixes."""
     from wearnav.dataset import Dataset
     from wearnav.recording import Recording
-    from wearnav.report import plot_recording
+    from wearnav.report.plots import plot_recording
 
     if path.is_dir():
         ds = Dataset.open(path)
@@ -111,7 +111,7 @@ def datasets_report(
     work: Path = typer.Option(Path("runs/datasets"), help="Where imported datasets are written."),
 ):
     """Import every shipped real dataset and write per-dataset sanity figures as Markdown."""
-    from wearnav.report import write_datasets_report
+    from wearnav.report.datasets_page import write_datasets_report
 
     typer.echo(str(write_datasets_report(data, out, work)))
 
@@ -223,7 +223,7 @@ def demo(
     write a report with trajectory plots (runs resume: a second call reuses finished runs)."""
     from wearnav.bench.odometry import comparison_table, run_suite, suite_configs, write_suite_report
     from wearnav.dataset import Dataset
-    from wearnav.report import plot_trajectories
+    from wearnav.report.plots import plot_trajectories
     from wearnav.simulate import simulate_dataset
 
     data_dir = out / "data"

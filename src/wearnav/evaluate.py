@@ -197,7 +197,7 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
         for name, traj in trajs.items():
             with atomic_path(run / "trajectories" / split / f"{name}.csv") as tmp:
                 traj.to_csv(tmp, index=False, float_format="%.4f")
-        from wearnav.plots_odometry import plot_run_split
+        from wearnav.report.odometry import plot_run_split
 
         plot_run_split(run / "plots", split, res, trajs, cfg.model)
     runs.write_metrics(run, out)

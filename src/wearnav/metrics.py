@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from wearnav.errors import ValidationError
+from wearnav.timeseries import interp_onto
 
 
 def _track(t, pos, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -28,9 +29,10 @@ def errors_at_reference(t_est, pos_est, t_ref, pos_ref, max_gap: float) -> np.nd
     """Horizontal distance between an estimate and reference points, at the reference times.
 
     The estimate is linearly interpolated at each reference time. A reference point is kept only
-    if some estimate sample lies within ``max_gap`` seconds of it; reference times just outside
-    the estimate's span (but within ``max_gap`` of its first / last sample) take that end
-    sample's position, never an extrapolation. Returns one error per kept reference point, in
+    if some estimate sample lies within ``max_gap`` seconds of it (gap rule ``"nearest"`` of
+    :func:`wearnav.timeseries.interp_onto`); reference times just outside the estimate's span
+    (but within ``max_gap`` of its first / last sample) take that end sample's position, never an
+    extrapolation. Returns one error per kept reference point, in
     reference order (possibly empty, never NaN).
 
     This is how sparse ground truth is scored (DESIGN.md: "errors are taken at the waypoint
@@ -42,13 +44,28 @@ def errors_at_reference(t_est, pos_est, t_ref, pos_ref, max_gap: float) -> np.nd
         raise ValidationError(f"max_gap must be >= 0 seconds, got {max_gap}")
     if t_est.size == 0 or t_ref.size == 0:
         return np.empty(0)
-    i = np.searchsorted(t_est, t_ref)
-    before = np.abs(t_ref - t_est[np.clip(i - 1, 0, t_est.size - 1)])
-    after = np.abs(t_est[np.clip(i, 0, t_est.size - 1)] - t_ref)
-    keep = np.minimum(before, after) <= max_gap
-    t_k = t_ref[keep]
-    interp = np.stack([np.interp(t_k, t_est, p_est[:, k]) for k in range(2)], axis=1)
-    return np.linalg.norm(interp - p_ref[keep], axis=1)
+    p_at_ref, keep = interp_onto(t_ref, t_est, p_est, max_gap=max_gap, rule="nearest")
+    return np.linalg.norm(p_at_ref[keep] - p_ref[keep], axis=1)
+
+
+def label_noise(t_fix, pos_fix, t_true, pos_true, max_gap: float = np.inf) -> np.ndarray:
+    """|d_e| of each segment between consecutive location fixes (EasyTrack, paper 004, eqs. 5–7).
+
+    A phone label is the displacement between two fixes, d̃_i = P̃_{i+1} − P̃_i; its noise is
+    d_e,i = d_i − d̃_i (eq. 5) = P_e,i+1 − P_e,i (eq. 6), the increment of the fixes' position
+    error, so consecutive noises are dependent (eq. 7). Returns ‖d_e,i‖ (horizontal, metres) for
+    every pair of consecutive fixes at which the truth is known: truth interpolated at the fix
+    times, across truth gaps of at most ``max_gap`` seconds (default: any gap, the truth is taken
+    as a continuous path). Fixes without truth are skipped and their neighbours paired.
+    """
+    t_fix, p_fix = _track(t_fix, pos_fix, "fixes")
+    t_true, p_true = _track(t_true, pos_true, "truth")
+    if t_fix.size == 0 or t_true.size == 0:
+        return np.empty(0)
+    p_true_at_fix, inside = interp_onto(t_fix, t_true, p_true, max_gap=max_gap)
+    d_true = np.diff(p_true_at_fix[inside], axis=0)
+    d_fix = np.diff(p_fix[inside], axis=0)
+    return np.linalg.norm(d_true - d_fix, axis=1)
 
 
 def _common(t, pos_est, pos_true) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -16,10 +16,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import signal
-from scipy.spatial.transform import Rotation
 
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Recording
+from wearnav.rotations import from_wxyz
+from wearnav.timeseries import interp_onto, periods, rate
+
+# Gap rules (wearnav.timeseries): a device stream is trusted across a hole of up to this many of
+# its own sample periods (its rate is 25–200 Hz, so a fixed time would be wrong for some: one
+# or two dropped samples are jitter, more is a hole); truth is interpolated across at most
+# TRUTH_MAX_GAP_S, so dense truth gives targets and sparse waypoints (seconds apart) do not.
+STREAM_MAX_GAP_PERIODS = 3.0
+TRUTH_MAX_GAP_S = 1.0
 
 CHANNELS = ("ax", "ay", "az", "gx", "gy", "gz")
 
@@ -68,7 +76,7 @@ class Aligned:
 
     @property
     def rate(self) -> float:
-        return float(1.0 / np.median(np.diff(self.t)))
+        return rate(self.t)
 
 
 def common_span(rec: Recording, devices: tuple[str, ...], tol: float) -> tuple[float, float]:
@@ -110,7 +118,7 @@ def stream_to_clock(s: DeviceStream, t: np.ndarray, cfg: PreprocessConfig,
     if cfg.frame == "world" or cfg.remove_gravity:
         if s.quat is None:
             raise ConfigError(f"{name}: device has no orientation; use frame='device' without gravity removal")
-        rot = Rotation.from_quat(s.quat.astype(np.float64), scalar_first=True)
+        rot = from_wxyz(s.quat)
     if cfg.frame == "world":
         acc = rot.apply(acc)
         gyro = rot.apply(gyro)
@@ -121,13 +129,10 @@ def stream_to_clock(s: DeviceStream, t: np.ndarray, cfg: PreprocessConfig,
     x = np.concatenate([acc, gyro], axis=1)
     if cfg.lowpass:
         x = _lowpass(x, s.rate, cfg.rate)
-    out = np.stack([np.interp(t, s.t, x[:, k]) for k in range(6)], axis=1)
-    # A sample is valid inside the stream's span, away from gaps longer than 3 source samples,
-    # and where the device is worn.
-    mask = (t >= s.t[0]) & (t <= s.t[-1])
-    idx = np.clip(np.searchsorted(s.t, t), 1, len(s.t) - 1)
-    gap = s.t[idx] - s.t[idx - 1]
-    mask &= gap <= 3.0 / max(s.rate, 1e-9)
+    # Valid inside the stream's span, away from holes longer than STREAM_MAX_GAP_PERIODS of its
+    # samples, and where the device is worn.
+    out, mask = interp_onto(t, s.t, x, max_gap=periods(STREAM_MAX_GAP_PERIODS, s.rate))
+    out = np.array(out, dtype=np.float64)  # identical clocks hand back x itself
     if s.worn is not None:
         nearest = np.clip(np.searchsorted(s.t, t), 0, len(s.t) - 1)
         mask &= s.worn[nearest]
@@ -138,16 +143,12 @@ def stream_to_clock(s: DeviceStream, t: np.ndarray, cfg: PreprocessConfig,
 
 
 def interpolate_position(truth_t: np.ndarray, truth_pos: np.ndarray, t: np.ndarray,
-                         max_gap: float = 1.0) -> np.ndarray:
+                         max_gap: float = TRUTH_MAX_GAP_S) -> np.ndarray:
     """Horizontal truth at ``t`` by linear interpolation; NaN outside the truth or across gaps
     longer than ``max_gap`` s (sparse waypoints are not interpolated into dense truth)."""
-    pos = np.stack([np.interp(t, truth_t, truth_pos[:, k]) for k in range(2)], axis=1)
-    idx = np.clip(np.searchsorted(truth_t, t), 1, max(len(truth_t) - 1, 1))
-    ok = (t >= truth_t[0]) & (t <= truth_t[-1])
-    if len(truth_t) > 1:
-        ok &= (truth_t[idx] - truth_t[idx - 1]) <= max_gap
-    pos[~ok] = np.nan
-    return pos
+    pos, _ = interp_onto(t, truth_t, np.asarray(truth_pos, dtype=np.float64)[:, :2], max_gap=max_gap,
+                         fill=np.nan)
+    return np.array(pos, dtype=np.float64)
 
 
 def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig()) -> Aligned:

@@ -25,6 +25,7 @@ import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.fileio import atomic_path
+from wearnav.timeseries import rate
 
 FORMAT_NAME = "wearnav.recording"
 FORMAT_VERSION = 1
@@ -39,6 +40,11 @@ STANDARD_GRAVITY = 9.80665  # m/s²; "g" of files that give acceleration in g
 ACC_NORM_MEDIAN_RANGE = (4.0, 25.0)
 # Walking rarely exceeds a few rad/s; a median above this is almost surely deg/s.
 GYRO_NORM_MEDIAN_MAX = 15.0
+
+
+def device_order(name: str) -> tuple[int, str]:
+    """Sort key: phone, watch, earbuds first (HDF5 hands devices back alphabetically), then the rest."""
+    return (CANONICAL_DEVICES.index(name) if name in CANONICAL_DEVICES else len(CANONICAL_DEVICES), name)
 
 
 def _as_array(x, dtype, name: str) -> np.ndarray:
@@ -140,7 +146,7 @@ class DeviceStream:
     @property
     def rate(self) -> float:
         """Median sampling rate in Hz (0 for a single sample)."""
-        return float(1.0 / np.median(np.diff(self.t))) if self.t.size > 1 else 0.0
+        return rate(self.t)
 
     @property
     def has_gyro(self) -> bool:

@@ -104,7 +104,7 @@ def ate_by_model(folders, split: str = "test") -> dict[str, list[float]]:
 def write_suite_report(folders, out: str | Path, title: str, splits=TEST_SPLITS, note: str = "") -> Path:
     """results.md + results.json + comparison PNGs (error CDF and ATE box per split) in ``out``."""
     from wearnav.fileio import write_text_atomic
-    from wearnav.plots_odometry import plot_box, plot_cdf
+    from wearnav.report.odometry import plot_box, plot_cdf
     from wearnav.provenance import provenance
 
     out = Path(out)

@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.errors import FormatError, MissingFileError
+from wearnav.rotations import NotUnitQuaternion, from_android_rotation_vector, normalize_wxyz
 
 COMPRESSED_SUFFIXES = (".gz", ".xz")
 EARTH_RADIUS_M = 6378137.0  # WGS-84 equatorial radius
@@ -106,76 +107,20 @@ def latlon_to_local(lat: np.ndarray, lon: np.ndarray, lat0: float | None = None,
     return np.stack([east, north], axis=1)
 
 
-# A few repeated timestamps happen when a sensor batches events; beyond this share the clock is
-# broken and silently thinning the stream would hide it.
-MAX_DUPLICATE_SHARE = 0.05
-# Interpolating a signal across a longer hole would invent data.
+# The importers' gap rule when they merge a phone's gyroscope / orientation onto its accelerometer
+# timestamps (``timeseries.interp_onto(..., max_gap=MAX_INTERP_GAP_S)``): a fixed time, not a
+# number of periods, because the streams of one phone differ in rate (50–200 Hz) and a hole
+# longer than a quarter of a step is lost samples; interpolating across it would invent data.
 MAX_INTERP_GAP_S = 0.25
-# |(x, y, z)| of a rotation vector is sin(angle/2) <= 1; allow float rounding only.
-ROTVEC_NORM_TOL = 0.05
 
 
 # ---- Android sensor logs (ilc2, ipin2023) ------------------------------------------------------
 
 def quat_from_rotation_vector(v: np.ndarray, path: str | Path, what: str) -> np.ndarray:
-    """Android rotation-vector values (N, 3) x, y, z or (N, ≥4) x, y, z, w → unit (w, x, y, z).
-
-    Missing w is rebuilt as Android does (``sqrt(max(0, 1 - |xyz|²))``, so w ≥ 0).
-    """
-    v = np.asarray(v, dtype=np.float64)
-    xyz = v[:, :3]
-    if v.shape[1] >= 4:
-        q = np.column_stack([v[:, 3], xyz])
-    else:
-        q = np.column_stack([np.sqrt(np.clip(1.0 - np.sum(xyz**2, axis=1), 0.0, None)), xyz])
-    norm = np.linalg.norm(q, axis=1)
-    bad = np.abs(norm - 1.0) > ROTVEC_NORM_TOL
-    if np.any(bad):
-        i = int(np.argmax(bad))
-        raise FormatError(f"{what}: row {i} is not a rotation vector (|q| = {norm[i]:.3f})", path)
-    return q / norm[:, None]
-
-
-def drop_duplicate_times(t: np.ndarray, what: str, path: str | Path) -> tuple[np.ndarray, int]:
-    """Indices keeping the first of each run of equal timestamps, and how many were dropped.
-
-    Raises when time goes backwards or when duplicates exceed :data:`MAX_DUPLICATE_SHARE` (one
-    duplicate is always tolerated, for short series such as waypoints).
-    """
-    dt = np.diff(t)
-    if np.any(dt < 0):
-        i = int(np.argmax(dt < 0)) + 1
-        raise ValidationError(
-            f"{what}: timestamps go backwards at row {i} of that type ({t[i - 1]!r} then {t[i]!r})", path)
-    keep = np.concatenate([[True], dt > 0])
-    n_dup = int(t.size - keep.sum())
-    if n_dup > max(1.0, MAX_DUPLICATE_SHARE * t.size):
-        raise ValidationError(
-            f"{what}: {n_dup} of {t.size} timestamps are duplicated (clock broken?)", path)
-    return np.flatnonzero(keep), n_dup
-
-
-def interp_onto(t_dst: np.ndarray, t_src: np.ndarray, values: np.ndarray,
-                max_gap: float = MAX_INTERP_GAP_S, quaternion: bool = False
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """``values`` sampled at ``t_src`` evaluated at ``t_dst``, and where that is trustworthy.
-
-    Linear interpolation per column; quaternions are first made sign-continuous (q and -q are the
-    same rotation), interpolated linearly and renormalised. The mask is False outside the source
-    span and where the bracketing source samples are more than ``max_gap`` seconds apart.
-    """
-    if t_src.shape == t_dst.shape and np.array_equal(t_src, t_dst):
-        return values, np.ones(t_dst.shape, bool)
-    values = np.asarray(values, dtype=np.float64)
-    if quaternion and len(values) > 1:
-        flip = np.sum(values[1:] * values[:-1], axis=1) < 0
-        sign = np.concatenate([[1.0], np.where(np.cumsum(flip) % 2 == 1, -1.0, 1.0)])
-        values = values * sign[:, None]
-    out = np.column_stack([np.interp(t_dst, t_src, values[:, k]) for k in range(values.shape[1])])
-    if quaternion:
-        out /= np.linalg.norm(out, axis=1, keepdims=True)
-    j = np.clip(np.searchsorted(t_src, t_dst), 1, max(len(t_src) - 1, 1))
-    inside = (t_dst >= t_src[0]) & (t_dst <= t_src[-1])
-    if len(t_src) > 1:
-        inside &= (t_src[j] - t_src[j - 1]) <= max_gap
-    return out, inside
+    """Android rotation-vector values (N, 3) x, y, z or (N, ≥4) x, y, z, w → unit (w, x, y, z)
+    (:func:`wearnav.rotations.from_android_rotation_vector`), refusing rows that are not one."""
+    try:
+        return normalize_wxyz(from_android_rotation_vector(v))
+    except NotUnitQuaternion as exc:
+        raise FormatError(f"{what}: row {exc.row} is not a rotation vector (|q| = {exc.norm:.3f})",
+                          path) from None

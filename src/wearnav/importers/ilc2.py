@@ -26,11 +26,11 @@ start so times can be put back on the Unix clock.
 
 Timestamps are handled explicitly, per row type: a sample whose timestamp repeats the previous
 one is dropped (the first is kept) and counted in ``meta["dropped_duplicates"]``; more than
-:data:`MAX_DUPLICATE_SHARE` of duplicates, or any timestamp going backwards, means the file is
+:data:`~wearnav.timeseries.MAX_DUPLICATE_SHARE` of duplicates, or any timestamp going backwards, means the file is
 broken and raises. When gyroscope or rotation-vector rows are not on the accelerometer's
 timestamps they are interpolated onto them (linear; normalised linear for quaternions), and
 accelerometer samples they cannot cover (outside their span, or across a gap longer than
-:data:`MAX_INTERP_GAP_S`) are dropped and counted in ``meta["dropped_uncovered"]``. None of this
+:data:`~wearnav.importers.common.MAX_INTERP_GAP_S`) are dropped and counted in ``meta["dropped_uncovered"]``. None of this
 happens in the shipped sample (no duplicates, identical clocks); it exists for users' copies.
 """
 
@@ -47,15 +47,15 @@ import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
 from wearnav.importers.common import (
+    MAX_INTERP_GAP_S,
     check_finite,
-    drop_duplicate_times,
     find_file,
-    interp_onto,
     quat_from_rotation_vector,
     read_text,
     strip_compression,
 )
 from wearnav.recording import DeviceStream, Recording, Trajectory
+from wearnav.timeseries import drop_duplicate_times, interp_onto
 
 SOURCE = "ilc2"
 LICENCE = "MIT (Copyright (c) 2017-2020 XYZ10, Inc.; Indoor Location Competition 2.0 sample data)"
@@ -183,7 +183,7 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
     keep = np.ones(t.shape, bool)
     gyro = quat = None
     if GYRO in data:
-        gyro, ok = interp_onto(t, secs(data[GYRO]), data[GYRO][:, 1:4])
+        gyro, ok = interp_onto(t, secs(data[GYRO]), data[GYRO][:, 1:4], max_gap=MAX_INTERP_GAP_S)
         keep &= ok
     if ROTVEC in data:
         rv = data[ROTVEC]
@@ -191,7 +191,7 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
         # (x, y, z, w, accuracy); with one it is the accuracy.
         has_w = rv.shape[1] >= 6 and bool(np.all(np.isfinite(rv[:, 4])))
         q = quat_from_rotation_vector(rv[:, 1:5] if has_w else rv[:, 1:4], path, ROTVEC)
-        quat, ok = interp_onto(t, secs(rv), q, quaternion=True)
+        quat, ok = interp_onto(t, secs(rv), q, max_gap=MAX_INTERP_GAP_S, quaternion=True)
         keep &= ok
     n_uncovered = int((~keep).sum())
     if n_uncovered:

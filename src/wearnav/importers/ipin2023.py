@@ -63,10 +63,9 @@ import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
 from wearnav.importers.common import (
+    MAX_INTERP_GAP_S,
     check_finite,
-    drop_duplicate_times,
     find_file,
-    interp_onto,
     latlon_to_local,
     open_text,
     quat_from_rotation_vector,
@@ -74,6 +73,7 @@ from wearnav.importers.common import (
     strip_compression,
 )
 from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
+from wearnav.timeseries import drop_duplicate_times, interp_onto, rate
 
 SOURCE = "ipin2023"
 LICENCE = ("CC BY 4.0 (Zenodo record; licence of the 2023 record to be confirmed) - cite "
@@ -233,13 +233,13 @@ def _imu(data: dict[str, np.ndarray], path: Path, meta: dict) -> DeviceStream:
     gyro = quat = None
     if "GYRO" in streams:
         g = streams["GYRO"]
-        meta["gyro_rate_hz"] = round(float(1.0 / np.median(np.diff(g[:, 1]))), 2) if len(g) > 1 else 0.0
-        gyro, ok = interp_onto(t, g[:, 1] + offset, g[:, 2:5])
+        meta["gyro_rate_hz"] = round(rate(g[:, 1]), 2)
+        gyro, ok = interp_onto(t, g[:, 1] + offset, g[:, 2:5], max_gap=MAX_INTERP_GAP_S)
         keep &= ok
     if "AHRS" in streams:
         h = streams["AHRS"]
         q = quat_from_rotation_vector(h[:, 5:8], path, "AHRS quaternion")
-        quat, ok = interp_onto(t, h[:, 1] + offset, q, quaternion=True)
+        quat, ok = interp_onto(t, h[:, 1] + offset, q, max_gap=MAX_INTERP_GAP_S, quaternion=True)
         keep &= ok
     n_uncovered = int((~keep).sum())
     if n_uncovered == t.size:

@@ -54,6 +54,7 @@ from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.importers.common import check_finite, find_file, read_csv, require_columns
 from wearnav.recording import STANDARD_GRAVITY as G  # Core Motion's unit of acceleration
 from wearnav.recording import DeviceStream, Recording
+from wearnav.rotations import from_euler, to_wxyz
 
 RATE_HZ = 50.0
 ACTIVITIES = {
@@ -83,19 +84,6 @@ META = {
     "placement": "front_pocket",
     "rate_hz": RATE_HZ,
 }
-
-
-def euler_zxy_to_quat(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-    """Core Motion attitude angles (rad) → quaternions (w, x, y, z) of Rz(yaw)·Rx(pitch)·Ry(roll)."""
-    cr, sr = np.cos(roll / 2), np.sin(roll / 2)
-    cp, sp = np.cos(pitch / 2), np.sin(pitch / 2)
-    cy, sy = np.cos(yaw / 2), np.sin(yaw / 2)
-    # qz(yaw) ⊗ qx(pitch) ⊗ qy(roll), multiplied out.
-    w = cy * cp * cr - sy * sp * sr
-    x = cy * sp * cr - sy * cp * sr
-    y = cy * cp * sr + sy * sp * cr
-    z = sy * cp * cr + cy * sp * sr
-    return np.stack([w, x, y, z], axis=1)
 
 
 def _trial_dirs(src: Path) -> list[Path]:
@@ -184,7 +172,8 @@ def read_file(path: Path, act: str, trial: int, subject: int, subject_info: dict
             t=np.arange(n) / RATE_HZ,
             acc=acc,
             gyro=rot,
-            quat=euler_zxy_to_quat(att[:, 0], att[:, 1], att[:, 2]),
+            # Core Motion's z-x'-y'' attitude: yaw, pitch, roll = att[:, 2], att[:, 1], att[:, 0].
+            quat=to_wxyz(from_euler("ZXY", att[:, ::-1])),
         )
         activity = ACTIVITIES[act]
         name = f"motionsense_{act}_{trial}_sub{subject:02d}"

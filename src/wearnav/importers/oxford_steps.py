@@ -16,11 +16,13 @@ ground-truth device, the phone's hardware step counter — all zero where the ph
   phone's sensor-event clock, ns since boot; ``meta["t0_boot_ns"]``); ``meta["start_unix_ms"]``
   is the file name's UNIX start time. The rate is whatever the timestamps say (≈100–108 Hz
   median in this part, with per-sample jitter; ``meta["rate_hz"]``).
-* Two logging artefacts of the real files are repaired and counted in ``meta``: rows that
-  repeat the previous row exactly (same timestamp and values; 3 rows in 2 files, each followed
-  by a ~0.2 s gap) are dropped (``dropped_duplicate_rows``), and leading rows with acc exactly
-  (0, 0, 0) — the logger's placeholder before the first sensor event — are dropped
-  (``dropped_zero_rows``). A repeated timestamp with *different* values is refused.
+* Two logging artefacts of the real files are repaired and counted in ``meta``: leading rows
+  with acc exactly (0, 0, 0) — the logger's placeholder before the first sensor event — are
+  dropped (``dropped_zero_rows``), and a row repeating the previous row's timestamp is dropped,
+  the first kept (``dropped_duplicates``; wearnav's one policy,
+  :func:`wearnav.timeseries.drop_duplicate_times`: more than 5 % repeats or time going backwards
+  is refused). In the real files the 3 repeats (in 2 files, each followed by a ~0.2 s gap)
+  repeat the whole row.
 * Steps: each increment of ``steps_groundtruth`` is one ``step`` label row with zero length,
   ``start = end =`` the time of the row where the count went up, value ``"step"`` (the count
   rises by exactly one per event in the real files; a rise by k gives k rows at that time, so
@@ -49,6 +51,7 @@ import pandas as pd
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.importers.common import check_finite, read_csv
 from wearnav.recording import DeviceStream, Recording
+from wearnav.timeseries import drop_duplicate_times, period
 
 VALIDATION_DIR = "validation"
 FILE_RE = re.compile(r"^(user\d+)_([A-Za-z]+)_(\d{10,})\.csv(\.gz|\.xz)?$")
@@ -110,27 +113,20 @@ def read_file(path: Path) -> Recording:
     check_finite(counts, "step counts", path)
     counts = counts.astype(np.int64)
 
-    # Logging artefacts: exact repeats of the previous row, and the all-zero placeholder rows
-    # written before the accelerometer's first event.
-    repeat = np.r_[False, (ts_ns[1:] == ts_ns[:-1]) & np.all(acc[1:] == acc[:-1], axis=1)
-                   & np.all(counts[1:] == counts[:-1], axis=1)]
-    zero = np.all(acc == 0.0, axis=1)
-    leading_zero = np.cumprod(zero).astype(bool)
-    keep = ~(repeat | leading_zero)
-    if not keep.any():
+    # Logging artefacts: the all-zero placeholder rows written before the accelerometer's first
+    # event, and repeated timestamps (wearnav's one policy: the first row of a repeat is kept).
+    leading_zero = np.cumprod(np.all(acc == 0.0, axis=1)).astype(bool)
+    if leading_zero.all():
         raise FormatError("no samples left after dropping all-zero placeholder rows", path)
+    ts_ns, acc, counts = ts_ns[~leading_zero], acc[~leading_zero], counts[~leading_zero]
+    keep, n_dup = drop_duplicate_times(ts_ns, "timestamp", path)
     ts_ns, acc, counts = ts_ns[keep], acc[keep], counts[keep]
-    dt = np.diff(ts_ns)
-    if np.any(dt <= 0):
-        i = int(np.argmax(dt <= 0)) + 1
-        what = "repeated timestamp with different values" if dt[i - 1] == 0 else "timestamps go backwards"
-        raise FormatError(f"{what} at row {int(np.flatnonzero(keep)[i])}", path)
     t = (ts_ns - ts_ns[0]) / 1e9
     steps = _events(t, counts[:, 1], "steps_groundtruth", path)
     algo = _events(t, counts[:, 0], "steps_algo", path)
     hw = counts[:, 2]
     hw_nonzero = hw[hw > 0]
-    end = float(t[-1] + np.median(np.diff(t))) if t.size > 1 else float(t[-1])
+    end = float(t[-1] + period(t))
     labels = [(0.0, end, "placement", placement)]
     labels += [(float(s), float(s), "step", "step") for s in steps]
     labels += [(float(s), float(s), "step_algo", "step") for s in algo]
@@ -146,8 +142,8 @@ def read_file(path: Path) -> Recording:
             "steps_groundtruth": int(steps.size),
             "steps_algo": int(algo.size),
             "hw_step_counter": ([int(hw_nonzero[0]), int(hw_nonzero[-1])] if hw_nonzero.size else None),
-            "dropped_duplicate_rows": int(repeat.sum()),
-            "dropped_zero_rows": int((leading_zero & ~repeat).sum()),
+            "dropped_duplicates": {"timestamp": n_dup} if n_dup else {},
+            "dropped_zero_rows": int(leading_zero.sum()),
             "file": path.name,
         }
         return Recording(name=f"oxford_{user}_{placement}_{start_ms}", devices={"phone": stream},

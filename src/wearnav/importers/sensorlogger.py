@@ -28,7 +28,7 @@ Time
   * ``seconds_elapsed`` is not used (README.md: "some entries could be negative ... due to
     buffering or caching").
   * A row repeating the previous row's ``time`` is dropped (the first is kept) and counted per file
-    in ``meta["dropped_duplicates"]``, as every wearnav importer does (``drop_duplicate_times``:
+    in ``meta["dropped_duplicates"]``, as every wearnav importer does (``timeseries.drop_duplicate_times``:
     more than 5 % duplicates, or ``time`` going backwards, is an error). README.md, "Removing
     Duplicated Entries": "erroneous sensors may report the same value twice with identical
     timestamps, likely due to caching".
@@ -66,7 +66,7 @@ Phone accelerometer (device ``phone``)
     there is no gravity to add back.
   * ``gyro = Gyroscope`` rad/s as written. UNITS.md: Gyroscope "in radians per second (rad/s)".
   * Gravity, Gyroscope and Orientation are interpolated onto the accelerometer's timestamps
-    (``interp_onto``: linear; quaternions sign-aligned, linear, renormalised). README.md: "they
+    (``timeseries.interp_onto``: linear; quaternions sign-aligned, linear, renormalised). README.md: "they
     **do not necessarily align** due to varied sampling rates". Accelerometer samples outside
     another phone file's span, or inside one of its gaps longer than ``common.MAX_INTERP_GAP_S``, are
     dropped, never filled (count in ``meta["dropped_uncovered"]``).
@@ -129,16 +129,17 @@ from scipy.spatial.transform import Rotation
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
 from wearnav.importers.common import (
+    MAX_INTERP_GAP_S,
     check_finite,
-    drop_duplicate_times,
     find_file,
-    interp_onto,
     latlon_to_local,
     read_csv,
     strip_compression,
 )
 from wearnav.recording import STANDARD_GRAVITY as G  # UNITS.md: "Assumes `g` to be 9.80665ms-2"
 from wearnav.recording import DeviceStream, Fixes, Recording
+from wearnav.rotations import NotUnitQuaternion, from_wxyz, normalize_wxyz, to_wxyz
+from wearnav.timeseries import drop_duplicate_times, interp_onto
 
 XYZ = ["x", "y", "z"]
 MOTION_FILES = ("Accelerometer.csv", "TotalAcceleration.csv", "WristMotion.csv", "Headphone.csv")
@@ -361,14 +362,14 @@ def _read_export(folder: Path, name: str, file: str) -> Recording:
         keep = np.ones(len(t), bool)
         w = q = None
         if grav is not None:
-            g, ok = interp_onto(t, sec(grav.t_ns), grav.values(XYZ))
+            g, ok = interp_onto(t, sec(grav.t_ns), grav.values(XYZ), max_gap=MAX_INTERP_GAP_S)
             acc, keep = acc + g, keep & ok
         if gyro is not None:
-            w, ok = interp_onto(t, sec(gyro.t_ns), gyro.values(XYZ))
+            w, ok = interp_onto(t, sec(gyro.t_ns), gyro.values(XYZ), max_gap=MAX_INTERP_GAP_S)
             keep &= ok
         if ori is not None:
             q, ok = interp_onto(t, sec(ori.t_ns), _unit_quats(ori.values(["qw", "qx", "qy", "qz"]), ori.path),
-                                quaternion=True)
+                                max_gap=MAX_INTERP_GAP_S, quaternion=True)
             keep &= ok
         if keep.sum() < 2:
             others = ", ".join(x.path.name for x in (grav, gyro, ori) if x is not None)
@@ -427,11 +428,11 @@ def _quat_cols() -> list[str]:
 
 
 def _unit_quats(q: np.ndarray, path: Path) -> np.ndarray:
-    norm = np.linalg.norm(q, axis=1)
-    if np.any(np.abs(norm - 1.0) > 0.05):
-        i = int(np.argmax(np.abs(norm - 1.0) > 0.05))
-        raise FormatError(f"quaternion at line {i + 2} has norm {norm[i]:.3g}, not a unit quaternion", path)
-    return q / norm[:, None]
+    try:
+        return normalize_wxyz(q)
+    except NotUnitQuaternion as exc:
+        raise FormatError(f"quaternion at line {exc.row + 2} has norm {exc.norm:.3g}, not a unit "
+                          "quaternion", path) from None
 
 
 def _stream(dev: str, t, acc, gyro, quat, path: Path, qpath: Path | None, units: str,
@@ -459,7 +460,7 @@ def _check_orientation(q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | N
     pass (a device that stays nearly upright), the one with the smaller gyro residual wins,
     the documented world←device reading on a tie.
     """
-    rot = Rotation.from_quat(q_wxyz[:, [1, 2, 3, 0]])
+    rot = from_wxyz(q_wxyz)
     found = []
     for label, r in (("world<-device", rot), ("device<-world (inverted on import)", rot.inv())):
         mean_world = r.apply(acc).mean(axis=0)
@@ -478,7 +479,7 @@ def _check_orientation(q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | N
             raise FormatError(
                 f"mean vertical specific force in the world frame is {vertical:.1f} m/s², expected "
                 f"{G:.1f} (gravity counted twice or missing?)", path)
-        return r.as_quat()[:, [3, 0, 1, 2]], label
+        return to_wxyz(r), label
     (_, _, _, _, tilt_a, res_a), (_, _, _, _, tilt_b, res_b) = found
     gyro_note = "" if res_a is None else f", gyro residual {res_a:.2f} ({res_b:.2f} inverse)"
     raise FormatError(

@@ -51,6 +51,7 @@ import pandas as pd
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.importers.common import check_finite, find_file, read_csv
 from wearnav.recording import DeviceStream, Recording
+from wearnav.timeseries import period
 
 DATA_DIR = "DATA"
 SUBJECT_RE = re.compile(r"^s(\d+)$")
@@ -170,7 +171,7 @@ def _label_rows(labels: np.ndarray, t: np.ndarray, kind: str) -> list[tuple]:
     next begins, the last one sample period after the last sample."""
     change = np.flatnonzero(labels[1:] != labels[:-1]) + 1
     starts = np.r_[0, change]
-    ends_t = np.r_[t[change], t[-1] + np.median(np.diff(t))]
+    ends_t = np.r_[t[change], t[-1] + period(t)]
     return [(float(t[s]), float(e), kind, str(labels[s])) for s, e in zip(starts, ends_t)]
 
 

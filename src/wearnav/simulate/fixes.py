@@ -15,7 +15,8 @@ and sampled exactly. Over a segment of Δ seconds the increment of one axis is G
 
     Var = 2 σ² (1 − e^(−Δ/τ)),
 
-so |d_e| is Rayleigh with median s·√(2 ln 2), s² = that variance. :class:`FixNoise` inverts this:
+so |d_e| is Rayleigh with median s·√(2 ln 2), s² = that variance (the metric itself is
+:func:`wearnav.metrics.label_noise`). :class:`FixNoise` inverts this:
 given the median label noise (and τ), σ follows analytically. With τ = 120 s the three levels
 give σ ≈ 1.4 / 1.8 / 2.2 m per axis (2.0 / 2.6 / 3.1 m RMS horizontal error), typical of phone
 GNSS in open sky. The reported ``accuracy`` (like iOS ``horizontalAccuracy``, a ~68 % radius) is
@@ -91,10 +92,3 @@ def simulate_fixes(t: np.ndarray, true_xy: np.ndarray, noise: FixNoise,
     true_xy = np.asarray(true_xy, dtype=np.float64)[:, :2]
     err = noise.sample_error(t, rng)
     return Fixes(t=t, pos=true_xy + err, accuracy=noise.accuracy(len(t), rng))
-
-
-def label_noise(fix_xy: np.ndarray, true_xy: np.ndarray) -> np.ndarray:
-    """|d_e| per segment between consecutive fixes (EasyTrack eq. 5–6): ‖ΔP_true − ΔP_fix‖."""
-    d_true = np.diff(np.asarray(true_xy)[:, :2], axis=0)
-    d_fix = np.diff(np.asarray(fix_xy)[:, :2], axis=0)
-    return np.linalg.norm(d_true - d_fix, axis=1)

@@ -3,12 +3,15 @@
 Conventions: a rotation matrix maps segment/device-frame vectors into the world frame (z up);
 ``rot_x/rot_y/rot_z(a)`` are right-handed rotations by angle ``a`` (rad) about that axis.
 For a segment hanging down, ``rot_y(-a)`` swings its lower end *forward* (+x) by ``a``.
+Quaternions (what a device reports) are :mod:`wearnav.rotations`' business, as everywhere else.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+
+from wearnav.rotations import yaw_matrix
 
 
 def _rot(a, i: int, j: int) -> np.ndarray:
@@ -33,7 +36,7 @@ def rot_y(a) -> np.ndarray:
 
 
 def rot_z(a) -> np.ndarray:
-    return _rot(a, 0, 1)
+    return yaw_matrix(a)  # a yaw: wearnav's one definition
 
 
 def apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -73,7 +76,7 @@ def from_axes(x, y, z) -> np.ndarray:
 def random_rotation(rng: np.random.Generator, max_deg: float | None = None) -> np.ndarray:
     """A fixed random rotation: uniform on SO(3), or about a random axis by ≤ ``max_deg``."""
     if max_deg is None:
-        q = rng.standard_normal(4)
+        q = rng.standard_normal(4)  # a normalised Gaussian 4-vector: uniform, in any component order
         return Rotation.from_quat(q / np.linalg.norm(q)).as_matrix()
     axis = rng.standard_normal(3)
     axis /= np.linalg.norm(axis)
@@ -91,20 +94,3 @@ def blend_rotations(RA: np.ndarray, RB: np.ndarray, w: np.ndarray, delta: np.nda
     E = exp_so3(-np.broadcast_to(delta, RA.shape[:-2] + (3,)))
     resid = log_so3(E @ np.swapaxes(RA, -1, -2) @ RB)
     return RA @ exp_so3(w * delta) @ exp_so3(w * resid)
-
-
-def quat_wxyz(R: np.ndarray) -> np.ndarray:
-    """(N,3,3) → (N,4) quaternions (w, x, y, z), sign kept continuous along the sequence."""
-    q = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat()[:, [3, 0, 1, 2]]
-    if len(q) > 1:
-        flip = np.einsum("ij,ij->i", q[1:], q[:-1]) < 0
-        sign = np.concatenate([[1.0], np.cumprod(np.where(flip, -1.0, 1.0))])
-        q = q * sign[:, None]
-    if q[0, 0] < 0:
-        q = -q
-    return q
-
-
-def matrix_from_wxyz(q: np.ndarray) -> np.ndarray:
-    q = np.asarray(q, dtype=np.float64)
-    return Rotation.from_quat(q[..., [1, 2, 3, 0]].reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))

@@ -27,7 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from wearnav.recording import STANDARD_GRAVITY as G  # sensor ranges and resolutions are in g
-from wearnav.simulate.geometry import apply, apply_t, exp_so3, log_so3, quat_wxyz, rot_z
+from wearnav.rotations import matrix_to_wxyz
+from wearnav.simulate.geometry import apply, apply_t, exp_so3, log_so3, rot_z
 from wearnav.simulate.signals import smooth_noise
 
 GRAVITY = 9.81  # the simulated world's local gravity (what the IMU measures), not the unit g
@@ -173,7 +174,7 @@ class ImuErrors:
         tilt = self.tilt(t)
         err = exp_so3(np.stack([tilt[:, 0], tilt[:, 1], np.zeros_like(t)], 1))
         R_out = rot_z(self.yaw_offset + self.yaw_walk(t)) @ err @ truth.R
-        return acc, gyro, quat_wxyz(R_out)
+        return acc, gyro, matrix_to_wxyz(R_out)
 
     def summary(self) -> dict:
         return {

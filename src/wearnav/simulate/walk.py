@@ -15,7 +15,7 @@ from wearnav.recording import DeviceStream, Recording, Trajectory
 from wearnav.simulate.body import Body
 from wearnav.simulate.config import REMOVABLE, SCENES, WalkConfig
 from wearnav.simulate.fixes import FixNoise, simulate_fixes
-from wearnav.simulate.geometry import quat_wxyz
+from wearnav.rotations import matrix_to_wxyz
 from wearnav.simulate.imu import IMU_SPECS, ImuErrors, TrueImu, sample_times, true_imu
 from wearnav.simulate.path import BaseMotion
 from wearnav.simulate.placement import Earbuds, Phone, PosePath, Removed, Watch
@@ -85,7 +85,7 @@ def simulate_walk(cfg: WalkConfig, seed=0) -> SimulatedWalk:
             acc, gyro, quat = err.measure(tru, rng)
             dev_meta[dev] = {"rate_hz": spec.rate_hz, "imu_noise": True, **err.summary()}
         else:
-            acc, gyro, quat = tru.specific_force, tru.omega, quat_wxyz(tru.R)
+            acc, gyro, quat = tru.specific_force, tru.omega, matrix_to_wxyz(tru.R)
             dev_meta[dev] = {"rate_hz": spec.rate_hz, "imu_noise": False, "quat_yaw_offset_deg": 0.0}
         worn = poses[dev].worn(t) if dev in REMOVABLE else None
         streams[dev] = DeviceStream(t=t, acc=acc, gyro=gyro, quat=quat, worn=worn)
@@ -93,7 +93,7 @@ def simulate_walk(cfg: WalkConfig, seed=0) -> SimulatedWalk:
 
     t_truth = np.arange(0.0, T, 1.0 / cfg.truth_rate_hz)
     st = body.evaluate(t_truth)
-    truth = Trajectory(t_truth, st.chest, quat_wxyz(st.R_torso))
+    truth = Trajectory(t_truth, st.chest, matrix_to_wxyz(st.R_torso))
 
     noise = FixNoise.from_level(cfg.noise_level, cfg.fix_correlation_s)
     t_fix = np.arange(1.0, T - 0.5, 1.0 / cfg.fix_rate_hz)

@@ -1,4 +1,4 @@
-"""Reports: figures for checking a recording or a dataset, and the shipped-datasets page.
+"""Figures for checking a recording or a dataset: signals over time, labels, maps.
 
 Figures are drawn on matplotlib's Agg canvas (``Figure`` objects, no pyplot state), so this works
 headless and never changes the caller's backend. Files are written under a temporary name and
@@ -8,12 +8,9 @@ renamed, like every other output of wearnav.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterable
-import os
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import EllipseCollection
 from matplotlib.figure import Figure
@@ -21,11 +18,10 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from wearnav.dataset import Dataset
-from wearnav.errors import ValidationError, WearnavError
-from wearnav.fileio import atomic_path, write_text_atomic
-from wearnav.provenance import git_commit
-from wearnav.metrics import errors_at_reference
-from wearnav.recording import CANONICAL_DEVICES, DeviceStream, Recording
+from wearnav.errors import ValidationError
+from wearnav.fileio import atomic_path
+from wearnav.recording import DeviceStream, Recording, device_order
+from wearnav.timeseries import period
 
 MAX_PLOT_POINTS = 4000      # per time-series line; longer series are min/max decimated
 MAX_MAP_POINTS = 20000      # per trajectory line on a map
@@ -35,22 +31,11 @@ TRUTH_COLOR, FIX_COLOR = "black", "tab:red"
 # Label colours: these qualitative palettes one after the other (56 colours before any repeats);
 # tab10 is left out so no label shares a colour with the signals, fixes or start marker.
 LABEL_PALETTES = ("Dark2", "Set2", "tab20b", "tab20c")
-FIX_MAX_GAP_S = 2.0         # a fix counts at a truth point only if one lies within this many seconds
-
-# Shipped dataset folders (in ../shared/data) and the importer that reads each.
-SHIPPED_DATASETS = {
-    "ilc2_indoor_location": "ilc2",
-    "ipin2023_track3": "ipin2023",
-    "motionsense": "motionsense",
-    "uci_hapt": "uci-hapt",
-    "uji_phone_watch_har": "uji-phone-watch",
-    "oxford_step_counter": "oxford-steps",
-}
 
 
 # ---- small helpers ------------------------------------------------------------------------
 
-def _save(fig: Figure, out: Path, dpi: int = 110) -> Path:
+def save(fig: Figure, out: Path, dpi: int = 110) -> Path:
     FigureCanvasAgg(fig)
     with atomic_path(out) as tmp:
         fig.savefig(tmp, dpi=dpi, format="png")
@@ -62,7 +47,7 @@ def _segments(t: np.ndarray, span: float) -> list[slice]:
     if t.size < 2:
         return [slice(0, t.size)]
     dt = np.diff(t)
-    thr = max(5 * float(np.median(dt)), span / 1000)
+    thr = max(5 * period(t), span / 1000)
     cuts = np.flatnonzero(dt > thr) + 1
     bounds = [0, *cuts.tolist(), t.size]
     return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
@@ -115,11 +100,6 @@ def _label_colors(labels) -> dict[str, tuple]:
     palette = [c for name in LABEL_PALETTES for c in colormaps[name].colors]
     values = sorted(set(labels["value"]))
     return {v: palette[i % len(palette)] for i, v in enumerate(values)}
-
-
-def _device_order(name: str) -> tuple[int, str]:
-    """phone, watch, earbuds first (HDF5 hands devices back alphabetically), then the rest."""
-    return (CANONICAL_DEVICES.index(name) if name in CANONICAL_DEVICES else len(CANONICAL_DEVICES), name)
 
 
 def _meta_line(meta: dict, keys=("source", "subject", "mode", "placement", "scene")) -> str:
@@ -211,7 +191,7 @@ def _map_panel(ax, rec: Recording, compact: bool = False) -> None:
     if truth is not None:
         p = truth.pos[:, :2]
         step = max(1, len(p) // MAX_MAP_POINTS)
-        sparse = len(p) < 300 and (len(p) < 2 or np.median(np.diff(truth.t)) > 1.0)
+        sparse = len(p) < 300 and (len(p) < 2 or period(truth.t) > 1.0)
         if sparse:
             ax.plot(p[:, 0], p[:, 1], "-o", color=TRUTH_COLOR, lw=0.8, ms=3.5, mfc="white")
             handles.append(Line2D([], [], color=TRUTH_COLOR, marker="o", mfc="white", lw=0.8,
@@ -246,7 +226,7 @@ def _map_panel(ax, rec: Recording, compact: bool = False) -> None:
 
 def plot_recording(rec: Recording, out: Path) -> Path:
     """One PNG to check a recording: per-device |acc| / |gyro| over time, labels, map."""
-    devices = sorted(rec.devices.items(), key=lambda kv: _device_order(kv[0]))
+    devices = sorted(rec.devices.items(), key=lambda kv: device_order(kv[0]))
     t0 = rec.t_start
     has_labels = not rec.labels.empty
     kinds = sorted(set(rec.labels["kind"])) if has_labels else []
@@ -283,7 +263,7 @@ def plot_recording(rec: Recording, out: Path) -> Path:
     extras = [f"{rec.duration:.1f} s", ", ".join(d for d, _ in devices)]
     meta = _meta_line(rec.meta)
     fig.suptitle(f"{rec.name} — " + " · ".join(extras) + (f"\n{meta}" if meta else ""), fontsize=11)
-    return _save(fig, out)
+    return save(fig, out)
 
 
 # ---- a dataset ----------------------------------------------------------------------------
@@ -306,7 +286,7 @@ def plot_trajectories(ds: Dataset, out: Path, max_recordings: int = 12) -> Path:
         else:
             p = rec.truth.pos[:, :2]
             step = max(1, len(p) // MAX_MAP_POINTS)
-            sparse = len(p) < 300 and (len(p) < 2 or np.median(np.diff(rec.truth.t)) > 1.0)
+            sparse = len(p) < 300 and (len(p) < 2 or period(rec.truth.t) > 1.0)
             ax.plot(p[::step, 0], p[::step, 1], "-o" if sparse else "-", color=TRUTH_COLOR,
                     lw=0.9, ms=2.5, mfc="white")
             ax.plot(*p[0], marker="*", color="tab:green", ms=11, mec="black", mew=0.5)
@@ -321,230 +301,4 @@ def plot_trajectories(ds: Dataset, out: Path, max_recordings: int = 12) -> Path:
     shown = f"{len(names)} of {len(ds)}" if len(names) < len(ds) else f"all {len(ds)}"
     fig.suptitle(f"{ds.root.name}: truth trajectories ({shown} recordings; metres, start ★)",
                  fontsize=11)
-    return _save(fig, out)
-
-
-# ---- statistics of a dataset --------------------------------------------------------------
-
-def _pct(x: np.ndarray, q: float) -> float:
-    return float(np.percentile(x, q)) if x.size else float("nan")
-
-
-def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_MAX_GAP_S) -> dict:
-    """Counts, rates, label tallies and fix errors of a dataset (loads every recording once).
-
-    Per device, the intervals between consecutive samples are pooled over all recordings:
-    ``rate_hz`` = 1 / median interval; ``jitter_iqr_ms`` = interquartile range (75th − 25th
-    percentile) of the intervals; ``gap_share`` = share of intervals longer than twice the median.
-    ``fix_error_m``: horizontal error of the location fixes at the truth points (fixes linearly
-    interpolated, a truth point counted only when a fix lies within ``fix_max_gap`` s), pooled.
-    """
-    from tqdm import tqdm
-
-    dev: dict[str, dict] = {}
-    labels: dict[tuple[str, str], list] = {}
-    fix_err: list[np.ndarray] = []
-    fix_err_recs = 0
-    truth_points = truth_recs = fixes_total = 0
-    subjects: set[str] = set()
-    duration = 0.0
-    for name in tqdm(ds.names, desc=f"stats {ds.root.name}", unit="rec", disable=not progress):
-        rec = ds.load(name)
-        duration += rec.duration
-        if str(rec.meta.get("subject", "")).strip():
-            subjects.add(str(rec.meta["subject"]))
-        for d, s in rec.devices.items():
-            e = dev.setdefault(d, {"recordings": 0, "samples": 0, "gyro": 0, "quat": 0, "dt": []})
-            e["recordings"] += 1
-            e["samples"] += len(s)
-            e["gyro"] += len(s) if s.gyro is not None else 0
-            e["quat"] += len(s) if s.quat is not None else 0
-            e["dt"].append(np.diff(s.t).astype(np.float32))
-        for row in rec.labels.itertuples():
-            c = labels.setdefault((row.kind, row.value), [0, 0.0])
-            c[0] += 1
-            c[1] += row.end - row.start
-        if rec.truth is not None:
-            truth_points += len(rec.truth)
-            truth_recs += 1
-        if rec.fixes is not None:
-            fixes_total += len(rec.fixes)
-        if rec.truth is not None and rec.fixes is not None:
-            err = errors_at_reference(rec.fixes.t, rec.fixes.pos, rec.truth.t, rec.truth.pos, fix_max_gap)
-            if err.size:
-                fix_err.append(err)
-                fix_err_recs += 1
-    devices = {}
-    for d, e in sorted(dev.items(), key=lambda kv: _device_order(kv[0])):
-        dt = np.concatenate(e["dt"]).astype(np.float64) if e["dt"] else np.empty(0)
-        med = _pct(dt, 50)
-        devices[d] = {
-            "recordings": e["recordings"],
-            "samples": e["samples"],
-            "rate_hz": 1.0 / med if dt.size and med > 0 else float("nan"),
-            "interval_median_ms": 1e3 * med,
-            "jitter_iqr_ms": 1e3 * (_pct(dt, 75) - _pct(dt, 25)),
-            "gap_share": float(np.mean(dt > 2 * med)) if dt.size else float("nan"),
-            "gyro_share": e["gyro"] / e["samples"],
-            "orientation_share": e["quat"] / e["samples"],
-        }
-    errs = np.concatenate(fix_err) if fix_err else np.empty(0)
-    return {
-        "recordings": len(ds),
-        "subjects": len(subjects),
-        "duration_s": duration,
-        "devices": devices,
-        "labels": {k: {"intervals": v[0], "duration_s": v[1]} for k, v in sorted(labels.items())},
-        "truth_points": truth_points,
-        "recordings_with_truth": truth_recs,
-        "fixes": fixes_total,
-        "fix_error_m": None if not fix_err else {
-            "points": int(errs.size), "recordings": fix_err_recs,
-            "median": _pct(errs, 50), "p75": _pct(errs, 75), "max_gap_s": fix_max_gap,
-        },
-    }
-
-
-def walk_tables(ds: Dataset, by: Iterable[str] = ("mode",)) -> dict[str, pd.DataFrame]:
-    """For each manifest column in ``by``, a table per value: recordings, minutes, distance walked
-    (dense truth) and the median 1-s label noise of the location fixes (EasyTrack eq. 5–6, truth
-    interpolated at fix times). Each recording is loaded once, whatever ``by`` holds."""
-    from wearnav.preprocess import interpolate_position
-    from wearnav.simulate.fixes import label_noise
-
-    per_rec = {}
-    for name in ds.names:
-        rec = ds.load(name)
-        dist, noise = 0.0, np.empty(0)
-        if rec.truth is not None:
-            p = rec.truth.pos[:, :2]
-            dist = float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
-            if rec.fixes is not None:
-                tp = interpolate_position(rec.truth.t, p, rec.fixes.t, max_gap=np.inf)
-                inside = np.isfinite(tp[:, 0])
-                noise = label_noise(rec.fixes.pos[inside], tp[inside])
-        per_rec[name] = (rec.duration, dist, noise)
-    tables = {}
-    for col in by:
-        rows = []
-        for key, names in ds.manifest.groupby(col, sort=True)["name"]:
-            dur, dist, noise = zip(*(per_rec[n] for n in names))
-            n = np.concatenate(noise)
-            rows.append({col: key or "-", "recordings": len(names), "minutes": round(sum(dur) / 60, 1),
-                         "distance_km": round(sum(dist) / 1000, 2),
-                         "fix_label_noise_median_cm": round(100 * float(np.median(n)), 1) if n.size else None})
-        tables[col] = pd.DataFrame(rows)
-    return tables
-
-
-def _fmt_duration(s: float) -> str:
-    if s >= 3600:
-        return f"{s / 3600:.2f} h"
-    if s >= 60:
-        return f"{s / 60:.1f} min"
-    return f"{s:.1f} s"
-
-
-def stats_markdown(stats: dict) -> str:
-    """Markdown tables for one dataset's :func:`dataset_stats`."""
-    out = []
-    truth = f"{stats['truth_points']:,} in {stats['recordings_with_truth']} recordings" \
-        if stats["truth_points"] else "none"
-    out += ["| recordings | subjects | total duration | truth points | location fixes |",
-            "|---:|---:|---:|---:|---:|",
-            f"| {stats['recordings']:,} | {stats['subjects'] or '—'} | "
-            f"{_fmt_duration(stats['duration_s'])} | {truth} | {stats['fixes']:,} |", ""]
-    out += ["| device | recordings | samples | median rate | median interval | jitter (IQR of intervals) "
-            "| intervals > 2× median | with gyro | with orientation |",
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for d, e in stats["devices"].items():
-        out.append(f"| {d} | {e['recordings']:,} | {e['samples']:,} | {e['rate_hz']:.2f} Hz | "
-                   f"{e['interval_median_ms']:.2f} ms | {e['jitter_iqr_ms']:.3f} ms | "
-                   f"{100 * e['gap_share']:.2f} % | {100 * e['gyro_share']:.0f} % | "
-                   f"{100 * e['orientation_share']:.0f} % |")
-    out.append("")
-    if stats["labels"]:
-        out += ["| label kind | value | intervals | total duration |", "|---|---|---:|---:|"]
-        for (kind, value), c in stats["labels"].items():
-            out.append(f"| {kind} | {value} | {c['intervals']:,} | {_fmt_duration(c['duration_s'])} |")
-    else:
-        out.append("No labels.")
-    out.append("")
-    fe = stats["fix_error_m"]
-    if fe is not None:
-        out += [f"**Location fixes at the truth points** (fixes linearly interpolated at each truth "
-                f"time that has a fix within {fe['max_gap_s']:g} s; horizontal distance): "
-                f"median **{fe['median']:.2f} m**, 75th percentile **{fe['p75']:.2f} m** over "
-                f"{fe['points']:,} points in {fe['recordings']} recordings. This is the reference "
-                f"a learned tracker must beat.", ""]
-    return "\n".join(out)
-
-
-def _pick_recording(ds: Dataset) -> str:
-    """The recording with the most to look at: truth and fixes first, then the most truth
-    points, then the longest."""
-    m = ds.manifest
-    tp, fx = m["truth_points"].fillna(0), m["fixes"].fillna(0)
-    key = pd.DataFrame({"score": (tp > 0).astype(int) + (fx > 0).astype(int), "tp": tp,
-                        "dur": m["duration"].fillna(0)})
-    best = key.sort_values(["score", "tp", "dur"], ascending=False, kind="stable").index[0]
-    return str(m["name"].loc[best])
-
-
-def write_datasets_report(data: Path, out: Path, work: Path, progress: bool = True,
-                          datasets: dict[str, str] | None = None) -> Path:
-    """Import each shipped dataset (or reuse ``work/<format>``) and write a Markdown page.
-
-    ``datasets`` maps folder names under ``data`` to importer formats (default: the shipped
-    ones). Per dataset: :func:`stats_markdown` tables and a :func:`plot_recording` PNG under
-    ``<out's folder>/img/``. A dataset whose folder is missing or whose import fails gets a line
-    saying so; the page is written anyway, and then the failures raise one WearnavError.
-    """
-    from wearnav import __version__
-    from wearnav.importers import import_dataset
-
-    data, out, work = Path(data), Path(out), Path(work)
-    datasets = SHIPPED_DATASETS if datasets is None else datasets
-    img_dir = out.parent / "img"
-    commit = git_commit()
-    lines = [f"_Generated by `wearnav datasets-report --data {data} --out {out} --work {work}` "
-             f"(wearnav {__version__}{', commit ' + commit if commit else ''}); do not edit by hand._",
-             "", "# Shipped datasets, as imported", "",
-             "Each dataset is read from its original files with `wearnav import FORMAT`. Rates: "
-             "median rate = 1 / median interval between consecutive samples; **jitter = interquartile "
-             "range (75th − 25th percentile) of those intervals**; both pooled over all recordings "
-             "of a device. \"With orientation\" / \"with gyro\": share of samples whose stream "
-             "carries a quaternion / a gyroscope.", ""]
-    failures = []
-    for folder, fmt in datasets.items():
-        src = data / folder
-        lines += [f"## {folder} (`{fmt}`)", ""]
-        if not src.exists():
-            lines += [f"Not found: `{src}`.", ""]
-            failures.append(f"{folder}: not found")
-            continue
-        dest = work / fmt
-        try:
-            if (dest / "manifest.csv").exists():
-                ds = Dataset.open(dest)
-            else:
-                ds = import_dataset(fmt, src, dest, progress=progress)
-        except (WearnavError, ModuleNotFoundError) as exc:
-            lines += [f"Import failed: `{exc}`", ""]
-            failures.append(f"{folder}: {exc}")
-            continue
-        lines += [f"Source `{src}`, imported to `{dest}`.", ""]
-        if len(ds) == 0:
-            lines += ["The import produced no recordings.", ""]
-            failures.append(f"{folder}: no recordings")
-            continue
-        lines.append(stats_markdown(dataset_stats(ds, progress=progress)))
-        name = _pick_recording(ds)
-        png = plot_recording(ds.load(name), img_dir / f"{fmt}.png")
-        rel = os.path.relpath(png, out.parent)
-        lines += [f"![{fmt}: recording {name}]({rel})", "", f"_Figure: recording `{name}`._", ""]
-    write_text_atomic("\n".join(lines).rstrip() + "\n", out)
-    if failures:
-        raise WearnavError(f"{len(failures)} dataset(s) not reported ({'; '.join(failures)}); "
-                           f"the rest is in {out}")
-    return out
+    return save(fig, out)

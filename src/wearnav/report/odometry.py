@@ -10,20 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from wearnav.fileio import atomic_path
 from wearnav.metrics import error_cdf
+from wearnav.report.plots import save
 
 MAX_TRAJECTORIES = 8
-
-
-def save(fig: Figure, out: Path, dpi: int = 110) -> Path:
-    FigureCanvasAgg(fig)
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, dpi=dpi, format="png")
-    return Path(out)
 
 
 def _pick(rows: list[dict], trajs: dict[str, pd.DataFrame], k: int) -> list[dict]:

@@ -1,0 +1,168 @@
+"""The statistics behind ``wearnav info`` and the datasets page: counts, sampling rates and
+jitter, label tallies, fix errors at the truth, and per-group walking tables."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+import pandas as pd
+
+from wearnav.dataset import Dataset
+from wearnav.metrics import errors_at_reference, label_noise
+from wearnav.recording import device_order
+from wearnav.timeseries import sampling
+
+# Gap rule of the fix error at the truth points (timeseries rule "nearest"): a truth point is
+# scored only if a fix lies within this many seconds (phones fix at ~1 Hz; a longer silence
+# means no fix, and the point is skipped rather than compared with a stale position).
+FIX_MAX_GAP_S = 2.0
+
+
+def _pct(x: np.ndarray, q: float) -> float:
+    return float(np.percentile(x, q)) if x.size else float("nan")
+
+
+def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_MAX_GAP_S) -> dict:
+    """Counts, rates, label tallies and fix errors of a dataset (loads every recording once).
+
+    Per device, the intervals between consecutive samples are pooled over all recordings:
+    ``rate_hz`` = 1 / median interval; ``jitter_iqr_ms`` = interquartile range (75th − 25th
+    percentile) of the intervals; ``gap_share`` = share of intervals longer than twice the median.
+    ``fix_error_m``: horizontal error of the location fixes at the truth points (fixes linearly
+    interpolated, a truth point counted only when a fix lies within ``fix_max_gap`` s), pooled.
+    """
+    from tqdm import tqdm
+
+    dev: dict[str, dict] = {}
+    labels: dict[tuple[str, str], list] = {}
+    fix_err: list[np.ndarray] = []
+    fix_err_recs = 0
+    truth_points = truth_recs = fixes_total = 0
+    subjects: set[str] = set()
+    duration = 0.0
+    for name in tqdm(ds.names, desc=f"stats {ds.root.name}", unit="rec", disable=not progress):
+        rec = ds.load(name)
+        duration += rec.duration
+        if str(rec.meta.get("subject", "")).strip():
+            subjects.add(str(rec.meta["subject"]))
+        for d, s in rec.devices.items():
+            e = dev.setdefault(d, {"recordings": 0, "samples": 0, "gyro": 0, "quat": 0, "dt": []})
+            e["recordings"] += 1
+            e["samples"] += len(s)
+            e["gyro"] += len(s) if s.gyro is not None else 0
+            e["quat"] += len(s) if s.quat is not None else 0
+            e["dt"].append(np.diff(s.t).astype(np.float32))
+        for row in rec.labels.itertuples():
+            c = labels.setdefault((row.kind, row.value), [0, 0.0])
+            c[0] += 1
+            c[1] += row.end - row.start
+        if rec.truth is not None:
+            truth_points += len(rec.truth)
+            truth_recs += 1
+        if rec.fixes is not None:
+            fixes_total += len(rec.fixes)
+        if rec.truth is not None and rec.fixes is not None:
+            err = errors_at_reference(rec.fixes.t, rec.fixes.pos, rec.truth.t, rec.truth.pos, fix_max_gap)
+            if err.size:
+                fix_err.append(err)
+                fix_err_recs += 1
+    devices = {}
+    for d, e in sorted(dev.items(), key=lambda kv: device_order(kv[0])):
+        smp = sampling(np.concatenate(e["dt"]) if e["dt"] else np.empty(0))
+        devices[d] = {
+            "recordings": e["recordings"],
+            "samples": e["samples"],
+            "rate_hz": smp.rate_hz,
+            "interval_median_ms": 1e3 * smp.interval_median_s,
+            "jitter_iqr_ms": 1e3 * smp.jitter_iqr_s,
+            "gap_share": smp.gap_share,
+            "gyro_share": e["gyro"] / e["samples"],
+            "orientation_share": e["quat"] / e["samples"],
+        }
+    errs = np.concatenate(fix_err) if fix_err else np.empty(0)
+    return {
+        "recordings": len(ds),
+        "subjects": len(subjects),
+        "duration_s": duration,
+        "devices": devices,
+        "labels": {k: {"intervals": v[0], "duration_s": v[1]} for k, v in sorted(labels.items())},
+        "truth_points": truth_points,
+        "recordings_with_truth": truth_recs,
+        "fixes": fixes_total,
+        "fix_error_m": None if not fix_err else {
+            "points": int(errs.size), "recordings": fix_err_recs,
+            "median": _pct(errs, 50), "p75": _pct(errs, 75), "max_gap_s": fix_max_gap,
+        },
+    }
+
+
+def walk_tables(ds: Dataset, by: Iterable[str] = ("mode",)) -> dict[str, pd.DataFrame]:
+    """For each manifest column in ``by``, a table per value: recordings, minutes, distance walked
+    (dense truth) and the median 1-s label noise of the location fixes (EasyTrack eq. 5–6, truth
+    interpolated at fix times, :func:`wearnav.metrics.label_noise`). Each recording is loaded
+    once, whatever ``by`` holds."""
+    per_rec = {}
+    for name in ds.names:
+        rec = ds.load(name)
+        dist, noise = 0.0, np.empty(0)
+        if rec.truth is not None:
+            p = rec.truth.pos[:, :2]
+            dist = float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+            if rec.fixes is not None:
+                noise = label_noise(rec.fixes.t, rec.fixes.pos, rec.truth.t, p)
+        per_rec[name] = (rec.duration, dist, noise)
+    tables = {}
+    for col in by:
+        rows = []
+        for key, names in ds.manifest.groupby(col, sort=True)["name"]:
+            dur, dist, noise = zip(*(per_rec[n] for n in names))
+            n = np.concatenate(noise)
+            rows.append({col: key or "-", "recordings": len(names), "minutes": round(sum(dur) / 60, 1),
+                         "distance_km": round(sum(dist) / 1000, 2),
+                         "fix_label_noise_median_cm": round(100 * float(np.median(n)), 1) if n.size else None})
+        tables[col] = pd.DataFrame(rows)
+    return tables
+
+
+def _fmt_duration(s: float) -> str:
+    if s >= 3600:
+        return f"{s / 3600:.2f} h"
+    if s >= 60:
+        return f"{s / 60:.1f} min"
+    return f"{s:.1f} s"
+
+
+def stats_markdown(stats: dict) -> str:
+    """Markdown tables for one dataset's :func:`dataset_stats`."""
+    out = []
+    truth = f"{stats['truth_points']:,} in {stats['recordings_with_truth']} recordings" \
+        if stats["truth_points"] else "none"
+    out += ["| recordings | subjects | total duration | truth points | location fixes |",
+            "|---:|---:|---:|---:|---:|",
+            f"| {stats['recordings']:,} | {stats['subjects'] or '—'} | "
+            f"{_fmt_duration(stats['duration_s'])} | {truth} | {stats['fixes']:,} |", ""]
+    out += ["| device | recordings | samples | median rate | median interval | jitter (IQR of intervals) "
+            "| intervals > 2× median | with gyro | with orientation |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for d, e in stats["devices"].items():
+        out.append(f"| {d} | {e['recordings']:,} | {e['samples']:,} | {e['rate_hz']:.2f} Hz | "
+                   f"{e['interval_median_ms']:.2f} ms | {e['jitter_iqr_ms']:.3f} ms | "
+                   f"{100 * e['gap_share']:.2f} % | {100 * e['gyro_share']:.0f} % | "
+                   f"{100 * e['orientation_share']:.0f} % |")
+    out.append("")
+    if stats["labels"]:
+        out += ["| label kind | value | intervals | total duration |", "|---|---|---:|---:|"]
+        for (kind, value), c in stats["labels"].items():
+            out.append(f"| {kind} | {value} | {c['intervals']:,} | {_fmt_duration(c['duration_s'])} |")
+    else:
+        out.append("No labels.")
+    out.append("")
+    fe = stats["fix_error_m"]
+    if fe is not None:
+        out += [f"**Location fixes at the truth points** (fixes linearly interpolated at each truth "
+                f"time that has a fix within {fe['max_gap_s']:g} s; horizontal distance): "
+                f"median **{fe['median']:.2f} m**, 75th percentile **{fe['p75']:.2f} m** over "
+                f"{fe['points']:,} points in {fe['recordings']} recordings. This is the reference "
+                f"a learned tracker must beat.", ""]
+    return "\n".join(out)
