@@ -23,9 +23,11 @@ principal axis gives the direction up to sign. The sign comes from the phase bet
 vertical acceleration: in the inverted-pendulum gait model the forward acceleration is in phase
 with the time derivative of the vertical acceleration (it leads it by 90°: the body is slowest at
 mid-stance, when it is highest). Measured on real data (ILC2 site 1, phone held flat in front,
-device +y = forward, 609 walking windows of 4 s): the forward acceleration leads the vertical by
-a circular mean of 96° (median per trace 75°, 10th–90th percentile of windows ≈ 30°–160°).
+so its +y axis points forward; 609 walking windows of 4 s in 40 traces): the forward acceleration
+leads the vertical by a circular mean of 96° (per-trace medians mostly 55°–120°).
 ``phase_lead_deg`` sets that lead; the sign is right whenever the true lead is within ±90° of it.
+With the default, PDR's direction is within 90° of the phone's forward axis in 89 % of the 9149
+moving windows of ILC2 site 1 (per-trace median angle to it mostly 8°–30°).
 
 Known limit: the wearnav simulator (v. of this commit) models the pelvis' fore-aft ripple with
 the opposite phase (forward acceleration *lagging* the vertical by 45–75°, measured per device on
@@ -55,7 +57,8 @@ class PDR(OdometryModel):
                  phase_lead_deg: float = 90.0, filter_order: int = 2):
         super().__init__()
         if window < 32 or rate <= 0 or not 0 < band[0] < band[1] < rate / 2:
-            raise ConfigError(f"PDR needs window ≥ 32, rate > 0 and 0 < band < rate/2, got {window}, {rate}, {band}")
+            raise ConfigError(f"PDR needs window ≥ 32, rate > 0 and 0 < band < rate/2, "
+                              f"got {window}, {rate}, {band}")
         self.n_devices, self.window, self.rate = n_devices, window, rate
         self.step_length, self.min_peak, self.phase_lead = step_length, min_peak, np.deg2rad(phase_lead_deg)
         self.half_gap = max(1, int(round(min_step_s * rate)))
@@ -76,7 +79,8 @@ class PDR(OdometryModel):
         first = peak.argmax(axis=1)
         last = L - 1 - peak[:, ::-1].argmax(axis=1)
         period = (last - first) / np.maximum(n - 1, 1)
-        edge = (np.minimum(first, period) + np.minimum(L - 1 - last, period)) / np.where(period > 0, period, 1.0)
+        gaps = np.minimum(first, period) + np.minimum(L - 1 - last, period)
+        edge = gaps / np.where(period > 0, period, 1.0)
         frac = np.where(n >= 2, (n - 1) + edge, n).astype(np.float64)
         return n, frac
 

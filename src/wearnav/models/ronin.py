@@ -6,7 +6,7 @@ rotated raw specific force and angular rate, no gravity removal, no normalisatio
 the same kind of signal (world-frame acc incl. gravity + gyro), so it is fed unchanged; the
 constant ≈ +9.8 m/s² on the vertical channel is absorbed by the first BatchNorm.
 
-Architecture (RoNIN Sec. IV-B, "RoNIN ResNet"; Suite-IN++ Sec. V-B uses the official one):
+Architecture (RoNIN's "RoNIN ResNet", as in its official code, which Suite-IN++ Sec. V-B extends):
 
 - input block: Conv1d(C, 64, kernel 7, stride 2) + BN + ReLU + MaxPool(3, stride 2);
 - four residual groups of two BasicBlocks (kernel 3) with widths 64-128-256-512 and strides
@@ -53,7 +53,8 @@ class BasicBlock1D(nn.Module):
         self.relu = nn.ReLU(inplace=True)
         self.shortcut = None
         if stride != 1 or c_in != c_out:
-            self.shortcut = nn.Sequential(nn.Conv1d(c_in, c_out, 1, stride, bias=False), nn.BatchNorm1d(c_out))
+            self.shortcut = nn.Sequential(nn.Conv1d(c_in, c_out, 1, stride, bias=False),
+                                          nn.BatchNorm1d(c_out))
 
     def forward(self, x: Tensor) -> Tensor:
         out = self.relu(self.bn1(self.conv1(x)))
@@ -65,8 +66,8 @@ class BasicBlock1D(nn.Module):
 class ResNet1D(nn.Module):
     """RoNIN's ResNet-18-1D backbone and FC output head: (B, C, L) → (B, n_out)."""
 
-    def __init__(self, in_channels: int, window: int, n_out: int = 2, blocks=(2, 2, 2, 2), base: int = 64,
-                 trans_planes: int = 128, fc_dim: int = 512, dropout: float = 0.5):
+    def __init__(self, in_channels: int, window: int, n_out: int = 2, blocks=(2, 2, 2, 2),
+                 base: int = 64, trans_planes: int = 128, fc_dim: int = 512, dropout: float = 0.5):
         super().__init__()
         if window < MIN_WINDOW:
             raise ConfigError(f"RoNIN ResNet needs windows of at least {MIN_WINDOW} samples, got {window}")
