@@ -32,3 +32,14 @@ class OdometryModel(nn.Module):
     def predict(self, x: Tensor, mask: Tensor) -> Tensor:
         """Velocity (B, 2) for inference; the same as ``forward`` unless a model says otherwise."""
         return self(x, mask)
+
+
+def first_present(x: Tensor, mask: Tensor) -> tuple[Tensor, Tensor]:
+    """The single-device models' input: for each sample, the first device of the layout with
+    mask > 0 (the phone where present, else the next present device in layout order).
+
+    Returns its data (B, L, 6), zeros for a sample with no device present, and its index (B,)."""
+    present = mask > 0
+    idx = present.to(torch.int8).argmax(dim=1)  # argmax returns the first maximal index
+    sel = x[torch.arange(x.shape[0], device=x.device), idx]
+    return sel * present.any(dim=1).to(x.dtype)[:, None, None], idx
