@@ -255,19 +255,22 @@ def test_pdr_speed_and_heading_on_simulated_straight_walking(tiny_phone):
     # (Window-level outliers remain where walking starts, stops or turns a corner within 4 s.)
     rel = np.abs(speed * ratio - sp_true) / sp_true
     assert np.median(rel) < 0.06
-    # Walking direction up to sign (independent of the phase rule): measured median 1.3°.
+    # Walking direction up to sign (independent of the phase rule). Measured median 6.3°, p90 72°
+    # since the simulator's fore-aft ripple follows the inverted pendulum (it was 1.3° / 7° with
+    # the earlier, opposite phase): the hand's own motion now partly cancels the body's surge.
     ang = np.arctan2(pred[:, 1], pred[:, 0]) - np.arctan2(true[:, 1], true[:, 0])
     axis_err = np.rad2deg(np.abs(np.arcsin(np.sin(ang))))
-    assert np.median(axis_err) < 4.0 and np.percentile(axis_err, 90) < 15.0
+    assert np.median(axis_err) < 10.0
 
 
-def test_pdr_signed_heading_on_the_simulator_with_its_gait_phase(tiny_phone):
-    # The simulator's fore-aft acceleration lags the vertical by ≈ 50–75° (see pdr.py): with that
-    # lead the signed direction is recovered; measured median 1.3°, p90 8°.
-    pred, true, _ = _stw(tiny_phone, lead_deg=-60.0)
+def test_pdr_signed_heading_on_the_simulator(tiny_phone):
+    # The simulator's fore-aft acceleration leads the vertical by 73–119° (inverted pendulum, as
+    # on real phones): PDR's default phase rule recovers the signed direction. Measured: median
+    # 9.4°, 90 % of windows within 90° (ILC2's real hand-held phone: 89 %).
+    pred, true, _ = _stw(tiny_phone, lead_deg=90.0)
     ang = np.rad2deg(np.abs(np.angle(np.exp(1j * (np.arctan2(pred[:, 1], pred[:, 0])
                                                   - np.arctan2(true[:, 1], true[:, 0]))))))
-    assert np.median(ang) < 4.0 and np.percentile(ang, 90) < 15.0 and np.mean(ang < 90) > 0.97
+    assert np.median(ang) < 15.0 and np.mean(ang < 90) > 0.8
 
 
 # ---- PDR's gait-phase rule on real data ---------------------------------------------------------
@@ -301,7 +304,7 @@ def test_pdr_walks_forward_on_real_phone_data(shared_data):
         moving = np.linalg.norm(vel, axis=1) > 0.5
         agree.append(np.sum(vel[moving] * f[moving], axis=1) > 0)
     agree = np.concatenate(agree)
-    # Measured: 0.89 of the moving windows of these traces, 0.89 of all 9149 in site 1 (with the
-    # simulator's phase, phase_lead_deg=-60: 0.25).
+    # Measured: 0.89 of the moving windows of these traces, 0.89 of all 9149 in site 1 (with a
+    # lead of -60°, the simulator's gait phase before it was corrected: 0.25).
     assert len(agree) > 200
     assert agree.mean() > 0.8, agree.mean()

@@ -29,10 +29,9 @@ leads the vertical by a circular mean of 96° (per-trace medians mostly 55°–1
 With the default, PDR's direction is within 90° of the phone's forward axis in 89 % of the 9149
 moving windows of ILC2 site 1 (per-trace median angle to it mostly 8°–30°).
 
-Known limit: the wearnav simulator (v. of this commit) models the pelvis' fore-aft ripple with
-the opposite phase (forward acceleration *lagging* the vertical by 45–75°, measured per device on
-the ``tiny`` preset), so with the physical default this PDR walks backwards on simulated data;
-``phase_lead_deg=-60`` matches the simulator.
+The simulator's pelvis ripple first had the opposite phase (forward acceleration lagging the
+vertical by 45–75°), which made this PDR walk backwards on simulated data; it now follows the
+inverted pendulum (lead 73°–119°), found through this rule.
 """
 
 from __future__ import annotations

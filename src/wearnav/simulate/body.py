@@ -141,7 +141,10 @@ class Body:
         # support (CoM lowest, φ = π) and trough broadly at mid-stance (CoM highest, φ = 0).
         bounce = 0.5 * s.bounce_m * amp * (np.cos(phi) - s.bounce_harmonic * np.cos(2 * phi + 0.3))
         sway = -0.5 * s.sway_m * amp * np.cos(psi)  # towards the stance leg
-        ripple = 0.5 * s.ripple_m * amp * np.sin(phi + s.ripple_phase_rad)
+        # Inverted pendulum: the body is slowest at mid-stance (φ = 0, CoM highest) and fastest at
+        # double support, so the fore-aft acceleration ∝ sin(φ + p) peaks ≈ 90° + p before the
+        # vertical one (real hand-held phones, ILC2: forward leads vertical by 96° on average).
+        ripple = -0.5 * s.ripple_m * amp * np.sin(phi + s.ripple_phase_rad)
         # Heel strike (at φ = π, double support): a brief dip of the pelvis, i.e. an upward
         # acceleration spike of about impact/σ² (1–2.5 m/s²), damped by the spine before the head.
         width = 2 * np.pi * s.cadence_hz * IMPACT_S

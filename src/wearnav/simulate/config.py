@@ -47,7 +47,7 @@ class SubjectParams:
     ripple_m: float = 0.015  # fore-aft peak-to-peak about the mean progression, at step frequency
     bounce_harmonic: float = 0.08  # second-harmonic share of the bounce
     impact_mm: float = 0.8  # heel-strike dip of the pelvis (a ~22 ms Gaussian), mm
-    ripple_phase_rad: float = 0.6
+    ripple_phase_rad: float = 0.1  # fore-aft acceleration leads the vertical by 90° + this
     trunk_lean_deg: float = 5.0
     trunk_yaw_deg: float = 3.0  # trunk rotation amplitude at stride frequency
     trunk_roll_deg: float = 2.0
@@ -83,7 +83,7 @@ def sample_subject(rng: np.random.Generator, name: str) -> SubjectParams:
         ripple_m=round(float(rng.uniform(0.01, 0.025)), 4),
         bounce_harmonic=round(float(rng.uniform(0.0, 0.12)), 3),
         impact_mm=round(float(rng.uniform(0.5, 1.2)), 3),
-        ripple_phase_rad=round(float(rng.uniform(0.2, 1.2)), 3),
+        ripple_phase_rad=round(float(rng.uniform(-0.3, 0.5)), 3),
         trunk_lean_deg=round(float(rng.uniform(2.0, 9.0)), 2),
         trunk_yaw_deg=round(float(rng.uniform(2.0, 5.0)), 2),
         trunk_roll_deg=round(float(rng.uniform(1.0, 3.0)), 2),
