@@ -39,15 +39,17 @@ from __future__ import annotations
 import io
 import json
 import re
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
+from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError, WearnavWarning
 from wearnav.importers.common import (
     check_finite,
+    check_source,
     drop_duplicate_times,
     find_file,
     interp_onto,
@@ -147,9 +149,15 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
     text = read_text(path)
     if not text.strip():
         raise FormatError("empty file", path)
+    lines = text.splitlines()
+    # Every trace ends with a "#<TAB>endTime:<ms>" footer (all 580 shipped ones do): without it
+    # the file was cut short, and a cut last line could still parse as a shorter number.
+    truncated = not any(ln.startswith("#") and "endTime:" in ln for ln in lines[-3:])
+    if truncated and not text.endswith("\n"):
+        lines = lines[:-1]
     header, rows = [], {ACC: [], GYRO: [], ROTVEC: [], WAYPOINT: []}
     first_data = None
-    for ln in text.splitlines():
+    for ln in lines:
         if not ln or ln.isspace():
             continue
         if ln[0] == "#":
@@ -247,6 +255,10 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
     size = _map_size(path)
     if size is not None:
         meta["map_size_m"] = size
+    if truncated:
+        meta["truncated"] = "no endTime footer: the trace was cut short (an unfinished last line is dropped)"
+        warnings.warn(WearnavWarning(f"{path}: {meta['truncated']}; imported as far as it goes, "
+                                     "flagged in meta['truncated']"), stacklevel=2)
     return Recording(name=name, devices={"phone": stream}, truth=truth, meta=meta)
 
 
@@ -270,21 +282,13 @@ def find_traces(src: Path) -> list[Path]:
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """ILC2 traces from a dataset folder (any level of site/floor/path_data_files) or one file."""
-    src = Path(src)
+    src, limit = check_source(src, limit, expect="an ILC2 trace or a folder of them")
     if src.is_file():
-        yield read_trace(src)
-        return
-    if not src.exists():
-        try:
-            path = find_file(src)  # a trace named without its .gz/.xz suffix
-        except MissingFileError:
-            raise MissingFileError("no such file or folder", src) from None
-        yield read_trace(path)
+        if limit != 0:
+            yield read_trace(src)
         return
     files = find_traces(src)
     if not files:
         raise FormatError("no ILC2 traces found (expected <site>/<floor>/path_data_files/*.txt[.gz])", src)
-    for n, path in enumerate(files):
-        if limit is not None and n >= limit:
-            return
+    for path in files[:limit]:
         yield read_trace(path, root=src)

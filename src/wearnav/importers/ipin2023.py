@@ -64,6 +64,8 @@ import pandas as pd
 from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
 from wearnav.importers.common import (
     check_finite,
+    check_latlon,
+    check_source,
     drop_duplicate_times,
     find_file,
     interp_onto,
@@ -284,8 +286,7 @@ def _gnss(g: np.ndarray, path: Path, meta: dict):
         return None
     t = g_kept[:, 1] + offset
     lat, lon = g_kept[:, 2], g_kept[:, 3]
-    if np.any(np.abs(lat) > 90) or np.any(np.abs(lon) > 180):
-        raise ValidationError("GNSS latitude/longitude out of range", path)
+    check_latlon(lat, lon, "GNSS", path)
     acc = g_kept[:, 6].copy()
     acc[acc <= 0] = np.nan
     return t, lat, lon, acc
@@ -350,6 +351,7 @@ def _read_log(path: Path) -> Recording:
     posi = None
     if "POSI" in data:
         p = data["POSI"]
+        check_latlon(p[:, 1], p[:, 2], "POSI", path)
         keep, n_dup = drop_duplicate_times(p[:, 0], "POSI", path)
         if n_dup:
             meta["dropped_duplicates"]["POSI"] = n_dup
@@ -424,21 +426,13 @@ def find_logs(src: Path) -> list[Path]:
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """IPIN 2023 Track 3 logs from the dataset folder (all logs under it) or from one log file."""
-    src = Path(src)
+    src, limit = check_source(src, limit, expect="a GetSensorData log or a folder of them")
     if src.is_file():
-        yield read_log(src)
-        return
-    if not src.exists():
-        try:
-            path = find_file(src)
-        except MissingFileError:
-            raise MissingFileError("no such file or folder", src) from None
-        yield read_log(path)
+        if limit != 0:
+            yield read_log(src)
         return
     files = find_logs(src)
     if not files:
         raise FormatError("no GetSensorData logs found (*.txt[.gz|.xz] or *.mat)", src)
-    for n, path in enumerate(files):
-        if limit is not None and n >= limit:
-            return
+    for path in files[:limit]:
         yield read_log(path)

@@ -51,7 +51,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.importers.common import check_finite, find_file, read_csv, require_columns
+from wearnav.importers.common import check_finite, check_source, find_file, read_csv, require_columns
 from wearnav.recording import STANDARD_GRAVITY as G  # Core Motion's unit of acceleration
 from wearnav.recording import DeviceStream, Recording
 
@@ -207,9 +207,7 @@ def read_file(path: Path, act: str, trial: int, subject: int, subject_info: dict
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """Yield MotionSense recordings (at most ``limit``) from a folder in the original layout."""
-    src = Path(src)
-    if not src.exists():
-        raise MissingFileError("no such file or folder", src)
+    src, limit = check_source(src, limit, expect="a MotionSense folder or sub_<n>.csv file")
     if src.is_file():
         # One sub_<n>.csv: its folder names the activity and trial.
         m, t = FILE_RE.match(src.name), TRIAL_RE.match(src.parent.name)
@@ -220,7 +218,7 @@ def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
         jobs = [(d, _subject_files(d)) for d in _trial_dirs(src)]
         if not any(files for _, files in jobs):
             raise FormatError("no sub_<n>.csv files in the MotionSense trial folders", src)
-    if limit is not None and limit <= 0:
+    if limit == 0:
         return
     base = src if src.is_dir() else src.parent
     subjects = read_subjects(_find_subjects_file(base, jobs[0][0]))

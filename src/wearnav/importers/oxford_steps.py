@@ -47,7 +47,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.importers.common import check_finite, read_csv
+from wearnav.importers.common import check_finite, check_source, read_csv
 from wearnav.recording import DeviceStream, Recording
 
 VALIDATION_DIR = "validation"
@@ -158,11 +158,9 @@ def read_file(path: Path) -> Recording:
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """Yield Oxford step-counter recordings (at most ``limit``) from a folder or one file."""
-    src = Path(src)
-    if not src.exists():
-        raise MissingFileError("no such file or folder", src)
+    src, limit = check_source(src, limit, expect="an Oxford step-counter file or its folder")
     files = _files(src)
-    if limit is not None and limit <= 0:
+    if limit == 0:
         return
     for count, path in enumerate(files, 1):
         yield read_file(path)

@@ -49,7 +49,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.importers.common import check_finite, find_file, read_csv
+from wearnav.importers.common import check_finite, check_source, find_file, read_csv
 from wearnav.recording import DeviceStream, Recording
 
 DATA_DIR = "DATA"
@@ -224,14 +224,11 @@ def read_execution(eid: str, files: dict[str, Path], subject: dict, execution: d
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """Yield UJI executions (at most ``limit``) from the dataset root, ``DATA`` or a subject folder."""
-    src = Path(src)
-    if not src.exists():
-        raise MissingFileError("no such file or folder", src)
-    if not src.is_dir():
-        raise FormatError("expected the UJI dataset folder (or DATA, or a subject folder), got a file", src)
+    src, limit = check_source(src, limit, expect="the UJI dataset folder (or DATA, or a subject folder)",
+                              file=False)
     data = _data_dir(src)
     executions = _executions(data)
-    if limit is not None and limit <= 0:
+    if limit == 0:
         return
     subjects, subjects_path = _info_table(data, "subjects_info.csv", SUBJECT_COLUMNS)
     exec_info, exec_path = _info_table(data, "executions_info.csv", EXECUTION_COLUMNS)
