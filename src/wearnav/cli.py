@@ -16,7 +16,7 @@ from typing import Optional
 
 import typer
 
-from wearnav.errors import Terminated, ValidationError, WearnavError, one_line
+from wearnav.errors import Terminated, ValidationError, WearnavError, WearnavWarning, one_line
 
 app = typer.Typer(
     help="Inertial odometry and activity recognition from everyday wearables.",
@@ -178,6 +178,10 @@ def main() -> None:
     with its traceback). Warnings are one line each (``warning: ...``).
     """
     with warnings.catch_warnings():
+        # Only wearnav's own warnings concern the user (a truncated file imported flagged); a
+        # library's RuntimeWarning about arithmetic on values that are then refused is noise.
+        warnings.simplefilter("ignore")
+        warnings.simplefilter("default", WearnavWarning)
         warnings.showwarning = _show_warning
         try:
             code = app(standalone_mode=False)

@@ -12,6 +12,7 @@ level of simulated data (EasyTrack's L1/L2/L3).
 
 from __future__ import annotations
 
+import csv
 import os
 import re
 import shutil
@@ -29,7 +30,7 @@ import yaml
 from wearnav.errors import FormatError, MissingFileError, Terminated, ValidationError
 from wearnav.fileio import require_regular_file
 from wearnav.provenance import provenance
-from wearnav.recording import Recording, check_name
+from wearnav.recording import Recording, check_name, check_text
 
 MANIFEST = "manifest.csv"
 PROVENANCE = "dataset.yaml"
@@ -192,8 +193,12 @@ class DatasetWriter:
         if any(r["name"] == rec.name for r in self.rows):
             raise ValidationError(f"duplicate recording name {rec.name!r}", self.root)
         file = f"{rec.name}.h5"
+        row = manifest_row(rec, file, split)
+        for key, value in row.items():
+            if isinstance(value, str):
+                check_text(value, f"recording {rec.name!r}: manifest {key}")
         rec.save(self.tmp / file)
-        self.rows.append(manifest_row(rec, file, split))
+        self.rows.append(row)
 
     def close(self) -> Path:
         """Write the manifest and move the finished dataset into place; returns ``root``."""
@@ -201,7 +206,9 @@ class DatasetWriter:
         for col in MANIFEST_COLUMNS:
             if col not in df.columns:
                 df[col] = pd.Series(dtype=object)
-        df[MANIFEST_COLUMNS].to_csv(self.tmp / MANIFEST, index=False)
+        # Every cell quoted: a bare carriage return in a name or a meta value would otherwise
+        # end the row when the manifest is read back.
+        df[MANIFEST_COLUMNS].to_csv(self.tmp / MANIFEST, index=False, quoting=csv.QUOTE_ALL)
         info = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, **self.provenance,
                 **provenance(), "recordings": len(self.rows)}
         (self.tmp / PROVENANCE).write_text(yaml.safe_dump(info, sort_keys=False), encoding="utf-8")

@@ -45,22 +45,36 @@ GYRO_NORM_MEDIAN_MAX = 15.0
 # beyond them was not measured by such a sensor: a corrupt file, a wrong unit or a sentinel.
 ACC_AXIS_MAX = 16 * STANDARD_GRAVITY  # m/s²
 GYRO_AXIS_MAX = float(np.deg2rad(2000.0))  # rad/s
+# Positions are metres in a local frame about the recording's own origin: nothing on Earth is
+# farther than half its circumference (~2e7 m), so a larger coordinate is a corrupt value.
+POS_ABS_MAX = 2.0e7
+# Truth and fixes describe the same walk as the devices: times farther than this outside the
+# devices' span are on another clock or corrupt.
+MAX_TIME_OUTSIDE_S = 600.0
 # Longest recording / device name: it becomes a file name (``<name>.h5``, 255 bytes on most
 # file systems) and an HDF5 link name.
 MAX_NAME_BYTES = 200
 
 
-def check_name(name, what: str) -> None:
-    """Refuse a recording / device / label name that cannot round-trip through HDF5 and a file
-    name: not a string, empty, '.', '..', containing '/' or NUL, not UTF-8-encodable, too long."""
-    if not isinstance(name, str):
-        raise ValidationError(f"{what} {name!r} is not a string")
-    if name in ("", ".", "..") or "/" in name or "\x00" in name:
-        raise ValidationError(f"{what} {name!r} is empty, '.', '..' or contains '/' or NUL")
+def check_text(text, what: str) -> int:
+    """Refuse text that HDF5 and CSV cannot store and give back: not a string, holding NUL, not
+    UTF-8-encodable (lone surrogates). Returns its UTF-8 size in bytes."""
+    if not isinstance(text, str):
+        raise ValidationError(f"{what} {text!r} is not a string")
+    if "\x00" in text:
+        raise ValidationError(f"{what} {text!r} contains NUL")
     try:
-        size = len(name.encode("utf-8"))
+        return len(text.encode("utf-8"))
     except UnicodeEncodeError:
-        raise ValidationError(f"{what} {name!r} cannot be encoded as UTF-8") from None
+        raise ValidationError(f"{what} {text!r} cannot be encoded as UTF-8") from None
+
+
+def check_name(name, what: str) -> None:
+    """Refuse a recording / device name that cannot round-trip through HDF5 and a file name:
+    what :func:`check_text` refuses, empty, '.', '..', containing '/', too long."""
+    size = check_text(name, what)
+    if name in ("", ".", "..") or "/" in name:
+        raise ValidationError(f"{what} {name!r} is empty, '.', '..' or contains '/'")
     if size > MAX_NAME_BYTES:
         raise ValidationError(f"{what} is {size} bytes long (at most {MAX_NAME_BYTES})")
 
@@ -97,6 +111,13 @@ def _check_range(a: np.ndarray | None, limit: float, unit: str, name: str) -> No
             f"{name}: {n_bad} of {len(a)} samples beyond ±{limit:.4g} {unit} per axis (first at "
             f"sample {i}: {float(a[i][over[i]][0]):.4g}), the full-scale range of a consumer IMU: "
             "corrupt values or wrong unit?")
+
+
+def _check_position(pos: np.ndarray, name: str) -> None:
+    if pos.size and np.any(np.abs(pos) > POS_ABS_MAX):
+        i = int(np.argmax(np.any(np.abs(pos) > POS_ABS_MAX, axis=1)))
+        raise ValidationError(f"{name}: coordinate {float(np.max(np.abs(pos[i]))):.4g} m at point {i} "
+                              f"is farther than anything on Earth ({POS_ABS_MAX:.0e} m)")
 
 
 def _check_rows(a: np.ndarray | None, n: int, width: tuple[int, ...] | int, name: str) -> None:
@@ -154,7 +175,9 @@ class DeviceStream:
         if self.worn is not None and self.worn.shape != (n,):
             raise ValidationError(f"worn: shape {self.worn.shape}, expected ({n},)")
         if self.check_units and n >= 10:
-            med = float(np.median(np.linalg.norm(self.acc, axis=1)))
+            with np.errstate(over="ignore", invalid="ignore"):  # absurd values: the range check's job
+                med = float(np.median(np.linalg.norm(self.acc, axis=1)))
+                gmed = float(np.median(np.linalg.norm(self.gyro, axis=1))) if self.gyro is not None else 0.0
             lo, hi = ACC_NORM_MEDIAN_RANGE
             if not lo <= med <= hi:
                 hint = f" (looks like g, multiply by {STANDARD_GRAVITY})" if 0.6 < med < 1.4 else ""
@@ -162,7 +185,6 @@ class DeviceStream:
                     f"acc: median |acc| is {med:.3g}, expected about 9.8 m/s² including gravity{hint}"
                 )
             if self.gyro is not None:
-                gmed = float(np.median(np.linalg.norm(self.gyro, axis=1)))
                 if gmed > GYRO_NORM_MEDIAN_MAX:
                     raise ValidationError(
                         f"gyro: median |gyro| is {gmed:.3g} rad/s, implausible (deg/s instead of rad/s?)"
@@ -213,6 +235,7 @@ class Trajectory:
             self.floor = _as_array(self.floor, np.float64, "truth.floor")
         _check_time(self.t, "truth.t")
         _check_rows(self.pos, self.t.size, (2, 3), "truth.pos")
+        _check_position(self.pos, "truth.pos")
         _check_rows(self.quat, self.t.size, 4, "truth.quat")
         if self.floor is not None and self.floor.shape != self.t.shape:
             raise ValidationError(f"truth.floor: shape {self.floor.shape}, expected {self.t.shape}")
@@ -245,8 +268,14 @@ class Fixes:
             self.floor = _as_array(self.floor, np.float64, "fixes.floor")
         _check_time(self.t, "fixes.t")
         _check_rows(self.pos, self.t.size, (2, 3), "fixes.pos")
+        _check_position(self.pos, "fixes.pos")
         if self.accuracy.shape != self.t.shape:
             raise ValidationError(f"fixes.accuracy: shape {self.accuracy.shape}, expected {self.t.shape}")
+        bad = ~np.isnan(self.accuracy) & ~((self.accuracy >= 0) & (self.accuracy <= POS_ABS_MAX))
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise ValidationError(f"fixes.accuracy: {self.accuracy[i]:.4g} m at fix {i} is not a radius "
+                                  f"in 0..{POS_ABS_MAX:.0e} m (NaN where unknown)")
         if self.floor is not None and self.floor.shape != self.t.shape:
             raise ValidationError(f"fixes.floor: shape {self.floor.shape}, expected {self.t.shape}")
 
@@ -267,8 +296,8 @@ def make_labels(rows=None) -> pd.DataFrame:
         if np.any(df["end"].to_numpy() < df["start"].to_numpy()):
             raise ValidationError("labels: an interval ends before it starts")
         for col in ("kind", "value"):
-            if df[col].str.contains("\x00", regex=False).any():
-                raise ValidationError(f"labels: a {col} contains NUL (cannot be stored)")
+            for text in df[col].unique():
+                check_text(text, f"labels: {col}")
     df = df.sort_values(["kind", "start"], kind="stable").reset_index(drop=True)
     _check_overlaps(df)
     return df
@@ -317,6 +346,12 @@ class Recording:
         for what, part, kind in (("truth", self.truth, Trajectory), ("fixes", self.fixes, Fixes)):
             if part is not None and not isinstance(part, kind):
                 raise ValidationError(f"{what} is not a {kind.__name__}")
+            if part is not None and len(part) and all(len(s) for s in self.devices.values()):
+                lo, hi = self.t_start - MAX_TIME_OUTSIDE_S, self.t_end + MAX_TIME_OUTSIDE_S
+                if part.t[0] < lo or part.t[-1] > hi:
+                    raise ValidationError(
+                        f"{what}.t spans {part.t[0]:.6g}..{part.t[-1]:.6g} s, far outside the devices' "
+                        f"{self.t_start:.6g}..{self.t_end:.6g} s (another clock or a corrupt timestamp?)")
         self.labels = make_labels(self.labels)
         if not isinstance(self.meta, dict):
             raise ValidationError("meta is not a dict")

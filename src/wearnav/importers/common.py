@@ -141,6 +141,22 @@ def check_latlon(lat: np.ndarray, lon: np.ndarray, what: str, path: str | Path) 
                           f"(first at row {i} of that type)", path)
 
 
+# Unix times of real recordings: after 2000-01-01 and before 2100-01-01. A timestamp outside
+# (a corrupt value, or another clock or unit) would shift or discard every other sample.
+UNIX_TIME_RANGE_S = (946684800.0, 4102444800.0)
+
+
+def check_unix_time(t_s: np.ndarray, what: str, path: str | Path) -> None:
+    """Refuse Unix timestamps (given in seconds) outside :data:`UNIX_TIME_RANGE_S`."""
+    t_s = np.asarray(t_s, dtype=np.float64)
+    lo, hi = UNIX_TIME_RANGE_S
+    bad = ~((t_s >= lo) & (t_s <= hi))
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise FormatError(f"{what}: timestamp {t_s[i]:.6g} s at row {i} of that type is not a Unix time "
+                          "between 2000 and 2100 (corrupt value or wrong unit?)", path)
+
+
 def latlon_to_local(lat: np.ndarray, lon: np.ndarray, lat0: float | None = None,
                     lon0: float | None = None) -> np.ndarray:
     """Project WGS-84 lat/lon (degrees) to local east/north metres around (lat0, lon0).

@@ -50,6 +50,7 @@ from wearnav.errors import FormatError, MissingFileError, ValidationError, Wearn
 from wearnav.importers.common import (
     check_finite,
     check_source,
+    check_unix_time,
     drop_duplicate_times,
     find_file,
     interp_onto,
@@ -175,6 +176,8 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
         raise FormatError(f"not an ILC2 trace: no {ACC} rows (first line: {seen[:60]!r})", path)
 
     data = {k: _parse_rows(v, k, path) for k, v in rows.items() if v}
+    for k, a in data.items():
+        check_unix_time(a[:, 0] / 1e3, k, path)
     meta_dropped: dict[str, int] = {}
     for k in list(data):
         keep, n_dup = drop_duplicate_times(data[k][:, 0], k, path)

@@ -66,6 +66,7 @@ from wearnav.importers.common import (
     check_finite,
     check_latlon,
     check_source,
+    check_unix_time,
     drop_duplicate_times,
     find_file,
     interp_onto,
@@ -264,6 +265,7 @@ def _imu(data: dict[str, np.ndarray], path: Path, meta: dict) -> DeviceStream:
 def _gnss(g: np.ndarray, path: Path, meta: dict):
     """(fix times on the app clock, lat, lon, accuracy), repeats and stale fixes dropped; None if
     no fix is left."""
+    check_unix_time(g[:, 1], "GNSS SensorTimestamp", path)
     _, first = np.unique(g[:, 1], return_index=True)
     repeat = np.ones(len(g), bool)
     repeat[first] = False

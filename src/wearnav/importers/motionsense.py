@@ -145,6 +145,9 @@ def read_subjects(path: Path) -> dict[int, dict]:
     require_columns(df, SUBJECT_COLUMNS, path)
     vals = df[SUBJECT_COLUMNS].apply(pd.to_numeric, errors="coerce").to_numpy(float)
     check_finite(vals, "subject table", path)
+    dup = df["code"][df["code"].duplicated()]
+    if len(dup):
+        raise FormatError(f"subject code {dup.iloc[0]} is listed more than once", path)
     out = {}
     for code, weight, height, age, gender in vals:
         if gender not in (0, 1):
@@ -174,6 +177,12 @@ def read_file(path: Path, act: str, trial: int, subject: int, subject_info: dict
             f"it at {RATE_HZ:g} Hz, so rows must be complete and in order", path)
     att, grav, rot, user = (vals[:, k:k + 3] for k in (0, 3, 6, 9))
     n = len(df)
+    # Core Motion's Euler angles lie in [-π, π] (pitch in [-π/2, π/2]); anything else is not an
+    # attitude, though its quaternion would still look like one.
+    if np.any(np.abs(att) > np.pi + 1e-3):
+        i = int(np.argmax(np.any(np.abs(att) > np.pi + 1e-3, axis=1)))
+        raise FormatError(f"row {i}: attitude angle {float(np.max(np.abs(att[i]))):.4g} rad is "
+                          "outside [-π, π]", path)
     # Core Motion's gravity is a unit vector in g: a direct check of the units.
     gnorm = float(np.median(np.linalg.norm(grav, axis=1)))
     if not 0.95 <= gnorm <= 1.05:

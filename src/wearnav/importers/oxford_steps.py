@@ -52,6 +52,7 @@ from wearnav.recording import DeviceStream, Recording
 
 VALIDATION_DIR = "validation"
 FILE_RE = re.compile(r"^(user\d+)_([A-Za-z]+)_(\d{10,})\.csv(\.gz|\.xz)?$")
+MAX_STEP_COUNT = 10_000_000
 FIELDS = ["timestamp_ns", "accx", "accy", "accz", "steps_algo", "steps_groundtruth", "steps_hw"]
 
 META = {
@@ -103,11 +104,21 @@ def read_file(path: Path) -> Recording:
     df.columns = FIELDS
     ts = pd.to_numeric(df["timestamp_ns"], errors="coerce").to_numpy(np.float64)
     check_finite(ts, "timestamp", path)
+    if not pd.api.types.is_integer_dtype(df["timestamp_ns"]):
+        i = int(np.argmax(ts != np.round(ts))) if np.any(ts != np.round(ts)) else 0
+        raise FormatError(f"timestamp is not whole nanoseconds in int64 range (e.g. row {i}: "
+                          f"{df['timestamp_ns'].iloc[i]!r})", path)
     ts_ns = df["timestamp_ns"].astype(np.int64).to_numpy()  # exact: float64 would round ns
     acc = df[["accx", "accy", "accz"]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     check_finite(acc, "acc", path)
     counts = df[FIELDS[4:]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     check_finite(counts, "step counts", path)
+    # Running counts of steps: whole, non-negative and far below 2**31 in any real walk.
+    bad = (counts < 0) | (counts > MAX_STEP_COUNT) | (counts != np.round(counts))
+    if np.any(bad):
+        i = int(np.argmax(bad.any(axis=1)))
+        raise FormatError(f"row {i}: step count {counts[i][bad[i]][0]:g} is not a whole number "
+                          f"in 0..{MAX_STEP_COUNT}", path)
     counts = counts.astype(np.int64)
 
     # Logging artefacts: exact repeats of the previous row, and the all-zero placeholder rows

@@ -132,6 +132,7 @@ from wearnav.importers.common import (
     check_finite,
     check_latlon,
     check_source,
+    check_unix_time,
     drop_duplicate_times,
     find_file,
     interp_onto,
@@ -281,6 +282,7 @@ def _load(folder: Path, fname: str, cols: list[str], optional_cols: tuple[str, .
         t_ns = df["time"].to_numpy(np.int64)
     else:  # written as float: keep what precision there is
         t_ns = np.round(df["time"].to_numpy(np.float64)).astype(np.int64)
+    check_unix_time(t_ns / 1e9, "time", path)
     keep, n_dup = drop_duplicate_times(t_ns, "time", path)
     if n_dup:
         df, t_ns = df.iloc[keep].reset_index(drop=True), t_ns[keep]

@@ -90,6 +90,8 @@ def read_activity_names(path: Path) -> dict[int, str]:
         parts = line.split()
         if len(parts) != 2 or not parts[0].isdigit():
             raise FormatError(f"line {lineno}: expected '<id> <NAME>', got {line.strip()!r}", path)
+        if int(parts[0]) in names:
+            raise FormatError(f"line {lineno}: activity id {parts[0]} is listed more than once", path)
         names[int(parts[0])] = parts[1]
     if not names:
         raise FormatError("empty file", path)

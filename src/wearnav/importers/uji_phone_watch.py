@@ -49,7 +49,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.importers.common import check_finite, check_source, find_file, read_csv
+from wearnav.importers.common import check_finite, check_source, check_unix_time, find_file, read_csv
 from wearnav.recording import DeviceStream, Recording
 
 DATA_DIR = "DATA"
@@ -178,6 +178,7 @@ def _read_device(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     df = read_csv(path, required=COLUMNS)
     vals = df[ACC + GYRO + ["timestamp"]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     check_finite(vals, "acc/gyro/timestamp", path)
+    check_unix_time(vals[:, 6] / 1e3, "timestamp", path)
     labels = df["label"]
     if labels.isna().any():
         raise FormatError(f"empty label at row {int(np.argmax(labels.isna().to_numpy()))}", path)
