@@ -129,9 +129,12 @@ def outcome(code: int, stdout: str, stderr: str, out: Path, out_existed: bool) -
     return "other"
 
 
-def error_of(stderr: str) -> str:
+def error_of(stderr: str, cls: str | None = None) -> str:
+    """The one ``error:`` line of ``stderr`` (asserted), counted under ``cls``."""
     lines = stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), stderr
+    if cls:
+        OUTCOMES[(cls, "error")] += 1
     return lines[0]
 
 
@@ -217,7 +220,7 @@ def test_five_percent_absurd_acc_is_refused(fmt, tmp_path):
     _corrupt_acc(fmt, tmp_path / "src", "1e30")
     code, _, err = run_cli("import", fmt, source_arg(fmt, tmp_path / "src"), "--out", tmp_path / "out")
     assert code == 2 and not (tmp_path / "out").exists()
-    line = error_of(err)
+    line = error_of(err, "5 % of acc samples 1e30")
     assert "16 g" in line or "acc" in line.lower(), line
 
 
@@ -451,18 +454,18 @@ def test_manifest_is_checked(edit, needle, tmp_path):
     m = pd.read_csv(root / "manifest.csv", dtype=str, keep_default_na=False)
     edit(m).to_csv(root / "manifest.csv", index=False)
     code, _, err = run_cli("info", root)
-    assert code == 2 and needle in error_of(err)
+    assert code == 2 and needle in error_of(err, "bad manifest")
 
 
 def test_unlisted_recording_and_newer_format_are_refused(tmp_path):
     root = _dataset(tmp_path / "d")
     (root / "dataset.yaml").write_text("format: wearnav.dataset\nformat_version: 99\n")
     code, _, err = run_cli("info", root)
-    assert code == 2 and "newer wearnav" in error_of(err)
+    assert code == 2 and "newer wearnav" in error_of(err, "bad manifest")
     root = _dataset(tmp_path / "e")
     Recording("stray", {"phone": make_stream(n=20)}).save(root / "stray.h5")
     code, _, err = run_cli("info", root)
-    assert code == 2 and "not listed" in error_of(err)
+    assert code == 2 and "not listed" in error_of(err, "bad manifest")
 
 
 def test_names_like_numbers_survive_the_manifest(tmp_path):
@@ -496,36 +499,36 @@ def _devices_dataset(f):
 ])
 def test_bad_h5_is_one_line(edit, needle, tmp_path):
     code, _, err = run_cli("info", _h5_variant(tmp_path, edit))
-    assert code == 2 and needle in error_of(err) and "r.h5" in err
+    assert code == 2 and needle in error_of(err, "bad recording file") and "r.h5" in err
 
 
 def test_cli_options_and_empty_datasets_are_one_line(tmp_path):
     code, _, err = run_cli("simulate", "--preset", "tiny", "--seed", "-1", "--out", tmp_path / "s")
-    assert code == 2 and "--seed" in error_of(err)
+    assert code == 2 and "--seed" in error_of(err, "bad options / empty dataset")
     code, _, err = run_cli("import", "oxford-steps", tmp_path, "--out", tmp_path / "o", "--limit", "-3")
-    assert code == 2 and "--limit" in error_of(err)
+    assert code == 2 and "--limit" in error_of(err, "bad options / empty dataset")
     code, _, err = run_cli("import", "oxford-steps", tmp_path)
-    assert code == 2 and "--out" in error_of(err)
+    assert code == 2 and "--out" in error_of(err, "bad options / empty dataset")
     empty = tmp_path / "empty"
     write_dataset(empty, [])
     code, _, err = run_cli("plot", empty, "--out", tmp_path / "p.png")
-    assert code == 2 and "no recordings" in error_of(err)
+    assert code == 2 and "no recordings" in error_of(err, "bad options / empty dataset")
 
 
 def test_named_pipes_are_refused_not_read(tmp_path):
     os.mkfifo(tmp_path / "fifo.h5")
     code, _, err = run_cli("info", tmp_path / "fifo.h5")
-    assert code == 2 and "not a regular file" in error_of(err)
+    assert code == 2 and "not a regular file" in error_of(err, "named pipes")
     (tmp_path / "RawData").mkdir()
     os.mkfifo(tmp_path / "RawData" / "acc_exp01_user01.txt")
     (tmp_path / "RawData" / "gyro_exp01_user01.txt").write_text("0 0 0\n0 0 0\n")
     (tmp_path / "RawData" / "labels.txt").write_text("1 1 1 1 2\n")
     (tmp_path / "activity_labels.txt").write_text("1 WALKING\n")
     code, _, err = run_cli("import", "uci-hapt", tmp_path, "--out", tmp_path / "o")
-    assert code == 2 and "not a regular file" in error_of(err)
+    assert code == 2 and "not a regular file" in error_of(err, "named pipes")
     os.mkfifo(tmp_path / "trace.txt")
     code, _, err = run_cli("import", "ilc2", tmp_path / "trace.txt", "--out", tmp_path / "o")
-    assert code == 2 and "not a regular file" in error_of(err)
+    assert code == 2 and "not a regular file" in error_of(err, "named pipes")
 
 
 def test_multiline_library_messages_become_one_line(tmp_path):
@@ -567,7 +570,7 @@ def test_ipin_posi_latitude_out_of_range_is_refused(tmp_path):
     lines[i] = ";".join(fields)
     materialise({rel: "\n".join(lines) + "\n"}, tmp_path / "src")
     code, _, err = run_cli("import", "ipin2023", tmp_path / "src", "--out", tmp_path / "o")
-    assert code == 2 and "POSI" in error_of(err) and "out of range" in err
+    assert code == 2 and "POSI" in error_of(err, "coordinates / repeated labels") and "out of range" in err
 
 
 def test_uci_labels_twice_are_refused(tmp_path):
@@ -575,7 +578,7 @@ def test_uci_labels_twice_are_refused(tmp_path):
     data["RawData/labels.txt"] = data["RawData/labels.txt"] * 2
     materialise(data, tmp_path / "src")
     code, _, err = run_cli("import", "uci-hapt", tmp_path / "src", "--out", tmp_path / "o")
-    assert code == 2 and "repeats row" in error_of(err)
+    assert code == 2 and "repeats row" in error_of(err, "coordinates / repeated labels")
 
 
 def test_truncated_ilc2_trace_is_flagged_not_complete(tmp_path):
@@ -590,6 +593,7 @@ def test_truncated_ilc2_trace_is_flagged_not_complete(tmp_path):
     assert line.startswith("warning: ") and "cut short" in line
     rec = Dataset.open(tmp_path / "o").load("trace")
     assert "endTime" in rec.meta["truncated"]
+    OUTCOMES[("truncated ILC2 trace", "valid, flagged")] += 1
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         from wearnav.importers import ilc2
