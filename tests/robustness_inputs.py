@@ -32,6 +32,9 @@ SIDE_FILES = {
                      "export/Location.csv", "export/WristMotion.csv"],
 }
 FORMATS = list(TARGETS)
+# A dataset folder's manifest is malformed the same way (the "format" of ``wearnav info``).
+TARGETS["dataset"] = ("d/manifest.csv", ",")
+SIDE_FILES["dataset"] = ["d/dataset.yaml"]
 REAL_FORMATS = [f for f in FORMATS if f != "sensorlogger"]
 
 

@@ -224,6 +224,94 @@ def test_five_percent_absurd_acc_is_refused(fmt, tmp_path):
     assert "16 g" in line or "acc" in line.lower(), line
 
 
+# ---- damaged dataset folders and recording files -----------------------------------------------
+
+def _small_dataset_files() -> dict[str, str]:
+    with tempfile.TemporaryDirectory() as tmp:
+        root = _dataset(Path(tmp) / "d", names=("a", "001"))
+        return {f"d/{p.name}": p.read_bytes().decode("latin-1") for p in root.iterdir()}
+
+
+def _materialise_bytes(files: dict[str, str], root: Path) -> None:
+    for rel, text in files.items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_bytes(text.encode("latin-1"))
+
+
+def _info_outcome(code: int, out: str, err: str) -> str:
+    lines = err.splitlines()
+    if code == 0 and not lines:
+        json.loads(out)
+        return "valid"
+    if code == 2 and len(lines) == 1 and lines[0].startswith("error: ") and not out:
+        return "error"
+    return "other"
+
+
+def test_malformed_manifest_is_a_dataset_or_one_line():
+    files = _small_dataset_files()
+
+    @PROPERTY
+    @given(m=mutations)
+    def check(m):
+        with tempfile.TemporaryDirectory() as tmp:
+            tmp = Path(tmp)
+            _materialise_bytes(files, tmp)
+            apply(m, "dataset", tmp)
+            code, out, err = run_cli("info", tmp / "d")
+            result = _info_outcome(code, out, err)
+            OUTCOMES[("info on a damaged dataset folder", result)] += 1
+            assert result != "other", f"{m.describe()}: exit {code}, stderr {err!r}"
+
+    check()
+
+
+def _h5_paths(path: Path) -> list[str]:
+    names: list[str] = []
+    with h5py.File(path, "r") as f:
+        f.visit(names.append)
+    return sorted(names)
+
+
+H5_EDITS = ["delete", "as_text", "as_scalar", "as_2d", "attr_meta", "attr_name", "attr_format",
+            "truncate", "flip_byte"]
+
+
+@PROPERTY
+@given(edit=st.sampled_from(H5_EDITS), which=st.floats(0, 1, exclude_max=True),
+       value=st.sampled_from([b"\xff\xfe", "{}", "[]", "null", 3, np.arange(3), "not json", ""]))
+def test_damaged_recording_file_is_loaded_or_one_line(edit, which, value):
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "r.h5"
+        rec = Recording("r", {"phone": make_stream(n=30), "watch": make_stream(n=20, gyro=False)},
+                        labels=[(0.0, 0.1, "activity", "walk")], meta={"subject": "u1"})
+        rec.save(path)
+        objects = _h5_paths(path)
+        target = objects[int(which * len(objects))]
+        if edit in ("truncate", "flip_byte"):
+            raw = bytearray(path.read_bytes())
+            k = int(which * len(raw))
+            if edit == "truncate":
+                raw = raw[:k]
+            else:
+                raw[k] ^= 0xFF
+            path.write_bytes(bytes(raw))
+        else:
+            with h5py.File(path, "r+") as f:
+                if edit == "delete":
+                    del f[target]
+                elif edit in ("as_text", "as_scalar", "as_2d"):
+                    del f[target]
+                    f[target] = {"as_text": np.array(["x", "y"], dtype=object).astype("S"),
+                                 "as_scalar": np.float64(1.0), "as_2d": np.ones((2, 2))}[edit]
+                else:
+                    f.attrs[edit[len("attr_"):]] = value
+        code, out, err = run_cli("info", path)
+        result = _info_outcome(code, out, err)
+        OUTCOMES[("info on a damaged recording file", result)] += 1
+        assert result != "other", f"{edit} {target} {value!r}: exit {code}, stderr {err!r}"
+
+
 # ---- Recording / Dataset round trip ---------------------------------------------------------------
 
 NAMES = st.one_of(

@@ -365,7 +365,11 @@ class Dataset:
         return self.root / rows["file"].iloc[0]
 
     def load(self, name: str) -> Recording:
-        return Recording.load(self.path(name))
+        path = self.path(name)
+        rec = Recording.load(path)
+        if rec.name != name:
+            raise FormatError(f"holds recording {rec.name!r}, but the manifest lists it as {name!r}", path)
+        return rec
 
     def __iter__(self) -> Iterator[Recording]:
         for name in self.names:
