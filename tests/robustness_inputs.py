@@ -25,6 +25,7 @@ TARGETS = {
 }
 # Other files a mutation may hit instead (labels, subject tables, metadata).
 SIDE_FILES = {
+    "ilc2": ["site1/F4/floor_info.json"],
     "uci-hapt": ["RawData/labels.txt", "RawData/gyro_exp01_user01.txt", "activity_labels.txt"],
     "motionsense": ["data_subjects_info.csv"],
     "uji-phone-watch": ["DATA/s01/s01_01_sw.csv", "DATA/subjects_info.csv", "DATA/executions_info.csv"],
@@ -67,7 +68,8 @@ def build_seed(fmt: str, data: Path | None) -> dict[str, str]:
         trace = sorted((data / "ilc2_indoor_location/site1/F4/path_data_files").glob("*.txt.gz"))[0]
         lines = _text(trace).splitlines()
         rows = [ln for ln in lines[:400]] + [lines[-1]]  # header, ~4 s of data, the endTime footer
-        return {TARGETS[fmt][0]: "\n".join(rows) + "\n"}
+        return {TARGETS[fmt][0]: "\n".join(rows) + "\n",
+                "site1/F4/floor_info.json": _text(trace.parent.parent / "floor_info.json")}
     if fmt == "ipin2023":
         log = next((data / "ipin2023_track3").rglob("IPIN2023_T3_TrainingTrial01_repetition01.txt.xz"))
         keep = []

@@ -661,6 +661,15 @@ def test_ipin_posi_latitude_out_of_range_is_refused(tmp_path):
     assert code == 2 and "POSI" in error_of(err, "coordinates / repeated labels") and "out of range" in err
 
 
+def test_ilc2_waypoint_off_the_floor_plan_is_refused(tmp_path):
+    data = dict(seed("ilc2"))
+    rel = next(iter(data))
+    data[rel] = data[rel].replace("TYPE_WAYPOINT\t", "TYPE_WAYPOINT\t5000", 1)
+    materialise(data, tmp_path / "src")
+    code, _, err = run_cli("import", "ilc2", tmp_path / "src", "--out", tmp_path / "o")
+    assert code == 2 and "outside" in error_of(err, "coordinates / repeated labels")
+
+
 def test_uci_labels_twice_are_refused(tmp_path):
     data = dict(seed("uci-hapt"))
     data["RawData/labels.txt"] = data["RawData/labels.txt"] * 2

@@ -67,6 +67,8 @@ ACC, GYRO, ROTVEC, WAYPOINT = ("TYPE_ACCELEROMETER", "TYPE_GYROSCOPE", "TYPE_ROT
                                "TYPE_WAYPOINT")
 # Values each imported row type must carry after the timestamp and type columns.
 MIN_VALUES = {ACC: 3, GYRO: 3, ROTVEC: 3, WAYPOINT: 2}
+# How far outside the floor plan a waypoint may lie (survey slack at the plan's edge).
+MAP_MARGIN_M, MAP_MARGIN_SHARE = 10.0, 0.1
 TRACE_SUFFIXES = (".txt", ".txt.gz", ".txt.xz")
 
 # ---- reading one trace ---------------------------------------------------------------------
@@ -221,8 +223,17 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
     floor_name = info.get("FloorName", parts[-3] if in_layout else "")
     floor = _floor_index(floor_name) if floor_name else None
     truth = None
+    size = _map_size(path)
     if WAYPOINT in data:
         wp = data[WAYPOINT]
+        if size is not None:  # waypoints were surveyed on this floor plan (all 580 shipped lie on it)
+            margin = max(MAP_MARGIN_M, MAP_MARGIN_SHARE * max(size))
+            off = ((wp[:, 1] < -margin) | (wp[:, 1] > size[0] + margin) |
+                   (wp[:, 2] < -margin) | (wp[:, 2] > size[1] + margin))
+            if np.any(off):
+                i = int(np.argmax(off))
+                raise ValidationError(f"{WAYPOINT} ({wp[i, 1]:g}, {wp[i, 2]:g}) m lies outside the "
+                                      f"{size[0]:.0f} × {size[1]:.0f} m floor plan of floor_info.json", path)
         truth = Trajectory(secs(wp), wp[:, 1:3],
                            floor=None if floor is None else np.full(len(wp), float(floor)))
 
@@ -255,7 +266,6 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
         "dropped_uncovered": n_uncovered,
         "file": str(path.relative_to(root)) if root is not None and path.is_relative_to(root) else path.name,
     }
-    size = _map_size(path)
     if size is not None:
         meta["map_size_m"] = size
     if truncated:
