@@ -705,3 +705,26 @@ def test_complete_ilc2_trace_is_not_flagged(tmp_path):
 
     (rec,) = list(ilc2.read(tmp_path / "src"))
     assert "truncated" not in rec.meta
+
+
+def test_help_and_no_arguments_are_not_errors():
+    code, out, err = run_cli("--help")
+    assert code == 0 and "import" in out and err == ""
+    code, out, err = run_cli()
+    assert code == 2 and "import" in out and err == ""
+
+
+def test_ctrl_c_while_writing_is_one_line_and_leaves_nothing(tmp_path, monkeypatch):
+    calls = []
+    save = Recording.save
+
+    def interrupted_save(self, path):
+        calls.append(path)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return save(self, path)
+
+    monkeypatch.setattr(Recording, "save", interrupted_save)
+    code, _, err = run_cli("simulate", "--preset", "tiny", "--out", tmp_path / "sim")
+    assert code == 130 and error_of(err) == "error: interrupted"
+    assert list(tmp_path.iterdir()) == []

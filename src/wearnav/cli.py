@@ -186,6 +186,8 @@ def main() -> None:
         try:
             code = app(standalone_mode=False)
         except typer.TyperException as exc:  # bad options / arguments (the parser's UsageError)
+            if not exc.format_message():  # no arguments at all: the help was shown instead
+                sys.exit(exc.exit_code)
             ctx = getattr(exc, "ctx", None)
             hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
             _fail(exc.format_message() + hint, exc.exit_code)
