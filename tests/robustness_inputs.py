@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import gzip
 import lzma
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -97,7 +98,9 @@ def build_seed(fmt: str, data: Path | None) -> dict[str, str]:
         root = data / "uji_phone_watch_har/DATA"
         return {TARGETS[fmt][0]: _head(root / "s01/s01_01_sp.csv.xz", 301),
                 "DATA/s01/s01_01_sw.csv": _head(root / "s01/s01_01_sw.csv.xz", 301),
-                "DATA/subjects_info.csv": _text(_one(root, "subjects_info.csv")),
+                # s01 recorded one execution in this slice (the table declares how many exist).
+                "DATA/subjects_info.csv": re.sub(r"(?m)^(s01,.*,)\d+$", r"\g<1>1",
+                                                 _text(_one(root, "subjects_info.csv"))),
                 "DATA/executions_info.csv": _text(_one(root, "executions_info.csv"))}
     if fmt == "oxford-steps":
         src = data / "oxford_step_counter/validation/user1_armband_1506423438471.csv.xz"
@@ -183,19 +186,20 @@ def apply(mutation: Mutation, fmt: str, root: Path) -> Path:
     else:
         if k == "rename":  # a header field, or the type tag of a tagged row
             i = 0 if rel.endswith(".csv") else pick(mutation.where, data_idx)
-            fields = _split(lines[i], sep)
+            fields = _split(lines[i], sep) or [""]
             if rel.endswith(".csv"):
                 j = min(int(mutation.column * len(fields)), len(fields) - 1)
             else:
-                j = {"ilc2": 1, "ipin2023": 0}.get(fmt, min(int(mutation.column * len(fields)), len(fields) - 1))
+                j = {"ilc2": 1, "ipin2023": 0}.get(fmt, int(mutation.column * len(fields)))
+            j = min(j, len(fields) - 1)
             fields[j] = mutation.value or fields[j].upper() + "_X"
             lines[i] = _join(fields, sep)
         elif k in ("corrupt_cell", "corrupt_5pct"):
             rows = [pick(mutation.where, data_idx)] if k == "corrupt_cell" else \
                 data_idx[int(mutation.where * 20) % 20::20]
             for i in rows:
-                fields = _split(lines[i], sep)
-                lo = 2 if fmt == "ilc2" else 1 if fmt == "ipin2023" else 0
+                fields = _split(lines[i], sep) or [""]
+                lo = min(2 if fmt == "ilc2" else 1 if fmt == "ipin2023" else 0, len(fields) - 1)
                 j = lo + min(int(mutation.column * (len(fields) - lo)), len(fields) - lo - 1)
                 fields[j] = mutation.value
                 lines[i] = _join(fields, sep)

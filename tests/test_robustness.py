@@ -7,7 +7,7 @@ be either a valid dataset (it opens and every recording loads) or exactly one ``
 stderr with exit 2 and no output folder; never a traceback, a leftover ``*.partial`` folder or a
 changed file outside ``--out``. Outcome counts are printed at the end of the run
 (``WEARNAV_ROBUSTNESS_COUNTS=path.json`` also writes them). ``WEARNAV_ROBUSTNESS_EXAMPLES`` sets the
-examples per format (default 25).
+examples per property (default 30).
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ from conftest import SHARED_DATA, make_stream
 from robustness_inputs import (BAD_VALUES, FORMATS, KINDS, Mutation, apply, build_seed, materialise,
                                source_arg)
 
-EXAMPLES = int(os.environ.get("WEARNAV_ROBUSTNESS_EXAMPLES", "25"))
+EXAMPLES = int(os.environ.get("WEARNAV_ROBUSTNESS_EXAMPLES", "30"))
 PROPERTY = settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 OUTCOMES: collections.Counter = collections.Counter()  # (class of input, outcome) -> count
@@ -728,3 +728,15 @@ def test_ctrl_c_while_writing_is_one_line_and_leaves_nothing(tmp_path, monkeypat
     code, _, err = run_cli("simulate", "--preset", "tiny", "--out", tmp_path / "sim")
     assert code == 130 and error_of(err) == "error: interrupted"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_uji_executions_missing_from_the_declared_count_are_flagged(tmp_path):
+    data = dict(seed("uji-phone-watch"))
+    data["DATA/subjects_info.csv"] = data["DATA/subjects_info.csv"].replace("s01,54,M,190,83,R,1", "s01,54,M,190,83,R,6")
+    materialise(data, tmp_path / "src")
+    code, _, err = run_cli("import", "uji-phone-watch", tmp_path / "src", "--out", tmp_path / "o")
+    assert code == 0
+    (line,) = err.splitlines()
+    assert line.startswith("warning: ") and "s01 6 declared, 1 found" in line
+    assert Dataset.open(tmp_path / "o").load("uji_s01_01").meta["executions_found"] == 1
+    OUTCOMES[("incomplete UJI copy", "valid, flagged")] += 1

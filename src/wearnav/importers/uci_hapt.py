@@ -106,8 +106,8 @@ def read_label_table(path: Path) -> pd.DataFrame:
             f"expected {len(LABEL_FIELDS)} columns ({' '.join(LABEL_FIELDS)}), found {df.shape[1]}", path)
     vals = df.apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     check_finite(vals, "label table", path)
-    if np.any(vals != np.round(vals)):
-        raise FormatError("label table has non-integer values", path)
+    if np.any(vals != np.round(vals)) or np.any(np.abs(vals) >= 2**31):
+        raise FormatError("label table has non-integer or out-of-range values", path)
     out = pd.DataFrame(vals.astype(np.int64), columns=LABEL_FIELDS)
     bad = np.flatnonzero((out["start"] < 1) | (out["end"] < out["start"]))
     if bad.size:
