@@ -740,3 +740,36 @@ def test_uji_executions_missing_from_the_declared_count_are_flagged(tmp_path):
     assert line.startswith("warning: ") and "s01 6 declared, 1 found" in line
     assert Dataset.open(tmp_path / "o").load("uji_s01_01").meta["executions_found"] == 1
     OUTCOMES[("incomplete UJI copy", "valid, flagged")] += 1
+
+
+def test_unwritable_out_is_one_line(tmp_path, monkeypatch):
+    import tempfile as tempfile_module
+
+    def denied(*a, dir=None, **k):
+        raise PermissionError(13, "Permission denied", str(dir))
+
+    monkeypatch.setattr(tempfile_module, "mkdtemp", denied)  # a read-only folder, even for root
+    code, _, err = run_cli("simulate", "--preset", "tiny", "--out", tmp_path / "ro" / "sim")
+    assert code == 2 and error_of(err, "bad --out") == f"error: {tmp_path / 'ro'}: Permission denied"
+
+
+@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="root writes into read-only folders")
+def test_read_only_folder_is_one_line(tmp_path):
+    (tmp_path / "ro").mkdir()
+    (tmp_path / "ro").chmod(0o500)
+    try:
+        code, _, err = run_cli("simulate", "--preset", "tiny", "--out", tmp_path / "ro" / "sim")
+    finally:
+        (tmp_path / "ro").chmod(0o700)
+    assert code == 2 and "Permission denied" in error_of(err, "bad --out")
+
+
+def test_pandas_parser_errors_are_one_line(tmp_path):
+    data = dict(seed("uji-phone-watch"))
+    rel = "DATA/s01/s01_01_sp.csv"
+    lines = data[rel].splitlines()
+    lines[50] += ",1,2,3"  # a row with extra fields: pandas' message spans two lines
+    data[rel] = "\n".join(lines) + "\n"
+    materialise(data, tmp_path / "src")
+    code, _, err = run_cli("import", "uji-phone-watch", tmp_path / "src", "--out", tmp_path / "o")
+    assert code == 2 and "Expected 8 fields" in error_of(err, "multi-line library message")
