@@ -32,6 +32,11 @@ timestamps they are interpolated onto them (linear; normalised linear for quater
 accelerometer samples they cannot cover (outside their span, or across a gap longer than
 :data:`MAX_INTERP_GAP_S`) are dropped and counted in ``meta["dropped_uncovered"]``. None of this
 happens in the shipped sample (no duplicates, identical clocks); it exists for users' copies.
+
+Plausibility: every trace ends with a ``#<TAB>endTime`` footer; a trace without it was cut short
+and is imported as far as it goes (an unfinished last line dropped), flagged in
+``meta["truncated"]`` with a one-line warning, never as complete. Timestamps must be Unix times
+(2000–2100) and waypoints must lie on the floor plan of ``floor_info.json`` when it is there.
 """
 
 from __future__ import annotations

@@ -37,6 +37,10 @@ Placement: the phone is in a trousers pocket (its long axis is vertical while wa
 horizontal while seated; ``orientation`` says which way it faces — back/front, ``_inv`` upside
 down), the watch on a wrist: ``meta["placement"] = "pocket"`` (the phone's, as for the other
 phone sets) and ``meta["placements"]`` per device.
+
+Completeness: ``subjects_info.csv`` declares each subject's number of executions; a subject
+folder holding a different number (an incomplete copy) gives a one-line warning and
+``meta["executions_found"]`` on that subject's recordings.
 """
 
 from __future__ import annotations
