@@ -1,3 +1,4 @@
+import os
 from pathlib import Path
 
 import numpy as np
@@ -7,7 +8,8 @@ from wearnav.errors import WearnavError
 from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED_DATA = (ROOT / ".." / "shared" / "data").resolve()
+# WEARNAV_DATA points elsewhere, e.g. from a git worktree that is not beside shared/.
+SHARED_DATA = Path(os.environ.get("WEARNAV_DATA") or ROOT / ".." / "shared" / "data").resolve()
 
 
 @pytest.fixture(scope="session")

@@ -334,8 +334,11 @@ def uji_copy(uji_root, tmp_path) -> Path:
             with open(p, "rb") as src, gzip.open(p.with_name(p.name + ".gz"), "wb") as dst:
                 dst.write(src.read())
             p.unlink()
-    for name in ("subjects_info.csv", "executions_info.csv"):
-        shutil.copy(uji_root / "DATA" / name, data / name)
+    shutil.copy(uji_root / "DATA" / "executions_info.csv", data / "executions_info.csv")
+    # The copy holds one execution of s01: say so, as the table declares how many there are.
+    subjects = (uji_root / "DATA" / "subjects_info.csv").read_text().splitlines()
+    write_lines(data / "subjects_info.csv",
+                [",".join(ln.split(",")[:-1] + ["1"]) if ln.startswith("s01,") else ln for ln in subjects])
     return tmp_path / "uji"
 
 

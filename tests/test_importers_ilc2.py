@@ -155,6 +155,7 @@ def synthetic_trace(n=300, gyro_shift_ms=0, with_w=False):
         if k % 7 == 0:
             lines.append(f"{ts}\tTYPE_WIFI\tssid\t00:11\t-50\t2412\t{ts}")
     lines.append(f"{t0 + 20 * n + 40}\tTYPE_WAYPOINT\t3.0\t4.0")
+    lines.append(f"#\tendTime:{t0 + 20 * n + 60}")
     return lines
 
 

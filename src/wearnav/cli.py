@@ -1,19 +1,22 @@
 """The ``wearnav`` command: a thin layer over the package's functions.
 
 Every command imports what it needs when it runs, so ``wearnav --help`` stays fast. Bad input
-raises a :class:`wearnav.errors.WearnavError`; :func:`main` prints it in one line and exits 2.
+raises a :class:`wearnav.errors.WearnavError`; :func:`main` is the one place that turns any
+failure into one line on stderr (see :func:`main`).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import sys
+import warnings
 from pathlib import Path
 from typing import Optional
 
 import typer
 
-from wearnav.errors import WearnavError
+from wearnav.errors import Terminated, ValidationError, WearnavError, WearnavWarning, one_line
 
 app = typer.Typer(
     help="Inertial odometry and activity recognition from everyday wearables.",
@@ -27,16 +30,22 @@ def _echo_json(obj) -> None:
     typer.echo(json.dumps(obj, indent=2, default=str))
 
 
+def _progress() -> bool:
+    """Progress bars only on a terminal: on a pipe or in a log file their carriage-return updates
+    stay behind as fragments before the real output or error."""
+    return sys.stderr.isatty()
+
+
 @app.command()
 def simulate(
     out: Path = typer.Option(..., "--out", help="Dataset folder to write."),
     preset: str = typer.Option("small", help="tiny | small | default"),
-    seed: int = typer.Option(0, help="Random seed (the dataset is a pure function of preset+seed)."),
+    seed: int = typer.Option(0, min=0, help="Random seed (the dataset is a pure function of preset+seed)."),
 ):
     """Simulate a flexiwear-bodynet dataset (phone, watch, earbuds) with truth and location fixes."""
     from wearnav.simulate import simulate_dataset
 
-    ds = simulate_dataset(preset, out, seed=seed, progress=True)
+    ds = simulate_dataset(preset, out, seed=seed, progress=_progress())
     _echo_json(ds.summary())
 
 
@@ -52,7 +61,7 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
         return
     ds = Dataset.open(path)
     summary = ds.summary()
-    stats = dataset_stats(ds, progress=True)
+    stats = dataset_stats(ds, progress=_progress())
     summary["device_rates"] = {
         dev: {"rate_hz": round(d["rate_hz"], 2), "jitter_iqr_ms": round(d["jitter_iqr_ms"], 3),
               "gyro_share": round(d["gyro_share"], 3), "orientation_share": round(d["orientation_share"], 3)}
@@ -76,12 +85,12 @@ def import_(
                               help="ilc2 | ipin2023 | motionsense | uci-hapt | uji-phone-watch | oxford-steps | sensorlogger"),
     src: Path = typer.Argument(..., help="The dataset's folder (or file / zip) in its original layout."),
     out: Path = typer.Option(..., "--out", help="Dataset folder to write."),
-    limit: Optional[int] = typer.Option(None, help="Import at most this many recordings."),
+    limit: Optional[int] = typer.Option(None, min=0, help="Import at most this many recordings."),
 ):
     """Import real recordings into a wearnav dataset folder."""
     from wearnav.importers import import_dataset
 
-    ds = import_dataset(fmt, src, out, limit=limit, progress=True)
+    ds = import_dataset(fmt, src, out, limit=limit, progress=_progress())
     _echo_json(ds.summary())
 
 
@@ -98,6 +107,8 @@ def plot(
 
     if path.is_dir():
         ds = Dataset.open(path)
+        if not len(ds):
+            raise ValidationError("dataset has no recordings to plot", path)
         rec = ds.load(name or ds.names[0])
     else:
         rec = Recording.load(path)
@@ -154,10 +165,10 @@ def train(
     cfg = TrainConfig(model=model, data=str(data), devices=_devices(devices), epochs=epochs, seed=seed,
                       lr=lr, batch=batch, patience=patience, max_minutes=max_time)
     run = prepare_run(cfg, out)
-    record = fit(cfg, run, progress=True)
+    record = fit(cfg, run, progress=_progress())
     _echo_json({"run": str(run), "training": record})
     if evaluate:
-        m = evaluate_run(run, splits=("test",), training=record)
+        m = evaluate_run(run, splits=("test",), training=record, progress=_progress())
         _echo_json({"test": m["splits"]["test"]["summary"]})
 
 
@@ -170,7 +181,7 @@ def eval_(
     """Evaluate a run: metrics.json, trajectories/*.csv and plots (trajectories, error CDF, ATE box)."""
     from wearnav.evaluate import evaluate_run
 
-    m = evaluate_run(run, data=data, splits=_devices(split))
+    m = evaluate_run(run, data=data, splits=_devices(split), progress=_progress())
     _echo_json({s: m["splits"][s]["summary"] for s in _devices(split)})
     typer.echo(f"wrote {run / 'metrics.json'} and {run / 'plots'}")
 
@@ -194,7 +205,7 @@ def bench_odometry(
     from wearnav.bench.odometry import run_suite, suite_configs, write_suite_report
 
     configs = suite_configs(data, _devices(models), epochs=epochs, max_minutes=max_time, seed=seed)
-    folders = run_suite(configs, out, echo=typer.echo)
+    folders = run_suite(configs, out, progress=_progress(), echo=typer.echo)
     note = (f"Data: `{data}`. Training: at most {epochs} epochs per model"
             + (f" and {max_time:g} min" if max_time else "") + ", early stopping on validation velocity MSE.")
     page = write_suite_report(folders, out, "Odometry comparison", note=note)
@@ -215,7 +226,7 @@ def results_(
 @app.command()
 def demo(
     out: Path = typer.Option(Path("runs/demo"), "--out", help="Folder for the demo's outputs."),
-    seed: int = typer.Option(0),
+    seed: int = typer.Option(0, min=0),
     models: str = typer.Option("suitein++,ronin,pdr", help="Models to compare, comma-separated."),
     minutes: float = typer.Option(2.5, help="Training minutes per learned model."),
 ):
@@ -231,12 +242,12 @@ def demo(
         ds = Dataset.open(data_dir)
         typer.echo(f"using existing simulated dataset {data_dir}")
     else:
-        ds = simulate_dataset("small", data_dir, seed=seed, progress=True)
+        ds = simulate_dataset("small", data_dir, seed=seed, progress=_progress())
     s = ds.summary()
     typer.echo(f"simulated {s['recordings']} recordings, {s['total_duration_h']:.2f} h; splits {s['splits']}")
     plot_trajectories(ds, out / "truth_trajectories.png")
     configs = suite_configs(data_dir, _devices(models), epochs=100, max_minutes=minutes, seed=seed, patience=5)
-    folders = run_suite(configs, out / "runs", splits=("test", "cross_subject"), echo=typer.echo)
+    folders = run_suite(configs, out / "runs", splits=("test", "cross_subject"), progress=_progress(), echo=typer.echo)
     note = (f"Built-in data: simulator preset `small` (seed {seed}). Demo budget: at most {minutes:g} min of "
             "training per learned model on this machine, far below the paper's training; see "
             "`wearnav bench odometry` for the full comparison.")
@@ -250,9 +261,57 @@ def demo(
     typer.echo(f"\nreport: {page} (trajectory plots per run under {out / 'runs'}/*/plots)")
 
 
+def _os_error_line(exc: OSError) -> str:
+    where = " -> ".join(str(f) for f in (exc.filename, exc.filename2) if f is not None)
+    reason = exc.strerror or str(exc) or exc.__class__.__name__
+    return f"{where}: {reason}" if where else reason
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"warning: {one_line(str(message))}", file=sys.stderr if file is None else file)
+
+
+def _fail(message: str, code: int) -> None:
+    sys.stdout.flush()
+    print(f"error: {one_line(message)}", file=sys.stderr)
+    sys.exit(code)
+
+
 def main() -> None:
-    try:
-        app()
-    except WearnavError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        sys.exit(2)
+    """Run the command line; the boundary where every failure becomes one line on stderr.
+
+    ``error: FILE: reason`` and exit 2 for bad input (a :class:`WearnavError`, a bad option, an
+    ``OSError`` such as a read-only or missing folder), 130 for Ctrl-C, 143 for SIGTERM; anything
+    else is a bug in wearnav and says so in one line, exit 1 (``WEARNAV_DEBUG=1`` re-raises it
+    with its traceback). Warnings are one line each (``warning: ...``).
+    """
+    with warnings.catch_warnings():
+        # Only wearnav's own warnings concern the user (a truncated file imported flagged); a
+        # library's RuntimeWarning about arithmetic on values that are then refused is noise.
+        warnings.simplefilter("ignore")
+        warnings.simplefilter("default", WearnavWarning)
+        warnings.showwarning = _show_warning
+        try:
+            code = app(standalone_mode=False)
+        except typer.TyperException as exc:  # bad options / arguments (the parser's UsageError)
+            if not exc.format_message():  # no arguments at all: the help was shown instead
+                sys.exit(exc.exit_code)
+            ctx = getattr(exc, "ctx", None)
+            hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+            _fail(exc.format_message() + hint, exc.exit_code)
+        except typer.Abort:
+            _fail("aborted", 1)
+        except WearnavError as exc:
+            _fail(str(exc), 2)
+        except OSError as exc:
+            _fail(_os_error_line(exc), 2)
+        except (Terminated, KeyboardInterrupt) as exc:
+            _fail("interrupted" if isinstance(exc, KeyboardInterrupt) else "terminated (SIGTERM)",
+                  130 if isinstance(exc, KeyboardInterrupt) else 143)
+        except Exception as exc:
+            if os.environ.get("WEARNAV_DEBUG"):
+                raise
+            _fail(f"internal error ({exc.__class__.__name__}: {exc}); this is a bug in wearnav, "
+                  "please report it with the command you ran (WEARNAV_DEBUG=1 shows the traceback)", 1)
+        if isinstance(code, int) and code:  # typer turns Ctrl-C into exit code 130
+            _fail("interrupted" if code == 130 else f"exit code {code}", code)

@@ -12,21 +12,30 @@ level of simulated data (EasyTrack's L1/L2/L3).
 
 from __future__ import annotations
 
+import csv
 import os
+import re
 import shutil
+import signal
+import socket
 import tempfile
+import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import yaml
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.errors import FormatError, MissingFileError, Terminated, ValidationError
+from wearnav.fileio import require_regular_file
 from wearnav.provenance import provenance
-from wearnav.recording import Recording
+from wearnav.recording import Recording, check_name, check_text
 
 MANIFEST = "manifest.csv"
 PROVENANCE = "dataset.yaml"
+FORMAT_NAME = "wearnav.dataset"
+FORMAT_VERSION = 1  # of the folder layout (manifest columns, dataset.yaml); 0 = before it was written
 MANIFEST_COLUMNS = [
     "name", "file", "duration", "devices", "mode", "subject", "placement", "scene", "source",
     "split", "noise_level", "truth_points", "fixes",
@@ -52,14 +61,108 @@ def manifest_row(rec: Recording, file: str, split: str = "") -> dict:
     return row
 
 
-class DatasetWriter:
-    """Writes recordings into a new dataset folder, all or nothing.
+def _host() -> str:
+    return socket.gethostname().replace(".", "_").replace("/", "_") or "host"
 
-    Recordings go to a hidden sibling folder; :meth:`close` writes the manifest and
-    ``dataset.yaml`` (what made the dataset: ``provenance`` given by the caller, e.g. the
-    simulator preset and seed or the importer and source, plus package version, commit and time)
-    and renames that folder to ``root`` (replacing an earlier dataset there). An exception inside the ``with``
-    block removes the partial folder, so a failed import or simulation leaves nothing behind.
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # exists but belongs to someone else
+        return True
+    return True
+
+
+def _work_dir_re(root: Path) -> re.Pattern:
+    """Hidden siblings a writer of ``root`` makes: ``.<name>.<host>.<pid>.<random>.partial`` (being
+    written) and ``.old`` (the dataset being replaced, for the instant between two renames)."""
+    return re.compile(rf"^\.{re.escape(root.name)}\.(?P<host>[^.]*)\.(?P<pid>\d+)\.[^.]+\.(?P<kind>partial|old)$")
+
+
+def clean_stale_work_dirs(root: Path) -> list[Path]:
+    """Remove the work folders that writers of ``root`` on this host left when they died (kill -9,
+    power loss); an ``.old`` copy whose replacement never landed is moved back to ``root``."""
+    pattern, host, cleaned = _work_dir_re(root), _host(), []
+    try:
+        siblings = list(root.parent.iterdir())
+    except OSError:
+        return cleaned
+    for p in sorted(siblings):
+        m = pattern.match(p.name)
+        if not m or m["host"] != host or _alive(int(m["pid"])):
+            continue
+        if m["kind"] == "old" and not (root.exists() or root.is_symlink()):
+            os.replace(p, root)
+        else:
+            shutil.rmtree(p, ignore_errors=True)
+        cleaned.append(p)
+    return cleaned
+
+
+def replaceable_reason(root: Path) -> str | None:
+    """Why ``root`` must not be replaced by a new dataset (None: it may be).
+
+    Only a folder that is absent, empty, or a dataset wearnav wrote (its ``dataset.yaml`` says so)
+    holding nothing but wearnav's files may be replaced; never the working folder or one above it.
+    """
+    try:
+        resolved = root.resolve()
+    except OSError as exc:
+        return f"cannot resolve ({exc.strerror or exc})"
+    cwd = Path.cwd().resolve()
+    if root.name in ("", ".", "..") or resolved == cwd or resolved in cwd.parents:
+        return "is the working folder or one above it; give a new folder for the dataset"
+    if not (root.exists() or root.is_symlink()):
+        return None
+    if not root.is_dir():
+        return "exists and is not a folder; not overwriting it"
+    entries = list(root.iterdir())
+    if not entries:
+        return None
+    made_by = _read_yaml(root / PROVENANCE) if (root / PROVENANCE).is_file() else None
+    if not _written_by_wearnav(made_by):
+        return ("exists and is not a wearnav dataset (no dataset.yaml saying wearnav wrote it); "
+                "not overwriting it")
+    foreign = sorted(e.name for e in entries
+                     if not (e.name in (MANIFEST, PROVENANCE) or (e.suffix == ".h5" and e.is_file())))
+    if foreign:
+        return f"holds files wearnav did not write ({', '.join(foreign[:3])}); not overwriting it"
+    return None
+
+
+def _written_by_wearnav(info) -> bool:
+    if not isinstance(info, dict):
+        return False
+    # Folders written before the format key existed carry the package version and a time.
+    return info.get("format") == FORMAT_NAME or ("wearnav" in info and "created" in info)
+
+
+def _read_yaml(path: Path):
+    try:
+        return yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise FormatError(f"unreadable ({exc})", path) from None
+
+
+class DatasetWriter:
+    """Writes recordings into a new dataset folder, all or nothing, never losing a user's files.
+
+    Recordings go to a hidden sibling folder ``.<name>.<host>.<pid>.<random>.partial``;
+    :meth:`close` writes the manifest and ``dataset.yaml`` (the format and its version, what made
+    the dataset: ``provenance`` given by the caller, e.g. the simulator preset and seed or the
+    importer and source, plus package version, commit and time) and renames that folder to
+    ``root``. An earlier dataset at ``root`` is replaced by renames (it is moved aside, the new
+    one moved in, then the old one removed), and only if wearnav wrote it
+    (:func:`replaceable_reason`); any other existing folder is refused before anything is written.
+
+    An exception inside the ``with`` block — and SIGTERM, turned into :class:`Terminated` while
+    the block runs in the main thread — removes the partial folder, so a failed or stopped import
+    or simulation leaves nothing behind. Work folders of writers killed outright (SIGKILL) are
+    removed by the next writer of the same ``root`` (:func:`clean_stale_work_dirs`).
 
     >>> with DatasetWriter("out") as w:
     ...     w.add(rec, split="train")
@@ -68,20 +171,34 @@ class DatasetWriter:
     def __init__(self, root: str | Path, provenance: dict | None = None):
         self.root = Path(root)
         self.provenance = dict(provenance or {})
-        if self.root.exists() and not (
-            self.root.is_dir() and ((self.root / MANIFEST).exists() or not any(self.root.iterdir()))
-        ):
-            raise ValidationError("exists and is not a wearnav dataset folder; not overwriting it", self.root)
+        reason = replaceable_reason(self.root)
+        if reason:
+            raise ValidationError(reason, self.root)
+        for parent in self.root.parents:
+            if parent.exists():
+                if not parent.is_dir():
+                    raise ValidationError("is a file, so the dataset folder cannot be made inside it",
+                                          parent)
+                break
         self.root.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.root.name}.", suffix=".partial", dir=self.root.parent))
+        clean_stale_work_dirs(self.root)
+        prefix = f".{self.root.name}.{_host()}.{os.getpid()}."
+        self.tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=".partial", dir=self.root.parent))
         self.rows: list[dict] = []
+        self._old_handler = None
+        self._deferred = False  # SIGTERM arrived while the renames in close() ran
+        self._critical = False
 
     def add(self, rec: Recording, split: str = "") -> None:
         if any(r["name"] == rec.name for r in self.rows):
             raise ValidationError(f"duplicate recording name {rec.name!r}", self.root)
         file = f"{rec.name}.h5"
+        row = manifest_row(rec, file, split)
+        for key, value in row.items():
+            if isinstance(value, str):
+                check_text(value, f"recording {rec.name!r}: manifest {key}")
         rec.save(self.tmp / file)
-        self.rows.append(manifest_row(rec, file, split))
+        self.rows.append(row)
 
     def close(self) -> Path:
         """Write the manifest and move the finished dataset into place; returns ``root``."""
@@ -89,25 +206,66 @@ class DatasetWriter:
         for col in MANIFEST_COLUMNS:
             if col not in df.columns:
                 df[col] = pd.Series(dtype=object)
-        df[MANIFEST_COLUMNS].to_csv(self.tmp / MANIFEST, index=False)
-        info = {**self.provenance, **provenance(), "recordings": len(self.rows)}
+        # Every cell quoted: a bare carriage return in a name or a meta value would otherwise
+        # end the row when the manifest is read back.
+        df[MANIFEST_COLUMNS].to_csv(self.tmp / MANIFEST, index=False, quoting=csv.QUOTE_ALL)
+        info = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, **self.provenance,
+                **provenance(), "recordings": len(self.rows)}
         (self.tmp / PROVENANCE).write_text(yaml.safe_dump(info, sort_keys=False), encoding="utf-8")
-        if self.root.exists():
-            shutil.rmtree(self.root)
-        os.replace(self.tmp, self.root)
+        reason = replaceable_reason(self.root)  # again: the folder may have changed meanwhile
+        if reason:
+            raise ValidationError(reason, self.root)
+        old = None
+        self._critical = True  # a SIGTERM now waits until root is whole again
+        try:
+            if self.root.exists() or self.root.is_symlink():
+                old = self.tmp.with_name(self.tmp.name[: -len(".partial")] + ".old")
+                os.replace(self.root, old)
+            try:
+                os.replace(self.tmp, self.root)
+            except BaseException:
+                if old is not None:
+                    os.replace(old, self.root)
+                raise
+        finally:
+            self._critical = False
+        if old is not None:
+            if old.is_symlink():
+                old.unlink()
+            else:
+                shutil.rmtree(old, ignore_errors=True)
+        if self._deferred:
+            raise Terminated("terminated (SIGTERM) after the dataset was written")
         return self.root
 
     def abort(self) -> None:
         shutil.rmtree(self.tmp, ignore_errors=True)
 
+    def _on_sigterm(self, signum, frame) -> None:
+        if self._critical:
+            self._deferred = True
+            return
+        raise Terminated("terminated (SIGTERM); the partial dataset was removed")
+
     def __enter__(self) -> "DatasetWriter":
+        if threading.current_thread() is threading.main_thread():
+            self._old_handler = signal.signal(signal.SIGTERM, self._on_sigterm)
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
+        try:
+            if exc_type is None:
+                try:
+                    self.close()
+                except BaseException:
+                    self.abort()
+                    raise
+            else:
+                self.abort()
+        finally:
+            if self._old_handler is not None:
+                signal.signal(signal.SIGTERM, self._old_handler)
+                self._old_handler = None
 
 
 class Dataset:
@@ -119,16 +277,26 @@ class Dataset:
 
     @classmethod
     def open(cls, root: str | Path) -> "Dataset":
+        """Open a dataset folder, checking the manifest against the folder.
+
+        Every manifest cell is read as text (names like ``001``, ``0`` or ``null`` stay names);
+        names and files must be unique, every file listed must be there and every recording
+        there must be listed; numbers must be numbers; the format version in ``dataset.yaml``
+        must be one this wearnav reads.
+        """
         root = Path(root)
         if not root.is_dir():
             raise MissingFileError("no such dataset folder", root)
         path = root / MANIFEST
         if not path.exists():
             raise FormatError(f"not a wearnav dataset (no {MANIFEST})", root)
+        require_regular_file(path)
+        if (root / PROVENANCE).exists():
+            require_regular_file(root / PROVENANCE)
+            _check_format(_read_yaml(root / PROVENANCE), root / PROVENANCE)
         try:
-            df = pd.read_csv(path, dtype={c: str for c in ("subject", "split", "mode", "placement",
-                                                          "scene", "source", "noise_level")})
-        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+            df = pd.read_csv(path, dtype=str, keep_default_na=False, na_filter=False)
+        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError) as exc:
             raise FormatError(f"unreadable manifest ({exc})", path) from None
         missing = [c for c in ("name", "file", "duration", "devices") if c not in df.columns]
         if missing:
@@ -136,8 +304,10 @@ class Dataset:
         for col in MANIFEST_COLUMNS:
             if col not in df.columns:
                 df[col] = ""
-        str_cols = ["devices", "mode", "subject", "placement", "scene", "source", "split", "noise_level"]
-        df[str_cols] = df[str_cols].fillna("").astype(str)
+        _check_manifest(df, root, path)
+        df["duration"] = _numbers(df, "duration", float, path)
+        for col in ("truth_points", "fixes"):
+            df[col] = _numbers(df, col, int, path)
         return cls(root, df)
 
     @property
@@ -146,10 +316,7 @@ class Dataset:
         path = self.root / PROVENANCE
         if not path.exists():
             return {}
-        try:
-            return yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-        except yaml.YAMLError as exc:
-            raise FormatError(f"unreadable ({exc})", path) from None
+        return _read_yaml(path) or {}
 
     # ---- views --------------------------------------------------------------------------
     def __len__(self) -> int:
@@ -198,7 +365,11 @@ class Dataset:
         return self.root / rows["file"].iloc[0]
 
     def load(self, name: str) -> Recording:
-        return Recording.load(self.path(name))
+        path = self.path(name)
+        rec = Recording.load(path)
+        if rec.name != name:
+            raise FormatError(f"holds recording {rec.name!r}, but the manifest lists it as {name!r}", path)
+        return rec
 
     def __iter__(self) -> Iterator[Recording]:
         for name in self.names:
@@ -226,6 +397,55 @@ class Dataset:
             "with_truth": int((m["truth_points"].fillna(0) > 0).sum()),
             "with_fixes": int((m["fixes"].fillna(0) > 0).sum()),
         }
+
+
+def _check_format(info, path: Path) -> None:
+    if not isinstance(info, dict):
+        raise FormatError("not a mapping of keys to values", path)
+    if "format" in info and info["format"] != FORMAT_NAME:
+        raise FormatError(f"format {info['format']!r} is not {FORMAT_NAME!r}", path)
+    version = info.get("format_version", 1 if "format" in info else 0)
+    if not isinstance(version, int) or isinstance(version, bool) or not 0 <= version <= FORMAT_VERSION:
+        raise FormatError(f"format_version {version!r} is not one this wearnav reads "
+                          f"(0..{FORMAT_VERSION}); written by a newer wearnav?", path)
+
+
+def _check_manifest(df: pd.DataFrame, root: Path, path: Path) -> None:
+    for i, (name, file) in enumerate(zip(df["name"], df["file"]), 2):
+        try:
+            check_name(name, "recording name")
+        except ValidationError as exc:
+            raise FormatError(f"line {i}: {exc.reason}", path) from None
+        if file != Path(file).name or not file.endswith(".h5") or file in (".h5",):
+            raise FormatError(f"line {i}: file {file!r} is not a .h5 file name in the folder", path)
+    for col in ("name", "file"):
+        dup = df[col][df[col].duplicated()]
+        if len(dup):
+            raise FormatError(f"{col} {dup.iloc[0]!r} is listed more than once", path)
+    present = {p.name for p in root.glob("*.h5")}
+    absent = sorted(set(df["file"]) - present)
+    if absent:
+        raise FormatError(f"lists {len(absent)} file(s) that are not in the folder ({', '.join(absent[:3])})",
+                          path)
+    unlisted = sorted(present - set(df["file"]))
+    if unlisted:
+        raise FormatError(f"{len(unlisted)} recording file(s) in the folder are not listed "
+                          f"({', '.join(unlisted[:3])})", path)
+
+
+def _numbers(df: pd.DataFrame, col: str, kind: type, path: Path) -> pd.Series:
+    text = df[col].str.strip()
+    if kind is int:
+        text = text.replace("", "0")  # counts written empty by hand mean none
+    values = pd.to_numeric(text, errors="coerce")
+    bad = values.isna() | ~np.isfinite(values.astype(float)) | (values < 0)
+    if kind is int:
+        bad |= values.astype(float) % 1 != 0
+    if bad.any():
+        i = int(np.argmax(bad.to_numpy()))
+        raise FormatError(f"line {i + 2}: {col} {df[col].iloc[i]!r} is not a "
+                          f"{'non-negative integer' if kind is int else 'non-negative number'}", path)
+    return values.astype(kind)
 
 
 def write_dataset(root: str | Path, recordings: Iterable[tuple[Recording, str]],

@@ -12,7 +12,9 @@ class WearnavError(Exception):
     """Base class: ``source`` is the file or folder at fault (may be None), ``reason`` says why."""
 
     def __init__(self, reason: str, source: str | Path | None = None):
-        self.reason = reason
+        # Messages quote other libraries' errors (pandas' parser errors span lines); the promise
+        # is one line, so every run of whitespace becomes one space.
+        self.reason = one_line(str(reason))
         self.source = None if source is None else str(source)
         super().__init__(str(self))
 
@@ -25,6 +27,11 @@ class WearnavError(Exception):
             self.source = str(source)
             self.args = (str(self),)
         return self
+
+
+def one_line(text: str) -> str:
+    """``text`` with every run of whitespace (newlines included) collapsed to one space."""
+    return " ".join(text.split())
 
 
 class ValidationError(WearnavError):
@@ -41,3 +48,15 @@ class MissingFileError(WearnavError):
 
 class ConfigError(WearnavError):
     """A configuration value or command-line option is invalid."""
+
+
+class WearnavWarning(UserWarning):
+    """Input was accepted with a caveat the user must know (e.g. a file that looks cut short)."""
+
+
+class Terminated(BaseException):
+    """The process was asked to stop (SIGTERM: a cluster time limit, ``docker stop``).
+
+    A BaseException like KeyboardInterrupt, so that only cleanup code (``finally``, ``with``)
+    sees it, never an ``except Exception`` meant for bad data.
+    """

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from wearnav.errors import FormatError, MissingFileError
 
 
 def _umask_mode() -> int:
@@ -37,3 +40,23 @@ def write_text_atomic(text: str, path: str | Path) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return Path(path)
+
+
+def require_regular_file(path: str | Path) -> Path:
+    """``path`` if it is a regular file (symlinks followed); else a one-line error.
+
+    Opening a named pipe, socket or device would block or read endless data, so anything that
+    is not a plain file is refused before it is opened.
+    """
+    path = Path(path)
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise MissingFileError("no such file", path) from None
+    except OSError as exc:
+        raise FormatError(f"cannot access ({exc.strerror or exc})", path) from None
+    if stat.S_ISDIR(mode):
+        raise FormatError("is a folder, expected a file", path)
+    if not stat.S_ISREG(mode):
+        raise FormatError("not a regular file (a named pipe, socket or device?); refusing to read it", path)
+    return path

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.fileio import atomic_path
+from wearnav.fileio import atomic_path, require_regular_file
 from wearnav.timeseries import rate
 
 FORMAT_NAME = "wearnav.recording"
@@ -40,6 +40,44 @@ STANDARD_GRAVITY = 9.80665  # m/s²; "g" of files that give acceleration in g
 ACC_NORM_MEDIAN_RANGE = (4.0, 25.0)
 # Walking rarely exceeds a few rad/s; a median above this is almost surely deg/s.
 GYRO_NORM_MEDIAN_MAX = 15.0
+# Full-scale ranges of consumer IMUs (phones, watches, earbuds): ±16 g accelerometers and
+# ±2000 °/s gyroscopes are the largest settings of the common parts (Bosch BMI160/BMI270,
+# ST LSM6DS*, InvenSense ICM-4xxxx), applied per axis as the sensors saturate per axis. A value
+# beyond them was not measured by such a sensor: a corrupt file, a wrong unit or a sentinel.
+ACC_AXIS_MAX = 16 * STANDARD_GRAVITY  # m/s²
+GYRO_AXIS_MAX = float(np.deg2rad(2000.0))  # rad/s
+# Positions are metres in a local frame about the recording's own origin: nothing on Earth is
+# farther than half its circumference (~2e7 m), so a larger coordinate is a corrupt value.
+POS_ABS_MAX = 2.0e7
+# Truth and fixes describe the same walk as the devices: times farther than this outside the
+# devices' span are on another clock or corrupt.
+MAX_TIME_OUTSIDE_S = 600.0
+# Longest recording / device name: it becomes a file name (``<name>.h5``, 255 bytes on most
+# file systems) and an HDF5 link name.
+MAX_NAME_BYTES = 200
+
+
+def check_text(text, what: str) -> int:
+    """Refuse text that HDF5 and CSV cannot store and give back: not a string, holding NUL, not
+    UTF-8-encodable (lone surrogates). Returns its UTF-8 size in bytes."""
+    if not isinstance(text, str):
+        raise ValidationError(f"{what} {text!r} is not a string")
+    if "\x00" in text:
+        raise ValidationError(f"{what} {text!r} contains NUL")
+    try:
+        return len(text.encode("utf-8"))
+    except UnicodeEncodeError:
+        raise ValidationError(f"{what} {text!r} cannot be encoded as UTF-8") from None
+
+
+def check_name(name, what: str) -> None:
+    """Refuse a recording / device name that cannot round-trip through HDF5 and a file name:
+    what :func:`check_text` refuses, empty, '.', '..', containing '/', too long."""
+    size = check_text(name, what)
+    if name in ("", ".", "..") or "/" in name:
+        raise ValidationError(f"{what} {name!r} is empty, '.', '..' or contains '/'")
+    if size > MAX_NAME_BYTES:
+        raise ValidationError(f"{what} is {size} bytes long (at most {MAX_NAME_BYTES})")
 
 
 def device_order(name: str) -> tuple[int, str]:
@@ -66,6 +104,26 @@ def _check_time(t: np.ndarray, name: str) -> None:
         i = int(np.argmax(dt <= 0))
         what = "duplicated" if dt[i] == 0 else "unsorted"
         raise ValidationError(f"{name}: {what} timestamps at sample {i + 1} (t={t[i + 1]:.6f})")
+
+
+def _check_range(a: np.ndarray | None, limit: float, unit: str, name: str) -> None:
+    if a is None or a.size == 0:
+        return
+    over = np.abs(a) > limit
+    if np.any(over):
+        i = int(np.argmax(over.any(axis=1)))
+        n_bad = int(over.any(axis=1).sum())
+        raise ValidationError(
+            f"{name}: {n_bad} of {len(a)} samples beyond ±{limit:.4g} {unit} per axis (first at "
+            f"sample {i}: {float(a[i][over[i]][0]):.4g}), the full-scale range of a consumer IMU: "
+            "corrupt values or wrong unit?")
+
+
+def _check_position(pos: np.ndarray, name: str) -> None:
+    if pos.size and np.any(np.abs(pos) > POS_ABS_MAX):
+        i = int(np.argmax(np.any(np.abs(pos) > POS_ABS_MAX, axis=1)))
+        raise ValidationError(f"{name}: coordinate {float(np.max(np.abs(pos[i]))):.4g} m at point {i} "
+                              f"is farther than anything on Earth ({POS_ABS_MAX:.0e} m)")
 
 
 def _check_rows(a: np.ndarray | None, n: int, width: tuple[int, ...] | int, name: str) -> None:
@@ -97,6 +155,10 @@ class DeviceStream:
     check_units: bool = field(default=True, repr=False)
 
     def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """Convert and check every field (again: they are public and may have been reassigned)."""
         self.t = _as_array(self.t, np.float64, "t")
         self.acc = _as_array(self.acc, np.float32, "acc")
         if self.gyro is not None:
@@ -105,9 +167,6 @@ class DeviceStream:
             self.quat = _as_array(self.quat, np.float32, "quat")
         if self.worn is not None:
             self.worn = _as_array(self.worn, bool, "worn")
-        self.validate()
-
-    def validate(self) -> None:
         _check_time(self.t, "t")
         n = self.t.size
         _check_rows(self.acc, n, 3, "acc")
@@ -122,7 +181,9 @@ class DeviceStream:
         if self.worn is not None and self.worn.shape != (n,):
             raise ValidationError(f"worn: shape {self.worn.shape}, expected ({n},)")
         if self.check_units and n >= 10:
-            med = float(np.median(np.linalg.norm(self.acc, axis=1)))
+            with np.errstate(over="ignore", invalid="ignore"):  # absurd values: the range check's job
+                med = float(np.median(np.linalg.norm(self.acc, axis=1)))
+                gmed = float(np.median(np.linalg.norm(self.gyro, axis=1))) if self.gyro is not None else 0.0
             lo, hi = ACC_NORM_MEDIAN_RANGE
             if not lo <= med <= hi:
                 hint = f" (looks like g, multiply by {STANDARD_GRAVITY})" if 0.6 < med < 1.4 else ""
@@ -130,11 +191,13 @@ class DeviceStream:
                     f"acc: median |acc| is {med:.3g}, expected about 9.8 m/s² including gravity{hint}"
                 )
             if self.gyro is not None:
-                gmed = float(np.median(np.linalg.norm(self.gyro, axis=1)))
                 if gmed > GYRO_NORM_MEDIAN_MAX:
                     raise ValidationError(
                         f"gyro: median |gyro| is {gmed:.3g} rad/s, implausible (deg/s instead of rad/s?)"
                     )
+        # After the unit check, whose hint is more specific for a whole file in g or deg/s.
+        _check_range(self.acc, ACC_AXIS_MAX, "m/s² (16 g)", "acc")
+        _check_range(self.gyro, GYRO_AXIS_MAX, "rad/s (2000 °/s)", "gyro")
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -167,6 +230,9 @@ class Trajectory:
     floor: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
         self.t = _as_array(self.t, np.float64, "truth.t")
         self.pos = _as_array(self.pos, np.float64, "truth.pos")
         if self.quat is not None:
@@ -175,6 +241,7 @@ class Trajectory:
             self.floor = _as_array(self.floor, np.float64, "truth.floor")
         _check_time(self.t, "truth.t")
         _check_rows(self.pos, self.t.size, (2, 3), "truth.pos")
+        _check_position(self.pos, "truth.pos")
         _check_rows(self.quat, self.t.size, 4, "truth.quat")
         if self.floor is not None and self.floor.shape != self.t.shape:
             raise ValidationError(f"truth.floor: shape {self.floor.shape}, expected {self.t.shape}")
@@ -197,6 +264,9 @@ class Fixes:
     floor: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
         self.t = _as_array(self.t, np.float64, "fixes.t")
         self.pos = _as_array(self.pos, np.float64, "fixes.pos")
         self.accuracy = _as_array(self.accuracy, np.float64, "fixes.accuracy")
@@ -204,8 +274,14 @@ class Fixes:
             self.floor = _as_array(self.floor, np.float64, "fixes.floor")
         _check_time(self.t, "fixes.t")
         _check_rows(self.pos, self.t.size, (2, 3), "fixes.pos")
+        _check_position(self.pos, "fixes.pos")
         if self.accuracy.shape != self.t.shape:
             raise ValidationError(f"fixes.accuracy: shape {self.accuracy.shape}, expected {self.t.shape}")
+        bad = ~np.isnan(self.accuracy) & ~((self.accuracy >= 0) & (self.accuracy <= POS_ABS_MAX))
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise ValidationError(f"fixes.accuracy: {self.accuracy[i]:.4g} m at fix {i} is not a radius "
+                                  f"in 0..{POS_ABS_MAX:.0e} m (NaN where unknown)")
         if self.floor is not None and self.floor.shape != self.t.shape:
             raise ValidationError(f"fixes.floor: shape {self.floor.shape}, expected {self.t.shape}")
 
@@ -216,13 +292,37 @@ class Fixes:
 def make_labels(rows=None) -> pd.DataFrame:
     """A labels table (columns start, end, kind, value) from rows or records; validated."""
     df = pd.DataFrame(rows if rows is not None else [], columns=LABEL_COLUMNS)
-    df = df.astype({"start": float, "end": float, "kind": str, "value": str})
+    try:
+        df = df.astype({"start": float, "end": float, "kind": str, "value": str})
+    except (TypeError, ValueError) as exc:
+        raise ValidationError(f"labels: start/end are not numbers ({exc})") from None
     if len(df):
         if not np.all(np.isfinite(df[["start", "end"]].to_numpy())):
             raise ValidationError("labels: non-finite start/end")
         if np.any(df["end"].to_numpy() < df["start"].to_numpy()):
             raise ValidationError("labels: an interval ends before it starts")
-    return df.sort_values(["kind", "start"], kind="stable").reset_index(drop=True)
+        for col in ("kind", "value"):
+            for text in df[col].unique():
+                check_text(text, f"labels: {col}")
+    df = df.sort_values(["kind", "start"], kind="stable").reset_index(drop=True)
+    _check_overlaps(df)
+    return df
+
+
+def _check_overlaps(df: pd.DataFrame) -> None:
+    """Intervals of one kind must not overlap (they may touch): ``label_at`` would have to pick
+    one, and a repeated table (every row twice) is the usual cause. Zero-length rows are events
+    (e.g. steps) and may repeat."""
+    spans = df[df["end"] > df["start"]]
+    for kind, g in spans.groupby("kind", sort=False):
+        start, end = g["start"].to_numpy(), g["end"].to_numpy()
+        bad = np.flatnonzero(start[1:] < np.maximum.accumulate(end)[:-1])
+        if bad.size:
+            i = int(bad[0]) + 1
+            raise ValidationError(
+                f"labels: {kind!r} intervals overlap ([{start[i - 1]:g}, {end[i - 1]:g}) "
+                f"{g['value'].iloc[i - 1]!r} and [{start[i]:g}, {end[i]:g}) {g['value'].iloc[i]!r}); "
+                "repeated label rows?")
 
 
 @dataclass
@@ -237,18 +337,44 @@ class Recording:
     meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if not self.name or "/" in self.name:
-            raise ValidationError(f"recording name {self.name!r} is empty or contains '/'")
-        if not self.devices:
+        self.validate()
+
+    def validate(self) -> None:
+        """Check everything again: the fields are public and may have changed since construction
+        (:meth:`save` calls this, so nothing invalid is ever written)."""
+        check_name(self.name, "recording name")
+        if not isinstance(self.devices, dict) or not self.devices:
             raise ValidationError("recording has no device streams")
         for dev, s in self.devices.items():
+            check_name(dev, "device name")
             if not isinstance(s, DeviceStream):
                 raise ValidationError(f"device {dev!r} is not a DeviceStream")
+        for what, part, kind in (("truth", self.truth, Trajectory), ("fixes", self.fixes, Fixes)):
+            if part is not None and not isinstance(part, kind):
+                raise ValidationError(f"{what} is not a {kind.__name__}")
+            if part is not None and len(part) and all(len(s) for s in self.devices.values()):
+                lo, hi = self.t_start - MAX_TIME_OUTSIDE_S, self.t_end + MAX_TIME_OUTSIDE_S
+                if part.t[0] < lo or part.t[-1] > hi:
+                    raise ValidationError(
+                        f"{what}.t spans {part.t[0]:.6g}..{part.t[-1]:.6g} s, far outside the devices' "
+                        f"{self.t_start:.6g}..{self.t_end:.6g} s (another clock or a corrupt timestamp?)")
         self.labels = make_labels(self.labels)
+        if not isinstance(self.meta, dict):
+            raise ValidationError("meta is not a dict")
         try:
             json.dumps(self.meta)
-        except TypeError as exc:
+        except (TypeError, ValueError) as exc:
             raise ValidationError(f"meta is not JSON-serialisable: {exc}") from None
+
+    def _validate_parts(self) -> None:
+        for dev, s in self.devices.items():
+            try:
+                s.validate()
+            except ValidationError as exc:
+                raise ValidationError(f"device {dev!r}: {exc.reason}") from None
+        for part in (self.truth, self.fixes):
+            if part is not None:
+                part.validate()
 
     # ---- time helpers -------------------------------------------------------------------
     @property
@@ -275,6 +401,8 @@ class Recording:
     def save(self, path: str | Path) -> Path:
         """Write to one HDF5 file atomically (temporary file in the same folder, then rename)."""
         path = Path(path)
+        self.validate()
+        self._validate_parts()
         with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
             self._write(f)
         return path
@@ -319,12 +447,15 @@ class Recording:
     def load(cls, path: str | Path) -> "Recording":
         """Read a file written by :meth:`save`; any problem raises a WearnavError naming it."""
         path = Path(path)
-        if not path.exists():
-            raise MissingFileError("no such file", path)
+        require_regular_file(path)
         try:
             with h5py.File(path, "r") as f:
                 if f.attrs.get("format") != FORMAT_NAME:
                     raise FormatError("not a wearnav recording (missing 'format' attribute)", path)
+                version = f.attrs.get("version")
+                if not isinstance(version, (int, np.integer)) or not 1 <= version <= FORMAT_VERSION:
+                    raise FormatError(f"recording format version {version!r} is not one this wearnav "
+                                      f"reads (1..{FORMAT_VERSION}); written by a newer wearnav?", path)
                 return cls._read(f)
         except (FormatError, ValidationError) as exc:
             raise exc.with_source(path) from None
@@ -332,14 +463,29 @@ class Recording:
             raise FormatError(f"cannot read as HDF5 ({exc.__class__.__name__}: {exc})", path) from None
         except KeyError as exc:
             raise FormatError(f"corrupt recording: missing {exc}", path) from None
+        except (TypeError, ValueError, AttributeError) as exc:
+            # A file with the right 'format' attribute but a wrong layout (a dataset where a
+            # group belongs, a meta attribute that is not JSON, text where numbers belong).
+            raise FormatError(f"corrupt recording ({exc.__class__.__name__}: {exc})", path) from None
 
     @classmethod
     def _read(cls, f: h5py.File) -> "Recording":
         def opt(g, key):
             return g[key][()] if key in g else None
 
+        def group(parent, key):
+            g = parent[key]
+            if not isinstance(g, h5py.Group):
+                raise FormatError(f"corrupt recording: {g.name!r} is not a group")
+            return g
+
+        meta = json.loads(f.attrs["meta"])
+        if not isinstance(meta, dict):
+            raise FormatError("corrupt recording: the 'meta' attribute is not a JSON object")
         devices = {}
-        for dev, d in f["devices"].items():
+        for dev, d in group(f, "devices").items():
+            if not isinstance(d, h5py.Group):
+                raise FormatError(f"corrupt recording: device {dev!r} is not a group")
             try:
                 # Units were checked when the recording was made; don't refuse to open it.
                 devices[dev] = DeviceStream(
@@ -350,13 +496,13 @@ class Recording:
                 raise ValidationError(f"device {dev!r}: {exc.reason}") from None
         truth = None
         if "truth" in f:
-            g = f["truth"]
+            g = group(f, "truth")
             truth = Trajectory(g["t"][()], g["pos"][()], opt(g, "quat"), opt(g, "floor"))
         fixes = None
         if "fixes" in f:
-            g = f["fixes"]
+            g = group(f, "fixes")
             fixes = Fixes(g["t"][()], g["pos"][()], g["accuracy"][()], opt(g, "floor"))
-        lab = f["labels"]
+        lab = group(f, "labels")
         labels = pd.DataFrame({
             "start": lab["start"][()],
             "end": lab["end"][()],
@@ -365,7 +511,7 @@ class Recording:
         })
         return cls(
             name=str(f.attrs["name"]), devices=devices, truth=truth, fixes=fixes,
-            labels=labels, meta=json.loads(f.attrs["meta"]),
+            labels=labels, meta=meta,
         )
 
     def summary(self) -> dict[str, Any]:

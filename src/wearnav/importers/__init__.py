@@ -12,7 +12,7 @@ import importlib
 from pathlib import Path
 from types import ModuleType
 
-from wearnav.errors import ConfigError, MissingFileError
+from wearnav.errors import ConfigError
 
 FORMATS: dict[str, str] = {
     "ilc2": "wearnav.importers.ilc2",
@@ -39,9 +39,7 @@ def import_dataset(fmt: str, src: str | Path, out: str | Path, limit: int | None
     from wearnav.dataset import Dataset, DatasetWriter
 
     src = Path(src)
-    if not src.exists():
-        raise MissingFileError("no such file or folder", src)
-    module = get_importer(fmt)
+    module = get_importer(fmt)  # each read() checks src and limit (common.check_source)
     bar = tqdm(module.read(src, limit=limit), desc=f"import {fmt}", unit="rec", disable=not progress)
     try:
         made_by = {"importer": fmt, "src": str(src.resolve()), "limit": limit}

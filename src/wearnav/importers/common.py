@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav.errors import FormatError, MissingFileError
+from wearnav.errors import ConfigError, FormatError, MissingFileError, ValidationError
+from wearnav.fileio import require_regular_file
 from wearnav.rotations import NotUnitQuaternion, from_android_rotation_vector, normalize_wxyz
 
 COMPRESSED_SUFFIXES = (".gz", ".xz")
@@ -42,7 +43,7 @@ def strip_compression(path: Path) -> str:
 def open_text(path: str | Path) -> io.TextIOBase:
     """Open a plain, .gz or .xz text file for reading (UTF-8 with or without a byte-order mark,
     undecodable bytes replaced)."""
-    path = find_file(path)
+    path = require_regular_file(find_file(path))
     try:
         if path.suffix == ".gz":
             return io.TextIOWrapper(gzip.open(path, "rb"), encoding="utf-8-sig", errors="replace")
@@ -89,6 +90,72 @@ def check_finite(arr: np.ndarray, what: str, path: str | Path) -> None:
     if not np.all(np.isfinite(arr)):
         bad = int(np.argmax(~np.isfinite(np.asarray(arr, dtype=float)).reshape(len(arr), -1).all(1)))
         raise FormatError(f"{what} has NaN or infinite values (first at row {bad})", path)
+
+
+# ---- the start of every importer's read() ------------------------------------------------------
+
+def check_limit(limit) -> int | None:
+    """``limit`` (at most this many recordings) if it is None or a non-negative integer."""
+    if limit is None:
+        return None
+    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 0:
+        raise ConfigError(f"limit must be a non-negative integer or None, got {limit!r}")
+    return int(limit)
+
+
+def check_source(src: str | Path, limit=None, *, expect: str, file: bool = True,
+                 folder: bool = True) -> tuple[Path, int | None]:
+    """The checks every importer's ``read()`` starts with; returns ``(src, limit)``.
+
+    ``src`` must exist (a file may also be found as ``.gz`` / ``.xz``) and be a folder or a
+    regular file as the format allows (named pipes and devices are refused, never opened);
+    ``expect`` says what the format wants, for the error message. ``limit`` must be None or a
+    non-negative integer.
+    """
+    limit = check_limit(limit)
+    src = Path(src)
+    if not src.exists():
+        try:
+            src = find_file(src) if file else src
+        except MissingFileError:
+            pass
+        if not src.exists():
+            raise MissingFileError("no such file or folder", src)
+    if src.is_dir():
+        if not folder:
+            raise FormatError(f"expected {expect}, got a folder", src)
+    else:
+        require_regular_file(src)
+        if not file:
+            raise FormatError(f"expected {expect}, got a file", src)
+    return src, limit
+
+
+def check_latlon(lat: np.ndarray, lon: np.ndarray, what: str, path: str | Path) -> None:
+    """Refuse latitudes outside ±90° and longitudes outside ±180° (a wrong column, a sentinel, a
+    corrupt value), naming the first bad row."""
+    lat, lon = np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64)
+    bad = ~((np.abs(lat) <= 90) & (np.abs(lon) <= 180))
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise FormatError(f"{what}: latitude/longitude ({lat[i]:g}, {lon[i]:g}) out of range "
+                          f"(first at row {i} of that type)", path)
+
+
+# Unix times of real recordings: after 2000-01-01 and before 2100-01-01. A timestamp outside
+# (a corrupt value, or another clock or unit) would shift or discard every other sample.
+UNIX_TIME_RANGE_S = (946684800.0, 4102444800.0)
+
+
+def check_unix_time(t_s: np.ndarray, what: str, path: str | Path) -> None:
+    """Refuse Unix timestamps (given in seconds) outside :data:`UNIX_TIME_RANGE_S`."""
+    t_s = np.asarray(t_s, dtype=np.float64)
+    lo, hi = UNIX_TIME_RANGE_S
+    bad = ~((t_s >= lo) & (t_s <= hi))
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise FormatError(f"{what}: timestamp {t_s[i]:.6g} s at row {i} of that type is not a Unix time "
+                          "between 2000 and 2100 (corrupt value or wrong unit?)", path)
 
 
 def latlon_to_local(lat: np.ndarray, lon: np.ndarray, lat0: float | None = None,

@@ -32,6 +32,11 @@ timestamps they are interpolated onto them (linear; normalised linear for quater
 accelerometer samples they cannot cover (outside their span, or across a gap longer than
 :data:`~wearnav.importers.common.MAX_INTERP_GAP_S`) are dropped and counted in ``meta["dropped_uncovered"]``. None of this
 happens in the shipped sample (no duplicates, identical clocks); it exists for users' copies.
+
+Plausibility: every trace ends with a ``#<TAB>endTime`` footer; a trace without it was cut short
+and is imported as far as it goes (an unfinished last line dropped), flagged in
+``meta["truncated"]`` with a one-line warning, never as complete. Timestamps must be Unix times
+(2000–2100) and waypoints must lie on the floor plan of ``floor_info.json`` when it is there.
 """
 
 from __future__ import annotations
@@ -39,16 +44,19 @@ from __future__ import annotations
 import io
 import json
 import re
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
+from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError, WearnavWarning
 from wearnav.importers.common import (
     MAX_INTERP_GAP_S,
     check_finite,
+    check_source,
+    check_unix_time,
     find_file,
     quat_from_rotation_vector,
     read_text,
@@ -64,6 +72,8 @@ ACC, GYRO, ROTVEC, WAYPOINT = ("TYPE_ACCELEROMETER", "TYPE_GYROSCOPE", "TYPE_ROT
                                "TYPE_WAYPOINT")
 # Values each imported row type must carry after the timestamp and type columns.
 MIN_VALUES = {ACC: 3, GYRO: 3, ROTVEC: 3, WAYPOINT: 2}
+# How far outside the floor plan a waypoint may lie (survey slack at the plan's edge).
+MAP_MARGIN_M, MAP_MARGIN_SHARE = 10.0, 0.1
 TRACE_SUFFIXES = (".txt", ".txt.gz", ".txt.xz")
 
 # ---- reading one trace ---------------------------------------------------------------------
@@ -147,9 +157,15 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
     text = read_text(path)
     if not text.strip():
         raise FormatError("empty file", path)
+    lines = text.splitlines()
+    # Every trace ends with a "#<TAB>endTime:<ms>" footer (all 580 shipped ones do): without it
+    # the file was cut short, and a cut last line could still parse as a shorter number.
+    truncated = not any(ln.startswith("#") and "endTime:" in ln for ln in lines[-3:])
+    if truncated and not text.endswith("\n"):
+        lines = lines[:-1]
     header, rows = [], {ACC: [], GYRO: [], ROTVEC: [], WAYPOINT: []}
     first_data = None
-    for ln in text.splitlines():
+    for ln in lines:
         if not ln or ln.isspace():
             continue
         if ln[0] == "#":
@@ -167,6 +183,8 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
         raise FormatError(f"not an ILC2 trace: no {ACC} rows (first line: {seen[:60]!r})", path)
 
     data = {k: _parse_rows(v, k, path) for k, v in rows.items() if v}
+    for k, a in data.items():
+        check_unix_time(a[:, 0] / 1e3, k, path)
     meta_dropped: dict[str, int] = {}
     for k in list(data):
         keep, n_dup = drop_duplicate_times(data[k][:, 0], k, path)
@@ -210,8 +228,17 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
     floor_name = info.get("FloorName", parts[-3] if in_layout else "")
     floor = _floor_index(floor_name) if floor_name else None
     truth = None
+    size = _map_size(path)
     if WAYPOINT in data:
         wp = data[WAYPOINT]
+        if size is not None:  # waypoints were surveyed on this floor plan (all 580 shipped lie on it)
+            margin = max(MAP_MARGIN_M, MAP_MARGIN_SHARE * max(size))
+            off = ((wp[:, 1] < -margin) | (wp[:, 1] > size[0] + margin) |
+                   (wp[:, 2] < -margin) | (wp[:, 2] > size[1] + margin))
+            if np.any(off):
+                i = int(np.argmax(off))
+                raise ValidationError(f"{WAYPOINT} ({wp[i, 1]:g}, {wp[i, 2]:g}) m lies outside the "
+                                      f"{size[0]:.0f} × {size[1]:.0f} m floor plan of floor_info.json", path)
         truth = Trajectory(secs(wp), wp[:, 1:3],
                            floor=None if floor is None else np.full(len(wp), float(floor)))
 
@@ -244,9 +271,12 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
         "dropped_uncovered": n_uncovered,
         "file": str(path.relative_to(root)) if root is not None and path.is_relative_to(root) else path.name,
     }
-    size = _map_size(path)
     if size is not None:
         meta["map_size_m"] = size
+    if truncated:
+        meta["truncated"] = "no endTime footer: the trace was cut short (an unfinished last line is dropped)"
+        warnings.warn(WearnavWarning(f"{path}: {meta['truncated']}; imported as far as it goes, "
+                                     "flagged in meta['truncated']"), stacklevel=2)
     return Recording(name=name, devices={"phone": stream}, truth=truth, meta=meta)
 
 
@@ -270,21 +300,13 @@ def find_traces(src: Path) -> list[Path]:
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """ILC2 traces from a dataset folder (any level of site/floor/path_data_files) or one file."""
-    src = Path(src)
+    src, limit = check_source(src, limit, expect="an ILC2 trace or a folder of them")
     if src.is_file():
-        yield read_trace(src)
-        return
-    if not src.exists():
-        try:
-            path = find_file(src)  # a trace named without its .gz/.xz suffix
-        except MissingFileError:
-            raise MissingFileError("no such file or folder", src) from None
-        yield read_trace(path)
+        if limit != 0:
+            yield read_trace(src)
         return
     files = find_traces(src)
     if not files:
         raise FormatError("no ILC2 traces found (expected <site>/<floor>/path_data_files/*.txt[.gz])", src)
-    for n, path in enumerate(files):
-        if limit is not None and n >= limit:
-            return
+    for path in files[:limit]:
         yield read_trace(path, root=src)

@@ -65,6 +65,9 @@ from wearnav.errors import FormatError, MissingFileError, ValidationError, Wearn
 from wearnav.importers.common import (
     MAX_INTERP_GAP_S,
     check_finite,
+    check_latlon,
+    check_source,
+    check_unix_time,
     find_file,
     latlon_to_local,
     open_text,
@@ -262,6 +265,7 @@ def _imu(data: dict[str, np.ndarray], path: Path, meta: dict) -> DeviceStream:
 def _gnss(g: np.ndarray, path: Path, meta: dict):
     """(fix times on the app clock, lat, lon, accuracy), repeats and stale fixes dropped; None if
     no fix is left."""
+    check_unix_time(g[:, 1], "GNSS SensorTimestamp", path)
     _, first = np.unique(g[:, 1], return_index=True)
     repeat = np.ones(len(g), bool)
     repeat[first] = False
@@ -284,8 +288,7 @@ def _gnss(g: np.ndarray, path: Path, meta: dict):
         return None
     t = g_kept[:, 1] + offset
     lat, lon = g_kept[:, 2], g_kept[:, 3]
-    if np.any(np.abs(lat) > 90) or np.any(np.abs(lon) > 180):
-        raise ValidationError("GNSS latitude/longitude out of range", path)
+    check_latlon(lat, lon, "GNSS", path)
     acc = g_kept[:, 6].copy()
     acc[acc <= 0] = np.nan
     return t, lat, lon, acc
@@ -350,6 +353,7 @@ def _read_log(path: Path) -> Recording:
     posi = None
     if "POSI" in data:
         p = data["POSI"]
+        check_latlon(p[:, 1], p[:, 2], "POSI", path)
         keep, n_dup = drop_duplicate_times(p[:, 0], "POSI", path)
         if n_dup:
             meta["dropped_duplicates"]["POSI"] = n_dup
@@ -424,21 +428,13 @@ def find_logs(src: Path) -> list[Path]:
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """IPIN 2023 Track 3 logs from the dataset folder (all logs under it) or from one log file."""
-    src = Path(src)
+    src, limit = check_source(src, limit, expect="a GetSensorData log or a folder of them")
     if src.is_file():
-        yield read_log(src)
-        return
-    if not src.exists():
-        try:
-            path = find_file(src)
-        except MissingFileError:
-            raise MissingFileError("no such file or folder", src) from None
-        yield read_log(path)
+        if limit != 0:
+            yield read_log(src)
         return
     files = find_logs(src)
     if not files:
         raise FormatError("no GetSensorData logs found (*.txt[.gz|.xz] or *.mat)", src)
-    for n, path in enumerate(files):
-        if limit is not None and n >= limit:
-            return
+    for path in files[:limit]:
         yield read_log(path)

@@ -51,7 +51,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.importers.common import check_finite, find_file, read_csv, require_columns
+from wearnav.importers.common import check_finite, check_source, find_file, read_csv, require_columns
 from wearnav.recording import STANDARD_GRAVITY as G  # Core Motion's unit of acceleration
 from wearnav.recording import DeviceStream, Recording
 from wearnav.rotations import from_euler, to_wxyz
@@ -133,6 +133,9 @@ def read_subjects(path: Path) -> dict[int, dict]:
     require_columns(df, SUBJECT_COLUMNS, path)
     vals = df[SUBJECT_COLUMNS].apply(pd.to_numeric, errors="coerce").to_numpy(float)
     check_finite(vals, "subject table", path)
+    dup = df["code"][df["code"].duplicated()]
+    if len(dup):
+        raise FormatError(f"subject code {dup.iloc[0]} is listed more than once", path)
     out = {}
     for code, weight, height, age, gender in vals:
         if gender not in (0, 1):
@@ -162,6 +165,12 @@ def read_file(path: Path, act: str, trial: int, subject: int, subject_info: dict
             f"it at {RATE_HZ:g} Hz, so rows must be complete and in order", path)
     att, grav, rot, user = (vals[:, k:k + 3] for k in (0, 3, 6, 9))
     n = len(df)
+    # Core Motion's Euler angles lie in [-π, π] (pitch in [-π/2, π/2]); anything else is not an
+    # attitude, though its quaternion would still look like one.
+    if np.any(np.abs(att) > np.pi + 1e-3):
+        i = int(np.argmax(np.any(np.abs(att) > np.pi + 1e-3, axis=1)))
+        raise FormatError(f"row {i}: attitude angle {float(np.max(np.abs(att[i]))):.4g} rad is "
+                          "outside [-π, π]", path)
     # Core Motion's gravity is a unit vector in g: a direct check of the units.
     gnorm = float(np.median(np.linalg.norm(grav, axis=1)))
     if not 0.95 <= gnorm <= 1.05:
@@ -196,9 +205,7 @@ def read_file(path: Path, act: str, trial: int, subject: int, subject_info: dict
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """Yield MotionSense recordings (at most ``limit``) from a folder in the original layout."""
-    src = Path(src)
-    if not src.exists():
-        raise MissingFileError("no such file or folder", src)
+    src, limit = check_source(src, limit, expect="a MotionSense folder or sub_<n>.csv file")
     if src.is_file():
         # One sub_<n>.csv: its folder names the activity and trial.
         m, t = FILE_RE.match(src.name), TRIAL_RE.match(src.parent.name)
@@ -209,7 +216,7 @@ def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
         jobs = [(d, _subject_files(d)) for d in _trial_dirs(src)]
         if not any(files for _, files in jobs):
             raise FormatError("no sub_<n>.csv files in the MotionSense trial folders", src)
-    if limit is not None and limit <= 0:
+    if limit == 0:
         return
     base = src if src.is_dir() else src.parent
     subjects = read_subjects(_find_subjects_file(base, jobs[0][0]))

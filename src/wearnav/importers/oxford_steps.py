@@ -49,12 +49,13 @@ import numpy as np
 import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.importers.common import check_finite, read_csv
+from wearnav.importers.common import check_finite, check_source, read_csv
 from wearnav.recording import DeviceStream, Recording
 from wearnav.timeseries import drop_duplicate_times, period
 
 VALIDATION_DIR = "validation"
 FILE_RE = re.compile(r"^(user\d+)_([A-Za-z]+)_(\d{10,})\.csv(\.gz|\.xz)?$")
+MAX_STEP_COUNT = 10_000_000
 FIELDS = ["timestamp_ns", "accx", "accy", "accz", "steps_algo", "steps_groundtruth", "steps_hw"]
 
 META = {
@@ -106,11 +107,21 @@ def read_file(path: Path) -> Recording:
     df.columns = FIELDS
     ts = pd.to_numeric(df["timestamp_ns"], errors="coerce").to_numpy(np.float64)
     check_finite(ts, "timestamp", path)
+    if not pd.api.types.is_integer_dtype(df["timestamp_ns"]):
+        i = int(np.argmax(ts != np.round(ts))) if np.any(ts != np.round(ts)) else 0
+        raise FormatError(f"timestamp is not whole nanoseconds in int64 range (e.g. row {i}: "
+                          f"{df['timestamp_ns'].iloc[i]!r})", path)
     ts_ns = df["timestamp_ns"].astype(np.int64).to_numpy()  # exact: float64 would round ns
     acc = df[["accx", "accy", "accz"]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     check_finite(acc, "acc", path)
     counts = df[FIELDS[4:]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     check_finite(counts, "step counts", path)
+    # Running counts of steps: whole, non-negative and far below 2**31 in any real walk.
+    bad = (counts < 0) | (counts > MAX_STEP_COUNT) | (counts != np.round(counts))
+    if np.any(bad):
+        i = int(np.argmax(bad.any(axis=1)))
+        raise FormatError(f"row {i}: step count {counts[i][bad[i]][0]:g} is not a whole number "
+                          f"in 0..{MAX_STEP_COUNT}", path)
     counts = counts.astype(np.int64)
 
     # Logging artefacts: the all-zero placeholder rows written before the accelerometer's first
@@ -154,11 +165,9 @@ def read_file(path: Path) -> Recording:
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """Yield Oxford step-counter recordings (at most ``limit``) from a folder or one file."""
-    src = Path(src)
-    if not src.exists():
-        raise MissingFileError("no such file or folder", src)
+    src, limit = check_source(src, limit, expect="an Oxford step-counter file or its folder")
     files = _files(src)
-    if limit is not None and limit <= 0:
+    if limit == 0:
         return
     for count, path in enumerate(files, 1):
         yield read_file(path)

@@ -131,6 +131,9 @@ from wearnav.errors import FormatError, MissingFileError, ValidationError, Wearn
 from wearnav.importers.common import (
     MAX_INTERP_GAP_S,
     check_finite,
+    check_latlon,
+    check_source,
+    check_unix_time,
     find_file,
     latlon_to_local,
     read_csv,
@@ -173,9 +176,9 @@ def is_export(folder: Path) -> bool:
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """Recordings from one export folder, one export zip, or a folder of several of either."""
-    src = Path(src)
-    if not src.exists():
-        raise MissingFileError("no such file or folder", src)
+    src, limit = check_source(src, limit, expect="a Sensor Logger export folder or .zip")
+    if limit == 0:
+        return
     count = 0
     for kind, path in _exports(src):
         recs = [read_export(path)] if kind == "dir" else _read_zip(path)
@@ -280,6 +283,7 @@ def _load(folder: Path, fname: str, cols: list[str], optional_cols: tuple[str, .
         t_ns = df["time"].to_numpy(np.int64)
     else:  # written as float: keep what precision there is
         t_ns = np.round(df["time"].to_numpy(np.float64)).astype(np.int64)
+    check_unix_time(t_ns / 1e9, "time", path)
     keep, n_dup = drop_duplicate_times(t_ns, "time", path)
     if n_dup:
         df, t_ns = df.iloc[keep].reset_index(drop=True), t_ns[keep]
@@ -507,9 +511,7 @@ def _gyro_residual(rot: Rotation, gyro: np.ndarray | None, t: np.ndarray) -> flo
 
 def _fixes(loc: _Table, t: np.ndarray) -> tuple[Fixes, dict]:
     lat, lon = loc.df["latitude"].to_numpy(np.float64), loc.df["longitude"].to_numpy(np.float64)
-    if np.any(np.abs(lat) > 90) or np.any(np.abs(lon) > 180):
-        i = int(np.argmax((np.abs(lat) > 90) | (np.abs(lon) > 180)))
-        raise FormatError(f"line {i + 2}: latitude/longitude ({lat[i]}, {lon[i]}) out of range", loc.path)
+    check_latlon(lat, lon, "Location", loc.path)
     if "horizontalAccuracy" in loc.df.columns:
         accuracy = loc.df["horizontalAccuracy"].to_numpy(np.float64)
         accuracy = np.where(accuracy >= 0, accuracy, np.nan)  # negative = invalid (UNITS.md)

@@ -35,7 +35,14 @@ import numpy as np
 import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.importers.common import check_finite, find_file, read_csv, read_text, strip_compression
+from wearnav.importers.common import (
+    check_finite,
+    check_source,
+    find_file,
+    read_csv,
+    read_text,
+    strip_compression,
+)
 from wearnav.recording import STANDARD_GRAVITY as G  # the files' unit of acceleration
 from wearnav.recording import DeviceStream, Recording
 
@@ -83,6 +90,8 @@ def read_activity_names(path: Path) -> dict[int, str]:
         parts = line.split()
         if len(parts) != 2 or not parts[0].isdigit():
             raise FormatError(f"line {lineno}: expected '<id> <NAME>', got {line.strip()!r}", path)
+        if int(parts[0]) in names:
+            raise FormatError(f"line {lineno}: activity id {parts[0]} is listed more than once", path)
         names[int(parts[0])] = parts[1]
     if not names:
         raise FormatError("empty file", path)
@@ -97,13 +106,23 @@ def read_label_table(path: Path) -> pd.DataFrame:
             f"expected {len(LABEL_FIELDS)} columns ({' '.join(LABEL_FIELDS)}), found {df.shape[1]}", path)
     vals = df.apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     check_finite(vals, "label table", path)
-    if np.any(vals != np.round(vals)):
-        raise FormatError("label table has non-integer values", path)
+    if np.any(vals != np.round(vals)) or np.any(np.abs(vals) >= 2**31):
+        raise FormatError("label table has non-integer or out-of-range values", path)
     out = pd.DataFrame(vals.astype(np.int64), columns=LABEL_FIELDS)
     bad = np.flatnonzero((out["start"] < 1) | (out["end"] < out["start"]))
     if bad.size:
         r = out.iloc[int(bad[0])]
         raise FormatError(f"row {int(bad[0]) + 1}: bad interval {r['start']}..{r['end']}", path)
+    # Rows of one experiment cover disjoint sample ranges (inclusive); a repeated or
+    # overlapping row would label samples twice.
+    order = out.sort_values(["exp", "start"], kind="stable")
+    same_exp = order["exp"].to_numpy()[1:] == order["exp"].to_numpy()[:-1]
+    clash = np.flatnonzero(same_exp & (order["start"].to_numpy()[1:] <= order["end"].to_numpy()[:-1]))
+    if clash.size:
+        a, b = order.index[clash[0]], order.index[clash[0] + 1]
+        what = "repeats" if (out.loc[a] == out.loc[b]).all() else "overlaps"
+        raise FormatError(f"row {max(a, b) + 1} {what} row {min(a, b) + 1} (experiment "
+                          f"{out.loc[a, 'exp']}, samples {out.loc[b, 'start']}..{out.loc[b, 'end']})", path)
     return out
 
 
@@ -171,11 +190,7 @@ def read_experiment(acc_path: Path, gyro_path: Path, labels: pd.DataFrame, label
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """Yield UCI HAPT experiments (at most ``limit``) from the dataset folder or its RawData."""
-    src = Path(src)
-    if not src.exists():
-        raise MissingFileError("no such file or folder", src)
-    if not src.is_dir():
-        raise FormatError("expected the UCI HAPT folder (or its RawData folder), got a file", src)
+    src, limit = check_source(src, limit, expect="the UCI HAPT folder (or its RawData folder)", file=False)
     raw = _raw_dir(src)
     root = raw.parent if raw.name == RAW_DIR else raw
     accs: dict[tuple[int, int], Path] = {}
@@ -183,7 +198,7 @@ def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
         m = ACC_RE.match(f.name)
         if m and ((key := (int(m.group(1)), int(m.group(2)))) not in accs or m.group(3) is None):
             accs[key] = f
-    if limit is not None and limit <= 0:
+    if limit == 0:
         return
     labels_path = _find([raw, root], "labels.txt")
     names_path = _find([root, raw], "activity_labels.txt")

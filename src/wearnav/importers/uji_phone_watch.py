@@ -37,19 +37,25 @@ Placement: the phone is in a trousers pocket (its long axis is vertical while wa
 horizontal while seated; ``orientation`` says which way it faces — back/front, ``_inv`` upside
 down), the watch on a wrist: ``meta["placement"] = "pocket"`` (the phone's, as for the other
 phone sets) and ``meta["placements"]`` per device.
+
+Completeness: ``subjects_info.csv`` declares each subject's number of executions; a subject
+folder holding a different number (an incomplete copy) gives a one-line warning and
+``meta["executions_found"]`` on that subject's recordings.
 """
 
 from __future__ import annotations
 
+import collections
 import re
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.importers.common import check_finite, find_file, read_csv
+from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavWarning
+from wearnav.importers.common import check_finite, check_source, check_unix_time, find_file, read_csv
 from wearnav.recording import DeviceStream, Recording
 from wearnav.timeseries import period
 
@@ -179,6 +185,7 @@ def _read_device(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     df = read_csv(path, required=COLUMNS)
     vals = df[ACC + GYRO + ["timestamp"]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     check_finite(vals, "acc/gyro/timestamp", path)
+    check_unix_time(vals[:, 6] / 1e3, "timestamp", path)
     labels = df["label"]
     if labels.isna().any():
         raise FormatError(f"empty label at row {int(np.argmax(labels.isna().to_numpy()))}", path)
@@ -223,19 +230,36 @@ def read_execution(eid: str, files: dict[str, Path], subject: dict, execution: d
         raise exc.with_source(files["sp"]) from None
 
 
+def _count_mismatch(executions: dict, subjects: pd.DataFrame) -> dict[str, tuple[int, int]]:
+    """Subjects whose execution files number differently from subjects_info.csv's declared
+    ``executions`` (the one declared length of this format): sid → (declared, found)."""
+    found = collections.Counter(eid.split("_")[0] for eid in executions)
+    out = {}
+    for sid, n in found.items():
+        if sid in subjects.index:
+            declared = pd.to_numeric(subjects.loc[sid, "executions"], errors="coerce")
+            if np.isfinite(declared) and int(declared) != n:
+                out[sid] = (int(declared), n)
+    return out
+
+
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """Yield UJI executions (at most ``limit``) from the dataset root, ``DATA`` or a subject folder."""
-    src = Path(src)
-    if not src.exists():
-        raise MissingFileError("no such file or folder", src)
-    if not src.is_dir():
-        raise FormatError("expected the UJI dataset folder (or DATA, or a subject folder), got a file", src)
+    src, limit = check_source(src, limit, expect="the UJI dataset folder (or DATA, or a subject folder)",
+                              file=False)
     data = _data_dir(src)
     executions = _executions(data)
-    if limit is not None and limit <= 0:
+    if limit == 0:
         return
     subjects, subjects_path = _info_table(data, "subjects_info.csv", SUBJECT_COLUMNS)
     exec_info, exec_path = _info_table(data, "executions_info.csv", EXECUTION_COLUMNS)
+    mismatch = _count_mismatch(executions, subjects)
+    if mismatch:
+        shown = ", ".join(f"{sid} {declared} declared, {found} found" for sid, (declared, found) in mismatch.items())
+        warnings.warn(WearnavWarning(
+            f"{subjects_path}: executions column disagrees with the files ({shown}): files missing "
+            "(an incomplete copy?); those subjects' recordings are flagged in meta['executions_found']"),
+            stacklevel=2)
     for count, (eid, files) in enumerate(executions.items(), 1):
         sid = eid.split("_")[0]
         if sid not in subjects.index:
@@ -243,10 +267,13 @@ def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
         if eid not in exec_info.index:
             raise FormatError(f"execution {eid} is not listed", exec_path)
         execution = exec_info.loc[eid]
-        yield read_execution(
+        rec = read_execution(
             eid, files, _subject_meta(subjects.loc[sid], subjects_path),
             {"phone_orientation": str(execution["orientation"]),
              "first_turn": str(execution["first_turn"]), "second_turn": str(execution["second_turn"])},
         )
+        if sid in mismatch:
+            rec.meta["executions_found"] = mismatch[sid][1]
+        yield rec
         if limit is not None and count >= limit:
             return
