@@ -135,9 +135,10 @@ def _bandpass(z: np.ndarray, band: tuple[float, float], rate: float) -> np.ndarr
         sos = signal.butter(2, [lo, hi], btype="band", fs=rate, output="sos")
     else:
         sos = signal.butter(4, hi, fs=rate, output="sos")
-    if z.size <= 3 * 2 * len(sos):
+    if z.size < 2:
         return np.zeros_like(z)
-    return signal.sosfiltfilt(sos, z.real) + 1j * signal.sosfiltfilt(sos, z.imag)
+    pad = min(3 * (2 * len(sos) + 1), z.size - 1)  # scipy's default, shortened for short inputs
+    return signal.sosfiltfilt(sos, z.real, padlen=pad) + 1j * signal.sosfiltfilt(sos, z.imag, padlen=pad)
 
 
 def usable(mask: np.ndarray, rate: float, margin_s: float) -> np.ndarray:
@@ -281,10 +282,11 @@ def common_frame(imu: np.ndarray, mask: np.ndarray, devices: tuple[str, ...], ra
     for i, a in enumerate(present):
         for b in present[i + 1:]:
             w = (ok[a] & ok[b]).astype(np.float64)
-            if w.sum() > 0 and imu.shape[-1] >= 6:
-                lever = lever_regressor(0.5 * (imu[a, :, 5] + imu[b, :, 5]), rate)
-            if w.sum() > 0:
-                pairs[(a, b)] = relative_yaw(z[a], z[b], w, rate, cfg, lever if imu.shape[-1] >= 6 else None)
+            if w.sum() == 0:
+                continue
+            # the body's turn rate: both devices' vertical gyro (world z, the same in every yaw frame)
+            lever = lever_regressor(0.5 * (imu[a, :, 5] + imu[b, :, 5]), rate) if imu.shape[-1] >= 6 else None
+            pairs[(a, b)] = relative_yaw(z[a], z[b], w, rate, cfg, lever)
     # Initial phasors: direct edge to the reference where there is one, else 0.
     phasor = np.ones((D, T), complex)
     for d in present:
