@@ -178,10 +178,11 @@ def tiny(tmp_path_factory):
 
 def test_alignment_accuracy_on_the_tiny_preset(tiny):
     """Error against the simulator's reported-orientation yaw (drawn offset + yaw walk, recovered
-    by re-simulating), RMS over the time a device is worn, per recording. Measured with seed 0
-    (frames.py defaults): relative to the phone, median 1.3° (earbuds) / 1.7° (watch), p90 3.7° /
-    4.2°, max 7.8° / 7.7°; in the truth frame median ≤ 1.6°, max 7.2°. The naive Procrustes baseline
-    on the same data: relative medians 3.5° / 3.6°, max 13.0° / 11.1°. Thresholds leave ~1.5× room."""
+    by re-simulating), RMS over the time a device is worn, per recording. Measured with seed 0 and
+    frames.py's defaults (scripts/frame_alignment_report.py --data <tiny>): relative to the phone,
+    median 1.3° (earbuds) / 1.7° (watch), p90 3.7° / 4.2°, max 7.8° / 7.7°; in the truth frame
+    medians 0.7–1.3°, p90 ≤ 3.4°, max 7.6°. The naive Procrustes baseline on the same data:
+    relative medians 3.5° / 3.6°, max 13.0° / 11.1°. The thresholds leave ~1.5× room."""
     from wearnav.simulate.walk import reported_yaw_offset
 
     rel = {"watch": [], "earbuds": []}
