@@ -116,9 +116,12 @@ def main() -> None:
     ap.add_argument("--out", help="write the summary as Markdown here")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        ds = Dataset.open(args.data) if args.data else simulate_dataset(args.preset, tmp, seed=args.seed, progress=False)
+        if args.data:
+            ds = Dataset.open(args.data)
+        else:
+            ds = simulate_dataset(args.preset, tmp, seed=args.seed, progress=False)
         table = summary(alignment_report(ds))
-    text = table.to_markdown() if args.out else table.to_string()
+    text = table.reset_index().to_markdown(index=False) if args.out else table.to_string()
     if args.out:
         with open(args.out, "w") as f:
             f.write(text + "\n")
