@@ -180,8 +180,8 @@ def test_alignment_accuracy_on_the_tiny_preset(tiny):
     """Error against the simulator's reported-orientation yaw (drawn offset + yaw walk, recovered
     by re-simulating), RMS over the time a device is worn, per recording. Measured with seed 0 and
     frames.py's defaults (scripts/frame_alignment_report.py --data <tiny>): relative to the phone,
-    median 1.3° (earbuds) / 1.7° (watch), p90 3.7° / 4.2°, max 7.8° / 7.7°; in the truth frame
-    medians 0.7–1.3°, p90 ≤ 3.4°, max 7.6°. The naive Procrustes baseline on the same data:
+    median 1.3° (earbuds) / 1.9° (watch), p90 3.9° / 3.9°, max 4.9° / 7.4°; in the truth frame
+    medians 0.7–1.0°, p90 ≤ 3.1°, max 6.7°. The naive Procrustes baseline on the same data:
     relative medians 3.5° / 3.6°, max 13.0° / 11.1°. The thresholds leave ~1.5× room."""
     from wearnav.simulate.walk import reported_yaw_offset
 
@@ -211,6 +211,6 @@ def test_alignment_accuracy_on_the_tiny_preset(tiny):
     for dev, v in rel.items():
         v = np.array(v)
         assert len(v) >= 20
-        assert np.median(v) < 2.5 and np.percentile(v, 90) < 6.0 and v.max() < 12.0, (dev, np.median(v), v.max())
+        assert np.median(v) < 3.0 and np.percentile(v, 90) < 6.0 and v.max() < 11.0, (dev, np.median(v), v.max())
     absolute = np.array(absolute)
-    assert np.median(absolute) < 2.0 and np.percentile(absolute, 90) < 5.0 and absolute.max() < 11.0
+    assert np.median(absolute) < 2.0 and np.percentile(absolute, 90) < 5.0 and absolute.max() < 10.0

@@ -44,9 +44,9 @@ estimator between each device (already in the common frame) and the truth's acce
 positions only, never model predictions.
 
 Confidence figures (``YawTrack.info`` / ``std_deg``) are statistical. Measured on the simulator's
-`small` preset, the RMS error of the relative yaws is a median 1.6× (p90 4×) the reported
+`small` preset, the RMS error of the relative yaws is a median 1.4× (p90 4×) the reported
 ``std_deg``, because devices on different body parts do not move as exact rotated copies; the truth
-alignment's floor makes its ``std_deg`` about right (error/std median 0.7, p90 1.7).
+alignment's floor makes its ``std_deg`` about right (error/std median 0.65, p90 1.6).
 Errors per device and walking mode: ``scripts/frame_alignment_report.py``.
 
 Tried and dropped (no gain on `small`): Cauchy-reweighted fits against one device's own motion,
