@@ -18,6 +18,7 @@ import numpy as np
 from scipy import signal
 
 from wearnav.errors import ConfigError, ValidationError
+from wearnav.frames import FRAME_ALIGN_MODES, align_frames
 from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Recording
 from wearnav.rotations import from_wxyz
 from wearnav.timeseries import interp_onto, periods, rate
@@ -45,6 +46,11 @@ class PreprocessConfig:
     # clock offsets (the clock is cut to their overlap); a stream starting or ending further
     # inside is a device put on / taken off mid-walk and is masked instead of cutting the clock.
     edge_tolerance: float = 2.0
+    # One horizontal frame for all devices (wearnav.frames): "none" keeps each device's own yaw;
+    # "common" rotates every device into the reference device's frame (IMU only); "truth" also
+    # rotates that frame onto the truth's where the recording has truth, else it is "common".
+    # Only world-frame input is rotated (frame="device" has no common vertical).
+    frame_align: str = "truth"
 
     def __post_init__(self) -> None:
         if self.rate <= 0:
@@ -53,6 +59,8 @@ class PreprocessConfig:
             raise ConfigError(f"frame must be 'world' or 'device', got {self.frame!r}")
         if not self.devices:
             raise ConfigError("at least one device must be named")
+        if self.frame_align not in FRAME_ALIGN_MODES:
+            raise ConfigError(f"frame_align must be one of {', '.join(FRAME_ALIGN_MODES)}, got {self.frame_align!r}")
 
 
 @dataclass
@@ -163,4 +171,7 @@ def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig()) -> Aligned
     pos = None
     if rec.truth is not None:
         pos = interpolate_position(rec.truth.t, rec.truth.pos, t)
-    return Aligned(rec.name, t, tuple(cfg.devices), imu, mask, pos, dict(rec.meta), rec)
+    meta = dict(rec.meta)
+    if cfg.frame == "world" and cfg.frame_align != "none":
+        imu, meta["frame"] = align_frames(imu, mask, tuple(cfg.devices), cfg.rate, pos, cfg.frame_align)
+    return Aligned(rec.name, t, tuple(cfg.devices), imu, mask, pos, meta, rec)

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from wearnav.recording import DeviceStream, Recording, Trajectory
 from wearnav.simulate.body import Body
@@ -136,3 +137,19 @@ def simulate_walk(cfg: WalkConfig, seed=0) -> SimulatedWalk:
 def simulate_recording(cfg: WalkConfig, seed=0) -> Recording:
     """One simulated walk as a Recording; the same (cfg, seed) always gives identical arrays."""
     return simulate_walk(cfg, seed).recording
+
+
+def reported_yaw_offset(rec: Recording, t: np.ndarray) -> dict[str, np.ndarray]:
+    """For measuring frame alignments only: each device's yaw ψ(t) (rad, unwrapped) of its
+    reported world frame relative to the truth frame at times ``t`` — the drawn offset plus the
+    yaw walk, recovered by re-simulating the walk from ``meta`` (config and seed) and comparing the
+    reported orientation with the true one (R_out · R_trueᵀ = Rz(ψ) · small tilt error)."""
+    sw = simulate_walk(WalkConfig.from_dict(rec.meta["config"]), rec.meta["seed"])
+    out = {}
+    for dev, s in sw.recording.devices.items():
+        R_true = sw.devices[dev].R
+        R_out = Rotation.from_quat(s.quat, scalar_first=True).as_matrix()
+        M = R_out @ np.swapaxes(R_true, -1, -2)
+        psi = np.unwrap(np.arctan2(M[:, 1, 0], M[:, 0, 0]))
+        out[dev] = np.interp(t, s.t, psi)
+    return out
