@@ -193,7 +193,7 @@ def test_alignment_accuracy_on_the_tiny_preset(tiny):
         a = align(rec, PreprocessConfig(frame_align="none"))
         psi = reported_yaw_offset(rec, a.t)
         cf = frames.common_frame(a.imu, a.mask, a.devices, a.rate)
-        common = np.stack([frames.rotate_about_vertical(a.imu[d], -cf.yaw[d]) for d in range(3)])
+        common = np.stack([frames.rotate_stacked(a.imu[d], -cf.yaw[d]) for d in range(3)])
         tr = frames.truth_yaw(common, a.mask, a.pos, a.rate)
         assert a.devices[cf.reference] == "phone"
         for d, dev in enumerate(a.devices):

@@ -20,14 +20,13 @@ from collections.abc import Callable
 import torch
 
 from wearnav.errors import ConfigError
+from wearnav.rotations import rotate_about_vertical
 
 Batch = dict[str, torch.Tensor]
 Augmentation = Callable[[Batch, torch.Generator], Batch]
 
 AUGMENTATIONS: dict[str, Augmentation] = {}
 
-# (x, y) channel pairs of the 6 IMU channels that rotate about the vertical: acc xy, gyro xy
-HORIZONTAL_PAIRS = ((0, 1), (3, 4))
 TARGETS_2D = ("vel", "disp")
 
 
@@ -53,26 +52,19 @@ def apply(names, batch: Batch, generator: torch.Generator) -> Batch:
     return batch
 
 
-def rotate_xy(v: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.Tensor:
-    """Rotate the last axis (x, y) of ``v`` (B, ..., 2) by angles given per sample as cos/sin (B,)."""
-    shape = (-1,) + (1,) * (v.dim() - 2)
-    c, s = cos.view(shape).to(v.dtype), sin.view(shape).to(v.dtype)
-    x, y = v[..., 0], v[..., 1]
-    return torch.stack([c * x - s * y, s * x + c * y], dim=-1)
-
-
 def rotate_batch(batch: Batch, angle: torch.Tensor) -> Batch:
     """The batch with inputs and 2-D targets rotated about the vertical by ``angle`` (B,) rad
-    (v' = Rz(angle) v, counter-clockwise seen from above)."""
+    (v' = Rz(angle) v, counter-clockwise seen from above; :mod:`wearnav.rotations`)."""
     out = dict(batch)
-    cos, sin = torch.cos(angle), torch.sin(angle)
-    x = batch["x"].clone()
-    for i, j in HORIZONTAL_PAIRS:
-        x[..., [i, j]] = rotate_xy(batch["x"][..., [i, j]], cos, sin)
-    out["x"] = x
+    x = batch["x"]
+    yaw = angle.to(x.dtype).view(-1, *([1] * (x.dim() - 1)))  # (B, 1, 1, 1): one angle per sample
+    # (B, D, L, 6) as (B, D, L, 2, 3): acc and gyro 3-vectors, each rotated about z
+    out["x"] = rotate_about_vertical(x.reshape(*x.shape[:-1], -1, 3), yaw).reshape(x.shape)
     for key in TARGETS_2D:
         if key in batch:
-            out[key] = rotate_xy(batch[key], cos, sin)
+            v = batch[key]
+            v3 = torch.cat([v, torch.zeros_like(v[..., :1])], dim=-1)
+            out[key] = rotate_about_vertical(v3, angle.to(v.dtype).view(-1, *([1] * (v.dim() - 2))))[..., :2]
     return out
 
 

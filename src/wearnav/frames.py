@@ -60,9 +60,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 from scipy.ndimage import binary_erosion
-from scipy.spatial.transform import Rotation
 
 from wearnav.errors import ConfigError
+from wearnav.rotations import rotate_about_vertical
 
 FRAME_ALIGN_MODES = ("none", "common", "truth")
 MIN_POWER = 1e-4  # (m/s²)², band power of a 0.01 m/s² rms acceleration
@@ -141,16 +141,14 @@ def horizontal(x: np.ndarray) -> np.ndarray:
     return x[..., 0].astype(np.float64) + 1j * x[..., 1].astype(np.float64)
 
 
-def rotate_about_vertical(x: np.ndarray, yaw) -> np.ndarray:
+def rotate_stacked(x: np.ndarray, yaw) -> np.ndarray:
     """Rotate (T, 3k) stacked 3-vectors (acc xyz, gyro xyz, ...) about z by ``yaw`` (scalar or (T,))
-    rad: v' = Rz(yaw) v. Vertical channels are untouched."""
+    rad: v' = Rz(yaw) v (:func:`wearnav.rotations.rotate_about_vertical`). Vertical channels are
+    untouched."""
     x = np.asarray(x)
-    yaw = np.broadcast_to(np.asarray(yaw, np.float64), x.shape[:1])
-    rot = Rotation.from_euler("z", yaw[:, None])
-    out = np.empty_like(x)
-    for k in range(0, x.shape[1], 3):
-        out[:, k:k + 3] = rot.apply(x[:, k:k + 3].astype(np.float64))
-    return out
+    yaw = np.broadcast_to(np.asarray(yaw, np.float64), x.shape[:1])[:, None]
+    v = x.reshape(x.shape[0], -1, 3).astype(np.float64)
+    return rotate_about_vertical(v, yaw).reshape(x.shape).astype(x.dtype)
 
 
 def _bandpass(z: np.ndarray, band: tuple[float, float], rate: float) -> np.ndarray:
@@ -450,12 +448,12 @@ def align_frames(imu: np.ndarray, mask: np.ndarray, devices: tuple[str, ...], ra
             record["devices"][name] = YawTrack(cf.yaw[d], cf.info[d], pair.bands if pair else (),
                                                pair.coherence if pair else 0.0).summary()
     if mode == "truth" and pos is not None:
-        common = np.stack([rotate_about_vertical(imu[d], -cf.yaw[d]) for d in range(len(devices))])
+        common = np.stack([rotate_stacked(imu[d], -cf.yaw[d]) for d in range(len(devices))])
         tr = truth_yaw(common, mask, pos, rate, cfg)
         if tr.info.any():
             total = total + tr.yaw[None, :]
             record["frame"] = "truth"
             record["truth"] = tr.summary()
-    out = np.stack([rotate_about_vertical(imu[d], -total[d]) for d in range(len(devices))])
+    out = np.stack([rotate_stacked(imu[d], -total[d]) for d in range(len(devices))])
     out[~mask] = 0.0
     return out.astype(imu.dtype), record
