@@ -9,7 +9,7 @@ import pytest
 from wearnav import cli
 from wearnav.dataset import Dataset, DatasetWriter
 
-from test_train_odometry import TinyMLP  # noqa: F401  (registers "test-mlp")
+from test_train_odometry import TinyGait  # noqa: F401  (registers "test-mlp")
 
 
 def run(monkeypatch, capsys, *args):
@@ -75,6 +75,7 @@ def test_one_line_errors(tiny, tmp_path, monkeypatch, capsys):
             rec = ds.load(name)
             w.add(replace(rec, truth=None), split=ds.manifest.set_index("name").loc[name, "split"])
     code, _, err = run(monkeypatch, capsys, "train", "test-mlp", "--data", tmp_path / "notruth", "--out", tmp_path / "b")
-    assert code == 2 and "no training" in err and err.count("\n") == 1
+    assert code == 2 and "no training data" in err and err.count("\n") == 1
+    assert not (tmp_path / "b").exists()
     code, _, err = run(monkeypatch, capsys, "eval", tmp_path / "nowhere")
     assert code == 2 and "not a run folder" in err

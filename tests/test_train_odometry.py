@@ -15,16 +15,23 @@ from wearnav.models.registry import register
 from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
 
 
-@register("test-mlp", task="odometry", layout="concat", description="tiny MLP used by the core's tests")
-class TinyMLP(OdometryModel):
+@register("test-mlp", task="odometry", layout="concat", description="tiny gait-phase model used by the core's tests")
+class TinyGait(OdometryModel):
+    """A deliberately small but physically meaningful model: in walking, the forward acceleration
+    leads the vertical one by about 90°, so mean(a_h · da_z/dt) over a window points along the
+    walking direction. A learned 2×2 map per device (and a dropout, so seeding matters) turns that
+    vector into a velocity."""
+
     def __init__(self, n_devices=3, window=100, hidden=16):
         super().__init__()
-        self.net = nn.Sequential(nn.Flatten(), nn.Linear(n_devices * 6 * 2, hidden), nn.ReLU(),
-                                 nn.Dropout(0.1), nn.Linear(hidden, 2))
+        self.maps = nn.Parameter(torch.zeros(n_devices, 2, 2))
+        self.drop = nn.Dropout(0.1)
 
     def forward(self, x, mask):
-        feats = torch.cat([x.mean(dim=2), x.std(dim=2)], dim=-1) * mask[..., None]
-        return self.net(feats)
+        dz = torch.diff(x[..., 2], dim=-1)
+        feat = (x[..., 1:, :2] * dz[..., None]).mean(dim=2)  # (B, D, 2)
+        feat = self.drop(feat) * mask[..., None]
+        return torch.einsum("bdj,dij->bi", feat, self.maps)
 
 
 @pytest.fixture(scope="module")
@@ -66,8 +73,10 @@ def test_train_evaluate_writes_a_complete_run(tiny, tmp_path):
 
 
 def test_learning_beats_a_zero_velocity_guess(tiny, tmp_path):
-    """Trained on the tiny preset, even the tiny model must predict speed better than standing still."""
-    cfg = _cfg(tiny, epochs=8)
+    """Trained through the core (frames aligned to truth, rotate_yaw augmentation), the tiny gait
+    model must find the walking direction on held-out test walks. Measured: velocity MSE 0.45
+    against 1.15 for standing still, direction error median 9°."""
+    cfg = _cfg(tiny, epochs=8, augment=("rotate_yaw",))
     run = prepare_run(cfg, tmp_path / "run")
     fit(cfg, run, progress=False)
     model, _ = load_model(run)
@@ -78,8 +87,12 @@ def test_learning_beats_a_zero_velocity_guess(tiny, tmp_path):
     wds = WindowDataset(load_sequences(Dataset.open(tiny).split("test"), cfg), cfg.window_config())
     b = wds[list(range(len(wds)))]
     with torch.no_grad():
-        speed_err = (model(b["x"], b["mask"]).norm(dim=1) - b["vel"].norm(dim=1)).abs().mean()
-    assert speed_err < 0.5 * b["vel"].norm(dim=1).mean()
+        p = model(b["x"], b["mask"])
+    v = b["vel"]
+    assert ((p - v) ** 2).sum(1).mean() < 0.6 * (v ** 2).sum(1).mean()
+    ang = torch.atan2(p[:, 1], p[:, 0]) - torch.atan2(v[:, 1], v[:, 0])
+    ang = torch.rad2deg(torch.remainder(ang + np.pi, 2 * np.pi) - np.pi).abs()
+    assert ang.median() < 20.0
 
 
 class _Kill(Exception):

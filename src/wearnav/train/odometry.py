@@ -266,6 +266,7 @@ def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
     from wearnav.dataset import Dataset
 
     run = Path(run)
+    registry.get(cfg.model)  # an unknown model is refused before anything is written
     record = run_record(cfg)
     if (run / runs.CONFIG).is_file():
         old = runs.read_config(run)["config"]
@@ -275,6 +276,14 @@ def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
     if run.exists() and (not run.is_dir() or any(run.iterdir())):
         raise ConfigError("exists and is not an empty folder or a run folder; choose another --out", run)
     ds = Dataset.open(cfg.data)
+    if registry.get(cfg.model).learned:
+        for split in (cfg.train_split, cfg.val_split):
+            view = ds.split(split)
+            if len(view) == 0:
+                raise ValidationError(f"split {split!r} is empty", cfg.data)
+            if (view.manifest["truth_points"].astype(float) < 2).all():
+                raise ValidationError(f"no training data: the {split!r} recordings have no truth positions "
+                                      "(odometry training needs truth)", cfg.data)
     run.mkdir(parents=True, exist_ok=True)
     runs.write_config(run, record, {"data_provenance": ds.provenance})
     return run
