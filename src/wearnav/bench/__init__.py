@@ -1,0 +1,1 @@
+"""The papers' experiments and measurements: run lists, table builders, the efficiency benchmark."""

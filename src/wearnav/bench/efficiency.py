@@ -1,0 +1,121 @@
+"""Model efficiency (paper 000, Table VI analogue) for any registered odometry model.
+
+For one model: trainable parameters; FLOPs of one forward pass on one window
+(:class:`torch.utils.flop_counter.FlopCounterMode`, which counts a multiply-add as 2 FLOPs and
+counts only matrix products and convolutions); inference windows/s on this CPU at batch 1 and
+256 (eval mode, ``torch.inference_mode``, warm-up, median of repeats); and, in the same run, the
+CPU's dense fp32 rate (a large square matmul), so that
+
+    fraction of the FLOP-bound limit = FLOPs/window × windows/s ÷ dense FLOP/s.
+
+A fraction near 1 means the model runs as fast as its arithmetic allows; small temporal
+convolutions are usually memory-bound and sit far below. On a shared machine every timing is
+noisy: each figure is the median of ``repeats`` timed calls, and the dense rate is measured
+between the model timings (median as well) so both see the same load.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable, Sequence
+
+import torch
+from torch.utils.flop_counter import FlopCounterMode
+
+from wearnav.models.registry import build, get, n_parameters
+
+DEVICES = 3
+WINDOW = 100
+IMU_CHANNELS = 6
+
+
+def _median_seconds(fn: Callable[[], object], repeats: int, warmup: int = 2,
+                    min_time: float = 0.0) -> float:
+    """Median wall time of ``fn``; a call shorter than ``min_time`` is repeated inside one sample."""
+    for _ in range(warmup):
+        fn()
+    inner = 1
+    if min_time > 0:
+        t0 = time.perf_counter()
+        fn()
+        inner = max(1, int(min_time / max(time.perf_counter() - t0, 1e-9)))
+    samples = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(inner):
+            fn()
+        samples.append((time.perf_counter() - t0) / inner)
+    return statistics.median(samples)
+
+
+def dense_gflops(n: int = 2048, repeats: int = 5) -> float:
+    """Measured dense fp32 matmul rate of this CPU in GFLOP/s (2·n³ FLOPs per n×n product)."""
+    a, b = torch.randn(n, n), torch.randn(n, n)
+    with torch.inference_mode():
+        dt = _median_seconds(lambda: a @ b, repeats, warmup=1)
+    return 2 * n**3 / dt / 1e9
+
+
+def window_batch(batch: int, n_devices: int = DEVICES, window: int = WINDOW,
+                 seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+    """Random world-frame windows with every device present (the shapes, not the values, matter)."""
+    g = torch.Generator().manual_seed(seed)
+    return torch.randn(batch, n_devices, window, IMU_CHANNELS, generator=g), torch.ones(batch, n_devices)
+
+
+def flops_per_window(model: torch.nn.Module, n_devices: int = DEVICES, window: int = WINDOW) -> int:
+    """FLOPs of one forward pass at batch 1 (eval mode), as FlopCounterMode counts them."""
+    x, mask = window_batch(1, n_devices, window)
+    model.eval()
+    with torch.inference_mode(), FlopCounterMode(display=False) as counter:
+        model(x, mask)
+    return int(counter.get_total_flops())
+
+
+def windows_per_second(model: torch.nn.Module, batch: int, repeats: int = 7,
+                       n_devices: int = DEVICES, window: int = WINDOW) -> float:
+    """Inference throughput at a batch size: eval mode, inference_mode, median of repeats."""
+    x, mask = window_batch(batch, n_devices, window)
+    model.eval()
+    with torch.inference_mode():
+        dt = _median_seconds(lambda: model(x, mask), repeats, warmup=3, min_time=0.02)
+    return batch / dt
+
+
+def measure(model: torch.nn.Module | str, name: str | None = None, batches: Sequence[int] = (1, 256),
+            repeats: int = 7, n_devices: int = DEVICES, window: int = WINDOW, **build_kw) -> dict:
+    """One row of the efficiency table for a model (an instance or a registered name)."""
+    if isinstance(model, str):
+        name = name or model
+        if get(model).task != "odometry":
+            raise ValueError(f"{model!r} is not an odometry model")
+        model = build(model, n_devices=n_devices, window=window, **build_kw)
+    name = name or type(model).__name__
+    flops = flops_per_window(model, n_devices, window)
+    row: dict = {"model": name, "params": n_parameters(model), "mflops_per_window": flops / 1e6}
+    dense = []
+    for b in batches:
+        dense.append(dense_gflops())
+        row[f"win_per_s_b{b}"] = windows_per_second(model, b, repeats, n_devices, window)
+    dense.append(dense_gflops())
+    row["dense_gflops"] = statistics.median(dense)
+    for b in batches:
+        row[f"fraction_b{b}"] = flops * row[f"win_per_s_b{b}"] / (row["dense_gflops"] * 1e9)
+    row["threads"] = torch.get_num_threads()
+    return row
+
+
+def table(models: Sequence[str], **kw):
+    """Rows for several registered models as a pandas DataFrame."""
+    import pandas as pd
+
+    return pd.DataFrame([measure(m, **kw) for m in models])
+
+
+if __name__ == "__main__":  # python -m wearnav.bench.efficiency [MODEL ...]
+    import sys
+
+    names = sys.argv[1:] or ["suitein++", "suitein"]
+    with torch.no_grad():
+        print(table(names).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
