@@ -76,6 +76,7 @@ from dataclasses import dataclass, replace
 import torch
 from torch import Tensor, nn
 from torch.nn import functional as F
+from torch.utils.flop_counter import conv_flop_count, register_flop_formula
 
 from wearnav.errors import ConfigError
 from wearnav.models.base import OdometryModel
@@ -160,12 +161,19 @@ class MaskedBatchNorm(nn.Module):
         if not self.training:
             scale, shift = self.scale_shift()
             return y * scale.view(1, -1, 1, 1) + shift.view(1, -1, 1, 1)
+        if bool(group_mask.all()):      # nobody absent: PyTorch's fused kernel, same statistics
+            return F.batch_norm(y, self.running_mean, self.running_var, self.weight, self.bias,
+                                True, self.momentum, self.eps)
         B, _, _, T = y.shape
-        yg = y.reshape(B, self.groups, self.channels, T)
-        m = group_mask.view(B, self.groups, 1, 1)
-        n = (group_mask.sum(0) * T).view(self.groups, 1)           # present (sample, step) pairs
-        mean = (yg * m).sum((0, 3)) / n.clamp(min=1)
-        var = ((yg - mean.view(1, self.groups, self.channels, 1)) ** 2 * m).sum((0, 3)) / n.clamp(min=1)
+        G, C = self.groups, self.channels
+        # (B, T, G, C) is the memory order of a channels-last (B, G·C, 1, T): a view, and the
+        # element-wise work below runs over contiguous channels.
+        yt = y.permute(0, 2, 3, 1).reshape(B, T, G, C)
+        m = group_mask.view(B, 1, G, 1)
+        n = (group_mask.sum(0) * T).view(G, 1)                   # present (sample, step) pairs
+        mean = (yt * m).sum((0, 1)) / n.clamp(min=1)
+        centred = yt - mean
+        var = (centred.square() * m).sum((0, 1)) / n.clamp(min=1)
         with torch.no_grad():
             seen = (n > 1).expand_as(mean).reshape(-1)        # groups with nobody present keep theirs
             unbiased = (var * n / (n - 1).clamp(min=1)).reshape(-1)
@@ -173,9 +181,9 @@ class MaskedBatchNorm(nn.Module):
             upd_var = torch.lerp(self.running_var, unbiased, self.momentum)
             self.running_mean.copy_(torch.where(seen, upd_mean, self.running_mean))
             self.running_var.copy_(torch.where(seen, upd_var, self.running_var))
-        yhat = (yg - mean.view(1, self.groups, self.channels, 1)) * torch.rsqrt(
-            var.view(1, self.groups, self.channels, 1) + self.eps)
-        return yhat.reshape_as(y) * self.weight.view(1, -1, 1, 1) + self.bias.view(1, -1, 1, 1)
+        scale = torch.rsqrt(var + self.eps) * self.weight.view(G, C)
+        out = centred * scale + self.bias.view(G, C)
+        return out.reshape(B, 1, T, G * C).permute(0, 3, 1, 2)
 
 
 def max_pool_time(h: Tensor, p: int) -> Tensor:
@@ -193,6 +201,10 @@ def max_pool_time(h: Tensor, p: int) -> Tensor:
 
 # oneDNN convolution with the ReLU fused in (what torch.compile uses on a CPU); inference only.
 _CONV_RELU = getattr(torch.ops.mkldnn, "_convolution_pointwise", None) if torch.backends.mkldnn.is_available() else None
+if _CONV_RELU is not None:      # let FlopCounterMode count it like any convolution
+    @register_flop_formula(_CONV_RELU)
+    def _conv_relu_flops(x_shape, w_shape, *args, out_shape=None, **kwargs) -> int:
+        return conv_flop_count(x_shape, w_shape, out_shape)
 
 
 def conv_relu(h: Tensor, w: Tensor, b: Tensor, conv: nn.Conv2d) -> Tensor:
