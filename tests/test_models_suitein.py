@@ -11,8 +11,8 @@ from torch.nn import functional as F
 from wearnav.errors import ConfigError
 from wearnav.models import registry
 from wearnav.models.base import OdometryModel
-from wearnav.models.suitein import (ABLATIONS, MaskedBatchNorm, SuiteIN, SuiteINConfig,
-                                    contrastive_loss, fusion_weights, orthogonality_loss)
+from wearnav.models.suitein import (ABLATIONS, MaskedBatchNorm, _MaskedBatchNormFn, contrastive_loss,
+                                    fusion_weights, orthogonality_loss)
 
 # Small widths keep the tests fast; the paper-sized model is built where its size matters.
 TINY = dict(widths=(8, 8, 8, 12, 12, 12), gru_hidden=16, loc_dim=16, loc_hidden=16)
@@ -25,6 +25,15 @@ MASKS = {
     "phone only": [1, 0, 0],
     "earbuds only": [0, 0, 1],
 }
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_thread():
+    """These tiny models only wait on each other's threads on a shared 2-core machine."""
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
 
 
 def tiny(name="suitein++", **kw):
@@ -253,7 +262,7 @@ def test_masked_batch_norm_uses_present_samples_only():
         assert torch.allclose(out[keep, 3 * g:3 * g + 3, 0], ref, atol=1e-5)
         assert torch.allclose(bn.running_mean[3 * g:3 * g + 3], ref_mean, atol=1e-6)
         assert torch.allclose(bn.running_var[3 * g:3 * g + 3], ref_var, atol=1e-5)
-    # Everyone present: the same as PyTorch's batch norm (the fast path), statistics included.
+    # Everyone present: the same as PyTorch's batch norm, running statistics included.
     bn2, ref_mean, ref_var = MaskedBatchNorm(groups=2, channels=3).train(), torch.zeros(6), torch.ones(6)
     out = bn2(y, torch.ones(5, 2))
     assert torch.allclose(out, F.batch_norm(y, ref_mean, ref_var, training=True, momentum=0.1), atol=1e-5)
@@ -263,6 +272,16 @@ def test_masked_batch_norm_uses_present_samples_only():
     y3 = torch.cat([y, y[:1]])
     out3 = bn3(y3, torch.tensor([[1.0, 1.0]] * 5 + [[0.0, 0.0]]))
     assert torch.allclose(out3[:5], out, atol=1e-5) and torch.allclose(bn3.running_var, ref_var, atol=1e-5)
+
+
+def test_masked_batch_norm_gradient():
+    """The hand-written backward against finite differences, with absent samples."""
+    g = torch.Generator().manual_seed(0)
+    y = torch.randn(5, 4, 2, 3, dtype=torch.float64, generator=g).requires_grad_()
+    m = torch.tensor([[1, 1], [1, 0], [0, 1], [1, 1], [1, 0]], dtype=torch.float64)
+    w = (torch.rand(2, 3, dtype=torch.float64, generator=g) + 0.5).requires_grad_()
+    b = torch.randn(2, 3, dtype=torch.float64, generator=g).requires_grad_()
+    assert torch.autograd.gradcheck(lambda y, w, b: _MaskedBatchNormFn.apply(y, m, w, b, 1e-5)[0], (y, w, b))
 
 
 def test_grouped_inference_equals_separate_extractors():

@@ -11,7 +11,10 @@ CPU's dense fp32 rate (a large square matmul), so that
 A fraction near 1 means the model runs as fast as its arithmetic allows; small temporal
 convolutions are usually memory-bound and sit far below. On a shared machine every timing is
 noisy: each figure is the median of ``repeats`` timed calls, and the dense rate is measured
-between the model timings (median as well) so both see the same load.
+between the model timings (median as well) so both see the same load. ``clock="cpu"`` times with
+the process's CPU time instead of the wall clock: with one thread it leaves out the time other
+programs hold the core, which makes the fraction reproducible on a busy machine (memory and
+cache contention remain).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from __future__ import annotations
 import statistics
 import time
 from collections.abc import Callable, Sequence
+from contextlib import contextmanager
 
 import torch
 from torch.utils.flop_counter import FlopCounterMode
@@ -30,30 +34,44 @@ WINDOW = 100
 IMU_CHANNELS = 6
 
 
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+
+
 def _median_seconds(fn: Callable[[], object], repeats: int, warmup: int = 2,
-                    min_time: float = 0.0) -> float:
-    """Median wall time of ``fn``; a call shorter than ``min_time`` is repeated inside one sample."""
+                    min_time: float = 0.0, clock: str = "wall") -> float:
+    """Median time of ``fn``; a call shorter than ``min_time`` is repeated inside one sample."""
+    now = CLOCKS[clock]
     for _ in range(warmup):
         fn()
     inner = 1
     if min_time > 0:
-        t0 = time.perf_counter()
+        t0 = now()
         fn()
-        inner = max(1, int(min_time / max(time.perf_counter() - t0, 1e-9)))
+        inner = max(1, int(min_time / max(now() - t0, 1e-6)))
     samples = []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0 = now()
         for _ in range(inner):
             fn()
-        samples.append((time.perf_counter() - t0) / inner)
-    return statistics.median(samples)
+        samples.append((now() - t0) / inner)
+    return max(statistics.median(samples), 1e-9)
 
 
-def dense_gflops(n: int = 2048, repeats: int = 5) -> float:
+@contextmanager
+def _threads(n: int | None):
+    old = torch.get_num_threads()
+    torch.set_num_threads(n or old)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(old)
+
+
+def dense_gflops(n: int = 2048, repeats: int = 5, clock: str = "wall") -> float:
     """Measured dense fp32 matmul rate of this CPU in GFLOP/s (2·n³ FLOPs per n×n product)."""
     a, b = torch.randn(n, n), torch.randn(n, n)
     with torch.inference_mode():
-        dt = _median_seconds(lambda: a @ b, repeats, warmup=1)
+        dt = _median_seconds(lambda: a @ b, repeats, warmup=1, clock=clock)
     return 2 * n**3 / dt / 1e9
 
 
@@ -74,18 +92,27 @@ def flops_per_window(model: torch.nn.Module, n_devices: int = DEVICES, window: i
 
 
 def windows_per_second(model: torch.nn.Module, batch: int, repeats: int = 7,
-                       n_devices: int = DEVICES, window: int = WINDOW) -> float:
+                       n_devices: int = DEVICES, window: int = WINDOW, clock: str = "wall") -> float:
     """Inference throughput at a batch size: eval mode, inference_mode, median of repeats."""
     x, mask = window_batch(batch, n_devices, window)
     model.eval()
     with torch.inference_mode():
-        dt = _median_seconds(lambda: model(x, mask), repeats, warmup=3, min_time=0.02)
+        dt = _median_seconds(lambda: model(x, mask), repeats, warmup=3, min_time=0.02, clock=clock)
     return batch / dt
 
 
 def measure(model: torch.nn.Module | str, name: str | None = None, batches: Sequence[int] = (1, 256),
-            repeats: int = 7, n_devices: int = DEVICES, window: int = WINDOW, **build_kw) -> dict:
-    """One row of the efficiency table for a model (an instance or a registered name)."""
+            repeats: int = 7, n_devices: int = DEVICES, window: int = WINDOW, threads: int | None = None,
+            clock: str = "wall", **build_kw) -> dict:
+    """One row of the efficiency table for a model (an instance or a registered name), with
+    ``threads`` intra-op threads (default: torch's current setting)."""
+    if clock not in CLOCKS:
+        raise ValueError(f"clock must be one of {sorted(CLOCKS)}, got {clock!r}")
+    with _threads(threads):
+        return _measure(model, name, batches, repeats, n_devices, window, clock, build_kw)
+
+
+def _measure(model, name, batches, repeats, n_devices, window, clock, build_kw) -> dict:
     if isinstance(model, str):
         name = name or model
         if get(model).task != "odometry":
@@ -96,13 +123,14 @@ def measure(model: torch.nn.Module | str, name: str | None = None, batches: Sequ
     row: dict = {"model": name, "params": n_parameters(model), "mflops_per_window": flops / 1e6}
     dense = []
     for b in batches:
-        dense.append(dense_gflops())
-        row[f"win_per_s_b{b}"] = windows_per_second(model, b, repeats, n_devices, window)
-    dense.append(dense_gflops())
+        dense.append(dense_gflops(clock=clock))
+        row[f"win_per_s_b{b}"] = windows_per_second(model, b, repeats, n_devices, window, clock)
+    dense.append(dense_gflops(clock=clock))
     row["dense_gflops"] = statistics.median(dense)
     for b in batches:
         row[f"fraction_b{b}"] = flops * row[f"win_per_s_b{b}"] / (row["dense_gflops"] * 1e9)
     row["threads"] = torch.get_num_threads()
+    row["clock"] = clock
     return row
 
 
@@ -113,9 +141,14 @@ def table(models: Sequence[str], **kw):
     return pd.DataFrame([measure(m, **kw) for m in models])
 
 
-if __name__ == "__main__":  # python -m wearnav.bench.efficiency [MODEL ...]
-    import sys
+if __name__ == "__main__":  # python -m wearnav.bench.efficiency [--threads N] [--clock cpu] [MODEL ...]
+    import argparse
 
-    names = sys.argv[1:] or ["suitein++", "suitein"]
-    with torch.no_grad():
-        print(table(names).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("models", nargs="*", default=["suitein++", "suitein"])
+    ap.add_argument("--threads", type=int, default=None)
+    ap.add_argument("--clock", choices=sorted(CLOCKS), default="wall")
+    ap.add_argument("--repeats", type=int, default=7)
+    a = ap.parse_args()
+    rows = table(a.models, threads=a.threads, clock=a.clock, repeats=a.repeats)
+    print(rows.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
