@@ -144,6 +144,19 @@ def test_single_device_batch_has_zero_pair_losses_and_finite_gradients():
     assert all(torch.isfinite(p.grad).all() for p in m.parameters() if p.grad is not None)
 
 
+def test_batch_without_any_phone_trains():
+    """A device absent from the whole batch: its batch statistics are empty, nothing blows up."""
+    m = tiny(dropout=0.0)
+    b = batch(mask=[0, 1, 1])
+    total, parts = m.loss(b)
+    total.backward()
+    assert all(torch.isfinite(v) for v in parts.values())
+    assert all(torch.isfinite(p.grad).all() for p in m.parameters() if p.grad is not None)
+    with torch.no_grad():
+        h_glb, h_loc = m.features(b["x"], b["mask"])
+    assert h_glb.abs().max() < 1e3 and h_loc.abs().max() < 1e3
+
+
 def test_fusion_weights_of_a_sample_without_devices_are_zero():
     alpha = fusion_weights(torch.randn(2, 3), torch.tensor([[0.0, 0, 0], [1, 1, 0]]), 9, 0.01, 10)
     assert torch.equal(alpha[0], torch.zeros(3)) and alpha[1, 2] == 0
