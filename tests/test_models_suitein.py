@@ -412,7 +412,10 @@ def test_efficiency_row():
     assert efficiency.flops_per_window(lin) == 2 * 1800 * 2     # a multiply-add is 2 FLOPs
     row = efficiency.measure(lin, name="linear", batches=(1, 8), repeats=2)
     assert row["params"] == 1800 * 2 + 2 and row["mflops_per_window"] == pytest.approx(0.0072)
-    assert row["dense_gflops"] > 0.1 and row["win_per_s_b8"] > 0
+    assert row["dense_gflops"] > 0.1 and row["win_per_s_b8"] > 0 and row["train_step_s_b128"] > 0
+    before = lin.fc.weight.clone()
+    assert efficiency.train_step_seconds(lin, batch=4, repeats=1) > 0
+    assert torch.equal(lin.fc.weight, before)       # timed on a copy
     assert row["fraction_b8"] == pytest.approx(
         row["mflops_per_window"] * 1e6 * row["win_per_s_b8"] / (row["dense_gflops"] * 1e9))
     with pytest.raises(ConfigError):

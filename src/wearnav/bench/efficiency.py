@@ -101,18 +101,39 @@ def windows_per_second(model: torch.nn.Module, batch: int, repeats: int = 7,
     return batch / dt
 
 
+def train_step_seconds(model: torch.nn.Module, batch: int = 128, repeats: int = 5,
+                       n_devices: int = DEVICES, window: int = WINDOW, clock: str = "wall") -> float:
+    """Seconds of one Adam step on ``model.loss`` (forward, backward, update) at a batch size:
+    the model's share of a training epoch, without the data path. Works on a copy, so the
+    model's weights and statistics are left as they were."""
+    import copy
+
+    model = copy.deepcopy(model).train()
+    x, mask = window_batch(batch, n_devices, window)
+    b = {"x": x, "mask": mask, "vel": torch.randn(batch, 2, generator=torch.Generator().manual_seed(1))}
+    opt = torch.optim.Adam(model.parameters(), lr=1e-4)
+
+    def step():
+        opt.zero_grad(set_to_none=True)
+        model.loss(b)[0].backward()
+        opt.step()
+
+    return _median_seconds(step, repeats, warmup=2, clock=clock)
+
+
 def measure(model: torch.nn.Module | str, name: str | None = None, batches: Sequence[int] = (1, 256),
             repeats: int = 7, n_devices: int = DEVICES, window: int = WINDOW, threads: int | None = None,
-            clock: str = "wall", **build_kw) -> dict:
+            clock: str = "wall", train_batch: int | None = 128, **build_kw) -> dict:
     """One row of the efficiency table for a model (an instance or a registered name), with
-    ``threads`` intra-op threads (default: torch's current setting)."""
+    ``threads`` intra-op threads (default: torch's current setting); ``train_batch`` None skips
+    the training-step timing."""
     if clock not in CLOCKS:
         raise ValueError(f"clock must be one of {sorted(CLOCKS)}, got {clock!r}")
     with _threads(threads):
-        return _measure(model, name, batches, repeats, n_devices, window, clock, build_kw)
+        return _measure(model, name, batches, repeats, n_devices, window, clock, train_batch, build_kw)
 
 
-def _measure(model, name, batches, repeats, n_devices, window, clock, build_kw) -> dict:
+def _measure(model, name, batches, repeats, n_devices, window, clock, train_batch, build_kw) -> dict:
     if isinstance(model, str):
         name = name or model
         if get(model).task != "odometry":
@@ -129,6 +150,9 @@ def _measure(model, name, batches, repeats, n_devices, window, clock, build_kw) 
     row["dense_gflops"] = statistics.median(dense)
     for b in batches:
         row[f"fraction_b{b}"] = flops * row[f"win_per_s_b{b}"] / (row["dense_gflops"] * 1e9)
+    if train_batch and getattr(model, "learned", True) and any(p.requires_grad for p in model.parameters()):
+        row[f"train_step_s_b{train_batch}"] = train_step_seconds(model, train_batch, max(3, repeats // 2),
+                                                               n_devices, window, clock)
     row["threads"] = torch.get_num_threads()
     row["clock"] = clock
     return row
@@ -149,6 +173,7 @@ if __name__ == "__main__":  # python -m wearnav.bench.efficiency [--threads N] [
     ap.add_argument("--threads", type=int, default=None)
     ap.add_argument("--clock", choices=sorted(CLOCKS), default="wall")
     ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--train-batch", type=int, default=128, help="0 skips the training step")
     a = ap.parse_args()
-    rows = table(a.models, threads=a.threads, clock=a.clock, repeats=a.repeats)
+    rows = table(a.models, threads=a.threads, clock=a.clock, repeats=a.repeats, train_batch=a.train_batch)
     print(rows.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
