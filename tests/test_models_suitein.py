@@ -420,3 +420,31 @@ def test_efficiency_row():
         row["mflops_per_window"] * 1e6 * row["win_per_s_b8"] / (row["dense_gflops"] * 1e9))
     with pytest.raises(ConfigError):
         efficiency.measure("no-such-model")
+
+
+# --- the data contract -------------------------------------------------------------------------
+
+def test_trains_on_window_dataset_batches():
+    """Batches of :class:`wearnav.windows.WindowDataset` (default collate) go straight into
+    ``loss`` and ``forward``, including windows where the earbuds are out (mask 0)."""
+    from torch.utils.data import DataLoader
+
+    from synthetic import synthetic_recording
+    from wearnav.windows import WindowConfig, WindowDataset
+
+    rec = synthetic_recording(duration=40.0)
+    ds = WindowDataset.from_recordings([rec], wcfg=WindowConfig(window=100, stride=20))
+    masks = torch.stack([ds[i]["mask"] for i in range(len(ds))])
+    assert (masks[:, 2] == 0).any() and (masks[:, 2] == 1).any()     # earbuds out for a while
+    m = tiny()
+    opt = torch.optim.Adam(m.parameters(), lr=1e-3)
+    for b in DataLoader(ds, batch_size=16, shuffle=True, generator=torch.Generator().manual_seed(0)):
+        total, parts = m.loss(b)
+        opt.zero_grad()
+        total.backward()
+        opt.step()
+        assert torch.isfinite(total) and all(torch.isfinite(v) for v in parts.values())
+    m.eval()
+    b = next(iter(DataLoader(ds, batch_size=len(ds))))
+    with torch.no_grad():
+        assert torch.isfinite(m(b["x"], b["mask"])).all()
