@@ -1,1 +1,1 @@
-"""The papers' experiments as declarative suites of run configs, with their table builders."""
+"""The papers' experiments and measurements: run lists, table builders, the efficiency benchmark."""
