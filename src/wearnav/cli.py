@@ -141,7 +141,7 @@ def models_():
             n = f"{n_parameters(spec.build(n_devices=3, window=100)):,}"
         except Exception as exc:  # a model that cannot be built with defaults still gets listed
             n = f"? ({type(exc).__name__})"
-        typer.echo(f"{spec.name:12s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
+        typer.echo(f"{spec.name:15s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
 
 
 @app.command()
