@@ -212,6 +212,27 @@ def bench_odometry(
     typer.echo(f"wrote {page}")
 
 
+@bench_app.command("efficiency")
+def bench_efficiency(
+    out: Path = typer.Option(Path("runs/efficiency"), "--out", help="Folder for results.md / results.json."),
+    models: str = typer.Option("suitein++,suitein,ronin,ronin*,pdr", help="Models, comma-separated."),
+    threads: Optional[int] = typer.Option(None, min=1, help="Intra-op threads (default: torch's)."),
+    clock: str = typer.Option("wall", help="wall | cpu (CPU time: steadier on a shared machine with 1 thread)."),
+    repeats: int = typer.Option(7, min=1),
+    odometry_suite: Optional[Path] = typer.Option(None, help="Odometry suite folder: adds its training s/epoch."),
+):
+    """Parameters, FLOPs per window, inference windows/s at batch 1 and 256, fraction of the FLOP-bound limit."""
+    from wearnav.bench.efficiency import CLOCKS, measure, write_report
+
+    if clock not in CLOCKS:
+        raise typer.BadParameter(f"clock must be one of {sorted(CLOCKS)}")
+    rows = []
+    for m in _devices(models):
+        typer.echo(f"measuring {m} ...")
+        rows.append(measure(m, threads=threads, clock=clock, repeats=repeats))
+    typer.echo(str(write_report(rows, out, odometry_suite)))
+
+
 @app.command("results")
 def results_(
     suites: list[Path] = typer.Argument(..., help="Suite folders, each holding a generated results.md."),
