@@ -47,7 +47,9 @@ def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = Tru
         use = tuple(s for s in splits if s in present)
         if not use:
             raise ValidationError(f"none of the test splits {list(splits)} is in the dataset", cfg.data)
-        echo(f"{cfg.model}: training → {run}")
+        from wearnav.models.registry import get
+
+        echo(f"{cfg.model}: {'training' if get(cfg.model).learned else 'evaluating'} → {run}")
         prepare_run(cfg, run)
         t0 = time.perf_counter()
         training = fit(cfg, run, progress=progress)
