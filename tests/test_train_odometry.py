@@ -146,3 +146,36 @@ def test_bad_configurations_are_one_line_errors(tiny, tmp_path):
     (run / "checkpoints" / "best.ckpt").write_bytes(b"not a checkpoint")
     with pytest.raises(FormatError, match="corrupt"):
         load_model(run)
+
+
+class _Constant(OdometryModel):
+    def __init__(self, vel):
+        super().__init__()
+        self.vel = torch.tensor(vel, dtype=torch.float32)
+
+    def forward(self, x, mask):
+        return self.vel.expand(x.shape[0], 2)
+
+
+def test_sparse_truth_is_scored_at_its_points_only():
+    """Waypoint truth (real indoor data): the estimate starts at the first waypoint under the
+    windows and is scored at the later waypoints only; dense metrics are not claimed."""
+    from wearnav.evaluate import evaluate_sequence
+    from wearnav.preprocess import Aligned
+    from wearnav.recording import Recording, Trajectory
+    from conftest import make_stream
+
+    t = np.arange(0, 60.0, 1 / 25)
+    wp_t = np.arange(0.0, 61.0, 10.0)
+    rec = Recording(name="wp", devices={"phone": make_stream(6000, 100.0)},
+                    truth=Trajectory(wp_t, np.stack([wp_t * 1.0, np.zeros_like(wp_t)], 1)))
+    seq = Aligned("wp", t, ("phone",), np.zeros((1, t.size, 6), np.float32), np.ones((1, t.size), bool),
+                  np.full((t.size, 2), np.nan), {"mode": "STW"}, rec)
+    row, traj = evaluate_sequence(_Constant([1.0, 0.0]), seq, window=100, stride=10)
+    assert row["truth"] == "sparse" and "ate" not in row
+    assert row["points"] >= 4 and row["mean_error"] == pytest.approx(0.0, abs=1e-6)
+    row, _ = evaluate_sequence(_Constant([0.0, 0.0]), seq, window=100, stride=10)
+    # standing still at the first waypoint (t = 10 s): the errors are the distances walked since
+    first = 10.0
+    later = wp_t[(wp_t > first) & (wp_t <= t[-1] - 2.0)]
+    assert row["mean_error"] == pytest.approx(np.mean(later - first), rel=1e-6)
