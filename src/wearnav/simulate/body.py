@@ -32,6 +32,14 @@ from wearnav.simulate.signals import bump, plateau, smooth_noise
 
 DEG = np.pi / 180.0
 IMPACT_S = 0.022  # std of the heel-strike transient
+JOLT_S = 0.04  # std of the heel-strike jolt of the thigh's soft tissue
+HAND_JOLT_S = 0.06  # the arm damps the shock: a broader, softer jolt at the hands
+
+
+def _pulse(phase: np.ndarray, at: float, width: float) -> np.ndarray:
+    """A Gaussian pulse of unit height each time ``phase`` passes ``at`` (mod 2π)."""
+    d = (phase - at + np.pi) % (2 * np.pi) - np.pi
+    return np.exp(-0.5 * (d / width) ** 2)
 
 # Posture of each daily-living episode while held (rad / m); "lean_move" is the extra forward
 # lean in the middle of sitting down or getting up (people lean forward to shift their weight).
@@ -65,6 +73,8 @@ class BodyState:
     r_hip: np.ndarray
     R_r_thigh: np.ndarray
     r_hip_flex: np.ndarray
+    phase: np.ndarray  # gait phase φ (2π per step)
+    heel: np.ndarray  # heel-strike jolt (m, ≤ 0) felt at the hands, both feet
 
     def take(self, idx) -> "BodyState":
         return BodyState(**{f.name: getattr(self, f.name)[idx] for f in fields(self)})
@@ -89,6 +99,8 @@ class Body:
         self.episodes = [e for e in scenario.episodes if e.kind in POSTURES]
         self.wrist_shakes = [d for d in scenario.disturbances if d.kind == "wrist_shake"]
         self.head_tilts = [d for d in scenario.disturbances if d.kind == "head_tilt"]
+        # step-to-step amplitude variability, correlated over about one step
+        self.step_amp = smooth_noise(rng, -2, T + 2, 1.0 / subject.cadence_hz, subject.step_amp_cv)
 
     @property
     def hip_height(self) -> float:
@@ -130,6 +142,7 @@ class Body:
                                                  BaseMotion.PHASE, BaseMotion.ENV))
         a = np.clip(a, 0.0, 1.0)
         amp = a * np.clip(c[:, BaseMotion.SPEED_RATIO], 0.8, 1.2)  # gait amplitude grows with speed
+        amp = amp * (1.0 + 0.5 * np.tanh(2.0 * self.step_amp(t)))  # smooth (C²) limit to 0.5 … 1.5
         psi = 0.5 * phi
         post = self._posture(t)
         pron, elbow_shake, head_dist = self._disturbances(t)
@@ -140,6 +153,7 @@ class Body:
         # The second harmonic (minus sign) makes the vertical acceleration peak sharply at double
         # support (CoM lowest, φ = π) and trough broadly at mid-stance (CoM highest, φ = 0).
         bounce = 0.5 * s.bounce_m * amp * (np.cos(phi) - s.bounce_harmonic * np.cos(2 * phi + 0.3))
+        bounce *= 1.0 + s.step_asymmetry * np.sin(psi)  # one leg's steps a little stronger
         sway = -0.5 * s.sway_m * amp * np.cos(psi)  # towards the stance leg
         ripple = 0.5 * s.ripple_m * amp * np.sin(phi + s.ripple_phase_rad)
         # Heel strike (at φ = π, double support): a brief dip of the pelvis, i.e. an upward
@@ -191,12 +205,22 @@ class Body:
         hip_flex_r = post["hip"] - amp * s.hip_swing_deg * DEG * np.sin(psi)
         r_hip = pelvis + apply(R_pelvis, np.array([0.0, -0.05 * H, 0.0]))
         R_r_thigh = R_pelvis @ rot_y(-hip_flex_r)
+        # Heel strike jolts the thigh's soft tissue (right heel strike at ψ = 3π/2, where the leg
+        # is furthest forward; the left one, through the pelvis, at ψ = π/2): a sharp dip and a
+        # backward jerk of the leg, the large short peaks a pocketed phone records.
+        jw = np.pi * s.cadence_hz * JOLT_S
+        jolt = 1e-3 * s.leg_jolt_mm * amp * (_pulse(psi, 1.5 * np.pi, jw) + 0.25 * _pulse(psi, 0.5 * np.pi, jw))
+        r_hip[:, 2] -= jolt
+        r_hip -= u * (0.6 * jolt)[:, None]
+        heel = -1e-3 * s.hand_jolt_mm * amp * _pulse(phi, np.pi, 2 * np.pi * s.cadence_hz * HAND_JOLT_S)
+        l_elbow[:, 2] += heel
+        r_elbow[:, 2] += heel
 
         return BodyState(
             t=t, theta=theta, env=a, yaw_torso=yaw_torso, pitch_torso_slow=pitch_slow,
             pelvis=pelvis, R_pelvis=R_pelvis, chest=chest, R_torso=R_torso, head=head, R_head=R_head,
             l_elbow=l_elbow, R_l_forearm=R_l_forearm, r_elbow=r_elbow, R_r_forearm=R_r_forearm,
-            r_hip=r_hip, R_r_thigh=R_r_thigh, r_hip_flex=hip_flex_r,
+            r_hip=r_hip, R_r_thigh=R_r_thigh, r_hip_flex=hip_flex_r, phase=phi, heel=heel,
         )
 
     @property
