@@ -32,14 +32,21 @@ from wearnav.simulate.signals import bump, plateau, smooth_noise
 
 DEG = np.pi / 180.0
 IMPACT_S = 0.022  # std of the heel-strike transient
-JOLT_S = 0.04  # std of the heel-strike jolt of the thigh's soft tissue
-HAND_JOLT_S = 0.06  # the arm damps the shock: a broader, softer jolt at the hands
+LEG_IMPACT_S = 0.016  # std (duration) of the heel-strike acceleration spike at the thigh
+THIGH_WOBBLE_KNOT_S = 0.06  # correlation time of the thigh's irregular soft-tissue motion
+IMPACT_HARMONICS = 24  # harmonics of the stride frequency in the impact train (to ~20 Hz)
+HAND_IMPACT_S = 0.02  # the arm smooths the heel-strike shock before it reaches the hands
 
 
-def _pulse(phase: np.ndarray, at: float, width: float) -> np.ndarray:
-    """A Gaussian pulse of unit height each time ``phase`` passes ``at`` (mod 2π)."""
-    d = (phase - at + np.pi) % (2 * np.pi) - np.pi
-    return np.exp(-0.5 * (d / width) ** 2)
+def impact_train(phase: np.ndarray, at: float, width: float, rate: float) -> np.ndarray:
+    """Displacement (m per m/s² of peak) whose acceleration is a train of Gaussian spikes, one
+    each time ``phase`` (advancing at ``rate`` rad/s) passes ``at``, of std ``width`` (rad),
+    with the mean removed: what a heel strike does to a limb — a short hard deceleration, paid
+    back gently over the rest of the cycle. A Fourier series, so it is smooth and periodic."""
+    k = np.arange(1, IMPACT_HARMONICS + 1)
+    w = np.exp(-0.5 * (k * width) ** 2)
+    return -(np.cos(np.multiply.outer(phase - at, k)) @ (w / k**2)) / (w.sum() * rate**2)
+
 
 # Posture of each daily-living episode while held (rad / m); "lean_move" is the extra forward
 # lean in the middle of sitting down or getting up (people lean forward to shift their weight).
@@ -74,7 +81,7 @@ class BodyState:
     R_r_thigh: np.ndarray
     r_hip_flex: np.ndarray
     phase: np.ndarray  # gait phase φ (2π per step)
-    heel: np.ndarray  # heel-strike jolt (m, ≤ 0) felt at the hands, both feet
+    heel: np.ndarray  # vertical displacement (m) of the heel-strike shock felt at the hands, both feet
 
     def take(self, idx) -> "BodyState":
         return BodyState(**{f.name: getattr(self, f.name)[idx] for f in fields(self)})
@@ -101,6 +108,9 @@ class Body:
         self.head_tilts = [d for d in scenario.disturbances if d.kind == "head_tilt"]
         # step-to-step amplitude variability, correlated over about one step
         self.step_amp = smooth_noise(rng, -2, T + 2, 1.0 / subject.cadence_hz, subject.step_amp_cv)
+        # the thigh's soft tissue wobbles irregularly (5–10 Hz) under a pocket
+        self.thigh_wobble = smooth_noise(rng, -2, T + 2, THIGH_WOBBLE_KNOT_S, subject.thigh_wobble_mm * 1e-3,
+                                         dims=3)
 
     @property
     def hip_height(self) -> float:
@@ -194,7 +204,8 @@ class Body:
         R_ua_l = R_torso @ rot_y(-(post["l_shoulder"] - swing)) @ rot_x(np.full_like(t, 0.08))
         l_elbow = sh_l + apply(R_ua_l, np.array([0.0, 0.0, -upper]))
         flex_l = np.maximum(s.elbow_deg * DEG + post["l_elbow"] - elbow_swing + elbow_shake, 0.02)
-        R_l_forearm = R_ua_l @ rot_y(-flex_l) @ rot_z(pron)
+        wobble = amp * s.wrist_wobble_deg * DEG * np.sin(phi + 0.7)  # forearm roll with each step
+        R_l_forearm = R_ua_l @ rot_y(-flex_l) @ rot_z(pron + wobble)
         sh_r = pelvis + apply(R_torso, np.array([0.0, -0.105 * H, 0.27 * H]))
         R_ua_r = R_torso @ rot_y(-swing) @ rot_x(np.full_like(t, -0.08))
         r_elbow = sh_r + apply(R_ua_r, np.array([0.0, 0.0, -upper]))
@@ -205,14 +216,16 @@ class Body:
         hip_flex_r = post["hip"] - amp * s.hip_swing_deg * DEG * np.sin(psi)
         r_hip = pelvis + apply(R_pelvis, np.array([0.0, -0.05 * H, 0.0]))
         R_r_thigh = R_pelvis @ rot_y(-hip_flex_r)
-        # Heel strike jolts the thigh's soft tissue (right heel strike at ψ = 3π/2, where the leg
+        # Heel strike decelerates the thigh hard (right heel strike at ψ = 3π/2, where the leg
         # is furthest forward; the left one, through the pelvis, at ψ = π/2): a sharp dip and a
         # backward jerk of the leg, the large short peaks a pocketed phone records.
-        jw = np.pi * s.cadence_hz * JOLT_S
-        jolt = 1e-3 * s.leg_jolt_mm * amp * (_pulse(psi, 1.5 * np.pi, jw) + 0.25 * _pulse(psi, 0.5 * np.pi, jw))
-        r_hip[:, 2] -= jolt
-        r_hip -= u * (0.6 * jolt)[:, None]
-        heel = -1e-3 * s.hand_jolt_mm * amp * _pulse(phi, np.pi, 2 * np.pi * s.cadence_hz * HAND_JOLT_S)
+        omega_stride = np.pi * s.cadence_hz
+        jolt = s.leg_impact * amp * impact_train(psi, 1.5 * np.pi, omega_stride * LEG_IMPACT_S, omega_stride)
+        r_hip[:, 2] += jolt  # upward spike: the downward motion of the leg is stopped
+        r_hip -= u * (0.3 * jolt)[:, None]  # and its forward swing
+        r_hip += a[:, None] * self.thigh_wobble(t)
+        omega_step = 2 * np.pi * s.cadence_hz
+        heel = s.hand_impact * amp * impact_train(phi, np.pi, omega_step * HAND_IMPACT_S, omega_step)
         l_elbow[:, 2] += heel
         r_elbow[:, 2] += heel
 

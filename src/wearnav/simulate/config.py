@@ -61,10 +61,12 @@ class SubjectParams:
     step_time_cv: float = 0.07  # relative std of the step frequency from one step to the next
     step_amp_cv: float = 0.3  # relative std of the gait amplitude from one step to the next
     step_asymmetry: float = 0.08  # left/right difference of the vertical bounce (share)
-    leg_jolt_mm: float = 23.0  # heel-strike jolt of the thigh's soft tissue under a pocket, mm
-    hand_jolt_mm: float = 3.2  # heel-strike shock reaching the hands and wrists, mm
+    leg_impact: float = 17.0  # peak heel-strike acceleration of the thigh (under a pocket), m/s²
+    thigh_wobble_mm: float = 0.6  # irregular 5–10 Hz soft-tissue motion under a pocket, mm (std)
+    hand_impact: float = 2.2  # peak heel-strike acceleration reaching the hands and wrists, m/s²
     hand_bob_deg: float = 3.5  # step-synchronous rotation of a phone held in front of the body
     hand_bounce_m: float = 0.015  # the forearm held in front amplifies the trunk's bounce
+    wrist_wobble_deg: float = 8.0  # forearm roll (pronation) oscillation at step frequency
 
     @property
     def step_length_m(self) -> float:
@@ -73,12 +75,12 @@ class SubjectParams:
 
 def sample_subject(rng: np.random.Generator, name: str) -> SubjectParams:
     """A random but plausible walker: speed 0.85–1.55 m/s, step 0.45–0.85 m, cadence about
-    N(1.78, 0.07) steps/s within 1.6–2.0 (real walkers in the shipped recordings: 1.66–1.88,
+    N(1.76, 0.06) steps/s within 1.6–2.0 (real walkers in the shipped recordings: 1.66–1.88,
     docs/realism.md), and its own step-to-step variability."""
     height = float(rng.uniform(1.55, 1.92))
     while True:
         speed = float(rng.uniform(0.85, 1.55))
-        cadence = float(np.clip(rng.normal(1.78, 0.07), 1.6, 2.0))
+        cadence = float(np.clip(rng.normal(1.76, 0.06), 1.6, 2.0))
         step = speed / cadence
         # Step length scales with stature (about 0.26 H … 0.47 H at normal speeds).
         if 0.45 <= step <= 0.85 and 0.25 * height <= step <= 0.47 * height:
@@ -97,19 +99,21 @@ def sample_subject(rng: np.random.Generator, name: str) -> SubjectParams:
         trunk_lean_deg=round(float(rng.uniform(2.0, 9.0)), 2),
         trunk_yaw_deg=round(float(rng.uniform(2.0, 5.0)), 2),
         trunk_roll_deg=round(float(rng.uniform(1.0, 3.0)), 2),
-        hip_swing_deg=round(float(rng.uniform(18.0, 26.0)), 2),
-        arm_swing_deg=round(float(rng.uniform(16.0, 26.0)), 2),
+        hip_swing_deg=round(float(rng.uniform(22.0, 30.0)), 2),
+        arm_swing_deg=round(float(rng.uniform(10.0, 20.0)), 2),
         elbow_deg=round(float(rng.uniform(12.0, 30.0)), 2),
         arm_lag_rad=round(float(rng.uniform(-0.4, 0.1)), 3),
         head_yaw_deg=round(float(rng.uniform(4.0, 12.0)), 2),
         head_pitch_deg=round(float(rng.uniform(2.0, 15.0)), 2),
         step_time_cv=round(float(rng.uniform(0.05, 0.09)), 4),
         step_amp_cv=round(float(rng.uniform(0.2, 0.4)), 4),
-        step_asymmetry=round(float(rng.uniform(0.03, 0.13)), 4),
-        leg_jolt_mm=round(float(rng.uniform(18.0, 28.0)), 3),
-        hand_jolt_mm=round(float(rng.uniform(2.5, 4.0)), 3),
+        step_asymmetry=round(float(rng.uniform(0.06, 0.2)), 4),
+        leg_impact=round(float(rng.uniform(12.0, 22.0)), 3),
+        thigh_wobble_mm=round(float(rng.uniform(0.4, 0.8)), 3),
+        hand_impact=round(float(rng.uniform(1.5, 3.0)), 3),
         hand_bob_deg=round(float(rng.uniform(2.5, 4.5)), 3),
         hand_bounce_m=round(float(rng.uniform(0.01, 0.02)), 4),
+        wrist_wobble_deg=round(float(rng.uniform(5.0, 11.0)), 3),
     )
 
 

@@ -27,6 +27,7 @@ from wearnav.simulate.scenario import Removal, Scenario
 from wearnav.simulate.signals import bump, plateau, ramp, smooth_noise
 
 TABLE_HEIGHT_M = 0.75
+BAG_JOLT_GAIN = 3.0  # the bag knocks against the body at each heel strike, harder than the hand feels it
 
 # Base orientation of the phone in each placement, in its segment's frame (columns: where the
 # device's x, y, z axes point). Segment: torso for texting, forearm for swinging, head for call,
@@ -123,7 +124,10 @@ class Phone(PosePath):
         if placement == "texting":
             F = rot_z(st.theta + 0.5 * st.yaw_torso) @ rot_y(st.pitch_torso_slow)
             pos = st.chest + apply(F, self.texting_offset) + self.wander_pos(t)
-            pos[:, 2] += st.heel + self.body.s.hand_bounce_m * st.env * np.cos(st.phase + self.bob_phase[0])
+            # the held forearm amplifies the trunk's bounce, and rises and falls a little with each stride
+            hb = self.body.s.hand_bounce_m * st.env
+            pos[:, 2] += st.heel + hb * (np.cos(st.phase + self.bob_phase[0])
+                                         + 0.6 * np.sin(0.5 * st.phase + self.bob_phase[1]))
             psi = 0.5 * st.phase
             bob = st.env[:, None] * self.bob_amp * np.sin(
                 np.stack([psi, st.phase, psi], 1) + self.bob_phase)
@@ -136,7 +140,7 @@ class Phone(PosePath):
             pos = st.head + apply(st.R_head, self.ear_offset) + 0.5 * self.wander_pos(t)
             R = st.R_head @ M @ exp_so3(0.5 * self.wander_rot(t))
         elif placement == "front_pocket":
-            pos = st.r_hip + apply(st.R_r_thigh, np.array([0.075, -0.02, -0.14]))
+            pos = st.r_hip + apply(st.R_r_thigh, np.array([0.075, -0.02, -0.18]))
             R = st.R_r_thigh @ M
         elif placement == "back_pocket":
             R_seat = st.R_pelvis @ rot_y(-0.3 * st.r_hip_flex)  # the buttock follows the leg a little
@@ -144,6 +148,7 @@ class Phone(PosePath):
             R = R_seat @ M
         elif placement == "bag":
             pos, R = self.bag.pose(st)
+            pos = pos + (BAG_JOLT_GAIN * st.heel)[:, None] * np.array([0.0, 0.0, 1.0])  # knocks on each step
             R = R @ M
         else:  # pragma: no cover - config validation prevents this
             raise ValueError(placement)

@@ -21,7 +21,7 @@ from wearnav.simulate.path import BaseMotion
 from wearnav.simulate.placement import Earbuds, Phone, PosePath, Removed, Watch
 from wearnav.simulate.scenario import WALK_RAMP_S, Scenario, make_scenario
 
-SIMULATOR_VERSION = 1
+SIMULATOR_VERSION = 2  # 2: calibrated against real walking (docs/realism.md)
 _STREAMS = ("scenario", "path", "body", "phone", "watch", "earbuds", "removal", "area",
             "imu_phone", "imu_watch", "imu_earbuds", "fixes")
 
