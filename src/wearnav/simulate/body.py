@@ -45,7 +45,16 @@ def impact_train(phase: np.ndarray, at: float, width: float, rate: float) -> np.
     back gently over the rest of the cycle. A Fourier series, so it is smooth and periodic."""
     k = np.arange(1, IMPACT_HARMONICS + 1)
     w = np.exp(-0.5 * (k * width) ** 2)
-    return -(np.cos(np.multiply.outer(phase - at, k)) @ (w / k**2)) / (w.sum() * rate**2)
+    coef = w / k**2
+    # Σ coef_k cos(k x) by the Chebyshev recurrence cos(kx) = 2 cos(x) cos((k−1)x) − cos((k−2)x):
+    # one cosine per sample instead of one per harmonic
+    c1 = np.cos(np.asarray(phase, dtype=np.float64) - at)
+    prev, cur = np.ones_like(c1), c1
+    out = coef[0] * cur
+    for ck in coef[1:]:
+        prev, cur = cur, 2.0 * c1 * cur - prev
+        out += ck * cur
+    return -out / (w.sum() * rate**2)
 
 
 # Posture of each daily-living episode while held (rad / m); "lean_move" is the extra forward
