@@ -53,7 +53,7 @@ class FixNoise:
     correlation_s: float = 120.0
     segment_s: float = 1.0
     accuracy_jitter: float = 0.15
-    jump_rate_hz: float = 0.003  # multipath episodes per second
+    jump_rate_hz: float = 0.006  # multipath episodes per second (IPIN T01-02: ~0.8 jumps per 100 fixes)
     jump_median_m: float = 6.0
     jump_hold_s: float = 15.0
     outage_rate_hz: float = 1.0 / 1800.0  # IPIN trials 01-02: no gap > 2.5 s in 27 min
