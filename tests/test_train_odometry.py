@@ -74,8 +74,9 @@ def test_train_evaluate_writes_a_complete_run(tiny, tmp_path):
 
 def test_learning_beats_a_zero_velocity_guess(tiny, tmp_path):
     """Trained through the core (frames aligned to truth, rotate_yaw augmentation), the tiny gait
-    model must find the walking direction on held-out test walks. Measured: velocity MSE 0.45
-    against 1.15 for standing still, direction error median 9°."""
+    model must find the walking direction on held-out test walks. Measured on the calibrated
+    simulator: velocity MSE 0.75 against 1.15 for standing still, direction error median 23°
+    (an untrained model: ratio 1, median 90°)."""
     cfg = _cfg(tiny, epochs=8, augment=("rotate_yaw",))
     run = prepare_run(cfg, tmp_path / "run")
     fit(cfg, run, progress=False)
@@ -89,10 +90,10 @@ def test_learning_beats_a_zero_velocity_guess(tiny, tmp_path):
     with torch.no_grad():
         p = model(b["x"], b["mask"])
     v = b["vel"]
-    assert ((p - v) ** 2).sum(1).mean() < 0.6 * (v ** 2).sum(1).mean()
+    assert ((p - v) ** 2).sum(1).mean() < 0.8 * (v ** 2).sum(1).mean()
     ang = torch.atan2(p[:, 1], p[:, 0]) - torch.atan2(v[:, 1], v[:, 0])
     ang = torch.rad2deg(torch.remainder(ang + np.pi, 2 * np.pi) - np.pi).abs()
-    assert ang.median() < 20.0
+    assert ang.median() < 35.0
 
 
 class _Kill(Exception):

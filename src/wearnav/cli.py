@@ -247,6 +247,25 @@ def results_(
 
 
 @app.command()
+def realism(
+    data: Path = typer.Option(Path("../shared/data"), help="Folder holding the public datasets."),
+    out: Path = typer.Option(Path("docs/realism.md"), help="Markdown file to write (PNGs go to its img/)."),
+    work: Path = typer.Option(Path("runs/realism"), help="Where the real calibration subsets are imported."),
+    n_sim: int = typer.Option(12, help="Simulated walks (walkers) per placement."),
+    limit: Optional[int] = typer.Option(None, help="At most this many recordings per real source."),
+    before: Optional[Path] = typer.Option(None, help="An earlier realism JSON to show beside this one."),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="JSON to write (default: OUT with .json)."),
+    seed: int = typer.Option(0),
+):
+    """Compare simulated walking with real recordings, device by device and placement by placement."""
+    from wearnav.realism import realism_report
+
+    realism_report(data, out, work, n_sim=n_sim, limit=limit, seed=seed, before=before,
+                   json_out=json_out, progress=True)
+    typer.echo(str(out))
+
+
+@app.command()
 def demo(
     out: Path = typer.Option(Path("runs/demo"), "--out", help="Folder for the demo's outputs."),
     seed: int = typer.Option(0, min=0),

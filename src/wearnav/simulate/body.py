@@ -32,6 +32,30 @@ from wearnav.simulate.signals import bump, plateau, smooth_noise
 
 DEG = np.pi / 180.0
 IMPACT_S = 0.022  # std of the heel-strike transient
+LEG_IMPACT_S = 0.016  # std (duration) of the heel-strike acceleration spike at the thigh
+THIGH_WOBBLE_KNOT_S = 0.06  # correlation time of the thigh's irregular soft-tissue motion
+IMPACT_HARMONICS = 24  # harmonics of the stride frequency in the impact train (to ~20 Hz)
+HAND_IMPACT_S = 0.02  # the arm smooths the heel-strike shock before it reaches the hands
+
+
+def impact_train(phase: np.ndarray, at: float, width: float, rate: float) -> np.ndarray:
+    """Displacement (m per m/s² of peak) whose acceleration is a train of Gaussian spikes, one
+    each time ``phase`` (advancing at ``rate`` rad/s) passes ``at``, of std ``width`` (rad),
+    with the mean removed: what a heel strike does to a limb — a short hard deceleration, paid
+    back gently over the rest of the cycle. A Fourier series, so it is smooth and periodic."""
+    k = np.arange(1, IMPACT_HARMONICS + 1)
+    w = np.exp(-0.5 * (k * width) ** 2)
+    coef = w / k**2
+    # Σ coef_k cos(k x) by the Chebyshev recurrence cos(kx) = 2 cos(x) cos((k−1)x) − cos((k−2)x):
+    # one cosine per sample instead of one per harmonic
+    c1 = np.cos(np.asarray(phase, dtype=np.float64) - at)
+    prev, cur = np.ones_like(c1), c1
+    out = coef[0] * cur
+    for ck in coef[1:]:
+        prev, cur = cur, 2.0 * c1 * cur - prev
+        out += ck * cur
+    return -out / (w.sum() * rate**2)
+
 
 # Posture of each daily-living episode while held (rad / m); "lean_move" is the extra forward
 # lean in the middle of sitting down or getting up (people lean forward to shift their weight).
@@ -65,6 +89,8 @@ class BodyState:
     r_hip: np.ndarray
     R_r_thigh: np.ndarray
     r_hip_flex: np.ndarray
+    phase: np.ndarray  # gait phase φ (2π per step)
+    heel: np.ndarray  # vertical displacement (m) of the heel-strike shock felt at the hands, both feet
 
     def take(self, idx) -> "BodyState":
         return BodyState(**{f.name: getattr(self, f.name)[idx] for f in fields(self)})
@@ -89,6 +115,11 @@ class Body:
         self.episodes = [e for e in scenario.episodes if e.kind in POSTURES]
         self.wrist_shakes = [d for d in scenario.disturbances if d.kind == "wrist_shake"]
         self.head_tilts = [d for d in scenario.disturbances if d.kind == "head_tilt"]
+        # step-to-step amplitude variability, correlated over about one step
+        self.step_amp = smooth_noise(rng, -2, T + 2, 1.0 / subject.cadence_hz, subject.step_amp_cv)
+        # the thigh's soft tissue wobbles irregularly (5–10 Hz) under a pocket
+        self.thigh_wobble = smooth_noise(rng, -2, T + 2, THIGH_WOBBLE_KNOT_S, subject.thigh_wobble_mm * 1e-3,
+                                         dims=3)
 
     @property
     def hip_height(self) -> float:
@@ -130,6 +161,7 @@ class Body:
                                                  BaseMotion.PHASE, BaseMotion.ENV))
         a = np.clip(a, 0.0, 1.0)
         amp = a * np.clip(c[:, BaseMotion.SPEED_RATIO], 0.8, 1.2)  # gait amplitude grows with speed
+        amp = amp * (1.0 + 0.5 * np.tanh(2.0 * self.step_amp(t)))  # smooth (C²) limit to 0.5 … 1.5
         psi = 0.5 * phi
         post = self._posture(t)
         pron, elbow_shake, head_dist = self._disturbances(t)
@@ -140,6 +172,7 @@ class Body:
         # The second harmonic (minus sign) makes the vertical acceleration peak sharply at double
         # support (CoM lowest, φ = π) and trough broadly at mid-stance (CoM highest, φ = 0).
         bounce = 0.5 * s.bounce_m * amp * (np.cos(phi) - s.bounce_harmonic * np.cos(2 * phi + 0.3))
+        bounce *= 1.0 + s.step_asymmetry * np.sin(psi)  # one leg's steps a little stronger
         sway = -0.5 * s.sway_m * amp * np.cos(psi)  # towards the stance leg
         # Inverted pendulum: the body is slowest at mid-stance (φ = 0, CoM highest) and fastest at
         # double support, so the fore-aft acceleration ∝ sin(φ + p) peaks ≈ 90° + p before the
@@ -183,7 +216,8 @@ class Body:
         R_ua_l = R_torso @ rot_y(-(post["l_shoulder"] - swing)) @ rot_x(np.full_like(t, 0.08))
         l_elbow = sh_l + apply(R_ua_l, np.array([0.0, 0.0, -upper]))
         flex_l = np.maximum(s.elbow_deg * DEG + post["l_elbow"] - elbow_swing + elbow_shake, 0.02)
-        R_l_forearm = R_ua_l @ rot_y(-flex_l) @ rot_z(pron)
+        wobble = amp * s.wrist_wobble_deg * DEG * np.sin(phi + 0.7)  # forearm roll with each step
+        R_l_forearm = R_ua_l @ rot_y(-flex_l) @ rot_z(pron + wobble)
         sh_r = pelvis + apply(R_torso, np.array([0.0, -0.105 * H, 0.27 * H]))
         R_ua_r = R_torso @ rot_y(-swing) @ rot_x(np.full_like(t, -0.08))
         r_elbow = sh_r + apply(R_ua_r, np.array([0.0, 0.0, -upper]))
@@ -194,12 +228,24 @@ class Body:
         hip_flex_r = post["hip"] - amp * s.hip_swing_deg * DEG * np.sin(psi)
         r_hip = pelvis + apply(R_pelvis, np.array([0.0, -0.05 * H, 0.0]))
         R_r_thigh = R_pelvis @ rot_y(-hip_flex_r)
+        # Heel strike decelerates the thigh hard (right heel strike at ψ = 3π/2, where the leg
+        # is furthest forward; the left one, through the pelvis, at ψ = π/2): a sharp dip and a
+        # backward jerk of the leg, the large short peaks a pocketed phone records.
+        omega_stride = np.pi * s.cadence_hz
+        jolt = s.leg_impact * amp * impact_train(psi, 1.5 * np.pi, omega_stride * LEG_IMPACT_S, omega_stride)
+        r_hip[:, 2] += jolt  # upward spike: the downward motion of the leg is stopped
+        r_hip -= u * (0.3 * jolt)[:, None]  # and its forward swing
+        r_hip += a[:, None] * self.thigh_wobble(t)
+        omega_step = 2 * np.pi * s.cadence_hz
+        heel = s.hand_impact * amp * impact_train(phi, np.pi, omega_step * HAND_IMPACT_S, omega_step)
+        l_elbow[:, 2] += heel
+        r_elbow[:, 2] += heel
 
         return BodyState(
             t=t, theta=theta, env=a, yaw_torso=yaw_torso, pitch_torso_slow=pitch_slow,
             pelvis=pelvis, R_pelvis=R_pelvis, chest=chest, R_torso=R_torso, head=head, R_head=R_head,
             l_elbow=l_elbow, R_l_forearm=R_l_forearm, r_elbow=r_elbow, R_r_forearm=R_r_forearm,
-            r_hip=r_hip, R_r_thigh=R_r_thigh, r_hip_flex=hip_flex_r,
+            r_hip=r_hip, R_r_thigh=R_r_thigh, r_hip_flex=hip_flex_r, phase=phi, heel=heel,
         )
 
     @property

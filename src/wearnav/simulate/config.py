@@ -44,7 +44,7 @@ class SubjectParams:
     cadence_hz: float = 1.9  # steps per second at the preferred speed
     bounce_m: float = 0.035  # vertical peak-to-peak, at step frequency
     sway_m: float = 0.04  # lateral peak-to-peak, at stride frequency (half the step frequency)
-    ripple_m: float = 0.015  # fore-aft peak-to-peak about the mean progression, at step frequency
+    ripple_m: float = 0.025  # fore-aft peak-to-peak about the mean progression, at step frequency
     bounce_harmonic: float = 0.08  # second-harmonic share of the bounce
     impact_mm: float = 0.8  # heel-strike dip of the pelvis (a ~22 ms Gaussian), mm
     ripple_phase_rad: float = 0.1  # fore-aft acceleration leads the vertical by 90° + this
@@ -57,6 +57,16 @@ class SubjectParams:
     arm_lag_rad: float = -0.2  # arm swing phase relative to exact antiphase with the same-side leg
     head_yaw_deg: float = 8.0  # std of slow looking-around
     head_pitch_deg: float = 8.0  # mean downward gaze
+    # Step-to-step variability (real gait is not periodic; calibrated in docs/realism.md):
+    step_time_cv: float = 0.07  # relative std of the step frequency from one step to the next
+    step_amp_cv: float = 0.3  # relative std of the gait amplitude from one step to the next
+    step_asymmetry: float = 0.08  # left/right difference of the vertical bounce (share)
+    leg_impact: float = 17.0  # peak heel-strike acceleration of the thigh (under a pocket), m/s²
+    thigh_wobble_mm: float = 0.6  # irregular 5–10 Hz soft-tissue motion under a pocket, mm (std)
+    hand_impact: float = 2.2  # peak heel-strike acceleration reaching the hands and wrists, m/s²
+    hand_bob_deg: float = 3.5  # step-synchronous rotation of a phone held in front of the body
+    hand_bounce_m: float = 0.012  # the forearm held in front amplifies the trunk's bounce
+    wrist_wobble_deg: float = 8.0  # forearm roll (pronation) oscillation at step frequency
 
     @property
     def step_length_m(self) -> float:
@@ -64,11 +74,13 @@ class SubjectParams:
 
 
 def sample_subject(rng: np.random.Generator, name: str) -> SubjectParams:
-    """A random but plausible walker: speed 0.8–1.6 m/s, cadence 1.6–2.2 Hz, step 0.45–0.85 m."""
+    """A random but plausible walker: speed 0.85–1.55 m/s, step 0.45–0.85 m, cadence about
+    N(1.76, 0.06) steps/s within 1.6–2.0 (real walkers in the shipped recordings: 1.66–1.88,
+    docs/realism.md), and its own step-to-step variability."""
     height = float(rng.uniform(1.55, 1.92))
     while True:
         speed = float(rng.uniform(0.85, 1.55))
-        cadence = float(rng.uniform(1.65, 2.15))
+        cadence = float(np.clip(rng.normal(1.76, 0.06), 1.6, 2.0))
         step = speed / cadence
         # Step length scales with stature (about 0.26 H … 0.47 H at normal speeds).
         if 0.45 <= step <= 0.85 and 0.25 * height <= step <= 0.47 * height:
@@ -80,19 +92,28 @@ def sample_subject(rng: np.random.Generator, name: str) -> SubjectParams:
         cadence_hz=round(cadence, 3),
         bounce_m=round(float(rng.uniform(0.025, 0.05)), 4),
         sway_m=round(float(rng.uniform(0.025, 0.055)), 4),
-        ripple_m=round(float(rng.uniform(0.01, 0.025)), 4),
+        ripple_m=round(float(rng.uniform(0.015, 0.035)), 4),
         bounce_harmonic=round(float(rng.uniform(0.0, 0.12)), 3),
         impact_mm=round(float(rng.uniform(0.5, 1.2)), 3),
         ripple_phase_rad=round(float(rng.uniform(-0.3, 0.5)), 3),
         trunk_lean_deg=round(float(rng.uniform(2.0, 9.0)), 2),
         trunk_yaw_deg=round(float(rng.uniform(2.0, 5.0)), 2),
         trunk_roll_deg=round(float(rng.uniform(1.0, 3.0)), 2),
-        hip_swing_deg=round(float(rng.uniform(18.0, 26.0)), 2),
+        hip_swing_deg=round(float(rng.uniform(22.0, 30.0)), 2),
         arm_swing_deg=round(float(rng.uniform(10.0, 20.0)), 2),
         elbow_deg=round(float(rng.uniform(12.0, 30.0)), 2),
         arm_lag_rad=round(float(rng.uniform(-0.4, 0.1)), 3),
         head_yaw_deg=round(float(rng.uniform(4.0, 12.0)), 2),
         head_pitch_deg=round(float(rng.uniform(2.0, 15.0)), 2),
+        step_time_cv=round(float(rng.uniform(0.05, 0.09)), 4),
+        step_amp_cv=round(float(rng.uniform(0.2, 0.4)), 4),
+        step_asymmetry=round(float(rng.uniform(0.06, 0.2)), 4),
+        leg_impact=round(float(rng.uniform(12.0, 22.0)), 3),
+        thigh_wobble_mm=round(float(rng.uniform(0.4, 0.8)), 3),
+        hand_impact=round(float(rng.uniform(1.5, 3.0)), 3),
+        hand_bob_deg=round(float(rng.uniform(2.5, 4.5)), 3),
+        hand_bounce_m=round(float(rng.uniform(0.008, 0.016)), 4),
+        wrist_wobble_deg=round(float(rng.uniform(5.0, 11.0)), 3),
     )
 
 

@@ -21,6 +21,14 @@ given the median label noise (and τ), σ follows analytically. With τ = 120 s 
 give σ ≈ 1.4 / 1.8 / 2.2 m per axis (2.0 / 2.6 / 3.1 m RMS horizontal error), typical of phone
 GNSS in open sky. The reported ``accuracy`` (like iOS ``horizontalAccuracy``, a ~68 % radius) is
 1.515 σ (the 68 % radius of a circular Gaussian) with ±15 % log-normal jitter per fix.
+
+On top of the OU error, :func:`simulate_fixes` adds what real phone GNSS does (calibrated against
+IPIN 2023 trials 01–02, docs/realism.md): multipath episodes, a sudden offset of a few metres
+(log-normal, median ``jump_median_m``) held for an exponential time (mean ``jump_hold_s``) and
+then dropped, at ``jump_rate_hz``; and outages, stretches without fixes (log-normal length,
+median ``outage_median_s``) at ``outage_rate_hz``. While an offset is on, the reported accuracy
+grows with it (√((1.515 σ)² + |offset|²)), so the accuracy tracks the error as a phone's does.
+The jumps touch two 1-s segments per episode, so the median label noise is unchanged.
 """
 
 from __future__ import annotations
@@ -46,10 +54,18 @@ class FixNoise:
     correlation_s: float = 120.0
     segment_s: float = 1.0
     accuracy_jitter: float = 0.15
+    jump_rate_hz: float = 0.006  # multipath episodes per second (IPIN T01-02: ~0.8 jumps per 100 fixes)
+    jump_median_m: float = 6.0
+    jump_hold_s: float = 15.0
+    outage_rate_hz: float = 1.0 / 1800.0  # IPIN trials 01-02: no gap > 2.5 s in 27 min
+    outage_median_s: float = 4.0
 
     def __post_init__(self):
         if self.median_label_noise_m <= 0 or self.correlation_s <= 0 or self.segment_s <= 0:
             raise ConfigError("FixNoise parameters must be positive")
+        if min(self.jump_rate_hz, self.outage_rate_hz) < 0 or min(self.jump_median_m, self.jump_hold_s,
+                                                                  self.outage_median_s) <= 0:
+            raise ConfigError("FixNoise jump and outage parameters must be positive (rates may be 0)")
 
     @classmethod
     def from_level(cls, level: str, correlation_s: float = 120.0) -> "FixNoise":
@@ -81,9 +97,38 @@ class FixNoise:
             e[i] = rho[i - 1] * e[i - 1] + innov[i - 1]
         return e
 
-    def accuracy(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        acc = RADIUS_68 * self.sigma * np.exp(rng.normal(0.0, self.accuracy_jitter, n))
+    def accuracy(self, n: int, rng: np.random.Generator, offset_m: np.ndarray | None = None) -> np.ndarray:
+        base = RADIUS_68 * self.sigma if offset_m is None else np.hypot(RADIUS_68 * self.sigma, offset_m)
+        acc = base * np.exp(rng.normal(0.0, self.accuracy_jitter, n))
         return np.round(acc, 1)
+
+    def _episodes(self, t0: float, t1: float, rate: float, length, rng) -> list[tuple[float, float]]:
+        """Poisson-started intervals over [t0, t1] with lengths drawn by ``length()``."""
+        out, t = [], t0
+        while rate > 0:
+            t += rng.exponential(1.0 / rate)
+            if t >= t1:
+                return out
+            d = float(length())
+            out.append((t, t + d))
+            t += d
+        return out
+
+    def sample_multipath(self, t: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 2) multipath offsets and a keep mask (False inside outages) at times t."""
+        t = np.asarray(t, dtype=np.float64)
+        offset = np.zeros((t.size, 2))
+        keep = np.ones(t.size, bool)
+        if t.size == 0:
+            return offset, keep
+        for a, b in self._episodes(t[0], t[-1], self.jump_rate_hz, lambda: rng.exponential(self.jump_hold_s), rng):
+            size = self.jump_median_m * np.exp(rng.normal(0.0, 0.5))
+            ang = rng.uniform(-np.pi, np.pi)
+            offset[(t >= a) & (t < b)] = size * np.array([np.cos(ang), np.sin(ang)])
+        for a, b in self._episodes(t[0], t[-1], self.outage_rate_hz,
+                                   lambda: self.outage_median_s * np.exp(rng.normal(0.0, 0.6)), rng):
+            keep &= ~((t >= a) & (t < b))
+        return offset, keep
 
 
 def simulate_fixes(t: np.ndarray, true_xy: np.ndarray, noise: FixNoise,
@@ -91,4 +136,7 @@ def simulate_fixes(t: np.ndarray, true_xy: np.ndarray, noise: FixNoise,
     """Fixes at times ``t`` for a walker whose true horizontal position there is ``true_xy``."""
     true_xy = np.asarray(true_xy, dtype=np.float64)[:, :2]
     err = noise.sample_error(t, rng)
-    return Fixes(t=t, pos=true_xy + err, accuracy=noise.accuracy(len(t), rng))
+    offset, keep = noise.sample_multipath(t, rng)
+    acc = noise.accuracy(len(t), rng, np.linalg.norm(offset, axis=1))
+    return Fixes(t=t[keep], pos=(true_xy + err + offset)[keep], accuracy=acc[keep])
+

@@ -118,7 +118,7 @@ class BaseMotion:
         speed_noise = smooth_noise(rng, t[0], t[-1], 12.0, speed_variation)
         v_nom = np.clip(v0 * (1.0 + speed_noise(t)), 0.6, 1.9)
         cadence = subject.cadence_hz * np.sqrt(v_nom / v0)
-        phase = rng.uniform(0, 2 * np.pi) + 2 * np.pi * cumulative_trapezoid(cadence, t, initial=0.0)
+        phase0 = rng.uniform(0, 2 * np.pi)
 
         length = float(np.trapezoid(v_nom * env, t)) + 30.0
         route = plan_route(rng, area_m, length)
@@ -133,6 +133,12 @@ class BaseMotion:
         xy0 = route.xy[0]
         x = xy0[0] + cumulative_trapezoid(speed * np.cos(theta), t, initial=0.0)
         y = xy0[1] + cumulative_trapezoid(speed * np.sin(theta), t, initial=0.0)
+
+        # Step-to-step timing variability: the cadence wanders with a correlation of about one
+        # step (drawn after the route so the route of a seed does not depend on it).
+        step_noise = smooth_noise(rng, t[0], t[-1], 1.0 / subject.cadence_hz, subject.step_time_cv)
+        cadence = cadence * (1.0 + step_noise(t))
+        phase = phase0 + 2 * np.pi * cumulative_trapezoid(cadence, t, initial=0.0)
 
         self.t_grid = t
         self.route = route

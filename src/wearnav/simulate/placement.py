@@ -2,8 +2,9 @@
 
 - earbuds: in the right ear, on the head;
 - watch: on the left wrist, on the swinging forearm;
-- phone: in one of six placements (texting in the right hand, swinging in the right hand, at the
-  right ear for a call, right front trouser pocket on the thigh, right back pocket, bag), changing
+- phone: in one of six placements (texting, swinging in the hand, at the ear for a call, with the
+  hand drawn per recording: right 65 %, left 35 %; right front trouser pocket on the thigh, right
+  back pocket, bag), changing
   between them with smooth hand motions of one to two seconds (PVW/MVW);
 - a removed device (DRW) is either put down on a table, where it lies still, or stops streaming.
 
@@ -26,6 +27,7 @@ from wearnav.simulate.scenario import Removal, Scenario
 from wearnav.simulate.signals import bump, plateau, ramp, smooth_noise
 
 TABLE_HEIGHT_M = 0.75
+BAG_JOLT_GAIN = 3.0  # the bag knocks against the body at each heel strike, harder than the hand feels it
 
 # Base orientation of the phone in each placement, in its segment's frame (columns: where the
 # device's x, y, z axes point). Segment: torso for texting, forearm for swinging, head for call,
@@ -82,6 +84,9 @@ class Phone(PosePath):
         self.body = body
         self.holds = scenario.holds
         T = scenario.duration
+        # People hold a phone in either hand; the left one is also the watch arm.
+        self.hand = "left" if rng.uniform() < 0.35 else "right"
+        side = 1.0 if self.hand == "left" else -1.0  # +y is the walker's left
         self.mounts = {
             "texting": _TEXTING @ rot_x(rng.uniform(25, 50) * np.pi / 180) @ random_rotation(rng, 6.0),
             "swinging": _SWINGING @ (_FLIPS[2] if rng.uniform() < 0.5 else np.eye(3)) @ random_rotation(rng, 12.0),
@@ -93,7 +98,14 @@ class Phone(PosePath):
         # the hand is never perfectly still: slow wander of the held phone
         self.wander_pos = smooth_noise(rng, -2, T + 2, 0.7, 0.008, dims=3)
         self.wander_rot = smooth_noise(rng, -2, T + 2, 0.9, 2.0 * np.pi / 180, dims=3)
-        self.texting_offset = np.array([rng.uniform(0.22, 0.32), rng.uniform(-0.12, -0.02), -0.17])
+        self.texting_offset = np.array([rng.uniform(0.22, 0.32), side * rng.uniform(0.02, 0.12), -0.17])
+        self.ear_offset = np.array([0.03, side * 0.10, -0.03])
+        if self.hand == "left":  # the screen faces the other ear
+            self.mounts["call"] = rot_z(np.pi) @ self.mounts["call"]
+        # a phone held in front bobs with each step (pitch) and sways with each stride (roll, yaw)
+        bob = body.s.hand_bob_deg * np.pi / 180
+        self.bob_amp = bob * np.array([0.7, 1.0, 0.6]) * rng.uniform(0.7, 1.3, 3)
+        self.bob_phase = rng.uniform(0, 2 * np.pi, 3)
         self.shakes = [d for d in scenario.disturbances if d.kind == "phone_shake"]
         self.bag = _Bag(body, rng, T) if any(h.placement == "bag" for h in self.holds) else None
         # fixed relative rotation of each move, taken mid-move (see blend_rotations)
@@ -112,15 +124,23 @@ class Phone(PosePath):
         if placement == "texting":
             F = rot_z(st.theta + 0.5 * st.yaw_torso) @ rot_y(st.pitch_torso_slow)
             pos = st.chest + apply(F, self.texting_offset) + self.wander_pos(t)
-            R = F @ M @ exp_so3(self.wander_rot(t))
+            # the held forearm amplifies the trunk's bounce, and rises and falls a little with each stride
+            hb = self.body.s.hand_bounce_m * st.env
+            pos[:, 2] += st.heel + hb * (np.cos(st.phase + self.bob_phase[0])
+                                         + 0.6 * np.sin(0.5 * st.phase + self.bob_phase[1]))
+            psi = 0.5 * st.phase
+            bob = st.env[:, None] * self.bob_amp * np.sin(
+                np.stack([psi, st.phase, psi], 1) + self.bob_phase)
+            R = F @ M @ exp_so3(self.wander_rot(t) + bob)
         elif placement == "swinging":
-            pos = st.r_elbow + apply(st.R_r_forearm, np.array([0.02, 0.0, -(self.body.forearm_m + 0.06)]))
-            R = st.R_r_forearm @ M
+            elbow, R_fa = (st.l_elbow, st.R_l_forearm) if self.hand == "left" else (st.r_elbow, st.R_r_forearm)
+            pos = elbow + apply(R_fa, np.array([0.02, 0.0, -(self.body.forearm_m + 0.06)]))
+            R = R_fa @ M
         elif placement == "call":
-            pos = st.head + apply(st.R_head, np.array([0.03, -0.10, -0.03])) + 0.5 * self.wander_pos(t)
+            pos = st.head + apply(st.R_head, self.ear_offset) + 0.5 * self.wander_pos(t)
             R = st.R_head @ M @ exp_so3(0.5 * self.wander_rot(t))
         elif placement == "front_pocket":
-            pos = st.r_hip + apply(st.R_r_thigh, np.array([0.075, -0.02, -0.14]))
+            pos = st.r_hip + apply(st.R_r_thigh, np.array([0.075, -0.02, -0.18]))
             R = st.R_r_thigh @ M
         elif placement == "back_pocket":
             R_seat = st.R_pelvis @ rot_y(-0.3 * st.r_hip_flex)  # the buttock follows the leg a little
@@ -128,6 +148,7 @@ class Phone(PosePath):
             R = R_seat @ M
         elif placement == "bag":
             pos, R = self.bag.pose(st)
+            pos = pos + (BAG_JOLT_GAIN * st.heel)[:, None] * np.array([0.0, 0.0, 1.0])  # knocks on each step
             R = R @ M
         else:  # pragma: no cover - config validation prevents this
             raise ValueError(placement)

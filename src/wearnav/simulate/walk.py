@@ -17,12 +17,12 @@ from wearnav.simulate.body import Body
 from wearnav.simulate.config import REMOVABLE, SCENES, WalkConfig
 from wearnav.simulate.fixes import FixNoise, simulate_fixes
 from wearnav.rotations import matrix_to_wxyz
-from wearnav.simulate.imu import IMU_SPECS, ImuErrors, TrueImu, sample_times, true_imu
+from wearnav.simulate.imu import IMU_SPECS, ImuErrors, TrueImu, antialiased, sample_times, true_imu
 from wearnav.simulate.path import BaseMotion
 from wearnav.simulate.placement import Earbuds, Phone, PosePath, Removed, Watch
 from wearnav.simulate.scenario import WALK_RAMP_S, Scenario, make_scenario
 
-SIMULATOR_VERSION = 1
+SIMULATOR_VERSION = 2  # 2: calibrated against real walking (docs/realism.md)
 _STREAMS = ("scenario", "path", "body", "phone", "watch", "earbuds", "removal", "area",
             "imu_phone", "imu_watch", "imu_earbuds", "fixes")
 
@@ -83,7 +83,7 @@ def simulate_walk(cfg: WalkConfig, seed=0) -> SimulatedWalk:
         tru = true_imu(poses[dev].pose, t)
         if cfg.imu_noise:
             err = ImuErrors.draw(spec, rng, t_start, T)
-            acc, gyro, quat = err.measure(tru, rng)
+            acc, gyro, quat = err.measure(antialiased(poses[dev].pose, tru, spec), rng)
             dev_meta[dev] = {"rate_hz": spec.rate_hz, "imu_noise": True, **err.summary()}
         else:
             acc, gyro, quat = tru.specific_force, tru.omega, matrix_to_wxyz(tru.R)
@@ -127,6 +127,8 @@ def simulate_walk(cfg: WalkConfig, seed=0) -> SimulatedWalk:
         "config": cfg.to_dict(),
         "simulator_version": SIMULATOR_VERSION,
     }
+    if "phone" in poses:
+        meta["phone_hand"] = getattr(poses["phone"], "hand", None)
     if "phone" in poses and getattr(poses["phone"], "bag", None) is not None:
         meta.update(poses["phone"].bag.meta)
     rec = Recording(name=cfg.name, devices=streams, truth=truth, fixes=fixes,
