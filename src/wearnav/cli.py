@@ -86,11 +86,16 @@ def import_(
     src: Path = typer.Argument(..., help="The dataset's folder (or file / zip) in its original layout."),
     out: Path = typer.Option(..., "--out", help="Dataset folder to write."),
     limit: Optional[int] = typer.Option(None, min=0, help="Import at most this many recordings."),
+    platform: Optional[str] = typer.Option(None, help="sensorlogger only: ios | watchos | android, for "
+                                           "exports without Metadata.csv (overrides its platform)."),
 ):
     """Import real recordings into a wearnav dataset folder."""
     from wearnav.importers import import_dataset
 
-    ds = import_dataset(fmt, src, out, limit=limit, progress=_progress())
+    if platform is not None and fmt != "sensorlogger":
+        raise typer.BadParameter("--platform is for the sensorlogger format only")
+    options = {"platform": platform} if platform is not None else {}
+    ds = import_dataset(fmt, src, out, limit=limit, progress=_progress(), **options)
     _echo_json(ds.summary())
 
 
