@@ -75,6 +75,7 @@ def test_track_recovers_truth_with_the_models_eval_ate(setup, tmp_path):
     assert summary["frame"] == "common" and summary["frame_reference"] == "phone"
     assert set(traj.columns) >= {"t", "x", "y", "phone", "watch", "earbuds", "east", "north"}
     assert traj[["x", "y"]].iloc[0].abs().max() < 1e-9  # integrated from (0, 0)
+    assert traj["unix_time"].iloc[0] == pytest.approx(1_700_000_000.123 + traj["t"].iloc[0], abs=1e-3)
     img = mpimg.imread(tmp_path / "out" / "trajectory.png")
     assert img.shape[0] > 400 and img.std() > 0.05
 

@@ -8,7 +8,8 @@ integrate from (0, 0) at the first window centre (:func:`wearnav.trajectory.inte
 and write into the output folder:
 
 ``trajectory.csv``
-    ``t`` (s since the recording's start), ``x``, ``y`` (m, in the common frame of the reference
+    ``t`` (s since the recording's start; ``unix_time`` too where the recording keeps its start,
+    ``meta["t0_unix_ns"]``), ``x``, ``y`` (m, in the common frame of the reference
     device), one 0/1 column per model device (present in the window whose centre is nearest), and
     where the recording has location fixes ``east``, ``north`` (m, the anchored path, below).
 ``trajectory.png``
@@ -46,7 +47,6 @@ from wearnav.recording import Recording
 
 ANCHOR_S = 60.0
 MIN_ANCHOR_SPREAD_M = 5.0
-# A fix is compared with the path only inside the path's span.
 TRAJ_FORMAT = "%.4f"
 
 
@@ -184,6 +184,8 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
     prev = np.clip(nearest - 1, 0, len(t_c) - 1)
     nearest = np.where(np.abs(t_c[prev] - t) < np.abs(t_c[nearest] - t), prev, nearest)
     table = pd.DataFrame({"t": t, "x": xy[:, 0], "y": xy[:, 1]})
+    if "t0_unix_ns" in rec.meta:
+        table.insert(1, "unix_time", rec.meta["t0_unix_ns"] * 1e-9 + t)
     for k, dev in enumerate(seq.devices):
         table[dev] = (present[nearest, k] > 0).astype(int)
     share = {dev: round(float((present[:, k] > 0).mean()), 3) for k, dev in enumerate(seq.devices)}
