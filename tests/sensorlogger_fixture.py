@@ -54,16 +54,20 @@ def _euler(r: Rotation) -> np.ndarray:
 
 def write_export(rec: Recording, folder: str | Path, platform: str = "ios",
                  standardised: bool = False, total_acceleration: bool = False,
-                 quat_inverted: bool = False, metadata: bool = True) -> Path:
+                 quat_inverted: bool = False, metadata: bool = True, layout_version: int = 3,
+                 watch_extras: bool = False) -> Path:
     """Write ``rec`` (devices phone / watch / earbuds, fixes) into ``folder`` as Sensor Logger would.
 
     ``total_acceleration`` writes Android's TotalAcceleration.csv too. ``quat_inverted`` writes
-    device←world quaternions (to test the importer's convention check).
+    device←world quaternions (to test the importer's convention check). ``platform="watchos"``
+    is what an export recorded on an Apple Watch alone says (iPhone sign convention);
+    ``watch_extras`` adds the watch-only files such exports carry (uncalibrated accelerometer,
+    heart rate, compass), which the importer must ignore.
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     t_ref = time_origin(rec)
-    apple = platform == "ios" and not standardised
+    apple = platform in ("ios", "watchos") and not standardised
     sign = -1.0 if apple else 1.0
     unit = G if not standardised else 1.0
     sensors = []
@@ -124,9 +128,20 @@ def write_export(rec: Recording, folder: str | Path, platform: str = "ios",
             folder / "Location.csv", index=False)
         sensors.append("Location")
 
+    if watch_extras and "watch" in rec.devices:
+        s = rec.devices["watch"]
+        tc = _time_cols(s.t, t_ref)
+        pd.DataFrame({**tc, "z": -s.acc[:, 2] / G, "y": -s.acc[:, 1] / G, "x": -s.acc[:, 0] / G}).to_csv(
+            folder / "WatchAccelerometerUncalibrated.csv", index=False)
+        tc1 = _time_cols(s.t[::500], t_ref)
+        pd.DataFrame({**tc1, "bpm": 92.0}).to_csv(folder / "HeartRate.csv", index=False)
+        pd.DataFrame({**tc1, "magneticHeading": 10.0, "trueHeading": 12.0, "headingAccuracy": 5.0}).to_csv(
+            folder / "WatchCompass.csv", index=False)
+        sensors += ["Watch Accelerometer Uncalibrated", "Heart Rate", "Watch Compass"]
+
     if metadata:
         pd.DataFrame([{
-            "version": 3, "device name": "test phone", "recording epoch time": T0_NS // 1_000_000,
+            "version": layout_version, "device name": "test phone", "recording epoch time": T0_NS // 1_000_000,
             "recording time": "2023-11-14_22-13-20", "recording timezone": "Europe/Berlin",
             "platform": platform, "appVersion": "1.40", "device id": "abc",
             "sensors": "|".join(sensors), "sampleRateMs": "10",
@@ -142,3 +157,53 @@ def zip_export(folder: str | Path, zpath: str | Path, subfolder: str | None = No
         for p in sorted(folder.iterdir()):
             zf.write(p, f"{subfolder}/{p.name}" if subfolder else p.name)
     return zpath
+
+
+# ---- exports as they really are (issue 8): damage an export the way real ones differ -----------
+
+def edit_csv(path: str | Path, fn) -> None:
+    path = Path(path)
+    fn(pd.read_csv(path)).to_csv(path, index=False)
+
+
+def glitch_quaternion(path: str | Path, row: int, angle: float = 1.0) -> None:
+    """One quaternion turned by ``angle`` rad about the device's x axis, its neighbours untouched
+    (a start-up glitch). Works on Orientation.csv (qw..) and WristMotion / Headphone (quaternionW..)."""
+    def fn(df):
+        cols = ["qw", "qx", "qy", "qz"] if "qw" in df else [f"quaternion{a}" for a in "WXYZ"]
+        q = df.loc[row, cols].to_numpy(float)
+        r = Rotation.from_quat(q[[1, 2, 3, 0]]) * Rotation.from_rotvec([angle, 0.0, 0.0])
+        df.loc[row, cols] = r.as_quat()[[3, 0, 1, 2]]
+        return df
+    edit_csv(path, fn)
+
+
+def prepend_stale_fix(path: str | Path, seconds_before: float = 90.0, km_away: float = 5.0,
+                      accuracy: float = 3000.0) -> None:
+    """A cached fix from before the recording as the first row of Location.csv: negative
+    ``seconds_elapsed``, ``km_away`` north, ``accuracy`` metres."""
+    def fn(df):
+        row = df.iloc[[0]].copy()
+        row["time"] = int(df["time"].iloc[0]) - int(seconds_before * 1e9)
+        row["seconds_elapsed"] = float(df["seconds_elapsed"].iloc[0]) - seconds_before
+        row["latitude"] = df["latitude"].iloc[0] + np.rad2deg(km_away * 1e3 / EARTH_RADIUS_M)
+        row["horizontalAccuracy"] = accuracy
+        return pd.concat([row, df], ignore_index=True)
+    edit_csv(path, fn)
+
+
+def cut_gap(path: str | Path, start_s: float, length_s: float) -> None:
+    """Remove the rows of ``length_s`` seconds starting ``start_s`` after the file's first row."""
+    def fn(df):
+        t = (df["time"] - df["time"].iloc[0]) / 1e9
+        return df[(t < start_s) | (t >= start_s + length_s)]
+    edit_csv(path, fn)
+
+
+def resample_rows(path: str | Path, rate_hz: float) -> None:
+    """Keep the rows nearest to a ``rate_hz`` clock (a slower stream of the same phone)."""
+    def fn(df):
+        t = (df["time"].to_numpy() - df["time"].iloc[0]) / 1e9
+        want = np.arange(0.0, t[-1], 1.0 / rate_hz)
+        return df.iloc[np.unique(np.clip(np.searchsorted(t, want), 0, len(df) - 1))]
+    edit_csv(path, fn)

@@ -237,7 +237,6 @@ CASES = {
     "no-metadata": ("Metadata.csv", lambda p: p.unlink(), ["Metadata.csv is missing", EXPORT]),
     "metadata-without-platform": ("Metadata.csv", _drop_metadata_platform,
                                   ["Metadata.csv", "missing columns", "platform"]),
-    "no-gravity": ("Gravity.csv", lambda p: p.unlink(), ["Accelerometer.csv", "without gravity"]),
     "bad-location": ("Location.csv", lambda p: _edit_csv(p, lambda d: d.assign(latitude=d["latitude"] + 100)),
                      ["Location.csv", "out of range"]),
 }

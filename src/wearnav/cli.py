@@ -86,11 +86,16 @@ def import_(
     src: Path = typer.Argument(..., help="The dataset's folder (or file / zip) in its original layout."),
     out: Path = typer.Option(..., "--out", help="Dataset folder to write."),
     limit: Optional[int] = typer.Option(None, min=0, help="Import at most this many recordings."),
+    platform: Optional[str] = typer.Option(None, help="sensorlogger only: ios | watchos | android, for "
+                                           "exports without Metadata.csv (overrides its platform)."),
 ):
     """Import real recordings into a wearnav dataset folder."""
     from wearnav.importers import import_dataset
 
-    ds = import_dataset(fmt, src, out, limit=limit, progress=_progress())
+    if platform is not None and fmt != "sensorlogger":
+        raise typer.BadParameter("--platform is for the sensorlogger format only")
+    options = {"platform": platform} if platform is not None else {}
+    ds = import_dataset(fmt, src, out, limit=limit, progress=_progress(), **options)
     _echo_json(ds.summary())
 
 
@@ -113,6 +118,26 @@ def plot(
     else:
         rec = Recording.load(path)
     typer.echo(str(plot_recording(rec, out)))
+
+
+@app.command()
+def track(
+    src: Path = typer.Argument(..., metavar="INPUT",
+                               help="A Sensor Logger export (folder or .zip), a recording (.h5), or a dataset folder."),
+    model: Path = typer.Option(..., "--model", help="A run folder of `wearnav train`, or one of its checkpoints."),
+    out: Path = typer.Option(..., "--out", help="Folder for trajectory.csv / .png / .geojson and track.json."),
+    name: Optional[str] = typer.Option(None, help="Which recording of a dataset folder (or export of a folder of exports)."),
+    platform: Optional[str] = typer.Option(None, help="ios | watchos | android, for an export without Metadata.csv."),
+):
+    """The walking path of one recording: predict, integrate from (0, 0), anchor on the first location fixes."""
+    from wearnav.track import track as track_
+
+    summary = track_(src, model, out, name=name, platform=platform, progress=_progress())
+    typer.echo(f"model input: {summary['model']} on {', '.join(summary['model_devices'])}; used "
+               f"{', '.join(summary['devices_used'])} (frame: {summary['frame']}, reference "
+               f"{summary['frame_reference']})")
+    _echo_json({k: summary[k] for k in ("recording", "duration_s", "length_m", "end_xy_m", "files")
+                if k in summary} | {"anchoring": summary.get("anchoring", "no location fixes")})
 
 
 @app.command("datasets-report")

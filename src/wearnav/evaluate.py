@@ -52,15 +52,17 @@ def load_sequences(view, cfg, progress: bool = False) -> list[Aligned]:
 
 
 @torch.no_grad()
-def predict_sequence(model, seq: Aligned, window: int, stride: int, batch: int = 512
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def predict_sequence(model, seq: Aligned, window: int, stride: int, batch: int = 512,
+                     progress: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Window centre times (N,), predicted velocities (N, 2) and device presence (N, D)."""
+    from tqdm.auto import tqdm
+
     wds = WindowDataset([seq], WindowConfig(window=window, stride=stride, target=None))
     if len(wds) == 0:
         return np.empty(0), np.empty((0, 2)), np.empty((0, len(seq.devices)))
     device = next((p.device for p in model.parameters()), torch.device("cpu"))
     ts, vs, ms = [], [], []
-    for b in wds.loader(batch):
+    for b in tqdm(wds.loader(batch), desc="predict", unit="batch", disable=not progress, leave=False):
         vs.append(model.predict(b["x"].to(device), b["mask"].to(device)).float().cpu().numpy())
         ts.append(b["t"].mean(dim=1).numpy())
         ms.append(b["mask"].numpy())

@@ -32,17 +32,18 @@ def get_importer(fmt: str) -> ModuleType:
 
 
 def import_dataset(fmt: str, src: str | Path, out: str | Path, limit: int | None = None,
-                   progress: bool = True):
-    """Read ``src`` with the ``fmt`` importer and write a dataset folder at ``out``."""
+                   progress: bool = True, **options):
+    """Read ``src`` with the ``fmt`` importer and write a dataset folder at ``out``; ``options``
+    go to that importer's ``read`` (e.g. sensorlogger's ``platform``)."""
     from tqdm import tqdm
 
     from wearnav.dataset import Dataset, DatasetWriter
 
     src = Path(src)
     module = get_importer(fmt)  # each read() checks src and limit (common.check_source)
-    bar = tqdm(module.read(src, limit=limit), desc=f"import {fmt}", unit="rec", disable=not progress)
+    bar = tqdm(module.read(src, limit=limit, **options), desc=f"import {fmt}", unit="rec", disable=not progress)
     try:
-        made_by = {"importer": fmt, "src": str(src.resolve()), "limit": limit}
+        made_by = {"importer": fmt, "src": str(src.resolve()), "limit": limit, **options}
         with DatasetWriter(out, made_by) as writer:
             for rec in bar:
                 writer.add(rec, split=rec.meta.get("split", ""))

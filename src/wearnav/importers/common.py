@@ -174,6 +174,15 @@ def latlon_to_local(lat: np.ndarray, lon: np.ndarray, lat0: float | None = None,
     return np.stack([east, north], axis=1)
 
 
+def local_to_latlon(pos: np.ndarray, lat0: float, lon0: float) -> tuple[np.ndarray, np.ndarray]:
+    """The inverse of :func:`latlon_to_local`: local east/north metres (N, 2) about (lat0, lon0)
+    back to WGS-84 latitude and longitude in degrees."""
+    pos = np.asarray(pos, dtype=np.float64)
+    lat = lat0 + np.rad2deg(pos[:, 1] / EARTH_RADIUS_M)
+    lon = lon0 + np.rad2deg(pos[:, 0] / (EARTH_RADIUS_M * np.cos(np.deg2rad(lat0))))
+    return lat, lon
+
+
 # The importers' gap rule when they merge a phone's gyroscope / orientation onto its accelerometer
 # timestamps (``timeseries.interp_onto(..., max_gap=MAX_INTERP_GAP_S)``): a fixed time, not a
 # number of periods, because the streams of one phone differ in rate (50–200 Hz) and a hole

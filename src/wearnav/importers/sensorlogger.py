@@ -3,7 +3,7 @@
 An export is a folder (or a ``.zip`` of one) holding one CSV per sensor. ``src`` may be one
 export folder, one zip, or a folder of several export folders / zips. The files read are::
 
-    Metadata.csv                          platform (ios | android), standardisation (true | false)
+    Metadata.csv                          platform (ios | watchos | android), standardisation (true | false)
     Accelerometer.csv, Gravity.csv        phone, time,seconds_elapsed,z,y,x
     TotalAcceleration.csv                 phone (Android only), same columns
     Gyroscope.csv                         phone, same columns
@@ -23,7 +23,7 @@ reading about +9.81 on z for a device lying screen-up on a table.
 
 Time
   * ``t = (time - t0) * 1e-9`` s, in int64 arithmetic, with ``t0`` the earliest ``time`` of any
-    file read (kept in ``meta["t0_unix_ns"]``). UNITS.md: "`time` is in nanoseconds since epoch".
+    file read, stale location fixes excluded (kept in ``meta["t0_unix_ns"]``). UNITS.md: "`time` is in nanoseconds since epoch".
     README.md: "All exported data have synchronised timestamps", so one ``t0`` serves all devices.
   * ``seconds_elapsed`` is not used (README.md: "some entries could be negative ... due to
     buffering or caching").
@@ -40,7 +40,10 @@ Sign convention of accelerations (``s = -1`` flips, ``s = +1`` keeps)
   * ``s = -1`` for iOS exports made with "Standardise Units & Frames" off, ``s = +1`` otherwise.
     COORDINATES.md: "Toggling **Standardise Units & Frames** ... will eliminate this difference by
     automatically converting values logged on iOS to the Android convention".
-  * Both facts come from ``Metadata.csv`` (required). ``platform``: README.md, "Accessing Recording
+  * ``watchos`` (an export recorded on the Apple Watch alone, layout version 4) is read as iOS:
+    the watch follows the iPhone's convention (below).
+  * Both facts come from ``Metadata.csv``; without it the import fails unless ``platform`` is
+    given (``wearnav import sensorlogger --platform``), and standardisation is then read as off. ``platform``: README.md, "Accessing Recording
     Metadata": "platform: Either iOS or Android". ``standardisation`` (true / false) is not in the
     documentation; it is the column name real exports carry (header ``version,device name,
     recording epoch time,recording time,recording timezone,platform,appVersion,device id,sensors,
@@ -63,7 +66,12 @@ Phone accelerometer (device ``phone``)
     included"; "On iOS, only **Accelerometer.csv** is logged. You may create acceleration with
     gravity by combining the Accelerometer and Gravity sensor readings"; Gravity "in meters per
     second squared". Accelerometer.csv without Gravity.csv or TotalAcceleration.csv is an error:
-    there is no gravity to add back.
+    there is no gravity to add back; the export's other devices are still imported, and one
+    warning line (and ``meta["left_out"]``) says which file was left out and why.
+  * The phone's clock is the faster acceleration source: TotalAcceleration.csv, or Accelerometer.csv
+    plus Gravity.csv (on Android TotalAcceleration can run at ~59 Hz beside 100 Hz Accelerometer /
+    Gravity / Gyroscope / Orientation); ``meta["phone_clock"]`` names the file and every phone
+    file's rate.
   * ``gyro = Gyroscope`` rad/s as written. UNITS.md: Gyroscope "in radians per second (rad/s)".
   * Gravity, Gyroscope and Orientation are interpolated onto the accelerometer's timestamps
     (``timeseries.interp_onto``: linear; quaternions sign-aligned, linear, renormalised). README.md: "they
@@ -109,8 +117,13 @@ Location (``Location.csv`` → ``Recording.fixes``)
   * ``latitude`` / ``longitude`` (UNITS.md: "in degrees") are projected to local east/north metres
     about the first fix with :func:`latlon_to_local`; the origin is kept in
     ``meta["origin_lat"]`` / ``meta["origin_lon"]``. Fixes are 2-D (altitude is not used).
+  * A cached fix from before the recording (negative ``seconds_elapsed``; usually far away with a
+    huge accuracy) is dropped (``meta["dropped_stale_fixes"]``): it must not start the clock.
   * ``accuracy = horizontalAccuracy`` m, NaN where negative or absent. UNITS.md: "`horizontalAccuracy`,
     in meters as the radius of uncertainty. ... Negative values indicate it is invalid."
+
+Holes longer than ``REPORT_GAP_S`` in any device's stream (e.g. 10+ s inside a nominally 100 Hz
+WristMotion.csv) are listed in ``meta["gaps"]`` with one warning line; the preprocessing masks them.
 
 Sensor Logger records no ground truth: ``truth`` is None and ``labels`` is empty.
 """
@@ -118,6 +131,7 @@ Sensor Logger records no ground truth: ``truth`` is None and ``labels`` is empty
 from __future__ import annotations
 
 import tempfile
+import warnings
 import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -127,7 +141,8 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
+from wearnav.errors import (ConfigError, FormatError, MissingFileError, ValidationError, WearnavError,
+                            WearnavWarning)
 from wearnav.importers.common import (
     MAX_INTERP_GAP_S,
     check_finite,
@@ -157,6 +172,18 @@ MAX_VERTICAL_ERROR = 1.5
 MIN_ROTATION_FOR_CHECK = 2.0
 # Largest relative mismatch between quaternion increments and gyro increments that still passes.
 MAX_GYRO_RESIDUAL = 0.5
+# The gyro residual leaves out this share of the worst increments (at least 2): a single start-up
+# glitch (one quaternion ~1 rad off, seen in real Android Orientation.csv and AirPods
+# Headphone.csv) makes two huge increments that would otherwise dominate the sum of squares.
+GYRO_RESIDUAL_TRIM = 0.01
+# Platforms Metadata.csv names; a watch-only export says watchos and follows the iPhone's sign.
+PLATFORMS = ("ios", "watchos", "android")
+APPLE = ("ios", "watchos")
+# Holes longer than this in a motion stream are reported (meta["gaps"] and a warning); the
+# preprocessing masks them (it never interpolates across more than a few sample periods).
+REPORT_GAP_S = 1.0
+# Acceleration files whose rates differ by less than this fraction count as equally fast.
+RATE_TIE = 0.05
 
 
 # ---- discovery ------------------------------------------------------------------------------
@@ -174,14 +201,19 @@ def is_export(folder: Path) -> bool:
     return folder.is_dir() and any(_has(folder, n) for n in ("Metadata.csv", *MOTION_FILES))
 
 
-def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
-    """Recordings from one export folder, one export zip, or a folder of several of either."""
+def read(src: Path, limit: int | None = None, platform: str | None = None) -> Iterator[Recording]:
+    """Recordings from one export folder, one export zip, or a folder of several of either.
+
+    ``platform`` (ios | watchos | android) stands in for Metadata.csv's, for exports that lack
+    that file (see :func:`_metadata`)."""
     src, limit = check_source(src, limit, expect="a Sensor Logger export folder or .zip")
+    if platform is not None and platform.strip().lower() not in PLATFORMS:
+        raise ConfigError(f"platform {platform!r} is not one of {', '.join(PLATFORMS)}")
     if limit == 0:
         return
     count = 0
     for kind, path in _exports(src):
-        recs = [read_export(path)] if kind == "dir" else _read_zip(path)
+        recs = [read_export(path, platform=platform)] if kind == "dir" else _read_zip(path, platform)
         for rec in recs:
             if limit is not None and count >= limit:
                 return
@@ -212,7 +244,7 @@ def _exports(src: Path) -> Iterator[tuple[str, Path]]:
             "WristMotion.csv / Headphone.csv in this folder, or export sub-folders or .zip files", src)
 
 
-def _read_zip(zpath: Path) -> Iterator[Recording]:
+def _read_zip(zpath: Path, platform: str | None = None) -> Iterator[Recording]:
     """Extract the known CSVs of each export inside ``zpath`` and read them.
 
     Only base names are written (no member path is trusted), and errors name the zip member.
@@ -248,7 +280,12 @@ def _read_zip(zpath: Path) -> Iterator[Recording]:
             shown = f"{zpath}!{member_dir}/" if member_dir not in (".", "") else f"{zpath}!"
             name = zpath.stem if len(groups) == 1 else f"{zpath.stem}_{PurePosixPath(member_dir).name}"
             file = shown.replace(str(zpath), zpath.name).rstrip("!/")
-            yield read_export(dest, name=name, shown_as=shown, file=file)
+            yield read_export(dest, name=name, shown_as=shown, file=file, platform=platform)
+
+
+class Unusable(FormatError):
+    """A device's stream lacks what it needs (gravity, overlap); the export's other devices are
+    still imported."""
 
 
 # ---- one export -----------------------------------------------------------------------------
@@ -290,35 +327,48 @@ def _load(folder: Path, fname: str, cols: list[str], optional_cols: tuple[str, .
     return _Table(path, t_ns, df, n_dup)
 
 
-def _metadata(folder: Path) -> tuple[str, bool, dict]:
+def _metadata(folder: Path, given: str | None = None) -> tuple[str, bool, dict]:
+    """Platform, standardisation flag and descriptive fields. ``given`` (the ``--platform``
+    option) replaces Metadata.csv's platform; without Metadata.csv it is required, and
+    standardisation is then read as off (the app's default, CROSSPLATFORM.md)."""
+    given = given.strip().lower() if given else None
     try:
         path = find_file(folder / "Metadata.csv")
     except MissingFileError:
-        raise FormatError("Metadata.csv is missing; its 'platform' decides the acceleration sign "
-                          "(iOS and Android differ, COORDINATES.md)", folder) from None
+        if given is None:
+            raise FormatError(
+                "Metadata.csv is missing from this export: its 'platform' (iOS, watchOS or Android) "
+                "decides the acceleration sign; copy Metadata.csv from the original export, or say "
+                "which phone recorded it (wearnav import sensorlogger --platform ios|watchos|android)",
+                folder) from None
+        return given, False, {"platform_from": "--platform (no Metadata.csv; standardisation read as off)"}
     df = read_csv(path, required=["platform"], dtype=str, keep_default_na=False)
     row = df.iloc[0]
-    platform = row["platform"].strip().lower()
-    if platform not in ("ios", "android"):
-        raise FormatError(f"platform {row['platform']!r} is neither iOS nor Android", path)
+    platform = given or row["platform"].strip().lower()
+    if platform not in PLATFORMS:
+        raise FormatError(f"platform {row['platform']!r} is none of iOS, watchOS, Android "
+                          "(--platform overrides it)", path)
     flag = str(row.get("standardisation", "")).strip().lower()
     if flag not in ("", "true", "false"):
         raise FormatError(f"standardisation {flag!r} is neither true nor false", path)
     info = {k: str(row[c]) for k, c in (("device_name", "device name"), ("app_version", "appVersion"),
                                         ("platform_version", "platform version"),
-                                        ("recording_time", "recording time")) if c in df.columns}
+                                        ("recording_time", "recording time"),
+                                        ("layout_version", "version")) if c in df.columns}
+    if given:
+        info["platform_from"] = f"--platform (Metadata.csv says {row['platform']!r})"
     return platform, flag == "true", info
 
 
 def read_export(folder: str | Path, name: str | None = None, shown_as: str | None = None,
-                file: str | None = None) -> Recording:
+                file: str | None = None, platform: str | None = None) -> Recording:
     """Read one export folder.
 
     ``shown_as`` replaces the folder in error messages and ``file`` names it in
     ``meta["file"]`` (both for exports extracted from a zip)."""
     folder = Path(folder)
     try:
-        return _read_export(folder, name or folder.name, file or folder.name)
+        return _read_export(folder, name or folder.name, file or folder.name, platform)
     except WearnavError as exc:
         if shown_as and exc.source and exc.source.startswith(str(folder)):
             exc.source = shown_as + exc.source[len(str(folder)):].lstrip("/\\")
@@ -326,30 +376,32 @@ def read_export(folder: str | Path, name: str | None = None, shown_as: str | Non
         raise
 
 
-def _read_export(folder: Path, name: str, file: str) -> Recording:
-    platform, standardised, info = _metadata(folder)
-    s = -1.0 if (platform == "ios" and not standardised) else 1.0
+def _read_export(folder: Path, name: str, file: str, given_platform: str | None = None) -> Recording:
+    platform, standardised, info = _metadata(folder, given_platform)
+    s = -1.0 if (platform in APPLE and not standardised) else 1.0
     u = 1.0 if standardised else G
     units = (f"acceleration read as {'m/s²' if standardised else 'g'} because Metadata.csv says "
              f"standardisation is {'on' if standardised else 'off'}")
 
     t_acc = _load(folder, "TotalAcceleration.csv", XYZ)
-    acc_lin = _load(folder, "Accelerometer.csv", XYZ) if t_acc is None else None
-    grav = _load(folder, "Gravity.csv", XYZ) if t_acc is None else None
+    acc_lin = _load(folder, "Accelerometer.csv", XYZ)
+    grav = _load(folder, "Gravity.csv", XYZ)
     gyro = _load(folder, "Gyroscope.csv", XYZ)
     ori = _load(folder, "Orientation.csv", ["qw", "qx", "qy", "qz"])
     wrist = _load(folder, "WristMotion.csv", [*_xyz("rotationRate"), *_xyz("gravity"),
                                               *_xyz("acceleration"), *_quat_cols()])
     head = _load(folder, "Headphone.csv", [*_xyz("rotationRate"), *_xyz("gravity"),
                                            *_xyz("acceleration"), *_quat_cols()])
-    loc = _load(folder, "Location.csv", ["latitude", "longitude"], optional_cols=("horizontalAccuracy",))
-    if acc_lin is not None and grav is None:
-        raise FormatError("holds acceleration without gravity (UNITS.md) and neither Gravity.csv nor "
-                          "TotalAcceleration.csv is there to add it back", acc_lin.path)
-    tables = [x for x in (t_acc, acc_lin, grav, gyro, ori, wrist, head, loc) if x is not None]
+    loc = _load(folder, "Location.csv", ["latitude", "longitude"],
+                optional_cols=("horizontalAccuracy", "seconds_elapsed"))
+    motion = [x for x in (t_acc, acc_lin, grav, gyro, ori, wrist, head) if x is not None]
     if not any(x is not None for x in (t_acc, acc_lin, wrist, head)):
         raise FormatError("no motion file (Accelerometer.csv, TotalAcceleration.csv, WristMotion.csv "
                           "or Headphone.csv)", folder)
+    stale = _stale_fixes(loc, min(int(x.t_ns[0]) for x in motion)) if loc is not None else None
+    if stale is not None and stale.any():
+        loc = _Table(loc.path, loc.t_ns[~stale], loc.df[~stale].reset_index(drop=True), loc.duplicates)
+    tables = [*motion, *([loc] if loc is not None and len(loc.t_ns) else [])]
     t0 = min(int(x.t_ns[0]) for x in tables)
 
     def sec(t_ns: np.ndarray) -> np.ndarray:
@@ -358,14 +410,19 @@ def _read_export(folder: Path, name: str, file: str) -> Recording:
     inverted: list[str] = []
     uncovered: dict[str, int] = {}
     devices: dict[str, DeviceStream] = {}
+    left_out: dict[str, str] = {}
+    clock_info: dict = {}
 
-    base = t_acc if t_acc is not None else acc_lin
-    if base is not None:
+    def phone() -> DeviceStream:
+        base, add_gravity = _phone_acceleration(t_acc, acc_lin, grav)
+        clock_info.update(file=base.path.name, rate_hz=round(_rate(base), 2),
+                          rates_hz={x.path.name: round(_rate(x), 2)
+                                    for x in (t_acc, acc_lin, grav, gyro, ori) if x is not None})
         t = sec(base.t_ns)
         acc = base.values(XYZ)
         keep = np.ones(len(t), bool)
         w = q = None
-        if grav is not None:
+        if add_gravity:
             g, ok = interp_onto(t, sec(grav.t_ns), grav.values(XYZ), max_gap=MAX_INTERP_GAP_S)
             acc, keep = acc + g, keep & ok
         if gyro is not None:
@@ -376,26 +433,53 @@ def _read_export(folder: Path, name: str, file: str) -> Recording:
                                 max_gap=MAX_INTERP_GAP_S, quaternion=True)
             keep &= ok
         if keep.sum() < 2:
-            others = ", ".join(x.path.name for x in (grav, gyro, ori) if x is not None)
-            raise FormatError(f"{base.path.name} does not overlap in time with {others}", folder)
+            others = ", ".join(x.path.name for x in (grav if add_gravity else None, gyro, ori) if x is not None)
+            raise Unusable(f"{base.path.name} does not overlap in time with {others}", folder)
         if not keep.all():
             uncovered["phone"] = int((~keep).sum())
             t, acc = t[keep], acc[keep]
             w = None if w is None else w[keep]
             q = None if q is None else q[keep]
-        devices["phone"] = _stream("phone", t, s * acc, w, q, base.path, ori.path if ori else None,
-                                   "phone acceleration is m/s² in every export (UNITS.md)", inverted)
+        return _stream("phone", t, s * acc, w, q, base.path, ori.path if ori else None,
+                       "phone acceleration is m/s² in every export (UNITS.md)", inverted)
 
-    if wrist is not None:
+    def watch() -> DeviceStream:
         acc = s * u * (wrist.values(_xyz("acceleration")) + wrist.values(_xyz("gravity")))
-        devices["watch"] = _stream("watch", sec(wrist.t_ns), acc, wrist.values(_xyz("rotationRate")),
-                                   _unit_quats(wrist.values(_quat_cols()), wrist.path), wrist.path,
-                                   wrist.path, units, inverted)
-    if head is not None:
+        return _stream("watch", sec(wrist.t_ns), acc, wrist.values(_xyz("rotationRate")),
+                       _unit_quats(wrist.values(_quat_cols()), wrist.path), wrist.path,
+                       wrist.path, units, inverted)
+
+    def earbuds() -> DeviceStream:
         acc = s * (u * head.values(_xyz("acceleration")) + head.values(_xyz("gravity")))
-        devices["earbuds"] = _stream("earbuds", sec(head.t_ns), acc, head.values(_xyz("rotationRate")),
-                                     _unit_quats(head.values(_quat_cols()), head.path), head.path,
-                                     head.path, units, inverted)
+        return _stream("earbuds", sec(head.t_ns), acc, head.values(_xyz("rotationRate")),
+                       _unit_quats(head.values(_quat_cols()), head.path), head.path,
+                       head.path, units, inverted)
+
+    # Each device on its own: a stream that lacks what it needs (Unusable) leaves the others
+    # importable (one warning line); only when none is usable does the import fail, with the first
+    # device's reason. A failed plausibility check stays fatal: it usually means a wrong
+    # Metadata.csv, which concerns every device.
+    errors: list[WearnavError] = []
+    for dev, present, build in (("phone", t_acc is not None or acc_lin is not None, phone),
+                                ("watch", wrist is not None, watch), ("earbuds", head is not None, earbuds)):
+        if not present:
+            continue
+        try:
+            devices[dev] = build()
+        except Unusable as exc:
+            errors.append(exc)
+            left_out[dev] = str(exc)
+    if not devices:
+        raise errors[0]
+    if left_out:
+        warnings.warn(WearnavWarning(f"{folder}: imported {', '.join(devices)} only; left out "
+                                     + "; ".join(f"{d} ({r})" for d, r in left_out.items())))
+    gaps = {dev: g for dev, st in devices.items() if (g := _gaps(st.t))}
+    if gaps:
+        warnings.warn(WearnavWarning(
+            f"{folder}: " + "; ".join(f"{dev} has {len(g)} gap(s) over {REPORT_GAP_S:g} s "
+                                      f"(longest {max(b - a for a, b in g):.1f} s)" for dev, g in gaps.items())
+            + "; they are masked, never interpolated"))
 
     meta = {
         "source": SOURCE,
@@ -412,15 +496,62 @@ def _read_export(folder: Path, name: str, file: str) -> Recording:
         "dropped_uncovered": uncovered,
         "file": file,
     }
-    if head is not None and "devicelocation" in head.df.columns:
+    if "phone" in devices:
+        meta["phone_clock"] = clock_info
+    if left_out:
+        meta["left_out"] = left_out
+    if gaps:
+        meta["gaps"] = gaps
+    if stale is not None and stale.any():
+        meta["dropped_stale_fixes"] = int(stale.sum())
+    if "earbuds" in devices and "devicelocation" in head.df.columns:
         sides = head.df["devicelocation"].dropna().astype(str)
         if len(sides):
             meta["earbud_side"] = str(sides.mode().iloc[0])
     fixes = None
-    if loc is not None:
+    if loc is not None and len(loc.t_ns):
         fixes, origin = _fixes(loc, sec(loc.t_ns))
         meta.update(origin)
     return Recording(name=name, devices=devices, fixes=fixes, meta=meta)
+
+
+def _rate(x: _Table) -> float:
+    dt = np.diff(x.t_ns) * 1e-9
+    return float(1.0 / np.median(dt)) if dt.size else 0.0
+
+
+def _phone_acceleration(t_acc: _Table | None, acc_lin: _Table | None,
+                        grav: _Table | None) -> tuple[_Table, bool]:
+    """The phone's acceleration clock: TotalAcceleration.csv as written, or Accelerometer.csv plus
+    Gravity.csv (interpolated onto it), whichever is faster (on a tie the total, which needs no
+    interpolation). On Android TotalAcceleration.csv can run at ~59 Hz while Accelerometer,
+    Gravity, Gyroscope and Orientation run at 100 Hz; the chosen file is ``meta["phone_clock"]``."""
+    lin_ok = acc_lin is not None and grav is not None
+    if t_acc is not None and not (lin_ok and _rate(acc_lin) > (1 + RATE_TIE) * _rate(t_acc)):
+        return t_acc, False
+    if not lin_ok:
+        raise Unusable("holds acceleration without gravity (UNITS.md) and neither Gravity.csv nor "
+                          "TotalAcceleration.csv is there to add it back", acc_lin.path)
+    return acc_lin, True
+
+
+def _stale_fixes(loc: _Table, t_motion_ns: int) -> np.ndarray:
+    """Fixes from before the recording: a cached first fix that the app writes with a negative
+    ``seconds_elapsed`` (README.md: negative entries come from "buffering or caching"), often far
+    away and with a huge accuracy. Without that column, fixes more than 1 s before the first motion
+    sample. They are dropped (count in ``meta["dropped_stale_fixes"]``) so they neither start the
+    recording's clock nor set the local origin."""
+    if "seconds_elapsed" in loc.df.columns:
+        se = pd.to_numeric(loc.df["seconds_elapsed"], errors="coerce").to_numpy(np.float64)
+        return np.isfinite(se) & (se < 0)
+    return loc.t_ns < t_motion_ns - 1_000_000_000
+
+
+def _gaps(t: np.ndarray) -> list[list[float]]:
+    """[start, end] (s) of every hole longer than REPORT_GAP_S."""
+    d = np.diff(t)
+    i = np.flatnonzero(d > REPORT_GAP_S)
+    return [[round(float(t[k]), 3), round(float(t[k + 1]), 3)] for k in i]
 
 
 def _xyz(prefix: str) -> list[str]:
@@ -486,6 +617,14 @@ def _check_orientation(q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | N
         return to_wxyz(r), label
     (_, _, _, _, tilt_a, res_a), (_, _, _, _, tilt_b, res_b) = found
     gyro_note = "" if res_a is None else f", gyro residual {res_a:.2f} ({res_b:.2f} inverse)"
+    if min(tilt_a, tilt_b) <= TILT_TOLERANCE_DEG:
+        # Gravity agrees, so the acceleration sign (platform / standardisation) is right; what
+        # disagrees is the orientation with the gyroscope.
+        raise FormatError(
+            f"orientation does not follow the gyroscope: its rotation between samples differs from "
+            f"the gyroscope's by {res_a:.2f} of it ({res_b:.2f} with the inverse rotation), over "
+            f"{MAX_GYRO_RESIDUAL:g} either way, although gravity agrees with it "
+            f"({min(tilt_a, tilt_b):.0f}° from up); the orientation or gyroscope column is unusable", path)
     raise FormatError(
         f"orientation does not fit the accelerometer: gravity rotated to the world frame is "
         f"{tilt_a:.0f}° from up ({tilt_b:.0f}° with the inverse rotation){gyro_note}; is "
@@ -493,10 +632,12 @@ def _check_orientation(q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | N
 
 
 def _gyro_residual(rot: Rotation, gyro: np.ndarray | None, t: np.ndarray) -> float | None:
-    """Σ|Δθ_quat − Δθ_gyro|² / Σ|Δθ_gyro|² over successive samples (body-frame increments).
+    """Σ|Δθ_quat − Δθ_gyro|² / Σ|Δθ_gyro|² over successive samples (body-frame increments),
+    leaving out the worst GYRO_RESIDUAL_TRIM of the increments (at least 2) from both sums.
 
     Near 0 when the quaternions are world←device and agree with the gyro; None when there is
-    no gyro or too little rotation to tell.
+    no gyro or too little rotation to tell. The trimmed sums make one glitched quaternion (two
+    increments of ~1 rad) irrelevant, while the wrong direction disagrees at most samples.
     """
     if gyro is None or len(t) < 3:
         return None
@@ -506,7 +647,10 @@ def _gyro_residual(rot: Rotation, gyro: np.ndarray | None, t: np.ndarray) -> flo
     w = 0.5 * (gyro[:-1] + gyro[1:])[step] * dt[step, None]
     if np.linalg.norm(w, axis=1).sum() < MIN_ROTATION_FOR_CHECK:
         return None
-    return float(np.sum((inc - w) ** 2) / np.sum(w * w))
+    err = np.sum((inc - w) ** 2, axis=1)
+    n_drop = min(max(2, int(GYRO_RESIDUAL_TRIM * err.size)), err.size - 1)
+    keep = np.argsort(err)[: err.size - n_drop]
+    return float(np.sum(err[keep]) / np.sum(w[keep] ** 2))
 
 
 def _fixes(loc: _Table, t: np.ndarray) -> tuple[Fixes, dict]:
