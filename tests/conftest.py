@@ -50,3 +50,19 @@ def error_line(exc: WearnavError) -> str:
     msg = str(exc)
     assert "\n" not in msg
     return msg
+
+
+def run_cli(monkeypatch, capsys, *args) -> tuple[int, str, str]:
+    """Run `wearnav ARGS` in-process: (exit code, stdout, stderr)."""
+    import sys
+
+    from wearnav import cli
+
+    monkeypatch.setattr(sys, "argv", ["wearnav", *map(str, args)])
+    code = 0
+    try:
+        cli.main()
+    except SystemExit as e:
+        code = e.code or 0
+    out = capsys.readouterr()
+    return code, out.out, out.err

@@ -1,23 +1,14 @@
 """The `wearnav` command end to end on the tiny simulated preset."""
 
 import json
-import sys
 
 import matplotlib.image as mpimg
 import pytest
 
-from wearnav import cli
+from conftest import run_cli
 
 
-def run(monkeypatch, capsys, *args):
-    monkeypatch.setattr(sys, "argv", ["wearnav", *map(str, args)])
-    code = 0
-    try:
-        cli.main()
-    except SystemExit as e:
-        code = e.code or 0
-    out = capsys.readouterr()
-    return code, out.out, out.err
+run = run_cli
 
 
 def test_simulate_info_plot(tmp_path, monkeypatch, capsys):

@@ -1,26 +1,17 @@
 """`wearnav train / eval / bench odometry / results` end to end on the tiny preset, and their errors."""
 
 import json
-import sys
 from dataclasses import replace
 
 import pytest
 
-from wearnav import cli
 from wearnav.dataset import Dataset, DatasetWriter
 
 from test_train_odometry import TinyGait  # noqa: F401  (registers "test-mlp")
+from conftest import run_cli
 
 
-def run(monkeypatch, capsys, *args):
-    monkeypatch.setattr(sys, "argv", ["wearnav", *map(str, args)])
-    code = 0
-    try:
-        cli.main()
-    except SystemExit as e:
-        code = e.code or 0
-    out = capsys.readouterr()
-    return code, out.out, out.err
+run = run_cli
 
 
 @pytest.fixture(scope="module")

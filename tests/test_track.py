@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import sys
 
 import matplotlib.image as mpimg
 import numpy as np
@@ -17,7 +16,7 @@ import pandas as pd
 import pytest
 
 from sensorlogger_fixture import ORIGIN, time_origin, write_export, zip_export
-from wearnav import cli, metrics
+from wearnav import metrics
 from wearnav.dataset import DatasetWriter
 from wearnav.evaluate import evaluate_sequence
 from wearnav.importers.common import latlon_to_local, local_to_latlon
@@ -26,6 +25,7 @@ from wearnav.recording import Recording
 from wearnav.simulate import WalkConfig, simulate_recording
 from wearnav.track import anchor_to_fixes, apply_anchor, track
 from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
+from conftest import run_cli
 
 EXPORT = "2023-11-14_22-13-20"
 
@@ -146,15 +146,7 @@ def test_local_to_latlon_inverts_latlon_to_local():
     np.testing.assert_allclose(back, (lat, lon), atol=1e-10)
 
 
-def run(monkeypatch, capsys, *args):
-    monkeypatch.setattr(sys, "argv", ["wearnav", *map(str, args)])
-    code = 0
-    try:
-        cli.main()
-    except SystemExit as e:
-        code = e.code or 0
-    out = capsys.readouterr()
-    return code, out.out, out.err
+run = run_cli
 
 
 def test_track_command_subsets_and_one_line_errors(setup, tmp_path, monkeypatch, capsys):
