@@ -245,13 +245,15 @@ def bench_har(
     seeds: Optional[int] = typer.Option(None, min=1, help="Seeds per technique (default 3; --quick 1)."),
     jobs: int = typer.Option(1, min=1, help="Runs trained at once in local processes."),
     epochs: Optional[int] = typer.Option(None, min=1, help="Epochs per run (default 30; --quick 1)."),
+    techniques: Optional[str] = typer.Option(None, help="Techniques, comma-separated (default: all applicable)."),
+    max_time: Optional[float] = typer.Option(None, "--max-time", help="Minutes of training per run (not hashed)."),
     quick: bool = typer.Option(False, "--quick", help="A tiny subset and 1 epoch: checks the pipeline only."),
 ):
     """The paper-002 HAR benchmark: baseline and ten techniques per dataset; runs resume."""
     from wearnav.bench.har import run_benchmark
 
     page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3), jobs,
-                         quick, epochs, echo=typer.echo)
+                         quick, epochs, _devices(techniques) if techniques else None, max_time, echo=typer.echo)
     typer.echo(f"wrote {page}")
 
 
