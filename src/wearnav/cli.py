@@ -260,6 +260,53 @@ def bench_efficiency(
     typer.echo(str(write_report(rows, out, odometry_suite)))
 
 
+# ---- activity / placement recognition (issue 9, paper 002) ------------------------------------
+
+@bench_app.command("har")
+def bench_har(
+    out: Path = typer.Option(Path("runs/har"), "--out", help="Suite folder (imported data, run folders, results.md)."),
+    data: Path = typer.Option(Path("../shared/data"), "--data", help="Folder holding the public datasets."),
+    datasets: Optional[str] = typer.Option(None, help="Datasets, comma-separated (default: all; --quick: uci-hapt)."),
+    seeds: Optional[int] = typer.Option(None, min=1, help="Seeds per technique (default 3; --quick 1)."),
+    jobs: int = typer.Option(1, min=1, help="Runs trained at once in local processes."),
+    epochs: Optional[int] = typer.Option(None, min=1, help="Epochs per run (default 30; --quick 1)."),
+    techniques: Optional[str] = typer.Option(None, help="Techniques, comma-separated (default: all applicable)."),
+    max_time: Optional[float] = typer.Option(None, "--max-time", help="Minutes of training per run (not hashed)."),
+    quick: bool = typer.Option(False, "--quick", help="A tiny subset and 1 epoch: checks the pipeline only."),
+):
+    """The paper-002 HAR benchmark: baseline and ten techniques per dataset; runs resume."""
+    from wearnav.bench.har import run_benchmark
+
+    page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3), jobs,
+                         quick, epochs, _devices(techniques) if techniques else None, max_time, echo=typer.echo)
+    typer.echo(f"wrote {page}")
+
+
+@app.command("classify")
+def classify_(
+    input_: Path = typer.Argument(..., metavar="INPUT",
+                                  help="A recording (.h5), a dataset folder, or a Sensor Logger export (folder or zip)."),
+    model: Path = typer.Option(..., "--model", help="A classifier run folder (from `wearnav bench har`)."),
+    out: Path = typer.Option(..., "--out", help="Folder for <name>_intervals.csv and <name>_timeline.png."),
+):
+    """Label a recording's activity (or placement) per window: intervals CSV + timeline PNG over |acc|."""
+    from wearnav.recording import Recording
+    from wearnav.train.classify import label_recordings
+
+    if input_.is_file() and input_.suffix == ".h5":
+        recs = [Recording.load(input_)]
+    elif (input_ / "manifest.csv").is_file():
+        from wearnav.dataset import Dataset
+
+        recs = iter(Dataset.open(input_))
+    else:
+        from wearnav.importers import sensorlogger
+
+        recs = sensorlogger.read(input_)
+    for path in label_recordings(recs, model, out):
+        typer.echo(str(path))
+
+
 @app.command("results")
 def results_(
     suites: list[Path] = typer.Argument(..., help="Suite folders, each holding a generated results.md."),

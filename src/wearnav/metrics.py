@@ -134,3 +134,39 @@ def ade(disp_est, disp_true) -> float:
     if est.shape != true.shape or est.ndim != 2 or est.shape[0] == 0:
         raise ValidationError(f"ADE needs matching (N, 2) displacements, got {est.shape} and {true.shape}")
     return float(np.mean(np.linalg.norm(est[:, :2] - true[:, :2], axis=1)))
+
+
+# ---- classification (activity / placement recognition, paper 002 Sec. III) -------------------
+
+def _labels(y_true, y_pred, n_classes: int) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(y_true, dtype=np.int64).ravel()
+    p = np.asarray(y_pred, dtype=np.int64).ravel()
+    if t.shape != p.shape or t.size == 0:
+        raise ValidationError(f"classification metrics need matching non-empty labels, got {t.shape} and {p.shape}")
+    if n_classes < 1 or t.min() < 0 or p.min() < 0 or max(t.max(), p.max()) >= n_classes:
+        raise ValidationError(f"class indices must lie in [0, {n_classes})")
+    return t, p
+
+
+def confusion_matrix(y_true, y_pred, n_classes: int) -> np.ndarray:
+    """Counts C[i, j] of windows of true class i predicted as class j."""
+    t, p = _labels(y_true, y_pred, n_classes)
+    return np.bincount(t * n_classes + p, minlength=n_classes ** 2).reshape(n_classes, n_classes)
+
+
+def accuracy(y_true, y_pred, n_classes: int) -> float:
+    """Share of windows whose predicted class is the true one."""
+    c = confusion_matrix(y_true, y_pred, n_classes)
+    return float(np.trace(c) / c.sum())
+
+
+def macro_f1(y_true, y_pred, n_classes: int) -> float:
+    """Unweighted mean over classes of F1 = 2·TP / (2·TP + FP + FN), over the classes that occur
+    in the truth or the predictions (a class absent from both is not scored; one predicted but
+    never true scores 0)."""
+    c = confusion_matrix(y_true, y_pred, n_classes).astype(np.float64)
+    tp = np.diag(c)
+    fp = c.sum(axis=0) - tp
+    fn = c.sum(axis=1) - tp
+    seen = (c.sum(axis=0) + c.sum(axis=1)) > 0
+    return float(np.mean(2 * tp[seen] / (2 * tp[seen] + fp[seen] + fn[seen])))

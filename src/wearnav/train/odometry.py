@@ -13,9 +13,6 @@ epoch exactly and ends with the same weights and metrics as an uninterrupted run
 from __future__ import annotations
 
 import dataclasses
-import logging
-import warnings
-import datetime as dt
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,10 +26,9 @@ from wearnav import runs
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.models import registry
 from wearnav.preprocess import PreprocessConfig
+from wearnav.train.common import BEST, CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
 from wearnav.windows import WindowConfig, WindowDataset
 
-CHECKPOINTS = "checkpoints"
-BEST, LAST = "best.ckpt", "last.ckpt"
 TRAINING = "training.json"  # what fit() measured; evaluate_run merges it into metrics.json
 DEFAULT_LR, DEFAULT_BATCH = 1e-3, 128
 
@@ -100,39 +96,11 @@ def build_model(cfg: TrainConfig) -> torch.nn.Module:
     return registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, **cfg.model_args)
 
 
-class OdometryModule(L.LightningModule):
-    def __init__(self, model: torch.nn.Module, lr: float, augment: tuple[str, ...] = (), seed: int = 0):
-        super().__init__()
-        self.model = model
-        self.lr = lr
-        self.augment = tuple(augment)
-        self.seed = seed
-        self._gen = torch.Generator()
-
-    def on_train_epoch_start(self) -> None:
-        base = self.seed * 1_000_003 + self.current_epoch
-        torch.manual_seed(base)  # dropout and any other draw inside the model
-        self._gen.manual_seed(base + 7)
-
-    def training_step(self, batch, batch_idx):
-        if self.augment:
-            from wearnav import augment
-
-            batch = augment.apply(self.augment, batch, self._gen)
-        loss, parts = self.model.loss(batch)
-        n = batch["x"].shape[0]
-        self.log("train/loss", loss, prog_bar=True, batch_size=n)
-        for k, v in parts.items():
-            self.log(f"train/{k}", v, batch_size=n)
-        return loss
-
+class OdometryModule(SeededModule):
     def validation_step(self, batch, batch_idx):
         vel = self.model(batch["x"], batch["mask"])
         mse = torch.mean((vel - batch["vel"]) ** 2)
         self.log("val/vel_mse", mse, prog_bar=True, batch_size=batch["x"].shape[0])
-
-    def configure_optimizers(self):
-        return torch.optim.Adam(self.model.parameters(), lr=self.lr)
 
 
 def _check_windows(ds: WindowDataset, what: str, data: str) -> None:
@@ -148,9 +116,6 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
     metrics.json: epochs run, best epoch and validation MSE, wall time, seconds per epoch, what
     stopped the run. Models that are not learned (PDR) are not fitted.
     """
-    from lightning.pytorch.callbacks import EarlyStopping, ModelCheckpoint
-    from lightning.pytorch.loggers import CSVLogger
-
     from wearnav.evaluate import load_sequences
 
     run = Path(run)
@@ -176,29 +141,10 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
     _check_windows(train_ds, f"training ({cfg.train_split})", cfg.data)
     _check_windows(val_ds, f"validation ({cfg.val_split})", cfg.data)
 
-    # Lightning's start-up chatter (accelerator lines, product tips) is not for our users.
-    logging.getLogger("lightning.pytorch.utilities.rank_zero").setLevel(logging.WARNING)
-    warnings.filterwarnings("ignore", message=r"Checkpoint directory .* exists and is not empty")
-    warnings.filterwarnings("ignore", message=r".*isinstance\(treespec, LeafSpec\)")
     module = OdometryModule(model, lr, cfg.augment, cfg.seed)
     ckpt_dir = run / CHECKPOINTS
-    checkpoint = ModelCheckpoint(dirpath=ckpt_dir, filename="best", monitor="val/vel_mse", mode="min",
-                                 save_last=True, enable_version_counter=False)
-    stopper = EarlyStopping(monitor="val/vel_mse", patience=cfg.patience, mode="min")
-    trainer = L.Trainer(
-        max_epochs=cfg.epochs,
-        max_time=dt.timedelta(minutes=cfg.max_minutes) if cfg.max_minutes else None,
-        callbacks=[checkpoint, stopper],
-        logger=CSVLogger(run, name="logs"),  # logs/version_N: one per attempt, a resume keeps the old
-        enable_progress_bar=progress,
-        enable_model_summary=False,
-        num_sanity_val_steps=0,
-        accelerator="auto",
-        devices=1,
-        default_root_dir=run,
-        deterministic=False,
-        log_every_n_steps=max(1, min(50, len(train_ds) // batch)),
-    )
+    trainer, checkpoint, stopper = make_trainer(run, cfg.epochs, cfg.max_minutes, progress, len(train_ds) // batch,
+                                                monitor="val/vel_mse", mode="min", patience=cfg.patience)
     last = ckpt_dir / LAST
     resumed = last.is_file()
     t0 = time.perf_counter()
@@ -229,22 +175,11 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
 
 def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, TrainConfig]:
     """The model of a run folder with its ``best`` (or ``last``) weights, in eval mode."""
-    from wearnav.errors import FormatError, MissingFileError
-
     run = Path(run)
     cfg = TrainConfig.from_dict(runs.read_config(run)["config"]["train"])
     model = build_model(cfg)
     if registry.get(cfg.model).learned:
-        path = run / CHECKPOINTS / which
-        if not path.is_file():
-            raise MissingFileError(f"no checkpoint {CHECKPOINTS}/{which} (was the run trained?)", run)
-        try:
-            ckpt = torch.load(path, map_location="cpu", weights_only=False)
-            state = {k.removeprefix("model."): v for k, v in ckpt["state_dict"].items()}
-            model.load_state_dict(state)
-        except Exception as exc:  # a torn or foreign file: one line, not a traceback
-            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise FormatError(f"corrupt or incompatible checkpoint: {msg}", path) from None
+        load_weights(model, run / CHECKPOINTS / which)
     model.eval()
     return model, cfg
 

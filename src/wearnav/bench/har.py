@@ -1,0 +1,341 @@
+"""The HAR benchmark (paper 002, Sec. III; Figs. 8–12 analogues) as suites of run configs.
+
+Per dataset, every technique is a :class:`wearnav.train.classify.ClassifyConfig` per seed, one
+run folder each (``<out>/runs/<dataset>/<technique>-<hash8>``); complete runs are skipped, so an
+interrupted benchmark resumes, and ``jobs`` > 1 spreads runs over local processes. The report
+reads run folders only.
+
+Datasets (real recordings imported from the shared data folder) and their subject-independent
+splits are listed in :data:`DATASETS` / :data:`wearnav.train.classify.TEST_SUBJECTS`. Techniques
+that need a gyroscope (Head2, Head3) are "not applicable" on an accelerometer-only set (Oxford):
+no run is made and the table says so. "world frame" needs the device orientation (MotionSense).
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from wearnav import runs
+from wearnav.errors import ConfigError
+
+BASELINE = "har-cnn-bilstm"
+
+
+@dataclass(frozen=True)
+class HarDataset:
+    name: str
+    fmt: str  # importer
+    src: str  # folder under the shared data root
+    scheme: str  # split scheme (wearnav.train.classify.TEST_SUBJECTS)
+    label_kind: str
+    classes: tuple[str, ...]  # empty: every value in the training data
+    devices: tuple[str, ...]
+    gyro: bool
+    orientation: bool
+    quick_limit: int | None = None  # recordings imported by --quick
+
+
+UCI_BASIC = ("WALKING", "WALKING_UPSTAIRS", "WALKING_DOWNSTAIRS", "SITTING", "STANDING", "LAYING")
+
+DATASETS: dict[str, HarDataset] = {d.name: d for d in (
+    HarDataset("motionsense", "motionsense", "motionsense", "motionsense", "activity", (), ("phone",), True, True),
+    # The first 6 experiments hold users 1–3, of whom 2 is a UCI HAR test subject.
+    HarDataset("uci-hapt", "uci-hapt", "uci_hapt", "uci-hapt", "activity", UCI_BASIC, ("phone",), True, False, 6),
+    HarDataset("uji-phone", "uji-phone-watch", "uji_phone_watch_har", "uji", "activity", (), ("phone",), True, False),
+    HarDataset("uji-watch", "uji-phone-watch", "uji_phone_watch_har", "uji", "activity_watch", (), ("watch",),
+               True, False),
+    HarDataset("uji-both", "uji-phone-watch", "uji_phone_watch_har", "uji", "activity", (), ("phone", "watch"),
+               True, False),
+    HarDataset("oxford", "oxford-steps", "oxford_step_counter", "oxford", "placement", (), ("phone",), False, False),
+)}
+
+
+@dataclass(frozen=True)
+class Technique:
+    name: str
+    label: str
+    changes: dict
+    needs_gyro: bool = False
+    needs_orientation: bool = False
+    extra: bool = False  # beyond the paper
+
+
+TECHNIQUES: tuple[Technique, ...] = (
+    Technique("baseline", "baseline", {}),
+    Technique("head2", "Head2", {"model": "har-head2"}, needs_gyro=True),
+    Technique("head3", "Head3", {"model": "har-head3"}, needs_gyro=True),
+    Technique("rot_x", "rotation x", {"expand": "rot_x"}),
+    Technique("rot_y", "rotation y", {"expand": "rot_y"}),
+    Technique("rot_z", "rotation z", {"expand": "rot_z"}),
+    Technique("rot_all", "rotation all axes", {"expand": "rot_all"}),
+    Technique("noise", "additive noise", {"expand": "noise"}),
+    Technique("ma10", "moving average 10", {"denoise": 10}),
+    Technique("ma25", "moving average 25", {"denoise": 25}),
+    Technique("ma50", "moving average 50", {"denoise": 50}),
+    Technique("rot_random", "random rotation (on the fly)", {"augment": ("rotate_random",)}, extra=True),
+    Technique("world", "world-frame input", {"frame": "world"}, needs_orientation=True, extra=True),
+)
+
+
+def applicable(tech: Technique, ds: HarDataset) -> str | None:
+    """None if ``tech`` applies to ``ds``, else why not."""
+    if tech.needs_gyro and not ds.gyro:
+        return "not applicable (no gyroscope)"
+    if tech.needs_orientation and not ds.orientation:
+        return "not applicable (no orientation)"
+    return None
+
+
+def import_data(ds: HarDataset, data_root: Path, out: Path, quick: bool) -> Path:
+    """Import ``ds``'s source once into ``out/data/<fmt>[-quick]`` (reused when present)."""
+    from wearnav.importers import import_dataset
+
+    folder = out / "data" / (ds.fmt + ("-quick" if quick and ds.quick_limit else ""))
+    if not (folder / "manifest.csv").is_file():
+        import_dataset(ds.fmt, data_root / ds.src, folder, limit=ds.quick_limit if quick else None, progress=False)
+    return folder
+
+
+def suite_configs(ds: HarDataset, data: Path, seeds: int, techniques=None, **train_kw) -> list[tuple[Technique, object]]:
+    """(technique, config) for every applicable technique (of ``techniques``, default all) and seed."""
+    from wearnav.train.classify import ClassifyConfig
+
+    known = {t.name for t in TECHNIQUES}
+    if techniques is not None and set(techniques) - known:
+        raise ConfigError(f"unknown techniques {sorted(set(techniques) - known)}; known: {', '.join(known)}")
+    out = []
+    for tech in TECHNIQUES:
+        if applicable(tech, ds) or (techniques is not None and tech.name not in techniques):
+            continue
+        for seed in range(seeds):
+            base = ClassifyConfig(model=BASELINE, data=str(data), scheme=ds.scheme, label_kind=ds.label_kind,
+                                  classes=ds.classes, devices=ds.devices, seed=seed, **train_kw)
+            out.append((tech, replace(base, **tech.changes)))
+    return out
+
+
+def _run_one(cfg, run: Path, threads: int | None) -> Path:
+    import torch
+
+    from wearnav.train.classify import evaluate_run, fit, prepare_run
+
+    if threads:
+        torch.set_num_threads(threads)
+    prepare_run(cfg, run)
+    evaluate_run(run, training=fit(cfg, run, progress=False))
+    return run
+
+
+def run_suite(items, root: Path, jobs: int = 1, echo=print) -> dict[str, list[Path]]:
+    """Train and evaluate every (technique, config); skip complete runs. technique → folders."""
+    from wearnav.train.classify import run_folder
+
+    folders: dict[str, list[Path]] = {}
+    todo = []
+    for tech, cfg in items:
+        run = run_folder(root, tech.name, cfg)
+        folders.setdefault(tech.name, []).append(run)
+        if runs.is_complete(run):
+            echo(f"{run.name}: complete, skipped")
+        else:
+            todo.append((tech, cfg, run))
+    if jobs <= 1:
+        for tech, cfg, run in todo:
+            t0 = time.perf_counter()
+            _run_one(cfg, run, None)
+            echo(f"{run.name}: done in {time.perf_counter() - t0:.0f} s")
+    else:
+        threads = max(1, (os.cpu_count() or 1) // jobs)
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            futures = [(run, pool.submit(_run_one, cfg, run, threads)) for _, cfg, run in todo]
+            for run, fut in futures:
+                fut.result()
+                echo(f"{run.name}: done")
+    return folders
+
+
+def summarise(folders: dict[str, list[Path]]) -> dict[str, dict]:
+    """technique → mean/std of accuracy and macro-F1 over its seeds (from metrics.json only)."""
+    out = {}
+    for name, runs_ in folders.items():
+        ms = [runs.read_metrics(r) for r in runs_ if runs.is_complete(r)]
+        if not ms:
+            continue
+        acc = np.array([m["accuracy"] for m in ms])
+        f1 = np.array([m["macro_f1"] for m in ms])
+        out[name] = {
+            "accuracy_mean": float(acc.mean()), "accuracy_std": float(acc.std(ddof=1)) if acc.size > 1 else 0.0,
+            "f1_mean": float(f1.mean()), "f1_std": float(f1.std(ddof=1)) if f1.size > 1 else 0.0,
+            "seeds": len(ms), "classes": ms[0]["classes"],
+            "confusion": np.sum([m["confusion"] for m in ms], axis=0).tolist(),
+            "train_wall_s": float(sum(m["training"].get("wall_s", 0.0) for m in ms)),
+            "epochs": ms[0]["training"].get("epochs_run"),
+            "train_windows": ms[0]["training"].get("train_windows"),
+            "test_windows": ms[0]["test_windows"],
+        }
+    return out
+
+
+def _plot_improvement(dataset: str, summary: dict, path: Path) -> Path | None:
+    from matplotlib.figure import Figure
+
+    from wearnav.report.plots import save
+
+    base = summary.get("baseline")
+    names = [t.name for t in TECHNIQUES if t.name != "baseline" and t.name in summary]
+    if base is None or not names:
+        return None
+    d = [100 * (summary[n]["accuracy_mean"] - base["accuracy_mean"]) for n in names]
+    fig = Figure(figsize=(7, 3.2))
+    ax = fig.add_subplot()
+    ax.bar(range(len(names)), d, color=["tab:green" if v > 0 else "tab:red" for v in d])
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
+    ax.set_ylabel("Δ accuracy vs baseline (points)")
+    ax.set_title(f"{dataset}: improvement over the baseline")
+    fig.tight_layout()
+    return save(fig, path)
+
+
+def _plot_confusion(dataset: str, s: dict, path: Path) -> Path:
+    from matplotlib.figure import Figure
+
+    from wearnav.report.plots import save
+
+    c = np.asarray(s["confusion"], float)
+    norm = c / np.maximum(c.sum(axis=1, keepdims=True), 1)
+    k = len(s["classes"])
+    fig = Figure(figsize=(1.0 + 0.7 * k, 0.8 + 0.6 * k))
+    ax = fig.add_subplot()
+    ax.imshow(norm, cmap="Blues", vmin=0, vmax=1)
+    for i in range(k):
+        for j in range(k):
+            ax.text(j, i, f"{int(c[i, j])}", ha="center", va="center", fontsize=7,
+                    color="white" if norm[i, j] > 0.5 else "black")
+    ax.set_xticks(range(k), s["classes"], rotation=45, ha="right", fontsize=7)
+    ax.set_yticks(range(k), s["classes"], fontsize=7)
+    ax.set_xlabel("predicted")
+    ax.set_ylabel("true")
+    ax.set_title(f"{dataset}: baseline, {s['seeds']} seed(s) summed", fontsize=9)
+    fig.tight_layout()
+    return save(fig, path)
+
+
+def _plot_summary(rows: list[dict], path: Path) -> Path | None:
+    from matplotlib.figure import Figure
+
+    from wearnav.report.plots import save
+
+    if not rows:
+        return None
+    fig = Figure(figsize=(7, 3.4))
+    ax = fig.add_subplot()
+    x = np.arange(len(rows))
+    ax.bar(x - 0.2, [r["datasets improved"] for r in rows], 0.4, label="datasets improved")
+    ax2 = ax.twinx()
+    ax2.bar(x + 0.2, [r["max improvement (points)"] or 0 for r in rows], 0.4, color="tab:orange",
+            label="max improvement (points)")
+    ax.set_xticks(x, [r["technique"] for r in rows], rotation=45, ha="right")
+    ax.set_ylabel("datasets improved")
+    ax2.set_ylabel("max Δ accuracy (points)")
+    ax.set_title("techniques over all datasets (Fig. 12 analogue)")
+    fig.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    return save(fig, path)
+
+
+def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: float | None = None) -> Path:
+    """results.md + results.json + PNGs from ``results``: dataset → technique → summary."""
+    from wearnav.fileio import write_text_atomic
+    from wearnav.provenance import provenance
+
+    import pandas as pd
+
+    p = provenance()
+    lines = ["# Activity and placement recognition (paper 002 techniques)", "",
+             f"Generated by `wearnav bench har` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) from run "
+             f"folders. Machine: {platform.machine()}, {os.cpu_count()} CPU cores"
+             + (f"; this invocation's wall time {wall_s:.0f} s" if wall_s is not None else "") + ".", ""]
+    if note:
+        lines += [note, ""]
+    improve: dict[str, list[float]] = {}
+    for dataset, summary in results.items():
+        spec = DATASETS[dataset]
+        base = summary.get("baseline")
+        rows = []
+        for tech in TECHNIQUES:
+            why = applicable(tech, spec)
+            s = summary.get(tech.name)
+            if why or s is None:
+                rows.append({"technique": tech.label + (" *" if tech.extra else ""),
+                             "accuracy %": why or "not run", "macro-F1 %": "", "Δ acc (points)": "",
+                             "Δ F1 (points)": "", "seeds": 0, "train s": ""})
+                continue
+            da = df = None
+            if base and tech.name != "baseline":
+                da = 100 * (s["accuracy_mean"] - base["accuracy_mean"])
+                df = 100 * (s["f1_mean"] - base["f1_mean"])
+                improve.setdefault(tech.name, []).append(da)
+            rows.append({"technique": tech.label + (" *" if tech.extra else ""),
+                         "accuracy %": f"{100 * s['accuracy_mean']:.1f} ± {100 * s['accuracy_std']:.1f}",
+                         "macro-F1 %": f"{100 * s['f1_mean']:.1f} ± {100 * s['f1_std']:.1f}",
+                         "Δ acc (points)": "" if da is None else f"{da:+.1f}",
+                         "Δ F1 (points)": "" if df is None else f"{df:+.1f}",
+                         "seeds": s["seeds"], "train s": f"{s['train_wall_s']:.0f}"})
+        info = f" {base['train_windows']} training / {base['test_windows']} test windows." if base else ""
+        lines += [f"## {dataset}", "",
+                  f"Devices {', '.join(spec.devices)}; labels `{spec.label_kind}`; subject-independent split "
+                  f"`{spec.scheme}`.{info} Mean ± std over seeds; * = beyond the paper.", "",
+                  pd.DataFrame(rows).to_markdown(index=False, disable_numparse=True), ""]
+        for png in (_plot_improvement(dataset, summary, out / f"{dataset}_improvement.png"),
+                    _plot_confusion(dataset, base, out / f"{dataset}_confusion.png") if base else None):
+            if png:
+                lines += [f"![{png.stem}]({png.name})", ""]
+    summary_rows = [{"technique": t.label, "datasets improved": int(sum(v > 0 for v in improve[t.name])),
+                     "datasets run": len(improve[t.name]),
+                     "max improvement (points)": round(max(improve[t.name]), 1)}
+                    for t in TECHNIQUES if t.name in improve]
+    if summary_rows:
+        lines += ["## Summary over datasets (Fig. 12 analogue)", "", pd.DataFrame(summary_rows).to_markdown(index=False), ""]
+        png = _plot_summary(summary_rows, out / "summary.png")
+        if png:
+            lines += [f"![{png.stem}]({png.name})", ""]
+    runs.write_json(out / "results.json", {"datasets": results, "summary": summary_rows, "wall_s": wall_s})
+    return write_text_atomic("\n".join(lines), out / "results.md")
+
+
+def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3, jobs: int = 1, quick: bool = False,
+                  epochs: int | None = None, techniques=None, max_minutes: float | None = None,
+                  echo=print) -> Path:
+    """Import, train, evaluate and report. ``quick``: UCI HAPT's first 6 experiments, 1 epoch,
+    at most 128 training windows per run, 1 seed unless ``seeds`` says otherwise."""
+    t0 = time.perf_counter()
+    names = list(datasets or (("uci-hapt",) if quick else DATASETS))
+    unknown = [n for n in names if n not in DATASETS]
+    if unknown:
+        raise ConfigError(f"unknown HAR datasets {unknown}; known: {', '.join(DATASETS)}")
+    kw = {"epochs": epochs or (1 if quick else 30), "max_minutes": max_minutes}
+    if quick:
+        kw["max_train_windows"] = 128
+    results = {}
+    for name in names:
+        spec = DATASETS[name]
+        data = import_data(spec, Path(data_root), Path(out), quick)
+        echo(f"{name}: {data}")
+        folders = run_suite(suite_configs(spec, data, seeds, techniques, **kw), Path(out) / "runs" / name, jobs, echo)
+        results[name] = summarise(folders)
+    wall = time.perf_counter() - t0
+    note = (f"Training: Adam lr 1e-3, batch 64, {kw['epochs']} epochs"
+            + (f" or {max_minutes:g} min per run" if max_minutes else "") + ", last-epoch weights (no validation split, "
+            "as the paper); windows of 128 samples at 50 Hz with 50 % overlap; device-frame input. Sizes the paper "
+            "omits (ours): Bi-LSTM 64 units per direction, last states as the summary, max-pool stride 3, ReLU after "
+            "FC 256. Noise σ (eq. 12): 0.1 × the pooled std of the training windows' acc (resp. gyro) channels."
+            + (" QUICK RUN: a tiny subset and 1 epoch, for testing the pipeline, not a result." if quick else ""))
+    return write_report(results, Path(out), note, wall)

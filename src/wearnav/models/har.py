@@ -1,0 +1,119 @@
+"""The HAR benchmark's classifier (paper 002, Sec. II-A, Fig. 1) and its multi-head variants
+(Sec. II-B-1, Figs. 2–3).
+
+Baseline, per the paper: the inertial window (eq. 1: f_x, f_y, f_z, ω_x, ω_y, ω_z) → one 1-D
+convolution with F = 64 filters, kernel 5, stride 1, ReLU (eqs. 2–3) → max pooling of depth 3
+(eq. 4) → a Bi-LSTM (eq. 5) → dropout p = 0.25 (eq. 6) → a fully connected layer of 256 (eq. 7)
+→ the classifier. Adam, lr 1e-3, batch 64 (``default_lr`` / ``default_batch``).
+
+Choices the paper leaves open (ours, stated here and in the benchmark page):
+
+* LSTM hidden size 64 per direction, one layer; the sequence is summarised by the last forward
+  and the first backward hidden state (2·64 = 128 values per head).
+* Max pooling with stride 3 (non-overlapping; "reduce its temporal dimension"), no padding.
+* A ReLU after the 256-unit FC layer, then a linear layer to the classes (the paper's
+  "classifier"; softmax inside the cross-entropy).
+
+Heads (constructor switch ``heads``):
+
+* ``1`` (baseline): one branch over every input channel.
+* ``2`` (Head2, Fig. 2): one branch for the accelerometer channels, one for the gyroscope's.
+* ``3`` (Head3, Fig. 3): one branch per axis, each with that axis' accelerometer and gyroscope.
+
+Each head is a full conv → pool → Bi-LSTM branch; their summaries are concatenated before the
+dropout and FC layer. Input: x (B, D, L, 6) and mask (B, D), layout "concat": the devices'
+channels side by side, zeros where a device is absent, so a phone + watch input gives every
+head the same channels of both devices (e.g. Head2's acc head sees phone and watch acc).
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor, nn
+from torch.nn import functional as F
+
+from wearnav.errors import ConfigError
+from wearnav.models.registry import register
+
+ACC, GYRO = (0, 1, 2), (3, 4, 5)
+HEAD_CHANNELS = {
+    1: [ACC + GYRO],
+    2: [ACC, GYRO],
+    3: [(0, 3), (1, 4), (2, 5)],
+}
+
+
+class Branch(nn.Module):
+    """Conv1d(64, k 5, s 1) + ReLU → MaxPool(3) → Bi-LSTM; (B, C, L) → (B, 2·hidden)."""
+
+    def __init__(self, c_in: int, filters: int = 64, kernel: int = 5, pool: int = 3, hidden: int = 64):
+        super().__init__()
+        self.conv = nn.Conv1d(c_in, filters, kernel, stride=1)
+        self.pool = nn.MaxPool1d(pool)
+        self.lstm = nn.LSTM(filters, hidden, batch_first=True, bidirectional=True)
+
+    def forward(self, x: Tensor) -> Tensor:
+        h = self.pool(F.relu(self.conv(x)))
+        _, (hn, _) = self.lstm(h.transpose(1, 2))
+        return torch.cat([hn[0], hn[1]], dim=1)  # last forward state, first backward state
+
+
+class HARNet(nn.Module):
+    """CNN + Bi-LSTM activity / placement classifier with 1, 2 or 3 heads (module docstring)."""
+
+    default_lr = 1e-3
+    default_batch = 64
+
+    def __init__(self, n_devices: int = 1, window: int = 128, n_classes: int = 6, heads: int = 1,
+                 filters: int = 64, kernel: int = 5, pool: int = 3, hidden: int = 64,
+                 dropout: float = 0.25, fc: int = 256):
+        super().__init__()
+        if heads not in HEAD_CHANNELS:
+            raise ConfigError(f"heads must be 1, 2 or 3, got {heads}")
+        if n_devices < 1 or n_classes < 2:
+            raise ConfigError(f"need ≥ 1 device and ≥ 2 classes, got {n_devices} and {n_classes}")
+        if (window - kernel + 1) // pool < 1:
+            raise ConfigError(f"window of {window} samples is too short for kernel {kernel} and pool {pool}")
+        self.n_devices, self.window, self.n_classes, self.heads = n_devices, window, n_classes, heads
+        # Input channel indices of each head in the (D·6)-channel concatenated input.
+        self.head_channels = [[d * 6 + c for d in range(n_devices) for c in chans] for chans in HEAD_CHANNELS[heads]]
+        self.branches = nn.ModuleList(Branch(len(ch), filters, kernel, pool, hidden) for ch in self.head_channels)
+        self.dropout = nn.Dropout(dropout)
+        self.fc = nn.Linear(2 * hidden * heads, fc)
+        self.classifier = nn.Linear(fc, n_classes)
+
+    def head_inputs(self, x: Tensor, mask: Tensor) -> list[Tensor]:
+        """What each head sees: (B, C_h, L) per head."""
+        B, D, L, _ = x.shape
+        if D != self.n_devices:
+            raise ConfigError(f"model built for {self.n_devices} devices, got input with {D}")
+        x = x * (mask > 0).to(x.dtype)[:, :, None, None]
+        flat = x.permute(0, 1, 3, 2).reshape(B, D * 6, L)
+        return [flat[:, ch] for ch in self.head_channels]
+
+    def forward(self, x: Tensor, mask: Tensor) -> Tensor:
+        """Class logits (B, n_classes)."""
+        h = torch.cat([b(xi) for b, xi in zip(self.branches, self.head_inputs(x, mask))], dim=1)
+        return self.classifier(F.relu(self.fc(self.dropout(h))))
+
+    def loss(self, batch: dict[str, Tensor]) -> tuple[Tensor, dict[str, Tensor]]:
+        ce = F.cross_entropy(self(batch["x"], batch["mask"]), batch["label"])
+        return ce, {"ce": ce}
+
+
+@register("har-cnn-bilstm", task="classify", layout="concat",
+          description="HAR baseline: CNN(64,k5) → maxpool 3 → Bi-LSTM → dropout → FC 256 (paper 002)")
+def har_baseline(n_devices: int = 1, window: int = 128, **kw) -> HARNet:
+    return HARNet(n_devices, window, heads=1, **kw)
+
+
+@register("har-head2", task="classify", layout="concat",
+          description="HAR Head2: accelerometer head + gyroscope head (paper 002, Fig. 2)")
+def har_head2(n_devices: int = 1, window: int = 128, **kw) -> HARNet:
+    return HARNet(n_devices, window, heads=2, **kw)
+
+
+@register("har-head3", task="classify", layout="concat",
+          description="HAR Head3: one head per axis with its acc + gyro (paper 002, Fig. 3)")
+def har_head3(n_devices: int = 1, window: int = 128, **kw) -> HARNet:
+    return HARNet(n_devices, window, heads=3, **kw)

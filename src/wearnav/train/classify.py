@@ -1,0 +1,362 @@
+"""Training and evaluating activity / placement classifiers (paper 002), beside
+:mod:`wearnav.train.odometry` and sharing its core (:mod:`wearnav.train.common`).
+
+A run is a pure function of :class:`ClassifyConfig`: run folder by config hash
+(:mod:`wearnav.runs`), ``training.json`` from :func:`fit`, ``metrics.json`` from
+:func:`evaluate_run` (accuracy, macro-F1, confusion matrix on the test subjects).
+
+Protocol (as the paper: a train and a test set, a fixed number of epochs): no validation split
+and no early stopping; the weights after the last epoch are the model (``last.ckpt``). Splits are
+subject-independent (:data:`TEST_SUBJECTS`): every recording of a subject is on one side.
+
+Techniques (paper 002 Sec. II-B, :mod:`wearnav.augment`): ``model`` picks the baseline / Head2 /
+Head3; ``expand`` adds transformed copies of the training windows (rotation eqs. 9–11,
+"all axes", noise eq. 12 with σ from the training windows); ``denoise`` applies the moving
+average of eq. 13 to training and test sequences; ``augment`` names batch augmentations
+(``rotate_random``); ``frame`` "device" (the paper's sensor frame) or "world".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import lightning as L
+import numpy as np
+import torch
+
+from wearnav import runs
+from wearnav.errors import ConfigError, ValidationError
+from wearnav.models import registry
+from wearnav.preprocess import Aligned, PreprocessConfig
+from wearnav.train.common import CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
+from wearnav.windows import WindowConfig, WindowDataset
+
+TRAINING = "training.json"
+
+# Subject-independent test sets, by split scheme. UCI HAR's own split (its test subjects); for
+# the others, which define none, every fourth subject (MotionSense: 6 of 24; UJI: 5 of 23) and,
+# for Oxford's two users, user 2 (train on one person, test on the other).
+TEST_SUBJECTS: dict[str, frozenset[int]] = {
+    "uci-hapt": frozenset({2, 4, 9, 10, 12, 13, 18, 20, 24}),
+    "motionsense": frozenset({4, 8, 12, 16, 20, 24}),
+    "uji": frozenset({4, 8, 12, 16, 20}),
+    "oxford": frozenset({2}),
+}
+
+
+def subject_number(subject: str) -> int:
+    """The number in a manifest's subject id ("user02", "sub04", "s12", "user2")."""
+    m = re.search(r"(\d+)$", str(subject))
+    if not m:
+        raise ValidationError(f"subject id {subject!r} has no number to assign it to a split")
+    return int(m.group(1))
+
+
+def split_of(scheme: str, subject: str) -> str:
+    """"train" or "test" for a subject under ``scheme``; "manifest" is not handled here."""
+    if scheme not in TEST_SUBJECTS:
+        raise ConfigError(f"unknown split scheme {scheme!r} (expected one of {', '.join(TEST_SUBJECTS)} or manifest)")
+    return "test" if subject_number(subject) in TEST_SUBJECTS[scheme] else "train"
+
+
+def split_view(ds, scheme: str, side: str):
+    """The recordings of dataset ``ds`` on ``side`` ("train" / "test") of the split."""
+    if scheme == "manifest":
+        return ds.split(side)
+    subjects = [s for s in ds.manifest["subject"].astype(str).unique() if split_of(scheme, s) == side]
+    return ds.filter(subject=subjects) if subjects else ds.filter(subject=["\0none"])
+
+
+@dataclass(frozen=True)
+class ClassifyConfig:
+    """Everything that decides a trained classifier. ``classes`` empty: every value of
+    ``label_kind`` in the training recordings. ``max_train_windows`` subsamples the training
+    windows (quick runs only). ``max_minutes`` does not enter the hash."""
+
+    model: str
+    data: str
+    scheme: str = "manifest"
+    label_kind: str = "activity"
+    classes: tuple[str, ...] = ()
+    devices: tuple[str, ...] = ("phone",)
+    frame: str = "device"
+    rate: float = 50.0
+    window: int = 128
+    stride: int = 64
+    epochs: int = 30
+    lr: float | None = None
+    batch: int | None = None
+    augment: tuple[str, ...] = ()
+    expand: str | None = None
+    noise_fraction: float = 0.1
+    denoise: int = 0
+    max_train_windows: int | None = None
+    model_args: dict[str, Any] = field(default_factory=dict)
+    seed: int = 0
+    max_minutes: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.epochs < 1 or self.seed < 0:
+            raise ConfigError(f"epochs must be ≥ 1 and seed ≥ 0, got {self.epochs} and {self.seed}")
+        if self.denoise < 0:
+            raise ConfigError(f"moving-average window must be ≥ 0 samples, got {self.denoise}")
+        if self.expand is not None:
+            from wearnav.augment import expansion_copies
+
+            expansion_copies(self.expand)
+        if not self.devices:
+            raise ConfigError("at least one device must be named")
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ClassifyConfig":
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(d) - names
+        if unknown:
+            raise ConfigError(f"unknown classification config keys: {sorted(unknown)}")
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+    def preprocess_config(self) -> PreprocessConfig:
+        # frame_align "none": the classifier sees each device in its own frame (or its own world
+        # frame); nothing ties devices together but the clock.
+        return PreprocessConfig(rate=self.rate, devices=tuple(self.devices), frame=self.frame, frame_align="none")
+
+    def window_config(self, target: str | None = "class") -> WindowConfig:
+        return WindowConfig(window=self.window, stride=self.stride, target=target,
+                            label_kind=self.label_kind if target else None)
+
+
+HASH_EXCLUDE = ("max_minutes",)
+
+
+def run_record(cfg: ClassifyConfig) -> dict:
+    train = {k: v for k, v in runs.to_dict(cfg).items() if k not in HASH_EXCLUDE}
+    return {"train": train, "preprocess": runs.to_dict(cfg.preprocess_config())}
+
+
+def run_folder(root: str | Path, name: str, cfg: ClassifyConfig) -> Path:
+    return runs.run_dir(root, name, run_record(cfg))
+
+
+def prepare_run(cfg: ClassifyConfig, run: str | Path) -> Path:
+    """Create (or reuse) run folder ``run`` for ``cfg``; one holding another config is refused."""
+    from wearnav.dataset import Dataset
+
+    run = Path(run)
+    if registry.get(cfg.model).task != "classify":
+        raise ConfigError(f"model {cfg.model!r} is not a classifier")
+    record = run_record(cfg)
+    if (run / runs.CONFIG).is_file():
+        old = runs.read_config(run)["config"]
+        old = {**old, "train": {k: v for k, v in old.get("train", {}).items() if k not in HASH_EXCLUDE}}
+        if old != record:
+            raise ConfigError("holds a run of another configuration; choose another --out", run)
+        return run
+    if run.exists() and (not run.is_dir() or any(run.iterdir())):
+        raise ConfigError("exists and is not an empty folder or a run folder; choose another --out", run)
+    ds = Dataset.open(cfg.data)
+    for side in ("train", "test"):
+        if len(split_view(ds, cfg.scheme, side)) == 0:
+            raise ValidationError(f"no {side} recordings under split scheme {cfg.scheme!r}", cfg.data)
+    run.mkdir(parents=True, exist_ok=True)
+    runs.write_config(run, {**record, "train": runs.to_dict(cfg)}, {"data_provenance": ds.provenance})
+    return run
+
+
+def sequences(view, cfg: ClassifyConfig, progress: bool = False) -> list[Aligned]:
+    """Aligned recordings of a view, with eq. 13's moving average when ``cfg.denoise``."""
+    from wearnav.augment import moving_average
+    from wearnav.evaluate import load_sequences
+
+    seqs = load_sequences(view, cfg, progress)
+    if cfg.denoise > 1:  # new objects: the aligned cache must stay raw
+        seqs = [dataclasses.replace(s, imu=moving_average(s.imu, cfg.denoise, axis=1).astype(s.imu.dtype))
+                for s in seqs]
+    return seqs
+
+
+def _windows(seqs, cfg: ClassifyConfig, classes) -> WindowDataset:
+    return WindowDataset(seqs, cfg.window_config(), classes=list(classes) if classes else None)
+
+
+def _subsample(wds: WindowDataset, n: int | None, seed: int) -> WindowDataset:
+    if n is not None and len(wds) > n:
+        keep = np.sort(np.random.default_rng(seed).choice(len(wds), n, replace=False))
+        wds.index = wds.index[keep]
+    return wds
+
+
+def _sample_x(wds: WindowDataset, n: int = 4096) -> torch.Tensor:
+    """Up to n training windows, evenly spaced (σ of eq. 12 is estimated on these)."""
+    idx = np.unique(np.linspace(0, len(wds) - 1, min(n, len(wds))).astype(int))
+    return wds[idx.tolist()]["x"]
+
+
+def fit(cfg: ClassifyConfig, run: str | Path, progress: bool = True) -> dict:
+    """Train into ``run`` (resuming from its last.ckpt). Returns and writes training.json."""
+    from wearnav.augment import ExpandedWindows, expansion_copies, noise_sigma
+    from wearnav.dataset import Dataset
+
+    run = Path(run)
+    ds = Dataset.open(cfg.data)
+    train_seqs = sequences(split_view(ds, cfg.scheme, "train"), cfg, progress)
+    train_ds = _subsample(_windows(train_seqs, cfg, cfg.classes), cfg.max_train_windows, cfg.seed)
+    if len(train_ds) == 0:
+        raise ValidationError(f"no labelled training windows of kind {cfg.label_kind!r}", cfg.data)
+    classes = list(train_ds.classes)
+    L.seed_everything(cfg.seed, workers=True, verbose=False)  # before the weights are drawn
+    model = registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, n_classes=len(classes),
+                           **cfg.model_args)
+    lr = cfg.lr or getattr(model, "default_lr", 1e-3)
+    batch = cfg.batch or getattr(model, "default_batch", 64)
+    sigma = None
+    data = train_ds
+    if cfg.expand:
+        copies = expansion_copies(cfg.expand)
+        if "noise" in copies:
+            sigma = noise_sigma(_sample_x(train_ds), cfg.noise_fraction)
+        data = ExpandedWindows(train_ds, copies, sigma or (0.0, 0.0), cfg.seed)
+    module = SeededModule(model, lr, cfg.augment, cfg.seed)
+    trainer, _, _ = make_trainer(run, cfg.epochs, cfg.max_minutes, progress, len(data) // batch)
+    last = run / CHECKPOINTS / LAST
+    resumed = last.is_file()
+    t0 = time.perf_counter()
+    trainer.fit(module, data.loader(batch, cfg.seed), ckpt_path=str(last) if resumed else None)
+    wall = time.perf_counter() - t0
+    epochs = int(trainer.current_epoch)
+    record = {
+        "classes": classes, "lr": lr, "batch": batch, "train_windows": len(train_ds),
+        "train_windows_expanded": len(data), "noise_sigma": sigma, "epochs_run": epochs,
+        "stopped_by": "max time" if cfg.max_minutes and epochs < cfg.epochs else "max epochs",
+        "wall_s": round(wall, 2), "s_per_epoch": round(wall / max(epochs, 1), 2), "resumed": resumed,
+        "accelerator": str(trainer.strategy.root_device),
+    }
+    runs.write_json(run / TRAINING, record)
+    return record
+
+
+def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[str]]:
+    """The run's model with its last-epoch weights (eval mode), its config and class names."""
+    import json
+
+    from wearnav.errors import MissingFileError
+
+    run = Path(run)
+    cfg = ClassifyConfig.from_dict(runs.read_config(run)["config"]["train"])
+    path = run / TRAINING
+    if not path.is_file():
+        raise MissingFileError("run has no training.json (was it trained?)", run)
+    classes = json.loads(path.read_text(encoding="utf-8"))["classes"]
+    model = registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, n_classes=len(classes),
+                           **cfg.model_args)
+    load_weights(model, run / CHECKPOINTS / LAST)
+    model.eval()
+    return model, cfg, classes
+
+
+@torch.no_grad()
+def predict(model, wds: WindowDataset, batch: int = 512) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted class index and softmax confidence per window of ``wds``."""
+    out_c, out_p = [], []
+    for b in wds.loader(batch):
+        p = torch.softmax(model(b["x"], b["mask"]), dim=1)
+        conf, c = p.max(dim=1)
+        out_c.append(c.numpy())
+        out_p.append(conf.numpy())
+    return (np.concatenate(out_c), np.concatenate(out_p)) if out_c else (np.empty(0, int), np.empty(0))
+
+
+def evaluate_run(run: str | Path, training: dict | None = None, progress: bool = False) -> dict:
+    """Accuracy, macro-F1 and the confusion matrix on the test subjects → metrics.json."""
+    from wearnav.dataset import Dataset
+    from wearnav.metrics import accuracy, confusion_matrix, macro_f1
+
+    run = Path(run)
+    model, cfg, classes = load_model(run)
+    ds = Dataset.open(cfg.data)
+    test_ds = _windows(sequences(split_view(ds, cfg.scheme, "test"), cfg, progress), cfg, classes)
+    if len(test_ds) == 0:
+        raise ValidationError("no labelled test windows", cfg.data)
+    pred, _ = predict(model, test_ds)
+    true = test_ds[np.arange(len(test_ds)).tolist()]["label"].numpy()
+    k = len(classes)
+    metrics = {
+        "model": cfg.model, "classes": classes, "test_windows": int(len(true)),
+        "test_subjects": sorted(split_view(ds, cfg.scheme, "test").manifest["subject"].astype(str).unique()),
+        "accuracy": accuracy(true, pred, k), "macro_f1": macro_f1(true, pred, k),
+        "confusion": confusion_matrix(true, pred, k).tolist(),
+        "training": training if training is not None else {},
+    }
+    runs.write_metrics(run, metrics)
+    return metrics
+
+
+def intervals(t0: np.ndarray, t1: np.ndarray, cls: np.ndarray, conf: np.ndarray, classes) -> list[dict]:
+    """Consecutive windows of one class merged into intervals. Windows overlap, so a boundary is
+    put midway between the last window of one class and the first of the next."""
+    out: list[dict] = []
+    mid = (t0 + t1) / 2
+    for i in range(len(cls)):
+        if out and out[-1]["label"] == classes[cls[i]]:
+            r = out[-1]
+            r["end_s"], r["windows"], r["_c"] = float(t1[i]), r["windows"] + 1, r["_c"] + float(conf[i])
+            continue
+        start = float(t0[i]) if not out else float((mid[i - 1] + mid[i]) / 2)
+        if out:
+            out[-1]["end_s"] = start
+        out.append({"start_s": start, "end_s": float(t1[i]), "label": classes[cls[i]], "windows": 1,
+                    "_c": float(conf[i])})
+    for r in out:
+        r["mean_confidence"] = round(r.pop("_c") / r["windows"], 4)
+    return out
+
+
+def label_recordings(recordings, run: str | Path, out: str | Path) -> list[Path]:
+    """Classify every window of each recording with the run's model; write ``<name>_intervals.csv``
+    (start_s, end_s, label, windows, mean_confidence) and ``<name>_timeline.png`` (|acc| of the
+    first present device with the labels as coloured bands) into ``out``."""
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+    from wearnav.augment import moving_average
+    from wearnav.fileio import write_text_atomic
+    from wearnav.preprocess import align
+    from wearnav.report.plots import save
+
+    model, cfg, classes = load_model(run)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    colours = {c: f"C{i % 10}" for i, c in enumerate(classes)}
+    for rec in recordings:
+        seq = align(rec, cfg.preprocess_config())
+        if cfg.denoise > 1:
+            seq = dataclasses.replace(seq, imu=moving_average(seq.imu, cfg.denoise, axis=1).astype(seq.imu.dtype))
+        wds = WindowDataset([seq], WindowConfig(window=cfg.window, stride=max(1, cfg.window // 2), target=None))
+        if len(wds) == 0:
+            raise ValidationError(f"shorter than one window ({cfg.window / cfg.rate:g} s)", rec.name)
+        cls, conf = predict(model, wds)
+        t = wds[np.arange(len(wds)).tolist()]["t"].numpy()
+        rows = intervals(t[:, 0], t[:, 1], cls, conf, classes)
+        df = pd.DataFrame(rows, columns=["start_s", "end_s", "label", "windows", "mean_confidence"])
+        written.append(write_text_atomic(df.to_csv(index=False, float_format="%.3f"), out / f"{rec.name}_intervals.csv"))
+        d = int(np.argmax(seq.mask.any(axis=1)))
+        fig = Figure(figsize=(10, 3))
+        ax = fig.add_subplot()
+        for r in rows:
+            ax.axvspan(r["start_s"] - seq.t[0], r["end_s"] - seq.t[0], color=colours[r["label"]], alpha=0.3, lw=0)
+        ax.plot(seq.t - seq.t[0], np.linalg.norm(seq.imu[d, :, :3], axis=1), color="k", lw=0.5)
+        from matplotlib.patches import Patch
+
+        ax.legend(handles=[Patch(color=colours[c], alpha=0.3, label=c) for c in classes if c in set(df["label"])],
+                  fontsize=7, loc="upper right", ncol=3)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(f"|acc| {seq.devices[d]} (m/s²)")
+        ax.set_title(f"{rec.name}: {cfg.label_kind} by {cfg.model}", fontsize=9)
+        fig.tight_layout()
+        written.append(save(fig, out / f"{rec.name}_timeline.png"))
+    return written

@@ -1,0 +1,104 @@
+"""What every training task shares (odometry in :mod:`.odometry`, classification in
+:mod:`.classify`): the seeded LightningModule base, the Trainer with its checkpoints, and
+loading a checkpoint's weights.
+
+Reproducibility: every random draw of an epoch (shuffling, augmentation, dropout) is seeded from
+``(seed, epoch)``, so a run killed mid-epoch and resumed from ``last.ckpt`` replays that epoch
+exactly and ends with the same weights and metrics as an uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import logging
+import warnings
+from pathlib import Path
+
+import lightning as L
+import torch
+
+CHECKPOINTS = "checkpoints"
+BEST, LAST = "best.ckpt", "last.ckpt"
+
+
+class SeededModule(L.LightningModule):
+    """Adam on ``model``; batch augmentations from :mod:`wearnav.augment` drawn from a generator
+    seeded per epoch; the training loss is ``model.loss(batch)`` → (loss, named parts)."""
+
+    def __init__(self, model: torch.nn.Module, lr: float, augment: tuple[str, ...] = (), seed: int = 0):
+        super().__init__()
+        self.model = model
+        self.lr = lr
+        self.augment = tuple(augment)
+        self.seed = seed
+        self._gen = torch.Generator()
+
+    def on_train_epoch_start(self) -> None:
+        base = self.seed * 1_000_003 + self.current_epoch
+        torch.manual_seed(base)  # dropout and any other draw inside the model
+        self._gen.manual_seed(base + 7)
+
+    def training_step(self, batch, batch_idx):
+        if self.augment:
+            from wearnav import augment
+
+            batch = augment.apply(self.augment, batch, self._gen)
+        loss, parts = self.model.loss(batch)
+        n = batch["x"].shape[0]
+        self.log("train/loss", loss, prog_bar=True, batch_size=n)
+        for k, v in parts.items():
+            self.log(f"train/{k}", v, batch_size=n)
+        return loss
+
+    def configure_optimizers(self):
+        return torch.optim.Adam(self.model.parameters(), lr=self.lr)
+
+
+def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bool, steps_per_epoch: int,
+                 monitor: str | None = None, mode: str = "min", patience: int = 10):
+    """The Trainer every task uses: checkpoints/last.ckpt always (a resume point), best.ckpt and
+    early stopping on ``monitor`` when one is given. Returns (trainer, checkpoint, stopper|None)."""
+    from lightning.pytorch.callbacks import EarlyStopping, ModelCheckpoint
+    from lightning.pytorch.loggers import CSVLogger
+
+    # Lightning's start-up chatter (accelerator lines, product tips) is not for our users.
+    logging.getLogger("lightning.pytorch.utilities.rank_zero").setLevel(logging.WARNING)
+    warnings.filterwarnings("ignore", message=r"Checkpoint directory .* exists and is not empty")
+    warnings.filterwarnings("ignore", message=r".*isinstance\(treespec, LeafSpec\)")
+    checkpoint = ModelCheckpoint(dirpath=run / CHECKPOINTS, filename="best", monitor=monitor, mode=mode,
+                                 save_last=True, enable_version_counter=False, save_top_k=1 if monitor else 0)
+    callbacks = [checkpoint]
+    stopper = None
+    if monitor:
+        stopper = EarlyStopping(monitor=monitor, patience=patience, mode=mode)
+        callbacks.append(stopper)
+    trainer = L.Trainer(
+        max_epochs=epochs,
+        max_time=dt.timedelta(minutes=max_minutes) if max_minutes else None,
+        callbacks=callbacks,
+        logger=CSVLogger(run, name="logs"),  # logs/version_N: one per attempt, a resume keeps the old
+        enable_progress_bar=progress,
+        enable_model_summary=False,
+        num_sanity_val_steps=0,
+        accelerator="auto",
+        devices=1,
+        default_root_dir=run,
+        deterministic=False,
+        log_every_n_steps=max(1, min(50, steps_per_epoch)),
+    )
+    return trainer, checkpoint, stopper
+
+
+def load_weights(model: torch.nn.Module, path: Path) -> None:
+    """Load a Lightning checkpoint's ``model.*`` weights; a torn or foreign file is one line."""
+    from wearnav.errors import FormatError, MissingFileError
+
+    if not path.is_file():
+        raise MissingFileError(f"no checkpoint {CHECKPOINTS}/{path.name} (was the run trained?)", path.parent.parent)
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=False)
+        state = {k.removeprefix("model."): v for k, v in ckpt["state_dict"].items()}
+        model.load_state_dict(state)
+    except Exception as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise FormatError(f"corrupt or incompatible checkpoint: {msg}", path) from None

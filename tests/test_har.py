@@ -1,0 +1,273 @@
+"""HAR benchmark pieces (paper 002): augmentations (eqs. 9–13), Head2/Head3 routing, subject
+splits, and the --quick benchmark plus `wearnav classify` end to end on real UCI HAPT data."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from wearnav import augment
+from wearnav.models.har import HARNet
+from wearnav.preprocess import Aligned
+from wearnav.train.classify import TEST_SUBJECTS, split_of, split_view
+from wearnav.windows import WindowConfig, WindowDataset
+
+from conftest import ROOT, make_stream
+
+C, S = math.cos(math.pi / 6), math.sin(math.pi / 6)
+
+
+# ---- rotation (eqs. 8–11) ----------------------------------------------------------------------
+
+def test_rotation_matrices_are_eqs_9_to_11_and_orthonormal():
+    expected = {
+        "x": [[1, 0, 0], [0, C, S], [0, -S, C]],
+        "y": [[C, 0, -S], [0, 1, 0], [S, 0, C]],
+        "z": [[C, S, 0], [-S, C, 0], [0, 0, 1]],
+    }
+    for axis, m in expected.items():
+        T = augment.axis_rotation(axis).numpy()
+        np.testing.assert_allclose(T, m, atol=1e-15)
+        np.testing.assert_allclose(T @ T.T, np.eye(3), atol=1e-12)
+        assert np.linalg.det(T) == pytest.approx(1.0)
+    with pytest.raises(Exception):
+        augment.axis_rotation("w")
+
+
+def test_rotate_imu_maps_acc_and_gyro_by_T():
+    rng = np.random.default_rng(0)
+    x = torch.from_numpy(rng.standard_normal((4, 2, 10, 6)))
+    T = augment.axis_rotation("y")
+    y = augment.rotate_imu(x, T).numpy()
+    Tn = T.numpy()
+    np.testing.assert_allclose(y[..., :3], np.einsum("ij,...j->...i", Tn, x.numpy()[..., :3]), atol=1e-12)
+    np.testing.assert_allclose(y[..., 3:], np.einsum("ij,...j->...i", Tn, x.numpy()[..., 3:]), atol=1e-12)
+
+
+def _wds(n_seq=2, T=400, window=50, stride=25):
+    rng = np.random.default_rng(1)
+    seqs = []
+    for i in range(n_seq):
+        imu = rng.standard_normal((1, T, 6)).astype(np.float32)
+        imu[..., :3] = imu[..., :3] * 2.0 + [0, 0, 9.8]
+        seqs.append(Aligned(f"s{i}", np.arange(T) / 50.0, ("phone",), imu, np.ones((1, T), bool)))
+    return WindowDataset(seqs, WindowConfig(window=window, stride=stride, target=None))
+
+
+def test_expansion_adds_fixed_copies_of_the_training_set():
+    base = _wds()
+    n = len(base)
+    ex = augment.ExpandedWindows(base, augment.expansion_copies("rot_all"))
+    assert len(ex) == 4 * n
+    orig = base[list(range(n))]["x"]
+    got = ex[list(range(4 * n))]["x"]
+    torch.testing.assert_close(got[:n], orig)
+    for c, axis in enumerate("xyz", 1):
+        torch.testing.assert_close(got[c * n:(c + 1) * n], augment.rotate_imu(orig, augment.axis_rotation(axis)))
+
+
+def test_noise_copy_statistics_and_is_the_same_every_epoch():
+    base = _wds(n_seq=4, T=2000)
+    n = len(base)
+    sigma = augment.noise_sigma(base[list(range(n))]["x"], 0.1)
+    # σ from the training windows: 0.1 × pooled std of acc (≈ std of N(0, 2²) plus the gravity offset) and gyro
+    x = base[list(range(n))]["x"]
+    assert sigma[0] == pytest.approx(0.1 * float(x[..., :3].std()))
+    assert sigma[1] == pytest.approx(0.1 * float(x[..., 3:].std()))
+    ex = augment.ExpandedWindows(base, ["noise"], sigma, seed=3)
+    a = ex[list(range(n, 2 * n))]["x"]
+    b = ex[list(range(n, 2 * n))]["x"]
+    torch.testing.assert_close(a, b)  # generated once, not redrawn
+    d = (a - x).numpy()
+    assert abs(d.mean()) < 0.01
+    assert d[..., :3].std() == pytest.approx(sigma[0], rel=0.03)
+    assert d[..., 3:].std() == pytest.approx(sigma[1], rel=0.03)
+    # no gyroscope (all zeros) → σ_gyro = 0: no noise where there is no sensor
+    x0 = x.clone()
+    x0[..., 3:] = 0
+    assert augment.noise_sigma(x0)[1] == 0.0
+
+
+def test_add_noise_statistics():
+    g = torch.Generator().manual_seed(0)
+    e = augment.add_noise(torch.zeros(200_000, 6, dtype=torch.float64), (0.3, 0.02), g).numpy()
+    np.testing.assert_allclose(e.mean(axis=0), 0, atol=0.003)
+    np.testing.assert_allclose(e.std(axis=0), [0.3] * 3 + [0.02] * 3, rtol=0.01)
+
+
+# ---- moving average (eq. 13) --------------------------------------------------------------------
+
+def test_moving_average_is_eq_13():
+    rng = np.random.default_rng(2)
+    x = rng.standard_normal((3, 60, 6))
+    for n in (1, 10, 25, 50):
+        y = augment.moving_average(x, n, axis=1)
+        assert y.shape == x.shape
+        for t in range(60):
+            stop = min(t + n, 60)  # the last n − 1 samples average what remains
+            np.testing.assert_allclose(y[:, t], x[:, t:stop].mean(axis=1), atol=1e-12)
+    with pytest.raises(Exception):
+        augment.moving_average(x, 0)
+
+
+# ---- random rotation on the fly -----------------------------------------------------------------
+
+def test_rotate_random_keeps_norms_and_differs_per_device():
+    rng = np.random.default_rng(3)
+    x = torch.from_numpy(rng.standard_normal((8, 2, 20, 6)).astype(np.float32))
+    g = torch.Generator().manual_seed(0)
+    y = augment.get("rotate_random")({"x": x, "mask": torch.ones(8, 2)}, g)["x"]
+    for sl in (slice(0, 3), slice(3, 6)):
+        torch.testing.assert_close(y[..., sl].norm(dim=-1), x[..., sl].norm(dim=-1), atol=1e-5, rtol=1e-5)
+    assert not torch.allclose(y, x, atol=1e-3)
+    R = augment.random_rotation_matrices(100, torch.Generator().manual_seed(1)).numpy()
+    np.testing.assert_allclose(R @ np.swapaxes(R, 1, 2), np.broadcast_to(np.eye(3), R.shape), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-12)
+
+
+# ---- models: Head2 / Head3 routing --------------------------------------------------------------
+
+@pytest.mark.parametrize("heads,expected", [
+    (1, [[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]]),
+    (2, [[0, 1, 2, 6, 7, 8], [3, 4, 5, 9, 10, 11]]),  # acc head, gyro head (both devices)
+    (3, [[0, 3, 6, 9], [1, 4, 7, 10], [2, 5, 8, 11]]),  # x, y, z: that axis' acc + gyro
+])
+def test_head_channel_routing(heads, expected):
+    m = HARNet(n_devices=2, window=32, n_classes=4, heads=heads)
+    assert m.head_channels == expected
+    # channel c of device d carries the value 6·d + c: each head must see exactly its channels
+    x = (torch.arange(12, dtype=torch.float32).reshape(2, 6)[None, :, None, :]).expand(3, 2, 32, 6).clone()
+    for h, chans in zip(m.head_inputs(x, torch.ones(3, 2)), expected):
+        assert h.shape == (3, len(chans), 32)
+        torch.testing.assert_close(h[0, :, 0], torch.tensor(chans, dtype=torch.float32))
+    assert m(x, torch.ones(3, 2)).shape == (3, 4)
+
+
+def test_head2_acc_head_ignores_gyro():
+    torch.manual_seed(0)
+    m = HARNet(n_devices=1, window=40, n_classes=3, heads=2).eval()
+    x = torch.randn(2, 1, 40, 6)
+    x2 = x.clone()
+    x2[..., 3:] += 5.0
+    acc_head = m.branches[0]
+    ins, ins2 = m.head_inputs(x, torch.ones(2, 1)), m.head_inputs(x2, torch.ones(2, 1))
+    torch.testing.assert_close(acc_head(ins[0]), acc_head(ins2[0]))
+    assert not torch.allclose(m.branches[1](ins[1]), m.branches[1](ins2[1]))
+
+
+def test_loss_is_cross_entropy_and_absent_device_is_zeroed():
+    m = HARNet(n_devices=2, window=40, n_classes=3)
+    x = torch.randn(4, 2, 40, 6)
+    mask = torch.tensor([[1.0, 0.0]] * 4)
+    x2 = x.clone()
+    x2[:, 1] = 123.0
+    m.eval()
+    torch.testing.assert_close(m(x, mask), m(x2, mask))
+    lab = torch.tensor([0, 1, 2, 0])
+    loss, parts = m.loss({"x": x, "mask": mask, "label": lab})
+    torch.testing.assert_close(loss, torch.nn.functional.cross_entropy(m(x, mask), lab))
+
+
+# ---- subject-independent splits -----------------------------------------------------------------
+
+SUBJECT_IDS = {
+    "uci-hapt": [f"user{i:02d}" for i in range(1, 31)],
+    "motionsense": [f"sub{i:02d}" for i in range(1, 25)],
+    "uji": [f"s{i:02d}" for i in range(1, 24)],
+    "oxford": ["user1", "user2"],
+}
+
+
+@pytest.mark.parametrize("scheme", sorted(SUBJECT_IDS))
+def test_split_schemes_partition_subjects(scheme):
+    ids = SUBJECT_IDS[scheme]
+    sides = {s: split_of(scheme, s) for s in ids}
+    test = {s for s, v in sides.items() if v == "test"}
+    train = {s for s, v in sides.items() if v == "train"}
+    assert test and train and not (test & train) and test | train == set(ids)
+    if scheme == "uci-hapt":
+        assert sorted(int(s[4:]) for s in test) == [2, 4, 9, 10, 12, 13, 18, 20, 24]
+
+
+def test_split_view_has_no_subject_on_both_sides(tmp_path):
+    from wearnav.dataset import Dataset, DatasetWriter
+    from wearnav.recording import Recording
+
+    with DatasetWriter(tmp_path / "ds") as w:
+        for user in (1, 2, 3, 4):
+            for exp in range(2):
+                w.add(Recording(name=f"e{user}{exp}", devices={"phone": make_stream(100, 50.0)},
+                                labels=[(0.0, 2.0, "activity", "WALKING")], meta={"subject": f"user{user:02d}"}))
+    ds = Dataset.open(tmp_path / "ds")
+    tr, te = split_view(ds, "uci-hapt", "train"), split_view(ds, "uci-hapt", "test")
+    assert set(tr.manifest["subject"]) == {"user01", "user03"}
+    assert set(te.manifest["subject"]) == {"user02", "user04"}
+    assert len(tr) + len(te) == len(ds)
+
+
+# ---- end to end on real data --------------------------------------------------------------------
+
+def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
+    import json
+
+    env_py = {"PYTHONPATH": str(ROOT / "src")}
+    import os
+
+    # one thread: on a busy shared machine two spinning OpenMP threads cost more than they give
+    env = {**os.environ, **env_py, "OMP_NUM_THREADS": "1"}
+    out = tmp_path / "har"
+    # a subset of the techniques keeps the test short; each kind (heads, expansion, noise,
+    # moving average, batch augmentation) is represented
+    cmd = [sys.executable, "-m", "wearnav", "bench", "har", "--quick", "--out", str(out), "--data", str(shared_data),
+           "--techniques", "baseline,head2,head3,rot_all,noise,ma50,rot_random"]
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    page = (out / "results.md").read_text()
+    assert "## uci-hapt" in page and "Fig. 12" in page
+    doc = json.loads((out / "results.json").read_text())
+    res = doc["datasets"]["uci-hapt"]
+    assert set(res) == {"baseline", "head2", "head3", "rot_all", "noise", "ma50", "rot_random"}
+    assert "not applicable (no orientation)" in page  # UCI HAPT has no orientation: world frame not run
+    for name, s in res.items():
+        assert 0.0 <= s["accuracy_mean"] <= 1.0 and 0.0 <= s["f1_mean"] <= 1.0
+        assert np.sum(s["confusion"]) == s["test_windows"] > 0
+    for png in ("uci-hapt_improvement.png", "uci-hapt_confusion.png", "summary.png"):
+        assert (out / png).stat().st_size > 1000
+    # no subject on both sides of the real split
+    from wearnav.dataset import Dataset
+
+    ds = Dataset.open(out / "data" / "uci-hapt-quick")
+    tr = set(split_view(ds, "uci-hapt", "train").manifest["subject"])
+    te = set(split_view(ds, "uci-hapt", "test").manifest["subject"])
+    assert tr and te and not (tr & te)
+    base_run = next((out / "runs" / "uci-hapt").glob("baseline-*"))
+    m = json.loads((base_run / "metrics.json").read_text())
+    assert set(m["test_subjects"]) == te
+    # a second invocation resumes: every run is complete and skipped
+    r2 = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
+    assert r2.returncode == 0 and "done in" not in r2.stdout and "skipped" in r2.stdout
+
+    # wearnav classify on one (cropped) recording
+    rec = ds.load(ds.names[0])
+    from wearnav.recording import Recording
+
+    s = rec.devices["phone"]
+    keep = s.t < s.t[0] + 30.0
+    from dataclasses import replace
+
+    small = Recording(name="tiny", devices={"phone": replace(s, t=s.t[keep], acc=s.acc[keep], gyro=s.gyro[keep])},
+                      meta={"subject": "x"})
+    h5 = small.save(tmp_path / "tiny.h5")
+    r3 = subprocess.run([sys.executable, "-m", "wearnav", "classify", str(h5), "--model", str(base_run),
+                         "--out", str(tmp_path / "lab")], capture_output=True, text=True, env=env, timeout=120)
+    assert r3.returncode == 0, r3.stderr
+    iv = pd.read_csv(tmp_path / "lab" / "tiny_intervals.csv")
+    assert set(iv["label"]) <= set(m["classes"]) and iv["windows"].sum() == (30 * 50 - 128) // 64 + 1
+    assert (iv["end_s"] > iv["start_s"]).all() and np.allclose(iv["start_s"].iloc[1:], iv["end_s"].iloc[:-1])
+    assert (tmp_path / "lab" / "tiny_timeline.png").stat().st_size > 1000
