@@ -13,6 +13,7 @@ epoch exactly and ends with the same weights and metrics as an uninterrupted run
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -147,6 +148,9 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
                                                 monitor="val/vel_mse", mode="min", patience=cfg.patience)
     last = ckpt_dir / LAST
     resumed = last.is_file()
+    # A resumed run adds to what earlier attempts measured: epochs already done, wall time spent.
+    before_epochs = int(torch.load(last, map_location="cpu", weights_only=False)["epoch"]) + 1 if resumed else 0
+    earlier = json.loads((run / TRAINING).read_text(encoding="utf-8")) if resumed and (run / TRAINING).is_file() else {}
     t0 = time.perf_counter()
     trainer.fit(module, train_ds.loader(batch, cfg.seed), val_ds.loader(1024),
                 ckpt_path=str(last) if last.is_file() else None)
@@ -164,9 +168,10 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
         "epochs_run": epochs,
         "stopped_by": stopped,
         "best_val_vel_mse": None if best is None else float(best),
-        "wall_s": round(wall, 2),
-        "s_per_epoch": round(wall / max(epochs, 1), 2),
+        "wall_s": round(wall + earlier.get("wall_s", 0.0), 2),
+        "s_per_epoch": round(wall / max(epochs - before_epochs, 1), 2),  # this attempt's epochs
         "resumed": resumed,
+        "attempts": earlier.get("attempts", 1) + 1 if resumed else 1,
         "accelerator": str(trainer.strategy.root_device),
     }
     runs.write_json(run / TRAINING, record)
