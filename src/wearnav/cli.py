@@ -232,7 +232,8 @@ def bench_odometry(
     configs = suite_configs(data, _devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr)
     folders = run_suite(configs, out, progress=_progress(), echo=typer.echo)
     note = (f"Data: `{data}`. Training: at most {epochs} epochs per model"
-            + (f" and {max_time:g} min" if max_time else "")
+            + (f" and {max_time:g} min per attempt (a run resumed from its last checkpoint for more time shows "
+               "attempts > 1; `train min` is its total)" if max_time else "")
             + (f", Adam lr {lr:g} for every model" if lr else ", each model's paper learning rate")
             + ", early stopping on validation velocity MSE (patience 10).")
     page = write_suite_report(folders, out, "Odometry comparison", note=note)

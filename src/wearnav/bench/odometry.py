@@ -78,6 +78,8 @@ def comparison_table(folders, split: str = "test") -> pd.DataFrame:
         row["epochs"] = tr.get("epochs_run", "—" if tr.get("learned") is False else None)
         row["stopped by"] = tr.get("stopped_by", "not learned" if tr.get("learned") is False else None)
         row["train s/epoch"] = tr.get("s_per_epoch")
+        row["train min"] = round(tr["wall_s"] / 60, 1) if tr.get("wall_s") is not None else None
+        row["attempts"] = tr.get("attempts")
         rows.append(row)
     return pd.DataFrame(rows)
 
