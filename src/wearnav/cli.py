@@ -180,7 +180,7 @@ def train(
     lr: Optional[float] = typer.Option(None, help="Learning rate (default: the model's paper value)."),
     batch: Optional[int] = typer.Option(None, help="Batch size (default: the model's paper value)."),
     patience: int = typer.Option(10, help="Early-stopping patience in epochs."),
-    max_time: Optional[float] = typer.Option(None, "--max-time", help="Stop training after this many minutes."),
+    max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes of the run (over resumes too)."),
     evaluate: bool = typer.Option(True, help="Evaluate on the test split afterwards."),
 ):
     """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json)."""
@@ -222,7 +222,7 @@ def bench_odometry(
     models: str = typer.Option(",".join(("suitein++", "suitein", "ronin", "ronin*", "pdr")),
                                help="Models, comma-separated."),
     epochs: int = typer.Option(100, help="Maximum epochs per model."),
-    max_time: Optional[float] = typer.Option(None, "--max-time", help="Minutes per model's training."),
+    max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
     lr: Optional[float] = typer.Option(None, help="Learning rate for every model (default: each model's paper value)."),
     seed: int = typer.Option(0, min=0),
 ):
@@ -232,8 +232,8 @@ def bench_odometry(
     configs = suite_configs(data, _devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr)
     folders = run_suite(configs, out, progress=_progress(), echo=typer.echo)
     note = (f"Data: `{data}`. Training: at most {epochs} epochs per model"
-            + (f" and {max_time:g} min per attempt (a run resumed from its last checkpoint for more time shows "
-               "attempts > 1; `train min` is its total)" if max_time else "")
+            + (f" and {max_time:g} min of training in total (a run given more time resumes from its last "
+               "checkpoint: attempts > 1; `train min` is its total)" if max_time else "")
             + (f", Adam lr {lr:g} for every model" if lr else ", each model's paper learning rate")
             + ", early stopping on validation velocity MSE (patience 10).")
     page = write_suite_report(folders, out, "Odometry comparison", note=note)

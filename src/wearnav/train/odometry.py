@@ -39,8 +39,9 @@ class TrainConfig:
     """Everything that decides a trained odometry model. Saved as YAML in the run folder.
 
     ``lr`` / ``batch`` of None take the model's paper defaults (``model.default_lr`` /
-    ``model.default_batch``, else 1e-3 / 128). ``max_minutes`` bounds wall time (the run then ends
-    early and says so); it does not enter the run's hash.
+    ``model.default_batch``, else 1e-3 / 128). ``max_minutes`` bounds the run's total training time
+    over all its attempts (Lightning's Timer is restored on resume; rerun with a larger value to
+    give a run more time); it does not enter the run's hash.
     """
 
     model: str
@@ -155,7 +156,7 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
     trainer.fit(module, train_ds.loader(batch, cfg.seed), val_ds.loader(1024),
                 ckpt_path=str(last) if last.is_file() else None)
     wall = time.perf_counter() - t0
-    epochs = int(trainer.current_epoch)
+    epochs = max(int(trainer.current_epoch), before_epochs)  # a resume that stops at once did none
     stopped = ("early stopping" if stopper.stopped_epoch > 0 else
                "max time" if cfg.max_minutes and epochs < cfg.epochs else "max epochs")
     best = checkpoint.best_model_score
@@ -169,7 +170,9 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
         "stopped_by": stopped,
         "best_val_vel_mse": None if best is None else float(best),
         "wall_s": round(wall + earlier.get("wall_s", 0.0), 2),
-        "s_per_epoch": round(wall / max(epochs - before_epochs, 1), 2),  # this attempt's epochs
+        # this attempt's own rate; an attempt that ran no epoch keeps the earlier one
+        "s_per_epoch": (round(wall / (epochs - before_epochs), 2) if epochs > before_epochs
+                        else earlier.get("s_per_epoch")),
         "resumed": resumed,
         "attempts": earlier.get("attempts", 1) + 1 if resumed else 1,
         "accelerator": str(trainer.strategy.root_device),
