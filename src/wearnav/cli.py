@@ -231,7 +231,17 @@ def bench_odometry(
 
     configs = suite_configs(data, _devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr)
     folders = run_suite(configs, out, progress=_progress(), echo=typer.echo)
-    note = (f"Data: `{data}`. Training: at most {epochs} epochs per model"
+    from wearnav.dataset import Dataset
+
+    prov = Dataset.open(data).provenance
+    made = (f"simulator preset `{prov['preset']['name'] if isinstance(prov.get('preset'), dict) else prov.get('preset')}`, "
+            f"seed {prov.get('seed')}, wearnav commit {prov.get('commit')}" if prov.get("generator") == "wearnav.simulate"
+            else f"imported by {prov.get('importer', prov.get('generator', '?'))}")
+    import os
+    import platform
+
+    note = (f"Data: `{data}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
+            f"{__import__('torch').__version__}, shared with other work while it ran. Training: at most {epochs} epochs per model"
             + (f" and {max_time:g} min of training in total (a run given more time resumes from its last "
                "checkpoint: attempts > 1; `train min` is its total)" if max_time else "")
             + (f", Adam lr {lr:g} for every model" if lr else ", each model's paper learning rate")
