@@ -184,8 +184,9 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
     out = {"model": cfg.model, "run": run.name, "data": str(data or cfg.data),
            "parameters": n_parameters(model), "window": cfg.window,
            "eval_stride": stride or cfg.stride,
-           "training": training if training is not None else old.get("training", {}), "splits": {}}
-    out["splits"] = dict(old.get("splits", {})) if data is None or str(data) == old.get("data") else {}
+           "training": training if training is not None else old.get("training", {}),
+           # splits evaluated earlier on the same data are kept beside the new ones
+           "splits": dict(old.get("splits", {})) if data is None or str(data) == old.get("data") else {}}
     for split in splits:
         view = ds.split(split)
         if len(view) == 0:

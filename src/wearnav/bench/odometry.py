@@ -6,9 +6,7 @@ are skipped, so an interrupted suite resumes. The table builder reads run folder
 
 from __future__ import annotations
 
-import json
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +30,7 @@ def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = Tru
     """Train (or resume) and evaluate every config; skip complete runs. Returns the run folders."""
     from wearnav.dataset import Dataset
     from wearnav.evaluate import evaluate_run
-    from wearnav.train.odometry import HASH_EXCLUDE, fit, prepare_run, run_hash_exclude, run_record
+    from wearnav.train.odometry import fit, prepare_run, run_hash_exclude, run_record
 
     out = Path(out)
     folders = []
