@@ -250,6 +250,37 @@ def bench_odometry(
     typer.echo(f"wrote {page}")
 
 
+@bench_app.command("real-odometry")
+def bench_real_odometry(
+    data: Path = typer.Option(..., "--data", help="A real building: an imported dataset folder, or its original files with --format."),
+    out: Path = typer.Option(Path("runs/real"), "--out", help="Suite folder (split data, run folders, results.md)."),
+    format_: Optional[str] = typer.Option(None, "--format", help="Importer for --data when it is not imported yet (e.g. ilc2)."),
+    test_data: Optional[Path] = typer.Option(None, "--test-data", help="Another building to test on (never trained on)."),
+    test_format: Optional[str] = typer.Option(None, "--test-format", help="Importer for --test-data."),
+    group_by: Optional[str] = typer.Option(None, help="Meta key that groups recordings by place (default per source: ilc2 floor_name, ipin2023 trial)."),
+    test_groups: Optional[str] = typer.Option(None, help="Held-out groups, comma-separated (default per source: ilc2 F2,F4; ipin2023 4,24,52)."),
+    test_group_by: Optional[str] = typer.Option(None, help="--group-by for --test-data."),
+    test_test_groups: Optional[str] = typer.Option(None, help="--test-groups for --test-data."),
+    train_data: Optional[Path] = typer.Option(None, "--train-data", help="Train the learned models on this (simulated) dataset instead: sim-to-real."),
+    models: str = typer.Option("ronin,suitein++,pdr", help="Models, comma-separated (phone only)."),
+    epochs: int = typer.Option(100, min=1, help="Maximum epochs per model."),
+    max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
+    lr: float = typer.Option(1e-3, help="Adam learning rate for every learned model."),
+    seed: int = typer.Option(0, min=0),
+):
+    """Phone-only odometry trained on some floors/routes of a real building, scored at the surveyed
+    points of held-out ones (and of another building); PDR and the raw phone fixes beside them."""
+    from wearnav.bench.real import RealBench, run_benchmark
+
+    bench = RealBench(models=_devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr,
+                      train_data=str(train_data) if train_data else None)
+    page = run_benchmark(data, out, test_data, format_, test_format, group_by,
+                         _devices(test_groups) if test_groups else None, test_group_by,
+                         _devices(test_test_groups) if test_test_groups else None, bench,
+                         progress=_progress(), echo=typer.echo)
+    typer.echo(f"wrote {page}")
+
+
 @bench_app.command("efficiency")
 def bench_efficiency(
     out: Path = typer.Option(Path("runs/efficiency"), "--out", help="Folder for results.md / results.json."),

@@ -11,6 +11,7 @@ so.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -106,20 +107,25 @@ def evaluate_sequence(model, seq: Aligned, window: int, stride: int, rte_delta: 
         traj = pd.DataFrame({"t": t, "x": est[:, 0], "y": est[:, 1], "x_true": true[:, 0],
                              "y_true": true[:, 1], "error": err})
         return row, traj
-    # sparse truth: start at the first truth point under the predictions, score at truth times
+    # sparse truth: start at the first truth point on the clock (before the first window centre
+    # the first window's velocity holds), score at the later truth points
     tt, tp = rec.truth.t, rec.truth.pos[:, :2]
-    first = np.flatnonzero((tt >= t_c[0]) & (tt <= t_c[-1]))
+    first = np.flatnonzero((tt >= seq.t[0]) & (tt <= seq.t[-1]))
     if first.size < 2:
-        row["skipped"] = "fewer than two truth points under the predictions"
+        row["skipped"] = "fewer than two truth points on the clock"
         return row, pd.DataFrame()
-    t = seq.t[(seq.t >= tt[first[0]]) & (seq.t <= t_c[-1])]
+    t = seq.t[(seq.t >= tt[first[0]]) & (seq.t <= tt[first[-1]] + SPARSE_MAX_GAP)]
     est = integrate_velocity(t_c, vel, t, tp[first[0]])
     keep = first[1:]
     err = metrics.errors_at_reference(t, est, tt[keep], tp[keep], SPARSE_MAX_GAP)
     row.update(truth="sparse", duration=float(t[-1] - t[0]), points=int(err.size),
+               length_m=float(np.sum(np.linalg.norm(np.diff(tp[first], axis=0), axis=1))),
                mean_error=float(err.mean()) if err.size else float("nan"),
-               median_error=float(np.median(err)) if err.size else float("nan"))
-    traj = pd.DataFrame({"t": t, "x": est[:, 0], "y": est[:, 1]})
+               median_error=float(np.median(err)) if err.size else float("nan"),
+               point_errors=[round(float(e), 4) for e in err])
+    # the waypoints joined by straight lines, for plots only (errors are taken at the points)
+    line = np.stack([np.interp(t, tt[first], tp[first, k]) for k in range(2)], axis=1)
+    traj = pd.DataFrame({"t": t, "x": est[:, 0], "y": est[:, 1], "x_true": line[:, 0], "y_true": line[:, 1]})
     return row, traj
 
 
@@ -136,7 +142,10 @@ def summarise(rows: list[dict], errors: np.ndarray) -> dict:
                    hours=float(d.duration.sum() / 3600), km=float(d.length_m.sum() / 1000))
     if len(df) and "mean_error" in df:
         d = df.dropna(subset=["mean_error"])
-        out.update(points=int(d.points.sum()), truth="sparse: errors at truth points only")
+        out.update(points=int(d.points.sum()), truth="sparse: errors at truth points only",
+                   hours=float(d.duration.sum() / 3600), km=float(d.length_m.sum() / 1000))
+        if errors.size:
+            out.update(error_mean=float(errors.mean()))
     if errors.size:
         out.update({f"error_p{p}": float(np.percentile(errors, p)) for p in PERCENTILES})
     return out
@@ -153,8 +162,12 @@ def evaluate_sequences(model, seqs: list[Aligned], window: int, stride: int, rte
         rows.append(row)
         if len(traj):
             trajs[seq.name] = traj
+    by_name = {r["name"]: r for r in rows}
+
     def errs(names):
+        """Per-timestamp errors (dense truth) or per-point errors (sparse truth), pooled."""
         e = [trajs[n]["error"].to_numpy() for n in names if n in trajs and "error" in trajs[n]]
+        e += [np.asarray(by_name[n]["point_errors"]) for n in names if "point_errors" in by_name[n]]
         return np.concatenate(e) if e else np.empty(0)
     modes = sorted({r["mode"] for r in rows if r["mode"]})
     result = {
@@ -168,22 +181,31 @@ def evaluate_sequences(model, seqs: list[Aligned], window: int, stride: int, rte
 
 def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[str, ...] = ("test",),
                  stride: int | None = None, rte_delta: float = 60.0, progress: bool = True,
-                 training: dict | None = None) -> dict:
+                 training: dict | None = None, preprocess: dict | None = None,
+                 out_dir: str | Path | None = None) -> dict:
     """Evaluate a run folder's best model on ``splits`` of ``data`` (default: the training data);
-    write metrics.json, trajectories/<split>/<name>.csv and plots/. Returns the metrics."""
+    write metrics.json, trajectories/<split>/<name>.csv and plots/ into ``out_dir`` (default: the
+    run folder). ``preprocess`` replaces preprocessing fields of the run's config for this data
+    (e.g. another site's ``yaw_deg``); it is recorded in the metrics. Returns the metrics."""
     from wearnav.dataset import Dataset
     from wearnav.models.registry import n_parameters
     from wearnav.train.odometry import TRAINING, load_model
 
     run = Path(run)
     model, cfg = load_model(run)
+    if preprocess:
+        unknown = set(preprocess) - {"frame_align", "truth_max_gap", "yaw_deg"}
+        if unknown:
+            raise ValidationError(f"not a preprocessing field: {sorted(unknown)}")
+        cfg = dataclasses.replace(cfg, **preprocess)
+    dest = Path(out_dir) if out_dir is not None else run
     ds = Dataset.open(data or cfg.data)
-    old = runs.read_metrics(run) if runs.is_complete(run) else {}
+    old = runs.read_metrics(dest) if runs.is_complete(dest) else {}
     if training is None and (run / TRAINING).is_file():
         training = json.loads((run / TRAINING).read_text(encoding="utf-8"))
     out = {"model": cfg.model, "run": run.name, "data": str(data or cfg.data),
            "parameters": n_parameters(model), "window": cfg.window,
-           "eval_stride": stride or cfg.stride,
+           "eval_stride": stride or cfg.stride, "preprocess": dict(preprocess or {}),
            "training": training if training is not None else old.get("training", {}),
            # splits evaluated earlier on the same data are kept beside the new ones
            "splits": dict(old.get("splits", {})) if data is None or str(data) == old.get("data") else {}}
@@ -198,10 +220,10 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
         res["wall_s"] = round(time.perf_counter() - t0, 2)
         out["splits"][split] = res
         for name, traj in trajs.items():
-            with atomic_path(run / "trajectories" / split / f"{name}.csv") as tmp:
+            with atomic_path(dest / "trajectories" / split / f"{name}.csv") as tmp:
                 traj.to_csv(tmp, index=False, float_format="%.4f")
         from wearnav.report.odometry import plot_run_split
 
-        plot_run_split(run / "plots", split, res, trajs, cfg.model)
-    runs.write_metrics(run, out)
+        plot_run_split(dest / "plots", split, res, trajs, cfg.model)
+    runs.write_metrics(dest, out)
     return out

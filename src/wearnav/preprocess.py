@@ -18,7 +18,7 @@ import numpy as np
 from scipy import signal
 
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.frames import FRAME_ALIGN_MODES, align_frames
+from wearnav.frames import FRAME_ALIGN_MODES, align_frames, rotate_stacked
 from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Recording
 from wearnav.rotations import from_wxyz
 from wearnav.timeseries import interp_onto, periods, rate
@@ -51,6 +51,15 @@ class PreprocessConfig:
     # rotates that frame onto the truth's where the recording has truth, else it is "common".
     # Only world-frame input is rotated (frame="device" has no common vertical).
     frame_align: str = "truth"
+    # Truth is interpolated across gaps up to this many seconds. The default keeps sparse
+    # waypoints sparse; a real building's waypoints (ILC2, IPIN's POSI points) are joined by
+    # straight lines when this is raised (the competitions' own assumption between waypoints).
+    truth_max_gap: float = TRUTH_MAX_GAP_S
+    # A constant yaw (degrees) of the input's world frame relative to the truth frame, as a site
+    # has between its magnetic-north rotation vector and its floor plan (wearnav.frames sign
+    # convention); world-frame input is rotated by −yaw_deg into the truth frame, after any
+    # frame alignment. Estimated from a site's training traces (wearnav.bench.real).
+    yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
         if self.rate <= 0:
@@ -61,6 +70,10 @@ class PreprocessConfig:
             raise ConfigError("at least one device must be named")
         if self.frame_align not in FRAME_ALIGN_MODES:
             raise ConfigError(f"frame_align must be one of {', '.join(FRAME_ALIGN_MODES)}, got {self.frame_align!r}")
+        if not self.truth_max_gap > 0:
+            raise ConfigError(f"truth_max_gap must be positive seconds, got {self.truth_max_gap}")
+        if self.yaw_deg and self.frame != "world":
+            raise ConfigError("yaw_deg rotates world-frame input; it needs frame='world'")
 
 
 @dataclass
@@ -170,8 +183,10 @@ def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig()) -> Aligned
             imu[i], mask[i] = stream_to_clock(rec.devices[dev], t, cfg, f"{rec.name}/{dev}")
     pos = None
     if rec.truth is not None:
-        pos = interpolate_position(rec.truth.t, rec.truth.pos, t)
+        pos = interpolate_position(rec.truth.t, rec.truth.pos, t, cfg.truth_max_gap)
     meta = dict(rec.meta)
     if cfg.frame == "world" and cfg.frame_align != "none":
         imu, meta["frame"] = align_frames(imu, mask, tuple(cfg.devices), cfg.rate, pos, cfg.frame_align)
+    if cfg.yaw_deg:
+        imu = np.stack([rotate_stacked(x, -np.deg2rad(cfg.yaw_deg)) for x in imu]).astype(np.float32)
     return Aligned(rec.name, t, tuple(cfg.devices), imu, mask, pos, meta, rec)

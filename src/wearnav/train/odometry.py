@@ -25,7 +25,7 @@ import torch
 from wearnav import runs
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.models import registry
-from wearnav.preprocess import PreprocessConfig
+from wearnav.preprocess import TRUTH_MAX_GAP_S, PreprocessConfig
 from wearnav.train.common import BEST, CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
 from wearnav.windows import WindowConfig, WindowDataset
 
@@ -59,6 +59,10 @@ class TrainConfig:
     augment: tuple[str, ...] = ("rotate_yaw",)
     seed: int = 0
     max_minutes: float | None = None
+    # preprocessing beyond the Suite-IN++ defaults (wearnav.preprocess.PreprocessConfig)
+    frame_align: str = "truth"
+    truth_max_gap: float = TRUTH_MAX_GAP_S
+    yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
         if self.epochs < 1:
@@ -84,7 +88,8 @@ class TrainConfig:
         return cls(**kw)
 
     def preprocess_config(self) -> PreprocessConfig:
-        return PreprocessConfig(rate=self.rate, devices=tuple(self.devices))
+        return PreprocessConfig(rate=self.rate, devices=tuple(self.devices), frame_align=self.frame_align,
+                                truth_max_gap=self.truth_max_gap, yaw_deg=self.yaw_deg)
 
     def window_config(self, stride: int | None = None, target: str | None = "velocity") -> WindowConfig:
         return WindowConfig(window=self.window, stride=stride or self.stride, target=target)

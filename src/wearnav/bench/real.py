@@ -1,0 +1,400 @@
+"""Odometry measured in real buildings: `wearnav bench real-odometry` (issue 8 §3, issue 11 §3).
+
+Real indoor recordings have no dense truth, only surveyed points: ILC2's waypoints (phone held
+flat in front) and IPIN 2023's POSI points (hand-held phone, with the phone's own GNSS fixes).
+The benchmark
+
+1. **splits by place, not by trace.** A dataset's recordings are grouped by a meta key (ILC2: the
+   floor; IPIN: the route, i.e. the trial whose repetitions walk the same path); the named test
+   groups are held out entirely, the rest is training, one recording in five of it (by a hash of
+   its name) validation. Defaults avoid what the simulator was calibrated on (ILC2 floor F1, IPIN
+   trials 01–02: :mod:`wearnav.realism`), which may be trained on but never tested on.
+2. **joins the surveyed points by straight lines** for the training targets (the competitions'
+   own assumption between waypoints; truth is interpolated across gaps up to
+   ``TRUTH_MAX_GAP_S``). Evaluation uses the surveyed points only: each test trace starts at
+   its first point and is scored at every later one (:func:`wearnav.evaluate.evaluate_sequence`).
+3. **estimates one yaw per site from its training traces.** The phone's rotation vector refers to
+   magnetic north, the truth to a floor plan (ILC2) or to geographic east/north (IPIN): the two
+   differ by a constant yaw per site. :func:`site_yaw` takes it from the training traces only:
+   PDR (not learned, so nothing is fitted to the data first) is run on each trace, and the yaw is
+   the angle of Σ d_pdr · conj(d_truth) over all segments between consecutive surveyed points (a
+   2-D Procrustes fit, longer segments weighing more). Every model's input is rotated by it into
+   the truth frame. PDR's own heading bias goes into that angle; a learned model absorbs any
+   constant yaw left over (a constant rotation commutes with the yaw augmentation), so the angle
+   matters for PDR and for transfer to another site, not for learned models on their own site.
+4. **transfers to another building** with ``test_data``: the same import and grouping; the
+   models trained on ``data`` are scored on its test groups, with its yaw estimated from its own
+   training groups (which are used for nothing else).
+5. **puts the phone's own fixes beside the models** where the data has them (IPIN): the raw
+   GNSS error at the same surveyed points (nearest fix within ``FIX_MAX_GAP_S``).
+
+Optionally ``train_data`` (a simulated dataset) trains the learned models instead of the real
+training floors: the sim-to-real test of issue 11. Everything is a run folder; complete runs
+are skipped, so the benchmark resumes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import platform
+import time
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wearnav import metrics, runs
+from wearnav.errors import ConfigError, ValidationError
+
+DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
+TRUTH_MAX_GAP_S = 60.0
+FIX_MAX_GAP_S = 2.0
+VAL_EVERY = 5
+# Grouping and held-out groups per source; neither holds data the simulator was calibrated on.
+SITE_DEFAULTS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "ilc2": ("floor_name", ("F2", "F4")),
+    "ipin2023": ("trial", ("4", "24", "52")),
+}
+CALIBRATION = {"ilc2": ("floor_name", {"F1"}), "ipin2023": ("trial", {"1", "2"})}
+PERCENTILES = (50, 75, 95)
+
+
+# ---- data ---------------------------------------------------------------------------------------
+
+def _group(meta: dict, key: str, name: str) -> str:
+    if key not in meta:
+        raise ValidationError(f"recording {name} has no meta key {key!r} to group by")
+    return str(meta[key])
+
+
+def split_of(name: str, group: str, test_groups: set[str]) -> str:
+    """``test`` for the held-out groups; else ``val`` for one recording in VAL_EVERY (by a hash of
+    its name, so the choice does not depend on order), else ``train``."""
+    if group in test_groups:
+        return "test"
+    return "val" if zlib.crc32(name.encode()) % VAL_EVERY == 0 else "train"
+
+
+def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group_by: str | None = None,
+                 test_groups: tuple[str, ...] | None = None, progress: bool = True) -> tuple[Path, dict]:
+    """Write ``src`` (an imported dataset folder, or an original-format folder read with importer
+    ``fmt``) to ``out`` with splits by place. Returns the folder and what was decided."""
+    from tqdm.auto import tqdm
+
+    from wearnav.dataset import Dataset, DatasetWriter
+    from wearnav.importers import get_importer
+
+    src, out = Path(src), Path(out)
+    if (src / "manifest.csv").is_file():
+        ds = Dataset.open(src)
+        recs, source = (ds.load(n) for n in ds.names), str(ds.manifest["source"].iloc[0]) if len(ds) else ""
+    elif fmt is None:
+        raise ConfigError(f"{src} is not an imported dataset (no manifest.csv): name its --format")
+    else:
+        recs, source = get_importer(fmt).read(src), fmt
+    key, groups = SITE_DEFAULTS.get(source, (None, None))
+    key, groups = group_by or key, tuple(test_groups) if test_groups else groups
+    if key is None or not groups:
+        raise ConfigError(f"no default grouping for source {source!r}: give --group-by and --test-groups")
+    wanted = {"src": str(src.resolve()), "importer": fmt, "group_by": key, "test_groups": list(groups)}
+    info_path = out / "split.json"
+    if info_path.is_file() and (out / "manifest.csv").is_file():
+        info = json.loads(info_path.read_text(encoding="utf-8"))
+        if {k: info.get(k) for k in wanted} == wanted:
+            return out, info
+    counts: dict[str, dict[str, int]] = {}
+    calib_key, calib = CALIBRATION.get(source, (None, set()))
+    with DatasetWriter(out, {"generator": "wearnav.bench.real", **wanted}) as w:
+        for rec in tqdm(recs, desc=f"prepare {src.name}", unit="rec", disable=not progress, leave=False):
+            g = _group(rec.meta, key, rec.name)
+            split = split_of(rec.name, g, set(groups))
+            if split == "test" and calib_key and str(rec.meta.get(calib_key)) in calib:
+                raise ConfigError(f"test group {g!r} holds data the simulator was calibrated on "
+                                  f"({calib_key} {sorted(calib)}); choose other --test-groups")
+            counts.setdefault(g, {}).setdefault(split, 0)
+            counts[g][split] += 1
+            w.add(rec, split=split)
+    missing = set(groups) - set(counts)
+    if missing:
+        raise ValidationError(f"test groups {sorted(missing)} are not in the data ({key} values: "
+                              f"{sorted(counts)})", src)
+    info = {**wanted, "source": source, "groups": counts}
+    runs.write_json(info_path, info)
+    return out, info
+
+
+# ---- the site's yaw ---------------------------------------------------------------------------
+
+def segment_products(seqs, window: int = 100, stride: int = 10) -> np.ndarray:
+    """d_pdr · conj(d_truth) per segment between consecutive surveyed points (complex), over the
+    sequences ``seqs`` (Aligned, world frame, no yaw applied)."""
+    from wearnav.evaluate import predict_sequence
+    from wearnav.models.registry import build
+    from wearnav.trajectory import integrate_velocity
+
+    out = []
+    for seq in seqs:
+        pdr = build("pdr", n_devices=len(seq.devices), window=window, rate=seq.rate).eval()
+        t_c, vel, _ = predict_sequence(pdr, seq, window, stride)
+        rec = seq.recording
+        if t_c.size < 2 or rec is None or rec.truth is None:
+            continue
+        tt, tp = rec.truth.t, rec.truth.pos[:, :2]
+        k = (tt >= seq.t[0]) & (tt <= seq.t[-1])
+        if k.sum() < 2:
+            continue
+        est = integrate_velocity(t_c, vel, tt[k], tp[k][0])
+        de, dt = np.diff(est, axis=0), np.diff(tp[k], axis=0)
+        out.append((de[:, 0] + 1j * de[:, 1]) * np.conj(dt[:, 0] + 1j * dt[:, 1]))
+    return np.concatenate(out) if out else np.empty(0, complex)
+
+
+def site_yaw(seqs, window: int = 100, stride: int = 10) -> dict:
+    """The yaw (degrees) of the input's world frame relative to the truth frame, from PDR on
+    training traces (module docstring, step 3), with its spread."""
+    p = segment_products(seqs, window, stride)
+    if p.size == 0:
+        raise ValidationError("no segments between surveyed points to estimate the site's yaw from")
+    yaw = float(np.angle(np.sum(p)))
+    dev = np.degrees(np.abs(np.angle(p * np.exp(-1j * yaw))))
+    unit = p / np.maximum(np.abs(p), 1e-12)
+    return {"yaw_deg": round(float(np.degrees(yaw)), 2), "segments": int(p.size), "traces": len(seqs),
+            "median_abs_dev_deg": round(float(np.median(dev)), 1),
+            "resultant_length": round(float(np.abs(unit.mean())), 3)}
+
+
+def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate: float = 25.0) -> dict:
+    from wearnav.dataset import Dataset
+    from wearnav.evaluate import load_sequences
+    from wearnav.train.odometry import TrainConfig
+
+    cfg = TrainConfig(model="pdr", data=str(data), devices=tuple(devices), rate=rate, frame_align="none",
+                      truth_max_gap=TRUTH_MAX_GAP_S)
+    return site_yaw(load_sequences(Dataset.open(data).split(split), cfg))
+
+
+# ---- the phone's own fixes --------------------------------------------------------------------
+
+def fix_errors(data: Path, split: str = "test") -> dict | None:
+    """Raw fix error at the surveyed points of ``split`` (nearest fix within FIX_MAX_GAP_S), each
+    trace from its second point on, as the models are scored; None without fixes."""
+    from wearnav.dataset import Dataset
+
+    view = Dataset.open(data).split(split)
+    rows, errs = [], []
+    for name in view.names:
+        rec = view.load(name)
+        if rec.fixes is None or rec.truth is None or len(rec.fixes) == 0:
+            continue
+        e = metrics.errors_at_reference(rec.fixes.t, rec.fixes.pos[:, :2], rec.truth.t[1:],
+                                        rec.truth.pos[1:, :2], FIX_MAX_GAP_S)
+        rows.append({"name": name, "points": int(e.size), "mean_error": float(e.mean()) if e.size else float("nan")})
+        errs.append(e)
+    if not rows:
+        return None
+    e = np.concatenate(errs)
+    return {"sequences": len(rows), "points": int(e.size), **_point_stats(e),
+            "point_errors": [round(float(x), 3) for x in e]}
+
+
+def _point_stats(e: np.ndarray) -> dict:
+    if e.size == 0:
+        return {"error_mean": float("nan"), **{f"error_p{p}": float("nan") for p in PERCENTILES}}
+    return {"error_mean": float(e.mean()), **{f"error_p{p}": float(np.percentile(e, p)) for p in PERCENTILES}}
+
+
+# ---- the suite ----------------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class RealBench:
+    """What decides a real-building benchmark (saved with its results)."""
+
+    models: tuple[str, ...] = DEFAULT_MODELS
+    epochs: int = 100
+    patience: int = 10
+    max_minutes: float | None = None
+    seed: int = 0
+    lr: float | None = 1e-3  # as the simulator comparison (`wearnav bench odometry --lr 1e-3`); None: paper values
+    window: int = 100
+    stride: int = 10
+    train_data: str | None = None  # a simulated dataset to train on instead (sim-to-real)
+
+
+def _train_config(model: str, data: str, yaw: float, bench: RealBench, simulated: bool):
+    from wearnav.train.odometry import TrainConfig
+
+    kw = dict(model=model, data=data, devices=("phone",), epochs=bench.epochs, patience=bench.patience,
+              max_minutes=bench.max_minutes, seed=bench.seed, window=bench.window, stride=bench.stride,
+              lr=bench.lr)
+    if simulated:  # the simulator's own truth frame and dense truth
+        return TrainConfig(**kw)
+    return TrainConfig(**kw, frame_align="none", truth_max_gap=TRUTH_MAX_GAP_S, yaw_deg=yaw)
+
+
+def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str | None = None,
+                  test_fmt: str | None = None, group_by: str | None = None, test_groups=None,
+                  test_group_by: str | None = None, test_test_groups=None, bench: RealBench = RealBench(),
+                  progress: bool = True, echo=print) -> Path:
+    """Prepare the data, estimate the site yaws, train/evaluate every model, write results.md."""
+    from wearnav.evaluate import evaluate_run
+    from wearnav.models.registry import get
+    from wearnav.train.odometry import fit, prepare_run, run_hash_exclude, run_record
+
+    out = Path(out)
+    t_start = time.perf_counter()
+    sites = {}
+    main, info = prepare_data(data, out / "data" / "main", fmt, group_by, test_groups, progress)
+    sites["main"] = {"data": str(main), "split": info}
+    if test_data is not None:
+        other, oinfo = prepare_data(test_data, out / "data" / "other", test_fmt, test_group_by,
+                                    test_test_groups, progress)
+        sites["other"] = {"data": str(other), "split": oinfo}
+    for name, site in sites.items():
+        cached = out / "data" / name / "site_yaw.json"
+        if not cached.is_file():
+            echo(f"{name}: estimating the site's yaw from its training traces (PDR) ...")
+            runs.write_json(cached, estimate_site_yaw(Path(site["data"])))
+        site["yaw"] = json.loads(cached.read_text(encoding="utf-8"))
+        echo(f"{name}: site yaw {site['yaw']['yaw_deg']:+.1f}° from {site['yaw']['segments']} segments")
+        site["fixes"] = fix_errors(Path(site["data"]))
+    yaw = sites["main"]["yaw"]["yaw_deg"]
+    folders = {}
+    for model in bench.models:
+        learned = get(model).learned
+        simulated = bool(bench.train_data) and learned
+        cfg = _train_config(model, bench.train_data if simulated else str(main), yaw, bench, simulated)
+        run = runs.run_dir(out / "runs", model, run_hash_exclude(run_record(cfg)))
+        folders[model] = run
+        evals = {"main": run / "eval_main", "other": run / "eval_other"}
+        if all(runs.is_complete(evals[s]) for s in sites):
+            echo(f"{model}: complete, skipped ({run})")
+            continue
+        echo(f"{model}: {'training' if learned else 'evaluating'} → {run}")
+        prepare_run(cfg, run)
+        t0 = time.perf_counter()
+        training = fit(cfg, run, progress=progress)
+        for s, site in sites.items():
+            pre = {"frame_align": "none", "truth_max_gap": TRUTH_MAX_GAP_S, "yaw_deg": site["yaw"]["yaw_deg"]}
+            evaluate_run(run, data=site["data"], splits=("test",), progress=progress, training=training,
+                         preprocess=pre, out_dir=evals[s])
+        echo(f"{model}: done in {time.perf_counter() - t0:.0f} s")
+    wall = time.perf_counter() - t_start
+    return write_report(out, sites, folders, bench, wall)
+
+
+def results_table(sites: dict, folders: dict[str, Path], site: str, bench: RealBench) -> tuple[pd.DataFrame, dict]:
+    """One row per model (and the raw fixes): errors at the surveyed points of the test traces."""
+    rows, errors = [], {}
+    for model, run in folders.items():
+        m = runs.read_metrics(run / f"eval_{site}") if runs.is_complete(run / f"eval_{site}") else None
+        if not m:
+            continue
+        res = m["splits"]["test"]
+        e = np.concatenate([np.asarray(r.get("point_errors", []), float) for r in res["sequences"]] or [np.empty(0)])
+        errors[model] = e
+        tr = m.get("training", {})
+        sim = bool(bench.train_data) and tr.get("learned", False)
+        rows.append({"method": model, "trained on": "simulator" if sim else "real" if tr.get("learned") else "—",
+                     "traces": res["summary"]["sequences"], "points": int(e.size), **_point_stats(e),
+                     "epochs": tr.get("epochs_run", "—"), "train min": round(tr["wall_s"] / 60, 1) if tr.get("wall_s") else "—"})
+    fx = sites[site].get("fixes")
+    if fx:
+        errors["raw phone fixes"] = np.asarray(fx["point_errors"])
+        rows.append({"method": "raw phone fixes", "trained on": "—", "traces": fx["sequences"], "points": fx["points"],
+                     **{k: v for k, v in fx.items() if k.startswith("error_")}, "epochs": "—", "train min": "—"})
+    df = pd.DataFrame(rows)
+    if not df.empty:
+        df = df.rename(columns={"error_mean": "mean (m)", "error_p50": "median (m)", "error_p75": "p75 (m)",
+                                "error_p95": "p95 (m)"})
+    return df, errors
+
+
+def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBench, wall_s: float) -> Path:
+    import torch
+
+    from wearnav.fileio import write_text_atomic
+    from wearnav.provenance import provenance
+    from wearnav.report.odometry import plot_cdf
+
+    p = provenance()
+    title = "Odometry in real buildings" + (" — trained on the simulator" if bench.train_data else "")
+    lines = [f"# {title}", "",
+             f"Generated by `wearnav bench real-odometry` ({p['created']}, wearnav {p['wearnav']} {p['commit']}); "
+             f"wall time of this invocation {wall_s / 60:.1f} min on {platform.machine()}, {os.cpu_count()} CPUs, "
+             f"torch {torch.__version__}, CPU only, shared with other work while it ran.", "",
+             "Errors in metres at the surveyed points of the held-out test traces: every trace starts at its "
+             "first point and is scored at each later one (no reset). Training targets join the surveyed "
+             "points by straight lines (the competitions' assumption between waypoints); nothing is "
+             "tuned on the test groups. Phone only, 25 Hz, world frame rotated by the site's yaw "
+             "(estimated by PDR from training traces only).", "",
+             f"Training: at most {bench.epochs} epochs, early stopping on validation velocity MSE (patience "
+             f"{bench.patience})" + (f", at most {bench.max_minutes:g} min per model" if bench.max_minutes else "")
+             + (f", Adam lr {bench.lr:g}" if bench.lr else ", each model's paper learning rate")
+             + f", seed {bench.seed}, one run per model."
+             + (f" Learned models trained on the simulated dataset `{bench.train_data}` only (its own truth "
+                "frame); PDR is not learned." if bench.train_data else ""), ""]
+    doc = {"bench": dataclasses.asdict(bench), "wall_s": round(wall_s, 1), "sites": {}}
+    for site, s in sites.items():
+        info = s["split"]
+        test = [g for g, c in info["groups"].items() if "test" in c]
+        train = [g for g, c in info["groups"].items() if "test" not in c]
+        n = {k: sum(c.get(k, 0) for c in info["groups"].values()) for k in ("train", "val", "test")}
+        head = "Held-out groups of the training building" if site == "main" else "Another building, never trained on"
+        lines += [f"## {head}: `{info['source']}`", "",
+                  f"Source `{info['src']}`, grouped by `{info['group_by']}`: test {', '.join(sorted(test))} "
+                  f"({n['test']} traces); " + (f"training groups {', '.join(sorted(train))} ({n['train']} train, "
+                  f"{n['val']} validation traces)." if site == "main" else
+                  f"its other groups ({n['train'] + n['val']} traces) serve only to estimate its yaw."),
+                  f"Site yaw {s['yaw']['yaw_deg']:+.1f}° from {s['yaw']['segments']} segments of "
+                  f"{s['yaw']['traces']} training traces (median |deviation| {s['yaw']['median_abs_dev_deg']}°).", ""]
+        table, errors = results_table(sites, folders, site, bench)
+        doc["sites"][site] = {"split": info, "yaw": s["yaw"], "table": table.to_dict(orient="records")}
+        if table.empty:
+            lines += ["(no complete runs yet)", ""]
+            continue
+        lines += [table.to_markdown(index=False, floatfmt=".2f"), ""]
+        cdf = plot_cdf(errors, out / f"{site}_error_cdf.png", f"error at surveyed points, {info['source']} test")
+        traj = _plot_examples(folders, site, out / f"{site}_trajectories.png", info["source"])
+        lines += [f"![{q.stem}]({q.name})" for q in (cdf, traj) if q] + [""]
+    runs.write_json(out / "results.json", doc)
+    return write_text_atomic("\n".join(lines), out / "results.md")
+
+
+def _plot_examples(folders: dict[str, Path], site: str, path: Path, source: str, k: int = 4) -> Path | None:
+    """Estimated paths of every model on the first ``k`` test traces, waypoints as dots."""
+    from matplotlib.figure import Figure
+
+    from wearnav.report.plots import save
+
+    names = None
+    for run in folders.values():
+        d = run / f"eval_{site}" / "trajectories" / "test"
+        if d.is_dir():
+            names = sorted(p.stem for p in d.glob("*.csv"))[:k]
+            break
+    if not names:
+        return None
+    fig = Figure(figsize=(3.8 * len(names), 4.0), layout="constrained")
+    for i, name in enumerate(names):
+        ax = fig.add_subplot(1, len(names), i + 1)
+        drawn = False
+        for model, run in folders.items():
+            f = run / f"eval_{site}" / "trajectories" / "test" / f"{name}.csv"
+            if not f.is_file():
+                continue
+            tr = pd.read_csv(f)
+            if not drawn:
+                ax.plot(tr.x_true, tr.y_true, color="black", lw=1.0, ls=":", label="waypoints, straight")
+                drawn = True
+            ax.plot(tr.x, tr.y, lw=1.0, label=model)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=7)
+        ax.set_title(name[-28:], fontsize=8)
+        if i == 0:
+            ax.legend(fontsize=7)
+    fig.suptitle(f"{source}: held-out test traces (metres)", fontsize=11)
+    return save(fig, path)

@@ -1,0 +1,140 @@
+"""Real-building odometry benchmark (wearnav.bench.real) on a stand-in building made from the
+simulator: dense truth thinned to surveyed points every few seconds, recordings grouped into
+"floors", the phone's world frame turned by a known yaw as a magnetic-north frame would be."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from wearnav import runs
+from wearnav.bench.real import RealBench, estimate_site_yaw, prepare_data, run_benchmark, split_of
+from wearnav.dataset import Dataset, write_dataset
+from wearnav.errors import ConfigError, ValidationError
+from wearnav.frames import rotate_stacked
+from wearnav.preprocess import PreprocessConfig, align
+from wearnav.recording import Trajectory
+from wearnav.rotations import from_wxyz, to_wxyz
+from wearnav.simulate import simulate_dataset
+from scipy.spatial.transform import Rotation
+
+POINT_EVERY_S = 5.0
+
+
+def _building(recs, yaw_deg: float):
+    """Phone only, truth thinned to points every POINT_EVERY_S, the phone's world frame yawed by
+    ``yaw_deg`` against the truth frame (the simulator's drawn per-recording offset, a test's
+    bookkeeping, taken out first), a ``floor_name`` per recording."""
+    out = []
+    for i, rec in enumerate(recs):
+        drawn = rec.meta["devices"]["phone"]["quat_yaw_offset_deg"]
+        rz = Rotation.from_euler("z", yaw_deg - drawn, degrees=True)
+        s = rec.devices["phone"]
+        s = dataclasses.replace(s, quat=to_wxyz(rz * from_wxyz(s.quat)))
+        keep = np.unique(np.searchsorted(rec.truth.t, np.arange(rec.truth.t[0], rec.truth.t[-1], POINT_EVERY_S)))
+        truth = Trajectory(rec.truth.t[keep], rec.truth.pos[keep])
+        meta = {**rec.meta, "floor_name": "F9" if i % 4 == 0 else f"F{i % 3}", "source": "standin"}
+        meta.pop("split", None)
+        out.append((dataclasses.replace(rec, devices={"phone": s}, truth=truth, meta=meta), ""))
+    return out
+
+
+@pytest.fixture(scope="module")
+def building(tmp_path_factory):
+    root = tmp_path_factory.mktemp("real")
+    sim = simulate_dataset("tiny", root / "sim", seed=2, progress=False)
+    recs = [sim.load(n) for n in sim.filter(mode=["STW", "DRW"]).names]
+    write_dataset(root / "building", _building(recs, 40.0))
+    write_dataset(root / "other", _building(recs[::-1], -25.0))
+    return root
+
+
+def test_split_by_place_is_deterministic_and_holds_out_whole_groups():
+    assert split_of("a", "F2", {"F2"}) == "test"
+    names = [f"trace{i}" for i in range(200)]
+    splits = [split_of(n, "F1", {"F2"}) for n in names]
+    assert splits == [split_of(n, "F1", {"F2"}) for n in names]
+    assert 0.1 < splits.count("val") / len(splits) < 0.3 and "test" not in splits
+
+
+def test_prepare_data_refuses_unknown_groups_and_missing_grouping(building, tmp_path):
+    with pytest.raises(ValidationError, match="not in the data"):
+        prepare_data(building / "building", tmp_path / "a", group_by="floor_name", test_groups=("F7",), progress=False)
+    with pytest.raises(ConfigError, match="group-by"):
+        prepare_data(building / "building", tmp_path / "b", progress=False)
+    out, info = prepare_data(building / "building", tmp_path / "c", group_by="floor_name", test_groups=("F9",),
+                             progress=False)
+    m = Dataset.open(out).manifest
+    floors = {n: Dataset.open(out).load(n).meta["floor_name"] for n in m.name}
+    assert all((floors[n] == "F9") == (s == "test") for n, s in zip(m.name, m.split))
+    assert set(m.split) == {"train", "val", "test"} and info["groups"]["F9"] == {"test": int((m.split == "test").sum())}
+
+
+def test_preprocess_joins_points_by_straight_lines_and_turns_the_input(building):
+    ds = Dataset.open(building / "building")
+    rec = ds.load(ds.names[0])
+    sparse = align(rec, PreprocessConfig(devices=("phone",), frame_align="none"))
+    joined = align(rec, PreprocessConfig(devices=("phone",), frame_align="none", truth_max_gap=60.0))
+    inside = (joined.t >= rec.truth.t[0]) & (joined.t <= rec.truth.t[-1])
+    assert np.isfinite(joined.pos[inside]).all() and np.isnan(sparse.pos[inside]).mean() > 0.9
+    mid = 0.5 * (rec.truth.pos[0, :2] + rec.truth.pos[1, :2])
+    k = np.argmin(np.abs(joined.t - 0.5 * (rec.truth.t[0] + rec.truth.t[1])))
+    assert joined.pos[k] == pytest.approx(mid, abs=0.05)
+    turned = align(rec, PreprocessConfig(devices=("phone",), frame_align="none", yaw_deg=40.0))
+    assert turned.imu[0] == pytest.approx(rotate_stacked(sparse.imu[0], -np.deg2rad(40.0)), abs=1e-4)
+
+
+def test_site_yaw_follows_a_turn_of_the_input_frame(building, tmp_path):
+    """The PDR estimate is equivariant: the same traces with the phone's world frame turned by a
+    further 30° give a yaw 30° larger (the sign convention of wearnav.frames)."""
+    ds = Dataset.open(building / "building")
+    base = estimate_site_yaw(building / "building", split="")
+    recs = [(dataclasses.replace(r, devices={"phone": dataclasses.replace(
+        r.devices["phone"], quat=to_wxyz(Rotation.from_euler("z", 30, degrees=True) * from_wxyz(r.devices["phone"].quat)))}), "")
+        for r in (ds.load(n) for n in ds.names)]
+    write_dataset(tmp_path / "turned", recs)
+    turned = estimate_site_yaw(tmp_path / "turned", split="")
+    assert base["segments"] == turned["segments"] > 20
+    assert ((turned["yaw_deg"] - base["yaw_deg"] + 180) % 360 - 180) == pytest.approx(30.0, abs=0.5)
+    # the drawn 40° is found up to PDR's own heading bias on simulated gait
+    assert abs(base["yaw_deg"] - 40.0) < 25.0
+
+
+def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_path):
+    out = tmp_path / "bench"
+    bench = RealBench(models=("pdr", "suitein++"), epochs=1, stride=25)
+    kw = dict(group_by="floor_name", test_groups=("F9",), test_group_by="floor_name", test_test_groups=("F9",),
+              bench=bench, progress=False)
+    msgs = []
+    page = run_benchmark(building / "building", out, building / "other", echo=msgs.append, **kw)
+    text = page.read_text()
+    assert "Held-out groups of the training building" in text and "Another building, never trained on" in text
+    doc = json.loads((out / "results.json").read_text())
+    for site in ("main", "other"):
+        table = {r["method"]: r for r in doc["sites"][site]["table"]}
+        assert {"pdr", "suitein++", "raw phone fixes"} <= set(table)
+        for r in table.values():
+            assert r["points"] > 0 and 0 <= r["median (m)"] <= r["p95 (m)"] < 1e3
+    # every scored trace is a test-group trace, scored from its first point on
+    m = runs.read_metrics(next((out / "runs").glob("pdr-*")) / "eval_main")
+    test = set(Dataset.open(out / "data" / "main").split("test").names)
+    assert {r["name"] for r in m["splits"]["test"]["sequences"]} == test
+    assert m["preprocess"]["yaw_deg"] == doc["sites"]["main"]["yaw"]["yaw_deg"]
+    # the other building is scored with its own yaw
+    mo = runs.read_metrics(next((out / "runs").glob("pdr-*")) / "eval_other")
+    assert mo["preprocess"]["yaw_deg"] == doc["sites"]["other"]["yaw"]["yaw_deg"] != m["preprocess"]["yaw_deg"]
+    msgs.clear()
+    run_benchmark(building / "building", out, building / "other", echo=msgs.append, **kw)
+    assert sum("complete, skipped" in s for s in msgs) == 2
+
+
+def test_cli_real_odometry_bad_group_is_one_line(building, tmp_path, monkeypatch, capsys):
+    from conftest import run_cli
+
+    code, out, err = run_cli(monkeypatch, capsys, "bench", "real-odometry", "--data", building / "building",
+                             "--out", tmp_path / "o", "--group-by", "floor_name", "--test-groups", "F77",
+                             "--models", "pdr")
+    assert code == 2 and err.count("\n") == 1 and "F77" in err
