@@ -43,6 +43,17 @@ def setup(tmp_path_factory):
     return root, rec, run
 
 
+@pytest.fixture(scope="module")
+def learned_run(setup):
+    """Suite-IN++ trained for a few epochs on the same walk (the fixture's train and val copies):
+    a learned model's checkpoint, as `wearnav train` leaves it."""
+    root, rec, _ = setup
+    cfg = TrainConfig(model="suitein++", data=str(root / "ds"), epochs=12, patience=12, stride=20, seed=0, lr=3e-3)
+    run = prepare_run(cfg, root / "run_suitein")
+    fit(cfg, run, progress=False)
+    return run
+
+
 def _rot(deg: float) -> np.ndarray:
     a = np.radians(deg)
     return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
@@ -78,6 +89,26 @@ def test_track_recovers_truth_with_the_models_eval_ate(setup, tmp_path):
     assert traj["unix_time"].iloc[0] == pytest.approx(1_700_000_000.123 + traj["t"].iloc[0], abs=1e-3)
     img = mpimg.imread(tmp_path / "out" / "trajectory.png")
     assert img.shape[0] > 400 and img.std() > 0.05
+
+
+def test_track_with_a_learned_checkpoint_matches_its_eval(setup, learned_run, tmp_path):
+    """The same check with a learned model, given as its checkpoint file: track's path (rotated
+    by the eval's truth yaw, started at the true start) has the eval's ATE within 0.3 m + 10 %."""
+    _, rec, _ = setup
+    model, cfg = load_model(learned_run)
+    seq_eval = align(rec, cfg.preprocess_config())
+    row, _ = evaluate_sequence(model, seq_eval, cfg.window, cfg.stride)
+    psi = np.degrees(np.radians(seq_eval.meta["frame"]["truth"]["yaw_deg"]))
+    summary = track(write_export(rec, tmp_path / EXPORT, platform="android"),
+                    learned_run / "checkpoints" / "best.ckpt", tmp_path / "out")
+    traj = pd.read_csv(tmp_path / "out" / "trajectory.csv")
+    t = traj["t"].to_numpy() + time_origin(rec)
+    true = np.stack([np.interp(t, rec.truth.t, rec.truth.pos[:, k]) for k in range(2)], axis=1)
+    est = traj[["x", "y"]].to_numpy() @ _rot(-psi).T + true[0]
+    ate_track = metrics.ate(t, est, true)
+    print(f"suitein++: eval ATE {row['ate']:.3f} m, track ATE {ate_track:.3f} m")
+    assert summary["model"] == "suitein++"
+    assert abs(ate_track - row["ate"]) <= 0.3 + 0.1 * row["ate"]
 
 
 def test_geojson_lies_on_the_fixes(setup, tmp_path):
