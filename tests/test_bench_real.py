@@ -129,6 +129,15 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
     msgs.clear()
     run_benchmark(building / "building", out, building / "other", echo=msgs.append, **kw)
     assert sum("complete, skipped" in s for s in msgs) == 2
+    # sim-to-real: the same suite gains a row for the model trained on the simulator only
+    sim_bench = dataclasses.replace(bench, models=("suitein++",), train_data=str(building / "sim"))
+    run_benchmark(building / "building", out, building / "other", echo=msgs.append, **{**kw, "bench": sim_bench})
+    doc = json.loads((out / "results.json").read_text())
+    methods = [r["method"] for r in doc["sites"]["main"]["table"]]
+    assert methods[:2] == ["suitein++", "suitein++ · simulator `sim` (commit " + methods[1].split("(commit ")[1]]
+    assert methods[2:] == ["pdr", "raw phone fixes"]
+    sim_run = [p for p in (out / "runs").glob("suitein++-*") if "sim" in runs.read_config(p)["config"]["train"]["data"]]
+    assert len(sim_run) == 1 and runs.read_config(sim_run[0])["config"]["preprocess"]["frame_align"] == "truth"
 
 
 def test_cli_real_odometry_bad_group_is_one_line(building, tmp_path, monkeypatch, capsys):
