@@ -249,3 +249,24 @@ def test_walk_table_distance_and_label_noise(tmp_path):
     assert table.loc["STW", "distance_km"] == pytest.approx(0.01)
     assert table.loc["STW", "fix_label_noise_median_cm"] == pytest.approx(30.0)
     assert table.loc["DLW", "fix_label_noise_median_cm"] is None or np.isnan(table.loc["DLW", "fix_label_noise_median_cm"])
+
+
+def test_results_keep_updates_suite_by_suite(tmp_path):
+    """`wearnav results --keep`: sections of suites not given now stay in place; a suite given
+    again replaces its own section; a new suite is appended."""
+    from wearnav.bench.results import collect
+
+    def suite(name, title, body):
+        d = tmp_path / name
+        d.mkdir(exist_ok=True)
+        (d / "results.md").write_text(f"# {title}\n\n{body}\n\n## Detail\n\nx\n")
+        return d
+
+    out = tmp_path / "docs" / "results.md"
+    collect([suite("a", "Alpha", "a1"), suite("b", "Beta", "b1")], out)
+    collect([suite("b", "Beta", "b2"), suite("c", "Gamma", "c1")], out, keep=True)
+    text = out.read_text()
+    assert [l for l in text.splitlines() if l.startswith("## ")] == ["## Alpha", "## Beta", "## Gamma"]
+    assert "a1" in text and "b2" in text and "b1" not in text and "c1" in text and text.count("### Detail") == 3
+    collect([suite("c", "Gamma", "c2")], out)  # without keep the page holds only what is given
+    assert [l for l in out.read_text().splitlines() if l.startswith("## ")] == ["## Gamma"]

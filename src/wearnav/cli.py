@@ -353,11 +353,12 @@ def classify_(
 def results_(
     suites: list[Path] = typer.Argument(..., help="Suite folders, each holding a generated results.md."),
     out: Path = typer.Option(Path("docs/results.md"), "--out", help="The page to write."),
+    keep: bool = typer.Option(False, "--keep", help="Keep the page's other suites' sections (update suite by suite)."),
 ):
     """Stitch the suites' generated pages into one results page (figures copied to its img/)."""
     from wearnav.bench.results import collect
 
-    typer.echo(str(collect(suites, out)))
+    typer.echo(str(collect(suites, out, keep=keep)))
 
 
 @app.command()
