@@ -266,7 +266,11 @@ def test_results_keep_updates_suite_by_suite(tmp_path):
     collect([suite("a", "Alpha", "a1"), suite("b", "Beta", "b1")], out)
     collect([suite("b", "Beta", "b2"), suite("c", "Gamma", "c1")], out, keep=True)
     text = out.read_text()
-    assert [l for l in text.splitlines() if l.startswith("## ")] == ["## Alpha", "## Beta", "## Gamma"]
+    assert [l for l in text.splitlines() if l.startswith("## ")] == [
+        "## Alpha <!-- suite: a -->", "## Beta <!-- suite: b -->", "## Gamma <!-- suite: c -->"]
     assert "a1" in text and "b2" in text and "b1" not in text and "c1" in text and text.count("### Detail") == 3
     collect([suite("c", "Gamma", "c2")], out)  # without keep the page holds only what is given
-    assert [l for l in out.read_text().splitlines() if l.startswith("## ")] == ["## Gamma"]
+    assert [l for l in out.read_text().splitlines() if l.startswith("## ")] == ["## Gamma <!-- suite: c -->"]
+    # two suites may share a title: their folders tell them apart
+    collect([suite("d", "Gamma", "d1")], out, keep=True)
+    assert "c2" in out.read_text() and "d1" in out.read_text()

@@ -26,7 +26,7 @@ def collect(suites: list[Path], out: Path, title: str = "Measured results", keep
     """Write ``out`` from each suite's results.md (headings demoted one level) and copy the PNGs
     each page links into ``out.parent/img/<suite>_<file>``. With ``keep``, the sections of the
     existing ``out`` (each one a suite's generated page) stay, in their order, unless a suite given
-    now has the same title: results measured on another machine or session are updated suite by
+    now has the same heading (its title and folder name): results measured on another machine or session are updated suite by
     suite instead of being lost."""
     out = Path(out)
     img = out.parent / "img"
@@ -53,6 +53,8 @@ def collect(suites: list[Path], out: Path, title: str = "Measured results", keep
 
         text = re.sub(r"!\[([^\]]*)\]\(([^)\s]+\.png)\)", relink, text)
         text = re.sub(r"^(#+) ", lambda m: "#" + m.group(1) + " ", text, flags=re.M)
+        # the suite's folder name marks its section, so two suites may share a title
+        text = re.sub(r"^(## .*)$", lambda m: f"{m.group(1)} <!-- suite: {tag} -->", text, count=1, flags=re.M)
         new += _sections(text)
     old = _sections(out.read_text(encoding="utf-8")) if keep and out.is_file() else []
     fresh = dict(new)
