@@ -158,10 +158,11 @@ def run_suite(items, root: Path, jobs: int = 1, echo=print, threads: int | None 
     """Train and evaluate every (technique, config); skip complete runs. technique → folders.
 
     ``threads``: torch intra-op threads per run (default :data:`DEFAULT_THREADS` = 1). This model
-    is small (batch 64, 41 LSTM steps of 64 units): on the shared 2-core machine a training step
-    took 37–41 ms with 1 thread and 35–40 ms with 2, and one epoch of UCI HAPT 5.6 s with 1 thread
-    but 9.6 s with 2 while other work ran (two OpenMP threads spin-wait for a core; with the
-    oneDNN LSTM switched off a 2-thread step took up to 1 s). More throughput comes from ``jobs``."""
+    is small (batch 64, 41 LSTM steps of 64 units). Measured on the shared 2-core machine: a
+    training step took 37–41 ms with 1 thread and 35–40 ms with 2 when the machine was quiet, but
+    51–62 ms with 1 thread and 266–428 ms with 2 at a load average of 5.6 (two OpenMP threads
+    spin-wait for each other's core); one epoch of UCI HAPT took 5.6 s with 1 thread and 9.6 s
+    with 2 at a load of about 1. More throughput comes from ``jobs``."""
     from wearnav.train.classify import run_folder
 
     folders: dict[str, list[Path]] = {}
