@@ -315,12 +315,14 @@ def bench_har(
     techniques: Optional[str] = typer.Option(None, help="Techniques, comma-separated (default: all applicable)."),
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Minutes of training per run (not hashed)."),
     quick: bool = typer.Option(False, "--quick", help="A tiny subset and 1 epoch: checks the pipeline only."),
+    threads: int = typer.Option(1, min=1, help="Torch intra-op threads per run (1 is fastest for this small model)."),
 ):
     """The paper-002 HAR benchmark: baseline and ten techniques per dataset; runs resume."""
     from wearnav.bench.har import run_benchmark
 
     page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3), jobs,
-                         quick, epochs, _devices(techniques) if techniques else None, max_time, echo=typer.echo)
+                         quick, epochs, _devices(techniques) if techniques else None, max_time, echo=typer.echo,
+                         threads=threads)
     typer.echo(f"wrote {page}")
 
 

@@ -5,7 +5,8 @@ run folder each (``<out>/runs/<dataset>/<technique>-<hash8>``); complete runs ar
 interrupted benchmark resumes, and ``jobs`` > 1 spreads runs over local processes. The report
 reads run folders only.
 
-Datasets (real recordings imported from the shared data folder) and their subject-independent
+Datasets (real recordings imported from the shared data folder, and the simulator's placement
+dataset, generated: :func:`wearnav.simulate.presets.plan_placement_dataset`) and their subject-independent
 splits are listed in :data:`DATASETS` / :data:`wearnav.train.classify.TEST_SUBJECTS`. Techniques
 that need a gyroscope (Head2, Head3) are "not applicable" on an accelerometer-only set (Oxford):
 no run is made and the table says so. "world frame" needs the device orientation (MotionSense).
@@ -39,8 +40,14 @@ class HarDataset:
     devices: tuple[str, ...]
     gyro: bool
     orientation: bool
-    quick_limit: int | None = None  # recordings imported by --quick
+    quick_limit: int | None = None  # recordings imported by --quick (simulated: subjects)
 
+
+# The simulator's fine phone placements (wearnav.simulate.config.PHONE_HOLDS; "transition"
+# windows between holds are not a class).
+SIM_HOLDS = ("texting", "swinging", "call", "front_pocket", "back_pocket", "bag")
+SIM_SUBJECTS, SIM_DURATION_S = 8, (60.0, 90.0)
+SIM_QUICK_DURATION_S = (20.0, 25.0)
 
 UCI_BASIC = ("WALKING", "WALKING_UPSTAIRS", "WALKING_DOWNSTAIRS", "SITTING", "STANDING", "LAYING")
 
@@ -54,6 +61,10 @@ DATASETS: dict[str, HarDataset] = {d.name: d for d in (
     HarDataset("uji-both", "uji-phone-watch", "uji_phone_watch_har", "uji", "activity", (), ("phone", "watch"),
                True, False),
     HarDataset("oxford", "oxford-steps", "oxford_step_counter", "oxford", "placement", (), ("phone",), False, False),
+    # Generated, not imported: wearnav.simulate.presets.plan_placement_dataset (8 walkers, 6 walks
+    # each; --quick: 4 walkers, 20-25 s walks). Test walkers u4, u8.
+    HarDataset("sim-placement", "simulate-placement", "", "sim-placement", "placement", SIM_HOLDS, ("phone",),
+               True, True, 4),
 )}
 
 
@@ -94,11 +105,19 @@ def applicable(tech: Technique, ds: HarDataset) -> str | None:
 
 
 def import_data(ds: HarDataset, data_root: Path, out: Path, quick: bool) -> Path:
-    """Import ``ds``'s source once into ``out/data/<fmt>[-quick]`` (reused when present)."""
+    """Import ``ds``'s source once into ``out/data/<fmt>[-quick]`` (reused when present); the
+    simulated dataset is generated there instead (seed 0)."""
     from wearnav.importers import import_dataset
 
     folder = out / "data" / (ds.fmt + ("-quick" if quick and ds.quick_limit else ""))
-    if not (folder / "manifest.csv").is_file():
+    if (folder / "manifest.csv").is_file():
+        return folder
+    if ds.fmt == "simulate-placement":
+        from wearnav.simulate.presets import simulate_placement_dataset
+
+        simulate_placement_dataset(folder, subjects=ds.quick_limit if quick else SIM_SUBJECTS,
+                                   duration_s=SIM_QUICK_DURATION_S if quick else SIM_DURATION_S)
+    else:
         import_dataset(ds.fmt, data_root / ds.src, folder, limit=ds.quick_limit if quick else None, progress=False)
     return folder
 
@@ -121,20 +140,29 @@ def suite_configs(ds: HarDataset, data: Path, seeds: int, techniques=None, **tra
     return out
 
 
+DEFAULT_THREADS = 1
+
+
 def _run_one(cfg, run: Path, threads: int | None) -> Path:
     import torch
 
     from wearnav.train.classify import evaluate_run, fit, prepare_run
 
-    if threads:
-        torch.set_num_threads(threads)
+    torch.set_num_threads(threads or DEFAULT_THREADS)
     prepare_run(cfg, run)
     evaluate_run(run, training=fit(cfg, run, progress=False))
     return run
 
 
-def run_suite(items, root: Path, jobs: int = 1, echo=print) -> dict[str, list[Path]]:
-    """Train and evaluate every (technique, config); skip complete runs. technique → folders."""
+def run_suite(items, root: Path, jobs: int = 1, echo=print, threads: int | None = None) -> dict[str, list[Path]]:
+    """Train and evaluate every (technique, config); skip complete runs. technique → folders.
+
+    ``threads``: torch intra-op threads per run (default :data:`DEFAULT_THREADS` = 1). This model
+    is small (batch 64, 41 LSTM steps of 64 units). Measured on the shared 2-core machine: a
+    training step took 37–41 ms with 1 thread and 35–40 ms with 2 when the machine was quiet, but
+    51–62 ms with 1 thread and 266–428 ms with 2 at a load average of 5.6 (two OpenMP threads
+    spin-wait for each other's core); one epoch of UCI HAPT took 5.6 s with 1 thread and 9.6 s
+    with 2 at a load of about 1. More throughput comes from ``jobs``."""
     from wearnav.train.classify import run_folder
 
     folders: dict[str, list[Path]] = {}
@@ -147,12 +175,17 @@ def run_suite(items, root: Path, jobs: int = 1, echo=print) -> dict[str, list[Pa
         else:
             todo.append((tech, cfg, run))
     if jobs <= 1:
-        for tech, cfg, run in todo:
-            t0 = time.perf_counter()
-            _run_one(cfg, run, None)
-            echo(f"{run.name}: done in {time.perf_counter() - t0:.0f} s")
+        import torch
+
+        old = torch.get_num_threads()
+        try:
+            for tech, cfg, run in todo:
+                t0 = time.perf_counter()
+                _run_one(cfg, run, threads)
+                echo(f"{run.name}: done in {time.perf_counter() - t0:.0f} s")
+        finally:
+            torch.set_num_threads(old)
     else:
-        threads = max(1, (os.cpu_count() or 1) // jobs)
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             futures = [(run, pool.submit(_run_one, cfg, run, threads)) for _, cfg, run in todo]
             for run, fut in futures:
@@ -313,7 +346,7 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
 
 def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3, jobs: int = 1, quick: bool = False,
                   epochs: int | None = None, techniques=None, max_minutes: float | None = None,
-                  echo=print) -> Path:
+                  echo=print, threads: int | None = None) -> Path:
     """Import, train, evaluate and report. ``quick``: UCI HAPT's first 6 experiments, 1 epoch,
     at most 128 training windows per run, 1 seed unless ``seeds`` says otherwise."""
     t0 = time.perf_counter()
@@ -329,7 +362,8 @@ def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3, job
         spec = DATASETS[name]
         data = import_data(spec, Path(data_root), Path(out), quick)
         echo(f"{name}: {data}")
-        folders = run_suite(suite_configs(spec, data, seeds, techniques, **kw), Path(out) / "runs" / name, jobs, echo)
+        folders = run_suite(suite_configs(spec, data, seeds, techniques, **kw), Path(out) / "runs" / name, jobs, echo,
+                            threads)
         results[name] = summarise(folders)
     wall = time.perf_counter() - t0
     note = (f"Training: Adam lr 1e-3, batch 64, {kw['epochs']} epochs"

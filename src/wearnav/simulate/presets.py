@@ -129,3 +129,51 @@ def simulate_dataset(preset: str, out: str | Path, seed: int = 0, progress: bool
             rec.meta.update({"split": item.split, "preset": p.name, "dataset_seed": int(seed)})
             writer.add(rec, split=item.split)
     return Dataset.open(out)
+
+
+# ---- placement recognition (issue 9: the HAR benchmark's simulated placement task) ------------
+
+# The phone holds a single-placement walk can have (every hold except "call", which the simulator
+# only makes inside multi-placement walks).
+SINGLE_HOLDS = (("HD", "texting"), ("HD", "swinging"), ("PK", "front_pocket"), ("PK", "back_pocket"),
+                ("BG", "bag"))
+
+
+def plan_placement_dataset(subjects: int = 8, duration_s: tuple[float, float] = (60.0, 90.0),
+                           seed: int = 0) -> list[PlannedWalk]:
+    """A placement-recognition dataset: per subject (``u1`` … drawn as in :func:`plan_dataset`, so
+    ``u1`` is the same person), one STW walk per single phone hold (:data:`SINGLE_HOLDS`) and one
+    PVW walk with multi-placement changes (MP: the holds change with 1–2 s hand moves, "call"
+    among them). Phone only. The class of a window is the recording's ``placement`` label track
+    (the holds; "transition" between them). No split is written: the benchmark splits by subject
+    (:data:`wearnav.train.classify.TEST_SUBJECTS` ``"sim-placement"``)."""
+    if subjects < 2:
+        raise ConfigError(f"a placement dataset needs at least 2 subjects (train and test), got {subjects}")
+    subj_rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
+    people = [sample_subject(subj_rng, f"u{i + 1}") for i in range(subjects)]
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 4]))
+    scenes = list(SCENES)
+    configs = []
+    for person in people:
+        walks = [("STW", placement, hold) for placement, hold in SINGLE_HOLDS] + [("PVW", "MP", None)]
+        for mode, placement, hold in walks:
+            configs.append(WalkConfig(
+                name=f"{person.name}_{mode}_{hold or placement}", subject=person, mode=mode, placement=placement,
+                phone_hold=hold, devices=("phone",), scene=str(rng.choice(scenes)),
+                duration_s=round(float(rng.uniform(*duration_s)), 2), noise_level=str(rng.choice(NOISE_LEVELS))))
+    walk_seeds = np.random.SeedSequence([seed, 5]).generate_state(len(configs))
+    return [PlannedWalk(cfg, int(s), "") for cfg, s in zip(configs, walk_seeds)]
+
+
+def simulate_placement_dataset(out: str | Path, subjects: int = 8, duration_s: tuple[float, float] = (60.0, 90.0),
+                               seed: int = 0, progress: bool = False) -> Dataset:
+    """Simulate :func:`plan_placement_dataset` into the dataset folder ``out`` and open it."""
+    plan = plan_placement_dataset(subjects, duration_s, seed)
+    made_by = {"generator": "wearnav.simulate", "dataset": "placement", "subjects": int(subjects),
+               "duration_s": list(duration_s), "seed": int(seed)}
+    with DatasetWriter(Path(out), made_by) as writer:
+        for item in tqdm(plan, desc="simulate placement", unit="rec", disable=not progress):
+            rec = simulate_walk(item.config, item.seed).recording
+            rec.meta.update({"dataset": "placement", "dataset_seed": int(seed)})
+            writer.add(rec)
+    return Dataset.open(out)

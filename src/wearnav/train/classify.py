@@ -40,12 +40,14 @@ TRAINING = "training.json"
 
 # Subject-independent test sets, by split scheme. UCI HAR's own split (its test subjects); for
 # the others, which define none, every fourth subject (MotionSense: 6 of 24; UJI: 5 of 23) and,
-# for Oxford's two users, user 2 (train on one person, test on the other).
+# for Oxford's two users, user 2 (train on one person, test on the other); the simulator's
+# placement dataset (wearnav.simulate.presets.plan_placement_dataset): every fourth walker.
 TEST_SUBJECTS: dict[str, frozenset[int]] = {
     "uci-hapt": frozenset({2, 4, 9, 10, 12, 13, 18, 20, 24}),
     "motionsense": frozenset({4, 8, 12, 16, 20, 24}),
     "uji": frozenset({4, 8, 12, 16, 20}),
     "oxford": frozenset({2}),
+    "sim-placement": frozenset({4, 8, 12, 16}),
 }
 
 
