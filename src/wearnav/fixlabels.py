@@ -20,7 +20,9 @@ Segmentation. Fix spacing need not equal the segment length: from a node at time
 node is the fix nearest t_i + ``segment_s``; the pair is a segment only when its spacing is within
 ± ``tolerance`` · ``segment_s`` of it (an outage breaks the chain, a new chain starts after it).
 The model input is the ``round(segment_s · rate)`` IMU samples from t_i on (a fixed length, as
-the paper's segments of size N).
+the paper's segments of size N). A label faster than ``max_speed`` (3 m/s: running pace, no
+walker) is a fix jump, not a displacement, and is dropped: a plausibility check the phone can make
+on its own (indoors, GNSS fixes jump by tens of metres; a single such label dominates an MSE).
 
 Test segments of held-out trajectories (:func:`segments_from_truth`) are cut from dense truth
 instead: contiguous, N samples each, labelled by the true displacement from each segment's first
@@ -50,6 +52,7 @@ class LabelConfig:
     rate: float = 25.0
     tolerance: float = 0.25  # allowed relative deviation of a fix pair's spacing from segment_s
     align_to_fixes: bool = True  # turn the IMU frame onto the fixes' east/north frame
+    max_speed: float | None = 3.0  # m/s: drop labels no walker makes (fix jumps); None keeps all
 
     def __post_init__(self):
         if not self.segment_s > 0 or not self.rate > 0 or not 0 <= self.tolerance < 1:
@@ -249,6 +252,9 @@ def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Segment
         s = int(np.searchsorted(seq.t, t_fix[i] - 0.5 / cfg.rate))
         if s + N <= seq.t.size and seq.mask[0, s:s + N].all():
             keep.append((i, j, s))
+    if cfg.max_speed is not None:
+        keep = [(i, j, s) for i, j, s in keep
+                if np.linalg.norm(p_fix[j] - p_fix[i]) <= cfg.max_speed * (t_fix[j] - t_fix[i])]
     if not keep:
         return None
     nodes = sorted({k for i, j, _ in keep for k in (i, j)})

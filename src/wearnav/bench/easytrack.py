@@ -77,14 +77,15 @@ def sim_segments(out: Path, bc: BenchConfig, lc: LabelConfig, echo=print) -> tup
     from wearnav.simulate.presets import plan_phone_only
 
     data = out / "data"
+    tag = runs.config_hash(dataclasses.asdict(lc))
     train = {}
     for level in bc.levels:
-        cache = data / f"{level}_km{bc.km:g}_s{bc.sim_seed}_train.npz"
+        cache = data / f"{level}_km{bc.km:g}_s{bc.sim_seed}_{tag}_train.npz"
         if not cache.is_file():
             ds = _dataset(data / f"sim_{level}_km{bc.km:g}_s{bc.sim_seed}", plan_phone_only(level, bc.km, bc.sim_seed), echo)
             label_dataset(ds, lc).save(cache)
         train[level] = Segments.load(cache)
-    cache = data / f"test_n{bc.test_walks}_s{bc.sim_seed}.npz"
+    cache = data / f"test_n{bc.test_walks}_s{bc.sim_seed}_{tag}.npz"
     if not cache.is_file():
         plan = plan_phone_only("L1", 0.0, bc.sim_seed, bc.test_duration_s, test=True, n=bc.test_walks)
         ds = _dataset(data / f"sim_test_n{bc.test_walks}_s{bc.sim_seed}", plan, echo)
@@ -147,8 +148,9 @@ def sim_runs(out: Path, bc: BenchConfig, seeds: int, jobs: int, lc: LabelConfig,
     if jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
 
-        args = [(cfg, data / f"{lv}_km{bc.km:g}_s{bc.sim_seed}_train.npz", data / f"test_n{bc.test_walks}_s{bc.sim_seed}.npz",
-                 f, r) for cfg, lv, f, r in todo]
+        tag = runs.config_hash(dataclasses.asdict(lc))
+        args = [(cfg, data / f"{lv}_km{bc.km:g}_s{bc.sim_seed}_{tag}_train.npz",
+                 data / f"test_n{bc.test_walks}_s{bc.sim_seed}_{tag}.npz", f, r) for cfg, lv, f, r in todo]
         with ProcessPoolExecutor(jobs) as ex:
             return list(ex.map(_job, args))
     return [run_one(cfg, train[level], test, folder, record, echo) for cfg, level, folder, record in todo]
