@@ -211,3 +211,10 @@ def test_quick_bench_end_to_end_and_label_cli(monkeypatch, capsys, tmp_path):
                            "--segment", "1")
     assert code == 0, se
     assert (tmp_path / "lab" / "segments.npz").is_file() and "median label noise" in so
+
+
+def test_label_noise_correlation_metric_by_hand():
+    e = np.array([[1.0, 2.0], [-1.0, -2.0], [1.0, 2.0], [-1.0, -2.0], [np.nan, 0.0]])
+    rx, ry = metrics.label_noise_correlation(e, [0, 1, 2, 3])  # the pair (3, 4) has a NaN: skipped
+    assert rx == pytest.approx(-1.0) and ry == pytest.approx(-1.0)
+    assert np.isnan(metrics.label_noise_correlation(e, [0])[0])

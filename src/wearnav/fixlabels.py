@@ -322,17 +322,17 @@ def label_dataset(view, cfg: LabelConfig = LabelConfig(), from_truth: bool = Fal
 # ---- label-noise statistics (eqs. 5–7) -----------------------------------------------------------
 
 def neighbour_correlation(seg: Segments) -> dict:
-    """Correlation of the label noise of consecutive segments along a trajectory (eq. 7: d_e,i and
-    d_e,i+1 share the fix error P_e,i+1, so for white fix errors it is −0.5; for slowly wandering
-    errors the increments are nearly independent). Pairs (i, i+1) with node1(i) == node0(i+1)."""
+    """:func:`wearnav.metrics.label_noise_correlation` over pairs of consecutive segments
+    (node1(i) == node0(i+1)) that both have truth."""
+    from wearnav.metrics import label_noise_correlation
+
     e = seg.noise()
     nxt = np.flatnonzero(seg.node1[:-1] == seg.node0[1:]) if len(seg) > 1 else np.empty(0, int)
     ok = nxt[np.isfinite(e[nxt]).all(1) & np.isfinite(e[nxt + 1]).all(1)]
     if ok.size < 3:
         return {"pairs": int(ok.size), "x": None, "y": None}
-    a, b = e[ok], e[ok + 1]
-    return {"pairs": int(ok.size), "x": float(np.corrcoef(a[:, 0], b[:, 0])[0, 1]),
-            "y": float(np.corrcoef(a[:, 1], b[:, 1])[0, 1])}
+    rx, ry = label_noise_correlation(e, ok)
+    return {"pairs": int(ok.size), "x": rx, "y": ry}
 
 
 def noise_summary(seg: Segments) -> dict:
