@@ -33,6 +33,8 @@ from wearnav.recording import STANDARD_GRAVITY
 
 
 class BaseModel(OdometryModel):
+    default_lr, default_batch = 8e-4, 64  # §V-A (`wearnav train` picks these up)
+
     def __init__(self, n_devices: int = 1, window: int = 25, hidden: int = 64, channels: int = 6):
         super().__init__()
         self.n_devices, self.window, self.hidden, self.channels = n_devices, window, hidden, channels
