@@ -127,8 +127,8 @@ def run_one(cfg: NoisyConfig, train: Segments, test: Segments, folder: Path, rec
         m["ate"] = _ate_rows(predict, test)
         m["ate_mean_m"] = float(np.mean([r["ate"] for r in m["ate"]])) if m["ate"] else None
     runs.write_metrics(folder, m)
-    echo(f"{folder.name}: ADE {m.get('ade_m', float('nan')):.3f} m, {tr['s_per_epoch']:.2f} s/epoch, "
-         f"{time.perf_counter() - t0:.0f} s")
+    score = f"ADE {m['ade_m']:.3f} m" if "ade_m" in m else "trained"
+    echo(f"{folder.name}: {score}, {tr['s_per_epoch']:.2f} s/epoch, {time.perf_counter() - t0:.0f} s")
     return m
 
 
