@@ -117,7 +117,12 @@ def run_one(cfg: NoisyConfig, train: Segments, test: Segments, folder: Path, rec
     folder.mkdir(parents=True, exist_ok=True)
     runs.write_config(folder, record)
     t0 = time.perf_counter()
-    tr = fit_noisy(cfg, train, folder)
+    monitor = None
+    if test is not None and len(test):
+        def monitor(predict):
+            return {"test_ade_m": metrics.ade(np.concatenate([predict(test.x[i:i + 2048])
+                                                              for i in range(0, len(test), 2048)]), test.truth)}
+    tr = fit_noisy(cfg, train, folder, monitor=monitor)
     write_history(folder, tr)
     predict = load_predictor(cfg, folder, train.x.shape[1])
     m = {"method": cfg.method, "seed": cfg.seed, **{k: v for k, v in record.items() if k != "noisy"},
@@ -311,6 +316,34 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
     return links
 
 
+def _ade_curves(out: Path, sim: list[dict]) -> str | None:
+    import json
+
+    from matplotlib.figure import Figure
+
+    from wearnav.report.plots import save
+
+    curves: dict[str, dict[str, list]] = {}
+    for m in sim:
+        f = Path(m.get("folder", "")) / "history.json"
+        if m["seed"] != 0 or not f.is_file():
+            continue
+        h = [r.get("test_ade_m") for r in json.loads(f.read_text())]
+        if any(v is not None for v in h):
+            curves.setdefault(m["level"], {})[m["method"]] = h
+    if not curves:
+        return None
+    fig = Figure(figsize=(4.5 * len(curves), 3.4))
+    axes = np.atleast_1d(fig.subplots(1, len(curves)))
+    for ax, (level, per) in zip(axes, sorted(curves.items())):
+        for method, h in per.items():
+            ax.plot(np.arange(1, len(h) + 1), [np.nan if v is None else 100 * v for v in h], label=method)
+        ax.set(xlabel="epoch (AE, pre-training, joint)", ylabel="held-out ADE (cm)", title=level)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    return save(fig, out / "ade_over_epochs.png").name
+
+
 def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], train: dict[str, Segments],
                test: Segments, real: dict | None, seeds: int, quick: bool) -> Path:
     from wearnav.fileio import write_text_atomic
@@ -389,6 +422,11 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
         lines += ["Last joint epoch (mean label noise |d_e| of the instances each model selected for its peer):", "",
                   pd.DataFrame(rows).to_markdown(index=False), ""]
     links = _plots(out, table, hist, train, sim)
+    curve = _ade_curves(out, sim)
+    if curve:
+        lines += ["Held-out ADE after every epoch (a diagnostic only: no model or epoch is chosen by it; the "
+                  "paper's Fig. 1b shows BaseModel on noisy labels getting worse with epochs):", ""]
+        links.append(curve)
     lines += [f"![{Path(x).stem}]({x})" for x in links] + [""]
     if real:
         s = real["summary"]

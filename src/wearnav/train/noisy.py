@@ -215,10 +215,12 @@ def _save(run: Path, state: dict) -> None:
 
 
 def fit_noisy(cfg: NoisyConfig, train: Segments, run: str | Path, progress: bool = False, echo=None,
-              stop_after: int | None = None) -> dict:
+              stop_after: int | None = None, monitor=None) -> dict:
     """Train ``cfg.method`` on ``train`` (phone labels; ``basemodel-gt`` uses the truth) in run folder
     ``run``; resumes from ``state.pt``. ``stop_after``: return after that many epochs of this call (an
-    interruption, for tests). Returns the training record (history per epoch included)."""
+    interruption, for tests). ``monitor``: a function of the ensemble's displacement function
+    (segments (N, L, 6) → (N, 2)) whose dict is added to each epoch's history (held-out ADE over the
+    epochs, a diagnostic that never steers training). Returns the training record."""
     run = Path(run)
     run.mkdir(parents=True, exist_ok=True)
     x = torch.as_tensor(train.x, dtype=torch.float32)
@@ -373,6 +375,12 @@ def fit_noisy(cfg: NoisyConfig, train: Segments, run: str | Path, progress: bool
         if opt_c is not None and cnal and np.isfinite(train.truth).all():
             rec["corrected_label_noise_median_cm"] = 100 * float(np.median(np.linalg.norm(
                 train.truth - cnal_labels(y, corr.detach(), node0, node1).numpy(), axis=1)))
+        if monitor is not None:
+            for m in models:
+                m.eval()
+            with torch.no_grad():
+                rec.update(monitor(lambda xs: torch.stack([m.displacement(torch.as_tensor(xs, dtype=torch.float32))
+                                                             for m in models]).mean(0).numpy()))
         state["history"].append(rec)
         state["epoch"] = ep + 1
         state["r_delta"] = r_delta
