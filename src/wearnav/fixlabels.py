@@ -361,7 +361,7 @@ def plot_noise_cdf(seg: Segments, out: str | Path):
 
     from wearnav.report.plots import save
 
-    fig = Figure(figsize=(5, 3.4))
+    fig = Figure(figsize=(5, 3.4), layout="constrained")
     ax = fig.subplots()
     ax.plot(e, np.arange(1, e.size + 1) / e.size)
     ax.set(xlabel="phone-label noise |d_e| (cm)", ylabel="CDF", title=f"median {np.median(e):.1f} cm, {e.size} segments")

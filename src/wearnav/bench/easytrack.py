@@ -261,7 +261,7 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
 
     links = []
     # label-noise CDF (eqs. 5-7)
-    fig = Figure(figsize=(5, 3.4))
+    fig = Figure(figsize=(5, 3.4), layout="constrained")
     ax = fig.subplots()
     for level, seg in train.items():
         e = np.linalg.norm(seg.noise(), axis=1)
@@ -274,7 +274,7 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
     links.append(save(fig, out / "label_noise_cdf.png").name)
     # Fig. 3/4: ADE per method per level
     if not table.empty:
-        fig = Figure(figsize=(7.5, 3.6))
+        fig = Figure(figsize=(7.5, 3.6), layout="constrained")
         ax = fig.subplots()
         methods = list(table.index)
         levels = list(table.columns)
@@ -287,7 +287,7 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
         links.append(save(fig, out / "ade_by_level.png").name)
     # Fig. 5 and 6: R_tau / R_delta and selected noise over joint epochs (EasyTrack, seed 0)
     if hist:
-        fig = Figure(figsize=(9, 3.4))
+        fig = Figure(figsize=(9, 3.4), layout="constrained")
         a1, a2 = fig.subplots(1, 2)
         for level, h in hist.items():
             j = [r for r in h if r["phase"] == "joint"]
@@ -307,7 +307,7 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
     if rows:
         df = pd.DataFrame(rows, columns=["method", "ate"])
         order = list(dict.fromkeys(df["method"]))
-        fig = Figure(figsize=(7, 3.4))
+        fig = Figure(figsize=(7, 3.4), layout="constrained")
         ax = fig.subplots()
         ax.boxplot([df.loc[df.method == m, "ate"].to_numpy() for m in order], tick_labels=order)
         ax.set(ylabel="ATE (m)", title="held-out trajectories, trained on L1 (Fig. 7)")
