@@ -333,7 +333,7 @@ def _ade_curves(out: Path, sim: list[dict]) -> str | None:
             curves.setdefault(m["level"], {})[m["method"]] = h
     if not curves:
         return None
-    fig = Figure(figsize=(4.5 * len(curves), 3.4))
+    fig = Figure(figsize=(4.5 * len(curves), 3.4), layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(curves)))
     for ax, (level, per) in zip(axes, sorted(curves.items())):
         for method, h in per.items():
