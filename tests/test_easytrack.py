@@ -218,3 +218,26 @@ def test_label_noise_correlation_metric_by_hand():
     rx, ry = metrics.label_noise_correlation(e, [0, 1, 2, 3])  # the pair (3, 4) has a NaN: skipped
     assert rx == pytest.approx(-1.0) and ry == pytest.approx(-1.0)
     assert np.isnan(metrics.label_noise_correlation(e, [0])[0])
+
+
+def test_real_part_trains_on_fixes_and_scores_at_sparse_points(tmp_path):
+    """The real-data path on simulated walks whose truth is cut to sparse waypoints (as IPIN's
+    surveyed points): the held-out split is scored, GNSS and PDR beside the learned methods."""
+    import dataclasses
+
+    from wearnav.bench.easytrack import BenchConfig, real_part
+    from wearnav.dataset import DatasetWriter
+    from wearnav.recording import Trajectory
+    from wearnav.simulate.presets import plan_phone_only
+    from wearnav.simulate.walk import simulate_walk
+
+    with DatasetWriter(tmp_path / "real") as w:
+        for k, item in enumerate(plan_phone_only("L2", 0.0, 5, (40.0, 50.0), n=3)):
+            rec = simulate_walk(item.config, item.seed).recording
+            keep = np.arange(0, len(rec.truth), 1000)  # every 10 s
+            rec = dataclasses.replace(rec, truth=Trajectory(rec.truth.t[keep], rec.truth.pos[keep]))
+            w.add(rec, split="test" if k == 0 else "train")
+    doc = real_part(tmp_path / "real", tmp_path / "out", BenchConfig.quick(), LabelConfig(), None, 1)
+    assert len(doc["test_routes"]) == 1 and len(doc["train_routes"]) == 2
+    for m in ("easytrack", "basemodel", "pdr", "gnss"):
+        assert doc["summary"][m]["points"] >= 3 and doc["summary"][m]["median_m"] >= 0

@@ -301,8 +301,10 @@ def bench_easytrack(
     jobs: int = typer.Option(1, min=1, help="Runs trained at once in local processes."),
     data: Optional[Path] = typer.Option(None, "--data", help="Real dataset (wearnav folder: phone IMU, fixes, sparse "
                                         "truth), e.g. an `wearnav import ipin2023` output."),
-    test_routes: str = typer.Option(r"Trial(05|25|52)_", "--test-routes",
-                                    help="Regex: recordings of --data held out for testing (the rest train)."),
+    test_routes: Optional[str] = typer.Option(None, "--test-routes",
+                                              help="Regex: recordings of --data held out for testing, the rest "
+                                              "train (default: the dataset's `test` split, else IPIN's "
+                                              "Trial(05|25|52)_)."),
     km: Optional[float] = typer.Option(None, help="Simulated walking per noise level, km (default 3; --quick 0.25)."),
     joint_epochs: Optional[int] = typer.Option(None, "--joint-epochs", help="Joint epochs (paper 190; default 30)."),
     levels: Optional[str] = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),

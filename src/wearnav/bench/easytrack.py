@@ -169,9 +169,12 @@ def _scores(err: np.ndarray) -> dict:
             "mean_m": float(np.mean(err)) if err.size else None}
 
 
-def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_routes: str, seeds: int,
+def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_routes: str | None, seeds: int,
               echo=print) -> dict:
-    """Train on the training routes' GNSS labels, score at the surveyed points of the test routes."""
+    """Train on the training routes' GNSS labels, score at the surveyed points of the test routes.
+
+    ``test_routes``: a regex on recording names; None: the dataset's ``test`` split where it has
+    one, else :data:`IPIN_TEST_ROUTES`."""
     from wearnav.dataset import Dataset
     from wearnav.evaluate import SPARSE_MAX_GAP, predict_sequence
     from wearnav.fixlabels import _aligned_phone
@@ -179,10 +182,15 @@ def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_rout
     from wearnav.trajectory import integrate_velocity
 
     ds = Dataset.open(data)
-    pat = re.compile(test_routes)
     names = list(ds.names)
-    test_names = [n for n in names if pat.search(n)]
-    train_names = [n for n in names if not pat.search(n)]
+    if test_routes is None and (ds.manifest["split"].astype(str) == "test").any():
+        test_routes = "split:test"
+        test_names = ds.manifest.loc[ds.manifest["split"].astype(str) == "test", "name"].tolist()
+    else:
+        test_routes = test_routes or IPIN_TEST_ROUTES
+        pat = re.compile(test_routes)
+        test_names = [n for n in names if pat.search(n)]
+    train_names = [n for n in names if n not in set(test_names)]
     if not test_names or not train_names:
         raise ValidationError(f"--test-routes {test_routes!r} must match some recordings and leave some for training", data)
     rdir = out / "real"
@@ -441,7 +449,7 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
 
 
 def run_benchmark(out: str | Path, quick: bool = False, seeds: int = 1, jobs: int = 1, data: str | Path | None = None,
-                  test_routes: str = IPIN_TEST_ROUTES, bc: BenchConfig | None = None, echo=print) -> Path:
+                  test_routes: str | None = None, bc: BenchConfig | None = None, echo=print) -> Path:
     out = Path(out)
     bc = bc or (BenchConfig.quick() if quick else BenchConfig())
     lc = LabelConfig()
