@@ -326,6 +326,67 @@ def bench_har(
     typer.echo(f"wrote {page}")
 
 
+@bench_app.command("easytrack")
+def bench_easytrack(
+    out: Path = typer.Option(Path("runs/easytrack"), "--out", help="Suite folder (data, run folders, results.md)."),
+    quick: bool = typer.Option(False, "--quick", help="Tiny data, 1–2 epochs per phase: checks the pipeline only."),
+    seeds: int = typer.Option(1, min=1, help="Seeds per method and level."),
+    jobs: int = typer.Option(1, min=1, help="Runs trained at once in local processes."),
+    data: Optional[Path] = typer.Option(None, "--data", help="Real dataset (wearnav folder: phone IMU, fixes, sparse "
+                                        "truth), e.g. an `wearnav import ipin2023` output."),
+    test_routes: Optional[str] = typer.Option(None, "--test-routes",
+                                              help="Regex: recordings of --data held out for testing, the rest "
+                                              "train (default: the dataset's `test` split, else IPIN's "
+                                              "Trial(05|25|52)_)."),
+    km: Optional[float] = typer.Option(None, help="Simulated walking per noise level, km (default 3; --quick 0.25)."),
+    joint_epochs: Optional[int] = typer.Option(None, "--joint-epochs", help="Joint epochs (paper 190; default 30)."),
+    levels: Optional[str] = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),
+    methods: Optional[str] = typer.Option(None, help="Methods, comma-separated (default: all)."),
+):
+    """EasyTrack (paper 004): methods × noise levels on simulated phone labels, and a real GNSS test."""
+    import dataclasses as _dc
+
+    from wearnav.bench.easytrack import BenchConfig, run_benchmark
+
+    bc = BenchConfig.quick() if quick else BenchConfig()
+    changes = {}
+    if km is not None:
+        changes["km"] = km
+    if joint_epochs is not None:
+        changes["joint_epochs"] = joint_epochs
+    if levels:
+        changes["levels"] = tuple(_devices(levels))
+    if methods:
+        changes["methods"] = tuple(_devices(methods))
+    page = run_benchmark(out, quick, seeds, jobs, data, test_routes, _dc.replace(bc, **changes), echo=typer.echo)
+    typer.echo(f"wrote {page}")
+
+
+@app.command("label-from-fixes")
+def label_from_fixes(
+    dataset: Path = typer.Argument(..., help="A dataset folder whose recordings have phone IMU and location fixes."),
+    out: Path = typer.Option(..., "--out", help="Folder for segments.npz, label_noise.json and label_noise_cdf.png."),
+    segment: float = typer.Option(1.0, "--segment", help="Segment length, seconds (between fix times)."),
+    rate: float = typer.Option(25.0, help="IMU rate of the segments, Hz."),
+):
+    """Phone labels (EasyTrack eq. 4): IMU segments labelled by the fixes at their ends; label-noise
+    statistics (eqs. 5–7) where the recordings have dense truth."""
+    from wearnav.dataset import Dataset
+    from wearnav.fixlabels import LabelConfig, label_dataset, noise_summary, plot_noise_cdf
+    from wearnav.runs import write_json
+
+    seg = label_dataset(Dataset.open(dataset), LabelConfig(segment_s=segment, rate=rate), progress=True)
+    out.mkdir(parents=True, exist_ok=True)
+    typer.echo(str(seg.save(out / "segments.npz")))
+    summary = noise_summary(seg)
+    typer.echo(str(write_json(out / "label_noise.json", summary)))
+    png = plot_noise_cdf(seg, out / "label_noise_cdf.png")
+    if png:
+        typer.echo(str(png))
+    typer.echo(f"{summary['segments']} segments, {summary['length_km']} km; median label noise "
+               f"{summary['label_noise_median_cm']} cm")
+
+
 @app.command("classify")
 def classify_(
     input_: Path = typer.Argument(..., metavar="INPUT",

@@ -68,6 +68,24 @@ def label_noise(t_fix, pos_fix, t_true, pos_true, max_gap: float = np.inf) -> np
     return np.linalg.norm(d_true - d_fix, axis=1)
 
 
+def label_noise_correlation(noise, consecutive) -> tuple[float, float]:
+    """Pearson r per horizontal axis between the label noise of consecutive segments (EasyTrack
+    eq. 7: d_e,i = P_e,i+1 − P_e,i and d_e,i+1 share the fix error P_e,i+1 with opposite signs, so
+    white fix errors give r = −0.5; slowly wandering errors give increments near r = 0).
+
+    ``noise`` (n, 2) are the vectors d_e of eq. 5; ``consecutive`` the indices i (into ``noise``)
+    whose segment i+1 follows on the same trajectory and fix. Pairs with a NaN are skipped; fewer
+    than 3 pairs give NaN."""
+    e = np.asarray(noise, dtype=np.float64)
+    i = np.asarray(consecutive, dtype=np.int64)
+    if e.ndim != 2 or e.shape[1] < 2 or (i.size and (i.min() < 0 or i.max() + 1 >= e.shape[0])):
+        raise ValidationError(f"label-noise correlation needs (n, 2) noise and indices in [0, n-1), got {e.shape}")
+    i = i[np.isfinite(e[i, :2]).all(1) & np.isfinite(e[i + 1, :2]).all(1)]
+    if i.size < 3:
+        return float("nan"), float("nan")
+    return tuple(float(np.corrcoef(e[i, k], e[i + 1, k])[0, 1]) for k in (0, 1))
+
+
 def _common(t, pos_est, pos_true) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     t = np.asarray(t, dtype=np.float64)
     est = np.asarray(pos_est, dtype=np.float64)

@@ -20,7 +20,7 @@ from torch import nn
 from wearnav.errors import ConfigError
 
 # Modules under wearnav.models that register models when imported.
-FAMILIES: tuple[str, ...] = ("suitein", "ronin", "pdr", "har")
+FAMILIES: tuple[str, ...] = ("suitein", "ronin", "pdr", "har", "easytrack", "ionet")
 
 TASKS = ("odometry", "classify", "noisy")
 # How a model uses the devices: "multi" = per-device branches with masked fusion; "single" = one

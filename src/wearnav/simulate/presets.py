@@ -171,9 +171,45 @@ def simulate_placement_dataset(out: str | Path, subjects: int = 8, duration_s: t
     plan = plan_placement_dataset(subjects, duration_s, seed)
     made_by = {"generator": "wearnav.simulate", "dataset": "placement", "subjects": int(subjects),
                "duration_s": list(duration_s), "seed": int(seed)}
+    return simulate_plan(plan, out, made_by, progress, meta={"dataset": "placement", "dataset_seed": int(seed)})
+
+
+# ---- phone-only walking for EasyTrack (paper 004, §V-B) -------------------------------------------
+
+# Phone-only recordings, walking outdoors with the phone in hand, in a trouser pocket or swinging
+# (EasyTrack's users "walk freely ... holding a phone"); modes without a watch/earbuds to remove.
+PHONE_ONLY_KINDS = (("STW", "HD"), ("STW", "PK"), ("PVW", "MP"), ("DLW", "HD"))
+
+
+def plan_phone_only(level: str, km: float, seed: int = 0, duration_s: tuple[float, float] = (240.0, 420.0),
+                    test: bool = False, n: int | None = None) -> list[PlannedWalk]:
+    """Phone-only walks at fix-noise ``level`` until about ``km`` of walking (at ~1.3 m/s), or ``n``
+    walks; one subject per walk drawn from the seed (the paper's data come from many users).
+    ``test``: held-out trajectories (split ``test``), drawn from a separate seed stream."""
+    if level not in NOISE_LEVELS:
+        raise ConfigError(f"unknown noise level {level!r} (expected one of {', '.join(NOISE_LEVELS)})")
+    tag = 2 if test else 1
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 40 + tag, NOISE_LEVELS.index(level)]))
+    scenes = list(SCENES)
+    plan, dist = [], 0.0
+    while (n is None and dist < km * 1000.0) or (n is not None and len(plan) < n):
+        i = len(plan)
+        mode, placement = PHONE_ONLY_KINDS[int(rng.integers(len(PHONE_ONLY_KINDS)))]
+        dur = round(float(rng.uniform(*duration_s)), 2)
+        cfg = WalkConfig(name=f"et{'T' if test else ''}_{level}_{i:04d}", subject=sample_subject(rng, f"s{i}"),
+                         mode=mode, placement=placement, devices=("phone",),
+                         scene=str(rng.choice(scenes, p=[0.2, 0.4, 0.4])), duration_s=dur, noise_level=level)
+        plan.append(PlannedWalk(cfg, int(rng.integers(2 ** 31)), "test" if test else "train"))
+        dist += 1.3 * dur
+    return plan
+
+
+def simulate_plan(plan: list[PlannedWalk], out: str | Path, made_by: dict, progress: bool = True,
+                  meta: dict | None = None) -> Dataset:
+    """Simulate planned walks into dataset folder ``out`` (``meta`` added to every recording's)."""
     with DatasetWriter(Path(out), made_by) as writer:
-        for item in tqdm(plan, desc="simulate placement", unit="rec", disable=not progress):
+        for item in tqdm(plan, desc="simulate", unit="rec", disable=not progress):
             rec = simulate_walk(item.config, item.seed).recording
-            rec.meta.update({"dataset": "placement", "dataset_seed": int(seed)})
-            writer.add(rec)
+            rec.meta.update({"split": item.split, **(meta or {})})
+            writer.add(rec, split=item.split)
     return Dataset.open(out)
