@@ -192,6 +192,7 @@ def site_yaw(seqs, window: int = 100, stride: int = 10) -> dict:
 
 
 def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate: float = 25.0) -> dict:
+    """:func:`site_yaw` of the ``split`` traces of dataset ``data`` (no yaw applied, no frame alignment)."""
     from wearnav.dataset import Dataset
     from wearnav.evaluate import load_sequences
     from wearnav.train.odometry import TrainConfig
@@ -286,13 +287,11 @@ def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str
         echo(f"{name}: site yaw {site['yaw']['yaw_deg']:+.1f}° from {site['yaw']['segments']} segments")
         site["fixes"] = fix_errors(Path(site["data"]))
     yaw = sites["main"]["yaw"]["yaw_deg"]
-    done = []
     for model in bench.models:
         learned = get(model).learned
         simulated = bool(bench.train_data) and learned
         cfg = _train_config(model, bench.train_data if simulated else str(main), yaw, bench, simulated)
         run = runs.run_dir(out / "runs", model, run_hash_exclude(run_record(cfg)))
-        done.append(run)
         evals = {"main": run / "eval_main", "other": run / "eval_other"}
         if all(runs.is_complete(evals[s]) for s in sites):
             echo(f"{model}: complete, skipped ({run})")
