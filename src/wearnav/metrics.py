@@ -25,6 +25,12 @@ def _track(t, pos, name: str) -> tuple[np.ndarray, np.ndarray]:
     return t, pos[:, :2]
 
 
+# Gap rule of a phone's fix error at surveyed points (timeseries rule "nearest"): a point is
+# scored only if a fix lies within this many seconds (phones fix at ~1 Hz; a longer silence
+# means no fix, and the point is skipped rather than compared with a stale position).
+FIX_MAX_GAP_S = 2.0
+
+
 def errors_at_reference(t_est, pos_est, t_ref, pos_ref, max_gap: float) -> np.ndarray:
     """Horizontal distance between an estimate and reference points, at the reference times.
 

@@ -60,7 +60,7 @@ from scipy.spatial.transform import Rotation
 
 from wearnav.errors import ConfigError, WearnavError
 from wearnav.fileio import atomic_path, write_text_atomic
-from wearnav.metrics import errors_at_reference
+from wearnav.metrics import FIX_MAX_GAP_S, errors_at_reference
 from wearnav.recording import Recording
 
 RATE_HZ = 25.0
@@ -80,7 +80,6 @@ OUTAGE_GAP_S = 2.5
 JUMP_SPEED_MPS = 4.0
 SIM_REFERENCE_EVERY_S = 10.0
 SIM_DURATION_S = 120.0  # per simulated walk; long enough for GNSS jumps to show per recording
-FIX_MAX_GAP_S = 2.0
 IQR_MIN_SEGMENTS = 8  # fewer real samples than this: the band is ±15 % of the real median
 SMALL_SET_TOLERANCE = 0.15
 

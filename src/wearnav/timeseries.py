@@ -32,7 +32,7 @@ importers (gyro/orientation onto acc) 0.25 s        a fixed time: merging sensor
 ``preprocess.interpolate_position``   1 s           dense truth only; sparse waypoints (seconds
                                                     apart) are not turned into dense targets
 ``metrics.errors_at_reference``       caller's      ``"nearest"``: fixes within 2 s of a truth
-                                                    point (``report.stats.FIX_MAX_GAP_S``)
+                                                    point (``metrics.FIX_MAX_GAP_S``)
 ====================================  ============  ==============================================
 """
 

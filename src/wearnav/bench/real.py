@@ -26,7 +26,7 @@ The benchmark
    models trained on ``data`` are scored on its test groups, with its yaw estimated from its own
    training groups (which are used for nothing else).
 5. **puts the phone's own fixes beside the models** where the data has them (IPIN): the raw
-   GNSS error at the same surveyed points (nearest fix within ``FIX_MAX_GAP_S``).
+   GNSS error at the same surveyed points (nearest fix within ``metrics.FIX_MAX_GAP_S``).
 
 Optionally ``train_data`` (a simulated dataset) trains the learned models instead of the real
 training floors: the sim-to-real test of issue 11. Everything is a run folder; complete runs
@@ -51,7 +51,6 @@ from wearnav.errors import ConfigError, ValidationError
 
 DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
 TRUTH_MAX_GAP_S = 60.0
-FIX_MAX_GAP_S = 2.0
 VAL_EVERY = 5
 # Grouping and held-out groups per source; neither holds data the simulator was calibrated on.
 SITE_DEFAULTS: dict[str, tuple[str, tuple[str, ...]]] = {
@@ -205,24 +204,22 @@ def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate
 # ---- the phone's own fixes --------------------------------------------------------------------
 
 def fix_errors(data: Path, split: str = "test") -> dict | None:
-    """Raw fix error at the surveyed points of ``split`` (nearest fix within FIX_MAX_GAP_S), each
+    """Raw fix error at the surveyed points of ``split`` (nearest fix within metrics.FIX_MAX_GAP_S), each
     trace from its second point on, as the models are scored; None without fixes."""
     from wearnav.dataset import Dataset
 
     view = Dataset.open(data).split(split)
-    rows, errs = [], []
+    errs = []
     for name in view.names:
         rec = view.load(name)
         if rec.fixes is None or rec.truth is None or len(rec.fixes) == 0:
             continue
-        e = metrics.errors_at_reference(rec.fixes.t, rec.fixes.pos[:, :2], rec.truth.t[1:],
-                                        rec.truth.pos[1:, :2], FIX_MAX_GAP_S)
-        rows.append({"name": name, "points": int(e.size), "mean_error": float(e.mean()) if e.size else float("nan")})
-        errs.append(e)
-    if not rows:
+        errs.append(metrics.errors_at_reference(rec.fixes.t, rec.fixes.pos[:, :2], rec.truth.t[1:],
+                                                rec.truth.pos[1:, :2], metrics.FIX_MAX_GAP_S))
+    if not errs:
         return None
     e = np.concatenate(errs)
-    return {"sequences": len(rows), "points": int(e.size), **_point_stats(e),
+    return {"sequences": len(errs), "points": int(e.size), **_point_stats(e),
             "point_errors": [round(float(x), 3) for x in e]}
 
 
@@ -339,11 +336,13 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
         if not m:
             continue
         res = m["splits"]["test"]
-        e = np.concatenate([np.asarray(r.get("point_errors", []), float) for r in res["sequences"]] or [np.empty(0)])
-        errors[label] = e
+        # the pooled per-point statistics are evaluate's summary; the errors themselves feed the CDF
+        errors[label] = np.concatenate([np.asarray(r.get("point_errors", []), float) for r in res["sequences"]]
+                                       or [np.empty(0)])
+        summary = res["summary"]
         tr = m.get("training", {})
-        rows.append({"method": label,
-                     "traces": res["summary"]["sequences"], "points": int(e.size), **_point_stats(e),
+        rows.append({"method": label, "traces": summary["sequences"], "points": summary.get("points", 0),
+                     **{k: summary.get(k, float("nan")) for k in ("error_mean", "error_p50", "error_p75", "error_p95")},
                      "epochs": tr.get("epochs_run", "—"), "train min": round(tr["wall_s"] / 60, 1) if tr.get("wall_s") else "—"})
     fx = sites[site].get("fixes")
     if fx:

@@ -9,15 +9,9 @@ import numpy as np
 import pandas as pd
 
 from wearnav.dataset import Dataset
-from wearnav.metrics import errors_at_reference, label_noise
+from wearnav.metrics import FIX_MAX_GAP_S, errors_at_reference, label_noise
 from wearnav.recording import device_order
 from wearnav.timeseries import sampling
-
-# Gap rule of the fix error at the truth points (timeseries rule "nearest"): a truth point is
-# scored only if a fix lies within this many seconds (phones fix at ~1 Hz; a longer silence
-# means no fix, and the point is skipped rather than compared with a stale position).
-FIX_MAX_GAP_S = 2.0
-
 
 def _pct(x: np.ndarray, q: float) -> float:
     return float(np.percentile(x, q)) if x.size else float("nan")
