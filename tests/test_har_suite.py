@@ -115,6 +115,24 @@ def test_jobs_2_gives_the_same_runs_as_one_process(sim_quick, tmp_path):
     assert doc["datasets"]["sim-placement"]["baseline"]["seeds"] == 2
 
 
+def test_steps_budget_sets_each_datasets_epochs(sim_quick, tmp_path):
+    """--steps: epochs = round(steps / batches per epoch) of the un-augmented training set, at
+    least 1, recorded in each run's config; --epochs and --steps together are refused."""
+    from wearnav.errors import ConfigError
+    from wearnav.train.classify import ClassifyConfig, _windows, sequences
+
+    cfg = ClassifyConfig(model=har.BASELINE, data=str(sim_quick), scheme=SIM.scheme, label_kind=SIM.label_kind,
+                         classes=SIM.classes)
+    n = len(_windows(sequences(split_view(Dataset.open(sim_quick), SIM.scheme, "train"), cfg), cfg, SIM.classes))
+    batches = -(-n // 64)
+    assert batches > 1
+    assert har.epochs_for_steps(SIM, sim_quick, 3 * batches) == 3
+    assert har.epochs_for_steps(SIM, sim_quick, 3 * batches + batches // 2 - 1) == 3
+    assert har.epochs_for_steps(SIM, sim_quick, 1) == 1
+    with pytest.raises(ConfigError, match="not both"):
+        har.run_benchmark(Path("unused"), tmp_path, datasets=["sim-placement"], quick=True, epochs=2, steps=10)
+
+
 def test_classify_a_sensor_logger_export_end_to_end(sim_quick, tmp_path, monkeypatch, capsys):
     """Train a tiny placement classifier on the simulated walkers, write a new simulated
     multi-placement walk as a Sensor Logger export (iOS, g units, split gravity), and label it."""

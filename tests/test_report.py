@@ -274,3 +274,23 @@ def test_results_keep_updates_suite_by_suite(tmp_path):
     # two suites may share a title: their folders tell them apart
     collect([suite("d", "Gamma", "d1")], out, keep=True)
     assert "c2" in out.read_text() and "d1" in out.read_text()
+
+
+def test_results_drop_removes_a_superseded_suite_and_missing_figures_are_refused(tmp_path):
+    from wearnav.bench.results import collect
+    from wearnav.errors import MissingFileError
+
+    def suite(name, body):
+        d = tmp_path / name
+        d.mkdir(exist_ok=True)
+        (d / "results.md").write_text(f"# {name.upper()}\n\n{body}\n")
+        return d
+
+    out = tmp_path / "docs" / "results.md"
+    collect([suite("a", "a1"), suite("b", "b1")], out)
+    collect([suite("c", "c1")], out, keep=True, drop=("a",))
+    assert [l for l in out.read_text().splitlines() if l.startswith("## ")] == [
+        "## B <!-- suite: b -->", "## C <!-- suite: c -->"]
+    with pytest.raises(MissingFileError, match="summary.png"):
+        collect([suite("d", "![summary](summary.png)")], out, keep=True)
+    assert "suite: d" not in out.read_text()  # nothing written

@@ -312,6 +312,8 @@ def bench_har(
     seeds: Optional[int] = typer.Option(None, min=1, help="Seeds per technique (default 3; --quick 1)."),
     jobs: int = typer.Option(1, min=1, help="Runs trained at once in local processes."),
     epochs: Optional[int] = typer.Option(None, min=1, help="Epochs per run (default 30; --quick 1)."),
+    steps: Optional[int] = typer.Option(None, min=1, help="Instead of --epochs: each dataset's epochs give the "
+                                        "baseline about this many gradient steps (expanded sets the same epochs)."),
     techniques: Optional[str] = typer.Option(None, help="Techniques, comma-separated (default: all applicable)."),
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Minutes of training per run (not hashed)."),
     quick: bool = typer.Option(False, "--quick", help="A tiny subset and 1 epoch: checks the pipeline only."),
@@ -322,7 +324,7 @@ def bench_har(
 
     page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3), jobs,
                          quick, epochs, _devices(techniques) if techniques else None, max_time, echo=typer.echo,
-                         threads=threads)
+                         threads=threads, steps=steps)
     typer.echo(f"wrote {page}")
 
 
@@ -417,11 +419,13 @@ def results_(
     suites: list[Path] = typer.Argument(..., help="Suite folders, each holding a generated results.md."),
     out: Path = typer.Option(Path("docs/results.md"), "--out", help="The page to write."),
     keep: bool = typer.Option(False, "--keep", help="Keep the page's other suites' sections (update suite by suite)."),
+    drop: Optional[list[str]] = typer.Option(None, "--drop", help="With --keep: remove this suite's kept sections "
+                                             "(a suite folder name; repeatable)."),
 ):
     """Stitch the suites' generated pages into one results page (figures copied to its img/)."""
     from wearnav.bench.results import collect
 
-    typer.echo(str(collect(suites, out, keep=keep)))
+    typer.echo(str(collect(suites, out, keep=keep, drop=tuple(drop or ()))))
 
 
 @app.command()

@@ -22,12 +22,14 @@ def _sections(text: str) -> list[tuple[str, str]]:
     return [(p.splitlines()[0], p.strip()) for p in parts if p.startswith("## ")]
 
 
-def collect(suites: list[Path], out: Path, title: str = "Measured results", keep: bool = False) -> Path:
+def collect(suites: list[Path], out: Path, title: str = "Measured results", keep: bool = False,
+            drop: tuple[str, ...] = ()) -> Path:
     """Write ``out`` from each suite's results.md (headings demoted one level) and copy the PNGs
     each page links into ``out.parent/img/<suite>_<file>``. With ``keep``, the sections of the
     existing ``out`` (each one a suite's generated page) stay, in their order, unless a suite given
     now has the same heading (its title and folder name): results measured on another machine or session are updated suite by
-    suite instead of being lost."""
+    suite instead of being lost. ``drop``: suite folder names whose kept sections are removed
+    (superseded by a later suite). A page linking a figure its suite does not hold is refused."""
     out = Path(out)
     img = out.parent / "img"
     p = provenance()
@@ -45,7 +47,7 @@ def collect(suites: list[Path], out: Path, title: str = "Measured results", keep
         def relink(m: re.Match) -> str:
             src = suite / m.group(2)
             if not src.is_file():
-                return m.group(0)
+                raise MissingFileError(f"results.md links {m.group(2)}, which is not in the suite folder", suite)
             img.mkdir(parents=True, exist_ok=True)
             dst = img / f"{tag}_{src.name}"
             shutil.copyfile(src, dst)
@@ -57,6 +59,8 @@ def collect(suites: list[Path], out: Path, title: str = "Measured results", keep
         text = re.sub(r"^(## .*)$", lambda m: f"{m.group(1)} <!-- suite: {tag} -->", text, count=1, flags=re.M)
         new += _sections(text)
     old = _sections(out.read_text(encoding="utf-8")) if keep and out.is_file() else []
+    tags = {re.sub(r"[^A-Za-z0-9_-]+", "_", d) for d in drop}
+    old = [(h, t) for h, t in old if not any(h.endswith(f"<!-- suite: {d} -->") for d in tags)]
     fresh = dict(new)
     merged = [(h, fresh.pop(h) if h in fresh else t) for h, t in old] + [(h, t) for h, t in new if h in fresh]
     for _, text in merged:
