@@ -271,3 +271,17 @@ def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
     assert set(iv["label"]) <= set(m["classes"]) and iv["windows"].sum() == (30 * 50 - 128) // 64 + 1
     assert (iv["end_s"] > iv["start_s"]).all() and np.allclose(iv["start_s"].iloc[1:], iv["end_s"].iloc[:-1])
     assert (tmp_path / "lab" / "tiny_timeline.png").stat().st_size > 1000
+
+
+def test_significance_is_welchs_t_test_over_seeds():
+    """† in the HAR tables: Welch's t over per-seed accuracies. Well separated seeds pass,
+    overlapping ones do not, one seed says nothing; checked against the t statistic by hand."""
+    from wearnav.bench.har import significant
+
+    a, b = [0.80, 0.81, 0.82], [0.90, 0.91, 0.92]
+    t = (np.mean(b) - np.mean(a)) / np.sqrt(np.var(a, ddof=1) / 3 + np.var(b, ddof=1) / 3)
+    assert t == pytest.approx(12.25, abs=0.01)  # df = 4: p ≈ 2.6e-4
+    assert significant(a, b) is True
+    assert significant([0.80, 0.85, 0.90], [0.81, 0.86, 0.89]) is False
+    assert significant([0.8], b) is None
+    assert significant([0.8, 0.8], [0.8, 0.8]) is False and significant([0.8, 0.8], [0.9, 0.9]) is True
