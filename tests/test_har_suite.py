@@ -113,6 +113,13 @@ def test_jobs_2_gives_the_same_runs_as_one_process(sim_quick, tmp_path):
     assert "## sim-placement" in page and "world-frame input" in page
     doc = json.loads((b / "results.json").read_text())
     assert doc["datasets"]["sim-placement"]["baseline"]["seeds"] == 2
+    # a second invocation (nothing left to train) adds its wall time to the first's
+    first = doc["invocations"]
+    assert len(first) == 1 and first[0]["wall_s"] > 0
+    har.run_benchmark(Path("unused"), b, jobs=2, **kw)
+    doc2 = json.loads((b / "results.json").read_text())
+    assert doc2["invocations"][0] == first[0] and len(doc2["invocations"]) == 2
+    assert "over 2 invocations" in (b / "results.md").read_text()
 
 
 def test_steps_budget_sets_each_datasets_epochs(sim_quick, tmp_path):
