@@ -128,10 +128,16 @@ def import_data(ds: HarDataset, data_root: Path, out: Path, quick: bool) -> Path
     return folder
 
 
-def suite_configs(ds: HarDataset, data: Path, seeds: int, techniques=None, **train_kw) -> list[tuple[Technique, object]]:
-    """(technique, config) for every applicable technique (of ``techniques``, default all) and seed."""
+def baseline_config(ds: HarDataset, data: Path, **train_kw):
+    """The baseline's :class:`wearnav.train.classify.ClassifyConfig` on ``ds`` imported at ``data``."""
     from wearnav.train.classify import ClassifyConfig
 
+    return ClassifyConfig(model=BASELINE, data=str(data), scheme=ds.scheme, label_kind=ds.label_kind,
+                          classes=ds.classes, devices=ds.devices, **train_kw)
+
+
+def suite_configs(ds: HarDataset, data: Path, seeds: int, techniques=None, **train_kw) -> list[tuple[Technique, object]]:
+    """(technique, config) for every applicable technique (of ``techniques``, default all) and seed."""
     known = {t.name for t in TECHNIQUES}
     if techniques is not None and set(techniques) - known:
         raise ConfigError(f"unknown techniques {sorted(set(techniques) - known)}; known: {', '.join(known)}")
@@ -140,9 +146,7 @@ def suite_configs(ds: HarDataset, data: Path, seeds: int, techniques=None, **tra
         if applicable(tech, ds) or (techniques is not None and tech.name not in techniques):
             continue
         for seed in range(seeds):
-            base = ClassifyConfig(model=BASELINE, data=str(data), scheme=ds.scheme, label_kind=ds.label_kind,
-                                  classes=ds.classes, devices=ds.devices, seed=seed, **train_kw)
-            out.append((tech, replace(base, **tech.changes)))
+            out.append((tech, replace(baseline_config(ds, data, seed=seed, **train_kw), **tech.changes)))
     return out
 
 
@@ -421,10 +425,9 @@ def epochs_for_steps(spec: HarDataset, data: Path, steps: int, batch: int = 64) 
     time" (Sec. II-A); a step budget makes that rule explicit. Expanded sets (rotation, noise) train
     for the same epochs, so they take 2–4× the steps, as adding data to the training set does."""
     from wearnav.dataset import Dataset
-    from wearnav.train.classify import ClassifyConfig, _windows, sequences, split_view
+    from wearnav.train.classify import _windows, sequences, split_view
 
-    cfg = ClassifyConfig(model=BASELINE, data=str(data), scheme=spec.scheme, label_kind=spec.label_kind,
-                         classes=spec.classes, devices=spec.devices)
+    cfg = baseline_config(spec, data)
     n = len(_windows(sequences(split_view(Dataset.open(data), spec.scheme, "train"), cfg), cfg, spec.classes))
     return max(1, round(steps / max(1, -(-n // batch))))
 
