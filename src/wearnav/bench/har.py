@@ -334,15 +334,9 @@ def _wall_text(wall_s: float | None, earlier: list[dict]) -> str:
 
 
 def previous_invocations(out: Path) -> list[dict]:
-    """The wall times of the suite's earlier invocations, from its results.json (a page written
-    before this record existed holds one ``wall_s``)."""
+    """The wall times of the suite's earlier invocations, from its results.json."""
     path = Path(out) / "results.json"
-    if not path.is_file():
-        return []
-    doc = json.loads(path.read_text(encoding="utf-8"))
-    if "invocations" in doc:
-        return list(doc["invocations"])
-    return [{"wall_s": doc["wall_s"]}] if doc.get("wall_s") is not None else []
+    return json.loads(path.read_text(encoding="utf-8")).get("invocations", []) if path.is_file() else []
 
 
 def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: float | None = None,
@@ -362,8 +356,7 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
              + _wall_text(wall_s, invocations) + ".", ""]
     if note:
         lines += [note, ""]
-    improve: dict[str, list[float]] = {}
-    sure: dict[str, list[bool | None]] = {}
+    improve: dict[str, list[tuple[float, bool]]] = {}  # technique → (Δ accuracy, beyond seed spread) per dataset
     for dataset, summary in results.items():
         spec = DATASETS[dataset]
         base = summary.get("baseline")
@@ -380,9 +373,8 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
             if base and tech.name != "baseline":
                 da = 100 * (s["accuracy_mean"] - base["accuracy_mean"])
                 df = 100 * (s["f1_mean"] - base["f1_mean"])
-                improve.setdefault(tech.name, []).append(da)
                 sig = significant(s["accuracy_per_seed"], base["accuracy_per_seed"])
-                sure.setdefault(tech.name, []).append(sig)
+                improve.setdefault(tech.name, []).append((da, bool(sig)))
             rows.append({"technique": tech.label + (" *" if tech.extra else ""),
                          "accuracy %": f"{100 * s['accuracy_mean']:.1f} ± {100 * s['accuracy_std']:.1f}",
                          "macro-F1 %": f"{100 * s['f1_mean']:.1f} ± {100 * s['f1_std']:.1f}",
@@ -402,11 +394,11 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
                     _plot_confusion(dataset, base, out / f"{dataset}_confusion.png") if base else None):
             if png:
                 lines += [f"![{png.stem}]({png.name})", ""]
-    summary_rows = [{"technique": t.label, "datasets improved": int(sum(v > 0 for v in improve[t.name])),
-                     "improved, p < 0.05": int(sum(v > 0 and bool(q) for v, q in zip(improve[t.name], sure[t.name]))),
-                     "worse, p < 0.05": int(sum(v < 0 and bool(q) for v, q in zip(improve[t.name], sure[t.name]))),
+    summary_rows = [{"technique": t.label, "datasets improved": sum(d > 0 for d, _ in improve[t.name]),
+                     "improved, p < 0.05": sum(d > 0 and q for d, q in improve[t.name]),
+                     "worse, p < 0.05": sum(d < 0 and q for d, q in improve[t.name]),
                      "datasets run": len(improve[t.name]),
-                     "max improvement (points)": round(max(improve[t.name]), 1)}
+                     "max improvement (points)": round(max(d for d, _ in improve[t.name]), 1)}
                     for t in TECHNIQUES if t.name in improve]
     if summary_rows:
         lines += ["## Summary over datasets (Fig. 12 analogue)", "", pd.DataFrame(summary_rows).to_markdown(index=False), ""]
@@ -414,8 +406,7 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
         if png:
             lines += [f"![{png.stem}]({png.name})", ""]
     calls = list(invocations) + ([{"at": p["created"], "wall_s": wall_s}] if wall_s is not None else [])
-    runs.write_json(out / "results.json", {"datasets": results, "summary": summary_rows, "wall_s": wall_s,
-                                           "invocations": calls})
+    runs.write_json(out / "results.json", {"datasets": results, "summary": summary_rows, "invocations": calls})
     return write_text_atomic("\n".join(lines), out / "results.md")
 
 
