@@ -3,6 +3,7 @@ splits, and the --quick benchmark plus `wearnav classify` end to end on real UCI
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -274,14 +275,65 @@ def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
 
 
 def test_significance_is_welchs_t_test_over_seeds():
-    """† in the HAR tables: Welch's t over per-seed accuracies. Well separated seeds pass,
-    overlapping ones do not, one seed says nothing; checked against the t statistic by hand."""
-    from wearnav.bench.har import significant
+    """p in the HAR tables: Welch's t over per-seed accuracies. Well separated seeds give a small
+    p, overlapping ones a large one, one seed says nothing; checked against the t statistic by hand."""
+    from wearnav.bench.har import welch_p
 
     a, b = [0.80, 0.81, 0.82], [0.90, 0.91, 0.92]
     t = (np.mean(b) - np.mean(a)) / np.sqrt(np.var(a, ddof=1) / 3 + np.var(b, ddof=1) / 3)
     assert t == pytest.approx(12.25, abs=0.01)  # df = 4: p ≈ 2.6e-4
-    assert significant(a, b) is True
-    assert significant([0.80, 0.85, 0.90], [0.81, 0.86, 0.89]) is False
-    assert significant([0.8], b) is None
-    assert significant([0.8, 0.8], [0.8, 0.8]) is False and significant([0.8, 0.8], [0.9, 0.9]) is True
+    assert welch_p(a, b) == pytest.approx(2.55e-4, rel=0.01)
+    assert welch_p([0.80, 0.85, 0.90], [0.81, 0.86, 0.89]) > 0.05
+    assert welch_p([0.8], b) is None
+    assert welch_p([0.8, 0.8], [0.8, 0.8]) == 1.0 and welch_p([0.8, 0.8], [0.9, 0.9]) == 0.0
+
+
+def _summary(acc_per_seed):
+    acc = np.array(acc_per_seed)
+    return {"accuracy_mean": acc.mean(), "accuracy_std": acc.std(ddof=1), "f1_mean": acc.mean(),
+            "f1_std": acc.std(ddof=1), "seeds": acc.size, "accuracy_per_seed": list(acc_per_seed),
+            "classes": ["a", "b"], "confusion": [[5, 1], [2, 4]], "train_wall_s": 1.0, "epochs": 1,
+            "train_windows": 10, "test_windows": 12}
+
+
+def _first_table(page: str) -> list[list[str]]:
+    """The cells of the first Markdown table of ``page``, row by row (header, rule, body)."""
+    lines = page.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("|"))
+    end = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")), len(lines))
+    return [[c.strip() for c in line.strip().strip("|").split("|")] for line in lines[start:end]]
+
+
+def test_significance_marks_follow_benjamini_hochberg_over_a_datasets_techniques(tmp_path):
+    """Four techniques against the baseline: rotation x has raw p = 0.042 < 0.05 but its
+    BH-adjusted p (rank 2 of 4: 0.042 · 4/2) is above 0.05, so it gets no †; additive noise
+    (p = 2.6e-4) keeps its †. Table p and p_BH columns and results.json agree with scipy."""
+    from scipy.stats import false_discovery_control, ttest_ind
+
+    from wearnav.bench.har import bh_adjust, write_report
+
+    base = [0.80, 0.81, 0.82]
+    seeds = {"rot_x": [0.83, 0.84, 0.86], "rot_y": [0.79, 0.81, 0.83], "rot_z": [0.80, 0.82, 0.81],
+             "noise": [0.90, 0.91, 0.92]}
+    raw = {k: ttest_ind(v, base, equal_var=False).pvalue for k, v in seeds.items()}
+    assert 0.04 < raw["rot_x"] < 0.05
+    want = dict(zip(raw, false_discovery_control(list(raw.values()), method="bh")))
+    assert want["rot_x"] > 0.05 and want["noise"] < 0.05
+    got = bh_adjust({**raw, "head2": None})
+    assert got["head2"] is None and all(got[k] == pytest.approx(want[k]) for k in raw)
+
+    results = {"uci-hapt": {"baseline": _summary(base), **{k: _summary(v) for k, v in seeds.items()}}}
+    page = write_report(results, tmp_path).read_text()
+    head, _, *body = _first_table(page)
+    row = {r[0]: dict(zip(head, r)) for r in body}
+    assert "†" not in row["rotation x"]["Δ acc (points)"] and "†" in row["additive noise"]["Δ acc (points)"]
+    assert float(row["rotation x"]["p"]) == pytest.approx(raw["rot_x"], rel=0.02)
+    assert float(row["rotation x"]["p_BH"]) == pytest.approx(want["rot_x"], rel=0.02)
+    assert row["baseline"]["p"] == row["baseline"]["p_BH"] == ""
+    assert "Benjamini–Hochberg-adjusted p < 0.05" in page
+    doc = json.loads((tmp_path / "results.json").read_text())
+    assert doc["significance"]["uci-hapt"]["rot_x"]["p_bh"] == pytest.approx(want["rot_x"])
+    summary = {r["technique"]: r for r in doc["summary"]}
+    assert summary["rotation x"]["datasets improved"] == 1 and summary["rotation x"]["improved, p_BH < 0.05"] == 0
+    assert summary["additive noise"]["improved, p_BH < 0.05"] == 1
+    assert (tmp_path / "uci-hapt_improvement.png").stat().st_size > 1000

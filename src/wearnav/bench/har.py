@@ -230,27 +230,43 @@ def summarise(folders: dict[str, list[Path]]) -> dict[str, dict]:
     return out
 
 
-SIGNIFICANCE = 0.05
+SIGNIFICANCE = 0.05  # the false discovery rate the HAR tables' † controls, per dataset
+SIGNIFICANCE_NOTE = ("† = differs from the baseline beyond seed spread: Welch's t-test over per-seed accuracies, "
+                     f"Benjamini–Hochberg-adjusted p < {SIGNIFICANCE} over the dataset's techniques (p: raw; "
+                     "p_BH: adjusted)")
 
 
-def significant(a: list[float], b: list[float]) -> bool | None:
-    """Whether two techniques' per-seed accuracies differ beyond seed-to-seed spread: Welch's
-    t-test, p < :data:`SIGNIFICANCE`. None with fewer than 2 seeds on either side. With 3 seeds
-    only a large, consistent difference passes; a Δ without it is within what reseeding alone
-    moves."""
+def welch_p(a: list[float], b: list[float]) -> float | None:
+    """Two-sided p of Welch's t-test between two techniques' per-seed accuracies. None with
+    fewer than 2 seeds on either side; two constant samples give 0 where they differ, 1 where
+    they agree (the test is undefined there). With 3 seeds only a large, consistent difference
+    has a small p."""
     from scipy.stats import ttest_ind
 
     if len(a) < 2 or len(b) < 2:
         return None
     if np.ptp(a) == 0 and np.ptp(b) == 0:
-        return bool(a[0] != b[0])
+        return 0.0 if a[0] != b[0] else 1.0
     with warnings.catch_warnings():  # nearly equal seeds (a collapsed model) trip a precision warning
         warnings.simplefilter("ignore", RuntimeWarning)
-        return bool(ttest_ind(a, b, equal_var=False).pvalue < SIGNIFICANCE)
+        return float(ttest_ind(a, b, equal_var=False).pvalue)
 
 
-def _plot_improvement(dataset: str, summary: dict, path: Path) -> Path | None:
+def bh_adjust(p: dict[str, float | None]) -> dict[str, float | None]:
+    """Benjamini–Hochberg-adjusted p values (``scipy.stats.false_discovery_control``, method
+    'bh') of one dataset's techniques against its baseline; None stays None (not tested)."""
+    from scipy.stats import false_discovery_control
+
+    tested = [k for k, v in p.items() if v is not None]
+    adj = false_discovery_control([p[k] for k in tested], method="bh") if tested else []
+    out: dict[str, float | None] = dict.fromkeys(p)
+    out.update({k: float(v) for k, v in zip(tested, adj)})
+    return out
+
+
+def _plot_improvement(dataset: str, summary: dict, path: Path, p_bh: dict[str, float | None]) -> Path | None:
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
     from wearnav.report.plots import save
 
@@ -265,7 +281,15 @@ def _plot_improvement(dataset: str, summary: dict, path: Path) -> Path | None:
     se = [100 * np.hypot(summary[n]["accuracy_std"] / np.sqrt(summary[n]["seeds"]),
                          base["accuracy_std"] / np.sqrt(base["seeds"])) for n in names]
     ax.bar(range(len(names)), d, yerr=se, capsize=3, color=["tab:green" if v > 0 else "tab:red" for v in d])
+    for i, n in enumerate(names):
+        if p_bh.get(n) is not None and p_bh[n] < SIGNIFICANCE:
+            ax.annotate("†", (i, d[i] + np.copysign(se[i], d[i])), xytext=(0, 2 if d[i] >= 0 else -2),
+                        textcoords="offset points", ha="center", va="bottom" if d[i] >= 0 else "top")
     ax.axhline(0, color="k", lw=0.8)
+    ax.legend(handles=[Line2D([], [], ls="none", marker="$†$", color="k",
+                              label=f"differs from the baseline (Welch's t over seeds, "
+                                    f"BH-adjusted p < {SIGNIFICANCE})")], fontsize=7)
+    ax.margins(y=0.15)
     ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
     ax.set_ylabel("Δ accuracy vs baseline (points)\n± standard error over seeds", fontsize=8)
     ax.set_title(f"{dataset}: improvement over the baseline")
@@ -297,6 +321,10 @@ def _plot_confusion(dataset: str, s: dict, path: Path) -> Path:
     return save(fig, path)
 
 
+IMPROVED_SIGNIFICANT = f"improved, p_BH < {SIGNIFICANCE}"
+WORSE_SIGNIFICANT = f"worse, p_BH < {SIGNIFICANCE}"
+
+
 def _plot_summary(rows: list[dict], path: Path) -> Path | None:
     from matplotlib.figure import Figure
 
@@ -309,8 +337,8 @@ def _plot_summary(rows: list[dict], path: Path) -> Path | None:
     ax = fig.add_subplot()
     x = np.arange(len(rows))
     ax.bar(x, [r["datasets improved"] for r in rows], 0.6, color="tab:blue", alpha=0.4, label="datasets improved")
-    ax.bar(x, [r["improved, p < 0.05"] for r in rows], 0.6, color="tab:blue",
-           label="… of which beyond seed spread (p < 0.05)")
+    ax.bar(x, [r[IMPROVED_SIGNIFICANT] for r in rows], 0.6, color="tab:blue",
+           label=f"… of which beyond seed spread (Welch's t, BH-adjusted p < {SIGNIFICANCE})")
     ax.yaxis.get_major_locator().set_params(integer=True)
     ax2 = ax.twinx()
     ax2.plot(x, [r["max improvement (points)"] for r in rows], "o", color="tab:orange", ms=8,
@@ -322,6 +350,10 @@ def _plot_summary(rows: list[dict], path: Path) -> Path | None:
     ax.set_title("techniques over all datasets (Fig. 12 analogue)")
     fig.legend(loc="outside lower center", ncols=3, fontsize=7)
     return save(fig, path)
+
+
+def _p_text(p: float | None) -> str:
+    return "" if p is None else f"{p:.2g}"
 
 
 def _wall_text(wall_s: float | None, earlier: list[dict]) -> str:
@@ -357,9 +389,15 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
     if note:
         lines += [note, ""]
     improve: dict[str, list[tuple[float, bool]]] = {}  # technique → (Δ accuracy, beyond seed spread) per dataset
+    significance: dict[str, dict[str, dict]] = {}  # dataset → technique → raw and BH-adjusted p
     for dataset, summary in results.items():
         spec = DATASETS[dataset]
         base = summary.get("baseline")
+        p_raw = {t.name: welch_p(summary[t.name]["accuracy_per_seed"], base["accuracy_per_seed"])
+                 for t in TECHNIQUES if base and t.name != "baseline" and t.name in summary
+                 and not applicable(t, spec)}
+        p_bh = bh_adjust(p_raw)
+        significance[dataset] = {k: {"p": p_raw[k], "p_bh": p_bh[k]} for k in p_raw}
         rows = []
         for tech in TECHNIQUES:
             why = applicable(tech, spec)
@@ -367,46 +405,49 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
             if why or s is None:
                 rows.append({"technique": tech.label + (" *" if tech.extra else ""),
                              "accuracy %": why or "not run", "macro-F1 %": "", "Δ acc (points)": "",
-                             "Δ F1 (points)": "", "seeds": 0, "train s": ""})
+                             "p": "", "p_BH": "", "Δ F1 (points)": "", "seeds": 0, "train s": ""})
                 continue
-            da = df = sig = None
+            da = df = None
+            sig = False
             if base and tech.name != "baseline":
                 da = 100 * (s["accuracy_mean"] - base["accuracy_mean"])
                 df = 100 * (s["f1_mean"] - base["f1_mean"])
-                sig = significant(s["accuracy_per_seed"], base["accuracy_per_seed"])
-                improve.setdefault(tech.name, []).append((da, bool(sig)))
+                sig = p_bh[tech.name] is not None and p_bh[tech.name] < SIGNIFICANCE
+                improve.setdefault(tech.name, []).append((da, sig))
             rows.append({"technique": tech.label + (" *" if tech.extra else ""),
                          "accuracy %": f"{100 * s['accuracy_mean']:.1f} ± {100 * s['accuracy_std']:.1f}",
                          "macro-F1 %": f"{100 * s['f1_mean']:.1f} ± {100 * s['f1_std']:.1f}",
                          "Δ acc (points)": "" if da is None else f"{da:+.1f}" + (" †" if sig else ""),
+                         "p": _p_text(p_raw.get(tech.name)), "p_BH": _p_text(p_bh.get(tech.name)),
                          "Δ F1 (points)": "" if df is None else f"{df:+.1f}",
                          "seeds": s["seeds"], "train s": f"{s['train_wall_s']:.0f}"})
         info = (f" {base['train_windows']} training / {base['test_windows']} test windows; {base['epochs']} epochs."
                 if base else "")
         lines += [f"## {dataset}", "",
                   f"Devices {', '.join(spec.devices)}; labels `{spec.label_kind}`; subject-independent split "
-                  f"`{spec.scheme}`.{info} Mean ± std over seeds; * = beyond the paper; † = differs from the "
-                  f"baseline beyond seed spread (Welch's t-test over seeds, p < {SIGNIFICANCE}).", "",
+                  f"`{spec.scheme}`.{info} Mean ± std over seeds; * = beyond the paper; {SIGNIFICANCE_NOTE}.", "",
                   pd.DataFrame(rows).to_markdown(index=False, disable_numparse=True), ""]
         if spec.note:
             lines += [spec.note, ""]
-        for png in (_plot_improvement(dataset, summary, out / f"{dataset}_improvement.png"),
+        for png in (_plot_improvement(dataset, summary, out / f"{dataset}_improvement.png", p_bh),
                     _plot_confusion(dataset, base, out / f"{dataset}_confusion.png") if base else None):
             if png:
                 lines += [f"![{png.stem}]({png.name})", ""]
     summary_rows = [{"technique": t.label, "datasets improved": sum(d > 0 for d, _ in improve[t.name]),
-                     "improved, p < 0.05": sum(d > 0 and q for d, q in improve[t.name]),
-                     "worse, p < 0.05": sum(d < 0 and q for d, q in improve[t.name]),
+                     IMPROVED_SIGNIFICANT: sum(d > 0 and q for d, q in improve[t.name]),
+                     WORSE_SIGNIFICANT: sum(d < 0 and q for d, q in improve[t.name]),
                      "datasets run": len(improve[t.name]),
                      "max improvement (points)": round(max(d for d, _ in improve[t.name]), 1)}
                     for t in TECHNIQUES if t.name in improve]
     if summary_rows:
-        lines += ["## Summary over datasets (Fig. 12 analogue)", "", pd.DataFrame(summary_rows).to_markdown(index=False), ""]
+        lines += ["## Summary over datasets (Fig. 12 analogue)", "", pd.DataFrame(summary_rows).to_markdown(index=False), "",
+                  f"Significance as in the tables: {SIGNIFICANCE_NOTE}.", ""]
         png = _plot_summary(summary_rows, out / "summary.png")
         if png:
             lines += [f"![{png.stem}]({png.name})", ""]
     calls = list(invocations) + ([{"at": p["created"], "wall_s": wall_s}] if wall_s is not None else [])
-    runs.write_json(out / "results.json", {"datasets": results, "summary": summary_rows, "invocations": calls})
+    runs.write_json(out / "results.json", {"datasets": results, "significance": significance, "summary": summary_rows,
+                                           "invocations": calls})
     return write_text_atomic("\n".join(lines), out / "results.md")
 
 
