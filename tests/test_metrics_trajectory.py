@@ -6,7 +6,7 @@ from evo.core import metrics as evo_metrics
 from evo.core.trajectory import PoseTrajectory3D
 
 from wearnav.errors import ValidationError
-from wearnav.metrics import ade, ate, error_cdf, position_errors, rte
+from wearnav.metrics import ade, ate, ecdf, position_errors, rte
 
 
 def _evo_traj(t, pos):
@@ -70,9 +70,9 @@ def test_perfect_estimate_scores_zero_and_an_offset_does_not():
 
 
 def test_cdf_and_ade():
-    e, p = error_cdf([3.0, 1.0, 2.0, 2.0])
-    np.testing.assert_allclose(e, [1, 2, 2, 3])
-    np.testing.assert_allclose(p, [0.25, 0.5, 0.75, 1.0])
+    e, p = ecdf([3.0, 1.0, 2.0, 2.0])  # a tie is one step of twice the height
+    np.testing.assert_allclose(e, [1, 2, 3])
+    np.testing.assert_allclose(p, [0.25, 0.75, 1.0])
     assert ade([[0, 0], [3, 4]], [[0, 1], [0, 0]]) == pytest.approx((1 + 5) / 2)
 
 
@@ -82,4 +82,6 @@ def test_bad_input_is_a_validation_error():
     with pytest.raises(ValidationError):
         rte([0, 1, 2], [[0, 0]] * 3, [[0, 0]] * 3, delta=0)
     with pytest.raises(ValidationError):
-        error_cdf([])
+        ecdf([])
+    with pytest.raises(ValidationError):
+        ecdf([1.0, np.nan])

@@ -354,16 +354,16 @@ def noise_summary(seg: Segments) -> dict:
 def plot_noise_cdf(seg: Segments, out: str | Path):
     """CDF of |d_e| (cm) where the truth is known; None without truth."""
     e = np.linalg.norm(seg.noise(), axis=1)
-    e = np.sort(e[np.isfinite(e)]) * 100
+    e = e[np.isfinite(e)] * 100
     if not e.size:
         return None
     from matplotlib.figure import Figure
 
-    from wearnav.report.plots import save
+    from wearnav.report.plots import plot_ecdf, save
 
     fig = Figure(figsize=(5, 3.4), layout="constrained")
     ax = fig.subplots()
-    ax.plot(e, np.arange(1, e.size + 1) / e.size)
+    plot_ecdf(ax, e)
     ax.set(xlabel="phone-label noise |d_e| (cm)", ylabel="CDF", title=f"median {np.median(e):.1f} cm, {e.size} segments")
     ax.grid(alpha=0.3)
     return save(fig, Path(out))

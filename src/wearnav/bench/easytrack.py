@@ -265,7 +265,7 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
-    from wearnav.report.plots import save
+    from wearnav.report.plots import plot_ecdf, save
 
     links = []
     # label-noise CDF (eqs. 5-7)
@@ -273,9 +273,9 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
     ax = fig.subplots()
     for level, seg in train.items():
         e = np.linalg.norm(seg.noise(), axis=1)
-        e = np.sort(e[np.isfinite(e)]) * 100
+        e = e[np.isfinite(e)] * 100
         if e.size:
-            ax.plot(e, np.arange(1, e.size + 1) / e.size, label=level)
+            plot_ecdf(ax, e, label=level)
     ax.set(xlabel="phone-label noise |d_e| (cm)", ylabel="CDF", title="label noise per level")
     ax.legend()
     ax.grid(alpha=0.3)

@@ -53,6 +53,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -63,6 +64,7 @@ from wearnav.realism.fixes import FIX_STATS, JUMP_SPEED_MPS, OUTAGE_GAP_S, SIM_R
 from wearnav.realism.sources import (CALIBRATION_NOTES, CLAIMED, FIX_REAL, GROUPS, ILC2_CALIBRATION, SIM_DURATION_S,
                                      Group, RealSource)
 from wearnav.realism.stats import STAT_LABELS, STATS
+from wearnav.report.plots import plot_ecdf
 
 
 def _save(fig: Figure, out: Path) -> Path:
@@ -134,11 +136,10 @@ def _plot_fixes(res: dict[str, dict], out: Path) -> tuple[Path, dict]:
         ax = fig.add_subplot(1, 3, k + 1)
         data[stat] = {}
         for c, (label, r) in zip(_COLORS, res.items()):
-            v = np.sort(np.asarray(r[stat], float))
+            v = np.asarray(r[stat], float)
             if v.size == 0:
                 continue
-            cdf = np.arange(1, v.size + 1) / v.size
-            ax.step(v, cdf, where="post", color=c, label=f"{label} (n={v.size})")
+            plot_ecdf(ax, v, color=c, label=f"{label} (n={v.size})")
             q = np.linspace(0, 1, 101)  # the CDF as 101 quantiles keeps the JSON small
             data[stat][label] = {"quantile": q.round(2).tolist(), "x": np.round(np.quantile(v, q), 3).tolist()}
         if log:
@@ -147,6 +148,11 @@ def _plot_fixes(res: dict[str, dict], out: Path) -> tuple[Path, dict]:
         ax.legend(fontsize=7)
     fig.tight_layout()
     return _save(fig, out), data
+
+
+def _markdown(rows: list[list[str]], head: list[str]) -> str:
+    """A Markdown table of text cells (no number parsing: "1.76 [1.7, 1.8]" stays as written)."""
+    return pd.DataFrame(rows, columns=head).to_markdown(index=False, disable_numparse=True)
 
 
 def _fmt(x: dict) -> str:
@@ -173,7 +179,7 @@ def _table(groups: dict, claimed: bool = False) -> list[str]:
                   + ".", ""]
         reals = [r["label"] for r in g["real"]]
         head = ["statistic", "simulated"] + reals + (["band (pooled real)", "in band"] if reals else [])
-        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        rows = []
         for stat, e in g["compare"].items():
             if e["sim"].get("n", 0) == 0 and e["real"].get("n", 0) == 0:
                 continue
@@ -185,7 +191,8 @@ def _table(groups: dict, claimed: bool = False) -> list[str]:
                             "yes" if e["inside"] else "**no**"]
                 else:
                     row += ["—", "—"]
-            lines.append("| " + " | ".join(row) + " |")
+            rows.append(row)
+        lines.append(_markdown(rows, head))
         if claimed and g["real"] and key in CLAIMED:
             lines += ["", "Claimed (re-checked by tests/test_realism.py): "
                       + ", ".join(STAT_LABELS[k].replace("|", "\\|") for k in CLAIMED[key]) + "."]
@@ -196,8 +203,7 @@ def _table(groups: dict, claimed: bool = False) -> list[str]:
 def _fix_table(fix: dict) -> list[str]:
     labels = list(fix)
     comp = fix_compare(fix)
-    lines = ["| statistic | " + " | ".join(labels) + " | band (IPIN) | in band |",
-             "|---|" + "---|" * (len(labels) + 2)]
+    rows = []
     names = {"error_m": "error at reference points (m)", "acc_over_error": "reported accuracy / error",
              "fix_speed": "fix-to-fix distance / time (m/s; walking ≈ 1.3, jumps far above)",
              "outage_s": f"outage length (s, gaps > {OUTAGE_GAP_S:g} s)",
@@ -213,8 +219,8 @@ def _fix_table(fix: dict) -> list[str]:
             row += [f"{e['band'][0]:.3g} … {e['band'][1]:.3g} ({e['band_kind']})", "yes" if e["inside"] else "**no**"]
         else:
             row += ["—", "—"]
-        lines.append("| " + " | ".join(row) + " |")
-    return lines
+        rows.append(row)
+    return [_markdown(rows, ["statistic", *labels, "band (IPIN)", "in band"])]
 
 
 def realism_report(data: Path, out: Path, work: Path, n_sim: int = 12, limit: int | None = None,
@@ -267,14 +273,10 @@ def realism_report(data: Path, out: Path, work: Path, n_sim: int = 12, limit: in
              "used whole; no benchmark evaluates odometry on them.", ""]
     lines += ["## What is calibrated against what", "", CALIBRATION_NOTES, ""]
     prev = json.loads(Path(before).read_text()) if before is not None else None
+    counts = [[g["title"], *([_band_count(prev["groups"].get(key))] if prev else []), _band_count(g)]
+              for key, g in res["groups"].items() if g["real"]]
     lines += ["## Summary: statistics whose simulated median lies in the real band", "",
-              "| device and placement | " + ("before calibration | " if prev else "") + "now |",
-              "|---|" + ("---|" if prev else "") + "---|"]
-    for key, g in res["groups"].items():
-        if not g["real"]:
-            continue
-        cells = [_band_count(prev["groups"].get(key)) if prev else None, _band_count(g)]
-        lines.append(f"| {g['title']} | " + " | ".join(c for c in cells if c is not None) + " |")
+              _markdown(counts, ["device and placement", *(["before calibration"] if prev else []), "now"])]
     was = f", {prev.get('provenance', {}).get('simulator_version', '?')} before (from `{before}`)" if prev else ""
     lines += ["", f"Simulator version {res['provenance']['simulator_version']} now{was}.", ""]
     lines += ["## Now", ""] + _table(res["groups"], claimed=True)

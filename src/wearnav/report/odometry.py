@@ -12,8 +12,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from wearnav.metrics import error_cdf
-from wearnav.report.plots import save
+from wearnav.report.plots import plot_ecdf, save
 
 MAX_TRAJECTORIES = 8
 
@@ -65,9 +64,7 @@ def plot_cdf(errors: dict[str, np.ndarray], out: Path, title: str) -> Path | Non
     fig = Figure(figsize=(6, 4), layout="constrained")
     ax = fig.add_subplot()
     for name, e in errors.items():
-        x, p = error_cdf(e)
-        step = max(1, x.size // 2000)
-        ax.plot(x[::step], p[::step], label=name)
+        plot_ecdf(ax, e, label=name)
     ax.set_xlabel("position error (m)")
     ax.set_ylabel("P(error ≤ x)")
     ax.set_ylim(0, 1)

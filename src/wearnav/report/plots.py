@@ -20,11 +20,13 @@ from matplotlib.patches import Patch
 from wearnav.dataset import Dataset
 from wearnav.errors import ValidationError
 from wearnav.fileio import atomic_path
+from wearnav.metrics import ecdf
 from wearnav.recording import DeviceStream, Recording, device_order
 from wearnav.timeseries import period
 
 MAX_PLOT_POINTS = 4000      # per time-series line; longer series are min/max decimated
 MAX_MAP_POINTS = 20000      # per trajectory line on a map
+MAX_CDF_POINTS = 2000       # steps per empirical CDF line
 MAX_ACCURACY_CIRCLES = 150  # more circles than this hide the map; draw every k-th
 ACC_COLOR, GYRO_COLOR = "tab:blue", "tab:orange"
 TRUTH_COLOR, FIX_COLOR = "black", "tab:red"
@@ -40,6 +42,18 @@ def save(fig: Figure, out: Path, dpi: int = 110) -> Path:
     with atomic_path(out) as tmp:
         fig.savefig(tmp, dpi=dpi, format="png")
     return Path(out)
+
+
+def plot_ecdf(ax, values, max_points: int = MAX_CDF_POINTS, **kw) -> None:
+    """Draw the empirical CDF of ``values`` (:func:`wearnav.metrics.ecdf`) on ``ax`` as a step
+    function rising from 0 at the smallest value to 1 at the largest; ``kw`` go to
+    ``Axes.step`` (label, colour...). A sample with more distinct values than ``max_points`` is
+    drawn through every k-th step (and the last), which looks the same at figure scale."""
+    x, p = ecdf(values)
+    if x.size > max_points:
+        keep = np.unique(np.r_[np.arange(0, x.size, -(-x.size // max_points)), x.size - 1])
+        x, p = x[keep], p[keep]
+    ax.step(np.r_[x[0], x], np.r_[0.0, p], where="post", **kw)
 
 
 def _segments(t: np.ndarray, span: float) -> list[slice]:

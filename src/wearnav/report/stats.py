@@ -127,28 +127,37 @@ def _fmt_duration(s: float) -> str:
     return f"{s:.1f} s"
 
 
+def _markdown(df: pd.DataFrame, align: str) -> str:
+    """``df`` (cells already formatted as text) as a Markdown table; ``align``: one letter per
+    column, l(eft) or r(ight)."""
+    colalign = [{"l": "left", "r": "right"}[a] for a in align]
+    return df.to_markdown(index=False, disable_numparse=True, colalign=colalign)
+
+
 def stats_markdown(stats: dict) -> str:
     """Markdown tables for one dataset's :func:`dataset_stats`."""
     out = []
     truth = f"{stats['truth_points']:,} in {stats['recordings_with_truth']} recordings" \
         if stats["truth_points"] else "none"
-    out += ["| recordings | subjects | total duration | truth points | location fixes |",
-            "|---:|---:|---:|---:|---:|",
-            f"| {stats['recordings']:,} | {stats['subjects'] or '—'} | "
-            f"{_fmt_duration(stats['duration_s'])} | {truth} | {stats['fixes']:,} |", ""]
-    out += ["| device | recordings | samples | median rate | median interval | jitter (IQR of intervals) "
-            "| intervals > 2× median | with gyro | with orientation |",
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for d, e in stats["devices"].items():
-        out.append(f"| {d} | {e['recordings']:,} | {e['samples']:,} | {e['rate_hz']:.2f} Hz | "
-                   f"{e['interval_median_ms']:.2f} ms | {e['jitter_iqr_ms']:.3f} ms | "
-                   f"{100 * e['gap_share']:.2f} % | {100 * e['gyro_share']:.0f} % | "
-                   f"{100 * e['orientation_share']:.0f} % |")
-    out.append("")
+    overview = pd.DataFrame([{
+        "recordings": f"{stats['recordings']:,}", "subjects": str(stats["subjects"] or "—"),
+        "total duration": _fmt_duration(stats["duration_s"]), "truth points": truth,
+        "location fixes": f"{stats['fixes']:,}"}])
+    out += [_markdown(overview, "rrrrr"), ""]
+    devices = pd.DataFrame([{
+        "device": d, "recordings": f"{e['recordings']:,}", "samples": f"{e['samples']:,}",
+        "median rate": f"{e['rate_hz']:.2f} Hz", "median interval": f"{e['interval_median_ms']:.2f} ms",
+        "jitter (IQR of intervals)": f"{e['jitter_iqr_ms']:.3f} ms",
+        "intervals > 2× median": f"{100 * e['gap_share']:.2f} %", "with gyro": f"{100 * e['gyro_share']:.0f} %",
+        "with orientation": f"{100 * e['orientation_share']:.0f} %"} for d, e in stats["devices"].items()],
+        columns=["device", "recordings", "samples", "median rate", "median interval", "jitter (IQR of intervals)",
+                 "intervals > 2× median", "with gyro", "with orientation"])
+    out += [_markdown(devices, "lrrrrrrrr"), ""]
     if stats["labels"]:
-        out += ["| label kind | value | intervals | total duration |", "|---|---|---:|---:|"]
-        for (kind, value), c in stats["labels"].items():
-            out.append(f"| {kind} | {value} | {c['intervals']:,} | {_fmt_duration(c['duration_s'])} |")
+        labels = pd.DataFrame([{"label kind": kind, "value": value, "intervals": f"{c['intervals']:,}",
+                                "total duration": _fmt_duration(c["duration_s"])}
+                               for (kind, value), c in stats["labels"].items()])
+        out.append(_markdown(labels, "llrr"))
     else:
         out.append("No labels.")
     out.append("")
