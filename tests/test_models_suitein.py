@@ -410,16 +410,42 @@ def test_efficiency_row():
 
     lin = _Linear()
     assert efficiency.flops_per_window(lin) == 2 * 1800 * 2     # a multiply-add is 2 FLOPs
-    row = efficiency.measure(lin, name="linear", batches=(1, 8), repeats=2)
+    row = efficiency.measure(lin, name="linear", batches=(1, 8), min_run_time_s=0.02)
     assert row["params"] == 1800 * 2 + 2 and row["mflops_per_window"] == pytest.approx(0.0072)
     assert row["dense_gflops"] > 0.1 and row["win_per_s_b8"] > 0 and row["train_step_s_b128"] > 0
+    assert row["win_per_s_b8_iqr"] >= 0 and row["train_step_s_b128_iqr"] >= 0
     before = lin.fc.weight.clone()
-    assert efficiency.train_step_seconds(lin, batch=4, repeats=1) > 0
+    assert efficiency.train_step_seconds(lin, batch=4, min_run_time_s=0.01).median_s > 0
     assert torch.equal(lin.fc.weight, before)       # timed on a copy
     assert row["fraction_b8"] == pytest.approx(
         row["mflops_per_window"] * 1e6 * row["win_per_s_b8"] / (row["dense_gflops"] * 1e9))
     with pytest.raises(ConfigError):
         efficiency.measure("no-such-model")
+
+
+def test_time_call_is_blocked_autorange_median_and_iqr(monkeypatch):
+    """time_call: torch's Timer.blocked_autorange on the current thread count and the chosen
+    clock; Timing holds the median and quartiles of its per-call block times, rate() turns them
+    into calls/s. A fake clock that advances 1 ms per call gives 1 ms with no spread; a faked
+    Measurement gives known quartiles."""
+    from wearnav.bench import efficiency
+
+    state = {"now": 0.0}
+    monkeypatch.setitem(efficiency.CLOCKS, "cpu", lambda: state["now"])
+    t = efficiency.time_call(lambda: state.__setitem__("now", state["now"] + 1e-3), min_run_time_s=0.05,
+                             clock="cpu")
+    assert t.calls_per_block >= 1 and t.blocks >= 2
+    assert t.median_s == pytest.approx(1e-3) and t.iqr_s == pytest.approx(0.0, abs=1e-9)
+    assert t.rate(8) == (pytest.approx(8000.0), pytest.approx(0.0, abs=1e-3))
+    slow = efficiency.Timing(median_s=2.0, q25_s=1.0, q75_s=4.0, blocks=4, calls_per_block=1)
+    assert slow.iqr_s == 3.0 and slow.rate(8) == (4.0, 8 / 1.0 - 8 / 4.0)
+    seen = []
+    monkeypatch.setattr(efficiency.benchmark.Timer, "blocked_autorange",
+                        lambda self, min_run_time: seen.append((self._task_spec.num_threads, min_run_time))
+                        or type("M", (), {"times": [1.0, 2.0, 3.0], "number_per_run": 5})())
+    with efficiency._threads(2):
+        t = efficiency.time_call(lambda: None, 0.3)
+    assert seen == [(2, 0.3)] and (t.q25_s, t.median_s, t.q75_s, t.calls_per_block) == (1.5, 2.0, 2.5, 5)
 
 
 # --- the data contract -------------------------------------------------------------------------

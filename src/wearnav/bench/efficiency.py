@@ -3,15 +3,18 @@
 For one model: trainable parameters; FLOPs of one forward pass on one window
 (:class:`torch.utils.flop_counter.FlopCounterMode`, which counts a multiply-add as 2 FLOPs and
 counts only matrix products and convolutions); inference windows/s on this CPU at batch 1 and
-256 (eval mode, ``torch.inference_mode``, warm-up, median of repeats); and, in the same run, the
-CPU's dense fp32 rate (a large square matmul), so that
+256 (eval mode, ``torch.inference_mode``); and, in the same run, the CPU's dense fp32 rate (a
+large square matmul), so that
 
     fraction of the FLOP-bound limit = FLOPs/window × windows/s ÷ dense FLOP/s.
 
 A fraction near 1 means the model runs as fast as its arithmetic allows; small temporal
 convolutions are usually memory-bound and sit far below. On a shared machine every timing is
-noisy: each figure is the median of ``repeats`` timed calls, and the dense rate is measured
-between the model timings (median as well) so both see the same load. ``clock="cpu"`` times with
+noisy. Every timing is :func:`time_call`: ``torch.utils.benchmark.Timer.blocked_autorange``
+(a warm-up that also picks the block size, calls per timed block, so the clock's own overhead is
+negligible; then blocks for at least ``min_run_time_s``), reported as the median and the
+interquartile range over blocks. The dense rate is measured between the model timings (their
+median) so both see the same load. ``clock="cpu"`` times with
 the process's CPU time instead of the wall clock: with one thread it leaves out the time other
 programs hold the core, which makes the fraction reproducible on a busy machine (memory and
 cache contention remain).
@@ -24,9 +27,12 @@ import statistics
 import time
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import torch
+from torch.utils import benchmark
 from torch.utils.flop_counter import FlopCounterMode
 
 from wearnav.models.registry import build, get, n_parameters
@@ -36,27 +42,39 @@ WINDOW = 100
 IMU_CHANNELS = 6
 
 
-CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}  # what a timing counts (module doc)
+MIN_RUN_TIME_S = 0.2  # blocked_autorange's default: timed blocks per measurement, in seconds
 
 
-def _median_seconds(fn: Callable[[], object], repeats: int, warmup: int = 2,
-                    min_time: float = 0.0, clock: str = "wall") -> float:
-    """Median time of ``fn``; a call shorter than ``min_time`` is repeated inside one sample."""
-    now = CLOCKS[clock]
-    for _ in range(warmup):
-        fn()
-    inner = 1
-    if min_time > 0:
-        t0 = now()
-        fn()
-        inner = max(1, int(min_time / max(now() - t0, 1e-6)))
-    samples = []
-    for _ in range(repeats):
-        t0 = now()
-        for _ in range(inner):
-            fn()
-        samples.append((now() - t0) / inner)
-    return max(statistics.median(samples), 1e-9)
+@dataclass(frozen=True)
+class Timing:
+    """Seconds per call of one timed function: median and quartiles over timed blocks."""
+
+    median_s: float
+    q25_s: float
+    q75_s: float
+    blocks: int  # timed blocks (replicates)
+    calls_per_block: int
+
+    @property
+    def iqr_s(self) -> float:
+        return self.q75_s - self.q25_s
+
+    def rate(self, per_call: float = 1.0) -> tuple[float, float]:
+        """(median, IQR) of ``per_call`` ÷ seconds per call, e.g. windows/s with ``per_call`` =
+        the batch size; the IQR from the quartiles of the time (a rate's quartiles are the
+        time's, reciprocated)."""
+        return per_call / self.median_s, per_call / self.q25_s - per_call / self.q75_s
+
+
+def time_call(fn: Callable[[], object], min_run_time_s: float = MIN_RUN_TIME_S, clock: str = "wall") -> Timing:
+    """Time ``fn`` with ``torch.utils.benchmark.Timer.blocked_autorange`` on the current number of
+    torch threads (Timer's default would be one), counting ``clock`` (:data:`CLOCKS`)."""
+    timer = benchmark.Timer(stmt="fn()", globals={"fn": fn}, num_threads=torch.get_num_threads(),
+                            timer=CLOCKS[clock])
+    m = timer.blocked_autorange(min_run_time=min_run_time_s)
+    q25, q50, q75 = (max(float(v), 1e-12) for v in np.percentile(m.times, [25, 50, 75]))
+    return Timing(q50, q25, q75, len(m.times), int(m.number_per_run))
 
 
 @contextmanager
@@ -69,12 +87,13 @@ def _threads(n: int | None):
         torch.set_num_threads(old)
 
 
-def dense_gflops(n: int = 2048, repeats: int = 5, clock: str = "wall") -> float:
-    """Measured dense fp32 matmul rate of this CPU in GFLOP/s (2·n³ FLOPs per n×n product)."""
+def dense_gflops(n: int = 2048, min_run_time_s: float = MIN_RUN_TIME_S, clock: str = "wall") -> float:
+    """Measured dense fp32 matmul rate of this CPU in GFLOP/s (2·n³ FLOPs per n×n product; the
+    median time)."""
     a, b = torch.randn(n, n), torch.randn(n, n)
     with torch.inference_mode():
-        dt = _median_seconds(lambda: a @ b, repeats, warmup=1, clock=clock)
-    return 2 * n**3 / dt / 1e9
+        t = time_call(lambda: a @ b, min_run_time_s, clock)
+    return 2 * n**3 / t.median_s / 1e9
 
 
 def window_batch(batch: int, n_devices: int = DEVICES, window: int = WINDOW,
@@ -93,18 +112,18 @@ def flops_per_window(model: torch.nn.Module, n_devices: int = DEVICES, window: i
     return int(counter.get_total_flops())
 
 
-def windows_per_second(model: torch.nn.Module, batch: int, repeats: int = 7,
-                       n_devices: int = DEVICES, window: int = WINDOW, clock: str = "wall") -> float:
-    """Inference throughput at a batch size: eval mode, inference_mode, median of repeats."""
+def windows_per_second(model: torch.nn.Module, batch: int, min_run_time_s: float = MIN_RUN_TIME_S,
+                       n_devices: int = DEVICES, window: int = WINDOW, clock: str = "wall") -> tuple[float, float]:
+    """Inference throughput at a batch size (eval mode, inference_mode): (median, IQR) windows/s."""
     x, mask = window_batch(batch, n_devices, window)
     model.eval()
     with torch.inference_mode():
-        dt = _median_seconds(lambda: model(x, mask), repeats, warmup=3, min_time=0.02, clock=clock)
-    return batch / dt
+        t = time_call(lambda: model(x, mask), min_run_time_s, clock)
+    return t.rate(batch)
 
 
-def train_step_seconds(model: torch.nn.Module, batch: int = 128, repeats: int = 5,
-                       n_devices: int = DEVICES, window: int = WINDOW, clock: str = "wall") -> float:
+def train_step_seconds(model: torch.nn.Module, batch: int = 128, min_run_time_s: float = MIN_RUN_TIME_S,
+                       n_devices: int = DEVICES, window: int = WINDOW, clock: str = "wall") -> Timing:
     """Seconds of one Adam step on ``model.loss`` (forward, backward, update) at a batch size:
     the model's share of a training epoch, without the data path. Works on a copy, so the
     model's weights and statistics are left as they were."""
@@ -120,22 +139,22 @@ def train_step_seconds(model: torch.nn.Module, batch: int = 128, repeats: int = 
         model.loss(b)[0].backward()
         opt.step()
 
-    return _median_seconds(step, repeats, warmup=2, clock=clock)
+    return time_call(step, min_run_time_s, clock)
 
 
 def measure(model: torch.nn.Module | str, name: str | None = None, batches: Sequence[int] = (1, 256),
-            repeats: int = 7, n_devices: int = DEVICES, window: int = WINDOW, threads: int | None = None,
-            clock: str = "wall", train_batch: int | None = 128, **build_kw) -> dict:
+            min_run_time_s: float = MIN_RUN_TIME_S, n_devices: int = DEVICES, window: int = WINDOW,
+            threads: int | None = None, clock: str = "wall", train_batch: int | None = 128, **build_kw) -> dict:
     """One row of the efficiency table for a model (an instance or a registered name), with
     ``threads`` intra-op threads (default: torch's current setting); ``train_batch`` None skips
-    the training-step timing."""
+    the training-step timing. Each timing runs for at least ``min_run_time_s``."""
     if clock not in CLOCKS:
         raise ValueError(f"clock must be one of {sorted(CLOCKS)}, got {clock!r}")
     with _threads(threads):
-        return _measure(model, name, batches, repeats, n_devices, window, clock, train_batch, build_kw)
+        return _measure(model, name, batches, min_run_time_s, n_devices, window, clock, train_batch, build_kw)
 
 
-def _measure(model, name, batches, repeats, n_devices, window, clock, train_batch, build_kw) -> dict:
+def _measure(model, name, batches, min_run_time_s, n_devices, window, clock, train_batch, build_kw) -> dict:
     if isinstance(model, str):
         name = name or model
         if get(model).task != "odometry":
@@ -146,17 +165,19 @@ def _measure(model, name, batches, repeats, n_devices, window, clock, train_batc
     row: dict = {"model": name, "params": n_parameters(model), "mflops_per_window": flops / 1e6}
     dense = []
     for b in batches:
-        dense.append(dense_gflops(clock=clock))
-        row[f"win_per_s_b{b}"] = windows_per_second(model, b, repeats, n_devices, window, clock)
-    dense.append(dense_gflops(clock=clock))
+        dense.append(dense_gflops(min_run_time_s=min_run_time_s, clock=clock))
+        row[f"win_per_s_b{b}"], row[f"win_per_s_b{b}_iqr"] = windows_per_second(
+            model, b, min_run_time_s, n_devices, window, clock)
+    dense.append(dense_gflops(min_run_time_s=min_run_time_s, clock=clock))
     row["dense_gflops"] = statistics.median(dense)
     for b in batches:
         row[f"fraction_b{b}"] = flops * row[f"win_per_s_b{b}"] / (row["dense_gflops"] * 1e9)
     if train_batch and getattr(model, "learned", True) and any(p.requires_grad for p in model.parameters()):
-        row[f"train_step_s_b{train_batch}"] = train_step_seconds(model, train_batch, max(3, repeats // 2),
-                                                               n_devices, window, clock)
+        t = train_step_seconds(model, train_batch, min_run_time_s, n_devices, window, clock)
+        row[f"train_step_s_b{train_batch}"], row[f"train_step_s_b{train_batch}_iqr"] = t.median_s, t.iqr_s
     row["threads"] = torch.get_num_threads()
     row["clock"] = clock
+    row["min_run_time_s"] = min_run_time_s
     return row
 
 
@@ -197,10 +218,13 @@ def write_report(rows, out, odometry_suite=None) -> "Path":
              f"this machine: {cpu}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
              f"{int(df['threads'].iloc[0])} thread(s), {df['clock'].iloc[0]} clock.", "",
              "FLOPs per window: one forward pass on one window (3 devices × 100 samples × 6 channels), "
-             "`torch.utils.flop_counter` (a multiply-add = 2 FLOPs). Windows/s: inference, median of repeats. "
-             "Fraction = FLOPs/window × windows/s ÷ the dense fp32 matmul rate measured in the same run "
-             "(the FLOP-bound limit). Train step: one Adam step at batch 128. "
+             "`torch.utils.flop_counter` (a multiply-add = 2 FLOPs). Timings: "
+             "`torch.utils.benchmark.Timer.blocked_autorange` (warm-up, then blocks of calls for at least "
+             f"{df['min_run_time_s'].iloc[0]:g} s per timing); each column gives the median over blocks and, in its `_iqr` column, the "
+             "interquartile range (75th − 25th percentile). Windows/s: inference. "
+             "Fraction = FLOPs/window × median windows/s ÷ the dense fp32 matmul rate measured in the same run "
+             "(the FLOP-bound limit). Train step: one Adam step at batch 128, seconds. "
              + ("Train s/epoch: measured by the odometry suite's runs. " if odometry_suite else "")
-             + "The machine is shared: timings are medians and vary with load.", "",
-             df.drop(columns=["threads", "clock"]).to_markdown(index=False, floatfmt=".3g"), ""]
+             + "The machine is shared: timings vary with load.", "",
+             df.drop(columns=["threads", "clock", "min_run_time_s"]).to_markdown(index=False, floatfmt=".3g"), ""]
     return write_text_atomic("\n".join(lines), out / "results.md")
