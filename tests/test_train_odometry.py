@@ -182,3 +182,54 @@ def test_sparse_truth_is_scored_at_its_points_only():
     assert row["points"] == later.size == 5
     assert row["mean_error"] == pytest.approx(np.mean(later), rel=1e-6)
     assert row["point_errors"] == pytest.approx(later, rel=1e-6)
+
+
+def test_sequence_cache_is_bounded_and_drops_the_least_recently_used(tiny, monkeypatch):
+    """load_sequences keeps at most MAX_CACHED_SEQUENCES aligned sequences per process (a long
+    benchmark over many datasets and preprocessing variants must not grow without bound): with
+    room for 2, aligning 3 recordings keeps the last 2; asking again for those aligns nothing,
+    asking for the first aligns it again."""
+    import importlib
+
+    from wearnav.dataset import Dataset
+    from wearnav.evaluate import BoundedCache, MAX_CACHED_SEQUENCES, load_sequences
+
+    module = importlib.import_module(load_sequences.__module__)
+    assert module._CACHE.maxsize == MAX_CACHED_SEQUENCES
+    cache = BoundedCache(2)
+    monkeypatch.setattr(module, "_CACHE", cache)
+    calls = []
+    real_align = module.align
+    monkeypatch.setattr(module, "align", lambda rec, pcfg: calls.append(rec.name) or real_align(rec, pcfg))
+    view = Dataset.open(tiny)
+    names = view.names[:3]
+    cfg = _cfg(tiny)
+    load_sequences(_View(view, names), cfg)
+    assert calls == names and len(cache) == 2
+    load_sequences(_View(view, names[1:]), cfg)
+    assert calls == names  # both still cached
+    load_sequences(_View(view, names[:1]), cfg)
+    assert calls == names + names[:1] and len(cache) == 2
+
+
+def test_bounded_cache_keeps_the_most_recently_used():
+    from wearnav.evaluate import BoundedCache
+
+    c = BoundedCache(2)
+    c["a"], c["b"] = 1, 2
+    assert c["a"] == 1  # a read refreshes "a"
+    c["c"] = 3
+    assert list(c) == ["a", "c"] and "b" not in c
+
+
+class _View:
+    """A Dataset view restricted to some names (load_sequences needs names, path and load)."""
+
+    def __init__(self, ds, names):
+        self.ds, self.names = ds, list(names)
+
+    def path(self, name):
+        return self.ds.path(name)
+
+    def load(self, name):
+        return self.ds.load(name)

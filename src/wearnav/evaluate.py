@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +34,33 @@ DENSE_TRUTH_MAX_DT = 1.0
 SPARSE_MAX_GAP = 1.0
 PERCENTILES = (50, 75, 90, 95)
 
-_CACHE: dict[tuple, Aligned] = {}
+class BoundedCache(OrderedDict):
+    """A dict holding at most ``maxsize`` entries: storing one more drops the least recently
+    used (read or stored). ``functools.lru_cache`` does not fit here: the value is computed from
+    a Dataset view, which is not part of the key."""
+
+    def __init__(self, maxsize: int):
+        super().__init__()
+        self.maxsize = maxsize
+
+    def __getitem__(self, key):
+        value = super().__getitem__(key)
+        self.move_to_end(key)
+        return value
+
+    def __setitem__(self, key, value):
+        super().__setitem__(key, value)
+        self.move_to_end(key)
+        while len(self) > self.maxsize:
+            self.popitem(last=False)
+
+
+# Aligned sequences kept per process (each holds its Recording): enough for every recording of one
+# dataset and preprocessing (ILC2, the largest shipped set, has a few hundred traces), so a suite
+# that evaluates several models on one split preprocesses it once, while a long benchmark over
+# many datasets and preprocessing variants does not keep them all.
+MAX_CACHED_SEQUENCES = 1024
+_CACHE: BoundedCache = BoundedCache(MAX_CACHED_SEQUENCES)
 
 
 def load_sequences(view, cfg, progress: bool = False) -> list[Aligned]:
