@@ -17,14 +17,15 @@ from wearnav.realism.gait import (MAX_STEP_GAP_S, MAX_WALK_GYRO, MIN_SEGMENT_S, 
                                   STEP_BAND_HZ, TRIM_S, WALK_STD_BAND, WALK_WINDOW_S, detect_walking,
                                   labelled_walking, resample, segments, walking_stretches)
 from wearnav.realism.report import realism_report
-from wearnav.realism.sources import (CALIBRATION_NOTES, CLAIMED, FIX_REAL, GROUPS, ILC2_CALIBRATION,
-                                     IPIN_CALIBRATION, SIM_DURATION_S, Group, RealSource, open_real,
-                                     simulate_realism_walks)
+from wearnav.realism.sources import (CALIBRATION_COLUMNS, CALIBRATION_NOTES, CALIBRATION_TABLE, CLAIMED, FIX_REAL,
+                                     GROUPS, ILC2_CALIBRATION, IPIN_CALIBRATION, SIM_DURATION_S, Group, RealSource,
+                                     open_real, simulate_realism_walks)
 from wearnav.realism.stats import (BANDS, F_DOM_BAND_HZ, STAT_LABELS, STATS, STRIDE_LAGS_S, recording_segments,
                                    segment_stats, spectrum)
 
 __all__ = [
-    "BANDS", "CALIBRATION_NOTES", "CLAIMED", "FIX_REAL", "FIX_STATS", "F_DOM_BAND_HZ", "GROUPS", "Group",
+    "BANDS", "CALIBRATION_COLUMNS", "CALIBRATION_NOTES", "CALIBRATION_TABLE", "CLAIMED", "FIX_REAL", "FIX_STATS",
+    "F_DOM_BAND_HZ", "GROUPS", "Group",
     "ILC2_CALIBRATION", "IPIN_CALIBRATION", "IQR_MIN_SEGMENTS", "JUMP_SPEED_MPS", "MAX_STEP_GAP_S",
     "MAX_WALK_GYRO", "MIN_SEGMENT_S", "OUTAGE_GAP_S", "RATE_HZ", "RealSource", "SEGMENT_S",
     "SIM_DURATION_S", "SIM_REFERENCE_EVERY_S", "SMALL_SET_TOLERANCE", "STATS", "STAT_LABELS",

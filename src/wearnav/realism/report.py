@@ -61,8 +61,8 @@ from wearnav.errors import ConfigError
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.realism.calibrate import IQR_MIN_SEGMENTS, SourceResult, compute_realism, fix_compare, summary
 from wearnav.realism.fixes import FIX_STATS, JUMP_SPEED_MPS, OUTAGE_GAP_S, SIM_REFERENCE_EVERY_S
-from wearnav.realism.sources import (CALIBRATION_NOTES, CLAIMED, FIX_REAL, GROUPS, ILC2_CALIBRATION, SIM_DURATION_S,
-                                     Group, RealSource)
+from wearnav.realism.sources import (CALIBRATION_COLUMNS, CALIBRATION_NOTES, CALIBRATION_TABLE, CLAIMED, FIX_REAL,
+                                     GROUPS, ILC2_CALIBRATION, SIM_DURATION_S, Group, RealSource)
 from wearnav.realism.stats import STAT_LABELS, STATS
 from wearnav.report.plots import plot_ecdf
 
@@ -271,7 +271,8 @@ def realism_report(data: Path, out: Path, work: Path, n_sim: int = 12, limit: in
              "benchmarks must not evaluate on IPIN trials 01 and 02.**",
              "- MotionSense (`wlk` trials), UJI (phone and watch), Oxford validation (all placements): "
              "used whole; no benchmark evaluates odometry on them.", ""]
-    lines += ["## What is calibrated against what", "", CALIBRATION_NOTES, ""]
+    lines += ["## What is calibrated against what", "",
+              _markdown([list(r) for r in CALIBRATION_TABLE], list(CALIBRATION_COLUMNS)), "", CALIBRATION_NOTES, ""]
     prev = json.loads(Path(before).read_text()) if before is not None else None
     counts = [[g["title"], *([_band_count(prev["groups"].get(key))] if prev else []), _band_count(g)]
               for key, g in res["groups"].items() if g["real"]]

@@ -86,19 +86,39 @@ CLAIMED = {
     "phone_back_pocket": ("f_dom", "cadence"),
 }
 
-# What the calibration (simulator version 2) set, against which statistics and recordings.
+# What the calibration (simulator version 2) set, against which statistics and recordings: one row
+# per parameter (the page's table), then what is not calibrated.
+CALIBRATION_COLUMNS = ("simulator parameter (src/wearnav/simulate/)", "calibrated against", "real recordings")
+CALIBRATION_TABLE: tuple[tuple[str, str, str], ...] = (
+    ("walker population cadence N(1.76, 0.06) steps/s (`config.sample_subject`)",
+     "cadence, f_dom of every placement",
+     "all sources above (real walkers: 1.66–1.88 steps/s)"),
+    ("step-to-step timing variability `step_time_cv` (path: cadence wander over one step)",
+     "step-period CV",
+     "ILC2 F1, IPIN T01-02, Oxford hand; UJI watch"),
+    ("step-to-step amplitude variability `step_amp_cv`, left/right asymmetry `step_asymmetry`",
+     "step-amplitude CV, autocorr 1 step, power 0.3–1.2 Hz",
+     "same"),
+    ("hand-held phone: step bob `hand_bob_deg`, forearm bounce and stride rise `hand_bounce_m`, heel-strike "
+     "shock `hand_impact` (peak m/s², a 20 ms spike train, `body.impact_train`)",
+     "\\|gyro\\|, \\|acc\\| std, horiz/vert, power by band",
+     "ILC2 F1, IPIN T01-02, Oxford hand"),
+    ("watch: forearm roll at step frequency `wrist_wobble_deg`, arm swing 10–20°, the same heel-strike "
+     "shock",
+     "\\|gyro\\|, f_dom, autocorr 1 step, power by band",
+     "UJI watch"),
+    ("front pocket: thigh heel-strike spike `leg_impact` (peak m/s², 16 ms, right heel only), irregular "
+     "soft-tissue wobble `thigh_wobble_mm`, pocket 18 cm down the thigh, hip swing 22–30°",
+     "\\|acc\\| std, \\|gyro\\|, autocorr 1 step, horiz/vert, power by band",
+     "MotionSense, UJI phone, Oxford frontpocket"),
+    ("bag knocks on each heel strike (`BAG_JOLT_GAIN` × the hands' shock)",
+     "\\|acc\\| std, power by band",
+     "Oxford bag"),
+    ("GNSS multipath jumps (rate, size, hold), outages, accuracy growing with the offset (`fixes.FixNoise`)",
+     "jumps per 100 fixes, outage lengths, reported accuracy / error",
+     "IPIN T01-02 phone GNSS at POSI points"),
+)
 CALIBRATION_NOTES = """\
-| simulator parameter (src/wearnav/simulate/) | calibrated against | real recordings |
-|---|---|---|
-| walker population cadence N(1.76, 0.06) steps/s (`config.sample_subject`) | cadence, f_dom of every placement | all sources above (real walkers: 1.66–1.88 steps/s) |
-| step-to-step timing variability `step_time_cv` (path: cadence wander over one step) | step-period CV | ILC2 F1, IPIN T01-02, Oxford hand; UJI watch |
-| step-to-step amplitude variability `step_amp_cv`, left/right asymmetry `step_asymmetry` | step-amplitude CV, autocorr 1 step, power 0.3–1.2 Hz | same |
-| hand-held phone: step bob `hand_bob_deg`, forearm bounce and stride rise `hand_bounce_m`, heel-strike shock `hand_impact` (peak m/s², a 20 ms spike train, `body.impact_train`) | \\|gyro\\|, \\|acc\\| std, horiz/vert, power by band | ILC2 F1, IPIN T01-02, Oxford hand |
-| watch: forearm roll at step frequency `wrist_wobble_deg`, arm swing 10–20°, the same heel-strike shock | \\|gyro\\|, f_dom, autocorr 1 step, power by band | UJI watch |
-| front pocket: thigh heel-strike spike `leg_impact` (peak m/s², 16 ms, right heel only), irregular soft-tissue wobble `thigh_wobble_mm`, pocket 18 cm down the thigh, hip swing 22–30° | \\|acc\\| std, \\|gyro\\|, autocorr 1 step, horiz/vert, power by band | MotionSense, UJI phone, Oxford frontpocket |
-| bag knocks on each heel strike (`BAG_JOLT_GAIN` × the hands' shock) | \\|acc\\| std, power by band | Oxford bag |
-| GNSS multipath jumps (rate, size, hold), outages, accuracy growing with the offset (`fixes.FixNoise`) | jumps per 100 fixes, outage lengths, reported accuracy / error | IPIN T01-02 phone GNSS at POSI points |
-
 Not calibrated here:
 
 - **Earbuds**: no real earbud (or head-worn IMU) walking data is in ../shared/data. Assumed: the head
