@@ -11,9 +11,10 @@ death of the process. Run results, checkpoints and the dataset manifest are writ
 (measured cost on the development machine: see ``docs/design.md``, "Writes that survive a crash").
 
 Cleanup policy: a writer killed outright (SIGKILL, OOM killer, power loss) leaves its temporary
-file behind. Such a file is never read (hidden, wrong name) and is removed by the next successful
-write of the same target on the same host, once its writer's process id is no longer alive; the
-temporary file of a writer that is still running is left alone.
+file behind. Such a file is never read (hidden, wrong name) and is removed when the next write of
+the same target on the same host starts, once its writer's process id is no longer alive (the
+temporary file of a writer still running is left alone; one written on another host sharing the
+folder is left too, since its writer's liveness cannot be told from here).
 """
 
 from __future__ import annotations
@@ -102,10 +103,13 @@ def stale_temps(path: str | Path) -> list[Path]:
 def atomic_path(path: str | Path, durable: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; when the block succeeds it is renamed to ``path``
     (with ordinary file permissions), when it fails it is deleted. ``durable``: fsync the file
-    before the rename and the folder after it (survives a power cut). Afterwards the temporary
-    files of killed writers of ``path`` are removed (module docstring)."""
+    before the rename and the folder after it (survives a power cut). First, the temporary files
+    that killed writers of ``path`` left are removed (module docstring), so at most one, that of
+    the last writer killed, is ever left."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    for stale in stale_temps(path):
+        stale.unlink(missing_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{host_tag()}.{os.getpid()}.", suffix=".tmp",
                                dir=path.parent)
     os.close(fd)
@@ -120,8 +124,6 @@ def atomic_path(path: str | Path, durable: bool = False) -> Iterator[Path]:
         raise
     if durable:
         fsync_dir(path.parent)
-    for stale in stale_temps(path):
-        stale.unlink(missing_ok=True)
 
 
 def write_text_atomic(text: str, path: str | Path, durable: bool = False) -> Path:
