@@ -98,7 +98,9 @@ def locked(run: str | Path) -> Iterator[Path]:
     run.mkdir(parents=True, exist_ok=True)
     key = os.path.realpath(run / LOCK)
     with _held_guard:
-        lock = _held.get(key) or FileLock(key, timeout=0, thread_local=False)
+        lock = _held.get(key)
+        if lock is None:
+            lock = FileLock(key, timeout=0, thread_local=False)
         try:
             lock.acquire(timeout=0)
         except Timeout:
