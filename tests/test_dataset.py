@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import pandas as pd
 import pytest
 
@@ -87,3 +89,27 @@ def test_provenance_is_saved_with_the_dataset(tmp_path):
     prov = Dataset.open(tmp_path / "d").provenance
     assert prov["generator"] == "test" and prov["seed"] == 7 and prov["recordings"] == 1
     assert prov["wearnav"] and prov["created"]
+
+
+def test_a_written_dataset_is_on_disk_before_it_is_renamed_into_place(tmp_path, monkeypatch):
+    """Manifest, dataset.yaml and recordings are fsynced, then the work folder, before the rename;
+    the parent folder after it (a power cut leaves the old dataset or the whole new one)."""
+    import os
+
+    from wearnav import dataset as dataset_mod
+
+    events = []
+    real_replace = os.replace
+    monkeypatch.setattr(dataset_mod, "fsync_file", lambda p: events.append(("file", Path(p).name)))
+    monkeypatch.setattr(dataset_mod, "fsync_dir", lambda p: events.append(("dir", Path(p))))
+    monkeypatch.setattr(dataset_mod.os, "replace", lambda a, b: (events.append(("rename", Path(b))),
+                                                                 real_replace(a, b))[1])
+    with DatasetWriter(tmp_path / "d") as w:
+        w.add(_rec("a", "u1", "STW"), split="train")
+        w.add(_rec("b", "u2", "STW"), split="test")
+        work = w.tmp
+    # recordings' own atomic writes rename inside the work folder; the dataset's rename is last
+    events = [e for e in events if not (e[0] == "rename" and e[1].parent == work)]
+    files = {name for kind, name in events[:-3] if kind == "file"}
+    assert files == {"a.h5", "b.h5", "manifest.csv", "dataset.yaml"}
+    assert events[-3:] == [("dir", work), ("rename", tmp_path / "d"), ("dir", tmp_path)]

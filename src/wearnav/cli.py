@@ -215,16 +215,18 @@ def train(
 ):
     """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json)."""
     from wearnav.evaluate import evaluate_run
+    from wearnav.runs import locked
     from wearnav.train.odometry import TrainConfig, fit, prepare_run
 
     cfg = TrainConfig(model=model, data=str(data), devices=_devices(devices), epochs=epochs, seed=seed,
                       lr=lr, batch=batch, patience=patience, max_minutes=max_time)
     run = prepare_run(cfg, out)
-    record = fit(cfg, run, progress=_progress())
-    _echo_json({"run": str(run), "training": record})
-    if evaluate:
-        m = evaluate_run(run, splits=("test",), training=record, progress=_progress())
-        _echo_json({"test": m["splits"]["test"]["summary"]})
+    with locked(run):  # one process per run folder, from training through its metrics
+        record = fit(cfg, run, progress=_progress())
+        _echo_json({"run": str(run), "training": record})
+        if evaluate:
+            m = evaluate_run(run, splits=("test",), training=record, progress=_progress())
+            _echo_json({"test": m["splits"]["test"]["summary"]})
 
 
 @app.command("eval")

@@ -17,7 +17,6 @@ import os
 import re
 import shutil
 import signal
-import socket
 import tempfile
 import threading
 from collections.abc import Iterable, Iterator
@@ -28,7 +27,7 @@ import pandas as pd
 import yaml
 
 from wearnav.errors import FormatError, MissingFileError, Terminated, ValidationError
-from wearnav.fileio import require_regular_file
+from wearnav.fileio import fsync_dir, fsync_file, host_tag, pid_alive, require_regular_file
 from wearnav.provenance import provenance
 from wearnav.recording import Recording, check_name, check_text
 
@@ -61,22 +60,6 @@ def manifest_row(rec: Recording, file: str, split: str = "") -> dict:
     return row
 
 
-def _host() -> str:
-    return socket.gethostname().replace(".", "_").replace("/", "_") or "host"
-
-
-def _alive(pid: int) -> bool:
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:  # exists but belongs to someone else
-        return True
-    return True
-
-
 def _work_dir_re(root: Path) -> re.Pattern:
     """Hidden siblings a writer of ``root`` makes: ``.<name>.<host>.<pid>.<random>.partial`` (being
     written) and ``.old`` (the dataset being replaced, for the instant between two renames)."""
@@ -86,14 +69,14 @@ def _work_dir_re(root: Path) -> re.Pattern:
 def clean_stale_work_dirs(root: Path) -> list[Path]:
     """Remove the work folders that writers of ``root`` on this host left when they died (kill -9,
     power loss); an ``.old`` copy whose replacement never landed is moved back to ``root``."""
-    pattern, host, cleaned = _work_dir_re(root), _host(), []
+    pattern, host, cleaned = _work_dir_re(root), host_tag(), []
     try:
         siblings = list(root.parent.iterdir())
     except OSError:
         return cleaned
     for p in sorted(siblings):
         m = pattern.match(p.name)
-        if not m or m["host"] != host or _alive(int(m["pid"])):
+        if not m or m["host"] != host or pid_alive(int(m["pid"])):
             continue
         if m["kind"] == "old" and not (root.exists() or root.is_symlink()):
             os.replace(p, root)
@@ -182,7 +165,7 @@ class DatasetWriter:
                 break
         self.root.parent.mkdir(parents=True, exist_ok=True)
         clean_stale_work_dirs(self.root)
-        prefix = f".{self.root.name}.{_host()}.{os.getpid()}."
+        prefix = f".{self.root.name}.{host_tag()}.{os.getpid()}."
         self.tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=".partial", dir=self.root.parent))
         self.rows: list[dict] = []
         self._old_handler = None
@@ -212,6 +195,11 @@ class DatasetWriter:
         info = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, **self.provenance,
                 **provenance(), "recordings": len(self.rows)}
         (self.tmp / PROVENANCE).write_text(yaml.safe_dump(info, sort_keys=False), encoding="utf-8")
+        # On disk before the folder is renamed into place, so that a power cut leaves the old
+        # dataset or the whole new one (manifest and recordings), never a manifest naming empty files.
+        for entry in self.tmp.iterdir():
+            fsync_file(entry)
+        fsync_dir(self.tmp)
         reason = replaceable_reason(self.root)  # again: the folder may have changed meanwhile
         if reason:
             raise ValidationError(reason, self.root)
@@ -229,6 +217,7 @@ class DatasetWriter:
                 raise
         finally:
             self._critical = False
+        fsync_dir(self.root.parent)  # the rename itself
         if old is not None:
             if old.is_symlink():
                 old.unlink()

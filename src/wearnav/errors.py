@@ -50,6 +50,10 @@ class ConfigError(WearnavError):
     """A configuration value or command-line option is invalid."""
 
 
+class BusyError(WearnavError):
+    """Another process holds what this one needs (a run folder being trained into)."""
+
+
 class WearnavWarning(UserWarning):
     """Input was accepted with a caveat the user must know (e.g. a file that looks cut short)."""
 

@@ -247,7 +247,7 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
         res["wall_s"] = round(time.perf_counter() - t0, 2)
         out["splits"][split] = res
         for name, traj in trajs.items():
-            with atomic_path(dest / "trajectories" / split / f"{name}.csv") as tmp:
+            with atomic_path(dest / "trajectories" / split / f"{name}.csv", durable=True) as tmp:
                 traj.to_csv(tmp, index=False, float_format="%.4f")
         from wearnav.report.odometry import plot_run_split
 

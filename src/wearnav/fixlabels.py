@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from wearnav.errors import ConfigError, ValidationError
+from wearnav.fileio import savez_atomic
 from wearnav.preprocess import PreprocessConfig, align, interpolate_position
 from wearnav.recording import Recording
 from wearnav.timeseries import interp_onto
@@ -133,15 +134,11 @@ class Segments:
         return Segments(**{k: np.concatenate(v) for k, v in cols.items()}, names=names)
 
     def save(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp.npz")
+        """Write the segments as ``.npz`` at ``path``, atomically and durably."""
         d = {k: v for k, v in asdict(self).items() if k not in ("names", "start_pos")}
-        np.savez(tmp, names=np.asarray(self.names, dtype=str),
-                 start_pos=self.start_pos if self.start_pos is not None else np.full((len(self.names), 2), np.nan),
-                 **d)
-        tmp.replace(path)
-        return path
+        return savez_atomic(path, durable=True, names=np.asarray(self.names, dtype=str),
+                            start_pos=self.start_pos if self.start_pos is not None
+                            else np.full((len(self.names), 2), np.nan), **d)
 
     @classmethod
     def load(cls, path: str | Path) -> "Segments":

@@ -3,7 +3,14 @@
 ``runs/<suite>/<model>-<hash8>/`` holds ``config.yaml`` (the config plus the data's provenance,
 package version and git commit), ``checkpoints/`` (best.ckpt, last.ckpt), ``metrics.json``,
 ``trajectories/`` and ``plots/``. A run is complete when ``metrics.json`` exists: suites skip
-complete runs, so an interrupted benchmark resumes where it stopped.
+complete runs, so an interrupted benchmark resumes where it stopped. The results (config,
+metrics, training record) are written durably: on disk before the call returns
+(:func:`wearnav.fileio.atomic_path`).
+
+One process at a time trains into a run folder: :func:`locked` holds the folder's lock file
+``.wearnav.lock`` (an OS file lock, released when the process ends however it ends), and a second
+process is refused with :class:`~wearnav.errors.BusyError`. The lock file is empty and stays; it
+is neither a result (a run is still complete only with ``metrics.json``) nor part of the hash.
 
 Only what changes the numbers enters the hash (model, data, splits, preprocessing, windows,
 training hyper-parameters, seed); where a run is written, progress bars and the time budget do
@@ -15,17 +22,23 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import os
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import yaml
+from filelock import FileLock, Timeout
 
-from wearnav.errors import FormatError, MissingFileError
+from wearnav.errors import BusyError, FormatError, MissingFileError
 from wearnav.fileio import write_text_atomic
 from wearnav.provenance import provenance
 
 CONFIG = "config.yaml"
 METRICS = "metrics.json"
+LOCK = ".wearnav.lock"
 
 
 def to_dict(cfg: Any) -> dict:
@@ -59,9 +72,71 @@ def is_complete(run: str | Path) -> bool:
     return (Path(run) / METRICS).is_file()
 
 
+def is_blank(run: str | Path) -> bool:
+    """Whether ``run`` may become a new run folder: absent, or a folder holding nothing but the
+    lock file."""
+    run = Path(run)
+    if not run.exists():
+        return True
+    return run.is_dir() and all(p.name == LOCK for p in run.iterdir())
+
+
+_held: dict[str, FileLock] = {}  # lock file → this process's hold on it (nested blocks share it)
+_held_guard = threading.Lock()
+
+
+@contextmanager
+def locked(run: str | Path) -> Iterator[Path]:
+    """Hold run folder ``run`` (created if absent) for this process during the block.
+
+    Never waits: if another process holds it, raises :class:`BusyError`
+    (``R: another wearnav process is using this run folder (pid N)``; the pid where the system
+    tells). Re-entrant within a process, so a command may hold the folder across preparing,
+    training and evaluating while ``fit`` takes it again inside.
+    """
+    run = Path(run)
+    run.mkdir(parents=True, exist_ok=True)
+    key = os.path.realpath(run / LOCK)
+    with _held_guard:
+        lock = _held.get(key)
+        if lock is None:
+            lock = FileLock(key, timeout=0, thread_local=False)
+        try:
+            lock.acquire(timeout=0)
+        except Timeout:
+            pid = lock_holder(run)
+            raise BusyError("another wearnav process is using this run folder"
+                            + (f" (pid {pid})" if pid else ""), run) from None
+        _held[key] = lock
+    try:
+        yield run
+    finally:
+        with _held_guard:
+            lock.release()
+            if not lock.is_locked:
+                _held.pop(key, None)
+
+
+def lock_holder(run: str | Path) -> int | None:
+    """The id of the process holding ``run``'s lock, where the system tells (Linux's
+    ``/proc/locks``); else None."""
+    try:
+        st = os.stat(Path(run) / LOCK)
+        table = Path("/proc/locks").read_text()
+    except OSError:
+        return None
+    where = f"{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}"
+    for line in table.splitlines():
+        f = line.split()  # "1: FLOCK  ADVISORY  WRITE 4242 fd:01:1234567 0 EOF" ("->": a waiter)
+        if len(f) >= 6 and f[1] == "FLOCK" and f[5] == where and f[4].isdigit():
+            return int(f[4])
+    return None
+
+
 def write_config(run: str | Path, cfg: dict, extra: dict | None = None) -> Path:
     doc = {"config": cfg, "provenance": provenance(), **(extra or {})}
-    return write_text_atomic(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), Path(run) / CONFIG)
+    return write_text_atomic(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), Path(run) / CONFIG,
+                             durable=True)
 
 
 def read_config(run: str | Path) -> dict:
@@ -78,7 +153,8 @@ def read_config(run: str | Path) -> dict:
 
 
 def write_json(path: str | Path, obj: dict) -> Path:
-    return write_text_atomic(json.dumps(obj, indent=1, default=float), path)
+    """``obj`` as JSON at ``path``, atomically and durably (on disk when this returns)."""
+    return write_text_atomic(json.dumps(obj, indent=1, default=float), path, durable=True)
 
 
 def write_metrics(run: str | Path, metrics: dict) -> Path:

@@ -158,7 +158,7 @@ def prepare_run(cfg: ClassifyConfig, run: str | Path) -> Path:
         if old != record:
             raise ConfigError("holds a run of another configuration; choose another --out", run)
         return run
-    if run.exists() and (not run.is_dir() or any(run.iterdir())):
+    if not runs.is_blank(run):
         raise ConfigError("exists and is not an empty folder or a run folder; choose another --out", run)
     ds = Dataset.open(cfg.data)
     for side in ("train", "test"):
@@ -199,11 +199,16 @@ def _sample_x(wds: WindowDataset, n: int = 4096) -> torch.Tensor:
 
 
 def fit(cfg: ClassifyConfig, run: str | Path, progress: bool = True) -> dict:
-    """Train into ``run`` (resuming from its last.ckpt). Returns and writes training.json."""
+    """Train into ``run`` (resuming from its last.ckpt). Returns and writes training.json. Holds
+    the run folder's lock while it runs (:func:`wearnav.runs.locked`)."""
+    with runs.locked(run):
+        return _fit(cfg, Path(run), progress)
+
+
+def _fit(cfg: ClassifyConfig, run: Path, progress: bool) -> dict:
     from wearnav.augment import ExpandedWindows, expansion_copies, noise_sigma
     from wearnav.dataset import Dataset
 
-    run = Path(run)
     ds = Dataset.open(cfg.data)
     train_seqs = sequences(split_view(ds, cfg.scheme, "train"), cfg, progress)
     train_ds = _subsample(_windows(train_seqs, cfg, cfg.classes), cfg.max_train_windows, cfg.seed)

@@ -5,6 +5,10 @@ loading a checkpoint's weights.
 Reproducibility: every random draw of an epoch (shuffling, augmentation, dropout) is seeded from
 ``(seed, epoch)``, so a run killed mid-epoch and resumed from ``last.ckpt`` replays that epoch
 exactly and ends with the same weights and metrics as an uninterrupted run.
+
+Checkpoints are written through :func:`wearnav.fileio.atomic_path` with ``durable=True``
+(:class:`AtomicCheckpointIO`): a kill or a power cut during a save leaves the previous
+``last.ckpt`` / ``best.ckpt``, never a torn one.
 """
 
 from __future__ import annotations
@@ -16,9 +20,28 @@ from pathlib import Path
 
 import lightning as L
 import torch
+from lightning.pytorch.plugins import TorchCheckpointIO
+
+from wearnav.fileio import atomic_path
 
 CHECKPOINTS = "checkpoints"
 BEST, LAST = "best.ckpt", "last.ckpt"
+
+
+class AtomicCheckpointIO(TorchCheckpointIO):
+    """Lightning's checkpoint I/O with the save made atomic and durable.
+
+    Lightning's own save (``lightning.fabric.utilities.cloud_io._atomic_save``, 2.6) writes to a
+    temporary file in the *system* temp folder and moves it over the checkpoint: a rename when
+    that folder is on the same file system, a copy (torn if killed midway) when it is not, and
+    never an fsync. Here the temporary file sits beside the checkpoint and is fsynced, then renamed.
+    """
+
+    def save_checkpoint(self, checkpoint: dict, path, storage_options=None) -> None:
+        if storage_options is not None:
+            raise TypeError(f"{type(self).__name__} takes no storage_options")
+        with atomic_path(path, durable=True) as tmp:
+            torch.save(checkpoint, tmp)
 
 
 class SeededModule(L.LightningModule):
@@ -83,6 +106,7 @@ def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bo
         accelerator="auto",
         devices=1,
         default_root_dir=run,
+        plugins=[AtomicCheckpointIO()],
         deterministic=False,
         log_every_n_steps=max(1, min(50, steps_per_epoch)),
     )

@@ -47,7 +47,9 @@ import torch
 from torch import Tensor, nn
 from torch.nn import functional as F
 
+from wearnav import runs
 from wearnav.errors import ConfigError
+from wearnav.fileio import atomic_path, save_npy_atomic, write_text_atomic
 from wearnav.fixlabels import Segments
 
 METHODS = ("easytrack", "nocnal", "nocoadapt", "coteaching", "aux", "basemodel", "basemodel-gt", "ionet", "ronin")
@@ -209,9 +211,8 @@ def _epoch_gen(cfg: NoisyConfig, epoch: int) -> torch.Generator:
 
 
 def _save(run: Path, state: dict) -> None:
-    tmp = run / (STATE + ".tmp")
-    torch.save(state, tmp)
-    tmp.replace(run / STATE)
+    with atomic_path(run / STATE, durable=True) as tmp:  # the resume point: old or new, never torn
+        torch.save(state, tmp)
 
 
 def fit_noisy(cfg: NoisyConfig, train: Segments, run: str | Path, progress: bool = False, echo=None,
@@ -220,9 +221,14 @@ def fit_noisy(cfg: NoisyConfig, train: Segments, run: str | Path, progress: bool
     ``run``; resumes from ``state.pt``. ``stop_after``: return after that many epochs of this call (an
     interruption, for tests). ``monitor``: a function of the ensemble's displacement function
     (segments (N, L, 6) → (N, 2)) whose dict is added to each epoch's history (held-out ADE over the
-    epochs, a diagnostic that never steers training). Returns the training record."""
-    run = Path(run)
-    run.mkdir(parents=True, exist_ok=True)
+    epochs, a diagnostic that never steers training). Returns the training record. Holds the run
+    folder's lock while it runs (:func:`wearnav.runs.locked`): a second process is refused."""
+    with runs.locked(run):
+        return _fit_noisy(cfg, train, Path(run), progress, echo, stop_after, monitor)
+
+
+def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, echo, stop_after: int | None,
+               monitor) -> dict:
     x = torch.as_tensor(train.x, dtype=torch.float32)
     use_truth = cfg.method == "basemodel-gt"
     y_np = train.truth if use_truth else train.label
@@ -386,7 +392,7 @@ def fit_noisy(cfg: NoisyConfig, train: Segments, run: str | Path, progress: bool
         state["r_delta"] = r_delta
         state["wall_s"] += rec["s"]
         if sel_noise_last:
-            np.save(run / "selected_noise_last_epoch.npy", np.concatenate(sel_noise_last))
+            save_npy_atomic(run / "selected_noise_last_epoch.npy", np.concatenate(sel_noise_last))
         _save(run, {**state, "models": [m.state_dict() for m in models], "opts": [o.state_dict() for o in opts],
                     "corr": corr.detach().clone(), "opt_c": opt_c.state_dict() if opt_c is not None else None,
                     "config": dataclasses.asdict(cfg)})
@@ -426,6 +432,5 @@ def corrections(run: str | Path) -> np.ndarray:
 
 
 def write_history(run: str | Path, record: dict) -> None:
-    from wearnav.fileio import write_text_atomic
-
-    write_text_atomic(json.dumps(record["history"], indent=1, default=float), Path(run) / "history.json")
+    write_text_atomic(json.dumps(record["history"], indent=1, default=float), Path(run) / "history.json",
+                      durable=True)

@@ -120,11 +120,16 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
 
     Returns the training record that :func:`wearnav.evaluate.evaluate_run` merges into
     metrics.json: epochs run, best epoch and validation MSE, wall time, seconds per epoch, what
-    stopped the run. Models that are not learned (PDR) are not fitted.
+    stopped the run. Models that are not learned (PDR) are not fitted. Holds the run folder's
+    lock while it runs (:func:`wearnav.runs.locked`): a second process is refused.
     """
+    with runs.locked(run):
+        return _fit(cfg, Path(run), progress)
+
+
+def _fit(cfg: TrainConfig, run: Path, progress: bool) -> dict:
     from wearnav.evaluate import load_sequences
 
-    run = Path(run)
     L.seed_everything(cfg.seed, workers=True, verbose=False)  # before the weights are drawn
     model = build_model(cfg)
     spec = registry.get(cfg.model)
@@ -220,7 +225,7 @@ def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
         if run_hash_exclude(old) != run_hash_exclude(record):
             raise ConfigError("holds a run of another configuration; choose another --out", run)
         return run
-    if run.exists() and (not run.is_dir() or any(run.iterdir())):
+    if not runs.is_blank(run):
         raise ConfigError("exists and is not an empty folder or a run folder; choose another --out", run)
     ds = Dataset.open(cfg.data)
     if registry.get(cfg.model).learned:
