@@ -81,7 +81,7 @@ def test_round_trip_local_latlon_local_to_1_mm(lat0, lon0, dist_m):
 
 def test_the_old_equirectangular_projection_fails_these_tests():
     """At 10 km from an origin at 60° N the old formula is off by metres (the ellipsoid's radii of
-    curvature differ from the equatorial radius: +0.09 % north, −0.25 % east there), so the 1 cm
+    curvature differ from the equatorial radius: −0.08 % north, −0.25 % east there), so the 1 cm
     test above has teeth."""
     lat0, lon0 = ORIGINS[1]
     lat, lon = points_around(lat0, lon0, 10000.0)

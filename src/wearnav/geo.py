@@ -7,9 +7,11 @@ point on the ellipsoid below it), computed exactly by ``pymap3d`` (``geodetic2en
 not used: fixes and truth are 2-D. The inverse (:func:`local_to_latlon`) finds the point on the
 ellipsoid whose ENU east/north are the given ones, so that a round trip returns the same metres.
 
-This replaces an equirectangular projection with the equatorial radius on both axes that was off by
-0.1–0.7 % of the distance from the origin (more than 1 m per km; differently per axis). Recordings
-imported with it carry no ``meta["projection"]``; :func:`needs_reimport` says so.
+This replaces an equirectangular projection with the equatorial radius on both axes, whose scale was
+wrong by up to 0.7 % of the distance from the origin, differently per axis and latitude (at the IPIN
+2023 venue, 49.46° N: +0.09 % north, −0.19 % east, i.e. 0.9 and 1.9 m per km; at the equator
++0.67 % north). Recordings imported with it carry no ``meta["projection"]``; :func:`needs_reimport`
+says so.
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ def needs_reimport(meta: dict, has_fixes: bool = False) -> str | None:
     used = meta.get("projection")
     if used == PROJECTION:
         return None
-    how = f"projection {used!r}" if used else "the old equirectangular projection (off by 1–7 m per km)"
+    how = f"projection {used!r}" if used else "the old equirectangular projection (off by up to 7 m per km)"
     fmt = source if source in PROJECTING_SOURCES else "<format>"
     return (f"needs re-import: its positions were projected from lat/lon with {how}, not {PROJECTION}; "
             f"run wearnav import {fmt} <original files> --out <dataset>")
