@@ -24,8 +24,8 @@ PROJECTION = "enu-wgs84-pymap3d"
 WGS84 = pymap3d.Ellipsoid.from_name("wgs84")
 #: Importers that project lat/lon into a recording's positions (their ``wearnav import`` name).
 PROJECTING_SOURCES = ("ipin2023", "sensorlogger")
-# Newton steps of the inverse: each leaves an error of about (d / 6400 km)² of the last one, so two
-# reach 1e-9 m at 100 km; three for margin.
+# Steps of the inverse (lower "up" by the height reached): each leaves about (d / 6400 km)² of the
+# previous height error at distance d, so two reach 1e-9 m at 100 km; three for margin.
 _INVERSE_STEPS = 3
 
 
@@ -43,7 +43,7 @@ def local_to_latlon(pos_m, lat0_deg: float, lon0_deg: float) -> tuple[np.ndarray
     in degrees, each (N,): the point on the ellipsoid whose :func:`latlon_to_local` is ``pos_m``.
 
     ``enu2geodetic`` of (east, north, up) gives a point at some height h; the point at height 0 is
-    found by lowering ``up`` by h until h is 0 (Newton steps, :data:`_INVERSE_STEPS`).
+    found by lowering ``up`` by h until h is 0 (:data:`_INVERSE_STEPS` steps).
     """
     pos = np.asarray(pos_m, dtype=np.float64).reshape(-1, 2)
     up = np.zeros(len(pos))
