@@ -3,7 +3,8 @@
 Written independently from the importer, from the documentation in
 ``shared/data/sensor_logger_format`` (UNITS.md, COORDINATES.md): nanosecond ``time``, columns in
 the app's order (``z,y,x``), user acceleration and gravity split, g units on the Apple wearables
-when "Standardise Units & Frames" is off, iOS's flipped acceleration sign, lat/lon from local metres.
+when "Standardise Units & Frames" is off, iOS's flipped acceleration sign, lat/lon from local metres
+(WGS-84 east-north-up about ``ORIGIN``, by pymap3d).
 """
 
 from __future__ import annotations
@@ -13,13 +14,13 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pymap3d
 from scipy.spatial.transform import Rotation
 
 from wearnav.recording import STANDARD_GRAVITY
 from wearnav.recording import Recording
 
 G = STANDARD_GRAVITY
-EARTH_RADIUS_M = 6378137.0
 T0_NS = 1_700_000_000_123_456_789
 ORIGIN = (49.4480, 11.0955)  # lat, lon of the local frame's origin
 
@@ -119,8 +120,7 @@ def write_export(rec: Recording, folder: str | Path, platform: str = "ios",
     if rec.fixes is not None:
         f = rec.fixes
         lat0, lon0 = ORIGIN
-        lat = lat0 + np.rad2deg(f.pos[:, 1] / EARTH_RADIUS_M)
-        lon = lon0 + np.rad2deg(f.pos[:, 0] / (EARTH_RADIUS_M * np.cos(np.deg2rad(lat0))))
+        lat, lon, _ = pymap3d.enu2geodetic(f.pos[:, 0], f.pos[:, 1], 0.0, lat0, lon0, 0.0)
         acc = np.where(np.isfinite(f.accuracy), f.accuracy, -1.0)
         pd.DataFrame({**_time_cols(f.t, t_ref), "bearingAccuracy": 0.0, "speedAccuracy": 0.0,
                       "verticalAccuracy": 3.0, "horizontalAccuracy": acc, "speed": 1.2,
@@ -186,7 +186,8 @@ def prepend_stale_fix(path: str | Path, seconds_before: float = 90.0, km_away: f
         row = df.iloc[[0]].copy()
         row["time"] = int(df["time"].iloc[0]) - int(seconds_before * 1e9)
         row["seconds_elapsed"] = float(df["seconds_elapsed"].iloc[0]) - seconds_before
-        row["latitude"] = df["latitude"].iloc[0] + np.rad2deg(km_away * 1e3 / EARTH_RADIUS_M)
+        row["latitude"] = pymap3d.enu2geodetic(0.0, km_away * 1e3, 0.0, df["latitude"].iloc[0],
+                                               df["longitude"].iloc[0], 0.0)[0]
         row["horizontalAccuracy"] = accuracy
         return pd.concat([row, df], ignore_index=True)
     edit_csv(path, fn)

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.importers import ipin2023
-from wearnav.importers.common import latlon_to_local
+from wearnav.geo import PROJECTION, latlon_to_local
 
 from conftest import error_line
 
@@ -145,6 +145,7 @@ def test_meta(rec):
     assert m["split"] == "train" and m["trial"] == 4 and m["repetition"] == 1
     assert m["mode"] == "walk" and m["placement"] == "handheld"
     assert m["origin"].startswith("IPIN 2023 Nuremberg")
+    assert m["projection"] == PROJECTION
 
 
 # ---- the organisers' .mat and our own .mat round trips ----------------------------------------

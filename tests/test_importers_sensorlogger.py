@@ -19,6 +19,7 @@ from synthetic import synthetic_recording
 from wearnav.simulate import WalkConfig, simulate_recording
 from wearnav.errors import FormatError, MissingFileError, WearnavError
 from wearnav.importers import import_dataset
+from wearnav.geo import PROJECTION
 from wearnav.importers.sensorlogger import read
 from wearnav.recording import Recording
 
@@ -63,6 +64,7 @@ def assert_round_trip(out: Recording, rec: Recording) -> None:
     np.testing.assert_allclose(f.t, g.t - t_ref, atol=1e-8)
     # the importer's local frame is centred on the first fix
     np.testing.assert_allclose(f.pos - f.pos[0], g.pos - g.pos[0], atol=1e-3)
+    assert out.meta["projection"] == PROJECTION
     np.testing.assert_allclose(f.accuracy, g.accuracy, rtol=1e-9)
     assert out.truth is None and out.labels.empty
     assert out.meta["source"] == "sensorlogger"

@@ -13,21 +13,25 @@ import json
 import matplotlib.image as mpimg
 import numpy as np
 import pandas as pd
+import pymap3d
 import pytest
 
 from sensorlogger_fixture import ORIGIN, time_origin, write_export, zip_export
 from wearnav import metrics
 from wearnav.dataset import DatasetWriter
 from wearnav.evaluate import evaluate_sequence
-from wearnav.importers.common import latlon_to_local, local_to_latlon
+from wearnav.geo import PROJECTION, latlon_to_local
+from wearnav.importers import ipin2023
 from wearnav.preprocess import align
 from wearnav.recording import Recording
 from wearnav.simulate import WalkConfig, simulate_recording
 from wearnav.track import anchor_to_fixes, apply_anchor, track
 from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
 from conftest import run_cli
+from test_importers_ipin2023 import LOGS, rows_of
 
 EXPORT = "2023-11-14_22-13-20"
+IPIN_LOG = "IPIN2023_T3_TrainingTrial02_repetition04"  # fixes up to 70 m from the venue's origin
 
 
 @pytest.fixture(scope="module")
@@ -170,11 +174,86 @@ def test_anchor_recovers_a_known_rotation_and_offset():
     assert np.median(err) < 2.0
 
 
-def test_local_to_latlon_inverts_latlon_to_local():
-    lat = 49.448 + np.array([0.0, 0.001, -0.004])
-    lon = 11.0955 + np.array([0.0, 0.002, 0.003])
-    back = local_to_latlon(latlon_to_local(lat, lon), lat[0], lon[0])
-    np.testing.assert_allclose(back, (lat, lon), atol=1e-10)
+@pytest.mark.real_data
+def test_geojson_and_csv_agree_with_pymap3d_on_a_real_ipin_log(setup, shared_data, tmp_path):
+    """Issue 26, item 1: on a real IPIN 2023 log (imported to .h5, tracked by PDR), the imported
+    fixes and truth are pymap3d's WGS-84 east-north-up of the raw lat/lon about the recording's
+    origin, and every GeoJSON point of track's output, taken back by ``pymap3d.geodetic2enu``, lies
+    on the CSV's east/north (path) or the recording's fixes: all to 1 cm. The old equirectangular
+    projection missed by about 0.2 % of the distance from the origin here (up to 13 cm at 70 m)."""
+    import lzma
+
+    _, _, run = setup
+    log = shared_data / "ipin2023_track3" / LOGS / f"{IPIN_LOG}.txt.xz"
+    (rec,) = list(ipin2023.read(log))
+    lat0, lon0 = rec.meta["origin_lat"], rec.meta["origin_lon"]
+    assert rec.meta["projection"] == PROJECTION
+
+    def enu(lat, lon):
+        e, n, _ = pymap3d.geodetic2enu(np.asarray(lat, float), np.asarray(lon, float), 0.0, lat0, lon0, 0.0)
+        return np.stack([e, n], axis=1)
+
+    with lzma.open(log, "rt", encoding="utf-8", errors="replace") as f:
+        lines = f.read().splitlines()
+    raw = enu(*np.array([[float(r[3]), float(r[4])] for r in rows_of(lines, "GNSS")]).T)
+    gap = np.min(np.linalg.norm(rec.fixes.pos[:, None, :2] - raw[None], axis=2), axis=1)
+    assert np.max(gap) <= 0.01 and np.max(np.linalg.norm(rec.fixes.pos, axis=1)) > 50  # metres away
+    posi = np.array([[float(r[3]), float(r[4])] for r in rows_of(lines, "POSI")])
+    np.testing.assert_allclose(rec.truth.pos, enu(posi[:, 0], posi[:, 1]), atol=0.01)
+
+    rec.save(tmp_path / "ipin.h5")
+    summary = track(tmp_path / "ipin.h5", run, tmp_path / "out")
+    assert summary["warnings"] == [] and summary["geojson"].endswith("trajectory.geojson")
+    traj = pd.read_csv(tmp_path / "out" / "trajectory.csv")
+    gj = json.loads((tmp_path / "out" / "trajectory.geojson").read_text())
+    (line,) = [f for f in gj["features"] if f["geometry"]["type"] == "LineString"]
+    lon, lat = np.array(line["geometry"]["coordinates"]).T
+    path = traj[["east", "north"]].to_numpy()
+    assert len(lat) == len(path) and np.ptp(path, axis=0).max() > 20
+    assert np.max(np.linalg.norm(enu(lat, lon) - path, axis=1)) <= 0.01
+    flon, flat = np.array([f["geometry"]["coordinates"] for f in gj["features"]
+                           if f["geometry"]["type"] == "Point"]).T
+    assert np.max(np.linalg.norm(enu(flat, flon) - rec.fixes.pos[:, :2], axis=1)) <= 0.01
+
+
+def test_old_projection_needs_reimport_in_info_and_track(setup, tmp_path, monkeypatch, capsys):
+    """A recording with a lat/lon origin but no ``meta["projection"]`` (imported before the
+    WGS-84 ENU converter): ``wearnav info`` (recording and dataset) and ``wearnav track`` say in
+    one line that it needs re-import and how; track.json lists it under ``warnings``. The same
+    recording with the current projection: no such line."""
+    root, rec, run_dir = setup
+    old = dataclasses.replace(rec, name="old", meta={**rec.meta, "source": "ipin2023",
+                                                     "origin_lat": ORIGIN[0], "origin_lon": ORIGIN[1]})
+    new = dataclasses.replace(old, name="new", meta={**old.meta, "projection": PROJECTION})
+    old.save(tmp_path / "old.h5")
+    new.save(tmp_path / "new.h5")
+    with DatasetWriter(tmp_path / "ds", {"made_by": "test_track"}) as w:
+        w.add(old)
+        w.add(new)
+
+    def reimport_lines(err):
+        return [ln for ln in err.splitlines() if "needs re-import" in ln]
+
+    for src in (tmp_path / "old.h5", tmp_path / "ds"):
+        code, out, err = run_cli(monkeypatch, capsys, "info", src)
+        assert code == 0, err
+        (ln,) = reimport_lines(err)
+        assert ln.startswith("warning: ") and "wearnav import ipin2023" in ln and "equirectangular" in ln
+    assert "1 of 2 recordings (old)" in ln
+    code, out, err = run_cli(monkeypatch, capsys, "info", tmp_path / "new.h5")
+    assert code == 0 and reimport_lines(err) == []
+
+    code, out, err = run_cli(monkeypatch, capsys, "track", tmp_path / "old.h5", "--model", run_dir,
+                             "--out", tmp_path / "o_old")
+    assert code == 0, err
+    (ln,) = reimport_lines(err)
+    assert "wearnav import ipin2023" in ln
+    warned = json.loads((tmp_path / "o_old" / "track.json").read_text())["warnings"]
+    assert len(warned) == 1 and warned[0].startswith("old: needs re-import")
+    code, out, err = run_cli(monkeypatch, capsys, "track", tmp_path / "new.h5", "--model", run_dir,
+                             "--out", tmp_path / "o_new")
+    assert code == 0 and reimport_lines(err) == []
+    assert json.loads((tmp_path / "o_new" / "track.json").read_text())["warnings"] == []
 
 
 run = run_cli

@@ -83,11 +83,15 @@ def simulate(
 def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset folder.")):
     """Summarise a recording or a dataset (durations, device rates, labels, truth and fixes)."""
     from wearnav.dataset import Dataset
+    from wearnav.geo import needs_reimport
     from wearnav.recording import Recording
     from wearnav.report.stats import dataset_stats
 
     if not path.is_dir():
-        _echo_json(Recording.load(path).summary())
+        rec = Recording.load(path)
+        if (stale := needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
+            warnings.warn(WearnavWarning(f"{path}: {stale}"))
+        _echo_json(rec.summary())
         return
     ds = Dataset.open(path)
     summary = ds.summary()
@@ -106,6 +110,8 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
     if stats["fix_error_m"]:
         summary["fix_error_at_truth_m"] = {k: round(v, 3) if isinstance(v, float) else v
                                            for k, v in stats["fix_error_m"].items()}
+    if stats["needs_reimport"]:
+        warnings.warn(WearnavWarning(f"{path}: {stats['needs_reimport']}"))
     _echo_json(summary)
 
 

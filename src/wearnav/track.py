@@ -16,10 +16,14 @@ and write into the output folder:
     The path with its start and end, and per-device presence over time.
 ``trajectory.geojson``
     Only when the recording has fixes and a lat/lon origin (``meta["origin_lat"/"origin_lon"]``,
-    written by the importers that project lat/lon with ``latlon_to_local``): the anchored path as
-    a LineString and the fixes as Points (with time and accuracy), in WGS-84 lon/lat.
+    written by the importers that project lat/lon with :func:`wearnav.geo.latlon_to_local`): the
+    anchored path as a LineString and the fixes as Points (with time and accuracy), in WGS-84
+    lon/lat, converted back by :func:`wearnav.geo.local_to_latlon` (``east``, ``north`` are their
+    WGS-84 east-north-up metres about that origin).
 ``track.json``
-    What was done: model, run, devices used and present, frame reference, anchoring fit.
+    What was done: model, run, devices used and present, frame reference, anchoring fit, and
+    ``warnings`` (one line each; also shown on the console), e.g. a recording imported with an
+    older lat/lon projection (:func:`wearnav.geo.needs_reimport`).
 
 Anchoring: the common frame has an arbitrary yaw and the path starts at (0, 0); the yaw and offset
 that map it onto the fixes are the weighted least-squares 2-D rotation + translation (Procrustes
@@ -36,12 +40,14 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from wearnav.errors import ConfigError, FormatError, ValidationError
+from wearnav import geo
+from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.recording import Recording
 
@@ -161,7 +167,6 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
           platform: str | None = None, progress: bool = False) -> dict:
     """Track one recording (see module docstring); returns what ``track.json`` holds."""
     from wearnav.evaluate import predict_sequence
-    from wearnav.importers.common import local_to_latlon
     from wearnav.preprocess import align
     from wearnav.trajectory import integrate_velocity
 
@@ -199,7 +204,11 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
         "duration_s": round(float(t[-1] - t[0]), 2),
         "length_m": round(float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1))), 2),
         "end_xy_m": [round(float(v), 3) for v in xy[-1]],
+        "warnings": [],
     }
+    if (stale := geo.needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
+        summary["warnings"].append(f"{rec.name}: {stale}")
+        warnings.warn(WearnavWarning(summary["warnings"][-1]))
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     anchored = None
@@ -220,8 +229,8 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
                                               f"over the fixes of the first {ANCHOR_S:g} s"}
             lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
             if lat0 is not None and lon0 is not None:
-                gj = geojson(local_to_latlon(anchored, float(lat0), float(lon0)),
-                             local_to_latlon(fx.pos[:, :2], float(lat0), float(lon0)),
+                gj = geojson(geo.local_to_latlon(anchored, float(lat0), float(lon0)),
+                             geo.local_to_latlon(fx.pos[:, :2], float(lat0), float(lon0)),
                              fx.t, fx.accuracy, {"recording": rec.name, "model": cfg.model})
                 write_text_atomic(json.dumps(gj), out / "trajectory.geojson")
                 summary["geojson"] = str(out / "trajectory.geojson")

@@ -1,4 +1,5 @@
-"""Helpers every importer shares: transparent .gz/.xz reading, column checks, geodesy."""
+"""Helpers every importer shares: transparent .gz/.xz reading, column checks (lat/lon → metres is
+:mod:`wearnav.geo`)."""
 
 from __future__ import annotations
 
@@ -16,7 +17,6 @@ from wearnav.fileio import require_regular_file
 from wearnav.rotations import NotUnitQuaternion, from_android_rotation_vector, normalize_wxyz
 
 COMPRESSED_SUFFIXES = (".gz", ".xz")
-EARTH_RADIUS_M = 6378137.0  # WGS-84 equatorial radius
 
 
 def find_file(path: str | Path) -> Path:
@@ -156,31 +156,6 @@ def check_unix_time(t_s: np.ndarray, what: str, path: str | Path) -> None:
         i = int(np.argmax(bad))
         raise FormatError(f"{what}: timestamp {t_s[i]:.6g} s at row {i} of that type is not a Unix time "
                           "between 2000 and 2100 (corrupt value or wrong unit?)", path)
-
-
-def latlon_to_local(lat: np.ndarray, lon: np.ndarray, lat0: float | None = None,
-                    lon0: float | None = None) -> np.ndarray:
-    """Project WGS-84 lat/lon (degrees) to local east/north metres around (lat0, lon0).
-
-    Equirectangular projection about the origin (the first point by default): within 1 km of
-    the origin its error stays under about 0.1 m, far below any phone fix's accuracy.
-    """
-    lat = np.asarray(lat, dtype=np.float64)
-    lon = np.asarray(lon, dtype=np.float64)
-    lat0 = float(lat[0]) if lat0 is None else lat0
-    lon0 = float(lon[0]) if lon0 is None else lon0
-    east = np.deg2rad(lon - lon0) * EARTH_RADIUS_M * np.cos(np.deg2rad(lat0))
-    north = np.deg2rad(lat - lat0) * EARTH_RADIUS_M
-    return np.stack([east, north], axis=1)
-
-
-def local_to_latlon(pos: np.ndarray, lat0: float, lon0: float) -> tuple[np.ndarray, np.ndarray]:
-    """The inverse of :func:`latlon_to_local`: local east/north metres (N, 2) about (lat0, lon0)
-    back to WGS-84 latitude and longitude in degrees."""
-    pos = np.asarray(pos, dtype=np.float64)
-    lat = lat0 + np.rad2deg(pos[:, 1] / EARTH_RADIUS_M)
-    lon = lon0 + np.rad2deg(pos[:, 0] / (EARTH_RADIUS_M * np.cos(np.deg2rad(lat0))))
-    return lat, lon
 
 
 # The importers' gap rule when they merge a phone's gyroscope / orientation onto its accelerometer

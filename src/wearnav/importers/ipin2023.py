@@ -42,11 +42,12 @@ dropped (``gnss_stale_dropped``), so fix times increase by construction. IMU or 
 (``dropped_duplicates``; more than 5 % raises); ACCE samples that GYRO/AHRS cannot cover are
 dropped (``dropped_uncovered``). Any timestamp going backwards after that raises.
 
-Positions: lat/lon are projected with :func:`~wearnav.importers.common.latlon_to_local` around one
-origin per site, the same for truth and fixes of a recording: the centre of the organisers'
-georeferenced floor maps for the IPIN 2023 venue (``calib_mapa_Nuremberg.cal``), or, for a log
-recorded elsewhere (more than :data:`VENUE_RADIUS_M` away), the log's first reference point (or
-first fix). ``meta["origin_lat"]``, ``meta["origin_lon"]`` record it.
+Positions: lat/lon are projected with :func:`wearnav.geo.latlon_to_local` (WGS-84 east-north-up,
+named in ``meta["projection"]``) around one origin per site, the same for truth and fixes of a
+recording: the centre of the organisers' georeferenced floor maps for the IPIN 2023 venue
+(``calib_mapa_Nuremberg.cal``), or, for a log recorded elsewhere (more than :data:`VENUE_RADIUS_M`
+away), the log's first reference point (or first fix). ``meta["origin_lat"]``,
+``meta["origin_lon"]`` record it.
 """
 
 from __future__ import annotations
@@ -61,6 +62,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from wearnav import geo
 from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
 from wearnav.importers.common import (
     MAX_INTERP_GAP_S,
@@ -69,7 +71,6 @@ from wearnav.importers.common import (
     check_source,
     check_unix_time,
     find_file,
-    latlon_to_local,
     open_text,
     quat_from_rotation_vector,
     read_text,
@@ -296,7 +297,7 @@ def _gnss(g: np.ndarray, path: Path, meta: dict):
 
 def _origin(lat: float, lon: float) -> tuple[float, float, str]:
     for name, (lat0, lon0) in VENUES.items():
-        if np.linalg.norm(latlon_to_local([lat], [lon], lat0, lon0)) <= VENUE_RADIUS_M:
+        if np.linalg.norm(geo.latlon_to_local([lat], [lon], lat0, lon0)) <= VENUE_RADIUS_M:
             return lat0, lon0, name
     return lat, lon, "first reference point or fix of the recording"
 
@@ -363,16 +364,16 @@ def _read_log(path: Path) -> Recording:
     if posi is not None or fix_t is not None:
         ref = (posi[0, 1], posi[0, 2]) if posi is not None else (fix_lat[0], fix_lon[0])
         lat0, lon0, origin = _origin(*ref)
-        meta.update({"origin_lat": lat0, "origin_lon": lon0, "origin": origin,
+        meta.update({"origin_lat": lat0, "origin_lon": lon0, "origin": origin, "projection": geo.PROJECTION,
                      "position_frame": "local east, north (m) around origin_lat/origin_lon"})
         if posi is not None:
-            truth = Trajectory(posi[:, 0], latlon_to_local(posi[:, 1], posi[:, 2], lat0, lon0),
+            truth = Trajectory(posi[:, 0], geo.latlon_to_local(posi[:, 1], posi[:, 2], lat0, lon0),
                                floor=posi[:, 3])
             buildings = sorted({int(b) for b in posi[:, 4] if np.isfinite(b)})
             meta["building"] = buildings[0] if len(buildings) == 1 else (buildings or None)
             meta["floors"] = sorted({int(f) for f in posi[:, 3]})
         if fix_t is not None:
-            fixes = Fixes(fix_t, latlon_to_local(fix_lat, fix_lon, lat0, lon0), fix_acc)
+            fixes = Fixes(fix_t, geo.latlon_to_local(fix_lat, fix_lon, lat0, lon0), fix_acc)
     return Recording(name=name, devices={"phone": stream}, truth=truth, fixes=fixes, meta=meta)
 
 

@@ -115,8 +115,9 @@ Orientation (phone ``qw,qx,qy,qz``; watch and earbuds ``quaternionW/X/Y/Z``)
 
 Location (``Location.csv`` → ``Recording.fixes``)
   * ``latitude`` / ``longitude`` (UNITS.md: "in degrees") are projected to local east/north metres
-    about the first fix with :func:`latlon_to_local`; the origin is kept in
-    ``meta["origin_lat"]`` / ``meta["origin_lon"]``. Fixes are 2-D (altitude is not used).
+    about the first fix with :func:`wearnav.geo.latlon_to_local` (WGS-84 east-north-up); the origin
+    is kept in ``meta["origin_lat"]`` / ``meta["origin_lon"]``, the converter's name in
+    ``meta["projection"]``. Fixes are 2-D (altitude is not used).
   * A cached fix from before the recording (negative ``seconds_elapsed``; usually far away with a
     huge accuracy) is dropped (``meta["dropped_stale_fixes"]``): it must not start the clock.
   * ``accuracy = horizontalAccuracy`` m, NaN where negative or absent. UNITS.md: "`horizontalAccuracy`,
@@ -141,6 +142,7 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
+from wearnav import geo
 from wearnav.errors import (ConfigError, FormatError, MissingFileError, ValidationError, WearnavError,
                             WearnavWarning)
 from wearnav.importers.common import (
@@ -150,7 +152,6 @@ from wearnav.importers.common import (
     check_source,
     check_unix_time,
     find_file,
-    latlon_to_local,
     read_csv,
     strip_compression,
 )
@@ -661,12 +662,12 @@ def _fixes(loc: _Table, t: np.ndarray) -> tuple[Fixes, dict]:
         accuracy = np.where(accuracy >= 0, accuracy, np.nan)  # negative = invalid (UNITS.md)
     else:
         accuracy = np.full(len(t), np.nan)
-    pos = latlon_to_local(lat, lon)
+    pos = geo.latlon_to_local(lat, lon, lat[0], lon[0])
     try:
         fixes = Fixes(t=t, pos=pos, accuracy=accuracy)
     except ValidationError as exc:
         raise FormatError(exc.reason, loc.path) from None
-    return fixes, {"origin_lat": float(lat[0]), "origin_lon": float(lon[0])}
+    return fixes, {"origin_lat": float(lat[0]), "origin_lon": float(lon[0]), "projection": geo.PROJECTION}
 
 
 __all__ = ["read", "read_export", "is_export"]

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav.dataset import Dataset
+from wearnav.geo import needs_reimport
 from wearnav.metrics import FIX_MAX_GAP_S, errors_at_reference, label_noise
 from wearnav.recording import device_order
 from wearnav.timeseries import sampling
@@ -25,6 +26,8 @@ def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_
     percentile) of the intervals; ``gap_share`` = share of intervals longer than twice the median.
     ``fix_error_m``: horizontal error of the location fixes at the truth points (fixes linearly
     interpolated, a truth point counted only when a fix lies within ``fix_max_gap`` s), pooled.
+    ``needs_reimport``: one line naming the recordings whose positions came from an older lat/lon
+    projection (:func:`wearnav.geo.needs_reimport`), or None.
     """
     from tqdm import tqdm
 
@@ -34,10 +37,13 @@ def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_
     fix_err_recs = 0
     truth_points = truth_recs = fixes_total = 0
     subjects: set[str] = set()
+    stale: dict[str, str] = {}
     duration = 0.0
     for name in tqdm(ds.names, desc=f"stats {ds.root.name}", unit="rec", disable=not progress):
         rec = ds.load(name)
         duration += rec.duration
+        if (why := needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
+            stale[name] = why
         if str(rec.meta.get("subject", "")).strip():
             subjects.add(str(rec.meta["subject"]))
         for d, s in rec.devices.items():
@@ -88,6 +94,9 @@ def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_
             "points": int(errs.size), "recordings": fix_err_recs,
             "median": _pct(errs, 50), "p75": _pct(errs, 75), "max_gap_s": fix_max_gap,
         },
+        "needs_reimport": None if not stale else (
+            f"{len(stale)} of {len(ds)} recordings ({', '.join(list(stale)[:3])}{', ...' if len(stale) > 3 else ''})"
+            f": {next(iter(stale.values()))}"),
     }
 
 
