@@ -16,6 +16,7 @@ from typing import Optional
 
 import typer
 
+from wearnav.bench.executor import Backend
 from wearnav.errors import Terminated, ValidationError, WearnavError, WearnavWarning, one_line
 
 app = typer.Typer(
@@ -214,6 +215,17 @@ def eval_(
 bench_app = typer.Typer(help="The papers' experiments as resumable suites of run folders.", no_args_is_help=True)
 app.add_typer(bench_app, name="bench")
 
+# How a suite's runs are spread (wearnav.bench.executor); none of it enters a run's hash.
+JOBS_HELP = "Runs at once in local processes (1: one after another in this process)."
+EXECUTOR_HELP = "local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav[cluster]')."
+ADDRESS_HELP = "With --executor ray: the cluster to join ('auto': the one `ray start` set up here); default: a new local Ray."
+
+
+def _execution(jobs: int, executor: Backend, address: Optional[str], threads: Optional[int] = None):
+    from wearnav.bench.executor import Execution
+
+    return Execution(jobs=jobs, backend=executor, address=address, threads=threads)
+
 
 @bench_app.command("odometry")
 def bench_odometry(
@@ -225,12 +237,16 @@ def bench_odometry(
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
     lr: Optional[float] = typer.Option(None, help="Learning rate for every model (default: each model's paper value)."),
     seed: int = typer.Option(0, min=0),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
 ):
     """Train and evaluate the odometry comparison; complete runs are skipped (the suite resumes)."""
     from wearnav.bench.odometry import run_suite, suite_configs, write_suite_report
 
     configs = suite_configs(data, _devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr)
-    folders = run_suite(configs, out, progress=_progress(), echo=typer.echo)
+    folders = run_suite(configs, out, progress=_progress(), echo=typer.echo,
+                        execution=_execution(jobs, executor, address))
     from wearnav.dataset import Dataset
 
     prov = Dataset.open(data).provenance
@@ -267,6 +283,9 @@ def bench_real_odometry(
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
     lr: float = typer.Option(1e-3, help="Adam learning rate for every learned model."),
     seed: int = typer.Option(0, min=0),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
 ):
     """Phone-only odometry trained on some floors/routes of a real building, scored at the surveyed
     points of held-out ones (and of another building); PDR and the raw phone fixes beside them."""
@@ -277,7 +296,7 @@ def bench_real_odometry(
     page = run_benchmark(data, out, test_data, format_, test_format, group_by,
                          _devices(test_groups) if test_groups else None, test_group_by,
                          _devices(test_test_groups) if test_test_groups else None, bench,
-                         progress=_progress(), echo=typer.echo)
+                         progress=_progress(), echo=typer.echo, execution=_execution(jobs, executor, address))
     typer.echo(f"wrote {page}")
 
 
@@ -310,7 +329,9 @@ def bench_har(
     data: Path = typer.Option(Path("../shared/data"), "--data", help="Folder holding the public datasets."),
     datasets: Optional[str] = typer.Option(None, help="Datasets, comma-separated (default: all; --quick: uci-hapt)."),
     seeds: Optional[int] = typer.Option(None, min=1, help="Seeds per technique (default 3; --quick 1)."),
-    jobs: int = typer.Option(1, min=1, help="Runs trained at once in local processes."),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
     epochs: Optional[int] = typer.Option(None, min=1, help="Epochs per run (default 30; --quick 1)."),
     steps: Optional[int] = typer.Option(None, min=1, help="Instead of --epochs: each dataset's epochs give the "
                                         "baseline about this many gradient steps (expanded sets the same epochs)."),
@@ -322,9 +343,9 @@ def bench_har(
     """The paper-002 HAR benchmark: baseline and ten techniques per dataset; runs resume."""
     from wearnav.bench.har import run_benchmark
 
-    page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3), jobs,
-                         quick, epochs, _devices(techniques) if techniques else None, max_time, echo=typer.echo,
-                         threads=threads, steps=steps)
+    page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3),
+                         _execution(jobs, executor, address, threads), quick, epochs,
+                         _devices(techniques) if techniques else None, max_time, echo=typer.echo, steps=steps)
     typer.echo(f"wrote {page}")
 
 
@@ -333,7 +354,9 @@ def bench_easytrack(
     out: Path = typer.Option(Path("runs/easytrack"), "--out", help="Suite folder (data, run folders, results.md)."),
     quick: bool = typer.Option(False, "--quick", help="Tiny data, 1–2 epochs per phase: checks the pipeline only."),
     seeds: int = typer.Option(1, min=1, help="Seeds per method and level."),
-    jobs: int = typer.Option(1, min=1, help="Runs trained at once in local processes."),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
     data: Optional[Path] = typer.Option(None, "--data", help="Real dataset (wearnav folder: phone IMU, fixes, sparse "
                                         "truth), e.g. an `wearnav import ipin2023` output."),
     test_routes: Optional[str] = typer.Option(None, "--test-routes",
@@ -360,7 +383,8 @@ def bench_easytrack(
         changes["levels"] = tuple(_devices(levels))
     if methods:
         changes["methods"] = tuple(_devices(methods))
-    page = run_benchmark(out, quick, seeds, jobs, data, test_routes, _dc.replace(bc, **changes), echo=typer.echo)
+    page = run_benchmark(out, quick, seeds, _execution(jobs, executor, address), data, test_routes,
+                         _dc.replace(bc, **changes), echo=typer.echo)
     typer.echo(f"wrote {page}")
 
 

@@ -190,3 +190,23 @@ def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig()) -> Aligned
     if cfg.yaw_deg:
         imu = np.stack([rotate_stacked(x, -np.deg2rad(cfg.yaw_deg)) for x in imu]).astype(np.float32)
     return Aligned(rec.name, t, tuple(cfg.devices), imu, mask, pos, meta, rec)
+
+
+_CACHE: dict[tuple, Aligned] = {}
+
+
+def load_sequences(view, cfg, progress: bool = False) -> list[Aligned]:
+    """Align every recording of a Dataset view (:class:`wearnav.dataset.Dataset`) for ``cfg``, any
+    config with a ``preprocess_config()`` (a TrainConfig, a ClassifyConfig). Aligned sequences are
+    cached per process by (file, preprocess config), so a suite preprocesses each recording once."""
+    from tqdm.auto import tqdm
+
+    pcfg = cfg.preprocess_config()
+    out = []
+    for name in tqdm(view.names, desc="preprocess", unit="rec", disable=not progress, leave=False):
+        path = view.path(name)
+        key = (str(path.resolve()), path.stat().st_mtime_ns, pcfg)
+        if key not in _CACHE:
+            _CACHE[key] = align(view.load(name), pcfg)
+        out.append(_CACHE[key])
+    return out

@@ -47,6 +47,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav import metrics, runs
+from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.errors import ConfigError, ValidationError
 
 DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
@@ -193,7 +194,7 @@ def site_yaw(seqs, window: int = 100, stride: int = 10) -> dict:
 def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate: float = 25.0) -> dict:
     """:func:`site_yaw` of the ``split`` traces of dataset ``data`` (no yaw applied, no frame alignment)."""
     from wearnav.dataset import Dataset
-    from wearnav.evaluate import load_sequences
+    from wearnav.preprocess import load_sequences
     from wearnav.train.odometry import TrainConfig
 
     cfg = TrainConfig(model="pdr", data=str(data), devices=tuple(devices), rate=rate, frame_align="none",
@@ -257,14 +258,44 @@ def _train_config(model: str, data: str, yaw: float, bench: RealBench, simulated
     return TrainConfig(**kw, frame_align="none", truth_max_gap=TRUTH_MAX_GAP_S, yaw_deg=yaw)
 
 
+@dataclasses.dataclass(frozen=True)
+class RealEval:
+    """Where a trained model is scored: a site's prepared ``data``, its yaw, the output folder."""
+
+    data: str
+    yaw_deg: float
+    out_dir: Path
+
+
+@dataclasses.dataclass(frozen=True)
+class RealJob:
+    cfg: object  # wearnav.train.odometry.TrainConfig
+    evals: tuple[RealEval, ...]
+    progress: bool = False
+
+
+def run_job(job: RealJob, run: Path) -> Path:
+    """Train one model (or resume) and score it on every site's test traces (an executor job)."""
+    from wearnav.evaluate import evaluate_run
+    from wearnav.train.odometry import fit, prepare_run
+
+    prepare_run(job.cfg, run)
+    training = fit(job.cfg, run, progress=job.progress)
+    for e in job.evals:
+        pre = {"frame_align": "none", "truth_max_gap": TRUTH_MAX_GAP_S, "yaw_deg": e.yaw_deg}
+        evaluate_run(run, data=e.data, splits=("test",), progress=job.progress, training=training,
+                     preprocess=pre, out_dir=e.out_dir)
+    return run
+
+
 def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str | None = None,
                   test_fmt: str | None = None, group_by: str | None = None, test_groups=None,
                   test_group_by: str | None = None, test_test_groups=None, bench: RealBench = RealBench(),
-                  progress: bool = True, echo=print) -> Path:
-    """Prepare the data, estimate the site yaws, train/evaluate every model, write results.md."""
-    from wearnav.evaluate import evaluate_run
+                  progress: bool = True, echo=print, execution: Execution = Execution()) -> Path:
+    """Prepare the data, estimate the site yaws, train/evaluate every model (as ``execution``
+    says, :mod:`.executor`), write results.md."""
     from wearnav.models.registry import get
-    from wearnav.train.odometry import fit, prepare_run, run_hash_exclude, run_record
+    from wearnav.train.odometry import run_hash_exclude, run_record
 
     out = Path(out)
     t_start = time.perf_counter()
@@ -284,24 +315,15 @@ def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str
         echo(f"{name}: site yaw {site['yaw']['yaw_deg']:+.1f}° from {site['yaw']['segments']} segments")
         site["fixes"] = fix_errors(Path(site["data"]))
     yaw = sites["main"]["yaw"]["yaw_deg"]
+    jobs = []
     for model in bench.models:
-        learned = get(model).learned
-        simulated = bool(bench.train_data) and learned
+        simulated = bool(bench.train_data) and get(model).learned
         cfg = _train_config(model, bench.train_data if simulated else str(main), yaw, bench, simulated)
         run = runs.run_dir(out / "runs", model, run_hash_exclude(run_record(cfg)))
-        evals = {"main": run / "eval_main", "other": run / "eval_other"}
-        if all(runs.is_complete(evals[s]) for s in sites):
-            echo(f"{model}: complete, skipped ({run})")
-            continue
-        echo(f"{model}: {'training' if learned else 'evaluating'} → {run}")
-        prepare_run(cfg, run)
-        t0 = time.perf_counter()
-        training = fit(cfg, run, progress=progress)
-        for s, site in sites.items():
-            pre = {"frame_align": "none", "truth_max_gap": TRUTH_MAX_GAP_S, "yaw_deg": site["yaw"]["yaw_deg"]}
-            evaluate_run(run, data=site["data"], splits=("test",), progress=progress, training=training,
-                         preprocess=pre, out_dir=evals[s])
-        echo(f"{model}: done in {time.perf_counter() - t0:.0f} s")
+        evals = tuple(RealEval(site["data"], site["yaw"]["yaw_deg"], run / f"eval_{s}") for s, site in sites.items())
+        jobs.append(Job(run_job, RealJob(cfg, evals, progress and execution.in_process), run,
+                        marks=tuple(e.out_dir for e in evals)))
+    run_jobs(jobs, execution, echo)
     wall = time.perf_counter() - t_start
     return write_report(out, sites, suite_runs(out, str(main)), bench, wall)
 

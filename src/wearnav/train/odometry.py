@@ -23,9 +23,10 @@ import lightning as L
 import torch
 
 from wearnav import runs
+from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.models import registry
-from wearnav.preprocess import TRUTH_MAX_GAP_S, PreprocessConfig
+from wearnav.preprocess import TRUTH_MAX_GAP_S, PreprocessConfig, load_sequences
 from wearnav.train.common import BEST, CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
 from wearnav.windows import WindowConfig, WindowDataset
 
@@ -122,8 +123,6 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
     metrics.json: epochs run, best epoch and validation MSE, wall time, seconds per epoch, what
     stopped the run. Models that are not learned (PDR) are not fitted.
     """
-    from wearnav.evaluate import load_sequences
-
     run = Path(run)
     L.seed_everything(cfg.seed, workers=True, verbose=False)  # before the weights are drawn
     model = build_model(cfg)
@@ -133,8 +132,6 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
         return {"learned": False}
     lr = cfg.lr or getattr(model, "default_lr", DEFAULT_LR)
     batch = cfg.batch or getattr(model, "default_batch", DEFAULT_BATCH)
-    from wearnav.dataset import Dataset
-
     ds = Dataset.open(cfg.data)
     train_seqs = load_sequences(ds.split(cfg.train_split), cfg, progress)
     val_view = ds.split(cfg.val_split)
@@ -210,8 +207,6 @@ def run_hash_exclude(record: dict) -> dict:
 def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
     """Create (or reuse) run folder ``run`` for ``cfg``: a folder holding another config is refused,
     so a resumed run never mixes two configurations."""
-    from wearnav.dataset import Dataset
-
     run = Path(run)
     registry.get(cfg.model)  # an unknown model is refused before anything is written
     record = run_record(cfg)
