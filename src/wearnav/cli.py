@@ -11,6 +11,7 @@ import json
 import os
 import sys
 import warnings
+from enum import Enum
 from pathlib import Path
 from typing import Optional
 
@@ -170,6 +171,14 @@ def models_():
         typer.echo(f"{spec.name:15s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
 
 
+class Strategy(str, Enum):
+    """Lightning's strategies for one training on several devices (wearnav.train.common)."""
+
+    auto = "auto"
+    ddp = "ddp"
+    ddp_spawn = "ddp_spawn"
+
+
 @app.command()
 def train(
     model: str = typer.Argument(..., help="A registered model (see `wearnav models`)."),
@@ -183,6 +192,10 @@ def train(
     patience: int = typer.Option(10, help="Early-stopping patience in epochs."),
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes of the run (over resumes too)."),
     evaluate: bool = typer.Option(True, help="Evaluate on the test split afterwards."),
+    num_devices: int = typer.Option(1, "--num-devices", min=1, help="GPUs (or, without one, CPU processes) that "
+                                    "train at once, each on its share of every batch (not the sensor --devices)."),
+    strategy: Strategy = typer.Option(Strategy.auto, help="ddp: one process per device (Lightning re-runs this "
+                                      "command in each). The run and its folder are the same on any number."),
 ):
     """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json)."""
     from wearnav.evaluate import evaluate_run
@@ -191,7 +204,7 @@ def train(
     cfg = TrainConfig(model=model, data=str(data), devices=_devices(devices), epochs=epochs, seed=seed,
                       lr=lr, batch=batch, patience=patience, max_minutes=max_time)
     run = prepare_run(cfg, out)
-    record = fit(cfg, run, progress=_progress())
+    record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
     _echo_json({"run": str(run), "training": record})
     if evaluate:
         m = evaluate_run(run, splits=("test",), training=record, progress=_progress())
