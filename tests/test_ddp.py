@@ -92,3 +92,26 @@ def test_ddp_on_two_processes_trains_as_one_process(tiny, tmp_path):
     np.testing.assert_allclose(v2, v1, rtol=1e-3)  # halves of a batch of 1024 can differ by one window
     for k in w1:
         np.testing.assert_allclose(w2[k].numpy(), w1[k].numpy(), rtol=1e-4, atol=1e-6)
+
+
+def test_sharded_batches_split_every_batch_between_processes(monkeypatch):
+    """What each process of a DDP training draws: its part of every batch of the one-process order."""
+    from wearnav.windows import BatchSampler
+
+    one = list(BatchSampler(203, 64, seed=5))
+    assert [len(b) for b in one] == [64, 64, 64, 11]
+    parts = []
+    for rank in range(2):
+        s = BatchSampler(203, 64, seed=5, shard=True)
+        monkeypatch.setattr(s, "_rank_world", lambda r=rank: (r, 2))
+        parts.append(list(s))
+        assert len(s) == len(parts[-1]) == 4
+    for k, batch in enumerate(one):
+        assert sorted(parts[0][k] + parts[1][k]) == sorted(batch)
+        assert abs(len(parts[0][k]) - len(parts[1][k])) <= 1
+    # not sharded (evaluation, or no process group): the whole batch
+    assert list(BatchSampler(203, 64, seed=5, shard=False)) == one
+    # a last batch smaller than the number of processes is dropped on every process
+    s = BatchSampler(129, 64, seed=5, shard=True)
+    monkeypatch.setattr(s, "_rank_world", lambda: (1, 2))
+    assert len(s) == len(list(s)) == 2

@@ -17,6 +17,9 @@ from pathlib import Path
 import lightning as L
 import torch
 
+from wearnav.augment import apply as augment_batch
+from wearnav.errors import ConfigError, FormatError, MissingFileError
+
 CHECKPOINTS = "checkpoints"
 BEST, LAST = "best.ckpt", "last.ckpt"
 
@@ -40,9 +43,7 @@ class SeededModule(L.LightningModule):
 
     def training_step(self, batch, batch_idx):
         if self.augment:
-            from wearnav import augment
-
-            batch = augment.apply(self.augment, batch, self._gen)
+            batch = augment_batch(self.augment, batch, self._gen)
         loss, parts = self.model.loss(batch)
         n = batch["x"].shape[0]
         # sync_dist: under DDP the logged value is the mean over processes (one process: unchanged)
@@ -68,8 +69,6 @@ def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bo
     ``devices=4, strategy="ddp"`` runs 4 processes, each on its share of every batch (the loaders
     shard batches themselves: ``WindowDataset.loader(shard=True)``, so Lightning's sampler is
     off). How a run is spread never enters its config or hash; fp32 throughout."""
-    from wearnav.errors import ConfigError
-
     if devices < 1:
         raise ConfigError(f"devices must be ≥ 1, got {devices}")
     if strategy not in STRATEGIES:
@@ -109,8 +108,6 @@ def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bo
 
 def load_weights(model: torch.nn.Module, path: Path) -> None:
     """Load a Lightning checkpoint's ``model.*`` weights; a torn or foreign file is one line."""
-    from wearnav.errors import FormatError, MissingFileError
-
     if not path.is_file():
         raise MissingFileError(f"no checkpoint {CHECKPOINTS}/{path.name} (was the run trained?)", path.parent.parent)
     try:
