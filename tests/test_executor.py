@@ -109,6 +109,37 @@ def test_execution_is_checked():
     assert not Execution(backend="ray").in_process
 
 
+def test_cli_executor_options_one_line_errors(tmp_path, monkeypatch, capsys):
+    from conftest import run_cli
+    from wearnav.simulate import simulate_dataset
+
+    code, _, err = run_cli(monkeypatch, capsys, "bench", "odometry", "--data", tmp_path, "--address", "auto")
+    assert code == 2 and "--address is for --executor ray" in err and err.count("\n") == 1
+    code, _, err = run_cli(monkeypatch, capsys, "bench", "har", "--executor", "slurm")
+    assert code == 2 and "local" in err and "ray" in err
+    # without Ray installed, --executor ray is one line naming the extra, exit 2, nothing run
+    data = tmp_path / "tiny"
+    simulate_dataset("tiny", data, seed=0, progress=False)
+    capsys.readouterr()
+    monkeypatch.setitem(sys.modules, "ray", None)
+    code, _, err = run_cli(monkeypatch, capsys, "bench", "odometry", "--data", data, "--out", tmp_path / "suite",
+                           "--models", "pdr", "--executor", "ray")
+    assert code == 2 and "install wearnav[cluster]" in err and err.count("\n") == 1
+    assert not list((tmp_path / "suite").glob("*/metrics.json"))
+    # the same suite locally in two processes: the folder Ray would have written
+    code, out, err = run_cli(monkeypatch, capsys, "bench", "odometry", "--data", data, "--out", tmp_path / "suite",
+                             "--models", "pdr", "--jobs", "2")
+    assert code == 0, err
+    cfg = odometry_config(data)
+    assert runs.is_complete(runs.run_dir(tmp_path / "suite", "pdr", cfg)) and ": done in " in out
+
+
+def odometry_config(data: Path) -> dict:
+    from wearnav.bench import odometry
+
+    return odometry.run_key(odometry.suite_configs(data, ("pdr",), epochs=100, max_minutes=None, seed=0, lr=None)[0])
+
+
 @pytest.fixture(scope="module")
 def local_ray():
     """A Ray instance on this machine with 2 CPUs (as a CI runner has)."""
