@@ -85,13 +85,15 @@ def test_ddp_on_two_processes_trains_as_one_process(tiny, tmp_path):
     assert len(l1) >= 3 and np.array_equal(l1[:, 0], l2[:, 0])
     # the training moved (the comparison is not of a model that learns nothing) ...
     assert abs(l1[-1, 1] - l1[0, 1]) > 1e-3 * l1[0, 1]
-    # ... and the two trainings agree to float32 summation order (measured: see the report)
-    np.testing.assert_allclose(l2[:, 1], l1[:, 1], rtol=1e-4)
+    # ... and the two trainings agree to float32 summation order: measured 7e-8 relative on the
+    # logged losses of 3 epochs (48 steps of 64), 3e-8 absolute on weights of size up to 0.7; a
+    # global batch of 2 × 64 (each process drawing whole batches) misses by far more than 1e-5
+    np.testing.assert_allclose(l2[:, 1], l1[:, 1], rtol=1e-5)
     v1 = log1.dropna(subset=["val/vel_mse"])["val/vel_mse"].to_numpy()
     v2 = log2.dropna(subset=["val/vel_mse"])["val/vel_mse"].to_numpy()
     np.testing.assert_allclose(v2, v1, rtol=1e-3)  # halves of a batch of 1024 can differ by one window
     for k in w1:
-        np.testing.assert_allclose(w2[k].numpy(), w1[k].numpy(), rtol=1e-4, atol=1e-6)
+        np.testing.assert_allclose(w2[k].numpy(), w1[k].numpy(), rtol=1e-5, atol=1e-6)
 
 
 def test_sharded_batches_split_every_batch_between_processes(monkeypatch):

@@ -14,7 +14,10 @@ import pandas as pd
 
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.dataset import Dataset
 from wearnav.errors import ValidationError
+from wearnav.evaluate import evaluate_run
+from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 
 DEFAULT_MODELS = ("suitein++", "suitein", "ronin", "ronin*", "pdr")
 TEST_SPLITS = ("test", "test_unseen", "cross_subject")
@@ -22,15 +25,11 @@ MODES = ("STW", "PVW", "MVW", "DRW", "DLW")
 
 
 def suite_configs(data: str | Path, models=DEFAULT_MODELS, **train_kw) -> list:
-    from wearnav.train.odometry import TrainConfig
-
     return [TrainConfig(model=m, data=str(data), **train_kw) for m in models]
 
 
 def run_key(cfg) -> dict:
     """What names a config's run folder (``<model>-<hash8>``): its record less what is not hashed."""
-    from wearnav.train.odometry import run_hash_exclude, run_record
-
     return run_hash_exclude(run_record(cfg))
 
 
@@ -38,16 +37,13 @@ def run_key(cfg) -> dict:
 class OdometryJob:
     """One run of the suite: train ``cfg`` (or resume), then evaluate on ``splits``."""
 
-    cfg: object  # wearnav.train.odometry.TrainConfig
+    cfg: TrainConfig
     splits: tuple[str, ...]
     progress: bool = False
 
 
 def run_job(job: OdometryJob, run: Path) -> Path:
     """Train and evaluate one run folder (an executor job: a pure function of ``job``)."""
-    from wearnav.evaluate import evaluate_run
-    from wearnav.train.odometry import fit, prepare_run
-
     prepare_run(job.cfg, run)
     training = fit(job.cfg, run, progress=job.progress)
     evaluate_run(run, splits=job.splits, progress=job.progress, training=training)
@@ -58,8 +54,6 @@ def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = Tru
               execution: Execution = Execution()) -> list[Path]:
     """Train (or resume) and evaluate every config as ``execution`` says (:mod:`.executor`); skip
     complete runs. Returns the run folders, in the order of ``configs``."""
-    from wearnav.dataset import Dataset
-
     out = Path(out)
     jobs = []
     for cfg in configs:

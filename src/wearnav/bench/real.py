@@ -48,7 +48,14 @@ import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError, ValidationError
+from wearnav.evaluate import evaluate_run, predict_sequence
+from wearnav.models.registry import build, get
+from wearnav.preprocess import load_sequences
+from wearnav.rotations import from_wxyz
+from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
+from wearnav.trajectory import integrate_velocity
 
 DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
 TRUTH_MAX_GAP_S = 60.0
@@ -84,7 +91,7 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
     ``fmt``) to ``out`` with splits by place. Returns the folder and what was decided."""
     from tqdm.auto import tqdm
 
-    from wearnav.dataset import Dataset, DatasetWriter
+    from wearnav.dataset import DatasetWriter
     from wearnav.importers import get_importer
 
     src, out = Path(src), Path(out)
@@ -131,10 +138,6 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
 def segment_products(seqs, window: int = 100, stride: int = 10) -> np.ndarray:
     """d_pdr · conj(d_truth) per segment between consecutive surveyed points (complex), over the
     sequences ``seqs`` (Aligned, world frame, no yaw applied)."""
-    from wearnav.evaluate import predict_sequence
-    from wearnav.models.registry import build
-    from wearnav.trajectory import integrate_velocity
-
     out = []
     for seq in seqs:
         pdr = build("pdr", n_devices=len(seq.devices), window=window, rate=seq.rate).eval()
@@ -156,8 +159,6 @@ def device_axis_yaw(seqs, device: str = "phone", axis=(0.0, 1.0, 0.0)) -> float 
     """A cross-check valid only for a device held flat and pointing ahead (ILC2's phones): the yaw
     of its ``axis`` in the world frame against each segment's truth direction, Σ over segments of
     at least 1 m (degrees); None without orientation."""
-    from wearnav.rotations import from_wxyz
-
     p = []
     for seq in seqs:
         rec = seq.recording
@@ -193,10 +194,6 @@ def site_yaw(seqs, window: int = 100, stride: int = 10) -> dict:
 
 def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate: float = 25.0) -> dict:
     """:func:`site_yaw` of the ``split`` traces of dataset ``data`` (no yaw applied, no frame alignment)."""
-    from wearnav.dataset import Dataset
-    from wearnav.preprocess import load_sequences
-    from wearnav.train.odometry import TrainConfig
-
     cfg = TrainConfig(model="pdr", data=str(data), devices=tuple(devices), rate=rate, frame_align="none",
                       truth_max_gap=TRUTH_MAX_GAP_S)
     return site_yaw(load_sequences(Dataset.open(data).split(split), cfg))
@@ -207,8 +204,6 @@ def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate
 def fix_errors(data: Path, split: str = "test") -> dict | None:
     """Raw fix error at the surveyed points of ``split`` (nearest fix within metrics.FIX_MAX_GAP_S), each
     trace from its second point on, as the models are scored; None without fixes."""
-    from wearnav.dataset import Dataset
-
     view = Dataset.open(data).split(split)
     errs = []
     for name in view.names:
@@ -248,8 +243,6 @@ class RealBench:
 
 
 def _train_config(model: str, data: str, yaw: float, bench: RealBench, simulated: bool):
-    from wearnav.train.odometry import TrainConfig
-
     kw = dict(model=model, data=data, devices=("phone",), epochs=bench.epochs, patience=bench.patience,
               max_minutes=bench.max_minutes, seed=bench.seed, window=bench.window, stride=bench.stride,
               lr=bench.lr)
@@ -269,16 +262,13 @@ class RealEval:
 
 @dataclasses.dataclass(frozen=True)
 class RealJob:
-    cfg: object  # wearnav.train.odometry.TrainConfig
+    cfg: TrainConfig
     evals: tuple[RealEval, ...]
     progress: bool = False
 
 
 def run_job(job: RealJob, run: Path) -> Path:
     """Train one model (or resume) and score it on every site's test traces (an executor job)."""
-    from wearnav.evaluate import evaluate_run
-    from wearnav.train.odometry import fit, prepare_run
-
     prepare_run(job.cfg, run)
     training = fit(job.cfg, run, progress=job.progress)
     for e in job.evals:
@@ -294,9 +284,6 @@ def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str
                   progress: bool = True, echo=print, execution: Execution = Execution()) -> Path:
     """Prepare the data, estimate the site yaws, train/evaluate every model (as ``execution``
     says, :mod:`.executor`), write results.md."""
-    from wearnav.models.registry import get
-    from wearnav.train.odometry import run_hash_exclude, run_record
-
     out = Path(out)
     t_start = time.perf_counter()
     sites = {}
@@ -332,9 +319,6 @@ def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
     """Every run folder of the suite by its row label: the model's name when it was trained on
     the building's own training groups (or is not learned), "model · simulator `<data>`" when it
     was trained on another dataset (sim-to-real runs share the suite, so one table holds both)."""
-    from wearnav.dataset import Dataset
-    from wearnav.models.registry import get
-
     labelled = []
     for run in sorted(Path(out, "runs").glob("*/")):
         if not (run / runs.CONFIG).is_file():
