@@ -11,8 +11,9 @@ of a cluster.
   ``threads`` is given).
 - ``Execution(jobs=N)``: N local worker processes, ``threads`` (default 1) torch threads each.
 - ``Execution(backend="ray", address=...)``: Ray tasks of ``threads`` (default 1) CPUs each,
-  as many at once as the cluster has CPUs for. ``address`` None starts a Ray instance on this
-  machine; ``"auto"`` joins the cluster this node belongs to (``ray start``). Ray is the optional
+  as many at once as the cluster has CPUs for. ``address``: as ``ray.init``'s (``"auto"``: the
+  cluster this node joined with ``ray start``; None: ``$RAY_ADDRESS`` or that cluster if there is
+  one, else a new Ray instance on this machine). Ray is the optional
   extra ``pip install 'wearnav[cluster]'``, imported only here; every node needs wearnav installed
   and the suite's folder on a shared file system.
 
