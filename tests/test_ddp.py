@@ -116,3 +116,26 @@ def test_sharded_batches_split_every_batch_between_processes(monkeypatch):
     s = BatchSampler(129, 64, seed=5, shard=True)
     monkeypatch.setattr(s, "_rank_world", lambda: (1, 2))
     assert len(s) == len(list(s)) == 2
+
+
+@pytest.mark.ddp
+@pytest.mark.slow
+def test_wearnav_train_num_devices_2_ddp_from_the_command_line(tiny, tmp_path):
+    """`wearnav train --num-devices 2 --strategy ddp`: Lightning re-runs the command for rank 1,
+    which stops after training; rank 0 alone writes the run and prints once. The run's config is
+    the one-device run's (how it ran is in training.json only)."""
+    from wearnav import runs
+    from wearnav.train.odometry import TrainConfig, run_record
+
+    env = {**os.environ, "OMP_NUM_THREADS": "1",
+           "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1] / "src"),
+                                          os.environ.get("PYTHONPATH", "")])}
+    run = tmp_path / "run"
+    p = subprocess.run([sys.executable, "-m", "wearnav", "train", "ronin", "--data", str(tiny), "--out", str(run),
+                        "--epochs", "1", "--batch", "64", "--num-devices", "2", "--strategy", "ddp"],
+                       capture_output=True, text=True, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert p.stdout.count('"training"') == 1 and p.stdout.count('"test"') == 1
+    assert json.loads((run / "training.json").read_text())["processes"] == 2 and runs.is_complete(run)
+    cfg = TrainConfig(model="ronin", data=str(tiny), epochs=1, batch=64)
+    assert runs.read_config(run)["config"] == run_record(cfg)
