@@ -230,7 +230,7 @@ app.add_typer(bench_app, name="bench")
 
 # How a suite's runs are spread (wearnav.bench.executor); none of it enters a run's hash.
 JOBS_HELP = "Runs at once in local processes (1: one after another in this process)."
-EXECUTOR_HELP = "local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav[cluster]')."
+EXECUTOR_HELP = r"local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav\[cluster]')."
 ADDRESS_HELP = ("With --executor ray: the cluster to join (host:port, or 'auto': the one `ray start` joined here); "
                 "default: $RAY_ADDRESS or that cluster if there is one, else a new Ray on this machine.")
 
