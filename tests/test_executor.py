@@ -165,6 +165,9 @@ def test_ray_runs_jobs_and_a_real_suite_then_resumes(local_ray, tmp_path):
     ms = [runs.read_metrics(j.folder) for j in jobs]
     assert [m["x"] for m in ms] == [0, 1, 2] and os.getpid() not in {m["pid"] for m in ms}
     assert {m["threads"] for m in ms} == {1} and len(lines) == 3
+    with pytest.raises(ConfigError) as err:  # a job's own error comes back as itself, one line
+        run_jobs([Job(write_run, {"fail": True}, tmp_path / "bad")], Execution(backend="ray"), echo=lines.append)
+    assert str(err.value) == f"{tmp_path / 'bad'}: this job fails"
     # a real suite job (PDR: evaluated, not trained) through Ray, then the same folder resumed locally
     data = tmp_path / "tiny"
     simulate_dataset("tiny", data, seed=0)

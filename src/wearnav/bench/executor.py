@@ -178,8 +178,8 @@ def _run_ray(todo: list[Job], ex: Execution, finished) -> None:
                 job = pending.pop(done[0])
                 try:
                     wall = ray.get(done[0])
-                except ray.exceptions.RayTaskError as exc:
-                    raise exc.as_instanceof_cause() from None  # the job's own error (a WearnavError stays one)
+                except ray.exceptions.RayTaskError as exc:  # the job's own error: a WearnavError stays one line
+                    raise (exc.cause if isinstance(exc.cause, Exception) else exc) from None
                 k += 1
                 finished(k, job, wall)
         except BaseException:
