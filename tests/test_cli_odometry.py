@@ -43,7 +43,7 @@ def test_bench_suite_resumes_and_results_page(tiny, tmp_path, monkeypatch, capsy
     args = ("bench", "odometry", "--data", tiny, "--out", tmp_path / "suite", "--models", "test-mlp", "--epochs", "1")
     code, out, err = run(monkeypatch, capsys, *args)
     assert code == 0, err
-    assert "training" in out
+    assert "test-mlp-" in out and ": done in " in out and "skipped" not in out
     code, out, err = run(monkeypatch, capsys, *args)
     assert code == 0 and "complete, skipped" in out
     page = (tmp_path / "suite" / "results.md").read_text()

@@ -16,6 +16,7 @@ import yaml
 
 from wearnav import runs
 from wearnav.bench import har
+from wearnav.bench.executor import Execution
 from wearnav.dataset import Dataset
 from wearnav.simulate.config import PHONE_HOLDS
 from wearnav.simulate.presets import SINGLE_HOLDS, plan_placement_dataset
@@ -102,8 +103,8 @@ def test_jobs_2_gives_the_same_runs_as_one_process(sim_quick, tmp_path):
     for out in (a, b):
         shutil.copytree(sim_quick.parent, out / "data")  # the same generated data, not regenerated
     kw = dict(datasets=["sim-placement"], seeds=2, quick=True, techniques=["baseline", "rot_z"], echo=lambda s: None)
-    har.run_benchmark(Path("unused"), a, jobs=1, **kw)
-    har.run_benchmark(Path("unused"), b, jobs=2, **kw)
+    har.run_benchmark(Path("unused"), a, **kw)
+    har.run_benchmark(Path("unused"), b, execution=Execution(jobs=2, threads=1), **kw)
     ra, rb = _results(a / "runs"), _results(b / "runs")
     assert sorted(ra) == [("baseline", 0), ("baseline", 1), ("rot_z", 0), ("rot_z", 1)]
     assert ra == rb
@@ -116,7 +117,7 @@ def test_jobs_2_gives_the_same_runs_as_one_process(sim_quick, tmp_path):
     # a second invocation (nothing left to train) adds its wall time to the first's
     first = doc["invocations"]
     assert len(first) == 1 and first[0]["wall_s"] > 0
-    har.run_benchmark(Path("unused"), b, jobs=2, **kw)
+    har.run_benchmark(Path("unused"), b, execution=Execution(jobs=2, threads=1), **kw)
     doc2 = json.loads((b / "results.json").read_text())
     assert doc2["invocations"][0] == first[0] and len(doc2["invocations"]) == 2
     assert "over 2 invocations" in (b / "results.md").read_text()

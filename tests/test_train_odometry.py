@@ -82,7 +82,7 @@ def test_learning_beats_a_zero_velocity_guess(tiny, tmp_path):
     fit(cfg, run, progress=False)
     model, _ = load_model(run)
     from wearnav.dataset import Dataset
-    from wearnav.evaluate import load_sequences
+    from wearnav.preprocess import load_sequences
     from wearnav.windows import WindowDataset
 
     wds = WindowDataset(load_sequences(Dataset.open(tiny).split("test"), cfg), cfg.window_config())
@@ -192,7 +192,7 @@ def test_sequence_cache_is_bounded_and_drops_the_least_recently_used(tiny, monke
     import importlib
 
     from wearnav.dataset import Dataset
-    from wearnav.evaluate import BoundedCache, MAX_CACHED_SEQUENCES, load_sequences
+    from wearnav.preprocess import BoundedCache, MAX_CACHED_SEQUENCES, load_sequences
 
     module = importlib.import_module(load_sequences.__module__)
     assert module._CACHE.maxsize == MAX_CACHED_SEQUENCES
@@ -213,7 +213,7 @@ def test_sequence_cache_is_bounded_and_drops_the_least_recently_used(tiny, monke
 
 
 def test_bounded_cache_keeps_the_most_recently_used():
-    from wearnav.evaluate import BoundedCache
+    from wearnav.preprocess import BoundedCache
 
     c = BoundedCache(2)
     c["a"], c["b"] = 1, 2

@@ -17,6 +17,7 @@ from typing import Optional
 
 import typer
 
+from wearnav.bench.executor import Backend
 from wearnav.errors import Terminated, ValidationError, WearnavError, WearnavWarning, one_line
 from wearnav.importers import FORMATS
 
@@ -205,6 +206,14 @@ def models_():
         typer.echo(f"{spec.name:15s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
 
 
+class Strategy(str, Enum):
+    """Lightning's strategies for one training on several devices (wearnav.train.common)."""
+
+    auto = "auto"
+    ddp = "ddp"
+    ddp_spawn = "ddp_spawn"
+
+
 @app.command()
 def train(
     model: str = typer.Argument(..., help="A registered model (see `wearnav models`)."),
@@ -218,6 +227,10 @@ def train(
     patience: int = typer.Option(10, help="Early-stopping patience in epochs."),
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes of the run (over resumes too)."),
     evaluate: bool = typer.Option(True, help="Evaluate on the test split afterwards."),
+    num_devices: int = typer.Option(1, "--num-devices", min=1, help="GPUs (or, without one, CPU processes) that "
+                                    "train at once, each on its share of every batch (not the sensor --devices)."),
+    strategy: Strategy = typer.Option(Strategy.auto, help="ddp: one process per device (Lightning re-runs this "
+                                      "command in each). The run and its folder are the same on any number."),
 ):
     """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json)."""
     from wearnav.evaluate import evaluate_run
@@ -228,7 +241,7 @@ def train(
                       lr=lr, batch=batch, patience=patience, max_minutes=max_time)
     run = prepare_run(cfg, out)
     with locked(run):  # one process per run folder, from training through its metrics
-        record = fit(cfg, run, progress=_progress())
+        record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
         _echo_json({"run": str(run), "training": record})
         if evaluate:
             m = evaluate_run(run, splits=("test",), training=record, progress=_progress())
@@ -252,6 +265,18 @@ def eval_(
 bench_app = typer.Typer(help="The papers' experiments as resumable suites of run folders.", no_args_is_help=True)
 app.add_typer(bench_app, name="bench")
 
+# How a suite's runs are spread (wearnav.bench.executor); none of it enters a run's hash.
+JOBS_HELP = "Runs at once in local processes (1: one after another in this process)."
+EXECUTOR_HELP = r"local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav\[cluster]')."
+ADDRESS_HELP = ("With --executor ray: the cluster to join (host:port, or 'auto': the one `ray start` joined here); "
+                "default: $RAY_ADDRESS or that cluster if there is one, else a new Ray on this machine.")
+
+
+def _execution(jobs: int, executor: Backend, address: Optional[str], threads: Optional[int] = None):
+    from wearnav.bench.executor import Execution
+
+    return Execution(jobs=jobs, backend=executor, address=address, threads=threads)
+
 
 @bench_app.command("odometry")
 def bench_odometry(
@@ -263,12 +288,16 @@ def bench_odometry(
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
     lr: Optional[float] = typer.Option(None, help="Learning rate for every model (default: each model's paper value)."),
     seed: int = typer.Option(0, min=0),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
 ):
     """Train and evaluate the odometry comparison; complete runs are skipped (the suite resumes)."""
     from wearnav.bench.odometry import run_suite, suite_configs, write_suite_report
 
     configs = suite_configs(data, _devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr)
-    folders = run_suite(configs, out, progress=_progress(), echo=typer.echo)
+    folders = run_suite(configs, out, progress=_progress(), echo=typer.echo,
+                        execution=_execution(jobs, executor, address))
     from wearnav.dataset import Dataset
 
     prov = Dataset.open(data).provenance
@@ -305,6 +334,9 @@ def bench_real_odometry(
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
     lr: float = typer.Option(1e-3, help="Adam learning rate for every learned model."),
     seed: int = typer.Option(0, min=0),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
 ):
     """Phone-only odometry trained on some floors/routes of a real building, scored at the surveyed
     points of held-out ones (and of another building); PDR and the raw phone fixes beside them."""
@@ -315,7 +347,7 @@ def bench_real_odometry(
     page = run_benchmark(data, out, test_data, _value(format_), _value(test_format), group_by,
                          _devices(test_groups) if test_groups else None, test_group_by,
                          _devices(test_test_groups) if test_test_groups else None, bench,
-                         progress=_progress(), echo=typer.echo)
+                         progress=_progress(), echo=typer.echo, execution=_execution(jobs, executor, address))
     typer.echo(f"wrote {page}")
 
 
@@ -347,7 +379,9 @@ def bench_har(
     data: Path = typer.Option(Path("../shared/data"), "--data", help="Folder holding the public datasets."),
     datasets: Optional[str] = typer.Option(None, help="Datasets, comma-separated (default: all; --quick: uci-hapt)."),
     seeds: Optional[int] = typer.Option(None, min=1, help="Seeds per technique (default 3; --quick 1)."),
-    jobs: int = typer.Option(1, min=1, help="Runs trained at once in local processes."),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
     epochs: Optional[int] = typer.Option(None, min=1, help="Epochs per run (default 30; --quick 1)."),
     steps: Optional[int] = typer.Option(None, min=1, help="Instead of --epochs: each dataset's epochs give the "
                                         "baseline about this many gradient steps (expanded sets the same epochs)."),
@@ -359,9 +393,9 @@ def bench_har(
     """The paper-002 HAR benchmark: baseline and ten techniques per dataset; runs resume."""
     from wearnav.bench.har import run_benchmark
 
-    page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3), jobs,
-                         quick, epochs, _devices(techniques) if techniques else None, max_time, echo=typer.echo,
-                         threads=threads, steps=steps)
+    page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3),
+                         _execution(jobs, executor, address, threads), quick, epochs,
+                         _devices(techniques) if techniques else None, max_time, echo=typer.echo, steps=steps)
     typer.echo(f"wrote {page}")
 
 
@@ -370,7 +404,9 @@ def bench_easytrack(
     out: Path = typer.Option(Path("runs/easytrack"), "--out", help="Suite folder (data, run folders, results.md)."),
     quick: bool = typer.Option(False, "--quick", help="Tiny data, 1–2 epochs per phase: checks the pipeline only."),
     seeds: int = typer.Option(1, min=1, help="Seeds per method and level."),
-    jobs: int = typer.Option(1, min=1, help="Runs trained at once in local processes."),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
     data: Optional[Path] = typer.Option(None, "--data", help="Real dataset (wearnav folder: phone IMU, fixes, sparse "
                                         "truth), e.g. an `wearnav import ipin2023` output."),
     test_routes: Optional[str] = typer.Option(None, "--test-routes",
@@ -397,7 +433,8 @@ def bench_easytrack(
         changes["levels"] = tuple(_devices(levels))
     if methods:
         changes["methods"] = tuple(_devices(methods))
-    page = run_benchmark(out, quick, seeds, jobs, data, test_routes, _dc.replace(bc, **changes), echo=typer.echo)
+    page = run_benchmark(out, quick, seeds, _execution(jobs, executor, address), data, test_routes,
+                         _dc.replace(bc, **changes), echo=typer.echo)
     typer.echo(f"wrote {page}")
 
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
-from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -22,9 +21,12 @@ import pandas as pd
 import torch
 
 from wearnav import metrics, runs
+from wearnav.dataset import Dataset
 from wearnav.errors import ValidationError
 from wearnav.fileio import atomic_path
-from wearnav.preprocess import Aligned, align
+from wearnav.models.registry import n_parameters
+from wearnav.preprocess import Aligned, load_sequences
+from wearnav.train.odometry import TRAINING, load_model
 from wearnav.trajectory import integrate_velocity
 from wearnav.windows import WindowConfig, WindowDataset
 
@@ -33,50 +35,6 @@ DENSE_TRUTH_MAX_DT = 1.0
 # A sparse truth point is scored when a trajectory sample lies within this many seconds of it.
 SPARSE_MAX_GAP = 1.0
 PERCENTILES = (50, 75, 90, 95)
-
-class BoundedCache(OrderedDict):
-    """A dict holding at most ``maxsize`` entries: storing one more drops the least recently
-    used (read or stored). ``functools.lru_cache`` does not fit here: the value is computed from
-    a Dataset view, which is not part of the key."""
-
-    def __init__(self, maxsize: int):
-        super().__init__()
-        self.maxsize = maxsize
-
-    def __getitem__(self, key):
-        value = super().__getitem__(key)
-        self.move_to_end(key)
-        return value
-
-    def __setitem__(self, key, value):
-        super().__setitem__(key, value)
-        self.move_to_end(key)
-        while len(self) > self.maxsize:
-            self.popitem(last=False)
-
-
-# Aligned sequences kept per process (each holds its Recording): enough for every recording of one
-# dataset and preprocessing (ILC2, the largest shipped set, has a few hundred traces), so a suite
-# that evaluates several models on one split preprocesses it once, while a long benchmark over
-# many datasets and preprocessing variants does not keep them all.
-MAX_CACHED_SEQUENCES = 1024
-_CACHE: BoundedCache = BoundedCache(MAX_CACHED_SEQUENCES)
-
-
-def load_sequences(view, cfg, progress: bool = False) -> list[Aligned]:
-    """Align every recording of a Dataset view for ``cfg`` (a TrainConfig). Aligned sequences are
-    cached per process by (file, preprocess config), so a suite preprocesses each recording once."""
-    from tqdm.auto import tqdm
-
-    pcfg = cfg.preprocess_config()
-    out = []
-    for name in tqdm(view.names, desc="preprocess", unit="rec", disable=not progress, leave=False):
-        path = view.path(name)
-        key = (str(path.resolve()), path.stat().st_mtime_ns, pcfg)
-        if key not in _CACHE:
-            _CACHE[key] = align(view.load(name), pcfg)
-        out.append(_CACHE[key])
-    return out
 
 
 @torch.no_grad()
@@ -214,10 +172,6 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
     write metrics.json, trajectories/<split>/<name>.csv and plots/ into ``out_dir`` (default: the
     run folder). ``preprocess`` replaces preprocessing fields of the run's config for this data
     (e.g. another site's ``yaw_deg``); it is recorded in the metrics. Returns the metrics."""
-    from wearnav.dataset import Dataset
-    from wearnav.models.registry import n_parameters
-    from wearnav.train.odometry import TRAINING, load_model
-
     run = Path(run)
     model, cfg = load_model(run)
     if preprocess:

@@ -12,6 +12,7 @@ each IMU into the world frame with the device's orientation; these are the defau
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -190,3 +191,49 @@ def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig()) -> Aligned
     if cfg.yaw_deg:
         imu = np.stack([rotate_stacked(x, -np.deg2rad(cfg.yaw_deg)) for x in imu]).astype(np.float32)
     return Aligned(rec.name, t, tuple(cfg.devices), imu, mask, pos, meta, rec)
+
+
+class BoundedCache(OrderedDict):
+    """A dict holding at most ``maxsize`` entries: storing one more drops the least recently
+    used (read or stored). ``functools.lru_cache`` does not fit here: the value is computed from
+    a Dataset view, which is not part of the key."""
+
+    def __init__(self, maxsize: int):
+        super().__init__()
+        self.maxsize = maxsize
+
+    def __getitem__(self, key):
+        value = super().__getitem__(key)
+        self.move_to_end(key)
+        return value
+
+    def __setitem__(self, key, value):
+        super().__setitem__(key, value)
+        self.move_to_end(key)
+        while len(self) > self.maxsize:
+            self.popitem(last=False)
+
+
+# Aligned sequences kept per process (each holds its Recording): enough for every recording of one
+# dataset and preprocessing (ILC2, the largest shipped set, has a few hundred traces), so a suite
+# that evaluates several models on one split preprocesses it once, while a long benchmark over
+# many datasets and preprocessing variants does not keep them all.
+MAX_CACHED_SEQUENCES = 1024
+_CACHE: BoundedCache = BoundedCache(MAX_CACHED_SEQUENCES)
+
+
+def load_sequences(view, cfg, progress: bool = False) -> list[Aligned]:
+    """Align every recording of a Dataset view (:class:`wearnav.dataset.Dataset`) for ``cfg``, any
+    config with a ``preprocess_config()`` (a TrainConfig, a ClassifyConfig). Aligned sequences are
+    cached per process by (file, preprocess config), so a suite preprocesses each recording once."""
+    from tqdm.auto import tqdm
+
+    pcfg = cfg.preprocess_config()
+    out = []
+    for name in tqdm(view.names, desc="preprocess", unit="rec", disable=not progress, leave=False):
+        path = view.path(name)
+        key = (str(path.resolve()), path.stat().st_mtime_ns, pcfg)
+        if key not in _CACHE:
+            _CACHE[key] = align(view.load(name), pcfg)
+        out.append(_CACHE[key])
+    return out

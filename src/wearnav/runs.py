@@ -96,6 +96,9 @@ def locked(run: str | Path) -> Iterator[Path]:
     """
     run = Path(run)
     run.mkdir(parents=True, exist_ok=True)
+    if _secondary_rank():  # the rank-0 process that started this one holds the folder
+        yield run
+        return
     key = os.path.realpath(run / LOCK)
     with _held_guard:
         lock = _held.get(key)
@@ -115,6 +118,13 @@ def locked(run: str | Path) -> Iterator[Path]:
             lock.release()
             if not lock.is_locked:
                 _held.pop(key, None)
+
+
+def _secondary_rank() -> bool:
+    """True in a process that Lightning's DDP launcher started for another rank (it re-runs the
+    command with ``LOCAL_RANK`` set; other nodes set ``NODE_RANK``): one training spread over
+    several processes is one user of its run folder, so only rank 0 takes the lock."""
+    return os.environ.get("LOCAL_RANK", "0") != "0" or os.environ.get("NODE_RANK", "0") != "0"
 
 
 def lock_holder(run: str | Path) -> int | None:

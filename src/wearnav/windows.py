@@ -141,15 +141,16 @@ class WindowDataset(TorchDataset):
             "t": torch.from_numpy(t),
         }
 
-    def loader(self, batch: int, shuffle_seed: int | None = None) -> "torch.utils.data.DataLoader":
+    def loader(self, batch: int, shuffle_seed: int | None = None, shard: bool = False) -> "torch.utils.data.DataLoader":
         """A DataLoader that fetches whole batches (shuffled per epoch from ``shuffle_seed``, or in
-        order when None)."""
+        order when None). ``shard``: under distributed training each process takes its share of
+        every batch (:class:`BatchSampler`), so ``batch`` is the global batch."""
         from torch.utils.data import DataLoader
 
         # batch_size=None: each "index" the sampler yields is a list, fetched in one call. Its own
         # generator: creating an iterator otherwise draws from the global RNG, at moments Lightning
         # orders differently on a resumed epoch, which would shift dropout's draws.
-        return DataLoader(self, batch_size=None, sampler=BatchSampler(len(self), batch, shuffle_seed),
+        return DataLoader(self, batch_size=None, sampler=BatchSampler(len(self), batch, shuffle_seed, shard),
                           num_workers=0, generator=torch.Generator())
 
     @classmethod
@@ -162,18 +163,32 @@ class WindowDataset(TorchDataset):
 class BatchSampler(torch.utils.data.Sampler):
     """Yields lists of window indices, ``batch`` at a time. With a seed the order is a permutation
     that is a function of (seed, epoch) alone; Lightning calls :meth:`set_epoch` before every
-    epoch, also on a resumed run, so a resumed epoch replays exactly."""
+    epoch, also on a resumed run, so a resumed epoch replays exactly.
 
-    def __init__(self, n: int, batch: int, seed: int | None = None):
+    ``shard``: when torch.distributed runs W processes (Lightning's DDP), process r yields the
+    r-th of W near-equal parts of every batch: with gradients averaged over processes, a step on
+    W processes is the step one process takes on the whole batch (exactly, for equal parts and a
+    model whose output for a window does not depend on the rest of its batch: no batch norm).
+    A last batch smaller than W is dropped on every process."""
+
+    def __init__(self, n: int, batch: int, seed: int | None = None, shard: bool = False):
         if batch < 1:
             raise ConfigError(f"batch must be ≥ 1, got {batch}")
-        self.n, self.batch, self.seed, self.epoch = n, batch, seed, 0
+        self.n, self.batch, self.seed, self.epoch, self.shard = n, batch, seed, 0, shard
 
     def set_epoch(self, epoch: int) -> None:
         self.epoch = epoch
 
+    def _rank_world(self) -> tuple[int, int]:
+        dist = torch.distributed
+        if self.shard and dist.is_available() and dist.is_initialized():
+            return dist.get_rank(), dist.get_world_size()
+        return 0, 1
+
     def __len__(self) -> int:
-        return -(-self.n // self.batch)
+        _, world = self._rank_world()
+        full, rest = divmod(self.n, self.batch)
+        return full + (1 if rest and rest >= world else 0)
 
     def __iter__(self):
         if self.seed is None:
@@ -181,5 +196,11 @@ class BatchSampler(torch.utils.data.Sampler):
         else:
             g = torch.Generator().manual_seed(self.seed * 100_003 + self.epoch)
             order = torch.randperm(self.n, generator=g).numpy()
+        rank, world = self._rank_world()
         for i in range(0, self.n, self.batch):
-            yield order[i:i + self.batch].tolist()
+            idx = order[i:i + self.batch]
+            if world > 1:
+                if idx.size < world:
+                    break
+                idx = np.array_split(idx, world)[rank]
+            yield idx.tolist()

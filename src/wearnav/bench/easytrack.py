@@ -22,6 +22,7 @@ The page ``<out>/results.md`` (+ PNGs) is what ``wearnav results`` stitches into
 from __future__ import annotations
 
 import dataclasses
+import logging
 import re
 import time
 from pathlib import Path
@@ -30,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav import metrics, runs
+from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.errors import ValidationError
 from wearnav.fixlabels import LabelConfig, Segments, label_dataset, noise_summary
 from wearnav.train.noisy import NoisyConfig, fit_noisy, load_predictor, write_history
@@ -39,6 +41,8 @@ MAIN = ("easytrack", "coteaching", "aux", "basemodel", "basemodel-gt", "ionet", 
 ABLATION = ("nocnal", "nocoadapt")
 IPIN_TEST_ROUTES = r"Trial(05|25|52)_"  # held-out routes; trials 01/02 (simulator calibration) train only
 IPIN_METHODS = ("easytrack", "basemodel")
+
+log = logging.getLogger(__name__)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,25 +76,30 @@ def _dataset(path: Path, plan, echo) -> "Dataset":  # noqa: F821
     return simulate_plan(plan, path, {"generator": "wearnav.simulate (plan_phone_only)"}, progress=False)
 
 
+def _caches(out: Path, bc: BenchConfig, lc: LabelConfig) -> tuple[dict[str, Path], Path]:
+    """The labelled segments' files: training per level, and the test set."""
+    data, tag = out / "data", runs.config_hash(dataclasses.asdict(lc))
+    train = {level: data / f"{level}_km{bc.km:g}_s{bc.sim_seed}_{tag}_train.npz" for level in bc.levels}
+    return train, data / f"test_n{bc.test_walks}_s{bc.sim_seed}_{tag}.npz"
+
+
 def sim_segments(out: Path, bc: BenchConfig, lc: LabelConfig, echo=print) -> tuple[dict[str, Segments], Segments]:
     """Phone-labelled training segments per level and truth-labelled test segments (cached)."""
     from wearnav.simulate.presets import plan_phone_only
 
     data = out / "data"
-    tag = runs.config_hash(dataclasses.asdict(lc))
+    caches, test_cache = _caches(out, bc, lc)
     train = {}
-    for level in bc.levels:
-        cache = data / f"{level}_km{bc.km:g}_s{bc.sim_seed}_{tag}_train.npz"
+    for level, cache in caches.items():
         if not cache.is_file():
             ds = _dataset(data / f"sim_{level}_km{bc.km:g}_s{bc.sim_seed}", plan_phone_only(level, bc.km, bc.sim_seed), echo)
             label_dataset(ds, lc).save(cache)
         train[level] = Segments.load(cache)
-    cache = data / f"test_n{bc.test_walks}_s{bc.sim_seed}_{tag}.npz"
-    if not cache.is_file():
+    if not test_cache.is_file():
         plan = plan_phone_only("L1", 0.0, bc.sim_seed, bc.test_duration_s, test=True, n=bc.test_walks)
         ds = _dataset(data / f"sim_test_n{bc.test_walks}_s{bc.sim_seed}", plan, echo)
-        label_dataset(ds, lc, from_truth=True).save(cache)
-    return train, Segments.load(cache)
+        label_dataset(ds, lc, from_truth=True).save(test_cache)
+    return train, Segments.load(test_cache)
 
 
 # ---- runs -----------------------------------------------------------------------------------------
@@ -110,7 +119,7 @@ def _ate_rows(predict, test: Segments) -> list[dict]:
     return rows
 
 
-def run_one(cfg: NoisyConfig, train: Segments, test: Segments, folder: Path, record: dict, echo=print) -> dict:
+def run_one(cfg: NoisyConfig, train: Segments, test: Segments | None, folder: Path, record: dict) -> dict:
     """Train (or resume) and score one run folder; returns its metrics."""
     if runs.is_complete(folder):
         return runs.read_metrics(folder)
@@ -133,32 +142,34 @@ def run_one(cfg: NoisyConfig, train: Segments, test: Segments, folder: Path, rec
         m["ate_mean_m"] = float(np.mean([r["ate"] for r in m["ate"]])) if m["ate"] else None
     runs.write_metrics(folder, m)
     score = f"ADE {m['ade_m']:.3f} m" if "ade_m" in m else "trained"
-    echo(f"{folder.name}: {score}, {tr['s_per_epoch']:.2f} s/epoch, {time.perf_counter() - t0:.0f} s")
+    log.info(f"{folder.name}: {score}, {tr['s_per_epoch']:.2f} s/epoch, {time.perf_counter() - t0:.0f} s")
     return m
 
 
-def _job(args):
-    cfg, train_path, test_path, folder, record = args
-    import torch
+@dataclasses.dataclass(frozen=True)
+class EasyJob:
+    """One run: ``cfg`` trained on the segments in file ``train``, scored on those in ``test``."""
 
-    torch.set_num_threads(1)
-    return run_one(cfg, Segments.load(train_path), Segments.load(test_path) if test_path else None, folder, record,
-                   echo=lambda s: None)
+    cfg: NoisyConfig
+    train: Path
+    test: Path | None
+    record: dict
 
 
-def sim_runs(out: Path, bc: BenchConfig, seeds: int, jobs: int, lc: LabelConfig, echo=print) -> list[dict]:
-    train, test = sim_segments(out, bc, lc, echo)
+def run_job(job: EasyJob, folder: Path) -> Path:
+    """An executor job: :func:`run_one` on the segments the job names."""
+    run_one(job.cfg, Segments.load(job.train), Segments.load(job.test) if job.test else None, folder, job.record)
+    return folder
+
+
+def sim_runs(out: Path, bc: BenchConfig, seeds: int, lc: LabelConfig, execution: Execution = Execution(),
+             echo=print) -> list[dict]:
+    """Every simulator run's metrics, in :func:`_todo`'s order."""
+    sim_segments(out, bc, lc, echo)
+    caches, test_cache = _caches(out, bc, lc)
     todo = _todo(out, bc, seeds, lc)
-    data = out / "data"
-    if jobs > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
-        tag = runs.config_hash(dataclasses.asdict(lc))
-        args = [(cfg, data / f"{lv}_km{bc.km:g}_s{bc.sim_seed}_{tag}_train.npz",
-                 data / f"test_n{bc.test_walks}_s{bc.sim_seed}_{tag}.npz", f, r) for cfg, lv, f, r in todo]
-        with ProcessPoolExecutor(jobs) as ex:
-            return list(ex.map(_job, args))
-    return [run_one(cfg, train[level], test, folder, record, echo) for cfg, level, folder, record in todo]
+    jobs = [Job(run_job, EasyJob(cfg, caches[level], test_cache, record), folder) for cfg, level, folder, record in todo]
+    return [runs.read_metrics(f) for f in run_jobs(jobs, execution, echo)]
 
 
 # ---- real data (IPIN 2023 or any dataset with fixes and sparse truth) -----------------------------
@@ -170,7 +181,7 @@ def _scores(err: np.ndarray) -> dict:
 
 
 def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_routes: str | None, seeds: int,
-              echo=print) -> dict:
+              echo=print, execution: Execution = Execution()) -> dict:
     """Train on the training routes' GNSS labels, score at the surveyed points of the test routes.
 
     ``test_routes``: a regex on recording names; None: the dataset's ``test`` split where it has
@@ -201,7 +212,7 @@ def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_rout
     train = Segments.load(cache)
     echo(f"real: {len(train)} GNSS-labelled segments from {len(train.names)} training routes; "
          f"{len(test_names)} test routes")
-    preds = {}
+    jobs = []
     for method in IPIN_METHODS:
         for seed in range(seeds):
             cfg = NoisyConfig(method=method, seed=seed, ae_epochs=bc.ae_epochs, pre_epochs=bc.pre_epochs,
@@ -209,8 +220,11 @@ def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_rout
             record = {"noisy": dataclasses.asdict(cfg), "data": str(Path(data).resolve()), "test_routes": test_routes,
                       "labels": dataclasses.asdict(lc), "part": "real"}
             folder = runs.run_dir(rdir / "runs", f"{method}-s{seed}", record)
-            run_one(cfg, train, None, folder, record, echo)
-            preds.setdefault(method, []).append(load_predictor(cfg, folder, train.x.shape[1]))
+            jobs.append(Job(run_job, EasyJob(cfg, cache, None, record), folder))
+    run_jobs(jobs, execution, echo)
+    preds: dict[str, list] = {}
+    for job in jobs:
+        preds.setdefault(job.config.cfg.method, []).append(load_predictor(job.config.cfg, job.folder, train.x.shape[1]))
     N = lc.samples
     pdr = build("pdr", n_devices=1, window=int(round(4 * lc.rate)), rate=lc.rate)
     errs: dict[str, list] = {m: [] for m in (*IPIN_METHODS, "pdr", "gnss")}
@@ -450,13 +464,14 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
     return write_text_atomic("\n".join(lines), out / "results.md")
 
 
-def run_benchmark(out: str | Path, quick: bool = False, seeds: int = 1, jobs: int = 1, data: str | Path | None = None,
-                  test_routes: str | None = None, bc: BenchConfig | None = None, echo=print) -> Path:
+def run_benchmark(out: str | Path, quick: bool = False, seeds: int = 1, execution: Execution = Execution(),
+                  data: str | Path | None = None, test_routes: str | None = None, bc: BenchConfig | None = None,
+                  echo=print) -> Path:
     out = Path(out)
     bc = bc or (BenchConfig.quick() if quick else BenchConfig())
     lc = LabelConfig()
-    real = real_part(Path(data), out, bc, lc, test_routes, seeds, echo) if data else None
-    sim = sim_runs(out, bc, seeds, jobs, lc, echo)
+    real = real_part(Path(data), out, bc, lc, test_routes, seeds, echo, execution) if data else None
+    sim = sim_runs(out, bc, seeds, lc, execution, echo)
     for m, (_, _, folder, _) in zip(sim, _todo(out, bc, seeds, lc)):
         m["folder"] = str(folder)
     train, test = sim_segments(out, bc, lc, echo)

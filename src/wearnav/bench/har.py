@@ -2,8 +2,8 @@
 
 Per dataset, every technique is a :class:`wearnav.train.classify.ClassifyConfig` per seed, one
 run folder each (``<out>/runs/<dataset>/<technique>-<hash8>``); complete runs are skipped, so an
-interrupted benchmark resumes, and ``jobs`` > 1 spreads runs over local processes. The report
-reads run folders only.
+interrupted benchmark resumes; :mod:`wearnav.bench.executor` runs them here, in local processes or
+on a Ray cluster. The report reads run folders only.
 
 Datasets (real recordings imported from the shared data folder, and the simulator's placement
 dataset, generated: :func:`wearnav.simulate.presets.plan_placement_dataset`) and their subject-independent
@@ -19,13 +19,13 @@ import os
 import platform
 import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from wearnav import runs
+from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.errors import ConfigError
 
 BASELINE = "har-cnn-bilstm"
@@ -153,58 +153,43 @@ def suite_configs(ds: HarDataset, data: Path, seeds: int, techniques=None, **tra
 DEFAULT_THREADS = 1
 
 
-def _run_one(cfg, run: Path, threads: int | None) -> Path:
-    import torch
-
+def run_job(cfg, run: Path) -> Path:
+    """Train and evaluate one run folder (an executor job: a pure function of ``cfg``)."""
     from wearnav.train.classify import evaluate_run, fit, prepare_run
 
-    torch.set_num_threads(threads or DEFAULT_THREADS)
     prepare_run(cfg, run)
     evaluate_run(run, training=fit(cfg, run, progress=False))
     return run
 
 
-def run_suite(items, root: Path, jobs: int = 1, echo=print, threads: int | None = None) -> dict[str, list[Path]]:
-    """Train and evaluate every (technique, config); skip complete runs. technique → folders.
+def expected_cost(cfg) -> int:
+    """A run's training windows relative to the baseline's: an expanded set (rotation, noise)
+    trains on 2–4× the windows, so it starts first and the workers finish together."""
+    from wearnav.augment import expansion_copies
 
-    ``threads``: torch intra-op threads per run (default :data:`DEFAULT_THREADS` = 1). This model
-    is small (batch 64, 41 LSTM steps of 64 units). Measured on the shared 2-core machine: a
+    return 1 + len(expansion_copies(cfg.expand)) if cfg.expand else 1
+
+
+def run_suite(items, root: Path, execution: Execution = Execution(threads=DEFAULT_THREADS),
+              echo=print) -> dict[str, list[Path]]:
+    """Train and evaluate every (technique, config) as ``execution`` says (:mod:`.executor`); skip
+    complete runs. technique → folders.
+
+    ``execution.threads``: torch intra-op threads per run (:data:`DEFAULT_THREADS` = 1). This
+    model is small (batch 64, 41 LSTM steps of 64 units). Measured on the shared 2-core machine: a
     training step took 37–41 ms with 1 thread and 35–40 ms with 2 when the machine was quiet, but
     51–62 ms with 1 thread and 266–428 ms with 2 at a load average of 5.6 (two OpenMP threads
     spin-wait for each other's core); one epoch of UCI HAPT took 5.6 s with 1 thread and 9.6 s
-    with 2 at a load of about 1. More throughput comes from ``jobs``."""
+    with 2 at a load of about 1. More throughput comes from ``execution.jobs``."""
     from wearnav.train.classify import run_folder
 
     folders: dict[str, list[Path]] = {}
-    todo = []
+    jobs = []
     for tech, cfg in items:
         run = run_folder(root, tech.name, cfg)
         folders.setdefault(tech.name, []).append(run)
-        if runs.is_complete(run):
-            echo(f"{run.name}: complete, skipped")
-        else:
-            todo.append((tech, cfg, run))
-    if jobs <= 1:
-        import torch
-
-        old = torch.get_num_threads()
-        try:
-            for tech, cfg, run in todo:
-                t0 = time.perf_counter()
-                _run_one(cfg, run, threads)
-                echo(f"{run.name}: done in {time.perf_counter() - t0:.0f} s")
-        finally:
-            torch.set_num_threads(old)
-    else:
-        from wearnav.augment import expansion_copies
-
-        # longest first (an expanded set trains on 2–4× the windows): the workers finish together
-        todo.sort(key=lambda t: -(1 + len(expansion_copies(t[1].expand))) if t[1].expand else -1)
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = [(run, pool.submit(_run_one, cfg, run, threads)) for _, cfg, run in todo]
-            for run, fut in futures:
-                fut.result()
-                echo(f"{run.name}: done")
+        jobs.append(Job(run_job, cfg, run, cost=expected_cost(cfg)))
+    run_jobs(jobs, execution, echo)
     return folders
 
 
@@ -464,9 +449,10 @@ def epochs_for_steps(spec: HarDataset, data: Path, steps: int, batch: int = 64) 
     return max(1, round(steps / max(1, -(-n // batch))))
 
 
-def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3, jobs: int = 1, quick: bool = False,
+def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3,
+                  execution: Execution = Execution(threads=DEFAULT_THREADS), quick: bool = False,
                   epochs: int | None = None, techniques=None, max_minutes: float | None = None,
-                  echo=print, threads: int | None = None, steps: int | None = None) -> Path:
+                  echo=print, steps: int | None = None) -> Path:
     """Import, train, evaluate and report. ``quick``: UCI HAPT's first 6 experiments, 1 epoch,
     at most 128 training windows per run, 1 seed unless ``seeds`` says otherwise. ``steps``
     (instead of ``epochs``): each dataset's epochs from :func:`epochs_for_steps`."""
@@ -488,8 +474,8 @@ def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3, job
         if steps is not None:
             kw["epochs"] = epochs_for_steps(spec, data, steps)
         echo(f"{name}: {data}, {kw['epochs']} epochs")
-        folders = run_suite(suite_configs(spec, data, seeds, techniques, **kw), Path(out) / "runs" / name, jobs, echo,
-                            threads)
+        folders = run_suite(suite_configs(spec, data, seeds, techniques, **kw), Path(out) / "runs" / name,
+                            execution, echo)
         results[name] = summarise(folders)
     wall = time.perf_counter() - t0
     budget = (f"epochs per dataset for about {steps} baseline steps (listed per dataset)" if steps is not None

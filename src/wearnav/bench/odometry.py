@@ -6,14 +6,18 @@ are skipped, so an interrupted suite resumes. The table builder reads run folder
 
 from __future__ import annotations
 
-import time
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from wearnav import runs
+from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.dataset import Dataset
 from wearnav.errors import ValidationError
+from wearnav.evaluate import evaluate_run
+from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 
 DEFAULT_MODELS = ("suitein++", "suitein", "ronin", "ronin*", "pdr")
 TEST_SPLITS = ("test", "test_unseen", "cross_subject")
@@ -21,39 +25,48 @@ MODES = ("STW", "PVW", "MVW", "DRW", "DLW")
 
 
 def suite_configs(data: str | Path, models=DEFAULT_MODELS, **train_kw) -> list:
-    from wearnav.train.odometry import TrainConfig
-
     return [TrainConfig(model=m, data=str(data), **train_kw) for m in models]
 
 
-def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = True, echo=print) -> list[Path]:
-    """Train (or resume) and evaluate every config; skip complete runs. Returns the run folders."""
-    from wearnav.dataset import Dataset
-    from wearnav.evaluate import evaluate_run
-    from wearnav.train.odometry import fit, prepare_run, run_hash_exclude, run_record
+def run_key(cfg) -> dict:
+    """What names a config's run folder (``<model>-<hash8>``): its record less what is not hashed."""
+    return run_hash_exclude(run_record(cfg))
 
+
+@dataclasses.dataclass(frozen=True)
+class OdometryJob:
+    """One run of the suite: train ``cfg`` (or resume), then evaluate on ``splits``."""
+
+    cfg: TrainConfig
+    splits: tuple[str, ...]
+    progress: bool = False
+
+
+def run_job(job: OdometryJob, run: Path) -> Path:
+    """Train and evaluate one run folder (an executor job: a pure function of ``job``)."""
+    prepare_run(job.cfg, run)
+    training = fit(job.cfg, run, progress=job.progress)
+    evaluate_run(run, splits=job.splits, progress=job.progress, training=training)
+    return run
+
+
+def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = True, echo=print,
+              execution: Execution = Execution()) -> list[Path]:
+    """Train (or resume) and evaluate every config as ``execution`` says (:mod:`.executor`); skip
+    complete runs. Returns the run folders, in the order of ``configs``."""
     out = Path(out)
-    folders = []
+    jobs = []
     for cfg in configs:
-        record = run_hash_exclude(run_record(cfg))
-        run = runs.run_dir(out, cfg.model, record)
-        folders.append(run)
-        if runs.is_complete(run):
-            echo(f"{cfg.model}: complete, skipped ({run})")
-            continue
-        present = set(Dataset.open(cfg.data).manifest["split"].astype(str))
-        use = tuple(s for s in splits if s in present)
-        if not use:
-            raise ValidationError(f"none of the test splits {list(splits)} is in the dataset", cfg.data)
-        from wearnav.models.registry import get
-
-        echo(f"{cfg.model}: {'training' if get(cfg.model).learned else 'evaluating'} → {run}")
-        prepare_run(cfg, run)
-        t0 = time.perf_counter()
-        training = fit(cfg, run, progress=progress)
-        evaluate_run(run, splits=use, progress=progress, training=training)
-        echo(f"{cfg.model}: done in {time.perf_counter() - t0:.0f} s")
-    return folders
+        run = runs.run_dir(out, cfg.model, run_key(cfg))
+        if not runs.is_complete(run):  # refuse a missing split before anything trains
+            present = set(Dataset.open(cfg.data).manifest["split"].astype(str))
+            use = tuple(s for s in splits if s in present)
+            if not use:
+                raise ValidationError(f"none of the test splits {list(splits)} is in the dataset", cfg.data)
+        else:
+            use = tuple(splits)
+        jobs.append(Job(run_job, OdometryJob(cfg, use, progress and execution.in_process), run))
+    return run_jobs(jobs, execution, echo)
 
 
 def comparison_table(folders, split: str = "test") -> pd.DataFrame:

@@ -47,7 +47,15 @@ import numpy as np
 import pandas as pd
 
 from wearnav import metrics, runs
+from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError, ValidationError
+from wearnav.evaluate import evaluate_run, predict_sequence
+from wearnav.models.registry import build, get
+from wearnav.preprocess import load_sequences
+from wearnav.rotations import from_wxyz
+from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
+from wearnav.trajectory import integrate_velocity
 
 DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
 TRUTH_MAX_GAP_S = 60.0
@@ -83,7 +91,7 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
     ``fmt``) to ``out`` with splits by place. Returns the folder and what was decided."""
     from tqdm.auto import tqdm
 
-    from wearnav.dataset import Dataset, DatasetWriter
+    from wearnav.dataset import DatasetWriter
     from wearnav.importers import get_importer
 
     src, out = Path(src), Path(out)
@@ -130,10 +138,6 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
 def segment_products(seqs, window: int = 100, stride: int = 10) -> np.ndarray:
     """d_pdr · conj(d_truth) per segment between consecutive surveyed points (complex), over the
     sequences ``seqs`` (Aligned, world frame, no yaw applied)."""
-    from wearnav.evaluate import predict_sequence
-    from wearnav.models.registry import build
-    from wearnav.trajectory import integrate_velocity
-
     out = []
     for seq in seqs:
         pdr = build("pdr", n_devices=len(seq.devices), window=window, rate=seq.rate).eval()
@@ -155,8 +159,6 @@ def device_axis_yaw(seqs, device: str = "phone", axis=(0.0, 1.0, 0.0)) -> float 
     """A cross-check valid only for a device held flat and pointing ahead (ILC2's phones): the yaw
     of its ``axis`` in the world frame against each segment's truth direction, Σ over segments of
     at least 1 m (degrees); None without orientation."""
-    from wearnav.rotations import from_wxyz
-
     p = []
     for seq in seqs:
         rec = seq.recording
@@ -192,10 +194,6 @@ def site_yaw(seqs, window: int = 100, stride: int = 10) -> dict:
 
 def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate: float = 25.0) -> dict:
     """:func:`site_yaw` of the ``split`` traces of dataset ``data`` (no yaw applied, no frame alignment)."""
-    from wearnav.dataset import Dataset
-    from wearnav.evaluate import load_sequences
-    from wearnav.train.odometry import TrainConfig
-
     cfg = TrainConfig(model="pdr", data=str(data), devices=tuple(devices), rate=rate, frame_align="none",
                       truth_max_gap=TRUTH_MAX_GAP_S)
     return site_yaw(load_sequences(Dataset.open(data).split(split), cfg))
@@ -206,8 +204,6 @@ def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate
 def fix_errors(data: Path, split: str = "test") -> dict | None:
     """Raw fix error at the surveyed points of ``split`` (nearest fix within metrics.FIX_MAX_GAP_S), each
     trace from its second point on, as the models are scored; None without fixes."""
-    from wearnav.dataset import Dataset
-
     view = Dataset.open(data).split(split)
     errs = []
     for name in view.names:
@@ -247,8 +243,6 @@ class RealBench:
 
 
 def _train_config(model: str, data: str, yaw: float, bench: RealBench, simulated: bool):
-    from wearnav.train.odometry import TrainConfig
-
     kw = dict(model=model, data=data, devices=("phone",), epochs=bench.epochs, patience=bench.patience,
               max_minutes=bench.max_minutes, seed=bench.seed, window=bench.window, stride=bench.stride,
               lr=bench.lr)
@@ -257,15 +251,39 @@ def _train_config(model: str, data: str, yaw: float, bench: RealBench, simulated
     return TrainConfig(**kw, frame_align="none", truth_max_gap=TRUTH_MAX_GAP_S, yaw_deg=yaw)
 
 
+@dataclasses.dataclass(frozen=True)
+class RealEval:
+    """Where a trained model is scored: a site's prepared ``data``, its yaw, the output folder."""
+
+    data: str
+    yaw_deg: float
+    out_dir: Path
+
+
+@dataclasses.dataclass(frozen=True)
+class RealJob:
+    cfg: TrainConfig
+    evals: tuple[RealEval, ...]
+    progress: bool = False
+
+
+def run_job(job: RealJob, run: Path) -> Path:
+    """Train one model (or resume) and score it on every site's test traces (an executor job)."""
+    prepare_run(job.cfg, run)
+    training = fit(job.cfg, run, progress=job.progress)
+    for e in job.evals:
+        pre = {"frame_align": "none", "truth_max_gap": TRUTH_MAX_GAP_S, "yaw_deg": e.yaw_deg}
+        evaluate_run(run, data=e.data, splits=("test",), progress=job.progress, training=training,
+                     preprocess=pre, out_dir=e.out_dir)
+    return run
+
+
 def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str | None = None,
                   test_fmt: str | None = None, group_by: str | None = None, test_groups=None,
                   test_group_by: str | None = None, test_test_groups=None, bench: RealBench = RealBench(),
-                  progress: bool = True, echo=print) -> Path:
-    """Prepare the data, estimate the site yaws, train/evaluate every model, write results.md."""
-    from wearnav.evaluate import evaluate_run
-    from wearnav.models.registry import get
-    from wearnav.train.odometry import fit, prepare_run, run_hash_exclude, run_record
-
+                  progress: bool = True, echo=print, execution: Execution = Execution()) -> Path:
+    """Prepare the data, estimate the site yaws, train/evaluate every model (as ``execution``
+    says, :mod:`.executor`), write results.md."""
     out = Path(out)
     t_start = time.perf_counter()
     sites = {}
@@ -284,24 +302,15 @@ def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str
         echo(f"{name}: site yaw {site['yaw']['yaw_deg']:+.1f}° from {site['yaw']['segments']} segments")
         site["fixes"] = fix_errors(Path(site["data"]))
     yaw = sites["main"]["yaw"]["yaw_deg"]
+    jobs = []
     for model in bench.models:
-        learned = get(model).learned
-        simulated = bool(bench.train_data) and learned
+        simulated = bool(bench.train_data) and get(model).learned
         cfg = _train_config(model, bench.train_data if simulated else str(main), yaw, bench, simulated)
         run = runs.run_dir(out / "runs", model, run_hash_exclude(run_record(cfg)))
-        evals = {"main": run / "eval_main", "other": run / "eval_other"}
-        if all(runs.is_complete(evals[s]) for s in sites):
-            echo(f"{model}: complete, skipped ({run})")
-            continue
-        echo(f"{model}: {'training' if learned else 'evaluating'} → {run}")
-        prepare_run(cfg, run)
-        t0 = time.perf_counter()
-        training = fit(cfg, run, progress=progress)
-        for s, site in sites.items():
-            pre = {"frame_align": "none", "truth_max_gap": TRUTH_MAX_GAP_S, "yaw_deg": site["yaw"]["yaw_deg"]}
-            evaluate_run(run, data=site["data"], splits=("test",), progress=progress, training=training,
-                         preprocess=pre, out_dir=evals[s])
-        echo(f"{model}: done in {time.perf_counter() - t0:.0f} s")
+        evals = tuple(RealEval(site["data"], site["yaw"]["yaw_deg"], run / f"eval_{s}") for s, site in sites.items())
+        jobs.append(Job(run_job, RealJob(cfg, evals, progress and execution.in_process), run,
+                        marks=tuple(e.out_dir for e in evals)))
+    run_jobs(jobs, execution, echo)
     wall = time.perf_counter() - t_start
     return write_report(out, sites, suite_runs(out, str(main)), bench, wall)
 
@@ -310,9 +319,6 @@ def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
     """Every run folder of the suite by its row label: the model's name when it was trained on
     the building's own training groups (or is not learned), "model · simulator `<data>`" when it
     was trained on another dataset (sim-to-real runs share the suite, so one table holds both)."""
-    from wearnav.dataset import Dataset
-    from wearnav.models.registry import get
-
     labelled = []
     for run in sorted(Path(out, "runs").glob("*/")):
         if not (run / runs.CONFIG).is_file():

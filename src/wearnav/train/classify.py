@@ -32,7 +32,7 @@ import torch
 from wearnav import runs
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.models import registry
-from wearnav.preprocess import Aligned, PreprocessConfig
+from wearnav.preprocess import Aligned, PreprocessConfig, load_sequences
 from wearnav.train.common import CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
 from wearnav.windows import WindowConfig, WindowDataset
 
@@ -172,7 +172,6 @@ def prepare_run(cfg: ClassifyConfig, run: str | Path) -> Path:
 def sequences(view, cfg: ClassifyConfig, progress: bool = False) -> list[Aligned]:
     """Aligned recordings of a view, with eq. 13's moving average when ``cfg.denoise``."""
     from wearnav.augment import moving_average
-    from wearnav.evaluate import load_sequences
 
     seqs = load_sequences(view, cfg, progress)
     if cfg.denoise > 1:  # new objects: the aligned cache must stay raw

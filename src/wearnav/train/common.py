@@ -24,6 +24,9 @@ from lightning.pytorch.plugins import TorchCheckpointIO
 
 from wearnav.fileio import atomic_path
 
+from wearnav.augment import apply as augment_batch
+from wearnav.errors import ConfigError, FormatError, MissingFileError
+
 CHECKPOINTS = "checkpoints"
 BEST, LAST = "best.ckpt", "last.ckpt"
 
@@ -63,24 +66,36 @@ class SeededModule(L.LightningModule):
 
     def training_step(self, batch, batch_idx):
         if self.augment:
-            from wearnav import augment
-
-            batch = augment.apply(self.augment, batch, self._gen)
+            batch = augment_batch(self.augment, batch, self._gen)
         loss, parts = self.model.loss(batch)
         n = batch["x"].shape[0]
-        self.log("train/loss", loss, prog_bar=True, batch_size=n)
+        # sync_dist: under DDP the logged value is the mean over processes (one process: unchanged)
+        self.log("train/loss", loss, prog_bar=True, batch_size=n, sync_dist=True)
         for k, v in parts.items():
-            self.log(f"train/{k}", v, batch_size=n)
+            self.log(f"train/{k}", v, batch_size=n, sync_dist=True)
         return loss
 
     def configure_optimizers(self):
         return torch.optim.Adam(self.model.parameters(), lr=self.lr)
 
 
+STRATEGIES = ("auto", "ddp", "ddp_spawn")
+
+
 def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bool, steps_per_epoch: int,
-                 monitor: str | None = None, mode: str = "min", patience: int = 10):
+                 monitor: str | None = None, mode: str = "min", patience: int = 10, devices: int = 1,
+                 strategy: str = "auto"):
     """The Trainer every task uses: checkpoints/last.ckpt always (a resume point), best.ckpt and
-    early stopping on ``monitor`` when one is given. Returns (trainer, checkpoint, stopper|None)."""
+    early stopping on ``monitor`` when one is given. Returns (trainer, checkpoint, stopper|None).
+
+    ``devices``/``strategy``: Lightning's, for one training on several GPUs (or CPU processes):
+    ``devices=4, strategy="ddp"`` runs 4 processes, each on its share of every batch (the loaders
+    shard batches themselves: ``WindowDataset.loader(shard=True)``, so Lightning's sampler is
+    off). How a run is spread never enters its config or hash; fp32 throughout."""
+    if devices < 1:
+        raise ConfigError(f"devices must be ≥ 1, got {devices}")
+    if strategy not in STRATEGIES:
+        raise ConfigError(f"strategy must be one of {', '.join(STRATEGIES)}, got {strategy!r}")
     from lightning.pytorch.callbacks import EarlyStopping, ModelCheckpoint
     from lightning.pytorch.loggers import CSVLogger
 
@@ -104,7 +119,9 @@ def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bo
         enable_model_summary=False,
         num_sanity_val_steps=0,
         accelerator="auto",
-        devices=1,
+        devices=devices,
+        strategy=strategy,
+        use_distributed_sampler=False,
         default_root_dir=run,
         plugins=[AtomicCheckpointIO()],
         deterministic=False,
@@ -115,8 +132,6 @@ def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bo
 
 def load_weights(model: torch.nn.Module, path: Path) -> None:
     """Load a Lightning checkpoint's ``model.*`` weights; a torn or foreign file is one line."""
-    from wearnav.errors import FormatError, MissingFileError
-
     if not path.is_file():
         raise MissingFileError(f"no checkpoint {CHECKPOINTS}/{path.name} (was the run trained?)", path.parent.parent)
     try:

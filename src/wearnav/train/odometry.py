@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,9 +24,10 @@ import lightning as L
 import torch
 
 from wearnav import runs
+from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.models import registry
-from wearnav.preprocess import TRUTH_MAX_GAP_S, PreprocessConfig
+from wearnav.preprocess import TRUTH_MAX_GAP_S, PreprocessConfig, load_sequences
 from wearnav.train.common import BEST, CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
 from wearnav.windows import WindowConfig, WindowDataset
 
@@ -106,7 +108,7 @@ class OdometryModule(SeededModule):
     def validation_step(self, batch, batch_idx):
         vel = self.model(batch["x"], batch["mask"])
         mse = torch.mean((vel - batch["vel"]) ** 2)
-        self.log("val/vel_mse", mse, prog_bar=True, batch_size=batch["x"].shape[0])
+        self.log("val/vel_mse", mse, prog_bar=True, batch_size=batch["x"].shape[0], sync_dist=True)
 
 
 def _check_windows(ds: WindowDataset, what: str, data: str) -> None:
@@ -115,8 +117,13 @@ def _check_windows(ds: WindowDataset, what: str, data: str) -> None:
                               "dense truth?)", data)
 
 
-def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
+def fit(cfg: TrainConfig, run: str | Path, progress: bool = True, devices: int = 1, strategy: str = "auto") -> dict:
     """Train ``cfg.model`` into run folder ``run`` (resuming from its last.ckpt if present).
+
+    ``devices``/``strategy``: one training spread over several GPUs or CPU processes (Lightning's
+    DDP, :func:`wearnav.train.common.make_trainer`); ``cfg.batch`` stays the global batch, so the
+    run (and its folder) is the same on one device or many. With ``strategy="ddp"`` Lightning
+    starts the other processes by re-running this command; they end here, after training.
 
     Returns the training record that :func:`wearnav.evaluate.evaluate_run` merges into
     metrics.json: epochs run, best epoch and validation MSE, wall time, seconds per epoch, what
@@ -124,12 +131,10 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
     lock while it runs (:func:`wearnav.runs.locked`): a second process is refused.
     """
     with runs.locked(run):
-        return _fit(cfg, Path(run), progress)
+        return _fit(cfg, Path(run), progress, devices, strategy)
 
 
-def _fit(cfg: TrainConfig, run: Path, progress: bool) -> dict:
-    from wearnav.evaluate import load_sequences
-
+def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: str) -> dict:
     L.seed_everything(cfg.seed, workers=True, verbose=False)  # before the weights are drawn
     model = build_model(cfg)
     spec = registry.get(cfg.model)
@@ -138,8 +143,6 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool) -> dict:
         return {"learned": False}
     lr = cfg.lr or getattr(model, "default_lr", DEFAULT_LR)
     batch = cfg.batch or getattr(model, "default_batch", DEFAULT_BATCH)
-    from wearnav.dataset import Dataset
-
     ds = Dataset.open(cfg.data)
     train_seqs = load_sequences(ds.split(cfg.train_split), cfg, progress)
     val_view = ds.split(cfg.val_split)
@@ -155,16 +158,19 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool) -> dict:
     module = OdometryModule(model, lr, cfg.augment, cfg.seed)
     ckpt_dir = run / CHECKPOINTS
     trainer, checkpoint, stopper = make_trainer(run, cfg.epochs, cfg.max_minutes, progress, len(train_ds) // batch,
-                                                monitor="val/vel_mse", mode="min", patience=cfg.patience)
+                                                monitor="val/vel_mse", mode="min", patience=cfg.patience,
+                                                devices=devices, strategy=strategy)
     last = ckpt_dir / LAST
     resumed = last.is_file()
     # A resumed run adds to what earlier attempts measured: epochs already done, wall time spent.
     before_epochs = int(torch.load(last, map_location="cpu", weights_only=False)["epoch"]) + 1 if resumed else 0
     earlier = json.loads((run / TRAINING).read_text(encoding="utf-8")) if resumed and (run / TRAINING).is_file() else {}
     t0 = time.perf_counter()
-    trainer.fit(module, train_ds.loader(batch, cfg.seed), val_ds.loader(1024),
+    trainer.fit(module, train_ds.loader(batch, cfg.seed, shard=True), val_ds.loader(1024, shard=True),
                 ckpt_path=str(last) if last.is_file() else None)
     wall = time.perf_counter() - t0
+    if trainer.global_rank > 0:  # a DDP worker that re-ran the command: rank 0 records and evaluates
+        sys.exit(0)
     epochs = max(int(trainer.current_epoch), before_epochs)  # a resume that stops at once did none
     stopped = ("early stopping" if stopper.stopped_epoch > 0 else
                "max time" if cfg.max_minutes and epochs < cfg.epochs else "max epochs")
@@ -185,6 +191,7 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool) -> dict:
         "resumed": resumed,
         "attempts": earlier.get("attempts", 1) + 1 if resumed else 1,
         "accelerator": str(trainer.strategy.root_device),
+        "processes": trainer.world_size,  # how it ran (not hashed): DDP processes
     }
     runs.write_json(run / TRAINING, record)
     return record
@@ -215,8 +222,6 @@ def run_hash_exclude(record: dict) -> dict:
 def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
     """Create (or reuse) run folder ``run`` for ``cfg``: a folder holding another config is refused,
     so a resumed run never mixes two configurations."""
-    from wearnav.dataset import Dataset
-
     run = Path(run)
     registry.get(cfg.model)  # an unknown model is refused before anything is written
     record = run_record(cfg)
