@@ -180,3 +180,44 @@ def test_ray_runs_jobs_and_a_real_suite_then_resumes(local_ray, tmp_path):
     run_jobs(jobs, Execution(backend="ray"), echo=lines.append)
     odometry.run_suite(cfgs, tmp_path / "suite", splits=("test",), progress=False, echo=lines.append)
     assert len(lines) == 4 and all(s.endswith("complete, skipped") for s in lines)
+
+
+def test_a_folder_another_process_is_training_is_skipped_with_a_line(tmp_path):
+    """Two invocations of one suite never train into the same folder: the second skips a folder
+    whose lock another process holds (and runs the rest)."""
+    from test_runs import hold
+
+    log = tmp_path / "ran.txt"
+    jobs = _jobs(tmp_path, n=2, log=str(log))
+    p = hold(jobs[1].folder)
+    try:
+        lines = []
+        run_jobs(jobs, Execution(), echo=lines.append)
+    finally:
+        p.kill()
+        p.wait()
+    assert log.read_text().split() == ["run0"]
+    assert not runs.is_complete(jobs[1].folder)
+    assert any(s.startswith("run1: skipped, another wearnav process is using this run folder") for s in lines)
+    # once the other process is gone, a rerun trains what it left
+    run_jobs(jobs, Execution(), echo=lambda s: None)
+    assert runs.is_complete(jobs[1].folder)
+
+
+def test_the_lock_is_taken_by_rank_zero_only(tmp_path, monkeypatch):
+    """A DDP worker re-runs the command with LOCAL_RANK set: it shares rank 0's folder instead of
+    being refused by rank 0's lock."""
+    from test_runs import hold
+
+    run = tmp_path / "run"
+    p = hold(run)
+    try:
+        monkeypatch.setenv("LOCAL_RANK", "1")
+        with runs.locked(run):
+            pass
+        monkeypatch.setenv("LOCAL_RANK", "0")
+        with pytest.raises(Exception, match="another wearnav process"), runs.locked(run):
+            pass
+    finally:
+        p.kill()
+        p.wait()

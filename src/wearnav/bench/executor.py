@@ -18,7 +18,9 @@ of a cluster.
   and the suite's folder on a shared file system.
 
 Jobs start longest first (``cost``, e.g. the windows a run trains on), so the workers finish
-together. One line per finished job goes to ``echo`` (or the log).
+together. Each job holds its folder's lock while it runs (:func:`wearnav.runs.locked`): a folder
+that another invocation is training is skipped with a line saying so, never trained twice. One line
+per finished job goes to ``echo`` (or the log).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from wearnav import runs
-from wearnav.errors import ConfigError
+from wearnav.errors import BusyError, ConfigError
 
 log = logging.getLogger(__name__)
 
@@ -86,14 +88,26 @@ class Job:
         return all(runs.is_complete(m) for m in (self.marks or (self.folder,)))
 
 
-def _call(fn: Callable[[Any, Path], Any], config: Any, folder: Path, threads: int | None) -> float:
-    """Run one job in a worker with ``threads`` torch threads; returns its wall time (s)."""
+def _locked_call(job: Job) -> float | None:
+    """Run one job holding its run folder's lock (:func:`wearnav.runs.locked`); returns its wall
+    time (s), or None when another process holds the folder or finished the job meanwhile."""
+    try:
+        with runs.locked(job.folder):
+            if job.complete():
+                return None
+            t0 = time.perf_counter()
+            job.fn(job.config, job.folder)
+            return time.perf_counter() - t0
+    except BusyError:
+        return None
+
+
+def _call(job: Job, threads: int | None) -> float | None:
+    """Run one job in a worker with ``threads`` torch threads (see :func:`_locked_call`)."""
     import torch
 
     torch.set_num_threads(threads or 1)
-    t0 = time.perf_counter()
-    fn(config, folder)
-    return time.perf_counter() - t0
+    return _locked_call(job)
 
 
 def run_jobs(jobs: Sequence[Job], execution: Execution = Execution(),
@@ -111,8 +125,12 @@ def run_jobs(jobs: Sequence[Job], execution: Execution = Execution(),
     todo.sort(key=lambda j: -j.cost)  # stable: equal costs keep the suite's order
     n = len(todo)
 
-    def finished(k: int, job: Job, wall_s: float) -> None:
-        say(f"{job.folder.name}: done in {wall_s:.0f} s ({k}/{n})")
+    def finished(k: int, job: Job, wall_s: float | None) -> None:
+        if wall_s is None:
+            say(f"{job.folder.name}: skipped, another wearnav process is using this run folder or "
+                f"finished it ({k}/{n})")
+        else:
+            say(f"{job.folder.name}: done in {wall_s:.0f} s ({k}/{n})")
 
     if not todo:
         return [j.folder for j in jobs]
@@ -133,9 +151,7 @@ def _run_here(todo: list[Job], ex: Execution, finished) -> None:
         for k, job in enumerate(todo, 1):
             if ex.threads:
                 torch.set_num_threads(ex.threads)
-            t0 = time.perf_counter()
-            job.fn(job.config, job.folder)
-            finished(k, job, time.perf_counter() - t0)
+            finished(k, job, _locked_call(job))
     finally:
         torch.set_num_threads(old)
 
@@ -144,7 +160,7 @@ def _run_processes(todo: list[Job], ex: Execution, finished) -> None:
     from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 
     with ProcessPoolExecutor(max_workers=min(ex.jobs, len(todo))) as pool:
-        pending = {pool.submit(_call, j.fn, j.config, j.folder, ex.threads): j for j in todo}
+        pending = {pool.submit(_call, j, ex.threads): j for j in todo}
         k = 0
         try:
             while pending:
@@ -170,7 +186,7 @@ def _run_ray(todo: list[Job], ex: Execution, finished) -> None:
         ray.init(address=ex.address, include_dashboard=False, logging_level=logging.WARNING)
     try:
         task = ray.remote(_call).options(num_cpus=ex.threads or 1, max_retries=0)
-        pending = {task.remote(j.fn, j.config, j.folder, ex.threads): j for j in todo}
+        pending = {task.remote(j, ex.threads): j for j in todo}
         k = 0
         try:
             while pending:
