@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import sys
+import threading
 import warnings
 from pathlib import Path
 from typing import Optional
@@ -504,6 +506,10 @@ def _fail(message: str, code: int) -> None:
     sys.exit(code)
 
 
+def _on_sigterm(signum, frame) -> None:
+    raise Terminated("terminated (SIGTERM)")
+
+
 def main() -> None:
     """Run the command line; the boundary where every failure becomes one line on stderr.
 
@@ -512,6 +518,18 @@ def main() -> None:
     else is a bug in wearnav and says so in one line, exit 1 (``WEARNAV_DEBUG=1`` re-raises it
     with its traceback). Warnings are one line each (``warning: ...``).
     """
+    # SIGTERM raises like Ctrl-C does, in every command: ``finally`` / ``with`` blocks clean up and
+    # the exit code is 143 (training defers both to a batch boundary: wearnav.train.interrupt).
+    main_thread = threading.current_thread() is threading.main_thread()
+    old_sigterm = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
+    try:
+        _main()
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, old_sigterm)
+
+
+def _main() -> None:
     with warnings.catch_warnings():
         # Only wearnav's own warnings concern the user (a truncated file imported flagged); a
         # library's RuntimeWarning about arithmetic on values that are then refused is noise.

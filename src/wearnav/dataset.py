@@ -31,6 +31,7 @@ from wearnav.errors import FormatError, MissingFileError, Terminated, Validation
 from wearnav.fileio import require_regular_file
 from wearnav.provenance import provenance
 from wearnav.recording import Recording, check_name, check_text
+from wearnav.textio import read_yaml
 
 MANIFEST = "manifest.csv"
 PROVENANCE = "dataset.yaml"
@@ -142,10 +143,7 @@ def _written_by_wearnav(info) -> bool:
 
 
 def _read_yaml(path: Path):
-    try:
-        return yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise FormatError(f"unreadable ({exc})", path) from None
+    return read_yaml(path, kind=None)
 
 
 class DatasetWriter:

@@ -12,7 +12,6 @@ so.
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from pathlib import Path
 
@@ -24,6 +23,7 @@ from wearnav import metrics, runs
 from wearnav.errors import ValidationError
 from wearnav.fileio import atomic_path
 from wearnav.preprocess import Aligned, align
+from wearnav.textio import read_json
 from wearnav.trajectory import integrate_velocity
 from wearnav.windows import WindowConfig, WindowDataset
 
@@ -202,7 +202,7 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
     ds = Dataset.open(data or cfg.data)
     old = runs.read_metrics(dest) if runs.is_complete(dest) else {}
     if training is None and (run / TRAINING).is_file():
-        training = json.loads((run / TRAINING).read_text(encoding="utf-8"))
+        training = read_json(run / TRAINING)
     out = {"model": cfg.model, "run": run.name, "data": str(data or cfg.data),
            "parameters": n_parameters(model), "window": cfg.window,
            "eval_stride": stride or cfg.stride, "preprocess": dict(preprocess or {}),

@@ -14,7 +14,6 @@ no run is made and the table says so. "world frame" needs the device orientation
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import time
@@ -26,7 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from wearnav import runs
-from wearnav.errors import ConfigError
+from wearnav.textio import read_json
+from wearnav.errors import ConfigError, FormatError
 
 BASELINE = "har-cnn-bilstm"
 
@@ -336,7 +336,12 @@ def _wall_text(wall_s: float | None, earlier: list[dict]) -> str:
 def previous_invocations(out: Path) -> list[dict]:
     """The wall times of the suite's earlier invocations, from its results.json."""
     path = Path(out) / "results.json"
-    return json.loads(path.read_text(encoding="utf-8")).get("invocations", []) if path.is_file() else []
+    if not path.is_file():
+        return []
+    calls = read_json(path).get("invocations", [])
+    if not isinstance(calls, list) or not all(isinstance(c, dict) for c in calls):
+        raise FormatError("'invocations' is not a list of records", path)
+    return calls
 
 
 def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: float | None = None,

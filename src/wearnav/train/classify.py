@@ -30,10 +30,11 @@ import numpy as np
 import torch
 
 from wearnav import runs
-from wearnav.errors import ConfigError, ValidationError
+from wearnav.errors import ConfigError, ValidationError, check_field_types
 from wearnav.models import registry
 from wearnav.preprocess import Aligned, PreprocessConfig
 from wearnav.train.common import CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
+from wearnav.train.interrupt import stop_between_batches
 from wearnav.windows import WindowConfig, WindowDataset
 
 TRAINING = "training.json"
@@ -103,6 +104,7 @@ class ClassifyConfig:
     max_minutes: float | None = None
 
     def __post_init__(self) -> None:
+        check_field_types(self)
         if self.epochs < 1 or self.seed < 0:
             raise ConfigError(f"epochs must be ≥ 1 and seed ≥ 0, got {self.epochs} and {self.seed}")
         if self.denoise < 0:
@@ -227,7 +229,8 @@ def fit(cfg: ClassifyConfig, run: str | Path, progress: bool = True) -> dict:
     last = run / CHECKPOINTS / LAST
     resumed = last.is_file()
     t0 = time.perf_counter()
-    trainer.fit(module, data.loader(batch, cfg.seed), ckpt_path=str(last) if resumed else None)
+    with stop_between_batches(trainer):  # Ctrl-C / SIGTERM: exit 130 / 143, last.ckpt intact
+        trainer.fit(module, data.loader(batch, cfg.seed), ckpt_path=str(last) if resumed else None)
     wall = time.perf_counter() - t0
     epochs = int(trainer.current_epoch)
     record = {
@@ -243,16 +246,17 @@ def fit(cfg: ClassifyConfig, run: str | Path, progress: bool = True) -> dict:
 
 def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[str]]:
     """The run's model with its last-epoch weights (eval mode), its config and class names."""
-    import json
-
-    from wearnav.errors import MissingFileError
+    from wearnav.errors import FormatError, MissingFileError
+    from wearnav.textio import read_json
 
     run = Path(run)
-    cfg = ClassifyConfig.from_dict(runs.read_config(run)["config"]["train"])
+    cfg = runs.read_run_config(run, ClassifyConfig)
     path = run / TRAINING
     if not path.is_file():
         raise MissingFileError("run has no training.json (was it trained?)", run)
-    classes = json.loads(path.read_text(encoding="utf-8"))["classes"]
+    classes = read_json(path).get("classes")
+    if not isinstance(classes, list) or not classes or not all(isinstance(c, str) for c in classes):
+        raise FormatError("no 'classes' list of class names", path)
     model = registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, n_classes=len(classes),
                            **cfg.model_args)
     load_weights(model, run / CHECKPOINTS / LAST)

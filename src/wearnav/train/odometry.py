@@ -13,7 +13,6 @@ epoch exactly and ends with the same weights and metrics as an uninterrupted run
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,10 +22,12 @@ import lightning as L
 import torch
 
 from wearnav import runs
-from wearnav.errors import ConfigError, ValidationError
+from wearnav.errors import ConfigError, ValidationError, check_field_types
 from wearnav.models import registry
 from wearnav.preprocess import TRUTH_MAX_GAP_S, PreprocessConfig
+from wearnav.textio import read_json
 from wearnav.train.common import BEST, CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
+from wearnav.train.interrupt import stop_between_batches
 from wearnav.windows import WindowConfig, WindowDataset
 
 TRAINING = "training.json"  # what fit() measured; evaluate_run merges it into metrics.json
@@ -65,6 +66,7 @@ class TrainConfig:
     yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
+        check_field_types(self)
         if self.epochs < 1:
             raise ConfigError(f"epochs must be ≥ 1, got {self.epochs}")
         if self.seed < 0:
@@ -155,10 +157,11 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
     resumed = last.is_file()
     # A resumed run adds to what earlier attempts measured: epochs already done, wall time spent.
     before_epochs = int(torch.load(last, map_location="cpu", weights_only=False)["epoch"]) + 1 if resumed else 0
-    earlier = json.loads((run / TRAINING).read_text(encoding="utf-8")) if resumed and (run / TRAINING).is_file() else {}
+    earlier = read_json(run / TRAINING) if resumed and (run / TRAINING).is_file() else {}
     t0 = time.perf_counter()
-    trainer.fit(module, train_ds.loader(batch, cfg.seed), val_ds.loader(1024),
-                ckpt_path=str(last) if last.is_file() else None)
+    with stop_between_batches(trainer):  # Ctrl-C / SIGTERM: exit 130 / 143, last.ckpt intact
+        trainer.fit(module, train_ds.loader(batch, cfg.seed), val_ds.loader(1024),
+                    ckpt_path=str(last) if last.is_file() else None)
     wall = time.perf_counter() - t0
     epochs = max(int(trainer.current_epoch), before_epochs)  # a resume that stops at once did none
     stopped = ("early stopping" if stopper.stopped_epoch > 0 else
@@ -188,7 +191,7 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True) -> dict:
 def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, TrainConfig]:
     """The model of a run folder with its ``best`` (or ``last``) weights, in eval mode."""
     run = Path(run)
-    cfg = TrainConfig.from_dict(runs.read_config(run)["config"]["train"])
+    cfg = runs.read_run_config(run, TrainConfig)
     model = build_model(cfg)
     if registry.get(cfg.model).learned:
         load_weights(model, run / CHECKPOINTS / which)
