@@ -179,6 +179,19 @@ def evaluate_sequences(model, seqs: list[Aligned], window: int, stride: int, rte
     return result, trajs
 
 
+def scorable_split(ds, split: str):
+    """``ds``'s split ``split``, refused when it is unknown, empty, or has no recording with truth
+    to score against (metrics over 0 sequences would be a page of blanks)."""
+    view = ds.split(split)
+    if len(view) == 0:
+        raise ValidationError(f"split {split!r} is empty (splits here: "
+                              f"{sorted(set(ds.manifest['split'].astype(str)))})", ds.root)
+    if "truth_points" in view.manifest and (pd.to_numeric(view.manifest["truth_points"], errors="coerce")
+                                            .fillna(0) < 2).all():
+        raise ValidationError(f"no recording of split {split!r} has truth positions to score against", ds.root)
+    return view
+
+
 def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[str, ...] = ("test",),
                  stride: int | None = None, rte_delta: float = 60.0, progress: bool = True,
                  training: dict | None = None, preprocess: dict | None = None,
@@ -209,11 +222,8 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
            "training": training if training is not None else old.get("training", {}),
            # splits evaluated earlier on the same data are kept beside the new ones
            "splits": dict(old.get("splits", {})) if data is None or str(data) == old.get("data") else {}}
-    for split in splits:
-        view = ds.split(split)
-        if len(view) == 0:
-            raise ValidationError(f"split {split!r} is empty (splits here: "
-                                  f"{sorted(set(ds.manifest['split'].astype(str)))})", ds.root)
+    views = {split: scorable_split(ds, split) for split in splits}  # all checked before any write
+    for split, view in views.items():
         seqs = load_sequences(view, cfg, progress)
         t0 = time.perf_counter()
         res, trajs = evaluate_sequences(model, seqs, cfg.window, stride or cfg.stride, rte_delta, progress)

@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav import metrics, runs
-from wearnav.errors import ValidationError
+from wearnav.errors import ConfigError, ValidationError
 from wearnav.fixlabels import LabelConfig, Segments, label_dataset, noise_summary
 from wearnav.train.noisy import NoisyConfig, fit_noisy, load_predictor, write_history
 
@@ -169,6 +169,14 @@ def _scores(err: np.ndarray) -> dict:
             "mean_m": float(np.mean(err)) if err.size else None}
 
 
+def route_pattern(text: str) -> re.Pattern:
+    """``--test-routes`` compiled; a malformed regular expression is a ConfigError."""
+    try:
+        return re.compile(text)
+    except (re.error, RecursionError, OverflowError) as exc:
+        raise ConfigError(f"--test-routes {text!r} is not a regular expression ({exc})") from None
+
+
 def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_routes: str | None, seeds: int,
               echo=print) -> dict:
     """Train on the training routes' GNSS labels, score at the surveyed points of the test routes.
@@ -188,7 +196,7 @@ def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_rout
         test_names = ds.manifest.loc[ds.manifest["split"].astype(str) == "test", "name"].tolist()
     else:
         test_routes = test_routes or IPIN_TEST_ROUTES
-        pat = re.compile(test_routes)
+        pat = route_pattern(test_routes)
         test_names = [n for n in names if pat.search(n)]
     train_names = [n for n in names if n not in set(test_names)]
     if not test_names or not train_names:

@@ -26,7 +26,7 @@ import numpy as np
 
 from wearnav import runs
 from wearnav.textio import read_json
-from wearnav.errors import ConfigError, FormatError
+from wearnav.errors import ConfigError, FormatError, MissingFileError
 
 BASELINE = "har-cnn-bilstm"
 
@@ -110,12 +110,29 @@ def applicable(tech: Technique, ds: HarDataset) -> str | None:
     return None
 
 
+def check_inputs(specs: list[HarDataset], data_root: Path, out: Path, quick: bool, techniques=None) -> None:
+    """Refuse what would stop the suite part-way, before anything is written: an unknown
+    technique, a dataset neither imported into ``out`` yet nor found under ``data_root``."""
+    known = [t.name for t in TECHNIQUES]
+    if techniques is not None and set(techniques) - set(known):
+        raise ConfigError(f"unknown techniques {sorted(set(techniques) - set(known))}; known: {', '.join(known)}")
+    for ds in specs:
+        if ds.fmt == "simulate-placement" or (_data_folder(ds, out, quick) / "manifest.csv").is_file():
+            continue
+        if not (data_root / ds.src).exists():
+            raise MissingFileError(f"no {ds.name} source here (expected {ds.src}/); see --data", data_root)
+
+
+def _data_folder(ds: HarDataset, out: Path, quick: bool) -> Path:
+    return out / "data" / (ds.fmt + ("-quick" if quick and ds.quick_limit else ""))
+
+
 def import_data(ds: HarDataset, data_root: Path, out: Path, quick: bool) -> Path:
     """Import ``ds``'s source once into ``out/data/<fmt>[-quick]`` (reused when present); the
     simulated dataset is generated there instead (seed 0)."""
     from wearnav.importers import import_dataset
 
-    folder = out / "data" / (ds.fmt + ("-quick" if quick and ds.quick_limit else ""))
+    folder = _data_folder(ds, out, quick)
     if (folder / "manifest.csv").is_file():
         return folder
     if ds.fmt == "simulate-placement":
@@ -442,6 +459,7 @@ def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3, job
     unknown = [n for n in names if n not in DATASETS]
     if unknown:
         raise ConfigError(f"unknown HAR datasets {unknown}; known: {', '.join(DATASETS)}")
+    check_inputs([DATASETS[n] for n in names], Path(data_root), Path(out), quick, techniques)
     kw = {"epochs": epochs or (1 if quick else 30), "max_minutes": max_minutes}
     if quick:
         kw["max_train_windows"] = 128

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav import runs
-from wearnav.errors import ValidationError
+from wearnav.errors import ConfigError, ValidationError
 
 DEFAULT_MODELS = ("suitein++", "suitein", "ronin", "ronin*", "pdr")
 TEST_SPLITS = ("test", "test_unseen", "cross_subject")
@@ -26,12 +26,36 @@ def suite_configs(data: str | Path, models=DEFAULT_MODELS, **train_kw) -> list:
     return [TrainConfig(model=m, data=str(data), **train_kw) for m in models]
 
 
+def check_configs(configs, splits=TEST_SPLITS) -> None:
+    """Refuse a suite that could not finish, before its first run folder is written: a model that
+    is not an odometry model, a device no recording has, or data whose test splits have no truth
+    to score against (a page of runs scoring 0 sequences)."""
+    from wearnav.dataset import Dataset
+    from wearnav.evaluate import scorable_split
+    from wearnav.models.registry import get
+    from wearnav.train.odometry import check_devices
+
+    for cfg in configs:
+        spec = get(cfg.model)
+        if spec.task != "odometry":
+            raise ConfigError(f"{cfg.model!r} is a {spec.task} model, not an odometry model")
+        ds = Dataset.open(cfg.data)
+        check_devices(ds, cfg.devices)
+        present = set(ds.manifest["split"].astype(str))
+        use = [s for s in splits if s in present]
+        if not use:
+            raise ValidationError(f"none of the test splits {list(splits)} is in the dataset", cfg.data)
+        for split in use:
+            scorable_split(ds, split)
+
+
 def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = True, echo=print) -> list[Path]:
     """Train (or resume) and evaluate every config; skip complete runs. Returns the run folders."""
     from wearnav.dataset import Dataset
     from wearnav.evaluate import evaluate_run
     from wearnav.train.odometry import fit, prepare_run, run_hash_exclude, run_record
 
+    check_configs(configs, splits)
     out = Path(out)
     folders = []
     for cfg in configs:
@@ -117,7 +141,7 @@ def write_suite_report(folders, out: str | Path, title: str, splits=TEST_SPLITS,
     doc = {}
     for split in splits:
         table = comparison_table(folders, split)
-        if table.empty:
+        if table.empty or not (pd.to_numeric(table["sequences"], errors="coerce").fillna(0) > 0).any():
             continue
         doc[split] = table.to_dict(orient="records")
         lines += [f"## Split `{split}`", "", "ATE and RTE in metres (mean over sequences; RTE over Δ = 60 s, "
@@ -127,5 +151,7 @@ def write_suite_report(folders, out: str | Path, title: str, splits=TEST_SPLITS,
                        f"position error CDF, split {split}")
         box = plot_box(ate_by_model(folders, split), out / f"{split}_ate_box.png", f"ATE per sequence, split {split}")
         lines += [f"![{p.stem}]({p.name})" for p in (cdf, box) if p] + [""]
+    if not doc:
+        raise ValidationError(f"no run scored a sequence on the splits {list(splits)}; nothing to report", out)
     runs.write_json(out / "results.json", doc)
     return write_text_atomic("\n".join(lines), out / "results.md")

@@ -321,10 +321,32 @@ def intervals(t0: np.ndarray, t1: np.ndarray, cls: np.ndarray, conf: np.ndarray,
     return out
 
 
+CLASSIFY_JSON = "classify.json"  # the marker of a `wearnav classify` output folder (wearnav.outputs)
+
+
 def label_recordings(recordings, run: str | Path, out: str | Path) -> list[Path]:
     """Classify every window of each recording with the run's model; write ``<name>_intervals.csv``
     (start_s, end_s, label, windows, mean_confidence) and ``<name>_timeline.png`` (|acc| of the
-    first present device with the labels as coloured bands) into ``out``."""
+    first present device with the labels as coloured bands) into ``out``, and ``classify.json``
+    (the run, the recordings, the files). All or nothing: a recording that fails leaves ``out``
+    as it was (:func:`wearnav.outputs.staged_output`)."""
+    import json
+
+    from wearnav.fileio import write_text_atomic
+    from wearnav.outputs import check_out_folder, staged_output
+
+    check_out_folder(out, (), CLASSIFY_JSON, "classify")
+    model, cfg, classes = load_model(run)
+    with staged_output(out, CLASSIFY_JSON, "classify", replace=False) as stage:
+        names = _label_into(recordings, model, cfg, classes, stage)
+        files = [f for n in names for f in (f"{n}_intervals.csv", f"{n}_timeline.png")] + [CLASSIFY_JSON]
+        write_text_atomic(json.dumps({"run": str(run), "model": cfg.model, "recordings": names, "files": files},
+                                     indent=2), stage / CLASSIFY_JSON)
+    return [Path(out) / f for f in files[:-1]]
+
+
+def _label_into(recordings, model, cfg, classes: list[str], out: Path) -> list[str]:
+    """Write each recording's intervals CSV and timeline PNG into ``out``; returns the names."""
     import pandas as pd
     from matplotlib.figure import Figure
 
@@ -333,9 +355,6 @@ def label_recordings(recordings, run: str | Path, out: str | Path) -> list[Path]
     from wearnav.preprocess import align
     from wearnav.report.plots import save
 
-    model, cfg, classes = load_model(run)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     written = []
     colours = {c: f"C{i % 10}" for i, c in enumerate(classes)}
     for rec in recordings:
@@ -349,7 +368,10 @@ def label_recordings(recordings, run: str | Path, out: str | Path) -> list[Path]
         t = wds[np.arange(len(wds)).tolist()]["t"].numpy()
         rows = intervals(t[:, 0], t[:, 1], cls, conf, classes)
         df = pd.DataFrame(rows, columns=["start_s", "end_s", "label", "windows", "mean_confidence"])
-        written.append(write_text_atomic(df.to_csv(index=False, float_format="%.3f"), out / f"{rec.name}_intervals.csv"))
+        if rec.name in written:
+            raise ValidationError("two recordings of this name; their files would collide", rec.name)
+        written.append(rec.name)
+        write_text_atomic(df.to_csv(index=False, float_format="%.3f"), out / f"{rec.name}_intervals.csv")
         d = int(np.argmax(seq.mask.any(axis=1)))
         fig = Figure(figsize=(10, 3))
         ax = fig.add_subplot()
@@ -364,5 +386,7 @@ def label_recordings(recordings, run: str | Path, out: str | Path) -> list[Path]
         ax.set_ylabel(f"|acc| {seq.devices[d]} (m/s²)")
         ax.set_title(f"{rec.name}: {cfg.label_kind} by {cfg.model}", fontsize=9)
         fig.tight_layout()
-        written.append(save(fig, out / f"{rec.name}_timeline.png"))
+        save(fig, out / f"{rec.name}_timeline.png")
+    if not written:
+        raise ValidationError("no recording to classify")
     return written

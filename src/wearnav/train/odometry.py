@@ -210,13 +210,26 @@ def run_hash_exclude(record: dict) -> dict:
     return {**record, "train": train}
 
 
+def check_devices(ds, devices: tuple[str, ...]) -> None:
+    """Refuse a device layout naming a device that no recording of ``ds`` has (a typo would
+    otherwise train on zeros where that device's input belongs)."""
+    have = sorted({d for s in ds.manifest["devices"].astype(str) for d in s.split(";") if d})
+    missing = [d for d in devices if d not in have]
+    if missing:
+        raise ConfigError(f"no recording has device(s) {missing}; the dataset's devices are {have}", ds.root)
+
+
 def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
     """Create (or reuse) run folder ``run`` for ``cfg``: a folder holding another config is refused,
     so a resumed run never mixes two configurations."""
     from wearnav.dataset import Dataset
 
     run = Path(run)
-    registry.get(cfg.model)  # an unknown model is refused before anything is written
+    spec = registry.get(cfg.model)  # an unknown model is refused before anything is written
+    if spec.task != "odometry":
+        odometry = ", ".join(s.name for s in registry.available() if s.task == "odometry")
+        raise ConfigError(f"{cfg.model!r} is a {spec.task} model; `wearnav train` trains odometry models "
+                          f"({odometry})")
     record = run_record(cfg)
     if (run / runs.CONFIG).is_file():
         old = runs.read_config(run)["config"]
@@ -226,6 +239,7 @@ def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
     if run.exists() and (not run.is_dir() or any(run.iterdir())):
         raise ConfigError("exists and is not an empty folder or a run folder; choose another --out", run)
     ds = Dataset.open(cfg.data)
+    check_devices(ds, cfg.devices)
     if registry.get(cfg.model).learned:
         for split in (cfg.train_split, cfg.val_split):
             view = ds.split(split)
