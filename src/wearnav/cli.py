@@ -377,16 +377,17 @@ def label_from_fixes(
     statistics (eqs. 5–7) where the recordings have dense truth."""
     from wearnav.dataset import Dataset
     from wearnav.fixlabels import LabelConfig, label_dataset, noise_summary, plot_noise_cdf
+    from wearnav.outputs import staged_output
     from wearnav.runs import write_json
 
-    seg = label_dataset(Dataset.open(dataset), LabelConfig(segment_s=segment, rate=rate), progress=True)
-    out.mkdir(parents=True, exist_ok=True)
-    typer.echo(str(seg.save(out / "segments.npz")))
+    seg = label_dataset(Dataset.open(dataset), LabelConfig(segment_s=segment, rate=rate), progress=_progress())
     summary = noise_summary(seg)
-    typer.echo(str(write_json(out / "label_noise.json", summary)))
-    png = plot_noise_cdf(seg, out / "label_noise_cdf.png")
-    if png:
-        typer.echo(str(png))
+    with staged_output(out, "label_noise.json", "label-from-fixes") as stage:  # all three files or none
+        seg.save(stage / "segments.npz")
+        write_json(stage / "label_noise.json", summary)
+        png = plot_noise_cdf(seg, stage / "label_noise_cdf.png")
+    for name in ("segments.npz", "label_noise.json") + (("label_noise_cdf.png",) if png else ()):
+        typer.echo(str(out / name))
     typer.echo(f"{summary['segments']} segments, {summary['length_km']} km; median label noise "
                f"{summary['label_noise_median_cm']} cm")
 

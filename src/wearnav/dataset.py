@@ -367,6 +367,11 @@ class Dataset:
         rec = Recording.load(path)
         if rec.name != name:
             raise FormatError(f"holds recording {rec.name!r}, but the manifest lists it as {name!r}", path)
+        listed = self.manifest.loc[self.manifest["name"] == name, "devices"].iloc[0]
+        listed = sorted(d for d in str(listed).split(";") if d) if isinstance(listed, str) else []
+        if listed != sorted(rec.devices):
+            raise FormatError(f"holds devices {sorted(rec.devices)}, but the manifest lists {listed} "
+                              f"(filters and training layouts read the manifest)", path)
         return rec
 
     def __iter__(self) -> Iterator[Recording]:

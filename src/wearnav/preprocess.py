@@ -176,6 +176,9 @@ def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig()) -> Aligned
     """Resample every configured device of ``rec`` onto one clock (see module docstring)."""
     t0, t1 = common_span(rec, cfg.devices, cfg.edge_tolerance)
     t = clock(t0, t1, cfg.rate)
+    if t.size < 2:
+        raise ValidationError(f"{rec.name}: the devices' common span ({t1 - t0:.3g} s) is shorter than one "
+                              f"sample period at {cfg.rate:g} Hz")
     imu = np.zeros((len(cfg.devices), t.size, 6), np.float32)
     mask = np.zeros((len(cfg.devices), t.size), bool)
     for i, dev in enumerate(cfg.devices):
