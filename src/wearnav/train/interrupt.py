@@ -14,6 +14,7 @@ once.
 
 from __future__ import annotations
 
+import logging
 import signal
 import threading
 from collections.abc import Iterator
@@ -55,6 +56,8 @@ class StopOnSignal(Callback):
 def stop_between_batches(trainer) -> Iterator[None]:
     """Run ``trainer.fit`` (or another entry point) inside: SIGINT / SIGTERM stop it between
     batches and leave as KeyboardInterrupt / Terminated (see the module docstring)."""
+    # Lightning logs "Received SIGTERM" at INFO on stderr: the CLI's one line says it already.
+    logging.getLogger("lightning.pytorch.trainer.connectors.signal_connector").setLevel(logging.WARNING)
     stopper = StopOnSignal()
     trainer.callbacks.append(stopper)
     main = threading.current_thread() is threading.main_thread()
