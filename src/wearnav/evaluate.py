@@ -20,7 +20,7 @@ import pandas as pd
 import torch
 
 from wearnav import metrics, runs
-from wearnav.errors import ValidationError
+from wearnav.errors import FormatError, ValidationError
 from wearnav.fileio import atomic_path
 from wearnav.preprocess import Aligned, align
 from wearnav.textio import read_json
@@ -214,6 +214,8 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
     dest = Path(out_dir) if out_dir is not None else run
     ds = Dataset.open(data or cfg.data)
     old = runs.read_metrics(dest) if runs.is_complete(dest) else {}
+    if not isinstance(old.get("splits", {}), dict):
+        raise FormatError("'splits' is not a mapping of split names to results", dest / runs.METRICS)
     if training is None and (run / TRAINING).is_file():
         training = read_json(run / TRAINING)
     out = {"model": cfg.model, "run": run.name, "data": str(data or cfg.data),
@@ -222,6 +224,8 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
            "training": training if training is not None else old.get("training", {}),
            # splits evaluated earlier on the same data are kept beside the new ones
            "splits": dict(old.get("splits", {})) if data is None or str(data) == old.get("data") else {}}
+    if not splits:
+        raise ValidationError("no split named to evaluate (e.g. --split test)")
     views = {split: scorable_split(ds, split) for split in splits}  # all checked before any write
     for split, view in views.items():
         seqs = load_sequences(view, cfg, progress)

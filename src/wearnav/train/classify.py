@@ -115,6 +115,8 @@ class ClassifyConfig:
             expansion_copies(self.expand)
         if not self.devices:
             raise ConfigError("at least one device must be named")
+        self.preprocess_config()  # their own checks (rate, frame, window sizes), here so that a
+        self.window_config()  # damaged config.yaml is refused when it is read
 
     @classmethod
     def from_dict(cls, d: dict) -> "ClassifyConfig":

@@ -79,6 +79,8 @@ class TrainConfig:
             raise ConfigError(f"lr must be positive, got {self.lr}")
         if self.batch is not None and self.batch < 1:
             raise ConfigError(f"batch must be ≥ 1, got {self.batch}")
+        self.preprocess_config()  # their own checks (rate, frame alignment, window sizes), here
+        self.window_config()  # so that a damaged config.yaml is refused when it is read
 
     @classmethod
     def from_dict(cls, d: dict) -> "TrainConfig":
