@@ -195,6 +195,15 @@ def test_eval_checks_every_split_before_writing(pdr_run, tmp_path):
     assert snapshot(tmp_path) == before
 
 
+def test_train_checks_the_test_split_before_training(small, tmp_path):
+    ds = Dataset.open(small)
+    split = ds.manifest.set_index("name")["split"]
+    data = write_dataset(tmp_path / "notest", [(ds.load(n), split[n]) for n in ds.names if split[n] != "test"]).root
+    _refused(*run_cli("train", "test-mlp", "--data", data, "--out", tmp_path / "run", "--epochs", "1"),
+             "failed call writes first", "unknown split ['test']")
+    assert not (tmp_path / "run").exists()
+
+
 def test_results_touches_no_image_when_it_fails(tmp_path):
     suite = tmp_path / "s1"
     suite.mkdir()

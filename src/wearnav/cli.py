@@ -191,7 +191,7 @@ def train(
 
     cfg = TrainConfig(model=model, data=str(data), devices=_devices(devices), epochs=epochs, seed=seed,
                       lr=lr, batch=batch, patience=patience, max_minutes=max_time)
-    run = prepare_run(cfg, out)
+    run = prepare_run(cfg, out, eval_splits=("test",) if evaluate else ())
     record = fit(cfg, run, progress=_progress())
     _echo_json({"run": str(run), "training": record})
     if evaluate:

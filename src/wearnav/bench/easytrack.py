@@ -32,6 +32,7 @@ import pandas as pd
 from wearnav import metrics, runs
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.fixlabels import LabelConfig, Segments, label_dataset, noise_summary
+from wearnav.textio import read_json
 from wearnav.train.noisy import NoisyConfig, fit_noisy, load_predictor, write_history
 
 LEVELS = ("L1", "L2", "L3")
@@ -333,8 +334,6 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
 
 
 def _ade_curves(out: Path, sim: list[dict]) -> str | None:
-    import json
-
     from matplotlib.figure import Figure
 
     from wearnav.report.plots import save
@@ -344,7 +343,7 @@ def _ade_curves(out: Path, sim: list[dict]) -> str | None:
         f = Path(m.get("folder", "")) / "history.json"
         if m["seed"] != 0 or not f.is_file():
             continue
-        h = [r.get("test_ade_m") for r in json.loads(f.read_text())]
+        h = [r.get("test_ade_m") if isinstance(r, dict) else None for r in read_json(f, kind=list)]
         if any(v is not None for v in h):
             curves.setdefault(m["level"], {})[m["method"]] = h
     if not curves:
@@ -422,9 +421,7 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
         if m["method"] == "easytrack" and m["seed"] == 0:
             folder = Path(m["folder"])
             if (folder / "history.json").is_file():
-                import json
-
-                hist[m["level"]] = json.loads((folder / "history.json").read_text())
+                hist[m["level"]] = read_json(folder / "history.json", kind=None)
     if hist:
         lines += ["## CoAdapt over the joint epochs (EasyTrack, seed 0; Fig. 5 and 6)", ""]
         rows = []

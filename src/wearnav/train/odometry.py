@@ -221,10 +221,12 @@ def check_devices(ds, devices: tuple[str, ...]) -> None:
         raise ConfigError(f"no recording has device(s) {missing}; the dataset's devices are {have}", ds.root)
 
 
-def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
+def prepare_run(cfg: TrainConfig, run: str | Path, eval_splits: tuple[str, ...] = ()) -> Path:
     """Create (or reuse) run folder ``run`` for ``cfg``: a folder holding another config is refused,
-    so a resumed run never mixes two configurations."""
+    so a resumed run never mixes two configurations. ``eval_splits``: the splits the run will be
+    evaluated on after training, checked now (known, with truth) rather than after the training."""
     from wearnav.dataset import Dataset
+    from wearnav.evaluate import scorable_split
 
     run = Path(run)
     spec = registry.get(cfg.model)  # an unknown model is refused before anything is written
@@ -233,6 +235,8 @@ def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
         raise ConfigError(f"{cfg.model!r} is a {spec.task} model; `wearnav train` trains odometry models "
                           f"({odometry})")
     record = run_record(cfg)
+    for split in eval_splits:
+        scorable_split(Dataset.open(cfg.data), split)
     if (run / runs.CONFIG).is_file():
         old = runs.read_config(run)["config"]
         if run_hash_exclude(old) != run_hash_exclude(record):
