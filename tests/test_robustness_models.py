@@ -367,9 +367,11 @@ YAML_VALUES = st.one_of(st.none(), st.booleans(), st.integers(-3, 300), st.float
 TRAIN_KEYS = ["model", "data", "devices", "model_args", "train_split", "val_split", "rate", "window", "stride",
               "epochs", "patience", "lr", "batch", "augment", "seed", "frame_align", "truth_max_gap", "yaw_deg",
               "no_such_key"]
+CLASSIFY_KEYS = ["model", "devices", "frame", "rate", "window", "stride", "label_kind", "classes", "denoise",
+                 "expand", "model_args", "no_such_key"]
 
 
-def _damage(run: Path, how: str, which: float, data, raw: bytes) -> None:
+def _damage(run: Path, how: str, which: float, data, raw: bytes, keys=TRAIN_KEYS) -> None:
     files = sorted(p for p in run.rglob("*") if p.is_file())
     target = files[int(which * len(files))]
     if how == "delete":
@@ -380,14 +382,14 @@ def _damage(run: Path, how: str, which: float, data, raw: bytes) -> None:
         target.write_bytes(raw)
     elif how == "config field":
         doc = yaml.safe_load((run / "config.yaml").read_text())
-        key = data.draw(st.sampled_from(TRAIN_KEYS))
+        key = data.draw(st.sampled_from(keys))
         doc["config"]["train"][key] = data.draw(YAML_VALUES)
         (run / "config.yaml").write_text(yaml.safe_dump(doc))
     elif how == "config text":
         (run / "config.yaml").write_text(data.draw(TEXT), encoding="utf-8", errors="surrogatepass")
 
 
-def test_damaged_run_folders_are_evaluated_or_one_line(pdr_run):
+def test_damaged_run_folders_are_evaluated_or_one_line(pdr_run, small):
     @MODEL_PROPERTY
     @given(how=st.sampled_from(["delete", "truncate", "garbage", "config field", "config field", "config text"]),
            which=st.floats(0, 1, exclude_max=True), raw=st.binary(max_size=40), data=st.data())
@@ -399,6 +401,26 @@ def test_damaged_run_folders_are_evaluated_or_one_line(pdr_run):
             _damage(run, how, which, data, raw)
             before = snapshot(Path(tmp))
             _outcome(*run_cli("eval", run), f"damaged run folder ({how})", before, Path(tmp))
+            before = snapshot(Path(tmp))
+            _outcome(*run_cli("track", rec, "--model", run, "--out", Path(tmp) / "track"),
+                     f"track with a damaged run ({how})", before, Path(tmp))
+    rec = Dataset.open(small).path(Dataset.open(small).names[0])
+    prop()
+
+
+def test_damaged_classifier_runs_classify_or_one_line(clf_run, small):
+    rec = Dataset.open(small).path(Dataset.open(small).names[0])
+
+    @MODEL_PROPERTY
+    @given(how=st.sampled_from(["delete", "truncate", "garbage", "config field", "config field", "config text"]),
+           which=st.floats(0, 1, exclude_max=True), raw=st.binary(max_size=40), data=st.data())
+    def prop(how, which, raw, data):
+        with tempfile.TemporaryDirectory() as tmp:
+            run = shutil.copytree(clf_run, Path(tmp) / "run")
+            _damage(run, how, which, data, raw, CLASSIFY_KEYS)
+            before = snapshot(Path(tmp))
+            _outcome(*run_cli("classify", rec, "--model", run, "--out", Path(tmp) / "lab"),
+                     f"classify with a damaged run ({how})", before, Path(tmp))
     prop()
 
 
