@@ -235,12 +235,12 @@ def prepare_run(cfg: TrainConfig, run: str | Path, eval_splits: tuple[str, ...] 
         raise ConfigError(f"{cfg.model!r} is a {spec.task} model; `wearnav train` trains odometry models "
                           f"({odometry})")
     record = run_record(cfg)
-    for split in eval_splits:
-        scorable_split(Dataset.open(cfg.data), split)
     if (run / runs.CONFIG).is_file():
         old = runs.read_config(run)["config"]
         if run_hash_exclude(old) != run_hash_exclude(record):
             raise ConfigError("holds a run of another configuration; choose another --out", run)
+        for split in eval_splits:
+            scorable_split(Dataset.open(cfg.data), split)
         return run
     if run.exists() and (not run.is_dir() or any(run.iterdir())):
         raise ConfigError("exists and is not an empty folder or a run folder; choose another --out", run)
@@ -254,6 +254,8 @@ def prepare_run(cfg: TrainConfig, run: str | Path, eval_splits: tuple[str, ...] 
             if (view.manifest["truth_points"].astype(float) < 2).all():
                 raise ValidationError(f"no training data: the {split!r} recordings have no truth positions "
                                       "(odometry training needs truth)", cfg.data)
+    for split in eval_splits:
+        scorable_split(ds, split)
     run.mkdir(parents=True, exist_ok=True)
     runs.write_config(run, record, {"data_provenance": ds.provenance})
     return run
