@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import tempfile
+import threading
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -47,6 +49,19 @@ def _previous_files(out: Path, marker: str) -> list[str]:
 
 
 @contextmanager
+def _signals_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back for a few renames (delivered when the block ends)."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    can = hasattr(signal, "pthread_sigmask") and threading.current_thread() is threading.main_thread()
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held) if can else None
+    try:
+        yield
+    finally:
+        if can:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+@contextmanager
 def staged_output(out: str | Path, marker: str, command: str, replace: bool = True) -> Iterator[Path]:
     """Yield a staging folder; when the block succeeds, every file written there moves into
     ``out`` (``marker`` last), after :func:`check_out_folder` on their names; with ``replace``,
@@ -63,10 +78,11 @@ def staged_output(out: str | Path, marker: str, command: str, replace: bool = Tr
         names = sorted(p.name for p in stage.iterdir())
         check_out_folder(out, names, marker, command)
         stale = [f for f in _previous_files(out, marker) if f not in names and f != marker] if replace else []
-        for name in sorted(names, key=lambda n: n == marker):  # the marker last: it vouches for the rest
-            os.replace(stage / name, out / name)
-        for name in stale:
-            (out / name).unlink(missing_ok=True)
+        with _signals_held():  # Ctrl-C / SIGTERM wait until the folder is whole again
+            for name in sorted(names, key=lambda n: n == marker):  # the marker last: it vouches for the rest
+                os.replace(stage / name, out / name)
+            for name in stale:
+                (out / name).unlink(missing_ok=True)
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         for folder in created:  # innermost first; only what is still empty
