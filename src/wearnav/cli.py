@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import sys
+import threading
 import warnings
 from enum import Enum
 from pathlib import Path
@@ -239,7 +241,7 @@ def train(
 
     cfg = TrainConfig(model=model, data=str(data), devices=_devices(devices), epochs=epochs, seed=seed,
                       lr=lr, batch=batch, patience=patience, max_minutes=max_time)
-    run = prepare_run(cfg, out)
+    run = prepare_run(cfg, out, eval_splits=("test",) if evaluate else ())
     with locked(run):  # one process per run folder, from training through its metrics
         record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
         _echo_json({"run": str(run), "training": record})
@@ -449,16 +451,17 @@ def label_from_fixes(
     statistics (eqs. 5–7) where the recordings have dense truth."""
     from wearnav.dataset import Dataset
     from wearnav.fixlabels import LabelConfig, label_dataset, noise_summary, plot_noise_cdf
+    from wearnav.outputs import staged_output
     from wearnav.runs import write_json
 
-    seg = label_dataset(Dataset.open(dataset), LabelConfig(segment_s=segment, rate=rate), progress=True)
-    out.mkdir(parents=True, exist_ok=True)
-    typer.echo(str(seg.save(out / "segments.npz")))
+    seg = label_dataset(Dataset.open(dataset), LabelConfig(segment_s=segment, rate=rate), progress=_progress())
     summary = noise_summary(seg)
-    typer.echo(str(write_json(out / "label_noise.json", summary)))
-    png = plot_noise_cdf(seg, out / "label_noise_cdf.png")
-    if png:
-        typer.echo(str(png))
+    with staged_output(out, "label_noise.json", "label-from-fixes") as stage:  # all three files or none
+        seg.save(stage / "segments.npz")
+        write_json(stage / "label_noise.json", summary)
+        png = plot_noise_cdf(seg, stage / "label_noise_cdf.png")
+    for name in ("segments.npz", "label_noise.json") + (("label_noise_cdf.png",) if png else ()):
+        typer.echo(str(out / name))
     typer.echo(f"{summary['segments']} segments, {summary['length_km']} km; median label noise "
                f"{summary['label_noise_median_cm']} cm")
 
@@ -578,6 +581,10 @@ def _fail(message: str, code: int) -> None:
     sys.exit(code)
 
 
+def _on_sigterm(signum, frame) -> None:
+    raise Terminated("terminated (SIGTERM)")
+
+
 def main() -> None:
     """Run the command line; the boundary where every failure becomes one line on stderr.
 
@@ -586,6 +593,18 @@ def main() -> None:
     else is a bug in wearnav and says so in one line, exit 1 (``WEARNAV_DEBUG=1`` re-raises it
     with its traceback). Warnings are one line each (``warning: ...``).
     """
+    # SIGTERM raises like Ctrl-C does, in every command: ``finally`` / ``with`` blocks clean up and
+    # the exit code is 143 (training defers both to a batch boundary: wearnav.train.interrupt).
+    main_thread = threading.current_thread() is threading.main_thread()
+    old_sigterm = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
+    try:
+        _main()
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, old_sigterm)
+
+
+def _main() -> None:
     with warnings.catch_warnings():
         # Only wearnav's own warnings concern the user (a truncated file imported flagged); a
         # library's RuntimeWarning about arithmetic on values that are then refused is noise.

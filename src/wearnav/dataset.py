@@ -30,6 +30,7 @@ from wearnav.errors import FormatError, MissingFileError, Terminated, Validation
 from wearnav.fileio import fsync_dir, fsync_file, host_tag, pid_alive, require_regular_file
 from wearnav.provenance import provenance
 from wearnav.recording import Recording, check_name, check_text
+from wearnav.textio import read_yaml
 
 MANIFEST = "manifest.csv"
 PROVENANCE = "dataset.yaml"
@@ -125,10 +126,7 @@ def _written_by_wearnav(info) -> bool:
 
 
 def _read_yaml(path: Path):
-    try:
-        return yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise FormatError(f"unreadable ({exc})", path) from None
+    return read_yaml(path, kind=None)
 
 
 class DatasetWriter:
@@ -358,6 +356,11 @@ class Dataset:
         rec = Recording.load(path)
         if rec.name != name:
             raise FormatError(f"holds recording {rec.name!r}, but the manifest lists it as {name!r}", path)
+        listed = self.manifest.loc[self.manifest["name"] == name, "devices"].iloc[0]
+        listed = sorted(d for d in str(listed).split(";") if d) if isinstance(listed, str) else []
+        if listed != sorted(rec.devices):
+            raise FormatError(f"holds devices {sorted(rec.devices)}, but the manifest lists {listed} "
+                              f"(filters and training layouts read the manifest)", path)
         return rec
 
     def __iter__(self) -> Iterator[Recording]:
@@ -444,3 +447,16 @@ def write_dataset(root: str | Path, recordings: Iterable[tuple[Recording, str]],
         for rec, split in recordings:
             w.add(rec, split)
     return Dataset.open(root)
+
+
+def scorable_split(ds, split: str):
+    """``ds``'s split ``split``, refused when it is unknown, empty, or has no recording with truth
+    to score against (metrics over 0 sequences would be a page of blanks)."""
+    view = ds.split(split)
+    if len(view) == 0:
+        raise ValidationError(f"split {split!r} is empty (splits here: "
+                              f"{sorted(set(ds.manifest['split'].astype(str)))})", ds.root)
+    if "truth_points" in view.manifest and (pd.to_numeric(view.manifest["truth_points"], errors="coerce")
+                                            .fillna(0) < 2).all():
+        raise ValidationError(f"no recording of split {split!r} has truth positions to score against", ds.root)
+    return view

@@ -64,3 +64,43 @@ class Terminated(BaseException):
     A BaseException like KeyboardInterrupt, so that only cleanup code (``finally``, ``with``)
     sees it, never an ``except Exception`` meant for bad data.
     """
+
+
+def check_field_types(cfg) -> None:
+    """Raise :class:`ConfigError` unless every field of dataclass ``cfg`` has its annotated type.
+
+    For configs read back from a file (a run's config.yaml), where a hand edit or a damaged file
+    may put text where a number belongs: ``int`` takes no bool, ``float`` takes an int,
+    ``tuple[X, ...]`` takes a tuple of X, ``A | None`` takes None; ``Any`` takes anything.
+    """
+    import dataclasses
+    import numbers
+    import types
+    import typing
+
+    def fits(value, hint) -> bool:
+        origin, args = typing.get_origin(hint), typing.get_args(hint)
+        if hint is typing.Any:
+            return True
+        if origin in (typing.Union, types.UnionType):
+            return any(fits(value, a) for a in args)
+        if hint is type(None):
+            return value is None
+        if hint is bool:
+            return isinstance(value, bool)
+        if hint is int:
+            return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+        if hint is float:
+            return isinstance(value, numbers.Real) and not isinstance(value, bool)
+        if origin is tuple:
+            return isinstance(value, tuple) and all(fits(v, args[0]) for v in value)
+        if origin is dict:
+            return isinstance(value, dict) and all(isinstance(k, str) for k in value)
+        return isinstance(value, origin or hint)
+
+    hints = typing.get_type_hints(type(cfg))
+    for f in dataclasses.fields(cfg):
+        value = getattr(cfg, f.name)
+        if not fits(value, hints[f.name]):
+            want = getattr(hints[f.name], "__name__", None) or str(hints[f.name]).replace("typing.", "")
+            raise ConfigError(f"{f.name} must be {want}, got {value!r}")

@@ -12,7 +12,6 @@ so.
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from pathlib import Path
 
@@ -21,11 +20,12 @@ import pandas as pd
 import torch
 
 from wearnav import metrics, runs
-from wearnav.dataset import Dataset
-from wearnav.errors import ValidationError
+from wearnav.dataset import Dataset, scorable_split
+from wearnav.errors import FormatError, ValidationError
 from wearnav.fileio import atomic_path
 from wearnav.models.registry import n_parameters
 from wearnav.preprocess import Aligned, load_sequences
+from wearnav.textio import read_json
 from wearnav.train.odometry import TRAINING, load_model
 from wearnav.trajectory import integrate_velocity
 from wearnav.windows import WindowConfig, WindowDataset
@@ -182,19 +182,20 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
     dest = Path(out_dir) if out_dir is not None else run
     ds = Dataset.open(data or cfg.data)
     old = runs.read_metrics(dest) if runs.is_complete(dest) else {}
+    if not isinstance(old.get("splits", {}), dict):
+        raise FormatError("'splits' is not a mapping of split names to results", dest / runs.METRICS)
     if training is None and (run / TRAINING).is_file():
-        training = json.loads((run / TRAINING).read_text(encoding="utf-8"))
+        training = read_json(run / TRAINING)
     out = {"model": cfg.model, "run": run.name, "data": str(data or cfg.data),
            "parameters": n_parameters(model), "window": cfg.window,
            "eval_stride": stride or cfg.stride, "preprocess": dict(preprocess or {}),
            "training": training if training is not None else old.get("training", {}),
            # splits evaluated earlier on the same data are kept beside the new ones
            "splits": dict(old.get("splits", {})) if data is None or str(data) == old.get("data") else {}}
-    for split in splits:
-        view = ds.split(split)
-        if len(view) == 0:
-            raise ValidationError(f"split {split!r} is empty (splits here: "
-                                  f"{sorted(set(ds.manifest['split'].astype(str)))})", ds.root)
+    if not splits:
+        raise ValidationError("no split named to evaluate (e.g. --split test)")
+    views = {split: scorable_split(ds, split) for split in splits}  # all checked before any write
+    for split, view in views.items():
         seqs = load_sequences(view, cfg, progress)
         t0 = time.perf_counter()
         res, trajs = evaluate_sequences(model, seqs, cfg.window, stride or cfg.stride, rte_delta, progress)

@@ -31,17 +31,22 @@ sample to the next segment's first sample, so summing them integrates a trajecto
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from wearnav.errors import ConfigError, ValidationError
+from wearnav.errors import ConfigError, ValidationError, WearnavWarning
 from wearnav.fileio import savez_atomic
 from wearnav.preprocess import PreprocessConfig, align, interpolate_position
 from wearnav.recording import Recording
 from wearnav.timeseries import interp_onto
 
+# Fixes of one recording that all lie within this distance (m) of each other never moved: a stuck
+# receiver, a placeholder position or a copy of one fix. Their labels would all be 0 m, so the
+# recording is left out with a warning (a standing walker's real GNSS still scatters by metres).
+FIX_SPREAD_MIN_M = 0.01
 FIX_FRAME_MAX_GAP_S = 2.5  # fixes are interpolated onto the IMU clock across at most this gap
 
 
@@ -240,6 +245,11 @@ def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Segment
     """Phone-labelled segments of one recording (None if it has no usable fix pair)."""
     if rec.fixes is None or len(rec.fixes) < 2 or "phone" not in rec.devices:
         return None
+    spread = float(np.max(np.ptp(rec.fixes.pos[:, :2], axis=0)))
+    if spread < FIX_SPREAD_MIN_M:
+        warnings.warn(f"{rec.name}: all {len(rec.fixes)} location fixes lie at one point (spread "
+                      f"{spread:.3g} m): its labels would all be 0 m, so it is left out", WearnavWarning, stacklevel=2)
+        return None
     seq = _aligned_phone(rec, cfg)
     N = cfg.samples
     t_fix, p_fix = rec.fixes.t, rec.fixes.pos[:, :2]
@@ -311,7 +321,7 @@ def label_dataset(view, cfg: LabelConfig = LabelConfig(), from_truth: bool = Fal
     parts = [fn(rec, cfg) for rec in tqdm(view, total=len(view), desc="label", unit="rec", disable=not progress)]
     parts = [p for p in parts if p is not None and len(p)]
     if not parts:
-        raise ValidationError("no recording gave a labelled segment (need phone IMU and fixes"
+        raise ValidationError("no recording gave a labelled segment (need phone IMU and fixes that move"
                               + (" and dense truth)" if from_truth else ")"))
     return Segments.concat(parts)
 

@@ -34,6 +34,12 @@ TRUTH_MAX_GAP_S = 1.0
 CHANNELS = ("ax", "ay", "az", "gx", "gy", "gz")
 
 
+# The model clock's rate bounds (Hz). Walking's step band reaches 5 Hz and the frame alignment
+# low-passes turns at 0.5 Hz (wearnav.frames): below 10 Hz the clock's Nyquist cuts into the steps.
+# Above 1 kHz no wearable IMU samples (a rate typed in ms, or a damaged config.yaml).
+MIN_RATE_HZ, MAX_RATE_HZ = 10.0, 1000.0
+
+
 @dataclass(frozen=True)
 class PreprocessConfig:
     """How streams become model input. Defaults follow Suite-IN++ (25 Hz, world frame)."""
@@ -63,8 +69,8 @@ class PreprocessConfig:
     yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.rate <= 0:
-            raise ConfigError(f"rate must be positive, got {self.rate}")
+        if not MIN_RATE_HZ <= self.rate <= MAX_RATE_HZ:
+            raise ConfigError(f"rate must be {MIN_RATE_HZ:g}..{MAX_RATE_HZ:g} Hz, got {self.rate}")
         if self.frame not in ("world", "device"):
             raise ConfigError(f"frame must be 'world' or 'device', got {self.frame!r}")
         if not self.devices:
@@ -177,6 +183,9 @@ def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig()) -> Aligned
     """Resample every configured device of ``rec`` onto one clock (see module docstring)."""
     t0, t1 = common_span(rec, cfg.devices, cfg.edge_tolerance)
     t = clock(t0, t1, cfg.rate)
+    if t.size < 2:
+        raise ValidationError(f"{rec.name}: the devices' common span ({t1 - t0:.3g} s) is shorter than one "
+                              f"sample period at {cfg.rate:g} Hz")
     imu = np.zeros((len(cfg.devices), t.size, 6), np.float32)
     mask = np.zeros((len(cfg.devices), t.size), bool)
     for i, dev in enumerate(cfg.devices):

@@ -92,6 +92,18 @@ def _as_array(x, dtype, name: str) -> np.ndarray:
         raise ValidationError(f"{name}: cannot be read as {np.dtype(dtype).name} ({exc})") from None
 
 
+def _as_flags(x, name: str) -> np.ndarray:
+    """Booleans, or numbers that are all 0 or 1, as a bool array (anything else is refused: NumPy
+    would read 0.5, 2 or the text "no" as True)."""
+    a = np.asarray(x)
+    if a.dtype != bool:
+        if a.dtype.kind not in "iuf" or not np.all((a == 0) | (a == 1)):
+            raise ValidationError(f"{name}: not booleans (True/False or 0/1), got dtype {a.dtype.name}"
+                                  + (f" with value {a.flat[int(np.argmax(~((a == 0) | (a == 1))))].item()!r}"
+                                     if a.dtype.kind in "iuf" and a.size else ""))
+    return np.ascontiguousarray(a, dtype=bool)
+
+
 def _check_time(t: np.ndarray, name: str) -> None:
     if t.ndim != 1:
         raise ValidationError(f"{name}: time must be 1-D, got shape {t.shape}")
@@ -166,7 +178,7 @@ class DeviceStream:
         if self.quat is not None:
             self.quat = _as_array(self.quat, np.float32, "quat")
         if self.worn is not None:
-            self.worn = _as_array(self.worn, bool, "worn")
+            self.worn = _as_flags(self.worn, "worn")
         _check_time(self.t, "t")
         n = self.t.size
         _check_rows(self.acc, n, 3, "acc")
@@ -245,6 +257,9 @@ class Trajectory:
         _check_rows(self.quat, self.t.size, 4, "truth.quat")
         if self.floor is not None and self.floor.shape != self.t.shape:
             raise ValidationError(f"truth.floor: shape {self.floor.shape}, expected {self.t.shape}")
+        if self.floor is not None and not np.all(np.isfinite(self.floor)):
+            raise ValidationError(f"truth.floor: non-finite values (first at point "
+                                  f"{int(np.argmax(~np.isfinite(self.floor)))}); truth knows its floor")
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -291,7 +306,13 @@ class Fixes:
 
 def make_labels(rows=None) -> pd.DataFrame:
     """A labels table (columns start, end, kind, value) from rows or records; validated."""
-    df = pd.DataFrame(rows if rows is not None else [], columns=LABEL_COLUMNS)
+    if isinstance(rows, pd.DataFrame) and set(LABEL_COLUMNS) - set(rows.columns):
+        raise ValidationError(f"labels: missing columns {sorted(set(LABEL_COLUMNS) - set(rows.columns))} "
+                              f"(a labels table has {', '.join(LABEL_COLUMNS)})")
+    try:
+        df = pd.DataFrame(rows if rows is not None else [], columns=LABEL_COLUMNS)
+    except (TypeError, ValueError) as exc:
+        raise ValidationError(f"labels: not a table of ({', '.join(LABEL_COLUMNS)}) rows ({exc})") from None
     try:
         df = df.astype({"start": float, "end": float, "kind": str, "value": str})
     except (TypeError, ValueError) as exc:

@@ -32,9 +32,10 @@ from typing import Any
 import yaml
 from filelock import FileLock, Timeout
 
-from wearnav.errors import BusyError, FormatError, MissingFileError
+from wearnav.errors import BusyError, FormatError, MissingFileError, WearnavError
 from wearnav.fileio import write_text_atomic
 from wearnav.provenance import provenance
+from wearnav.textio import read_json, read_yaml
 
 CONFIG = "config.yaml"
 METRICS = "metrics.json"
@@ -153,13 +154,25 @@ def read_config(run: str | Path) -> dict:
     path = Path(run) / CONFIG
     if not path.is_file():
         raise MissingFileError("not a run folder (no config.yaml)", Path(run))
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise FormatError(f"unreadable YAML: {str(exc).splitlines()[0]}", path) from None
-    if not isinstance(doc, dict) or not isinstance(doc.get("config"), dict):
+    doc = read_yaml(path)
+    if not isinstance(doc.get("config"), dict):
         raise FormatError("no 'config' mapping", path)
     return doc
+
+
+def read_run_config(run: str | Path, cls: type):
+    """The run's training config (``config.train`` of config.yaml) as ``cls`` (a config dataclass
+    with ``from_dict``); a missing, mistyped or invalid entry is a FormatError naming the file."""
+    path = Path(run) / CONFIG
+    train = read_config(run)["config"].get("train")
+    if not isinstance(train, dict):
+        raise FormatError("no 'config.train' mapping", path)
+    try:
+        return cls.from_dict(train)
+    except WearnavError as exc:
+        raise FormatError(exc.reason, path) from None
+    except (TypeError, ValueError) as exc:
+        raise FormatError(f"invalid training config ({exc})", path) from None
 
 
 def write_json(path: str | Path, obj: dict) -> Path:
@@ -175,7 +188,4 @@ def read_metrics(run: str | Path) -> dict:
     path = Path(run) / METRICS
     if not path.is_file():
         raise MissingFileError("run has no metrics.json yet (not evaluated)", Path(run))
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise FormatError(f"unreadable JSON: {exc}", path) from None
+    return read_json(path)

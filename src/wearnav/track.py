@@ -49,11 +49,14 @@ import pandas as pd
 from wearnav import geo
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.fileio import atomic_path, write_text_atomic
+from wearnav.outputs import check_out_folder, staged_output
 from wearnav.recording import Recording
 
 ANCHOR_S = 60.0
 MIN_ANCHOR_SPREAD_M = 5.0
 TRAJ_FORMAT = "%.4f"
+TRACK_JSON = "track.json"  # the marker: a folder holding it was written by `wearnav track`
+TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.geojson", TRACK_JSON)
 
 
 # ---- input -------------------------------------------------------------------------------------
@@ -170,6 +173,8 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
     from wearnav.preprocess import align
     from wearnav.trajectory import integrate_velocity
 
+    out = Path(out)
+    check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")  # before any work
     model, cfg = load_tracker(model_path)
     rec = load_input(src, name, platform)
     usable = [d for d in cfg.devices if d in rec.devices]
@@ -209,8 +214,14 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
     if (stale := geo.needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
         summary["warnings"].append(f"{rec.name}: {stale}")
         warnings.warn(WearnavWarning(summary["warnings"][-1]))
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    with staged_output(out, TRACK_JSON, "track") as stage:
+        _write_track(stage, out, table, t, xy, rec, cfg, seq, summary)
+    return summary
+
+
+def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy: np.ndarray, rec: Recording,
+                 cfg, seq, summary: dict) -> None:
+    """Anchor on the fixes and write the files into ``stage`` (moved to ``out`` afterwards)."""
     anchored = None
     fx = rec.fixes
     if fx is not None and len(fx) >= 2:
@@ -232,18 +243,16 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
                 gj = geojson(geo.local_to_latlon(anchored, float(lat0), float(lon0)),
                              geo.local_to_latlon(fx.pos[:, :2], float(lat0), float(lon0)),
                              fx.t, fx.accuracy, {"recording": rec.name, "model": cfg.model})
-                write_text_atomic(json.dumps(gj), out / "trajectory.geojson")
+                write_text_atomic(json.dumps(gj), stage / "trajectory.geojson")
                 summary["geojson"] = str(out / "trajectory.geojson")
             else:
                 summary["geojson"] = "not written: the recording's fixes have no lat/lon origin"
-    with atomic_path(out / "trajectory.csv") as tmp:
+    with atomic_path(stage / "trajectory.csv") as tmp:
         table.to_csv(tmp, index=False, float_format=TRAJ_FORMAT)
-    plot_track(table, seq.devices, anchored, fx, summary, out / "trajectory.png")
-    summary["files"] = ["trajectory.csv", "trajectory.png", "track.json"] + (
-        ["trajectory.geojson"] if (out / "trajectory.geojson").is_file() and "geojson" in summary
-        and summary["geojson"].endswith("geojson") else [])
-    write_text_atomic(json.dumps(summary, indent=2, default=str), out / "track.json")
-    return summary
+    plot_track(table, seq.devices, anchored, fx, summary, stage / "trajectory.png")
+    summary["files"] = ["trajectory.csv", "trajectory.png", TRACK_JSON] + (
+        ["trajectory.geojson"] if (stage / "trajectory.geojson").is_file() else [])
+    write_text_atomic(json.dumps(summary, indent=2, default=str), stage / TRACK_JSON)
 
 
 def plot_track(table: pd.DataFrame, devices: tuple[str, ...], anchored, fixes, summary: dict,

@@ -32,8 +32,9 @@ import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.errors import ValidationError
+from wearnav.errors import ConfigError, ValidationError
 from wearnav.fixlabels import LabelConfig, Segments, label_dataset, noise_summary
+from wearnav.textio import read_json
 from wearnav.train.noisy import NoisyConfig, fit_noisy, load_predictor, write_history
 
 LEVELS = ("L1", "L2", "L3")
@@ -180,6 +181,14 @@ def _scores(err: np.ndarray) -> dict:
             "mean_m": float(np.mean(err)) if err.size else None}
 
 
+def route_pattern(text: str) -> re.Pattern:
+    """``--test-routes`` compiled; a malformed regular expression is a ConfigError."""
+    try:
+        return re.compile(text)
+    except (re.error, RecursionError, OverflowError) as exc:
+        raise ConfigError(f"--test-routes {text!r} is not a regular expression ({exc})") from None
+
+
 def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_routes: str | None, seeds: int,
               echo=print, execution: Execution = Execution()) -> dict:
     """Train on the training routes' GNSS labels, score at the surveyed points of the test routes.
@@ -199,7 +208,7 @@ def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_rout
         test_names = ds.manifest.loc[ds.manifest["split"].astype(str) == "test", "name"].tolist()
     else:
         test_routes = test_routes or IPIN_TEST_ROUTES
-        pat = re.compile(test_routes)
+        pat = route_pattern(test_routes)
         test_names = [n for n in names if pat.search(n)]
     train_names = [n for n in names if n not in set(test_names)]
     if not test_names or not train_names:
@@ -339,8 +348,6 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
 
 
 def _ade_curves(out: Path, sim: list[dict]) -> str | None:
-    import json
-
     from matplotlib.figure import Figure
 
     from wearnav.report.plots import save
@@ -350,7 +357,7 @@ def _ade_curves(out: Path, sim: list[dict]) -> str | None:
         f = Path(m.get("folder", "")) / "history.json"
         if m["seed"] != 0 or not f.is_file():
             continue
-        h = [r.get("test_ade_m") for r in json.loads(f.read_text())]
+        h = [r.get("test_ade_m") if isinstance(r, dict) else None for r in read_json(f, kind=list)]
         if any(v is not None for v in h):
             curves.setdefault(m["level"], {})[m["method"]] = h
     if not curves:
@@ -428,9 +435,7 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
         if m["method"] == "easytrack" and m["seed"] == 0:
             folder = Path(m["folder"])
             if (folder / "history.json").is_file():
-                import json
-
-                hist[m["level"]] = json.loads((folder / "history.json").read_text())
+                hist[m["level"]] = read_json(folder / "history.json", kind=None)
     if hist:
         lines += ["## CoAdapt over the joint epochs (EasyTrack, seed 0; Fig. 5 and 6)", ""]
         rows = []

@@ -191,7 +191,6 @@ def table(models: Sequence[str], **kw):
 def write_report(rows, out, odometry_suite=None) -> "Path":
     """results.md + results.json in ``out``: the efficiency table (Table VI analogue), with training
     seconds per epoch taken from the run folders of an odometry suite where given."""
-    import json
     import platform
 
     import pandas as pd
@@ -199,13 +198,14 @@ def write_report(rows, out, odometry_suite=None) -> "Path":
     from wearnav import runs
     from wearnav.fileio import write_text_atomic
     from wearnav.provenance import provenance
+    from wearnav.textio import read_json
 
     out = Path(out)
     df = pd.DataFrame(rows)
     if odometry_suite is not None:
         per_epoch = {}
         for tj in Path(odometry_suite).glob("*/training.json"):
-            rec = json.loads(tj.read_text(encoding="utf-8"))
+            rec = read_json(tj)
             if rec.get("learned"):
                 per_epoch[runs.read_config(tj.parent)["config"]["train"]["model"]] = rec.get("s_per_epoch")
         df["train_s_per_epoch"] = df["model"].map(per_epoch)

@@ -14,7 +14,6 @@ no run is made and the table says so. "world frame" needs the device orientation
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import time
@@ -26,7 +25,8 @@ import numpy as np
 
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.errors import ConfigError
+from wearnav.errors import ConfigError, FormatError, MissingFileError
+from wearnav.textio import read_json
 
 BASELINE = "har-cnn-bilstm"
 
@@ -110,12 +110,29 @@ def applicable(tech: Technique, ds: HarDataset) -> str | None:
     return None
 
 
+def check_inputs(specs: list[HarDataset], data_root: Path, out: Path, quick: bool, techniques=None) -> None:
+    """Refuse what would stop the suite part-way, before anything is written: an unknown
+    technique, a dataset neither imported into ``out`` yet nor found under ``data_root``."""
+    known = [t.name for t in TECHNIQUES]
+    if techniques is not None and set(techniques) - set(known):
+        raise ConfigError(f"unknown techniques {sorted(set(techniques) - set(known))}; known: {', '.join(known)}")
+    for ds in specs:
+        if ds.fmt == "simulate-placement" or (_data_folder(ds, out, quick) / "manifest.csv").is_file():
+            continue
+        if not (data_root / ds.src).exists():
+            raise MissingFileError(f"no {ds.name} source here (expected {ds.src}/); see --data", data_root)
+
+
+def _data_folder(ds: HarDataset, out: Path, quick: bool) -> Path:
+    return out / "data" / (ds.fmt + ("-quick" if quick and ds.quick_limit else ""))
+
+
 def import_data(ds: HarDataset, data_root: Path, out: Path, quick: bool) -> Path:
     """Import ``ds``'s source once into ``out/data/<fmt>[-quick]`` (reused when present); the
     simulated dataset is generated there instead (seed 0)."""
     from wearnav.importers import import_dataset
 
-    folder = out / "data" / (ds.fmt + ("-quick" if quick and ds.quick_limit else ""))
+    folder = _data_folder(ds, out, quick)
     if (folder / "manifest.csv").is_file():
         return folder
     if ds.fmt == "simulate-placement":
@@ -353,7 +370,12 @@ def _wall_text(wall_s: float | None, earlier: list[dict]) -> str:
 def previous_invocations(out: Path) -> list[dict]:
     """The wall times of the suite's earlier invocations, from its results.json."""
     path = Path(out) / "results.json"
-    return json.loads(path.read_text(encoding="utf-8")).get("invocations", []) if path.is_file() else []
+    if not path.is_file():
+        return []
+    calls = read_json(path).get("invocations", [])
+    if not isinstance(calls, list) or not all(isinstance(c, dict) for c in calls):
+        raise FormatError("'invocations' is not a list of records", path)
+    return calls
 
 
 def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: float | None = None,
@@ -464,6 +486,7 @@ def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3,
     unknown = [n for n in names if n not in DATASETS]
     if unknown:
         raise ConfigError(f"unknown HAR datasets {unknown}; known: {', '.join(DATASETS)}")
+    check_inputs([DATASETS[n] for n in names], Path(data_root), Path(out), quick, techniques)
     kw = {"epochs": epochs or (1 if quick else 30), "max_minutes": max_minutes}
     if quick:
         kw["max_train_windows"] = 128

@@ -14,10 +14,11 @@ import pandas as pd
 
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.dataset import Dataset
-from wearnav.errors import ValidationError
+from wearnav.dataset import Dataset, scorable_split
+from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run
-from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
+from wearnav.models.registry import get
+from wearnav.train.odometry import TrainConfig, check_devices, fit, prepare_run, run_hash_exclude, run_record
 
 DEFAULT_MODELS = ("suitein++", "suitein", "ronin", "ronin*", "pdr")
 TEST_SPLITS = ("test", "test_unseen", "cross_subject")
@@ -50,21 +51,35 @@ def run_job(job: OdometryJob, run: Path) -> Path:
     return run
 
 
+def check_configs(configs, splits=TEST_SPLITS) -> None:
+    """Refuse a suite that could not finish, before its first run folder is written: a model that
+    is not an odometry model, a device no recording has, or data whose test splits have no truth
+    to score against (a page of runs scoring 0 sequences)."""
+    for cfg in configs:
+        spec = get(cfg.model)
+        if spec.task != "odometry":
+            raise ConfigError(f"{cfg.model!r} is a {spec.task} model, not an odometry model")
+        ds = Dataset.open(cfg.data)
+        check_devices(ds, cfg.devices)
+        present = set(ds.manifest["split"].astype(str))
+        use = [s for s in splits if s in present]
+        if not use:
+            raise ValidationError(f"none of the test splits {list(splits)} is in the dataset", cfg.data)
+        for split in use:
+            scorable_split(ds, split)
+
+
 def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = True, echo=print,
               execution: Execution = Execution()) -> list[Path]:
     """Train (or resume) and evaluate every config as ``execution`` says (:mod:`.executor`); skip
     complete runs. Returns the run folders, in the order of ``configs``."""
+    check_configs(configs, splits)
     out = Path(out)
     jobs = []
     for cfg in configs:
         run = runs.run_dir(out, cfg.model, run_key(cfg))
-        if not runs.is_complete(run):  # refuse a missing split before anything trains
-            present = set(Dataset.open(cfg.data).manifest["split"].astype(str))
-            use = tuple(s for s in splits if s in present)
-            if not use:
-                raise ValidationError(f"none of the test splits {list(splits)} is in the dataset", cfg.data)
-        else:
-            use = tuple(splits)
+        present = set(Dataset.open(cfg.data).manifest["split"].astype(str))
+        use = tuple(s for s in splits if s in present)  # check_configs: at least one
         jobs.append(Job(run_job, OdometryJob(cfg, use, progress and execution.in_process), run))
     return run_jobs(jobs, execution, echo)
 
@@ -130,7 +145,7 @@ def write_suite_report(folders, out: str | Path, title: str, splits=TEST_SPLITS,
     doc = {}
     for split in splits:
         table = comparison_table(folders, split)
-        if table.empty:
+        if table.empty or not (pd.to_numeric(table["sequences"], errors="coerce").fillna(0) > 0).any():
             continue
         doc[split] = table.to_dict(orient="records")
         lines += [f"## Split `{split}`", "", "ATE and RTE in metres (mean over sequences; RTE over Δ = 60 s, "
@@ -140,5 +155,7 @@ def write_suite_report(folders, out: str | Path, title: str, splits=TEST_SPLITS,
                        f"position error CDF, split {split}")
         box = plot_box(ate_by_model(folders, split), out / f"{split}_ate_box.png", f"ATE per sequence, split {split}")
         lines += [f"![{p.stem}]({p.name})" for p in (cdf, box) if p] + [""]
+    if not doc:
+        raise ValidationError(f"no run scored a sequence on the splits {list(splits)}; nothing to report", out)
     runs.write_json(out / "results.json", doc)
     return write_text_atomic("\n".join(lines), out / "results.md")

@@ -36,7 +36,6 @@ are skipped, so the benchmark resumes.
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import platform
 import time
@@ -56,6 +55,7 @@ from wearnav.preprocess import load_sequences
 from wearnav.rotations import from_wxyz
 from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 from wearnav.trajectory import integrate_velocity
+from wearnav.textio import read_json
 
 DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
 TRUTH_MAX_GAP_S = 60.0
@@ -109,7 +109,7 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
     wanted = {"src": str(src.resolve()), "importer": fmt, "group_by": key, "test_groups": list(groups)}
     info_path = out / "split.json"
     if info_path.is_file() and (out / "manifest.csv").is_file():
-        info = json.loads(info_path.read_text(encoding="utf-8"))
+        info = read_json(info_path)
         if {k: info.get(k) for k in wanted} == wanted:
             return out, info
     counts: dict[str, dict[str, int]] = {}
@@ -298,7 +298,7 @@ def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str
         if not cached.is_file():
             echo(f"{name}: estimating the site's yaw from its training traces (PDR) ...")
             runs.write_json(cached, estimate_site_yaw(Path(site["data"])))
-        site["yaw"] = json.loads(cached.read_text(encoding="utf-8"))
+        site["yaw"] = read_json(cached)
         echo(f"{name}: site yaw {site['yaw']['yaw_deg']:+.1f}° from {site['yaw']['segments']} segments")
         site["fixes"] = fix_errors(Path(site["data"]))
     yaw = sites["main"]["yaw"]["yaw_deg"]

@@ -30,10 +30,11 @@ import numpy as np
 import torch
 
 from wearnav import runs
-from wearnav.errors import ConfigError, ValidationError
+from wearnav.errors import ConfigError, ValidationError, check_field_types
 from wearnav.models import registry
 from wearnav.preprocess import Aligned, PreprocessConfig, load_sequences
 from wearnav.train.common import CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
+from wearnav.train.interrupt import stop_between_batches
 from wearnav.windows import WindowConfig, WindowDataset
 
 TRAINING = "training.json"
@@ -103,6 +104,7 @@ class ClassifyConfig:
     max_minutes: float | None = None
 
     def __post_init__(self) -> None:
+        check_field_types(self)
         if self.epochs < 1 or self.seed < 0:
             raise ConfigError(f"epochs must be ≥ 1 and seed ≥ 0, got {self.epochs} and {self.seed}")
         if self.denoise < 0:
@@ -113,6 +115,8 @@ class ClassifyConfig:
             expansion_copies(self.expand)
         if not self.devices:
             raise ConfigError("at least one device must be named")
+        self.preprocess_config()  # their own checks (rate, frame, window sizes), here so that a
+        self.window_config()  # damaged config.yaml is refused when it is read
 
     @classmethod
     def from_dict(cls, d: dict) -> "ClassifyConfig":
@@ -231,7 +235,8 @@ def _fit(cfg: ClassifyConfig, run: Path, progress: bool) -> dict:
     last = run / CHECKPOINTS / LAST
     resumed = last.is_file()
     t0 = time.perf_counter()
-    trainer.fit(module, data.loader(batch, cfg.seed), ckpt_path=str(last) if resumed else None)
+    with stop_between_batches(trainer):  # Ctrl-C / SIGTERM: exit 130 / 143, last.ckpt intact
+        trainer.fit(module, data.loader(batch, cfg.seed), ckpt_path=str(last) if resumed else None)
     wall = time.perf_counter() - t0
     epochs = int(trainer.current_epoch)
     record = {
@@ -247,16 +252,17 @@ def _fit(cfg: ClassifyConfig, run: Path, progress: bool) -> dict:
 
 def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[str]]:
     """The run's model with its last-epoch weights (eval mode), its config and class names."""
-    import json
-
-    from wearnav.errors import MissingFileError
+    from wearnav.errors import FormatError, MissingFileError
+    from wearnav.textio import read_json
 
     run = Path(run)
-    cfg = ClassifyConfig.from_dict(runs.read_config(run)["config"]["train"])
+    cfg = runs.read_run_config(run, ClassifyConfig)
     path = run / TRAINING
     if not path.is_file():
         raise MissingFileError("run has no training.json (was it trained?)", run)
-    classes = json.loads(path.read_text(encoding="utf-8"))["classes"]
+    classes = read_json(path).get("classes")
+    if not isinstance(classes, list) or not classes or not all(isinstance(c, str) for c in classes):
+        raise FormatError("no 'classes' list of class names", path)
     model = registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, n_classes=len(classes),
                            **cfg.model_args)
     load_weights(model, run / CHECKPOINTS / LAST)
@@ -321,10 +327,32 @@ def intervals(t0: np.ndarray, t1: np.ndarray, cls: np.ndarray, conf: np.ndarray,
     return out
 
 
+CLASSIFY_JSON = "classify.json"  # the marker of a `wearnav classify` output folder (wearnav.outputs)
+
+
 def label_recordings(recordings, run: str | Path, out: str | Path) -> list[Path]:
     """Classify every window of each recording with the run's model; write ``<name>_intervals.csv``
     (start_s, end_s, label, windows, mean_confidence) and ``<name>_timeline.png`` (|acc| of the
-    first present device with the labels as coloured bands) into ``out``."""
+    first present device with the labels as coloured bands) into ``out``, and ``classify.json``
+    (the run, the recordings, the files). All or nothing: a recording that fails leaves ``out``
+    as it was (:func:`wearnav.outputs.staged_output`)."""
+    import json
+
+    from wearnav.fileio import write_text_atomic
+    from wearnav.outputs import check_out_folder, staged_output
+
+    check_out_folder(out, (), CLASSIFY_JSON, "classify")
+    model, cfg, classes = load_model(run)
+    with staged_output(out, CLASSIFY_JSON, "classify", replace=False) as stage:
+        names = _label_into(recordings, model, cfg, classes, stage)
+        files = [f for n in names for f in (f"{n}_intervals.csv", f"{n}_timeline.png")] + [CLASSIFY_JSON]
+        write_text_atomic(json.dumps({"run": str(run), "model": cfg.model, "recordings": names, "files": files},
+                                     indent=2), stage / CLASSIFY_JSON)
+    return [Path(out) / f for f in files[:-1]]
+
+
+def _label_into(recordings, model, cfg, classes: list[str], out: Path) -> list[str]:
+    """Write each recording's intervals CSV and timeline PNG into ``out``; returns the names."""
     import pandas as pd
     from matplotlib.figure import Figure
 
@@ -333,9 +361,6 @@ def label_recordings(recordings, run: str | Path, out: str | Path) -> list[Path]
     from wearnav.preprocess import align
     from wearnav.report.plots import save
 
-    model, cfg, classes = load_model(run)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     written = []
     colours = {c: f"C{i % 10}" for i, c in enumerate(classes)}
     for rec in recordings:
@@ -349,7 +374,10 @@ def label_recordings(recordings, run: str | Path, out: str | Path) -> list[Path]
         t = wds[np.arange(len(wds)).tolist()]["t"].numpy()
         rows = intervals(t[:, 0], t[:, 1], cls, conf, classes)
         df = pd.DataFrame(rows, columns=["start_s", "end_s", "label", "windows", "mean_confidence"])
-        written.append(write_text_atomic(df.to_csv(index=False, float_format="%.3f"), out / f"{rec.name}_intervals.csv"))
+        if rec.name in written:
+            raise ValidationError("two recordings of this name; their files would collide", rec.name)
+        written.append(rec.name)
+        write_text_atomic(df.to_csv(index=False, float_format="%.3f"), out / f"{rec.name}_intervals.csv")
         d = int(np.argmax(seq.mask.any(axis=1)))
         fig = Figure(figsize=(10, 3))
         ax = fig.add_subplot()
@@ -364,5 +392,7 @@ def label_recordings(recordings, run: str | Path, out: str | Path) -> list[Path]
         ax.set_ylabel(f"|acc| {seq.devices[d]} (m/s²)")
         ax.set_title(f"{rec.name}: {cfg.label_kind} by {cfg.model}", fontsize=9)
         fig.tight_layout()
-        written.append(save(fig, out / f"{rec.name}_timeline.png"))
+        save(fig, out / f"{rec.name}_timeline.png")
+    if not written:
+        raise ValidationError("no recording to classify")
     return written

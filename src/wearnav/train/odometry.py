@@ -13,7 +13,6 @@ epoch exactly and ends with the same weights and metrics as an uninterrupted run
 from __future__ import annotations
 
 import dataclasses
-import json
 import sys
 import time
 from dataclasses import dataclass, field
@@ -24,11 +23,13 @@ import lightning as L
 import torch
 
 from wearnav import runs
-from wearnav.dataset import Dataset
-from wearnav.errors import ConfigError, ValidationError
+from wearnav.dataset import Dataset, scorable_split
+from wearnav.errors import ConfigError, ValidationError, check_field_types
 from wearnav.models import registry
 from wearnav.preprocess import TRUTH_MAX_GAP_S, PreprocessConfig, load_sequences
+from wearnav.textio import read_json
 from wearnav.train.common import BEST, CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
+from wearnav.train.interrupt import stop_between_batches
 from wearnav.windows import WindowConfig, WindowDataset
 
 TRAINING = "training.json"  # what fit() measured; evaluate_run merges it into metrics.json
@@ -67,6 +68,7 @@ class TrainConfig:
     yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
+        check_field_types(self)
         if self.epochs < 1:
             raise ConfigError(f"epochs must be ≥ 1, got {self.epochs}")
         if self.seed < 0:
@@ -79,6 +81,8 @@ class TrainConfig:
             raise ConfigError(f"lr must be positive, got {self.lr}")
         if self.batch is not None and self.batch < 1:
             raise ConfigError(f"batch must be ≥ 1, got {self.batch}")
+        self.preprocess_config()  # their own checks (rate, frame alignment, window sizes), here
+        self.window_config()  # so that a damaged config.yaml is refused when it is read
 
     @classmethod
     def from_dict(cls, d: dict) -> "TrainConfig":
@@ -164,10 +168,11 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
     resumed = last.is_file()
     # A resumed run adds to what earlier attempts measured: epochs already done, wall time spent.
     before_epochs = int(torch.load(last, map_location="cpu", weights_only=False)["epoch"]) + 1 if resumed else 0
-    earlier = json.loads((run / TRAINING).read_text(encoding="utf-8")) if resumed and (run / TRAINING).is_file() else {}
+    earlier = read_json(run / TRAINING) if resumed and (run / TRAINING).is_file() else {}
     t0 = time.perf_counter()
-    trainer.fit(module, train_ds.loader(batch, cfg.seed, shard=True), val_ds.loader(1024, shard=True),
-                ckpt_path=str(last) if last.is_file() else None)
+    with stop_between_batches(trainer):  # Ctrl-C / SIGTERM: exit 130 / 143, last.ckpt intact
+        trainer.fit(module, train_ds.loader(batch, cfg.seed, shard=True), val_ds.loader(1024, shard=True),
+                    ckpt_path=str(last) if last.is_file() else None)
     wall = time.perf_counter() - t0
     if trainer.global_rank > 0:  # a DDP worker that re-ran the command: rank 0 records and evaluates
         sys.exit(0)
@@ -200,7 +205,7 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
 def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, TrainConfig]:
     """The model of a run folder with its ``best`` (or ``last``) weights, in eval mode."""
     run = Path(run)
-    cfg = TrainConfig.from_dict(runs.read_config(run)["config"]["train"])
+    cfg = runs.read_run_config(run, TrainConfig)
     model = build_model(cfg)
     if registry.get(cfg.model).learned:
         load_weights(model, run / CHECKPOINTS / which)
@@ -219,20 +224,37 @@ def run_hash_exclude(record: dict) -> dict:
     return {**record, "train": train}
 
 
-def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
+def check_devices(ds, devices: tuple[str, ...]) -> None:
+    """Refuse a device layout naming a device that no recording of ``ds`` has (a typo would
+    otherwise train on zeros where that device's input belongs)."""
+    have = sorted({d for s in ds.manifest["devices"].astype(str) for d in s.split(";") if d})
+    missing = [d for d in devices if d not in have]
+    if missing:
+        raise ConfigError(f"no recording has device(s) {missing}; the dataset's devices are {have}", ds.root)
+
+
+def prepare_run(cfg: TrainConfig, run: str | Path, eval_splits: tuple[str, ...] = ()) -> Path:
     """Create (or reuse) run folder ``run`` for ``cfg``: a folder holding another config is refused,
-    so a resumed run never mixes two configurations."""
+    so a resumed run never mixes two configurations. ``eval_splits``: the splits the run will be
+    evaluated on after training, checked now (known, with truth) rather than after the training."""
     run = Path(run)
-    registry.get(cfg.model)  # an unknown model is refused before anything is written
+    spec = registry.get(cfg.model)  # an unknown model is refused before anything is written
+    if spec.task != "odometry":
+        odometry = ", ".join(s.name for s in registry.available() if s.task == "odometry")
+        raise ConfigError(f"{cfg.model!r} is a {spec.task} model; `wearnav train` trains odometry models "
+                          f"({odometry})")
     record = run_record(cfg)
     if (run / runs.CONFIG).is_file():
         old = runs.read_config(run)["config"]
         if run_hash_exclude(old) != run_hash_exclude(record):
             raise ConfigError("holds a run of another configuration; choose another --out", run)
+        for split in eval_splits:
+            scorable_split(Dataset.open(cfg.data), split)
         return run
     if not runs.is_blank(run):
         raise ConfigError("exists and is not an empty folder or a run folder; choose another --out", run)
     ds = Dataset.open(cfg.data)
+    check_devices(ds, cfg.devices)
     if registry.get(cfg.model).learned:
         for split in (cfg.train_split, cfg.val_split):
             view = ds.split(split)
@@ -241,6 +263,8 @@ def prepare_run(cfg: TrainConfig, run: str | Path) -> Path:
             if (view.manifest["truth_points"].astype(float) < 2).all():
                 raise ValidationError(f"no training data: the {split!r} recordings have no truth positions "
                                       "(odometry training needs truth)", cfg.data)
+    for split in eval_splits:
+        scorable_split(ds, split)
     run.mkdir(parents=True, exist_ok=True)
     runs.write_config(run, record, {"data_provenance": ds.provenance})
     return run
