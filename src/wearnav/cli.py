@@ -163,7 +163,8 @@ def plot(
 def track(
     src: Path = typer.Argument(..., metavar="INPUT",
                                help="A Sensor Logger export (folder or .zip), a recording (.h5), or a dataset folder."),
-    model: Path = typer.Option(..., "--model", help="A run folder of `wearnav train`, or one of its checkpoints."),
+    model: Path = typer.Option(..., "--model", help="A run folder of `wearnav train`, one of its checkpoints, "
+                               "or an untrained baseline by name (pdr)."),
     out: Path = typer.Option(..., "--out", help="Folder for trajectory.csv / .png / .geojson and track.json."),
     name: Optional[str] = typer.Option(None, help="Which recording of a dataset folder (or export of a folder of exports)."),
     platform: Optional[Platform] = typer.Option(None, help="For an export without Metadata.csv."),
@@ -221,7 +222,8 @@ def train(
     model: str = typer.Argument(..., help="A registered model (see `wearnav models`)."),
     data: Path = typer.Option(..., "--data", help="Dataset folder with truth (e.g. from `wearnav simulate`)."),
     out: Path = typer.Option(..., "--out", help="Run folder to write (resumed if it holds this run)."),
-    devices: str = typer.Option("phone,watch,earbuds", help="Device layout, comma-separated."),
+    devices: Optional[str] = typer.Option(None, help="Device layout, comma-separated (default: the dataset's "
+                                          "devices, phone, watch, earbuds first)."),
     epochs: int = typer.Option(100, help="Maximum epochs (early stopping may end sooner)."),
     seed: int = typer.Option(0, help="Random seed."),
     lr: Optional[float] = typer.Option(None, help="Learning rate (default: the model's paper value)."),
@@ -237,11 +239,20 @@ def train(
     """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json)."""
     from wearnav.evaluate import evaluate_run
     from wearnav.runs import locked
-    from wearnav.train.odometry import TrainConfig, fit, prepare_run
+    from wearnav.train.odometry import (TrainConfig, dataset_defaults, evaluation_splits, fit, prepare_run,
+                                        validation_note)
 
-    cfg = TrainConfig(model=model, data=str(data), devices=_devices(devices), epochs=epochs, seed=seed,
-                      lr=lr, batch=batch, patience=patience, max_minutes=max_time)
-    run = prepare_run(cfg, out, eval_splits=("test",) if evaluate else ())
+    defaults, notes = dataset_defaults(data)  # what the data decides (devices, sparse truth): said below
+    if devices is not None:
+        defaults["devices"], notes = _devices(devices), [n for n in notes if not n.startswith("devices:")]
+    cfg = TrainConfig(model=model, data=str(data), epochs=epochs, seed=seed, lr=lr, batch=batch,
+                      patience=patience, max_minutes=max_time, **defaults)
+    eval_splits, no_eval = evaluation_splits(cfg) if evaluate else ((), None)
+    run = prepare_run(cfg, out, eval_splits=eval_splits)
+    for note in (*notes, validation_note(cfg), no_eval):  # how a real dataset's gaps are filled
+        if note:
+            typer.echo(note, err=True)
+    evaluate = bool(eval_splits)
     with locked(run):  # one process per run folder, from training through its metrics
         record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
         _echo_json({"run": str(run), "training": record})
@@ -476,7 +487,9 @@ def classify_(
     """Label a recording's activity (or placement) per window: intervals CSV + timeline PNG over |acc|."""
     from wearnav.recording import Recording
     from wearnav.train.classify import label_recordings
+    from wearnav.train.resolve import resolve_model
 
+    classifier = resolve_model(model, "classify")  # before the input is read
     if input_.is_file() and input_.suffix == ".h5":
         recs = [Recording.load(input_)]
     elif (input_ / "manifest.csv").is_file():
@@ -487,7 +500,7 @@ def classify_(
         from wearnav.importers import sensorlogger
 
         recs = sensorlogger.read(input_)
-    for path in label_recordings(recs, model, out):
+    for path in label_recordings(recs, model, out, classifier):
         typer.echo(str(path))
 
 
