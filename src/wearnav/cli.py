@@ -50,6 +50,11 @@ class Preset(str, Enum):  # wearnav.simulate.presets.PRESETS
     default = "default"
 
 
+class SimFormat(str, Enum):
+    dataset = "dataset"  # a wearnav dataset folder (the --preset)
+    sensorlogger = "sensorlogger"  # one walk as a Sensor Logger export (wearnav.importers.sensorlogger_export)
+
+
 class Clock(str, Enum):  # wearnav.bench.efficiency.CLOCKS
     wall = "wall"
     cpu = "cpu"
@@ -74,8 +79,16 @@ def simulate(
     out: Path = typer.Option(..., "--out", help="Dataset folder to write."),
     preset: Preset = typer.Option(Preset.small, help="Simulator preset."),
     seed: int = typer.Option(0, min=0, help="Random seed (the dataset is a pure function of preset+seed)."),
+    format_: SimFormat = typer.Option(SimFormat.dataset, "--format", help="sensorlogger: one walk (phone, watch, "
+                                      "earbuds, GPS fixes) as an iPhone's Sensor Logger export, to try `wearnav "
+                                      "track` or `wearnav import sensorlogger` on (--preset is not used)."),
 ):
     """Simulate a flexiwear-bodynet dataset (phone, watch, earbuds) with truth and location fixes."""
+    if format_ is SimFormat.sensorlogger:
+        from wearnav.importers.sensorlogger_export import simulated_export
+
+        _echo_json(simulated_export(out, seed=seed))
+        return
     from wearnav.simulate import simulate_dataset
 
     ds = simulate_dataset(preset.value, out, seed=seed, progress=_progress())
