@@ -390,8 +390,10 @@ def bench_efficiency(
     """Parameters, FLOPs per window, inference windows/s at batch 1 and 256, fraction of the FLOP-bound limit."""
     from wearnav.bench.efficiency import measure, write_report
 
+    from wearnav.models.registry import check_models
+
     rows = []
-    for m in _devices(models):
+    for m in check_models(_devices(models)):  # every name before the first is measured
         typer.echo(f"measuring {m} ...")
         rows.append(measure(m, threads=threads, clock=clock.value, min_run_time_s=min_run_time))
     typer.echo(str(write_report(rows, out, odometry_suite)))
@@ -561,9 +563,11 @@ def demo(
     write a report with trajectory plots (runs resume: a second call reuses finished runs)."""
     from wearnav.bench.odometry import comparison_table, run_suite, suite_configs, write_suite_report
     from wearnav.dataset import Dataset
+    from wearnav.models.registry import check_models
     from wearnav.report.plots import plot_trajectories
     from wearnav.simulate import simulate_dataset
 
+    check_models(_devices(models), "odometry")  # before the data is simulated
     data_dir = out / "data"
     if (data_dir / "manifest.csv").exists():
         ds = Dataset.open(data_dir)

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from wearnav.errors import FormatError, MissingFileError, Terminated, ValidationError
+from wearnav.errors import FormatError, MissingFileError, Terminated, ValidationError, check_names
 from wearnav.fileio import fsync_dir, fsync_file, host_tag, pid_alive, require_regular_file
 from wearnav.provenance import provenance
 from wearnav.recording import Recording, check_name, check_text
@@ -343,10 +343,7 @@ class Dataset:
 
     def split(self, *names: str) -> "Dataset":
         """Recordings whose ``split`` is one of ``names`` (e.g. ``split("test", "test_unseen")``)."""
-        known = set(self.manifest["split"])
-        unknown = [n for n in names if n not in known]
-        if unknown:
-            raise ValidationError(f"unknown split {unknown}; this dataset has {sorted(known)}", self.root)
+        check_names(names, sorted(set(self.manifest["split"])), "split", self.root, ValidationError)
         return self._view(self.manifest["split"].isin(names))
 
     # ---- loading ------------------------------------------------------------------------

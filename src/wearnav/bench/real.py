@@ -49,7 +49,7 @@ from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run, predict_sequence
-from wearnav.models.registry import build, get
+from wearnav.models.registry import build, check_models, get
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
 from wearnav.rotations import from_wxyz
 from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
@@ -228,6 +228,9 @@ def _point_stats(e: np.ndarray) -> dict:
 @dataclasses.dataclass(frozen=True)
 class RealBench:
     """What decides a real-building benchmark (saved with its results)."""
+
+    def __post_init__(self) -> None:
+        check_models(self.models, "odometry")  # before any data is prepared
 
     models: tuple[str, ...] = DEFAULT_MODELS
     epochs: int = 100

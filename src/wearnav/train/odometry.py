@@ -24,7 +24,7 @@ import torch
 
 from wearnav import runs
 from wearnav.dataset import Dataset, scorable_split, train_val_views
-from wearnav.errors import ConfigError, ValidationError, check_field_types
+from wearnav.errors import ConfigError, ValidationError, check_field_types, check_names
 from wearnav.recording import CANONICAL_DEVICES
 from wearnav.models import registry
 from wearnav.preprocess import (SPARSE_TRUTH_HZ, SURVEYED_TRUTH_MAX_GAP_S, TRUTH_MAX_GAP_S, PreprocessConfig,
@@ -275,9 +275,7 @@ def check_devices(ds, devices: tuple[str, ...]) -> None:
     """Refuse a device layout naming a device that no recording of ``ds`` has (a typo would
     otherwise train on zeros where that device's input belongs)."""
     have = sorted({d for s in ds.manifest["devices"].astype(str) for d in s.split(";") if d})
-    missing = [d for d in devices if d not in have]
-    if missing:
-        raise ConfigError(f"no recording has device(s) {missing}; the dataset's devices are {have}", ds.root)
+    check_names(devices, have, "device", ds.root)  # valid: those the dataset's recordings have
 
 
 def prepare_run(cfg: TrainConfig, run: str | Path, eval_splits: tuple[str, ...] = ()) -> Path:
