@@ -252,19 +252,14 @@ def train(
     """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json)."""
     from wearnav.evaluate import evaluate_run
     from wearnav.runs import locked
-    from wearnav.train.odometry import (TrainConfig, dataset_defaults, evaluation_splits, fit, prepare_run,
-                                        validation_note)
+    from wearnav.train.odometry import configure, fit, prepare_run
 
-    defaults, notes = dataset_defaults(data)  # what the data decides (devices, sparse truth): said below
-    if devices is not None:
-        defaults["devices"], notes = _devices(devices), [n for n in notes if not n.startswith("devices:")]
-    cfg = TrainConfig(model=model, data=str(data), epochs=epochs, seed=seed, lr=lr, batch=batch,
-                      patience=patience, max_minutes=max_time, **defaults)
-    eval_splits, no_eval = evaluation_splits(cfg) if evaluate else ((), None)
+    cfg, eval_splits, notes = configure(model, data, _devices(devices) if devices is not None else None,
+                                        ("test",) if evaluate else (), epochs=epochs, seed=seed, lr=lr,
+                                        batch=batch, patience=patience, max_minutes=max_time)
     run = prepare_run(cfg, out, eval_splits=eval_splits)
-    for note in (*notes, validation_note(cfg), no_eval):  # how a real dataset's gaps are filled
-        if note:
-            typer.echo(note, err=True)
+    for note in notes:  # what the data decided (devices, truth gaps, validation, no test split)
+        typer.echo(note, err=True)
     evaluate = bool(eval_splits)
     with locked(run):  # one process per run folder, from training through its metrics
         record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
@@ -389,7 +384,6 @@ def bench_efficiency(
 ):
     """Parameters, FLOPs per window, inference windows/s at batch 1 and 256, fraction of the FLOP-bound limit."""
     from wearnav.bench.efficiency import measure, write_report
-
     from wearnav.models.registry import check_models
 
     rows = []

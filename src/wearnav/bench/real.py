@@ -229,9 +229,6 @@ def _point_stats(e: np.ndarray) -> dict:
 class RealBench:
     """What decides a real-building benchmark (saved with its results)."""
 
-    def __post_init__(self) -> None:
-        check_models(self.models, "odometry")  # before any data is prepared
-
     models: tuple[str, ...] = DEFAULT_MODELS
     epochs: int = 100
     patience: int = 10
@@ -241,6 +238,9 @@ class RealBench:
     window: int = 100
     stride: int = 10
     train_data: str | None = None  # a simulated dataset to train on instead (sim-to-real)
+
+    def __post_init__(self) -> None:
+        check_models(self.models, "odometry")  # before any data is prepared
 
 
 def _train_config(model: str, data: str, yaw: float, bench: RealBench, simulated: bool):

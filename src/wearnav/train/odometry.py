@@ -236,27 +236,42 @@ def validation_note(cfg: TrainConfig) -> str | None:
     return train_val_views(Dataset.open(cfg.data), cfg.train_split, cfg.val_split)[2]
 
 
-def dataset_defaults(data: str | Path) -> tuple[dict, list[str]]:
-    """The :class:`TrainConfig` fields that ``data`` decides when the user names none, and a line
-    for each saying why: ``devices``, those its recordings have (phone, watch, earbuds first, in
+def dataset_defaults(data: str | Path) -> dict[str, tuple[Any, str | None]]:
+    """The :class:`TrainConfig` fields that ``data`` decides when the user names none: field →
+    (value, a line saying why, or None where it is the usual default). ``devices``, those its recordings have (phone, watch, earbuds first, in
     that order); ``truth_max_gap``, ``SURVEYED_TRUTH_MAX_GAP_S`` where its truth is surveyed points
     (median below ``SPARSE_TRUTH_HZ`` points per second: an imported real building), so that the
     points are joined by straight lines into training targets."""
     m = Dataset.open(data).manifest
     have = {d for s in m["devices"].astype(str) for d in s.split(";") if d}
     devices = tuple(d for d in CANONICAL_DEVICES if d in have) + tuple(sorted(have - set(CANONICAL_DEVICES)))
-    fields: dict = {"devices": devices} if devices else {}
-    notes = []
-    if devices and devices != CANONICAL_DEVICES:
-        notes.append(f"devices: {', '.join(devices)} (those the dataset's recordings have)")
+    fields: dict[str, tuple[Any, str | None]] = {}
+    if devices:
+        fields["devices"] = (devices, None if devices == CANONICAL_DEVICES else
+                             f"devices: {', '.join(devices)} (those the dataset's recordings have)")
     with_truth = m[m["truth_points"] >= 2]
     if len(with_truth):
         hz = float((with_truth["truth_points"] / with_truth["duration"].clip(lower=1e-9)).median())
         if hz < SPARSE_TRUTH_HZ:
-            fields["truth_max_gap"] = SURVEYED_TRUTH_MAX_GAP_S
-            notes.append(f"truth: surveyed points ({hz:.2f} per second), joined by straight lines across gaps up "
-                         f"to {SURVEYED_TRUTH_MAX_GAP_S:g} s into training targets")
-    return fields, notes
+            fields["truth_max_gap"] = (SURVEYED_TRUTH_MAX_GAP_S,
+                                       f"truth: surveyed points ({hz:.2f} per second), joined by straight lines "
+                                       f"across gaps up to {SURVEYED_TRUTH_MAX_GAP_S:g} s into training targets")
+    return fields
+
+
+def configure(model: str, data: str | Path, devices: tuple[str, ...] | None = None,
+              eval_splits: tuple[str, ...] = ("test",), **fields) -> tuple[TrainConfig, tuple[str, ...], list[str]]:
+    """`wearnav train`'s config for ``model`` on ``data``: the fields the data decides where the user
+    gave none (:func:`dataset_defaults`; ``devices`` None: the dataset's), the ``eval_splits`` the
+    data has (:func:`evaluation_splits`), and one line for each choice made for the user (devices,
+    truth gaps, the validation part, a missing test split), to show before training starts."""
+    defaults = dataset_defaults(data)
+    if devices is not None:
+        defaults["devices"] = (tuple(devices), None)
+    cfg = TrainConfig(model=model, data=str(data), **{k: v for k, (v, _) in defaults.items()}, **fields)
+    splits, no_eval = evaluation_splits(cfg, eval_splits) if eval_splits else ((), None)
+    notes = [note for _, note in defaults.values()] + [validation_note(cfg), no_eval]
+    return cfg, splits, [n for n in notes if n]
 
 
 def evaluation_splits(cfg: TrainConfig, splits: tuple[str, ...] = ("test",)) -> tuple[tuple[str, ...], str | None]:
