@@ -2,7 +2,7 @@
 
 Each seed is a dict {relative path: text} in the format's original layout, cut from the real files
 in shared/data (decompressed, a few hundred rows) or, for Sensor Logger, written by
-``sensorlogger_fixture.write_export``. Seeds live in memory; every example writes its own copy
+``wearnav.importers.sensorlogger_export.write_export``. Seeds live in memory; every example writes its own copy
 into a fresh temporary folder, never into the repository.
 """
 
@@ -56,7 +56,7 @@ def _head(path: Path, n: int) -> str:
 def build_seed(fmt: str, data: Path | None) -> dict[str, str]:
     """The seed files of ``fmt`` (``data`` is shared/data; unused for sensorlogger)."""
     if fmt == "sensorlogger":
-        from sensorlogger_fixture import write_export
+        from wearnav.importers.sensorlogger_export import write_export
         from synthetic import synthetic_recording
         import tempfile
 

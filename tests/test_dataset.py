@@ -113,3 +113,29 @@ def test_a_written_dataset_is_on_disk_before_it_is_renamed_into_place(tmp_path, 
     files = {name for kind, name in events[:-3] if kind == "file"}
     assert files == {"a.h5", "b.h5", "manifest.csv", "dataset.yaml"}
     assert events[-3:] == [("dir", work), ("rename", tmp_path / "d"), ("dir", tmp_path)]
+
+
+def _only(tmp_path, splits: dict[str, str]) -> Dataset:
+    with DatasetWriter(tmp_path / "only") as w:
+        for name, split in splits.items():
+            w.add(_rec(name, "u1", "PVW", ("phone",)), split=split)
+    return Dataset.open(tmp_path / "only")
+
+
+def test_train_val_views_derive_validation_by_name_when_a_dataset_has_none(tmp_path):
+    """1 in VAL_EVERY training recordings by a CRC-32 of the name (what bench real-odometry uses),
+    whatever the order; the dataset's own val / validation split where it has one."""
+    import zlib
+
+    from wearnav.dataset import VAL_EVERY, is_validation_name, train_val_views
+
+    names = [f"walk{i:02d}" for i in range(20)]
+    train, val, note = train_val_views(_only(tmp_path, {n: "train" for n in names}), "train", "val")
+    chosen = [n for n in names if zlib.crc32(n.encode()) % VAL_EVERY == 0]
+    assert chosen and sorted(val.names) == chosen == [n for n in names if is_validation_name(n)]
+    assert sorted(train.names) == [n for n in names if n not in chosen]
+    assert note.startswith(f"no 'val' split in the dataset: validating on {len(chosen)} of its 20 'train' recordings")
+    own = _only(tmp_path / "own", {"a": "train", "b": "train", "c": "validation"})
+    assert [v.names for v in train_val_views(own, "train", "val")[:2]] == [["a", "b"], ["c"]]
+    with pytest.raises(ValidationError, match=r"unknown split\(s\) \['trian'\]; valid: train"):
+        train_val_views(_only(tmp_path / "t", {"a": "train"}), "trian", "val")

@@ -144,7 +144,7 @@ def test_steps_budget_sets_each_datasets_epochs(sim_quick, tmp_path):
 def test_classify_a_sensor_logger_export_end_to_end(sim_quick, tmp_path, monkeypatch, capsys):
     """Train a tiny placement classifier on the simulated walkers, write a new simulated
     multi-placement walk as a Sensor Logger export (iOS, g units, split gravity), and label it."""
-    from sensorlogger_fixture import write_export
+    from wearnav.importers.sensorlogger_export import write_export
     from wearnav.importers import sensorlogger
     from wearnav.simulate.config import WalkConfig, sample_subject
     from wearnav.simulate.walk import simulate_walk

@@ -1,6 +1,6 @@
 """Sensor Logger importer: round trips through the documented export layout, and bad exports.
 
-No real export exists here: ``sensorlogger_fixture.write_export`` writes a Recording the way the
+No real export exists here: ``wearnav.importers.sensorlogger_export.write_export`` writes a Recording the way the
 Sensor Logger documentation describes, and the importer must give the Recording back.
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sensorlogger_fixture import T0_NS, time_origin, write_export, zip_export
+from wearnav.importers.sensorlogger_export import T0_NS, time_origin, write_export, zip_export
 from synthetic import synthetic_recording
 from wearnav.simulate import WalkConfig, simulate_recording
 from wearnav.errors import FormatError, MissingFileError, WearnavError

@@ -1,7 +1,7 @@
 """Sensor Logger exports as they really are (issue 8, section 2).
 
 Each case was met in public exports made by other people; none is copied here. The fixtures are
-built from a simulated walk by ``sensorlogger_fixture`` (write_export plus one damage helper per
+built from a simulated walk by ``wearnav.importers.sensorlogger_export.write_export`` (plus one damage helper per
 case), and every test failed on the importer before these cases were handled.
 """
 
@@ -14,9 +14,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sensorlogger_fixture import (
-    T0_NS, cut_gap, edit_csv, glitch_quaternion, prepend_stale_fix, resample_rows, write_export,
-)
+from sensorlogger_fixture import cut_gap, edit_csv, glitch_quaternion, prepend_stale_fix, resample_rows
+from wearnav.importers.sensorlogger_export import T0_NS, write_export
 from test_importers_sensorlogger import EXPORT, _import_one, assert_round_trip, source_recording
 from wearnav import cli
 from wearnav.dataset import Dataset

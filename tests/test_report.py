@@ -12,7 +12,7 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from sensorlogger_fixture import write_export
+from wearnav.importers.sensorlogger_export import write_export
 from synthetic import synthetic_recording
 from wearnav.dataset import Dataset, write_dataset
 from wearnav.errors import ValidationError, WearnavError

@@ -191,17 +191,20 @@ def test_malformed_test_routes_is_one_line(small, tmp_path):
 def test_eval_checks_every_split_before_writing(pdr_run, tmp_path):
     run = shutil.copytree(pdr_run, tmp_path / "run")
     before = snapshot(tmp_path)
-    _refused(*run_cli("eval", run, "--split", "test,nope"), "failed call writes first", "unknown split ['nope']")
+    _refused(*run_cli("eval", run, "--split", "test,nope"), "failed call writes first", "unknown split(s) ['nope']")
     assert snapshot(tmp_path) == before
 
 
-def test_train_checks_the_test_split_before_training(small, tmp_path):
+def test_train_without_a_test_split_says_it_is_not_evaluated(small, tmp_path):
+    """Training on data without a test split (an imported real dataset) trains, and says before
+    training that it will not evaluate, naming the splits there are (issue 22 §2)."""
     ds = Dataset.open(small)
     split = ds.manifest.set_index("name")["split"]
     data = write_dataset(tmp_path / "notest", [(ds.load(n), split[n]) for n in ds.names if split[n] != "test"]).root
-    _refused(*run_cli("train", "test-mlp", "--data", data, "--out", tmp_path / "run", "--epochs", "1"),
-             "failed call writes first", "unknown split ['test']")
-    assert not (tmp_path / "run").exists()
+    code, out, err = run_cli("train", "test-mlp", "--data", data, "--out", tmp_path / "run", "--epochs", "1")
+    assert code == 0, err
+    assert "no 'test' split" in err and "not evaluated" in err and '"test"' not in out
+    assert (tmp_path / "run" / "training.json").is_file() and not (tmp_path / "run" / "metrics.json").exists()
 
 
 def test_results_touches_no_image_when_it_fails(tmp_path):
@@ -223,7 +226,7 @@ def test_classify_and_bench_har_leave_no_folder_when_they_fail(clf_run, tmp_path
     _refused(*run_cli("bench", "har", "--out", tmp_path / "har", "--data", tmp_path / "nowhere",
                       "--datasets", "uci-hapt"), "failed call writes first", "no uci-hapt source")
     _refused(*run_cli("bench", "har", "--out", tmp_path / "har", "--techniques", "nonsense", "--quick"),
-             "failed call writes first", "unknown techniques")
+             "failed call writes first", "unknown technique(s)")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -264,7 +267,7 @@ def test_track_never_replaces_a_file_it_did_not_write(pdr_run, small, tmp_path):
 
 def test_devices_no_recording_has_are_refused(small, tmp_path):
     _refused(*run_cli("train", "pdr", "--data", small, "--out", tmp_path / "run", "--devices", "phone,wach"),
-             "silent", "no recording has device(s) ['wach']")
+             "silent", "unknown device(s) ['wach']")
     assert list(tmp_path.iterdir()) == []
 
 

@@ -2,7 +2,7 @@
 
 The model is PDR (not learned: ``prepare_run`` + ``fit`` are instant), run exactly as
 ``wearnav train pdr`` would leave it. The recording is a simulated walk with phone, watch, earbuds
-and location fixes, exported by ``sensorlogger_fixture.write_export``.
+and location fixes, exported by ``wearnav.importers.sensorlogger_export.write_export``.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import pandas as pd
 import pymap3d
 import pytest
 
-from sensorlogger_fixture import ORIGIN, time_origin, write_export, zip_export
+from wearnav.importers.sensorlogger_export import ORIGIN, time_origin, write_export, zip_export
 from wearnav import metrics
 from wearnav.dataset import DatasetWriter
 from wearnav.evaluate import evaluate_sequence

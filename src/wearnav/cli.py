@@ -50,6 +50,11 @@ class Preset(str, Enum):  # wearnav.simulate.presets.PRESETS
     default = "default"
 
 
+class SimFormat(str, Enum):
+    dataset = "dataset"  # a wearnav dataset folder (the --preset)
+    sensorlogger = "sensorlogger"  # one walk as a Sensor Logger export (wearnav.importers.sensorlogger_export)
+
+
 class Clock(str, Enum):  # wearnav.bench.efficiency.CLOCKS
     wall = "wall"
     cpu = "cpu"
@@ -74,8 +79,16 @@ def simulate(
     out: Path = typer.Option(..., "--out", help="Dataset folder to write."),
     preset: Preset = typer.Option(Preset.small, help="Simulator preset."),
     seed: int = typer.Option(0, min=0, help="Random seed (the dataset is a pure function of preset+seed)."),
+    format_: SimFormat = typer.Option(SimFormat.dataset, "--format", help="sensorlogger: one walk (phone, watch, "
+                                      "earbuds, GPS fixes) as an iPhone's Sensor Logger export, to try `wearnav "
+                                      "track` or `wearnav import sensorlogger` on (--preset is not used)."),
 ):
     """Simulate a flexiwear-bodynet dataset (phone, watch, earbuds) with truth and location fixes."""
+    if format_ is SimFormat.sensorlogger:
+        from wearnav.importers.sensorlogger_export import simulated_export
+
+        _echo_json(simulated_export(out, seed=seed))
+        return
     from wearnav.simulate import simulate_dataset
 
     ds = simulate_dataset(preset.value, out, seed=seed, progress=_progress())
@@ -163,7 +176,8 @@ def plot(
 def track(
     src: Path = typer.Argument(..., metavar="INPUT",
                                help="A Sensor Logger export (folder or .zip), a recording (.h5), or a dataset folder."),
-    model: Path = typer.Option(..., "--model", help="A run folder of `wearnav train`, or one of its checkpoints."),
+    model: Path = typer.Option(..., "--model", help="A run folder of `wearnav train`, one of its checkpoints, "
+                               "or an untrained baseline by name (pdr)."),
     out: Path = typer.Option(..., "--out", help="Folder for trajectory.csv / .png / .geojson and track.json."),
     name: Optional[str] = typer.Option(None, help="Which recording of a dataset folder (or export of a folder of exports)."),
     platform: Optional[Platform] = typer.Option(None, help="For an export without Metadata.csv."),
@@ -221,7 +235,8 @@ def train(
     model: str = typer.Argument(..., help="A registered model (see `wearnav models`)."),
     data: Path = typer.Option(..., "--data", help="Dataset folder with truth (e.g. from `wearnav simulate`)."),
     out: Path = typer.Option(..., "--out", help="Run folder to write (resumed if it holds this run)."),
-    devices: str = typer.Option("phone,watch,earbuds", help="Device layout, comma-separated."),
+    devices: Optional[str] = typer.Option(None, help="Device layout, comma-separated (default: the dataset's "
+                                          "devices, phone, watch, earbuds first)."),
     epochs: int = typer.Option(100, help="Maximum epochs (early stopping may end sooner)."),
     seed: int = typer.Option(0, help="Random seed."),
     lr: Optional[float] = typer.Option(None, help="Learning rate (default: the model's paper value)."),
@@ -237,11 +252,15 @@ def train(
     """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json)."""
     from wearnav.evaluate import evaluate_run
     from wearnav.runs import locked
-    from wearnav.train.odometry import TrainConfig, fit, prepare_run
+    from wearnav.train.odometry import configure, fit, prepare_run
 
-    cfg = TrainConfig(model=model, data=str(data), devices=_devices(devices), epochs=epochs, seed=seed,
-                      lr=lr, batch=batch, patience=patience, max_minutes=max_time)
-    run = prepare_run(cfg, out, eval_splits=("test",) if evaluate else ())
+    cfg, eval_splits, notes = configure(model, data, _devices(devices) if devices is not None else None,
+                                        ("test",) if evaluate else (), epochs=epochs, seed=seed, lr=lr,
+                                        batch=batch, patience=patience, max_minutes=max_time)
+    run = prepare_run(cfg, out, eval_splits=eval_splits)
+    for note in notes:  # what the data decided (devices, truth gaps, validation, no test split)
+        typer.echo(note, err=True)
+    evaluate = bool(eval_splits)
     with locked(run):  # one process per run folder, from training through its metrics
         record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
         _echo_json({"run": str(run), "training": record})
@@ -365,9 +384,10 @@ def bench_efficiency(
 ):
     """Parameters, FLOPs per window, inference windows/s at batch 1 and 256, fraction of the FLOP-bound limit."""
     from wearnav.bench.efficiency import measure, write_report
+    from wearnav.models.registry import check_models
 
     rows = []
-    for m in _devices(models):
+    for m in check_models(_devices(models)):  # every name before the first is measured
         typer.echo(f"measuring {m} ...")
         rows.append(measure(m, threads=threads, clock=clock.value, min_run_time_s=min_run_time))
     typer.echo(str(write_report(rows, out, odometry_suite)))
@@ -476,7 +496,9 @@ def classify_(
     """Label a recording's activity (or placement) per window: intervals CSV + timeline PNG over |acc|."""
     from wearnav.recording import Recording
     from wearnav.train.classify import label_recordings
+    from wearnav.train.resolve import resolve_model
 
+    classifier = resolve_model(model, "classify")  # before the input is read
     if input_.is_file() and input_.suffix == ".h5":
         recs = [Recording.load(input_)]
     elif (input_ / "manifest.csv").is_file():
@@ -487,7 +509,7 @@ def classify_(
         from wearnav.importers import sensorlogger
 
         recs = sensorlogger.read(input_)
-    for path in label_recordings(recs, model, out):
+    for path in label_recordings(recs, model, out, classifier):
         typer.echo(str(path))
 
 
@@ -535,9 +557,11 @@ def demo(
     write a report with trajectory plots (runs resume: a second call reuses finished runs)."""
     from wearnav.bench.odometry import comparison_table, run_suite, suite_configs, write_suite_report
     from wearnav.dataset import Dataset
+    from wearnav.models.registry import check_models
     from wearnav.report.plots import plot_trajectories
     from wearnav.simulate import simulate_dataset
 
+    check_models(_devices(models), "odometry")  # before the data is simulated
     data_dir = out / "data"
     if (data_dir / "manifest.csv").exists():
         ds = Dataset.open(data_dir)

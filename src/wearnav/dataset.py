@@ -19,6 +19,7 @@ import shutil
 import signal
 import tempfile
 import threading
+import zlib
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -26,7 +27,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from wearnav.errors import FormatError, MissingFileError, Terminated, ValidationError
+from wearnav.errors import FormatError, MissingFileError, Terminated, ValidationError, check_names
 from wearnav.fileio import fsync_dir, fsync_file, host_tag, pid_alive, require_regular_file
 from wearnav.provenance import provenance
 from wearnav.recording import Recording, check_name, check_text
@@ -35,6 +36,10 @@ from wearnav.textio import read_yaml
 MANIFEST = "manifest.csv"
 PROVENANCE = "dataset.yaml"
 FORMAT_NAME = "wearnav.dataset"
+# A dataset without a validation split validates on 1 in VAL_EVERY of its training recordings, chosen
+# by a CRC-32 of the name (:func:`derived_validation`): the same on every machine and in any order.
+VAL_EVERY = 5
+VALIDATION_SPLITS = ("val", "validation")  # the names a dataset's own validation split goes by
 FORMAT_VERSION = 1  # of the folder layout (manifest columns, dataset.yaml); 0 = before it was written
 MANIFEST_COLUMNS = [
     "name", "file", "duration", "devices", "mode", "subject", "placement", "scene", "source",
@@ -338,10 +343,7 @@ class Dataset:
 
     def split(self, *names: str) -> "Dataset":
         """Recordings whose ``split`` is one of ``names`` (e.g. ``split("test", "test_unseen")``)."""
-        known = set(self.manifest["split"])
-        unknown = [n for n in names if n not in known]
-        if unknown:
-            raise ValidationError(f"unknown split {unknown}; this dataset has {sorted(known)}", self.root)
+        check_names(names, sorted(set(self.manifest["split"])), "split", self.root, ValidationError)
         return self._view(self.manifest["split"].isin(names))
 
     # ---- loading ------------------------------------------------------------------------
@@ -460,3 +462,40 @@ def scorable_split(ds, split: str):
                                             .fillna(0) < 2).all():
         raise ValidationError(f"no recording of split {split!r} has truth positions to score against", ds.root)
     return view
+
+
+def is_validation_name(name: str) -> bool:
+    """Whether recording ``name`` is one of the 1 in ``VAL_EVERY`` set aside for validation when a
+    dataset has no validation split (a CRC-32 of the name: independent of order and machine)."""
+    return zlib.crc32(name.encode()) % VAL_EVERY == 0
+
+
+def train_val_views(ds: Dataset, train_split: str, val_split: str) -> tuple[Dataset, Dataset, str | None]:
+    """The training and validation recordings of ``ds``, and a note saying how validation was chosen
+    (None: ``val_split`` as the dataset defines it).
+
+    Where the dataset has no split ``val_split`` but ``train_split`` exists (an imported real
+    dataset usually has only ``train``), its other name (``val`` / ``validation``) is used if
+    present, else a validation part is derived from the training recordings: those for which
+    :func:`is_validation_name` holds (the recording with the smallest CRC-32 if none does). Unknown
+    splits are refused naming the splits that exist.
+    """
+    known = set(ds.manifest["split"].astype(str))
+    if val_split not in known and train_split in known and val_split in VALIDATION_SPLITS:
+        other = [s for s in VALIDATION_SPLITS if s in known]
+        if other:
+            return ds.split(train_split), ds.split(other[0]), f"validating on the dataset's {other[0]!r} split"
+        train = ds.split(train_split)
+        names = train.manifest["name"].astype(str)
+        mask = names.map(is_validation_name)
+        if not mask.any() and len(train) >= 2:
+            mask = names == min(names, key=lambda n: zlib.crc32(n.encode()))
+        if len(train) < 2:
+            raise ValidationError(f"the dataset has no validation split and only {len(train)} {train_split!r} "
+                                  f"recording(s) to set one aside from (splits here: {sorted(known)})", ds.root)
+        val = train._view(mask.to_numpy())
+        return (train._view(~mask.to_numpy()), val,
+                f"no {val_split!r} split in the dataset: validating on {len(val)} of its {len(train)} "
+                f"{train_split!r} recordings (1 in {VAL_EVERY} by a CRC-32 of the name: "
+                f"{', '.join(val.names[:3])}{', ...' if len(val) > 3 else ''})")
+    return ds.split(train_split), ds.split(val_split), None

@@ -66,6 +66,19 @@ class Terminated(BaseException):
     """
 
 
+def check_names(given, valid, what: str, where: str | Path | None = None,
+                error: type[WearnavError] = ConfigError) -> tuple[str, ...]:
+    """``given`` as a tuple when every name is one of ``valid``; else a :class:`ConfigError` naming
+    the unknown ones and every valid one, e.g. "unknown device(s) ['watc']; valid: phone, watch".
+    The one check for names a user types (devices, splits, techniques, models, methods), made
+    before any work starts. ``error``: the class raised (ConfigError for an option)."""
+    given, valid = tuple(given), list(valid)
+    unknown = [g for g in given if g not in valid]
+    if unknown:
+        raise error(f"unknown {what}(s) {unknown}; valid: {', '.join(map(str, valid)) or 'none'}", where)
+    return given
+
+
 def check_field_types(cfg) -> None:
     """Raise :class:`ConfigError` unless every field of dataclass ``cfg`` has its annotated type.
 

@@ -30,6 +30,10 @@ from wearnav.timeseries import interp_onto, periods, rate
 # TRUTH_MAX_GAP_S, so dense truth gives targets and sparse waypoints (seconds apart) do not.
 STREAM_MAX_GAP_PERIODS = 3.0
 TRUTH_MAX_GAP_S = 1.0
+# A real building's surveyed points (ILC2 waypoints, IPIN's POSI points, seconds to a minute apart)
+# are joined by straight lines across gaps up to this (the competitions' own assumption).
+SURVEYED_TRUTH_MAX_GAP_S = 60.0
+SPARSE_TRUTH_HZ = 1.0  # truth points per second below which a dataset's truth counts as surveyed points
 
 CHANNELS = ("ax", "ay", "az", "gx", "gy", "gz")
 

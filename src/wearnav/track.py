@@ -51,6 +51,7 @@ from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWar
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.recording import Recording
+from wearnav.train.resolve import resolve_model
 
 ANCHOR_S = 60.0
 MIN_ANCHOR_SPREAD_M = 5.0
@@ -90,21 +91,6 @@ def load_input(src: str | Path, name: str | None = None, platform: str | None = 
         raise ConfigError(f"holds {len(recs)} Sensor Logger exports; pick one with --name "
                           f"({', '.join(r.name for r in recs[:5])})", src)
     return recs[0]
-
-
-def load_tracker(model_path: str | Path):
-    """(model, TrainConfig) from a run folder or one of its checkpoint files."""
-    from wearnav.train.odometry import BEST, CHECKPOINTS, load_model
-
-    p = Path(model_path)
-    if p.is_file():
-        if p.parent.name != CHECKPOINTS:
-            raise FormatError(f"a checkpoint must lie in a run folder's {CHECKPOINTS}/ (next to "
-                              "config.yaml, which says how the model was trained)", p)
-        return load_model(p.parent.parent, which=p.name)
-    if not p.is_dir():
-        raise FormatError("no such run folder or checkpoint", p)
-    return load_model(p, which=BEST)
 
 
 # ---- anchoring ---------------------------------------------------------------------------------
@@ -175,7 +161,7 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
 
     out = Path(out)
     check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")  # before any work
-    model, cfg = load_tracker(model_path)
+    model, cfg = resolve_model(model_path, "odometry")  # a run folder, checkpoint or `pdr`
     rec = load_input(src, name, platform)
     usable = [d for d in cfg.devices if d in rec.devices]
     if not usable:
@@ -289,4 +275,4 @@ def plot_track(table: pd.DataFrame, devices: tuple[str, ...], anchored, fixes, s
     return save(fig, out)
 
 
-__all__ = ["track", "load_input", "load_tracker", "anchor_to_fixes", "apply_anchor", "ANCHOR_S"]
+__all__ = ["track", "load_input", "anchor_to_fixes", "apply_anchor", "ANCHOR_S"]

@@ -32,10 +32,10 @@ import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.errors import ConfigError, ValidationError
+from wearnav.errors import ConfigError, ValidationError, check_names
 from wearnav.fixlabels import LabelConfig, Segments, label_dataset, noise_summary
 from wearnav.textio import read_json
-from wearnav.train.noisy import NoisyConfig, fit_noisy, load_predictor, write_history
+from wearnav.train.noisy import METHODS, NoisyConfig, fit_noisy, load_predictor, write_history
 
 LEVELS = ("L1", "L2", "L3")
 MAIN = ("easytrack", "coteaching", "aux", "basemodel", "basemodel-gt", "ionet", "ronin")
@@ -58,6 +58,10 @@ class BenchConfig:
     levels: tuple[str, ...] = LEVELS
     methods: tuple[str, ...] = MAIN + ABLATION
     l1_only: tuple[str, ...] = ("ionet", "ronin")  # Fig. 7 trains them on L1 only: not run at L2/L3
+
+    def __post_init__(self) -> None:  # before any walk is simulated
+        check_names(self.levels, LEVELS, "noise level")
+        check_names(self.methods, METHODS, "method")
 
     @classmethod
     def quick(cls) -> "BenchConfig":

@@ -25,7 +25,7 @@ import numpy as np
 
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.errors import ConfigError, FormatError, MissingFileError
+from wearnav.errors import ConfigError, FormatError, MissingFileError, check_names
 from wearnav.textio import read_json
 
 BASELINE = "har-cnn-bilstm"
@@ -113,9 +113,8 @@ def applicable(tech: Technique, ds: HarDataset) -> str | None:
 def check_inputs(specs: list[HarDataset], data_root: Path, out: Path, quick: bool, techniques=None) -> None:
     """Refuse what would stop the suite part-way, before anything is written: an unknown
     technique, a dataset neither imported into ``out`` yet nor found under ``data_root``."""
-    known = [t.name for t in TECHNIQUES]
-    if techniques is not None and set(techniques) - set(known):
-        raise ConfigError(f"unknown techniques {sorted(set(techniques) - set(known))}; known: {', '.join(known)}")
+    if techniques is not None:
+        check_names(techniques, [t.name for t in TECHNIQUES], "technique")
     for ds in specs:
         if ds.fmt == "simulate-placement" or (_data_folder(ds, out, quick) / "manifest.csv").is_file():
             continue
@@ -155,9 +154,8 @@ def baseline_config(ds: HarDataset, data: Path, **train_kw):
 
 def suite_configs(ds: HarDataset, data: Path, seeds: int, techniques=None, **train_kw) -> list[tuple[Technique, object]]:
     """(technique, config) for every applicable technique (of ``techniques``, default all) and seed."""
-    known = {t.name for t in TECHNIQUES}
-    if techniques is not None and set(techniques) - known:
-        raise ConfigError(f"unknown techniques {sorted(set(techniques) - known)}; known: {', '.join(known)}")
+    if techniques is not None:
+        check_names(techniques, [t.name for t in TECHNIQUES], "technique")
     out = []
     for tech in TECHNIQUES:
         if applicable(tech, ds) or (techniques is not None and tech.name not in techniques):
@@ -483,9 +481,7 @@ def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3,
     t0 = time.perf_counter()
     earlier = previous_invocations(out)
     names = list(datasets or (("uci-hapt",) if quick else DATASETS))
-    unknown = [n for n in names if n not in DATASETS]
-    if unknown:
-        raise ConfigError(f"unknown HAR datasets {unknown}; known: {', '.join(DATASETS)}")
+    check_names(names, DATASETS, "HAR dataset")
     check_inputs([DATASETS[n] for n in names], Path(data_root), Path(out), quick, techniques)
     kw = {"epochs": epochs or (1 if quick else 30), "max_minutes": max_minutes}
     if quick:

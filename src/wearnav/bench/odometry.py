@@ -17,7 +17,7 @@ from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.dataset import Dataset, scorable_split
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run
-from wearnav.models.registry import get
+from wearnav.models.registry import check_models, get
 from wearnav.train.odometry import TrainConfig, check_devices, fit, prepare_run, run_hash_exclude, run_record
 
 DEFAULT_MODELS = ("suitein++", "suitein", "ronin", "ronin*", "pdr")
@@ -26,6 +26,7 @@ MODES = ("STW", "PVW", "MVW", "DRW", "DLW")
 
 
 def suite_configs(data: str | Path, models=DEFAULT_MODELS, **train_kw) -> list:
+    check_models(models, "odometry")  # every name, before any config is built
     return [TrainConfig(model=m, data=str(data), **train_kw) for m in models]
 
 

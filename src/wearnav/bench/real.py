@@ -39,7 +39,6 @@ import dataclasses
 import os
 import platform
 import time
-import zlib
 from pathlib import Path
 
 import numpy as np
@@ -47,19 +46,18 @@ import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.dataset import Dataset
+from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run, predict_sequence
-from wearnav.models.registry import build, get
-from wearnav.preprocess import load_sequences
+from wearnav.models.registry import build, check_models, get
+from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
 from wearnav.rotations import from_wxyz
 from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 from wearnav.trajectory import integrate_velocity
 from wearnav.textio import read_json
 
 DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
-TRUTH_MAX_GAP_S = 60.0
-VAL_EVERY = 5
+TRUTH_MAX_GAP_S = SURVEYED_TRUTH_MAX_GAP_S
 # Grouping and held-out groups per source; neither holds data the simulator was calibrated on.
 SITE_DEFAULTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "ilc2": ("floor_name", ("F2", "F4")),
@@ -79,10 +77,10 @@ def _group(meta: dict, key: str, name: str) -> str:
 
 def split_of(name: str, group: str, test_groups: set[str]) -> str:
     """``test`` for the held-out groups; else ``val`` for one recording in VAL_EVERY (by a hash of
-    its name, so the choice does not depend on order), else ``train``."""
+    its name: :func:`wearnav.dataset.is_validation_name`), else ``train``."""
     if group in test_groups:
         return "test"
-    return "val" if zlib.crc32(name.encode()) % VAL_EVERY == 0 else "train"
+    return "val" if is_validation_name(name) else "train"
 
 
 def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group_by: str | None = None,
@@ -240,6 +238,9 @@ class RealBench:
     window: int = 100
     stride: int = 10
     train_data: str | None = None  # a simulated dataset to train on instead (sim-to-real)
+
+    def __post_init__(self) -> None:
+        check_models(self.models, "odometry")  # before any data is prepared
 
 
 def _train_config(model: str, data: str, yaw: float, bench: RealBench, simulated: bool):

@@ -160,8 +160,14 @@ from wearnav.recording import DeviceStream, Fixes, Recording
 from wearnav.rotations import NotUnitQuaternion, from_wxyz, normalize_wxyz, to_wxyz
 from wearnav.timeseries import drop_duplicate_times, interp_onto
 
+# An export's files, columns and units: read here, written by wearnav.importers.sensorlogger_export
+# (one place, so that the two cannot disagree).
 XYZ = ["x", "y", "z"]
-MOTION_FILES = ("Accelerometer.csv", "TotalAcceleration.csv", "WristMotion.csv", "Headphone.csv")
+ORIENTATION_COLS = ["qw", "qx", "qy", "qz"]
+DEVICE_FILES = {"watch": "WristMotion.csv", "earbuds": "Headphone.csv"}  # the phone's are its own files
+# UNITS.md: WristMotion's gravity follows the units toggle (g when off), Headphone's is m/s² always.
+GRAVITY_IN_G = {"watch": True, "earbuds": False}
+MOTION_FILES = ("Accelerometer.csv", "TotalAcceleration.csv", *DEVICE_FILES.values())
 KNOWN_FILES = ("Metadata.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv", "Location.csv",
                *MOTION_FILES)
 SOURCE = "sensorlogger"
@@ -185,6 +191,15 @@ APPLE = ("ios", "watchos")
 REPORT_GAP_S = 1.0
 # Acceleration files whose rates differ by less than this fraction count as equally fast.
 RATE_TIE = 0.05
+
+
+def acceleration_convention(platform: str, standardised: bool) -> tuple[float, float]:
+    """(sign, unit) of an export's acceleration: m/s² in wearnav's (Android) sign = sign × unit ×
+    the value written. iOS / watchOS without "Standardise Units & Frames" write the opposite sign
+    (CROSSPLATFORM.md) and the wearables' acceleration in g (UNITS.md); the phone's own files are
+    m/s² always (their unit is not applied to them)."""
+    sign = -1.0 if (platform in APPLE and not standardised) else 1.0
+    return sign, (1.0 if standardised else G)
 
 
 # ---- discovery ------------------------------------------------------------------------------
@@ -379,8 +394,7 @@ def read_export(folder: str | Path, name: str | None = None, shown_as: str | Non
 
 def _read_export(folder: Path, name: str, file: str, given_platform: str | None = None) -> Recording:
     platform, standardised, info = _metadata(folder, given_platform)
-    s = -1.0 if (platform in APPLE and not standardised) else 1.0
-    u = 1.0 if standardised else G
+    s, u = acceleration_convention(platform, standardised)
     units = (f"acceleration read as {'m/s²' if standardised else 'g'} because Metadata.csv says "
              f"standardisation is {'on' if standardised else 'off'}")
 
@@ -388,11 +402,11 @@ def _read_export(folder: Path, name: str, file: str, given_platform: str | None 
     acc_lin = _load(folder, "Accelerometer.csv", XYZ)
     grav = _load(folder, "Gravity.csv", XYZ)
     gyro = _load(folder, "Gyroscope.csv", XYZ)
-    ori = _load(folder, "Orientation.csv", ["qw", "qx", "qy", "qz"])
-    wrist = _load(folder, "WristMotion.csv", [*_xyz("rotationRate"), *_xyz("gravity"),
-                                              *_xyz("acceleration"), *_quat_cols()])
-    head = _load(folder, "Headphone.csv", [*_xyz("rotationRate"), *_xyz("gravity"),
-                                           *_xyz("acceleration"), *_quat_cols()])
+    ori = _load(folder, "Orientation.csv", ORIENTATION_COLS)
+    wrist = _load(folder, DEVICE_FILES["watch"], [*xyz_cols("rotationRate"), *xyz_cols("gravity"),
+                                              *xyz_cols("acceleration"), *quat_cols()])
+    head = _load(folder, DEVICE_FILES["earbuds"], [*xyz_cols("rotationRate"), *xyz_cols("gravity"),
+                                           *xyz_cols("acceleration"), *quat_cols()])
     loc = _load(folder, "Location.csv", ["latitude", "longitude"],
                 optional_cols=("horizontalAccuracy", "seconds_elapsed"))
     motion = [x for x in (t_acc, acc_lin, grav, gyro, ori, wrist, head) if x is not None]
@@ -430,7 +444,7 @@ def _read_export(folder: Path, name: str, file: str, given_platform: str | None 
             w, ok = interp_onto(t, sec(gyro.t_ns), gyro.values(XYZ), max_gap=MAX_INTERP_GAP_S)
             keep &= ok
         if ori is not None:
-            q, ok = interp_onto(t, sec(ori.t_ns), _unit_quats(ori.values(["qw", "qx", "qy", "qz"]), ori.path),
+            q, ok = interp_onto(t, sec(ori.t_ns), _unit_quats(ori.values(ORIENTATION_COLS), ori.path),
                                 max_gap=MAX_INTERP_GAP_S, quaternion=True)
             keep &= ok
         if keep.sum() < 2:
@@ -445,15 +459,17 @@ def _read_export(folder: Path, name: str, file: str, given_platform: str | None 
                        "phone acceleration is m/s² in every export (UNITS.md)", inverted)
 
     def watch() -> DeviceStream:
-        acc = s * u * (wrist.values(_xyz("acceleration")) + wrist.values(_xyz("gravity")))
-        return _stream("watch", sec(wrist.t_ns), acc, wrist.values(_xyz("rotationRate")),
-                       _unit_quats(wrist.values(_quat_cols()), wrist.path), wrist.path,
+        gu = u if GRAVITY_IN_G["watch"] else 1.0
+        acc = s * (u * wrist.values(xyz_cols("acceleration")) + gu * wrist.values(xyz_cols("gravity")))
+        return _stream("watch", sec(wrist.t_ns), acc, wrist.values(xyz_cols("rotationRate")),
+                       _unit_quats(wrist.values(quat_cols()), wrist.path), wrist.path,
                        wrist.path, units, inverted)
 
     def earbuds() -> DeviceStream:
-        acc = s * (u * head.values(_xyz("acceleration")) + head.values(_xyz("gravity")))
-        return _stream("earbuds", sec(head.t_ns), acc, head.values(_xyz("rotationRate")),
-                       _unit_quats(head.values(_quat_cols()), head.path), head.path,
+        gu = u if GRAVITY_IN_G["earbuds"] else 1.0
+        acc = s * (u * head.values(xyz_cols("acceleration")) + gu * head.values(xyz_cols("gravity")))
+        return _stream("earbuds", sec(head.t_ns), acc, head.values(xyz_cols("rotationRate")),
+                       _unit_quats(head.values(quat_cols()), head.path), head.path,
                        head.path, units, inverted)
 
     # Each device on its own: a stream that lacks what it needs (Unusable) leaves the others
@@ -555,11 +571,11 @@ def _gaps(t: np.ndarray) -> list[list[float]]:
     return [[round(float(t[k]), 3), round(float(t[k + 1]), 3)] for k in i]
 
 
-def _xyz(prefix: str) -> list[str]:
+def xyz_cols(prefix: str) -> list[str]:
     return [f"{prefix}{a}" for a in "XYZ"]
 
 
-def _quat_cols() -> list[str]:
+def quat_cols() -> list[str]:
     return [f"quaternion{a}" for a in "WXYZ"]
 
 

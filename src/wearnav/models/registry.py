@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from torch import nn
 
-from wearnav.errors import ConfigError
+from wearnav.errors import ConfigError, check_names
 
 # Modules under wearnav.models that register models when imported.
 FAMILIES: tuple[str, ...] = ("suitein", "ronin", "pdr", "har", "easytrack", "ionet")
@@ -70,6 +70,12 @@ def _load() -> None:
 def available(task: str | None = None) -> list[ModelSpec]:
     _load()
     return [s for s in _REGISTRY.values() if task is None or s.task == task]
+
+
+def check_models(names, task: str | None = None) -> tuple[str, ...]:
+    """``names`` when each is a registered model (of ``task``); else a ConfigError listing the valid
+    ones. For a list of models typed on the command line, checked before any work."""
+    return check_names(names, [s.name for s in available(task)], f"{task} model" if task else "model")
 
 
 def get(name: str) -> ModelSpec:

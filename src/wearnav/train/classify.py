@@ -33,7 +33,7 @@ from wearnav import runs
 from wearnav.errors import ConfigError, ValidationError, check_field_types
 from wearnav.models import registry
 from wearnav.preprocess import Aligned, PreprocessConfig, load_sequences
-from wearnav.train.common import CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
+from wearnav.train.common import CHECKPOINTS, LAST, SeededModule, check_run_kind, load_weights, make_trainer
 from wearnav.train.interrupt import stop_between_batches
 from wearnav.windows import WindowConfig, WindowDataset
 
@@ -256,6 +256,7 @@ def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[s
     from wearnav.textio import read_json
 
     run = Path(run)
+    check_run_kind(run, "classify")  # an odometry run: say so, not "unknown config keys"
     cfg = runs.read_run_config(run, ClassifyConfig)
     path = run / TRAINING
     if not path.is_file():
@@ -330,19 +331,20 @@ def intervals(t0: np.ndarray, t1: np.ndarray, cls: np.ndarray, conf: np.ndarray,
 CLASSIFY_JSON = "classify.json"  # the marker of a `wearnav classify` output folder (wearnav.outputs)
 
 
-def label_recordings(recordings, run: str | Path, out: str | Path) -> list[Path]:
+def label_recordings(recordings, run: str | Path, out: str | Path, classifier=None) -> list[Path]:
     """Classify every window of each recording with the run's model; write ``<name>_intervals.csv``
     (start_s, end_s, label, windows, mean_confidence) and ``<name>_timeline.png`` (|acc| of the
     first present device with the labels as coloured bands) into ``out``, and ``classify.json``
     (the run, the recordings, the files). All or nothing: a recording that fails leaves ``out``
-    as it was (:func:`wearnav.outputs.staged_output`)."""
+    as it was (:func:`wearnav.outputs.staged_output`). ``classifier``: the run's (model, config,
+    classes) when already loaded (:func:`wearnav.train.resolve.resolve_model`)."""
     import json
 
     from wearnav.fileio import write_text_atomic
     from wearnav.outputs import check_out_folder, staged_output
 
     check_out_folder(out, (), CLASSIFY_JSON, "classify")
-    model, cfg, classes = load_model(run)
+    model, cfg, classes = classifier or load_model(run)
     with staged_output(out, CLASSIFY_JSON, "classify", replace=False) as stage:
         names = _label_into(recordings, model, cfg, classes, stage)
         files = [f for n in names for f in (f"{n}_intervals.csv", f"{n}_timeline.png")] + [CLASSIFY_JSON]

@@ -22,7 +22,9 @@ import lightning as L
 import torch
 from lightning.pytorch.plugins import TorchCheckpointIO
 
+from wearnav import runs
 from wearnav.fileio import atomic_path
+from wearnav.models import registry
 
 from wearnav.augment import apply as augment_batch
 from wearnav.errors import ConfigError, FormatError, MissingFileError
@@ -141,3 +143,34 @@ def load_weights(model: torch.nn.Module, path: Path) -> None:
     except Exception as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise FormatError(f"corrupt or incompatible checkpoint: {msg}", path) from None
+
+
+# What each kind of run is called, and the command that takes it (for a run given to the wrong one).
+RUN_KINDS = {"odometry": ("an odometry model", "wearnav track (or wearnav eval)"),
+             "classify": ("an activity classifier", "wearnav classify"),
+             "noisy": ("an EasyTrack noisy-label run", "wearnav bench easytrack")}
+
+
+def run_kind(run: str | Path) -> tuple[str | None, str | None]:
+    """(task, model) of a run folder from its config.yaml: ``task`` is a registry task
+    (``odometry``, ``classify``) or ``noisy`` for an EasyTrack run; (None, None) when the config
+    says neither (the run's loader then reports what is wrong with it)."""
+    config = runs.read_config(run)["config"]
+    train, noisy = config.get("train"), config.get("noisy")
+    if isinstance(train, dict) and isinstance(train.get("model"), str):
+        try:
+            return registry.get(train["model"]).task, train["model"]
+        except ConfigError:
+            return None, train["model"]
+    if isinstance(noisy, dict):
+        return "noisy", str(noisy.get("method", "easytrack"))
+    return None, None
+
+
+def check_run_kind(run: str | Path, task: str) -> None:
+    """Refuse a run folder of another kind than ``task`` with what it is and which command takes it,
+    e.g. "RUN is an activity classifier (har-cnn-bilstm); use wearnav classify"."""
+    kind, model = run_kind(run)
+    if kind is not None and kind != task:
+        what, command = RUN_KINDS.get(kind, (f"a {kind} model", "another command"))
+        raise ConfigError(f"is {what} ({model}), not {RUN_KINDS[task][0]}; use {command}", Path(run))

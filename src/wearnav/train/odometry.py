@@ -23,12 +23,14 @@ import lightning as L
 import torch
 
 from wearnav import runs
-from wearnav.dataset import Dataset, scorable_split
-from wearnav.errors import ConfigError, ValidationError, check_field_types
+from wearnav.dataset import Dataset, scorable_split, train_val_views
+from wearnav.errors import ConfigError, ValidationError, check_field_types, check_names
+from wearnav.recording import CANONICAL_DEVICES
 from wearnav.models import registry
-from wearnav.preprocess import TRUTH_MAX_GAP_S, PreprocessConfig, load_sequences
+from wearnav.preprocess import (SPARSE_TRUTH_HZ, SURVEYED_TRUTH_MAX_GAP_S, TRUTH_MAX_GAP_S, PreprocessConfig,
+                                load_sequences)
 from wearnav.textio import read_json
-from wearnav.train.common import BEST, CHECKPOINTS, LAST, SeededModule, load_weights, make_trainer
+from wearnav.train.common import BEST, CHECKPOINTS, LAST, SeededModule, check_run_kind, load_weights, make_trainer
 from wearnav.train.interrupt import stop_between_batches
 from wearnav.windows import WindowConfig, WindowDataset
 
@@ -147,9 +149,8 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
         return {"learned": False}
     lr = cfg.lr or getattr(model, "default_lr", DEFAULT_LR)
     batch = cfg.batch or getattr(model, "default_batch", DEFAULT_BATCH)
-    ds = Dataset.open(cfg.data)
-    train_seqs = load_sequences(ds.split(cfg.train_split), cfg, progress)
-    val_view = ds.split(cfg.val_split)
+    train_view, val_view, val_note = train_val_views(Dataset.open(cfg.data), cfg.train_split, cfg.val_split)
+    train_seqs = load_sequences(train_view, cfg, progress)
     if len(val_view) == 0:
         raise ValidationError(f"split {cfg.val_split!r} is empty; name a validation split with --val-split",
                               cfg.data)
@@ -198,6 +199,8 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
         "accelerator": str(trainer.strategy.root_device),
         "processes": trainer.world_size,  # how it ran (not hashed): DDP processes
     }
+    if val_note:  # the validation part was chosen here (wearnav.dataset.train_val_views)
+        record["validation"] = val_note
     runs.write_json(run / TRAINING, record)
     return record
 
@@ -205,6 +208,7 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
 def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, TrainConfig]:
     """The model of a run folder with its ``best`` (or ``last``) weights, in eval mode."""
     run = Path(run)
+    check_run_kind(run, "odometry")  # a classifier's run: say so, not "unknown config keys"
     cfg = runs.read_run_config(run, TrainConfig)
     model = build_model(cfg)
     if registry.get(cfg.model).learned:
@@ -224,13 +228,69 @@ def run_hash_exclude(record: dict) -> dict:
     return {**record, "train": train}
 
 
+def validation_note(cfg: TrainConfig) -> str | None:
+    """How ``cfg``'s validation recordings are chosen when the dataset has no ``cfg.val_split``
+    (:func:`wearnav.dataset.train_val_views`), else None; shown before training starts."""
+    if not registry.get(cfg.model).learned:
+        return None
+    return train_val_views(Dataset.open(cfg.data), cfg.train_split, cfg.val_split)[2]
+
+
+def dataset_defaults(data: str | Path) -> dict[str, tuple[Any, str | None]]:
+    """The :class:`TrainConfig` fields that ``data`` decides when the user names none: field →
+    (value, a line saying why, or None where it is the usual default). ``devices``, those its recordings have (phone, watch, earbuds first, in
+    that order); ``truth_max_gap``, ``SURVEYED_TRUTH_MAX_GAP_S`` where its truth is surveyed points
+    (median below ``SPARSE_TRUTH_HZ`` points per second: an imported real building), so that the
+    points are joined by straight lines into training targets."""
+    m = Dataset.open(data).manifest
+    have = {d for s in m["devices"].astype(str) for d in s.split(";") if d}
+    devices = tuple(d for d in CANONICAL_DEVICES if d in have) + tuple(sorted(have - set(CANONICAL_DEVICES)))
+    fields: dict[str, tuple[Any, str | None]] = {}
+    if devices:
+        fields["devices"] = (devices, None if devices == CANONICAL_DEVICES else
+                             f"devices: {', '.join(devices)} (those the dataset's recordings have)")
+    with_truth = m[m["truth_points"] >= 2]
+    if len(with_truth):
+        hz = float((with_truth["truth_points"] / with_truth["duration"].clip(lower=1e-9)).median())
+        if hz < SPARSE_TRUTH_HZ:
+            fields["truth_max_gap"] = (SURVEYED_TRUTH_MAX_GAP_S,
+                                       f"truth: surveyed points ({hz:.2f} per second), joined by straight lines "
+                                       f"across gaps up to {SURVEYED_TRUTH_MAX_GAP_S:g} s into training targets")
+    return fields
+
+
+def configure(model: str, data: str | Path, devices: tuple[str, ...] | None = None,
+              eval_splits: tuple[str, ...] = ("test",), **fields) -> tuple[TrainConfig, tuple[str, ...], list[str]]:
+    """`wearnav train`'s config for ``model`` on ``data``: the fields the data decides where the user
+    gave none (:func:`dataset_defaults`; ``devices`` None: the dataset's), the ``eval_splits`` the
+    data has (:func:`evaluation_splits`), and one line for each choice made for the user (devices,
+    truth gaps, the validation part, a missing test split), to show before training starts."""
+    defaults = dataset_defaults(data)
+    if devices is not None:
+        defaults["devices"] = (tuple(devices), None)
+    cfg = TrainConfig(model=model, data=str(data), **{k: v for k, (v, _) in defaults.items()}, **fields)
+    splits, no_eval = evaluation_splits(cfg, eval_splits) if eval_splits else ((), None)
+    notes = [note for _, note in defaults.values()] + [validation_note(cfg), no_eval]
+    return cfg, splits, [n for n in notes if n]
+
+
+def evaluation_splits(cfg: TrainConfig, splits: tuple[str, ...] = ("test",)) -> tuple[tuple[str, ...], str | None]:
+    """Of the splits to evaluate after training, those that ``cfg.data`` has, and a note naming the
+    ones it lacks and the splits it has (an imported real dataset often has no ``test``)."""
+    known = sorted({str(s) for s in Dataset.open(cfg.data).manifest["split"] if str(s)})
+    missing = [s for s in splits if s not in known]
+    if not missing:
+        return splits, None
+    return (tuple(s for s in splits if s in known),
+            f"the dataset has no {' or '.join(repr(s) for s in missing)} split (its splits: {', '.join(known) or 'none'}): "
+            "not evaluated after training; evaluate with `wearnav eval RUN --split NAME` (or --data ANOTHER)")
+
+
 def check_devices(ds, devices: tuple[str, ...]) -> None:
     """Refuse a device layout naming a device that no recording of ``ds`` has (a typo would
     otherwise train on zeros where that device's input belongs)."""
     have = sorted({d for s in ds.manifest["devices"].astype(str) for d in s.split(";") if d})
-    missing = [d for d in devices if d not in have]
-    if missing:
-        raise ConfigError(f"no recording has device(s) {missing}; the dataset's devices are {have}", ds.root)
+    check_names(devices, have, "device", ds.root)  # valid: those the dataset's recordings have
 
 
 def prepare_run(cfg: TrainConfig, run: str | Path, eval_splits: tuple[str, ...] = ()) -> Path:
@@ -256,8 +316,8 @@ def prepare_run(cfg: TrainConfig, run: str | Path, eval_splits: tuple[str, ...] 
     ds = Dataset.open(cfg.data)
     check_devices(ds, cfg.devices)
     if registry.get(cfg.model).learned:
-        for split in (cfg.train_split, cfg.val_split):
-            view = ds.split(split)
+        for split, view in zip((cfg.train_split, cfg.val_split),
+                               train_val_views(ds, cfg.train_split, cfg.val_split)[:2]):
             if len(view) == 0:
                 raise ValidationError(f"split {split!r} is empty", cfg.data)
             if (view.manifest["truth_points"].astype(float) < 2).all():
