@@ -238,13 +238,16 @@ def train(
     from wearnav.evaluate import evaluate_run
     from wearnav.runs import locked
     from wearnav.train.odometry import TrainConfig, fit, prepare_run
+    from wearnav.trust import did_not_learn
 
     cfg = TrainConfig(model=model, data=str(data), devices=_devices(devices), epochs=epochs, seed=seed,
                       lr=lr, batch=batch, patience=patience, max_minutes=max_time)
     run = prepare_run(cfg, out, eval_splits=("test",) if evaluate else ())
     with locked(run):  # one process per run folder, from training through its metrics
         record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
-        _echo_json({"run": str(run), "training": record})
+        _echo_json({"run": str(run), "training": {k: v for k, v in record.items() if k != "training_data"}})
+        if (unlearned := did_not_learn(record)) is not None:  # wearnav.trust
+            warnings.warn(WearnavWarning(f"{run}: {unlearned}"))
         if evaluate:
             m = evaluate_run(run, splits=("test",), training=record, progress=_progress())
             _echo_json({"test": m["splits"]["test"]["summary"]})
@@ -487,8 +490,10 @@ def classify_(
         from wearnav.importers import sensorlogger
 
         recs = sensorlogger.read(input_)
-    for path in label_recordings(recs, model, out):
+    labelled = label_recordings(recs, model, out)
+    for path in labelled["files"]:
         typer.echo(str(path))
+    typer.echo(f"labels the model knows: {', '.join(labelled['classes'])}")
 
 
 @app.command("results")
@@ -559,7 +564,8 @@ def demo(
                               splits=("test", "cross_subject"), note=note)
     for split in ("test", "cross_subject"):
         table = comparison_table(folders, split)
-        cols = [c for c in ("model", "ATE", "RTE", "STW ATE", "DRW ATE", "epochs", "train s/epoch") if c in table]
+        cols = [c for c in ("model", "ATE", "RTE", "STW ATE", "DRW ATE", "epochs", "train s/epoch",
+                            "beats standing still") if c in table]
         typer.echo(f"\n{split} (metres):")
         typer.echo(table[cols].to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     typer.echo(f"\nreport: {page} (trajectory plots per run under {out / 'runs'}/*/plots)")

@@ -20,9 +20,10 @@ from pathlib import Path
 from typing import Any
 
 import lightning as L
+import numpy as np
 import torch
 
-from wearnav import runs
+from wearnav import runs, trust
 from wearnav.dataset import Dataset, scorable_split
 from wearnav.errors import ConfigError, ValidationError, check_field_types
 from wearnav.models import registry
@@ -158,6 +159,9 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
     val_ds = WindowDataset(val_seqs, cfg.window_config())
     _check_windows(train_ds, f"training ({cfg.train_split})", cfg.data)
     _check_windows(val_ds, f"validation ({cfg.val_split})", cfg.data)
+    # what the model is trained on, for `wearnav track` to compare a recording with (wearnav.trust)
+    facts = trust.data_facts([s.recording for s in train_seqs if s.recording is not None], cfg.devices,
+                             cfg.window / cfg.rate)
 
     module = OdometryModule(model, lr, cfg.augment, cfg.seed)
     ckpt_dir = run / CHECKPOINTS
@@ -197,9 +201,25 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
         "attempts": earlier.get("attempts", 1) + 1 if resumed else 1,
         "accelerator": str(trainer.strategy.root_device),
         "processes": trainer.world_size,  # how it ran (not hashed): DDP processes
+        # did it learn: its best validation MSE against standing still's on the same windows
+        **trust.odometry_baseline(None if best is None else float(best), zero_velocity_mse(val_ds)),
+        "training_data": facts,
     }
     runs.write_json(run / TRAINING, record)
     return record
+
+
+def zero_velocity_mse(ds: WindowDataset) -> float:
+    """The validation MSE ((m/s)², over windows and both axes, as ``val/vel_mse``) of standing
+    still: predicting zero velocity for every window of ``ds``."""
+    L = ds.cfg.window
+    sq = []
+    for i, seq in enumerate(ds.sequences):
+        s = ds.index[ds.index[:, 0] == i, 1]
+        if len(s) and seq.pos is not None:
+            vel = (seq.pos[s + L - 1] - seq.pos[s]) / (seq.t[s + L - 1] - seq.t[s])[:, None]
+            sq.append(vel ** 2)
+    return float(np.mean(np.concatenate(sq))) if sq else float("nan")
 
 
 def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, TrainConfig]:
