@@ -141,7 +141,7 @@ def rate_outside(device: str, rate_hz: float, training_rate_hz) -> str | None:
     lo, med, hi = training_rate_hz
     if lo / RATE_TOLERANCE <= rate_hz <= hi * RATE_TOLERANCE:
         return None
-    seen = f"{med:g} Hz" if lo == hi else f"{lo:g}–{hi:g} Hz"
+    seen = f"{med:.0f} Hz" if round(lo) == round(hi) else f"{lo:.0f}–{hi:.0f} Hz"
     return f"{device} is sampled at {rate_hz:.0f} Hz; the model's training data at {seen}"
 
 
