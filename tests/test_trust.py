@@ -15,8 +15,10 @@ import pytest
 
 from wearnav import trust
 from wearnav.dataset import DatasetWriter
+from wearnav.errors import WearnavWarning
 from wearnav.recording import DeviceStream, Recording
 from wearnav.simulate import WalkConfig, simulate_recording
+from wearnav.track import track
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 G = 9.80665
@@ -173,15 +175,15 @@ def test_track_warns_when_the_model_is_out_of_its_depth(odometry_run, tmp_path):
     saved = json.loads((tmp_path / "out" / "track.json").read_text())["warnings"]
     assert ["warning: " + w for w in saved] == lines
 
-    # a run from before the training data was recorded: said so, once
+    # a run from before the training data was recorded: said so, once (in-process: the same lines)
     (run / "training.json").write_text(json.dumps({k: v for k, v in record.items() if k != "training_data"}))
     try:
-        r = _wearnav("track", tmp_path / "mine.h5", "--model", run, "--out", tmp_path / "out2")
+        with pytest.warns(WearnavWarning):
+            summary = track(tmp_path / "mine.h5", run, tmp_path / "out2")
     finally:
         (run / "training.json").write_text(json.dumps(record))
-    assert r.returncode == 0, r.stderr
-    unknown = [ln for ln in _warnings(r.stderr) if "training data unknown" in ln]
-    assert len(unknown) == 1 and unknown[0].startswith("warning: mine: training data unknown: the model's run")
+    unknown = [ln for ln in summary["warnings"] if "training data unknown" in ln]
+    assert len(unknown) == 1 and unknown[0].startswith("mine: training data unknown: the model's run")
 
 
 def test_track_is_quiet_on_data_like_its_training(odometry_run, tmp_path):
@@ -194,11 +196,11 @@ def test_track_is_quiet_on_data_like_its_training(odometry_run, tmp_path):
     cfg = TrainConfig(model="pdr", data=str(root / "ds"), devices=("phone", "watch"))
     pdr = prepare_run(cfg, tmp_path / "pdr")
     fit(cfg, pdr, progress=False)
-    r = _wearnav("track", tmp_path / "walk.h5", "--model", pdr, "--out", tmp_path / "o1")
-    assert r.returncode == 0 and _warnings(r.stderr) == [], r.stderr
-    r = _wearnav("track", tmp_path / "walk.h5", "--model", run, "--out", tmp_path / "o2")
-    kinds = [ln.split(": ", 3)[2] for ln in _warnings(r.stderr)]
-    assert r.returncode == 0 and set(kinds) <= {"the model did not learn", "implausible for walking"}, r.stderr
+    assert track(tmp_path / "walk.h5", pdr, tmp_path / "o1")["warnings"] == []
+    with pytest.warns(WearnavWarning):
+        warned = track(tmp_path / "walk.h5", run, tmp_path / "o2")["warnings"]
+    kinds = {ln.split(": ", 2)[1] for ln in warned}
+    assert "the model did not learn" in kinds and kinds <= {"the model did not learn", "implausible for walking"}
 
 
 @pytest.fixture(scope="module")
