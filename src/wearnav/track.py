@@ -23,7 +23,10 @@ and write into the output folder:
 ``track.json``
     What was done: model, run, devices used and present, frame reference, anchoring fit, and
     ``warnings`` (one line each; also shown on the console), e.g. a recording imported with an
-    older lat/lon projection (:func:`wearnav.geo.needs_reimport`).
+    older lat/lon projection (:func:`wearnav.geo.needs_reimport`), or a reason not to trust the
+    path (:func:`trust_warnings`, :mod:`wearnav.trust`): devices the recording lacks, a rate,
+    placement or gravity direction unlike the model's training data, a model that did not beat
+    standing still, a path implausible for walking.
 
 Anchoring: the common frame has an arbitrary yaw and the path starts at (0, 0); the yaw and offset
 that map it onto the fixes are the weighted least-squares 2-D rotation + translation (Procrustes
@@ -167,13 +170,18 @@ def geojson(path_ll: tuple[np.ndarray, np.ndarray], fixes_ll: tuple[np.ndarray, 
 # ---- can the path be trusted? (wearnav.trust) --------------------------------------------------
 
 def run_training_record(model_path: str | Path) -> dict:
-    """The run's ``training.json`` (``{}`` where it has none) for a run folder or its checkpoint."""
+    """The run's ``training.json`` for a run folder or its checkpoint; ``{}`` where it has none or
+    cannot be read (the warnings then say that the training data is unknown: tracking goes on)."""
     from wearnav.textio import read_json
     from wearnav.train.odometry import TRAINING
 
     p = Path(model_path)
     run = p.parent.parent if p.is_file() else p
-    return read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
+    try:
+        record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
+    except FormatError:
+        return {}
+    return record if isinstance(record, dict) else {}
 
 
 def trust_warnings(model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: np.ndarray,
@@ -192,7 +200,9 @@ def trust_warnings(model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: n
     if registry.get(cfg.model).learned:
         record = run_training_record(model_path)
         facts = trust.recording_facts(rec, cfg.devices, cfg.window / cfg.rate)
-        out += [f"{f}: {trust.TRACK_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, record.get("training_data"))]
+        known = record.get("training_data")
+        known = known if isinstance(known, dict) else None
+        out += [f"{f}: {trust.TRACK_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, known)]
         if (m := trust.did_not_learn(record)) is not None:
             out.append(f"{m}: {trust.TRACK_LEARN_ADVICE}")
     try:

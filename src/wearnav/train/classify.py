@@ -2,8 +2,12 @@
 :mod:`wearnav.train.odometry` and sharing its core (:mod:`wearnav.train.common`).
 
 A run is a pure function of :class:`ClassifyConfig`: run folder by config hash
-(:mod:`wearnav.runs`), ``training.json`` from :func:`fit`, ``metrics.json`` from
-:func:`evaluate_run` (accuracy, macro-F1, confusion matrix on the test subjects).
+(:mod:`wearnav.runs`), ``training.json`` from :func:`fit` (with the training windows per class and
+the training data's rates, placements and gravity directions, :func:`wearnav.trust.data_facts`),
+``metrics.json`` from :func:`evaluate_run` (accuracy, macro-F1, confusion matrix on the test
+subjects, and ``beats_trivial``: whether the accuracy beats always answering the training
+windows' majority class, ``trivial_accuracy``; on the test subjects, as the protocol has no
+validation split).
 
 Protocol (as the paper: a train and a test set, a fixed number of epochs): no validation split
 and no early stopping; the weights after the last epoch are the model (``last.ckpt``). Splits are

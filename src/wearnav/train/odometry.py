@@ -132,7 +132,9 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True, devices: int =
 
     Returns the training record that :func:`wearnav.evaluate.evaluate_run` merges into
     metrics.json: epochs run, best epoch and validation MSE, wall time, seconds per epoch, what
-    stopped the run. Models that are not learned (PDR) are not fitted. Holds the run folder's
+    stopped the run, whether it beat standing still (``beats_trivial``, ``trivial_val_vel_mse``:
+    :func:`zero_velocity_mse`) and the training data's facts (``training_data``:
+    :func:`wearnav.trust.data_facts`, for `wearnav track`'s warnings). Models that are not learned (PDR) are not fitted. Holds the run folder's
     lock while it runs (:func:`wearnav.runs.locked`): a second process is refused.
     """
     with runs.locked(run):
