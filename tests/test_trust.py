@@ -100,7 +100,7 @@ def test_baselines_and_did_not_learn():
     assert trust.odometry_baseline(0.1, 0.4)["beats_trivial"] is True
     assert trust.odometry_baseline(None, 0.4)["beats_trivial"] is False
     assert trust.did_not_learn({**r, "best_val_vel_mse": 0.5}).startswith(
-        "the model did not learn: its best validation velocity MSE (0.5) is no better than standing still")
+        "the model did not learn: its best validation velocity MSE (0.5 (m/s)²) is no better than standing still")
     c = trust.classify_baseline(0.5, np.array([0, 0, 0, 1]), 0, ["walk", "sit"])
     assert c == {"beats_trivial": False, "trivial": "always walk (majority class)", "trivial_accuracy": 0.75}
     assert "no better than always walk (majority class) (0.75)" in trust.did_not_learn({**c, "accuracy": 0.5})
@@ -245,3 +245,20 @@ def test_classify_warns_outside_its_domain_and_shows_its_labels(classifier_run, 
     assert len(learned) == (0 if metrics["beats_trivial"] else 1)
     doc = json.loads((tmp_path / "lab" / "classify.json").read_text())
     assert doc["classes"] == classes and ["warning: " + w for w in doc["warnings"]] == lines
+
+
+def test_train_and_the_report_say_when_a_model_did_not_learn(odometry_run, tmp_path, monkeypatch, capsys):
+    from conftest import run_cli
+    from wearnav.bench.odometry import BEATS_STILL, comparison_table
+    from wearnav.evaluate import evaluate_run
+
+    root, _, run, _ = odometry_run
+    evaluate_run(run, splits=("val",), progress=False)
+    assert comparison_table([run], "val")[BEATS_STILL].tolist() == ["NO"]
+    code, out, err = run_cli(monkeypatch, capsys, "train", "ronin", "--data", root / "ds", "--out", tmp_path / "r",
+                             "--devices", "phone", "--epochs", "1", "--lr", "1e-9", "--no-evaluate")
+    assert code == 0, err
+    assert '"beats_trivial": false' in out and "training_data" not in out  # the facts stay in training.json
+    (line,) = _warnings(err)
+    assert line.startswith(f"warning: {tmp_path / 'r'}: the model did not learn: its best validation velocity MSE")
+    assert line.endswith("train it longer (more --epochs / --max-time) or use `--model pdr`")

@@ -238,7 +238,7 @@ def train(
     from wearnav.evaluate import evaluate_run
     from wearnav.runs import locked
     from wearnav.train.odometry import TrainConfig, fit, prepare_run
-    from wearnav.trust import did_not_learn
+    from wearnav.trust import LEARN_ADVICE, did_not_learn
 
     cfg = TrainConfig(model=model, data=str(data), devices=_devices(devices), epochs=epochs, seed=seed,
                       lr=lr, batch=batch, patience=patience, max_minutes=max_time)
@@ -247,7 +247,7 @@ def train(
         record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
         _echo_json({"run": str(run), "training": {k: v for k, v in record.items() if k != "training_data"}})
         if (unlearned := did_not_learn(record)) is not None:  # wearnav.trust
-            warnings.warn(WearnavWarning(f"{run}: {unlearned}"))
+            warnings.warn(WearnavWarning(f"{run}: {unlearned}: {LEARN_ADVICE}"))
         if evaluate:
             m = evaluate_run(run, splits=("test",), training=record, progress=_progress())
             _echo_json({"test": m["splits"]["test"]["summary"]})

@@ -204,7 +204,7 @@ def trust_warnings(model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: n
         known = known if isinstance(known, dict) else None
         out += [f"{f}: {trust.TRACK_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, known)]
         if (m := trust.did_not_learn(record)) is not None:
-            out.append(f"{m}: {trust.TRACK_LEARN_ADVICE}")
+            out.append(f"{m}: {trust.LEARN_ADVICE}")
     try:
         pdr = PDR(n_devices=len(cfg.devices), window=cfg.window, rate=cfg.rate)
     except ConfigError:  # a window too short for PDR's step detector: no walking check

@@ -246,12 +246,15 @@ def did_not_learn(record: dict | None) -> str | None:
     did not beat its trivial baseline; None when it did or when that is not recorded."""
     if not record or record.get("beats_trivial", True) is not False:
         return None
+    def num(v) -> str:
+        return f"{v:.4g}" if isinstance(v, (int, float)) else str(v)
+
     if "trivial_val_vel_mse" in record:
         return (f"the model did not learn: its best validation velocity MSE "
-                f"({record.get('best_val_vel_mse')}) is no better than {record['trivial']} "
-                f"({record['trivial_val_vel_mse']})")
-    return (f"the model did not learn: its test accuracy ({record.get('accuracy')}) is no better than "
-            f"{record['trivial']} ({record.get('trivial_accuracy')})")
+                f"({num(record.get('best_val_vel_mse'))} (m/s)²) is no better than {record['trivial']} "
+                f"({num(record['trivial_val_vel_mse'])} (m/s)²)")
+    return (f"the model did not learn: its test accuracy ({num(record.get('accuracy'))}) is no better than "
+            f"{record['trivial']} ({num(record.get('trivial_accuracy'))})")
 
 
 QUICK_NOTE = "pipeline check, not accuracy"
@@ -263,7 +266,7 @@ TRACK_DEVICES_ADVICE = ("track it with a model trained on the devices it has (e.
                         "--devices phone`) or with `--model pdr`")
 TRACK_DOMAIN_ADVICE = "the path may be wrong: use a model trained on recordings like this one, or `--model pdr`"
 TRACK_RESULT_ADVICE = "do not trust this path: compare it with `--model pdr`"
-TRACK_LEARN_ADVICE = "train it longer (more --epochs / --max-time) or use `--model pdr`"
+LEARN_ADVICE = "train it longer (more --epochs / --max-time) or use `--model pdr`"
 CLASSIFY_DOMAIN_ADVICE = "the labels may be wrong: use a classifier trained on recordings like this one"
 CLASSIFY_LEARN_ADVICE = "its labels are no better than a constant guess: train it longer (more epochs)"
 
