@@ -226,7 +226,9 @@ def classifier_run(odometry_run):
 def test_classify_warns_outside_its_domain_and_shows_its_labels(classifier_run, odometry_run, tmp_path):
     run, metrics = classifier_run
     _, rec, _, _ = odometry_run
-    assert metrics["beats_trivial"] is (metrics["accuracy"] > metrics["trivial_accuracy"])
+    # the untrained network (lr 1e-9) does no better than always answering the majority class
+    assert metrics["beats_trivial"] is False and metrics["accuracy"] <= metrics["trivial_accuracy"]
+    assert metrics["trivial"].endswith("(majority class)")
     classes = metrics["classes"]
     mine = Recording(name="mine", devices={"phone": _rotate_device(rec.devices["phone"], every=4)},
                      meta={"placement": "waist"})
@@ -241,8 +243,9 @@ def test_classify_warns_outside_its_domain_and_shows_its_labels(classifier_run, 
         f"warning: mine: phone is sampled at 25 Hz; the model's training data at 100 Hz: {advice}",
         "warning: mine: phone is held or worn differently from the model's training data: in 100% of the "
         f"recording its gravity direction is more than 30° from any training window's: {advice}"]
-    learned = [ln for ln in lines if "did not learn" in ln]
-    assert len(learned) == (0 if metrics["beats_trivial"] else 1)
+    (learned,) = [ln for ln in lines if "did not learn" in ln]
+    assert learned.startswith("warning: mine: the model did not learn: its test accuracy (")
+    assert learned.endswith("its labels are no better than a constant guess: train it longer (more epochs)")
     doc = json.loads((tmp_path / "lab" / "classify.json").read_text())
     assert doc["classes"] == classes and ["warning: " + w for w in doc["warnings"]] == lines
 
