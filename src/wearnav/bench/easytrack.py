@@ -142,6 +142,9 @@ def run_one(cfg: NoisyConfig, train: Segments, test: Segments | None, folder: Pa
         m["ade_m"] = metrics.ade(predict(test.x), test.truth)
         m["ate"] = _ate_rows(predict, test)
         m["ate_mean_m"] = float(np.mean([r["ate"] for r in m["ate"]])) if m["ate"] else None
+        # did it learn: against standing still (zero displacement per segment) on the same segments
+        m["trivial_ade_m"] = metrics.ade(np.zeros_like(test.truth), test.truth)
+        m["beats_trivial"] = bool(m["ade_m"] < m["trivial_ade_m"])
     runs.write_metrics(folder, m)
     score = f"ADE {m['ade_m']:.3f} m" if "ade_m" in m else "trained"
     log.info(f"{folder.name}: {score}, {tr['s_per_epoch']:.2f} s/epoch, {time.perf_counter() - t0:.0f} s")
@@ -412,8 +415,12 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
         table = df.pivot_table(index="method", columns="level", values="ade", aggfunc="mean")
         order = [m for m in (*MAIN, *ABLATION) if m in table.index]
         table = table.loc[order]
+        still = next((m["trivial_ade_m"] for m in sim if "trivial_ade_m" in m), None)
+        unlearned = sorted({f"{m['method']} {m['level']}" for m in sim if m.get("beats_trivial") is False})
+        beats = ("" if still is None else f" Standing still (zero displacement per segment) scores {100 * still:.1f} cm; "
+                 + (f"NOT beaten by: {', '.join(unlearned)}." if unlearned else "every run beats it."))
         lines += ["## ADE on held-out trajectories (Fig. 3, ablation Fig. 4)", "",
-                  f"Mean over {seeds} seed(s), metres. {reduction}", "",
+                  f"Mean over {seeds} seed(s), metres. {reduction}{beats}", "",
                   (table * 100).round(1).rename(columns=lambda c: f"{c} ADE (cm)").to_markdown(), ""]
         if {"easytrack", "basemodel-gt"} <= set(table.index):
             r = (table.loc["easytrack"] / table.loc["basemodel-gt"]).round(2)
