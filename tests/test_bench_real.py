@@ -118,6 +118,9 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
         assert {"pdr", "suitein++", "raw phone fixes"} <= set(table)
         for r in table.values():
             assert r["points"] > 0 and 0 <= r["median (m)"] <= r["p95 (m)"] < 1e3
+        # whether each learned run beat standing still on validation (PDR is not learned)
+        assert table["pdr"]["beats standing still"] == "not learned"
+        assert table["suitein++"]["beats standing still"] in ("yes", "NO")
     # every scored trace is a test-group trace, scored from its first point on
     m = runs.read_metrics(next((out / "runs").glob("pdr-*")) / "eval_main")
     test = set(Dataset.open(out / "data" / "main").split("test").names)

@@ -204,6 +204,9 @@ def test_quick_bench_end_to_end_and_label_cli(monkeypatch, capsys, tmp_path):
     for m in ("easytrack", "coteaching", "aux", "basemodel", "basemodel-gt"):
         assert f"| {m} " in page
     assert "Reduced from the paper" in page and (out / "ade_by_level.png").is_file()
+    assert "(--quick: pipeline check, not accuracy)" in page.splitlines()[0]  # the title says so
+    assert "Standing still (zero displacement per segment) scores" in page  # the trivial baseline beside
+    assert "--quick: pipeline check, not accuracy" in so.splitlines()[0]  # and the first console line
     code, so, se = run_cli(monkeypatch, capsys, "bench", "easytrack", "--out", str(out), "--quick")
     assert code == 0 and "simulating" not in so  # data and runs are reused
     ds = next(p for p in (out / "data").iterdir() if p.is_dir() and "test" not in p.name)

@@ -230,10 +230,20 @@ def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert r.returncode == 0, r.stderr
     page = (out / "results.md").read_text()
+    # quick results say what they are, on the page (title and note) and on the console
+    assert "(--quick: pipeline check, not accuracy)" in page.splitlines()[0]
+    assert "QUICK RUN (pipeline check, not accuracy)" in page
+    assert "--quick: pipeline check, not accuracy" in r.stdout
+    assert "beats majority class" in page  # a column: seeds that beat always answering the majority class
     assert "## uci-hapt" in page and "Fig. 12" in page
     doc = json.loads((out / "results.json").read_text())
     res = doc["datasets"]["uci-hapt"]
     assert set(res) == {"baseline", "head2", "head3", "rot_all", "noise", "ma50", "rot_random"}
+    beats = res["baseline"]["beats_trivial"]
+    assert len(beats) == 1 and isinstance(beats[0], bool)
+    import re
+
+    assert re.search(r"\|\s+" + ("1/1" if beats[0] else "NO 0/1") + r"\s+\|", page)
     assert "not applicable (no orientation)" in page  # UCI HAPT has no orientation: world frame not run
     for name, s in res.items():
         assert 0.0 <= s["accuracy_mean"] <= 1.0 and 0.0 <= s["f1_mean"] <= 1.0
@@ -268,6 +278,9 @@ def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
     r3 = subprocess.run([sys.executable, "-m", "wearnav", "classify", str(h5), "--model", str(base_run),
                          "--out", str(tmp_path / "lab")], capture_output=True, text=True, env=env, timeout=120)
     assert r3.returncode == 0, r3.stderr
+    assert f"labels the model knows: {', '.join(m['classes'])}" in r3.stdout
+    assert isinstance(m["beats_trivial"], bool) and 0 < m["trivial_accuracy"] < 1
+    assert ("did not learn" in r3.stderr) is (not m["beats_trivial"])
     iv = pd.read_csv(tmp_path / "lab" / "tiny_intervals.csv")
     assert set(iv["label"]) <= set(m["classes"]) and iv["windows"].sum() == (30 * 50 - 128) // 64 + 1
     assert (iv["end_s"] > iv["start_s"]).all() and np.allclose(iv["start_s"].iloc[1:], iv["end_s"].iloc[:-1])

@@ -253,6 +253,7 @@ def train(
     from wearnav.evaluate import evaluate_run
     from wearnav.runs import locked
     from wearnav.train.odometry import configure, fit, prepare_run
+    from wearnav.trust import LEARN_ADVICE, did_not_learn
 
     cfg, eval_splits, notes = configure(model, data, _devices(devices) if devices is not None else None,
                                         ("test",) if evaluate else (), epochs=epochs, seed=seed, lr=lr,
@@ -263,7 +264,9 @@ def train(
     evaluate = bool(eval_splits)
     with locked(run):  # one process per run folder, from training through its metrics
         record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
-        _echo_json({"run": str(run), "training": record})
+        _echo_json({"run": str(run), "training": {k: v for k, v in record.items() if k != "training_data"}})
+        if (unlearned := did_not_learn(record)) is not None:  # wearnav.trust
+            warnings.warn(WearnavWarning(f"{run}: {unlearned}: {LEARN_ADVICE}"))
         if evaluate:
             m = evaluate_run(run, splits=("test",), training=record, progress=_progress())
             _echo_json({"test": m["splits"]["test"]["summary"]})
@@ -509,8 +512,10 @@ def classify_(
         from wearnav.importers import sensorlogger
 
         recs = sensorlogger.read(input_)
-    for path in label_recordings(recs, model, out, classifier):
+    labelled = label_recordings(recs, model, out, classifier)
+    for path in labelled["files"]:
         typer.echo(str(path))
+    typer.echo(f"labels the model knows: {', '.join(labelled['classes'])}")
 
 
 @app.command("results")
@@ -583,7 +588,8 @@ def demo(
                               splits=("test", "cross_subject"), note=note)
     for split in ("test", "cross_subject"):
         table = comparison_table(folders, split)
-        cols = [c for c in ("model", "ATE", "RTE", "STW ATE", "DRW ATE", "epochs", "train s/epoch") if c in table]
+        cols = [c for c in ("model", "ATE", "RTE", "STW ATE", "DRW ATE", "epochs", "train s/epoch",
+                            "beats standing still") if c in table]
         typer.echo(f"\n{split} (metres):")
         typer.echo(table[cols].to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     typer.echo(f"\nreport: {page} (trajectory plots per run under {out / 'runs'}/*/plots)")

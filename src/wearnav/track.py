@@ -23,7 +23,10 @@ and write into the output folder:
 ``track.json``
     What was done: model, run, devices used and present, frame reference, anchoring fit, and
     ``warnings`` (one line each; also shown on the console), e.g. a recording imported with an
-    older lat/lon projection (:func:`wearnav.geo.needs_reimport`).
+    older lat/lon projection (:func:`wearnav.geo.needs_reimport`), or a reason not to trust the
+    path (:func:`trust_warnings`, :mod:`wearnav.trust`): devices the recording lacks, a rate,
+    placement or gravity direction unlike the model's training data, a model that did not beat
+    standing still, a path implausible for walking.
 
 Anchoring: the common frame has an arbitrary yaw and the path starts at (0, 0); the yaw and offset
 that map it onto the fixes are the weighted least-squares 2-D rotation + translation (Procrustes
@@ -46,7 +49,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav import geo
+from wearnav import geo, trust
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.outputs import check_out_folder, staged_output
@@ -150,6 +153,55 @@ def geojson(path_ll: tuple[np.ndarray, np.ndarray], fixes_ll: tuple[np.ndarray, 
     return {"type": "FeatureCollection", "features": feats}
 
 
+# ---- can the path be trusted? (wearnav.trust) --------------------------------------------------
+
+def run_training_record(model_path: str | Path) -> dict:
+    """The run's ``training.json`` for a run folder or its checkpoint; ``{}`` where it has none or
+    cannot be read (the warnings then say that the training data is unknown: tracking goes on)."""
+    from wearnav.textio import read_json
+    from wearnav.train.odometry import TRAINING
+
+    p = Path(model_path)
+    run = p.parent.parent if p.is_file() else p
+    try:
+        record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
+    except FormatError:
+        return {}
+    return record if isinstance(record, dict) else {}
+
+
+def trust_warnings(model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: np.ndarray,
+                   length_m: float) -> list[str]:
+    """One line per reason not to trust the path, each with what to do: devices the recording
+    lacks, a rate / placement / gravity direction unlike the training data's (learned models), a
+    model that did not beat standing still, and a result implausible for walking (PDR's step
+    detector on the same windows)."""
+    from wearnav.evaluate import predict_sequence
+    from wearnav.models import registry
+    from wearnav.models.pdr import PDR
+
+    out = []
+    if (m := trust.missing_devices(cfg.devices, rec.devices)) is not None:
+        out.append(f"{m}: {trust.TRACK_DEVICES_ADVICE}")
+    if registry.get(cfg.model).learned:
+        record = run_training_record(model_path)
+        facts = trust.recording_facts(rec, cfg.devices, cfg.window / cfg.rate)
+        known = record.get("training_data")
+        known = known if isinstance(known, dict) else None
+        out += [f"{f}: {trust.TRACK_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, known)]
+        if (m := trust.did_not_learn(record)) is not None:
+            out.append(f"{m}: {trust.LEARN_ADVICE}")
+    try:
+        pdr = PDR(n_devices=len(cfg.devices), window=cfg.window, rate=cfg.rate)
+    except ConfigError:  # a window too short for PDR's step detector: no walking check
+        return out
+    _, pdr_vel, _ = predict_sequence(pdr, seq, cfg.window, cfg.stride)
+    step_rate_hz = np.linalg.norm(pdr_vel, axis=1) / pdr.step_length
+    steps = float(np.sum(step_rate_hz) * cfg.stride / cfg.rate)  # windows tile time at the stride
+    findings = trust.implausible_walk(np.linalg.norm(vel, axis=1), step_rate_hz, length_m, steps)
+    return out + [f"{f}: {trust.TRACK_RESULT_ADVICE}" for f in findings]
+
+
 # ---- the command -------------------------------------------------------------------------------
 
 def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | None = None,
@@ -199,7 +251,10 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
     }
     if (stale := geo.needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
         summary["warnings"].append(f"{rec.name}: {stale}")
-        warnings.warn(WearnavWarning(summary["warnings"][-1]))
+    summary["warnings"] += [f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel,
+                                                                        summary["length_m"])]
+    for w in summary["warnings"]:
+        warnings.warn(WearnavWarning(w))
     with staged_output(out, TRACK_JSON, "track") as stage:
         _write_track(stage, out, table, t, xy, rec, cfg, seq, summary)
     return summary

@@ -27,6 +27,7 @@ from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.errors import ConfigError, FormatError, MissingFileError, check_names
 from wearnav.textio import read_json
+from wearnav.trust import QUICK_NOTE
 
 BASELINE = "har-cnn-bilstm"
 
@@ -226,6 +227,7 @@ def summarise(folders: dict[str, list[Path]]) -> dict[str, dict]:
             "epochs": ms[0]["training"].get("epochs_run"),
             "train_windows": ms[0]["training"].get("train_windows"),
             "test_windows": ms[0]["test_windows"],
+            "beats_trivial": [m.get("beats_trivial") for m in ms],  # per seed; None: not recorded
         }
     return out
 
@@ -352,6 +354,17 @@ def _plot_summary(rows: list[dict], path: Path) -> Path | None:
     return save(fig, path)
 
 
+BEATS_MAJORITY = "beats majority class"  # seeds whose test accuracy beat always answering it
+
+
+def _beats_text(beats: list) -> str:
+    """"3/3": seeds that beat the majority class; "NO 0/3" where some did not; "—" unrecorded."""
+    known = [b for b in beats if b is not None]
+    if not known:
+        return "—"
+    return ("" if all(known) else "NO ") + f"{sum(known)}/{len(known)}"
+
+
 def _p_text(p: float | None) -> str:
     return "" if p is None else f"{p:.2g}"
 
@@ -410,7 +423,8 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
             if why or s is None:
                 rows.append({"technique": tech.label + (" *" if tech.extra else ""),
                              "accuracy %": why or "not run", "macro-F1 %": "", "Δ acc (points)": "",
-                             "p": "", "p_BH": "", "Δ F1 (points)": "", "seeds": 0, "train s": ""})
+                             "p": "", "p_BH": "", "Δ F1 (points)": "", "seeds": 0, "train s": "",
+                             BEATS_MAJORITY: ""})
                 continue
             da = df = None
             sig = False
@@ -425,7 +439,8 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
                          "Δ acc (points)": "" if da is None else f"{da:+.1f}" + (" †" if sig else ""),
                          "p": _p_text(p_raw.get(tech.name)), "p_BH": _p_text(p_bh.get(tech.name)),
                          "Δ F1 (points)": "" if df is None else f"{df:+.1f}",
-                         "seeds": s["seeds"], "train s": f"{s['train_wall_s']:.0f}"})
+                         "seeds": s["seeds"], "train s": f"{s['train_wall_s']:.0f}",
+                         BEATS_MAJORITY: _beats_text(s.get("beats_trivial", []))})
         info = (f" {base['train_windows']} training / {base['test_windows']} test windows; {base['epochs']} epochs."
                 if base else "")
         lines += [f"## {dataset}", "",
@@ -485,6 +500,7 @@ def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3,
     check_inputs([DATASETS[n] for n in names], Path(data_root), Path(out), quick, techniques)
     kw = {"epochs": epochs or (1 if quick else 30), "max_minutes": max_minutes}
     if quick:
+        echo(f"--quick: {QUICK_NOTE} (a tiny subset, {kw['epochs']} epoch(s))")
         kw["max_train_windows"] = 128
     results = {}
     for name in names:
@@ -504,8 +520,9 @@ def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3,
             "as the paper); windows of 128 samples at 50 Hz with 50 % overlap; device-frame input. Sizes the paper "
             "omits (ours): Bi-LSTM 64 units per direction, last states as the summary, max-pool stride 3, ReLU after "
             "FC 256. Noise σ (eq. 12): 0.1 × the pooled std of the training windows' acc (resp. gyro) channels."
-            + (" QUICK RUN: a tiny subset and few steps, for testing the pipeline, not a result." if quick else ""))
+            + (f" QUICK RUN ({QUICK_NOTE}): a tiny subset and few steps, for testing the pipeline, not a result."
+               if quick else ""))
     title = (f"{len(names)} datasets, {seeds} seed(s), "
              + (f"~{steps} baseline steps per dataset" if steps is not None else f"{kw['epochs']} epochs")
-             + (" (QUICK)" if quick else ""))
+             + (f" (--quick: {QUICK_NOTE})" if quick else ""))
     return write_report(results, Path(out), note, wall, earlier, title)

@@ -85,6 +85,17 @@ def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = Tru
     return run_jobs(jobs, execution, echo)
 
 
+BEATS_STILL = "beats standing still"  # best validation MSE below predicting zero velocity (wearnav.trust)
+
+
+def beats_text(training: dict) -> str:
+    """"yes" / "NO" (did not learn) / "not learned" (PDR) / "—" (a run from before it was recorded)."""
+    if training.get("learned") is False:
+        return "not learned"
+    b = training.get("beats_trivial")
+    return "—" if b is None else ("yes" if b else "NO")
+
+
 def comparison_table(folders, split: str = "test") -> pd.DataFrame:
     """One row per run: ATE/RTE overall and per walking mode on ``split`` (means over sequences)."""
     rows = []
@@ -107,6 +118,7 @@ def comparison_table(folders, split: str = "test") -> pd.DataFrame:
         row["train s/epoch"] = tr.get("s_per_epoch")
         row["train min"] = round(tr["wall_s"] / 60, 1) if tr.get("wall_s") is not None else None
         row["attempts"] = tr.get("attempts")
+        row[BEATS_STILL] = beats_text(tr)
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -46,6 +46,7 @@ import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run, predict_sequence
@@ -350,12 +351,14 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
         tr = m.get("training", {})
         rows.append({"method": label, "traces": summary["sequences"], "points": summary.get("points", 0),
                      **{k: summary.get(k, float("nan")) for k in ("error_mean", "error_p50", "error_p75", "error_p95")},
-                     "epochs": tr.get("epochs_run", "—"), "train min": round(tr["wall_s"] / 60, 1) if tr.get("wall_s") else "—"})
+                     "epochs": tr.get("epochs_run", "—"), "train min": round(tr["wall_s"] / 60, 1) if tr.get("wall_s") else "—",
+                     BEATS_STILL: beats_text(tr)})
     fx = sites[site].get("fixes")
     if fx:
         errors["raw phone fixes"] = np.asarray(fx["point_errors"])
         rows.append({"method": "raw phone fixes", "traces": fx["sequences"], "points": fx["points"],
-                     **{k: v for k, v in fx.items() if k.startswith("error_")}, "epochs": "—", "train min": "—"})
+                     **{k: v for k, v in fx.items() if k.startswith("error_")}, "epochs": "—", "train min": "—",
+                     BEATS_STILL: "—"})
     df = pd.DataFrame(rows)
     if not df.empty:
         df = df.rename(columns={"error_mean": "mean (m)", "error_p50": "median (m)", "error_p75": "p75 (m)",

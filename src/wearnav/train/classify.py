@@ -2,8 +2,12 @@
 :mod:`wearnav.train.odometry` and sharing its core (:mod:`wearnav.train.common`).
 
 A run is a pure function of :class:`ClassifyConfig`: run folder by config hash
-(:mod:`wearnav.runs`), ``training.json`` from :func:`fit`, ``metrics.json`` from
-:func:`evaluate_run` (accuracy, macro-F1, confusion matrix on the test subjects).
+(:mod:`wearnav.runs`), ``training.json`` from :func:`fit` (with the training windows per class and
+the training data's rates, placements and gravity directions, :func:`wearnav.trust.data_facts`),
+``metrics.json`` from :func:`evaluate_run` (accuracy, macro-F1, confusion matrix on the test
+subjects, and ``beats_trivial``: whether the accuracy beats always answering the training
+windows' majority class, ``trivial_accuracy``; on the test subjects, as the protocol has no
+validation split).
 
 Protocol (as the paper: a train and a test set, a fixed number of epochs): no validation split
 and no early stopping; the weights after the last epoch are the model (``last.ckpt``). Splits are
@@ -29,7 +33,7 @@ import lightning as L
 import numpy as np
 import torch
 
-from wearnav import runs
+from wearnav import runs, trust
 from wearnav.errors import ConfigError, ValidationError, check_field_types
 from wearnav.models import registry
 from wearnav.preprocess import Aligned, PreprocessConfig, load_sequences
@@ -246,8 +250,21 @@ def _fit(cfg: ClassifyConfig, run: Path, progress: bool) -> dict:
         "wall_s": round(wall, 2), "s_per_epoch": round(wall / max(epochs, 1), 2), "resumed": resumed,
         "accelerator": str(trainer.strategy.root_device),
     }
+    # the training windows' labels (the majority class is the trivial baseline) and the data's
+    # facts (rates, placements, gravity directions), for evaluate_run and `wearnav classify`
+    labels = window_labels(train_ds)
+    record["class_windows"] = {c: int(np.sum(labels == i)) for i, c in enumerate(classes)}
+    record["training_data"] = trust.data_facts([s.recording for s in train_seqs if s.recording is not None],
+                                               cfg.devices, cfg.window / cfg.rate)
     runs.write_json(run / TRAINING, record)
     return record
+
+
+def window_labels(wds: WindowDataset, chunk: int = 4096) -> np.ndarray:
+    """The class index of every window of ``wds`` (−1: unlabelled), fetched ``chunk`` at a time."""
+    n = len(wds)
+    parts = [wds[list(range(a, min(a + chunk, n)))]["label"].numpy() for a in range(0, n, chunk)]
+    return np.concatenate(parts) if parts else np.empty(0, np.int64)
 
 
 def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[str]]:
@@ -295,8 +312,12 @@ def evaluate_run(run: str | Path, training: dict | None = None, progress: bool =
     if len(test_ds) == 0:
         raise ValidationError("no labelled test windows", cfg.data)
     pred, _ = predict(model, test_ds)
-    true = test_ds[np.arange(len(test_ds)).tolist()]["label"].numpy()
+    true = window_labels(test_ds)
     k = len(classes)
+    if training is None and (run / TRAINING).is_file():
+        from wearnav.textio import read_json
+
+        training = read_json(run / TRAINING)
     metrics = {
         "model": cfg.model, "classes": classes, "test_windows": int(len(true)),
         "test_subjects": sorted(split_view(ds, cfg.scheme, "test").manifest["subject"].astype(str).unique()),
@@ -304,6 +325,10 @@ def evaluate_run(run: str | Path, training: dict | None = None, progress: bool =
         "confusion": confusion_matrix(true, pred, k).tolist(),
         "training": training if training is not None else {},
     }
+    counts = (training or {}).get("class_windows")
+    if isinstance(counts, dict) and counts:  # did it learn: against always answering the majority class
+        majority = classes.index(max(counts, key=counts.get))
+        metrics.update(trust.classify_baseline(metrics["accuracy"], true, majority, classes))
     runs.write_metrics(run, metrics)
     return metrics
 
@@ -331,30 +356,57 @@ def intervals(t0: np.ndarray, t1: np.ndarray, cls: np.ndarray, conf: np.ndarray,
 CLASSIFY_JSON = "classify.json"  # the marker of a `wearnav classify` output folder (wearnav.outputs)
 
 
-def label_recordings(recordings, run: str | Path, out: str | Path, classifier=None) -> list[Path]:
+def label_recordings(recordings, run: str | Path, out: str | Path, classifier=None) -> dict:
     """Classify every window of each recording with the run's model; write ``<name>_intervals.csv``
     (start_s, end_s, label, windows, mean_confidence) and ``<name>_timeline.png`` (|acc| of the
     first present device with the labels as coloured bands) into ``out``, and ``classify.json``
-    (the run, the recordings, the files). All or nothing: a recording that fails leaves ``out``
-    as it was (:func:`wearnav.outputs.staged_output`). ``classifier``: the run's (model, config,
-    classes) when already loaded (:func:`wearnav.train.resolve.resolve_model`)."""
+    (the run, the model's label set ``classes``, the recordings, the files and ``warnings``: one
+    line per reason not to trust the labels, :func:`trust_warnings`, also raised as
+    :class:`WearnavWarning`). All or nothing: a recording that fails leaves ``out`` as it was
+    (:func:`wearnav.outputs.staged_output`). ``classifier``: the run's (model, config, classes) when
+    already loaded (:func:`wearnav.train.resolve.resolve_model`). Returns ``files`` (paths), ``classes``,
+    ``warnings``."""
     import json
+    import warnings
 
+    from wearnav.errors import WearnavWarning
     from wearnav.fileio import write_text_atomic
     from wearnav.outputs import check_out_folder, staged_output
 
     check_out_folder(out, (), CLASSIFY_JSON, "classify")
     model, cfg, classes = classifier or load_model(run)
+    found: list[str] = []
     with staged_output(out, CLASSIFY_JSON, "classify", replace=False) as stage:
-        names = _label_into(recordings, model, cfg, classes, stage)
+        names = _label_into(recordings, model, cfg, classes, stage, found, Path(run))
         files = [f for n in names for f in (f"{n}_intervals.csv", f"{n}_timeline.png")] + [CLASSIFY_JSON]
-        write_text_atomic(json.dumps({"run": str(run), "model": cfg.model, "recordings": names, "files": files},
-                                     indent=2), stage / CLASSIFY_JSON)
-    return [Path(out) / f for f in files[:-1]]
+        write_text_atomic(json.dumps({"run": str(run), "model": cfg.model, "classes": classes, "recordings": names,
+                                      "files": files, "warnings": found}, indent=2), stage / CLASSIFY_JSON)
+    for w in found:
+        warnings.warn(WearnavWarning(w))
+    return {"files": [Path(out) / f for f in files[:-1]], "classes": classes, "warnings": found}
 
 
-def _label_into(recordings, model, cfg, classes: list[str], out: Path) -> list[str]:
-    """Write each recording's intervals CSV and timeline PNG into ``out``; returns the names."""
+def trust_warnings(run: Path, cfg: ClassifyConfig, rec) -> list[str]:
+    """Reasons not to trust a recording's labels (:mod:`wearnav.trust`), each with what to do:
+    devices it lacks, a placement, rate or gravity direction unlike the training data's, a model
+    that did not beat always answering the majority class."""
+    from wearnav.textio import read_json
+
+    out = []
+    if (m := trust.missing_devices(cfg.devices, rec.devices)) is not None:
+        out.append(f"{m}: {trust.CLASSIFY_DOMAIN_ADVICE}")
+    record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
+    facts = trust.recording_facts(rec, cfg.devices, cfg.window / cfg.rate)
+    out += [f"{f}: {trust.CLASSIFY_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, record.get("training_data"))]
+    metrics = runs.read_metrics(run) if runs.is_complete(run) else {}
+    if (m := trust.did_not_learn(metrics)) is not None:
+        out.append(f"{m}: {trust.CLASSIFY_LEARN_ADVICE}")
+    return [f"{rec.name}: {w}" for w in out]
+
+
+def _label_into(recordings, model, cfg, classes: list[str], out: Path, found: list[str], run: Path) -> list[str]:
+    """Write each recording's intervals CSV and timeline PNG into ``out``; returns the names and
+    adds each recording's :func:`trust_warnings` to ``found``."""
     import pandas as pd
     from matplotlib.figure import Figure
 
@@ -367,6 +419,7 @@ def _label_into(recordings, model, cfg, classes: list[str], out: Path) -> list[s
     colours = {c: f"C{i % 10}" for i, c in enumerate(classes)}
     for rec in recordings:
         seq = align(rec, cfg.preprocess_config())
+        found += trust_warnings(run, cfg, rec)
         if cfg.denoise > 1:
             seq = dataclasses.replace(seq, imu=moving_average(seq.imu, cfg.denoise, axis=1).astype(seq.imu.dtype))
         wds = WindowDataset([seq], WindowConfig(window=cfg.window, stride=max(1, cfg.window // 2), target=None))

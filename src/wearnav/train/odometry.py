@@ -20,9 +20,10 @@ from pathlib import Path
 from typing import Any
 
 import lightning as L
+import numpy as np
 import torch
 
-from wearnav import runs
+from wearnav import runs, trust
 from wearnav.dataset import Dataset, scorable_split, train_val_views
 from wearnav.errors import ConfigError, ValidationError, check_field_types, check_names
 from wearnav.recording import CANONICAL_DEVICES
@@ -133,7 +134,9 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True, devices: int =
 
     Returns the training record that :func:`wearnav.evaluate.evaluate_run` merges into
     metrics.json: epochs run, best epoch and validation MSE, wall time, seconds per epoch, what
-    stopped the run. Models that are not learned (PDR) are not fitted. Holds the run folder's
+    stopped the run, whether it beat standing still (``beats_trivial``, ``trivial_val_vel_mse``:
+    :func:`zero_velocity_mse`) and the training data's facts (``training_data``:
+    :func:`wearnav.trust.data_facts`, for `wearnav track`'s warnings). Models that are not learned (PDR) are not fitted. Holds the run folder's
     lock while it runs (:func:`wearnav.runs.locked`): a second process is refused.
     """
     with runs.locked(run):
@@ -159,6 +162,9 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
     val_ds = WindowDataset(val_seqs, cfg.window_config())
     _check_windows(train_ds, f"training ({cfg.train_split})", cfg.data)
     _check_windows(val_ds, f"validation ({cfg.val_split})", cfg.data)
+    # what the model is trained on, for `wearnav track` to compare a recording with (wearnav.trust)
+    facts = trust.data_facts([s.recording for s in train_seqs if s.recording is not None], cfg.devices,
+                             cfg.window / cfg.rate)
 
     module = OdometryModule(model, lr, cfg.augment, cfg.seed)
     ckpt_dir = run / CHECKPOINTS
@@ -198,11 +204,27 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
         "attempts": earlier.get("attempts", 1) + 1 if resumed else 1,
         "accelerator": str(trainer.strategy.root_device),
         "processes": trainer.world_size,  # how it ran (not hashed): DDP processes
+        # did it learn: its best validation MSE against standing still's on the same windows
+        **trust.odometry_baseline(None if best is None else float(best), zero_velocity_mse(val_ds)),
+        "training_data": facts,
     }
     if val_note:  # the validation part was chosen here (wearnav.dataset.train_val_views)
         record["validation"] = val_note
     runs.write_json(run / TRAINING, record)
     return record
+
+
+def zero_velocity_mse(ds: WindowDataset) -> float:
+    """The validation MSE ((m/s)², over windows and both axes, as ``val/vel_mse``) of standing
+    still: predicting zero velocity for every window of ``ds``."""
+    L = ds.cfg.window
+    sq = []
+    for i, seq in enumerate(ds.sequences):
+        s = ds.index[ds.index[:, 0] == i, 1]
+        if len(s) and seq.pos is not None:
+            vel = (seq.pos[s + L - 1] - seq.pos[s]) / (seq.t[s + L - 1] - seq.t[s])[:, None]
+            sq.append(vel ** 2)
+    return float(np.mean(np.concatenate(sq))) if sq else float("nan")
 
 
 def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, TrainConfig]:
