@@ -8,6 +8,10 @@ marker, is the user's, and the call is refused. Files are written into a staging
 the output folder and moved into place only when the command has succeeded; files the previous
 call listed and this one did not write are removed (``track``: the folder never mixes two calls;
 ``classify`` adds each call's recordings instead).
+
+The commands that write a whole dataset folder (``import``, ``simulate``) replace only what
+wearnav wrote (:class:`wearnav.dataset.DatasetWriter`), and even that only when asked:
+:func:`check_new_dataset` refuses a folder that already holds a dataset unless ``--overwrite``.
 """
 
 from __future__ import annotations
@@ -37,6 +41,24 @@ def check_out_folder(out: str | Path, names: Iterable[str], marker: str, command
         if (out / name).exists() or (out / name).is_symlink():
             raise ConfigError(f"holds {name}, which `wearnav {command}` did not write (no {marker} beside "
                               "it); choose another --out", out)
+
+
+def check_new_dataset(out: str | Path, overwrite: bool, command: str) -> None:
+    """Refuse to write a new dataset over one that ``out`` already holds, unless ``overwrite``.
+
+    A folder that is absent or empty is fine; one holding a wearnav dataset needs ``overwrite``
+    (the user's recordings would be replaced); anything else is refused later by
+    :class:`wearnav.dataset.DatasetWriter` whatever ``overwrite`` says. Call it before any work.
+    """
+    from wearnav.dataset import MANIFEST, PROVENANCE
+
+    out = Path(out)
+    if overwrite or not out.is_dir() or not any(out.iterdir()):
+        return
+    if (out / MANIFEST).is_file() or (out / PROVENANCE).is_file():
+        n = sum(1 for _ in out.glob("*.h5"))
+        raise ConfigError(f"already holds a wearnav dataset ({n} recordings); add --overwrite to replace it, "
+                          f"or choose another --out for `wearnav {command}`", out)
 
 
 def _previous_files(out: Path, marker: str) -> list[str]:

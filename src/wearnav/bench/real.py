@@ -89,7 +89,7 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
                  test_groups: tuple[str, ...] | None = None, progress: bool = True) -> tuple[Path, dict]:
     """Write ``src`` (an imported dataset folder, or an original-format folder read with importer
     ``fmt``) to ``out`` with splits by place. Returns the folder and what was decided."""
-    from tqdm.auto import tqdm
+    from wearnav.progress import progress as report_progress
 
     from wearnav.dataset import DatasetWriter
     from wearnav.importers import get_importer
@@ -115,7 +115,7 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
     counts: dict[str, dict[str, int]] = {}
     calib_key, calib = CALIBRATION.get(source, (None, set()))
     with DatasetWriter(out, {"generator": "wearnav.bench.real", **wanted}) as w:
-        for rec in tqdm(recs, desc=f"prepare {src.name}", unit="rec", disable=not progress, leave=False):
+        for rec in report_progress(recs, desc=f"prepare {src.name}", unit="rec", enabled=progress, leave=False):
             g = _group(rec.meta, key, rec.name)
             split = split_of(rec.name, g, set(groups))
             if split == "test" and calib_key and str(rec.meta.get(calib_key)) in calib:

@@ -271,9 +271,10 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
         half = torch.arange(n) % 2 == 0
     halves = [torch.nonzero(half).ravel(), torch.nonzero(~half).ravel()] if dual else [torch.arange(n)]
     r_delta = state["r_delta"]
-    from tqdm.auto import tqdm
+    from wearnav.progress import Progress
 
-    bar = tqdm(total=total, initial=state["epoch"], desc=cfg.method, unit="epoch", disable=not progress, leave=False)
+    bar = Progress(total=total, initial=state["epoch"], desc=cfg.method, unit="epoch", enabled=progress,
+                   leave=False)
     done_here = 0
     while state["epoch"] < total and (stop_after is None or done_here < stop_after):
         done_here += 1
