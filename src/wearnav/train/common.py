@@ -111,9 +111,11 @@ class LogProgress(Callback):
         line = eta_line(f"train {self.name}", round(epoch, 1), trainer.max_epochs, now - self.t0, "epochs",
                         epoch - self.first_epoch)
         timer = next((c for c in trainer.callbacks if isinstance(c, Timer)), None)  # --max-time, over resumes
-        left_s = timer.time_remaining("train") if timer is not None else None
-        if left_s is not None:
-            line += f" (time budget: {max(left_s, 0):.0f} s left)"
+        budget_s = timer.time_remaining("train") if timer is not None else None
+        done_here = epoch - self.first_epoch
+        epochs_s = (now - self.t0) * (trainer.max_epochs - epoch) / done_here if done_here > 0 else None
+        if budget_s is not None and (epochs_s is None or budget_s < epochs_s):  # the time budget ends it sooner
+            line = line.split(", about")[0] + f", about {max(budget_s, 0):.0f} s left (--max-time)"
         log.info(line)
 
 
