@@ -388,11 +388,14 @@ def bench_odometry(
     import os
     import platform
 
-    note = (f"Data: `{data}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
+    from wearnav.fileio import shown_path
+
+    note = (f"Data: `{shown_path(data)}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
             f"{__import__('torch').__version__}, shared with other work while it ran. Training: at most {epochs} epochs per model"
             + (f" and {max_time:g} min of training in total (a run given more time resumes from its last "
                "checkpoint: attempts > 1; `train min` is its total)" if max_time else "")
             + (f", Adam lr {lr:g} for every model" if lr else ", each model's paper learning rate")
+            + f", training seed {seed}"
             + ", early stopping on validation velocity MSE (patience 10).")
     page = write_suite_report(folders, out, "Odometry comparison", note=note)
     typer.echo(f"wrote {page}")
@@ -609,7 +612,8 @@ def classify_(
 
 @app.command("results")
 def results_(
-    suites: list[Path] = typer.Argument(..., help="Suite folders, each holding a generated results.md."),
+    suites: Optional[list[Path]] = typer.Argument(None, help="Suite folders, each holding a generated results.md "
+                                                  "(none with --keep: the page's sections rebuilt as they are)."),
     out: Path = typer.Option(Path("docs/results.md"), "--out", help="The page to write."),
     keep: bool = typer.Option(False, "--keep", help="Keep the page's other suites' sections (update suite by suite)."),
     drop: Optional[list[str]] = typer.Option(None, "--drop", help="With --keep: remove this suite's kept sections "
@@ -623,7 +627,9 @@ def results_(
     """
     from wearnav.bench.results import collect
 
-    typer.echo(str(collect(suites, out, keep=keep, drop=tuple(drop or ()))))
+    if not suites and not keep:
+        raise typer.BadParameter("give suite folders, or --keep to rebuild the page from its own sections")
+    typer.echo(str(collect(suites or [], out, keep=keep, drop=tuple(drop or ()))))
 
 
 @app.command()

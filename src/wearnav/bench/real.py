@@ -50,6 +50,7 @@ from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run, predict_sequence
+from wearnav.fileio import shown_path
 from wearnav.models.registry import build, get
 from wearnav.preprocess import load_sequences
 from wearnav.rotations import from_wxyz
@@ -397,7 +398,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
         n = {k: sum(c.get(k, 0) for c in info["groups"].values()) for k in ("train", "val", "test")}
         head = "Held-out groups of the training building" if site == "main" else "Another building, never trained on"
         lines += [f"## {head}: `{info['source']}`", "",
-                  f"Source `{info['src']}`, grouped by `{info['group_by']}`: test {', '.join(sorted(test))} "
+                  f"Source `{shown_path(info['src'])}`, grouped by `{info['group_by']}`: test {', '.join(sorted(test))} "
                   f"({n['test']} traces); " + (f"training groups {', '.join(sorted(train))} ({n['train']} train, "
                   f"{n['val']} validation traces)." if site == "main" else
                   f"its other groups ({n['train'] + n['val']} traces) serve only to estimate its yaw."),
