@@ -74,6 +74,14 @@ def _on_interrupt(line: str) -> None:
     _KEPT["line"] = line
 
 
+def _suite_folder(out: Path, command: str) -> None:
+    """A suite's --out: refused if its results.md is the user's; an interruption keeps finished runs."""
+    from wearnav.outputs import check_suite_folder
+
+    check_suite_folder(out, command)
+    _on_interrupt(f"finished runs are kept in {out}; run the same command again to resume")
+
+
 def _progress() -> bool:
     """Long work reports progress: a bar on a terminal, log lines every 30 s otherwise (the choice
     is :mod:`wearnav.progress`'s)."""
@@ -376,7 +384,7 @@ def bench_odometry(
     from wearnav.bench.odometry import run_suite, suite_configs, write_suite_report
 
     configs = suite_configs(data, _devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr)
-    _on_interrupt(f"finished runs are kept in {out}; run the same command again to resume")
+    _suite_folder(out, "bench odometry")
     folders = run_suite(configs, out, progress=_progress(), echo=typer.echo,
                         execution=_execution(jobs, executor, address))
     from wearnav.dataset import Dataset
@@ -431,7 +439,7 @@ def bench_real_odometry(
     """
     from wearnav.bench.real import RealBench, run_benchmark
 
-    _on_interrupt(f"finished runs are kept in {out}; run the same command again to resume")
+    _suite_folder(out, "bench real-odometry")
     bench = RealBench(models=_devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr,
                       train_data=str(train_data) if train_data else None)
     page = run_benchmark(data, out, test_data, _value(format_), _value(test_format), group_by,
@@ -493,7 +501,7 @@ def bench_har(
     """
     from wearnav.bench.har import run_benchmark
 
-    _on_interrupt(f"finished runs are kept in {out}; run the same command again to resume")
+    _suite_folder(out, "bench har")
     page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3),
                          _execution(jobs, executor, address, threads), quick, epochs,
                          _devices(techniques) if techniques else None, max_time, echo=typer.echo, steps=steps)
@@ -529,7 +537,7 @@ def bench_easytrack(
 
     from wearnav.bench.easytrack import BenchConfig, run_benchmark
 
-    _on_interrupt(f"finished runs are kept in {out}; run the same command again to resume")
+    _suite_folder(out, "bench easytrack")
     bc = BenchConfig.quick() if quick else BenchConfig()
     changes = {}
     if km is not None:
@@ -657,20 +665,6 @@ def realism(
     typer.echo(str(out))
 
 
-DEMO_EXPLAINED = (
-    "What the numbers mean: each model turns the devices' accelerometer and gyroscope into a walking "
-    "path, which is compared with the simulator's true path. **ATE** (absolute trajectory error, metres) "
-    "is the RMS distance between the estimated and the true position over a whole walk; **RTE** "
-    "(relative trajectory error, metres) is the same over 60 s stretches, so it shows drift regardless "
-    "of where the walk started; lower is better for both. STW, PVW, MVW, DRW, DLW are Suite-IN++'s "
-    "walking modes (standard walking; walking while holding the phone in front, calmly or with more "
-    "motion; a device removed mid-walk; walking with daily-living episodes). The models: **suitein++** "
-    "(Suite-IN++, one network reading phone, watch and earbuds together), **ronin** (RoNIN, a network "
-    "on each device's data in a common frame) and **pdr** (pedestrian dead reckoning: steps × stride "
-    "length along the phone's heading, nothing learned) as the baseline a learned model must beat."
-)
-
-
 @app.command()
 def demo(
     out: Path = typer.Option(Path("runs/demo"), "--out", help="Folder for the demo's outputs."),
@@ -686,12 +680,13 @@ def demo(
     Example:
       wearnav demo --out runs/demo
     """
-    from wearnav.bench.odometry import comparison_table, run_suite, suite_configs, write_suite_report
+    from wearnav.bench.odometry import (METRICS_EXPLAINED, comparison_table, run_suite, suite_configs,
+                                        write_suite_report)
     from wearnav.dataset import Dataset
     from wearnav.report.plots import plot_trajectories
     from wearnav.simulate import simulate_dataset
 
-    _on_interrupt(f"finished runs are kept in {out}; run the same command again to resume")
+    _suite_folder(out, "demo")
     data_dir = out / "data"
     if (data_dir / "manifest.csv").exists():
         ds = Dataset.open(data_dir)
@@ -708,7 +703,7 @@ def demo(
     folders = run_suite(configs, out / "runs", splits=("test", "cross_subject"), progress=_progress(), echo=typer.echo)
     note = (f"Built-in data: simulator preset `{preset.value}` (seed {seed}). Demo budget: at most {minutes:g} min of "
             "training per learned model on this machine at Adam lr 1e-3 (the papers train ~100 epochs at 1e-4), "
-            "far below the papers' training; see `wearnav bench odometry` for the full comparison.\n\n" + DEMO_EXPLAINED)
+            "far below the papers' training; see `wearnav bench odometry` for the full comparison.\n\n" + METRICS_EXPLAINED)
     page = write_suite_report(folders, out, "wearnav demo: odometry on simulated walking",
                               splits=("test", "cross_subject"), note=note, command=f"wearnav demo --out {out}")
     for split in ("test", "cross_subject"):

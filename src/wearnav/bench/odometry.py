@@ -131,6 +131,21 @@ def ate_by_model(folders, split: str = "test") -> dict[str, list[float]]:
     return out
 
 
+# One paragraph for a reader new to odometry (the demo's page; docs/results.md has the glossary).
+METRICS_EXPLAINED = (
+    "What the numbers mean: each model turns the devices' accelerometer and gyroscope into a walking "
+    "path, which is compared with the simulator's true path. **ATE** (absolute trajectory error, metres) "
+    "is the RMS distance between the estimated and the true position over a whole walk; **RTE** "
+    "(relative trajectory error, metres) is the same over 60 s stretches, so it shows drift regardless "
+    "of where the walk started; lower is better for both. STW, PVW, MVW, DRW, DLW are Suite-IN++'s "
+    "walking modes (standard walking; walking while holding the phone in front, calmly or with more "
+    "motion; a device removed mid-walk; walking with daily-living episodes). The models: **suitein++** "
+    "(Suite-IN++, one network reading phone, watch and earbuds together), **ronin** (RoNIN, a network "
+    "on each device's data in a common frame) and **pdr** (pedestrian dead reckoning: steps × stride "
+    "length along the phone's heading, nothing learned) as the baseline a learned model must beat."
+)
+
+
 def write_suite_report(folders, out: str | Path, title: str, splits=TEST_SPLITS, note: str = "",
                        command: str = "wearnav bench odometry") -> Path:
     """results.md + results.json + comparison PNGs (error CDF and ATE box per split) in ``out``;

@@ -36,7 +36,8 @@ GLOSSARY: tuple[tuple[str, str, str], ...] = (
     ("macro-F1", "%", "F1 = 2·TP / (2·TP + FP + FN) per class, averaged over classes with equal weight, so "
                       "rare activities count as much as common ones."),
     ("Δ acc, Δ F1", "points", "a technique's accuracy or macro-F1 minus the baseline's, same seeds."),
-    ("p < 0.05", "—", "p is the two-sided p-value of the difference over seeds; p < 0.05 marks a difference unlikely by chance."),
+    ("p < 0.05", "—", "p is Welch's two-sided t-test p-value of a technique against the baseline over "
+                      "seeds; a difference counts as real where the Benjamini–Hochberg-adjusted p < 0.05."),
     ("surveyed points", "m", "real buildings' errors: distance between the estimated position and each "
                              "surveyed waypoint of a real walk (the only truth they have); mean, median, p75, p95."),
     ("params, MFLOPs per window", "count, 10⁶", "a model's weights, and the floating-point operations of one "
