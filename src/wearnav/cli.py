@@ -67,7 +67,8 @@ def _echo_json(obj) -> None:
 
 # What an interrupted command keeps and how to resume, said on the one line that ends it (exit
 # 130 / 143); a command that writes sets it before its work starts (:func:`_on_interrupt`).
-_KEPT = {"line": "nothing was written; run the same command again"}
+NOTHING_KEPT = "nothing was written; run the same command again"
+_KEPT = {"line": NOTHING_KEPT}
 
 
 def _on_interrupt(line: str) -> None:
@@ -339,6 +340,7 @@ def eval_(
     """
     from wearnav.evaluate import evaluate_run
 
+    _on_interrupt(f"{run / 'metrics.json'} is written only when every split is scored; run the same command again")
     m = evaluate_run(run, data=data, splits=_devices(split), progress=_progress())
     _echo_json({s: m["splits"][s]["summary"] for s in _devices(split)})
     typer.echo(f"wrote {run / 'metrics.json'} and {run / 'plots'}")
@@ -766,6 +768,7 @@ def _log_to_stderr() -> None:
 
 def _main() -> None:
     _log_to_stderr()
+    _KEPT["line"] = NOTHING_KEPT
     with warnings.catch_warnings():
         # Only wearnav's own warnings concern the user (a truncated file imported flagged); a
         # library's RuntimeWarning about arithmetic on values that are then refused is noise.

@@ -193,11 +193,13 @@ def site_yaw(seqs, window: int = 100, stride: int = 10) -> dict:
             "phone_axis_yaw_deg": device_axis_yaw(seqs)}
 
 
-def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate: float = 25.0) -> dict:
-    """:func:`site_yaw` of the ``split`` traces of dataset ``data`` (no yaw applied, no frame alignment)."""
+def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate: float = 25.0,
+                      progress: bool = False) -> dict:
+    """:func:`site_yaw` of the ``split`` traces of dataset ``data`` (no yaw applied, no frame alignment);
+    ``progress``: report the traces' loading (:mod:`wearnav.progress`)."""
     cfg = TrainConfig(model="pdr", data=str(data), devices=tuple(devices), rate=rate, frame_align="none",
                       truth_max_gap=TRUTH_MAX_GAP_S)
-    return site_yaw(load_sequences(Dataset.open(data).split(split), cfg))
+    return site_yaw(load_sequences(Dataset.open(data).split(split), cfg, progress))
 
 
 # ---- the phone's own fixes --------------------------------------------------------------------
@@ -298,7 +300,7 @@ def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str
         cached = out / "data" / name / "site_yaw.json"
         if not cached.is_file():
             echo(f"{name}: estimating the site's yaw from its training traces (PDR) ...")
-            runs.write_json(cached, estimate_site_yaw(Path(site["data"])))
+            runs.write_json(cached, estimate_site_yaw(Path(site["data"]), progress=progress))
         site["yaw"] = read_json(cached)
         echo(f"{name}: site yaw {site['yaw']['yaw_deg']:+.1f}° from {site['yaw']['segments']} segments")
         site["fixes"] = fix_errors(Path(site["data"]))
