@@ -555,7 +555,8 @@ def bench_easytrack(
     typer.echo(f"wrote {page}")
 
 
-@app.command("label-from-fixes")
+@app.command("label-from-fixes", short_help="Label IMU segments by the phone's location fixes (EasyTrack); "
+                                             "their noise where truth is known.")
 def label_from_fixes(
     dataset: Path = typer.Argument(..., help="A dataset folder whose recordings have phone IMU and location fixes."),
     out: Path = typer.Option(..., "--out", help="Folder for segments.npz, label_noise.json and, where the recordings "
