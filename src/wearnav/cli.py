@@ -779,6 +779,9 @@ def _main() -> None:
         try:
             code = app(standalone_mode=False)
         except typer.TyperException as exc:  # bad options / arguments (the parser's UsageError)
+            if type(exc).__name__ == "NoArgsIsHelpError":  # no arguments at all: the help, on stdout
+                typer.echo(exc.format_message())
+                sys.exit(exc.exit_code)
             if not exc.format_message():  # no arguments at all: the help was shown instead
                 sys.exit(exc.exit_code)
             ctx = getattr(exc, "ctx", None)

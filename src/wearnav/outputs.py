@@ -50,12 +50,12 @@ def check_new_dataset(out: str | Path, overwrite: bool, command: str) -> None:
     (the user's recordings would be replaced); anything else is refused later by
     :class:`wearnav.dataset.DatasetWriter` whatever ``overwrite`` says. Call it before any work.
     """
-    from wearnav.dataset import MANIFEST, PROVENANCE
+    from wearnav.dataset import replaceable_reason
 
     out = Path(out)
     if overwrite or not out.is_dir() or not any(out.iterdir()):
         return
-    if (out / MANIFEST).is_file() or (out / PROVENANCE).is_file():
+    if replaceable_reason(out) is None:  # a non-empty folder wearnav may replace: a dataset it wrote
         n = sum(1 for _ in out.glob("*.h5"))
         raise ConfigError(f"already holds a wearnav dataset ({n} recordings); add --overwrite to replace it, "
                           f"or choose another --out for `wearnav {command}`", out)
