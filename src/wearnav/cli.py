@@ -469,6 +469,9 @@ def bench_efficiency(
     """
     from wearnav.bench.efficiency import measure, write_report
 
+    from wearnav.outputs import check_suite_folder
+
+    check_suite_folder(out, "bench efficiency")  # its page is written at the end: nothing kept before
     rows = []
     for m in _devices(models):
         typer.echo(f"measuring {m} ...")
