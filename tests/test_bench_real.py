@@ -150,3 +150,24 @@ def test_cli_real_odometry_bad_group_is_one_line(building, tmp_path, monkeypatch
                              "--out", tmp_path / "o", "--group-by", "floor_name", "--test-groups", "F77",
                              "--models", "pdr")
     assert code == 2 and err.count("\n") == 1 and "F77" in err
+
+
+def test_cli_real_odometry_reports_progress_without_a_terminal(building, tmp_path):
+    """Issue 22: the suite was silent for minutes with stderr on a pipe; now each long step logs
+    done/total and the time left (the interval made short here)."""
+    import os
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"), OMP_NUM_THREADS="1",
+               WEARNAV_PROGRESS_INTERVAL_S="0")
+    res = subprocess.run([sys.executable, "-m", "wearnav", "bench", "real-odometry", "--data", str(building / "building"),
+                          "--out", str(tmp_path / "o"), "--group-by", "floor_name", "--test-groups", "F9",
+                          "--models", "pdr"], env=env, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    lines = res.stderr.splitlines()
+    assert any(re.fullmatch(r"prepare building: \d+ rec, \d+ s elapsed", l) for l in lines), lines
+    assert any(re.fullmatch(r"preprocess: \d+/\d+ rec, \d+ s elapsed, about \d+ s left", l) for l in lines), lines
+    assert "\r" not in res.stderr

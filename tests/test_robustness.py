@@ -438,6 +438,11 @@ def test_bad_out_paths(case, tmp_path):
     existed = exists(resolved)
     before = snapshot(tmp_path)
     code, stdout, err = run_cli("import", "sensorlogger", work / "src" / "export", "--out", out, cwd=work)
+    if case == "earlier wearnav dataset":  # replaced only when asked (issue 22)
+        assert code == 2 and "already holds a wearnav dataset" in error_of(err) and "--overwrite" in err
+        assert snapshot(tmp_path) == before
+        code, stdout, err = run_cli("import", "sensorlogger", work / "src" / "export", "--out", out,
+                                    "--overwrite", cwd=work)
     if case in ("empty folder", "earlier wearnav dataset"):
         assert code == 0, err
         assert Dataset.open(resolved).names == ["export"]
@@ -490,7 +495,7 @@ def test_sigterm_during_simulate_leaves_nothing(tmp_path):
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err
-    assert error_of(err) == "error: terminated (SIGTERM)"
+    assert error_of(err) == f"error: terminated (SIGTERM); nothing was written to {tmp_path / 'sim'}; run the same command again"
     assert list(tmp_path.iterdir()) == []
 
 
@@ -641,7 +646,8 @@ def test_unexpected_exceptions_are_one_line_and_say_bug(tmp_path, monkeypatch):
 
 def test_no_progress_fragments_on_a_pipe(tmp_path):
     code, out, err = run_cli("simulate", "--preset", "tiny", "--out", tmp_path / "s")
-    assert code == 0 and err == ""
+    # no bar on a pipe; only whole progress lines (one per 30 s: none on a quick run)
+    assert code == 0 and "\r" not in err and all(l.startswith("simulate tiny: ") for l in err.splitlines())
     code, _, err = run_cli("info", tmp_path / "s" / "nonexistent.h5")
     assert err.count("\n") == 1
 
@@ -726,7 +732,7 @@ def test_ctrl_c_while_writing_is_one_line_and_leaves_nothing(tmp_path, monkeypat
 
     monkeypatch.setattr(Recording, "save", interrupted_save)
     code, _, err = run_cli("simulate", "--preset", "tiny", "--out", tmp_path / "sim")
-    assert code == 130 and error_of(err) == "error: interrupted"
+    assert code == 130 and error_of(err) == f"error: interrupted; nothing was written to {tmp_path / 'sim'}; run the same command again"
     assert list(tmp_path.iterdir()) == []
 
 

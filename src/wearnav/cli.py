@@ -8,6 +8,7 @@ failure into one line on stderr (see :func:`main`).
 from __future__ import annotations
 
 import json
+import logging
 import os
 import signal
 import sys
@@ -28,6 +29,7 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
+    rich_markup_mode=None,  # click's plain help: flags read as flags (`--quick`, not `--quick <bool>`)
 )
 
 
@@ -68,10 +70,28 @@ def _echo_json(obj) -> None:
     typer.echo(json.dumps(obj, indent=2, default=str))
 
 
+# What an interrupted command keeps and how to resume, said on the one line that ends it (exit
+# 130 / 143); a command that writes sets it before its work starts (:func:`_on_interrupt`).
+NOTHING_KEPT = "nothing was written; run the same command again"
+_KEPT = {"line": NOTHING_KEPT}
+
+
+def _on_interrupt(line: str) -> None:
+    _KEPT["line"] = line
+
+
+def _suite_folder(out: Path, command: str) -> None:
+    """A suite's --out: refused if its results.md is the user's; an interruption keeps finished runs."""
+    from wearnav.outputs import check_suite_folder
+
+    check_suite_folder(out, command)
+    _on_interrupt(f"finished runs are kept in {out}; run the same command again to resume")
+
+
 def _progress() -> bool:
-    """Progress bars only on a terminal: on a pipe or in a log file their carriage-return updates
-    stay behind as fragments before the real output or error."""
-    return sys.stderr.isatty()
+    """Long work reports progress: a bar on a terminal, log lines every 30 s otherwise (the choice
+    is :mod:`wearnav.progress`'s)."""
+    return True
 
 
 @app.command()
@@ -82,28 +102,45 @@ def simulate(
     format_: SimFormat = typer.Option(SimFormat.dataset, "--format", help="sensorlogger: one walk (phone, watch, "
                                       "earbuds, GPS fixes) as an iPhone's Sensor Logger export, to try `wearnav "
                                       "track` or `wearnav import sensorlogger` on (--preset is not used)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace the dataset that --out already holds."),
 ):
-    """Simulate a flexiwear-bodynet dataset (phone, watch, earbuds) with truth and location fixes."""
+    """Simulate a flexiwear-bodynet dataset (phone, watch, earbuds) with truth and location fixes.
+
+    \b
+    Example:
+      wearnav simulate --preset tiny --out data/sim
+    """
     if format_ is SimFormat.sensorlogger:
         from wearnav.importers.sensorlogger_export import simulated_export
 
         _echo_json(simulated_export(out, seed=seed))
         return
+    from wearnav.outputs import check_new_dataset
     from wearnav.simulate import simulate_dataset
 
+    check_new_dataset(out, overwrite, "simulate")
+    _on_interrupt(f"nothing was written to {out}; run the same command again")
     ds = simulate_dataset(preset.value, out, seed=seed, progress=_progress())
     _echo_json(ds.summary())
 
 
 @app.command()
 def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset folder.")):
-    """Summarise a recording or a dataset (durations, device rates, labels, truth and fixes)."""
+    """Summarise a recording or a dataset (durations, device rates, labels, truth and fixes).
+
+    \b
+    Example:
+      wearnav info data/sim
+    """
     from wearnav.dataset import Dataset
     from wearnav.geo import needs_reimport
     from wearnav.recording import Recording
     from wearnav.report.stats import dataset_stats
 
     if not path.is_dir():
+        if not path.exists() and (path.parent / "manifest.csv").is_file():  # a name the dataset lacks
+            raise ValidationError(f"no such recording; {path.parent} holds "
+                                  f"{Dataset.open(path.parent).names_line()}", path)
         rec = Recording.load(path)
         if (stale := needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
             warnings.warn(WearnavWarning(f"{path}: {stale}"))
@@ -111,6 +148,7 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
         return
     ds = Dataset.open(path)
     summary = ds.summary()
+    summary["names"] = ds.names_line()  # what `wearnav info DATASET/<name>.h5` and `plot --name` can show
     stats = dataset_stats(ds, progress=_progress())
     summary["device_rates"] = {
         dev: {"rate_hz": round(d["rate_hz"], 2), "jitter_iqr_ms": round(d["jitter_iqr_ms"], 3),
@@ -139,13 +177,22 @@ def import_(
     limit: Optional[int] = typer.Option(None, min=0, help="Import at most this many recordings."),
     platform: Optional[Platform] = typer.Option(None, help="sensorlogger only: for exports without Metadata.csv "
                                                 "(overrides its platform)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace the dataset that --out already holds."),
 ):
-    """Import real recordings into a wearnav dataset folder."""
+    """Import real recordings into a wearnav dataset folder.
+
+    \b
+    Example:
+      wearnav import ilc2 ../shared/data/ilc2_indoor_location --out data/ilc2 --limit 2
+    """
     from wearnav.importers import import_dataset
+    from wearnav.outputs import check_new_dataset
 
     fmt, platform = fmt.value, _value(platform)
     if platform is not None and fmt != "sensorlogger":
         raise typer.BadParameter("--platform is for the sensorlogger format only")
+    check_new_dataset(out, overwrite, "import")
+    _on_interrupt(f"nothing was written to {out}; run the same command again")
     options = {"platform": platform} if platform is not None else {}
     ds = import_dataset(fmt, src, out, limit=limit, progress=_progress(), **options)
     _echo_json(ds.summary())
@@ -157,7 +204,12 @@ def plot(
     out: Path = typer.Option(..., "--out", help="PNG file to write."),
     name: Optional[str] = typer.Option(None, help="Recording name inside a dataset folder (default: the first)."),
 ):
-    """Plot a recording: device acc/gyro norms, label bands, and a map of truth and fixes."""
+    """Plot a recording: device acc/gyro norms, label bands, and a map of truth and fixes.
+
+    \b
+    Example:
+      wearnav plot data/sim --out sim.png
+    """
     from wearnav.dataset import Dataset
     from wearnav.recording import Recording
     from wearnav.report.plots import plot_recording
@@ -166,6 +218,8 @@ def plot(
         ds = Dataset.open(path)
         if not len(ds):
             raise ValidationError("dataset has no recordings to plot", path)
+        if name is None:
+            typer.echo(f"plotting {ds.names[0]} (--name picks another: {ds.names_line()})", err=True)
         rec = ds.load(name or ds.names[0])
     else:
         rec = Recording.load(path)
@@ -182,7 +236,12 @@ def track(
     name: Optional[str] = typer.Option(None, help="Which recording of a dataset folder (or export of a folder of exports)."),
     platform: Optional[Platform] = typer.Option(None, help="For an export without Metadata.csv."),
 ):
-    """The walking path of one recording: predict, integrate from (0, 0), anchor on the first location fixes."""
+    """The walking path of one recording: predict, integrate from (0, 0), anchor on the first location fixes.
+
+    \b
+    Example:
+      wearnav track data/sim --model runs/sipp --out walk
+    """
     from wearnav.track import track as track_
 
     summary = track_(src, model, out, name=name, platform=_value(platform), progress=_progress())
@@ -199,9 +258,15 @@ def datasets_report(
     out: Path = typer.Option(Path("docs/datasets.md"), help="Markdown file to write."),
     work: Path = typer.Option(Path("runs/datasets"), help="Where imported datasets are written."),
 ):
-    """Import every shipped real dataset and write per-dataset sanity figures as Markdown."""
+    """Import every shipped real dataset and write per-dataset sanity figures as Markdown.
+
+    \b
+    Example:
+      wearnav datasets-report --data ../shared/data --out docs/datasets.md
+    """
     from wearnav.report.datasets_page import write_datasets_report
 
+    _on_interrupt(f"datasets imported so far are kept in {work}; run the same command again")
     typer.echo(str(write_datasets_report(data, out, work)))
 
 
@@ -211,7 +276,12 @@ def _devices(devices: str) -> tuple[str, ...]:
 
 @app.command("models")
 def models_():
-    """List the registered models: name, task, device layout, parameters."""
+    """List the registered models: name, task, device layout, parameters.
+
+    \b
+    Example:
+      wearnav models
+    """
     from wearnav.models.registry import available, n_parameters
 
     for spec in available():
@@ -238,7 +308,7 @@ def train(
     devices: Optional[str] = typer.Option(None, help="Device layout, comma-separated (default: the dataset's "
                                           "devices, phone, watch, earbuds first)."),
     epochs: int = typer.Option(100, help="Maximum epochs (early stopping may end sooner)."),
-    seed: int = typer.Option(0, help="Random seed."),
+    seed: int = typer.Option(0, help="Random seed: initial weights, batch order, augmentation (the run's hash includes it)."),
     lr: Optional[float] = typer.Option(None, help="Learning rate (default: the model's paper value)."),
     batch: Optional[int] = typer.Option(None, help="Batch size (default: the model's paper value)."),
     patience: int = typer.Option(10, help="Early-stopping patience in epochs."),
@@ -249,7 +319,12 @@ def train(
     strategy: Strategy = typer.Option(Strategy.auto, help="ddp: one process per device (Lightning re-runs this "
                                       "command in each). The run and its folder are the same on any number."),
 ):
-    """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json)."""
+    """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json).
+
+    \b
+    Example:
+      wearnav train suitein++ --data data/sim --out runs/sipp --max-time 5
+    """
     from wearnav.evaluate import evaluate_run
     from wearnav.runs import locked
     from wearnav.train.odometry import configure, fit, prepare_run
@@ -262,6 +337,7 @@ def train(
     for note in notes:  # what the data decided (devices, truth gaps, validation, no test split)
         typer.echo(note, err=True)
     evaluate = bool(eval_splits)
+    _on_interrupt(f"{run} keeps the last finished epoch; run the same command again to resume")
     with locked(run):  # one process per run folder, from training through its metrics
         record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
         _echo_json({"run": str(run), "training": {k: v for k, v in record.items() if k != "training_data"}})
@@ -278,9 +354,15 @@ def eval_(
     data: Optional[Path] = typer.Option(None, "--data", help="Dataset to evaluate on (default: the training data)."),
     split: str = typer.Option("test", help="Split(s) to evaluate, comma-separated."),
 ):
-    """Evaluate a run: metrics.json, trajectories/*.csv and plots (trajectories, error CDF, ATE box)."""
+    """Evaluate a run: metrics.json, trajectories/*.csv and plots (trajectories, error CDF, ATE box).
+
+    \b
+    Example:
+      wearnav eval runs/sipp --split test,cross_subject
+    """
     from wearnav.evaluate import evaluate_run
 
+    _on_interrupt(f"{run / 'metrics.json'} is written only when every split is scored; run the same command again")
     m = evaluate_run(run, data=data, splits=_devices(split), progress=_progress())
     _echo_json({s: m["splits"][s]["summary"] for s in _devices(split)})
     typer.echo(f"wrote {run / 'metrics.json'} and {run / 'plots'}")
@@ -291,7 +373,8 @@ app.add_typer(bench_app, name="bench")
 
 # How a suite's runs are spread (wearnav.bench.executor); none of it enters a run's hash.
 JOBS_HELP = "Runs at once in local processes (1: one after another in this process)."
-EXECUTOR_HELP = r"local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav\[cluster]')."
+EXECUTOR_HELP = "local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav[cluster]')."
+SEED_HELP = "Random seed of every run (its weights, batch order and augmentation; part of the run's hash)."
 ADDRESS_HELP = ("With --executor ray: the cluster to join (host:port, or 'auto': the one `ray start` joined here); "
                 "default: $RAY_ADDRESS or that cluster if there is one, else a new Ray on this machine.")
 
@@ -311,15 +394,21 @@ def bench_odometry(
     epochs: int = typer.Option(100, help="Maximum epochs per model."),
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
     lr: Optional[float] = typer.Option(None, help="Learning rate for every model (default: each model's paper value)."),
-    seed: int = typer.Option(0, min=0),
+    seed: int = typer.Option(0, min=0, help=SEED_HELP),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
     address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
 ):
-    """Train and evaluate the odometry comparison; complete runs are skipped (the suite resumes)."""
+    """Train and evaluate the odometry comparison; complete runs are skipped (the suite resumes).
+
+    \b
+    Example:
+      wearnav bench odometry --data data/default --out runs/odometry --max-time 15
+    """
     from wearnav.bench.odometry import run_suite, suite_configs, write_suite_report
 
     configs = suite_configs(data, _devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr)
+    _suite_folder(out, "bench odometry")
     folders = run_suite(configs, out, progress=_progress(), echo=typer.echo,
                         execution=_execution(jobs, executor, address))
     from wearnav.dataset import Dataset
@@ -331,11 +420,14 @@ def bench_odometry(
     import os
     import platform
 
-    note = (f"Data: `{data}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
+    from wearnav.fileio import shown_path
+
+    note = (f"Data: `{shown_path(data)}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
             f"{__import__('torch').__version__}, shared with other work while it ran. Training: at most {epochs} epochs per model"
             + (f" and {max_time:g} min of training in total (a run given more time resumes from its last "
                "checkpoint: attempts > 1; `train min` is its total)" if max_time else "")
             + (f", Adam lr {lr:g} for every model" if lr else ", each model's paper learning rate")
+            + f", training seed {seed}"
             + ", early stopping on validation velocity MSE (patience 10).")
     page = write_suite_report(folders, out, "Odometry comparison", note=note)
     typer.echo(f"wrote {page}")
@@ -357,15 +449,21 @@ def bench_real_odometry(
     epochs: int = typer.Option(100, min=1, help="Maximum epochs per model."),
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
     lr: float = typer.Option(1e-3, help="Adam learning rate for every learned model."),
-    seed: int = typer.Option(0, min=0),
+    seed: int = typer.Option(0, min=0, help=SEED_HELP),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
     address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
 ):
     """Phone-only odometry trained on some floors/routes of a real building, scored at the surveyed
-    points of held-out ones (and of another building); PDR and the raw phone fixes beside them."""
+    points of held-out ones (and of another building); PDR and the raw phone fixes beside them.
+
+    \b
+    Example:
+      wearnav bench real-odometry --data data/ilc2 --test-data data/ipin --out runs/real/ilc2 --max-time 15
+    """
     from wearnav.bench.real import RealBench, run_benchmark
 
+    _suite_folder(out, "bench real-odometry")
     bench = RealBench(models=_devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr,
                       train_data=str(train_data) if train_data else None)
     page = run_benchmark(data, out, test_data, _value(format_), _value(test_format), group_by,
@@ -385,10 +483,18 @@ def bench_efficiency(
     min_run_time: float = typer.Option(0.2, min=0.001, help="Seconds each timing runs (torch's blocked_autorange)."),
     odometry_suite: Optional[Path] = typer.Option(None, help="Odometry suite folder: adds its training s/epoch."),
 ):
-    """Parameters, FLOPs per window, inference windows/s at batch 1 and 256, fraction of the FLOP-bound limit."""
+    """Parameters, FLOPs per window, inference windows/s at batch 1 and 256, fraction of the FLOP-bound limit.
+
+    \b
+    Example:
+      wearnav bench efficiency --out runs/efficiency --models pdr,ronin
+    """
     from wearnav.bench.efficiency import measure, write_report
     from wearnav.models.registry import check_models
 
+    from wearnav.outputs import check_suite_folder
+
+    check_suite_folder(out, "bench efficiency")  # its page is written at the end: nothing kept before
     rows = []
     for m in check_models(_devices(models)):  # every name before the first is measured
         typer.echo(f"measuring {m} ...")
@@ -415,9 +521,15 @@ def bench_har(
     quick: bool = typer.Option(False, "--quick", help="A tiny subset and 1 epoch: checks the pipeline only."),
     threads: int = typer.Option(1, min=1, help="Torch intra-op threads per run (1 is fastest for this small model)."),
 ):
-    """The paper-002 HAR benchmark: baseline and ten techniques per dataset; runs resume."""
+    """The paper-002 HAR benchmark: baseline and ten techniques per dataset; runs resume.
+
+    \b
+    Example:
+      wearnav bench har --out runs/har --datasets uci-hapt --techniques baseline --seeds 1
+    """
     from wearnav.bench.har import run_benchmark
 
+    _suite_folder(out, "bench har")
     page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3),
                          _execution(jobs, executor, address, threads), quick, epochs,
                          _devices(techniques) if techniques else None, max_time, echo=typer.echo, steps=steps)
@@ -443,11 +555,17 @@ def bench_easytrack(
     levels: Optional[str] = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),
     methods: Optional[str] = typer.Option(None, help="Methods, comma-separated (default: all)."),
 ):
-    """EasyTrack (paper 004): methods × noise levels on simulated phone labels, and a real GNSS test."""
+    """EasyTrack (paper 004): methods × noise levels on simulated phone labels, and a real GNSS test.
+
+    \b
+    Example:
+      wearnav bench easytrack --out runs/easytrack --quick
+    """
     import dataclasses as _dc
 
     from wearnav.bench.easytrack import BenchConfig, run_benchmark
 
+    _suite_folder(out, "bench easytrack")
     bc = BenchConfig.quick() if quick else BenchConfig()
     changes = {}
     if km is not None:
@@ -463,15 +581,22 @@ def bench_easytrack(
     typer.echo(f"wrote {page}")
 
 
-@app.command("label-from-fixes")
+@app.command("label-from-fixes", short_help="Label IMU segments by the phone's location fixes (EasyTrack); "
+                                             "their noise where truth is known.")
 def label_from_fixes(
     dataset: Path = typer.Argument(..., help="A dataset folder whose recordings have phone IMU and location fixes."),
-    out: Path = typer.Option(..., "--out", help="Folder for segments.npz, label_noise.json and label_noise_cdf.png."),
+    out: Path = typer.Option(..., "--out", help="Folder for segments.npz, label_noise.json and, where the recordings "
+                             "have dense truth, label_noise_cdf.png."),
     segment: float = typer.Option(1.0, "--segment", help="Segment length, seconds (between fix times)."),
     rate: float = typer.Option(25.0, help="IMU rate of the segments, Hz."),
 ):
     """Phone labels (EasyTrack eq. 4): IMU segments labelled by the fixes at their ends; label-noise
-    statistics (eqs. 5–7) where the recordings have dense truth."""
+    statistics (eqs. 5–7) where the recordings have dense truth.
+
+    \b
+    Example:
+      wearnav label-from-fixes data/sim --out labels
+    """
     from wearnav.dataset import Dataset
     from wearnav.fixlabels import LabelConfig, label_dataset, noise_summary, plot_noise_cdf
     from wearnav.outputs import staged_output
@@ -485,8 +610,11 @@ def label_from_fixes(
         png = plot_noise_cdf(seg, stage / "label_noise_cdf.png")
     for name in ("segments.npz", "label_noise.json") + (("label_noise_cdf.png",) if png else ()):
         typer.echo(str(out / name))
-    typer.echo(f"{summary['segments']} segments, {summary['length_km']} km; median label noise "
-               f"{summary['label_noise_median_cm']} cm")
+    median = summary["label_noise_median_cm"]
+    noise = (f"median label noise {median} cm" if median is not None else
+             "label noise not measured: the recordings have no dense truth to compare the labels with "
+             "(so no label_noise_cdf.png)")
+    typer.echo(f"{summary['segments']} segments, {summary['length_km']} km; {noise}")
 
 
 @app.command("classify")
@@ -496,7 +624,12 @@ def classify_(
     model: Path = typer.Option(..., "--model", help="A classifier run folder (from `wearnav bench har`)."),
     out: Path = typer.Option(..., "--out", help="Folder for <name>_intervals.csv and <name>_timeline.png."),
 ):
-    """Label a recording's activity (or placement) per window: intervals CSV + timeline PNG over |acc|."""
+    """Label a recording's activity (or placement) per window: intervals CSV + timeline PNG over |acc|.
+
+    \b
+    Example:
+      wearnav classify data/sim --model runs/har/runs/uci-hapt/baseline --out activity
+    """
     from wearnav.recording import Recording
     from wearnav.train.classify import label_recordings
     from wearnav.train.resolve import resolve_model
@@ -520,16 +653,24 @@ def classify_(
 
 @app.command("results")
 def results_(
-    suites: list[Path] = typer.Argument(..., help="Suite folders, each holding a generated results.md."),
+    suites: Optional[list[Path]] = typer.Argument(None, help="Suite folders, each holding a generated results.md "
+                                                  "(none with --keep: the page's sections rebuilt as they are)."),
     out: Path = typer.Option(Path("docs/results.md"), "--out", help="The page to write."),
     keep: bool = typer.Option(False, "--keep", help="Keep the page's other suites' sections (update suite by suite)."),
     drop: Optional[list[str]] = typer.Option(None, "--drop", help="With --keep: remove this suite's kept sections "
                                              "(a suite folder name; repeatable)."),
 ):
-    """Stitch the suites' generated pages into one results page (figures copied to its img/)."""
+    """Stitch the suites' generated pages into one results page (figures copied to its img/).
+
+    \b
+    Example:
+      wearnav results runs/odometry runs/efficiency --out docs/results.md
+    """
     from wearnav.bench.results import collect
 
-    typer.echo(str(collect(suites, out, keep=keep, drop=tuple(drop or ()))))
+    if not suites and not keep:
+        raise typer.BadParameter("give suite folders, or --keep to rebuild the page from its own sections")
+    typer.echo(str(collect(suites or [], out, keep=keep, drop=tuple(drop or ()))))
 
 
 @app.command()
@@ -541,11 +682,17 @@ def realism(
     limit: Optional[int] = typer.Option(None, help="At most this many recordings per real source."),
     before: Optional[Path] = typer.Option(None, help="An earlier realism JSON to show beside this one."),
     json_out: Optional[Path] = typer.Option(None, "--json", help="JSON to write (default: OUT with .json)."),
-    seed: int = typer.Option(0),
+    seed: int = typer.Option(0, help="Random seed of the simulated walks."),
 ):
-    """Compare simulated walking with real recordings, device by device and placement by placement."""
+    """Compare simulated walking with real recordings, device by device and placement by placement.
+
+    \b
+    Example:
+      wearnav realism --data ../shared/data --out docs/realism.md --limit 2
+    """
     from wearnav.realism import realism_report
 
+    _on_interrupt(f"subsets imported so far are kept in {work}; run the same command again")
     realism_report(data, out, work, n_sim=n_sim, limit=limit, seed=seed, before=before,
                    json_out=json_out, progress=True)
     typer.echo(str(out))
@@ -554,25 +701,33 @@ def realism(
 @app.command()
 def demo(
     out: Path = typer.Option(Path("runs/demo"), "--out", help="Folder for the demo's outputs."),
-    seed: int = typer.Option(0, min=0),
+    seed: int = typer.Option(0, min=0, help="Random seed: the simulated data and every model's training."),
     models: str = typer.Option("suitein++,ronin,pdr", help="Models to compare, comma-separated."),
     minutes: float = typer.Option(2.5, help="Training minutes per learned model."),
+    preset: Preset = typer.Option(Preset.small, hidden=True, help="Simulator preset (tests: tiny)."),
 ):
     """The main job on built-in data: simulate the small preset, train and compare odometry models,
-    write a report with trajectory plots (runs resume: a second call reuses finished runs)."""
-    from wearnav.bench.odometry import comparison_table, run_suite, suite_configs, write_suite_report
+    write a report with trajectory plots (runs resume: a second call reuses finished runs).
+
+    \b
+    Example:
+      wearnav demo --out runs/demo
+    """
+    from wearnav.bench.odometry import (METRICS_EXPLAINED, comparison_table, run_suite, suite_configs,
+                                        write_suite_report)
     from wearnav.dataset import Dataset
     from wearnav.models.registry import check_models
     from wearnav.report.plots import plot_trajectories
     from wearnav.simulate import simulate_dataset
 
     check_models(_devices(models), "odometry")  # before the data is simulated
+    _suite_folder(out, "demo")
     data_dir = out / "data"
     if (data_dir / "manifest.csv").exists():
         ds = Dataset.open(data_dir)
         typer.echo(f"using existing simulated dataset {data_dir}")
     else:
-        ds = simulate_dataset("small", data_dir, seed=seed, progress=_progress())
+        ds = simulate_dataset(preset.value, data_dir, seed=seed, progress=_progress())
     s = ds.summary()
     typer.echo(f"simulated {s['recordings']} recordings, {s['total_duration_h']:.2f} h; splits {s['splits']}")
     plot_trajectories(ds, out / "truth_trajectories.png")
@@ -581,11 +736,11 @@ def demo(
     configs = suite_configs(data_dir, _devices(models), epochs=100, max_minutes=minutes, seed=seed, patience=5,
                             lr=1e-3)
     folders = run_suite(configs, out / "runs", splits=("test", "cross_subject"), progress=_progress(), echo=typer.echo)
-    note = (f"Built-in data: simulator preset `small` (seed {seed}). Demo budget: at most {minutes:g} min of "
+    note = (f"Built-in data: simulator preset `{preset.value}` (seed {seed}). Demo budget: at most {minutes:g} min of "
             "training per learned model on this machine at Adam lr 1e-3 (the papers train ~100 epochs at 1e-4), "
-            "far below the papers' training; see `wearnav bench odometry` for the full comparison.")
+            "far below the papers' training; see `wearnav bench odometry` for the full comparison.\n\n" + METRICS_EXPLAINED)
     page = write_suite_report(folders, out, "wearnav demo: odometry on simulated walking",
-                              splits=("test", "cross_subject"), note=note)
+                              splits=("test", "cross_subject"), note=note, command=f"wearnav demo --out {out}")
     for split in ("test", "cross_subject"):
         table = comparison_table(folders, split)
         cols = [c for c in ("model", "ATE", "RTE", "STW ATE", "DRW ATE", "epochs", "train s/epoch",
@@ -634,7 +789,20 @@ def main() -> None:
             signal.signal(signal.SIGTERM, old_sigterm)
 
 
+def _log_to_stderr() -> None:
+    """wearnav's log lines (progress without a terminal, "resuming from ...") as plain lines on stderr."""
+    logger = logging.getLogger("wearnav")
+    if not any(getattr(h, "_wearnav_cli", False) for h in logger.handlers):
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        handler._wearnav_cli = True  # type: ignore[attr-defined]
+        logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+
+
 def _main() -> None:
+    _log_to_stderr()
+    _KEPT["line"] = NOTHING_KEPT
     with warnings.catch_warnings():
         # Only wearnav's own warnings concern the user (a truncated file imported flagged); a
         # library's RuntimeWarning about arithmetic on values that are then refused is noise.
@@ -644,6 +812,9 @@ def _main() -> None:
         try:
             code = app(standalone_mode=False)
         except typer.TyperException as exc:  # bad options / arguments (the parser's UsageError)
+            if type(exc).__name__ == "NoArgsIsHelpError":  # no arguments at all: the help, on stdout
+                typer.echo(exc.format_message())
+                sys.exit(exc.exit_code)
             if not exc.format_message():  # no arguments at all: the help was shown instead
                 sys.exit(exc.exit_code)
             ctx = getattr(exc, "ctx", None)
@@ -656,12 +827,12 @@ def _main() -> None:
         except OSError as exc:
             _fail(_os_error_line(exc), 2)
         except (Terminated, KeyboardInterrupt) as exc:
-            _fail("interrupted" if isinstance(exc, KeyboardInterrupt) else "terminated (SIGTERM)",
-                  130 if isinstance(exc, KeyboardInterrupt) else 143)
+            _fail(("interrupted" if isinstance(exc, KeyboardInterrupt) else "terminated (SIGTERM)")
+                  + f"; {_KEPT['line']}", 130 if isinstance(exc, KeyboardInterrupt) else 143)
         except Exception as exc:
             if os.environ.get("WEARNAV_DEBUG"):
                 raise
             _fail(f"internal error ({exc.__class__.__name__}: {exc}); this is a bug in wearnav, "
                   "please report it with the command you ran (WEARNAV_DEBUG=1 shows the traceback)", 1)
         if isinstance(code, int) and code:  # typer turns Ctrl-C into exit code 130
-            _fail("interrupted" if code == 130 else f"exit code {code}", code)
+            _fail(f"interrupted; {_KEPT['line']}" if code == 130 else f"exit code {code}", code)

@@ -346,11 +346,17 @@ class Dataset:
         check_names(names, sorted(set(self.manifest["split"])), "split", self.root, ValidationError)
         return self._view(self.manifest["split"].isin(names))
 
+    def names_line(self, shown: int = 10) -> str:
+        """The recordings' names for a message: ``a, b, c, ... (44 recordings)``."""
+        names = self.names
+        more = ", ..." if len(names) > shown else ""
+        return f"{', '.join(names[:shown])}{more} ({len(names)} recording{'s' * (len(names) != 1)})"
+
     # ---- loading ------------------------------------------------------------------------
     def path(self, name: str) -> Path:
         rows = self.manifest[self.manifest["name"] == name]
         if rows.empty:
-            raise ValidationError(f"no recording named {name!r}", self.root)
+            raise ValidationError(f"no recording named {name!r}; it holds {self.names_line()}", self.root)
         return self.root / rows["file"].iloc[0]
 
     def load(self, name: str) -> Recording:

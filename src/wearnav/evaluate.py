@@ -41,14 +41,14 @@ PERCENTILES = (50, 75, 90, 95)
 def predict_sequence(model, seq: Aligned, window: int, stride: int, batch: int = 512,
                      progress: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Window centre times (N,), predicted velocities (N, 2) and device presence (N, D)."""
-    from tqdm.auto import tqdm
+    from wearnav.progress import progress as report_progress
 
     wds = WindowDataset([seq], WindowConfig(window=window, stride=stride, target=None))
     if len(wds) == 0:
         return np.empty(0), np.empty((0, 2)), np.empty((0, len(seq.devices)))
     device = next((p.device for p in model.parameters()), torch.device("cpu"))
     ts, vs, ms = [], [], []
-    for b in tqdm(wds.loader(batch), desc="predict", unit="batch", disable=not progress, leave=False):
+    for b in report_progress(wds.loader(batch), desc="predict", unit="batch", enabled=progress, leave=False):
         vs.append(model.predict(b["x"].to(device), b["mask"].to(device)).float().cpu().numpy())
         ts.append(b["t"].mean(dim=1).numpy())
         ms.append(b["mask"].numpy())
@@ -139,10 +139,10 @@ def summarise(rows: list[dict], errors: np.ndarray) -> dict:
 def evaluate_sequences(model, seqs: list[Aligned], window: int, stride: int, rte_delta: float = 60.0,
                        progress: bool = False) -> tuple[dict, dict[str, pd.DataFrame]]:
     """Per-sequence rows, the overall and per-walking-mode summaries, and the trajectories."""
-    from tqdm.auto import tqdm
+    from wearnav.progress import progress as report_progress
 
     rows, trajs = [], {}
-    for seq in tqdm(seqs, desc="evaluate", unit="seq", disable=not progress, leave=False):
+    for seq in report_progress(seqs, desc="evaluate", unit="seq", enabled=progress, leave=False):
         row, traj = evaluate_sequence(model, seq, window, stride, rte_delta)
         rows.append(row)
         if len(traj):

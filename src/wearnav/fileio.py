@@ -33,6 +33,23 @@ import numpy as np
 from wearnav.errors import FormatError, MissingFileError
 
 
+def shown_path(path: str | Path) -> str:
+    """A path as a page or a report shows it: relative to the working folder where it lies inside
+    it, else its last two parts (``runs/ilc2``), never the absolute path of the machine that wrote
+    it (a generated page is read elsewhere).
+
+    >>> shown_path("/somewhere/else/runs/data/ilc2")
+    'data/ilc2'
+    """
+    p = Path(path)
+    if not p.is_absolute():
+        return p.as_posix()
+    try:
+        return p.resolve().relative_to(Path.cwd().resolve()).as_posix() or "."
+    except (ValueError, OSError):
+        return Path(*p.parts[-2:]).as_posix() if len(p.parts) > 2 else p.name
+
+
 def host_tag() -> str:
     """This machine's name as it appears in work-file names (no dots or slashes)."""
     return socket.gethostname().replace(".", "_").replace("/", "_") or "host"

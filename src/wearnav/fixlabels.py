@@ -315,10 +315,10 @@ def segments_from_truth(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Seg
 def label_dataset(view, cfg: LabelConfig = LabelConfig(), from_truth: bool = False,
                   progress: bool = False) -> Segments:
     """All recordings of a dataset view, phone-labelled (or truth-labelled with ``from_truth``)."""
-    from tqdm.auto import tqdm
+    from wearnav.progress import progress as report_progress
 
     fn = segments_from_truth if from_truth else label_recording
-    parts = [fn(rec, cfg) for rec in tqdm(view, total=len(view), desc="label", unit="rec", disable=not progress)]
+    parts = [fn(rec, cfg) for rec in report_progress(view, total=len(view), desc="label", unit="rec", enabled=progress)]
     parts = [p for p in parts if p is not None and len(p)]
     if not parts:
         raise ValidationError("no recording gave a labelled segment (need phone IMU and fixes that move"

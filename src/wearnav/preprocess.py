@@ -239,11 +239,11 @@ def load_sequences(view, cfg, progress: bool = False) -> list[Aligned]:
     """Align every recording of a Dataset view (:class:`wearnav.dataset.Dataset`) for ``cfg``, any
     config with a ``preprocess_config()`` (a TrainConfig, a ClassifyConfig). Aligned sequences are
     cached per process by (file, preprocess config), so a suite preprocesses each recording once."""
-    from tqdm.auto import tqdm
+    from wearnav.progress import progress as report_progress
 
     pcfg = cfg.preprocess_config()
     out = []
-    for name in tqdm(view.names, desc="preprocess", unit="rec", disable=not progress, leave=False):
+    for name in report_progress(view.names, desc="preprocess", unit="rec", enabled=progress, leave=False):
         path = view.path(name)
         key = (str(path.resolve()), path.stat().st_mtime_ns, pcfg)
         if key not in _CACHE:

@@ -50,6 +50,7 @@ from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run, predict_sequence
+from wearnav.fileio import shown_path
 from wearnav.models.registry import build, check_models, get
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
 from wearnav.rotations import from_wxyz
@@ -88,7 +89,7 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
                  test_groups: tuple[str, ...] | None = None, progress: bool = True) -> tuple[Path, dict]:
     """Write ``src`` (an imported dataset folder, or an original-format folder read with importer
     ``fmt``) to ``out`` with splits by place. Returns the folder and what was decided."""
-    from tqdm.auto import tqdm
+    from wearnav.progress import progress as report_progress
 
     from wearnav.dataset import DatasetWriter
     from wearnav.importers import get_importer
@@ -114,7 +115,7 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
     counts: dict[str, dict[str, int]] = {}
     calib_key, calib = CALIBRATION.get(source, (None, set()))
     with DatasetWriter(out, {"generator": "wearnav.bench.real", **wanted}) as w:
-        for rec in tqdm(recs, desc=f"prepare {src.name}", unit="rec", disable=not progress, leave=False):
+        for rec in report_progress(recs, desc=f"prepare {src.name}", unit="rec", enabled=progress, leave=False):
             g = _group(rec.meta, key, rec.name)
             split = split_of(rec.name, g, set(groups))
             if split == "test" and calib_key and str(rec.meta.get(calib_key)) in calib:
@@ -191,11 +192,13 @@ def site_yaw(seqs, window: int = 100, stride: int = 10) -> dict:
             "phone_axis_yaw_deg": device_axis_yaw(seqs)}
 
 
-def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate: float = 25.0) -> dict:
-    """:func:`site_yaw` of the ``split`` traces of dataset ``data`` (no yaw applied, no frame alignment)."""
+def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate: float = 25.0,
+                      progress: bool = False) -> dict:
+    """:func:`site_yaw` of the ``split`` traces of dataset ``data`` (no yaw applied, no frame alignment);
+    ``progress``: report the traces' loading (:mod:`wearnav.progress`)."""
     cfg = TrainConfig(model="pdr", data=str(data), devices=tuple(devices), rate=rate, frame_align="none",
                       truth_max_gap=TRUTH_MAX_GAP_S)
-    return site_yaw(load_sequences(Dataset.open(data).split(split), cfg))
+    return site_yaw(load_sequences(Dataset.open(data).split(split), cfg, progress))
 
 
 # ---- the phone's own fixes --------------------------------------------------------------------
@@ -299,7 +302,7 @@ def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str
         cached = out / "data" / name / "site_yaw.json"
         if not cached.is_file():
             echo(f"{name}: estimating the site's yaw from its training traces (PDR) ...")
-            runs.write_json(cached, estimate_site_yaw(Path(site["data"])))
+            runs.write_json(cached, estimate_site_yaw(Path(site["data"]), progress=progress))
         site["yaw"] = read_json(cached)
         echo(f"{name}: site yaw {site['yaw']['yaw_deg']:+.1f}° from {site['yaw']['segments']} segments")
         site["fixes"] = fix_errors(Path(site["data"]))
@@ -401,7 +404,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
         n = {k: sum(c.get(k, 0) for c in info["groups"].values()) for k in ("train", "val", "test")}
         head = "Held-out groups of the training building" if site == "main" else "Another building, never trained on"
         lines += [f"## {head}: `{info['source']}`", "",
-                  f"Source `{info['src']}`, grouped by `{info['group_by']}`: test {', '.join(sorted(test))} "
+                  f"Source `{shown_path(info['src'])}`, grouped by `{info['group_by']}`: test {', '.join(sorted(test))} "
                   f"({n['test']} traces); " + (f"training groups {', '.join(sorted(train))} ({n['train']} train, "
                   f"{n['val']} validation traces)." if site == "main" else
                   f"its other groups ({n['train'] + n['val']} traces) serve only to estimate its yaw."),

@@ -35,13 +35,14 @@ def import_dataset(fmt: str, src: str | Path, out: str | Path, limit: int | None
                    progress: bool = True, **options):
     """Read ``src`` with the ``fmt`` importer and write a dataset folder at ``out``; ``options``
     go to that importer's ``read`` (e.g. sensorlogger's ``platform``)."""
-    from tqdm import tqdm
+    from wearnav.progress import Progress
 
     from wearnav.dataset import Dataset, DatasetWriter
 
     src = Path(src)
     module = get_importer(fmt)  # each read() checks src and limit (common.check_source)
-    bar = tqdm(module.read(src, limit=limit, **options), desc=f"import {fmt}", unit="rec", disable=not progress)
+    bar = Progress(module.read(src, limit=limit, **options), total=limit, desc=f"import {fmt}", unit="rec",
+                   enabled=progress)
     try:
         made_by = {"importer": fmt, "src": str(src.resolve()), "limit": limit, **options}
         with DatasetWriter(out, made_by) as writer:

@@ -10,7 +10,7 @@ import pandas as pd
 
 from wearnav.dataset import Dataset
 from wearnav.errors import WearnavError
-from wearnav.fileio import write_text_atomic
+from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.provenance import git_commit
 from wearnav.report.plots import plot_recording
 from wearnav.report.stats import dataset_stats, stats_markdown
@@ -79,7 +79,7 @@ def write_datasets_report(data: Path, out: Path, work: Path, progress: bool = Tr
             lines += [f"Import failed: `{exc}`", ""]
             failures.append(f"{folder}: {exc}")
             continue
-        lines += [f"Source `{src}`, imported to `{dest}`.", ""]
+        lines += [f"Source `{shown_path(src)}`, imported to `{shown_path(dest)}`.", ""]
         if len(ds) == 0:
             lines += ["The import produced no recordings.", ""]
             failures.append(f"{folder}: no recordings")

@@ -29,7 +29,7 @@ def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_
     ``needs_reimport``: one line naming the recordings whose positions came from an older lat/lon
     projection (:func:`wearnav.geo.needs_reimport`), or None.
     """
-    from tqdm import tqdm
+    from wearnav.progress import progress as report_progress
 
     dev: dict[str, dict] = {}
     labels: dict[tuple[str, str], list] = {}
@@ -39,7 +39,7 @@ def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_
     subjects: set[str] = set()
     stale: dict[str, str] = {}
     duration = 0.0
-    for name in tqdm(ds.names, desc=f"stats {ds.root.name}", unit="rec", disable=not progress):
+    for name in report_progress(ds.names, desc=f"stats {ds.root.name}", unit="rec", enabled=progress):
         rec = ds.load(name)
         duration += rec.duration
         if (why := needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
+from wearnav.progress import progress as report_progress
 
 from wearnav.dataset import Dataset, DatasetWriter
 from wearnav.errors import ConfigError
@@ -124,7 +124,7 @@ def simulate_dataset(preset: str, out: str | Path, seed: int = 0, progress: bool
     out = Path(out)
     made_by = {"generator": "wearnav.simulate", "preset": dataclasses.asdict(p), "seed": int(seed)}
     with DatasetWriter(out, made_by) as writer:
-        for item in tqdm(plan, desc=f"simulate {p.name}", unit="rec", disable=not progress):
+        for item in report_progress(plan, desc=f"simulate {p.name}", unit="rec", enabled=progress):
             rec = simulate_walk(item.config, item.seed).recording
             rec.meta.update({"split": item.split, "preset": p.name, "dataset_seed": int(seed)})
             writer.add(rec, split=item.split)
@@ -208,7 +208,7 @@ def simulate_plan(plan: list[PlannedWalk], out: str | Path, made_by: dict, progr
                   meta: dict | None = None) -> Dataset:
     """Simulate planned walks into dataset folder ``out`` (``meta`` added to every recording's)."""
     with DatasetWriter(Path(out), made_by) as writer:
-        for item in tqdm(plan, desc="simulate", unit="rec", disable=not progress):
+        for item in report_progress(plan, desc="simulate", unit="rec", enabled=progress):
             rec = simulate_walk(item.config, item.seed).recording
             rec.meta.update({"split": item.split, **(meta or {})})
             writer.add(rec, split=item.split)

@@ -23,6 +23,7 @@ average of eq. 13 to training and test sequences; ``augment`` names batch augmen
 from __future__ import annotations
 
 import dataclasses
+import logging
 import re
 import time
 from dataclasses import dataclass, field
@@ -40,6 +41,8 @@ from wearnav.preprocess import Aligned, PreprocessConfig, load_sequences
 from wearnav.train.common import CHECKPOINTS, LAST, SeededModule, check_run_kind, load_weights, make_trainer
 from wearnav.train.interrupt import stop_between_batches
 from wearnav.windows import WindowConfig, WindowDataset
+
+log = logging.getLogger(__name__)
 
 TRAINING = "training.json"
 
@@ -238,6 +241,8 @@ def _fit(cfg: ClassifyConfig, run: Path, progress: bool) -> dict:
     trainer, _, _ = make_trainer(run, cfg.epochs, cfg.max_minutes, progress, len(data) // batch)
     last = run / CHECKPOINTS / LAST
     resumed = last.is_file()
+    if resumed:
+        log.info(f"{run.name}: resuming from {last}")
     t0 = time.perf_counter()
     with stop_between_batches(trainer):  # Ctrl-C / SIGTERM: exit 130 / 143, last.ckpt intact
         trainer.fit(module, data.loader(batch, cfg.seed), ckpt_path=str(last) if resumed else None)

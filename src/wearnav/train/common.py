@@ -15,19 +15,24 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
+import time
 import warnings
 from pathlib import Path
 
 import lightning as L
 import torch
+from lightning.pytorch.callbacks import Callback, Timer
 from lightning.pytorch.plugins import TorchCheckpointIO
 
 from wearnav import runs
 from wearnav.fileio import atomic_path
 from wearnav.models import registry
+from wearnav.progress import eta_line, interval_s, on_terminal
 
 from wearnav.augment import apply as augment_batch
 from wearnav.errors import ConfigError, FormatError, MissingFileError
+
+log = logging.getLogger(__name__)
 
 CHECKPOINTS = "checkpoints"
 BEST, LAST = "best.ckpt", "last.ckpt"
@@ -84,6 +89,38 @@ class SeededModule(L.LightningModule):
 STRATEGIES = ("auto", "ddp", "ddp_spawn")
 
 
+class LogProgress(Callback):
+    """Training progress as log lines (:mod:`wearnav.progress`) where no bar can be drawn: at most
+    every ``interval_s`` seconds, the epoch and batch, and the time left (the epoch limit's
+    estimate, or the time budget's remainder if that is sooner)."""
+
+    def __init__(self, name: str, max_minutes: float | None = None, interval: float | None = None):
+        self.name, self.max_minutes = name, max_minutes
+        self.interval = interval_s() if interval is None else interval
+        self.t0 = self.last = time.monotonic()
+
+    def on_train_start(self, trainer, pl_module) -> None:
+        self.t0 = self.last = time.monotonic()
+        self.first_epoch = trainer.current_epoch
+
+    def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
+        now = time.monotonic()
+        if now - self.last < self.interval:
+            return
+        self.last = now
+        n_batches = trainer.num_training_batches if isinstance(trainer.num_training_batches, int) else 0
+        epoch = trainer.current_epoch + ((batch_idx + 1) / n_batches if n_batches else 0.0)
+        line = eta_line(f"train {self.name}", round(epoch, 1), trainer.max_epochs, now - self.t0, "epochs",
+                        epoch - self.first_epoch)
+        timer = next((c for c in trainer.callbacks if isinstance(c, Timer)), None)  # --max-time, over resumes
+        budget_s = timer.time_remaining("train") if timer is not None else None
+        done_here = epoch - self.first_epoch
+        epochs_s = (now - self.t0) * (trainer.max_epochs - epoch) / done_here if done_here > 0 else None
+        if budget_s is not None and (epochs_s is None or budget_s < epochs_s):  # the time budget ends it sooner
+            line = line.split(", about")[0] + f", about {max(budget_s, 0):.0f} s left (--max-time)"
+        log.info(line)
+
+
 def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bool, steps_per_epoch: int,
                  monitor: str | None = None, mode: str = "min", patience: int = 10, devices: int = 1,
                  strategy: str = "auto"):
@@ -108,6 +145,8 @@ def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bo
     checkpoint = ModelCheckpoint(dirpath=run / CHECKPOINTS, filename="best", monitor=monitor, mode=mode,
                                  save_last=True, enable_version_counter=False, save_top_k=1 if monitor else 0)
     callbacks = [checkpoint]
+    if progress and not on_terminal():  # no bar can be drawn: periodic log lines instead
+        callbacks.append(LogProgress(run.name, max_minutes))
     stopper = None
     if monitor:
         stopper = EarlyStopping(monitor=monitor, patience=patience, mode=mode)
@@ -117,7 +156,7 @@ def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bo
         max_time=dt.timedelta(minutes=max_minutes) if max_minutes else None,
         callbacks=callbacks,
         logger=CSVLogger(run, name="logs"),  # logs/version_N: one per attempt, a resume keeps the old
-        enable_progress_bar=progress,
+        enable_progress_bar=progress and on_terminal(),
         enable_model_summary=False,
         num_sanity_val_steps=0,
         accelerator="auto",

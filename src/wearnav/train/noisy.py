@@ -36,6 +36,7 @@ loss is. Here it applies to the per-instance MSE in m² and the measured R_δ is
 from __future__ import annotations
 
 import dataclasses
+import logging
 import json
 import math
 import time
@@ -51,6 +52,8 @@ from wearnav import runs
 from wearnav.errors import ConfigError
 from wearnav.fileio import atomic_path, save_npy_atomic, write_text_atomic
 from wearnav.fixlabels import Segments
+
+log = logging.getLogger(__name__)
 
 METHODS = ("easytrack", "nocnal", "nocoadapt", "coteaching", "aux", "basemodel", "basemodel-gt", "ionet", "ronin")
 DUAL = ("easytrack", "nocnal", "nocoadapt", "coteaching", "aux")
@@ -265,15 +268,17 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
             corr.data.copy_(st["corr"])
             opt_c.load_state_dict(st["opt_c"])
         state = {k: st[k] for k in ("epoch", "r_delta", "history", "wall_s")}
+        log.info(f"{run.name}: resuming from {run / STATE} ({state['epoch']} epoch(s) done)")
     # disjoint halves for the dual models' AE pre-training (§IV-E), by trajectory
     half = torch.as_tensor(train.traj % 2 == 0)
     if half.all() or not half.any():
         half = torch.arange(n) % 2 == 0
     halves = [torch.nonzero(half).ravel(), torch.nonzero(~half).ravel()] if dual else [torch.arange(n)]
     r_delta = state["r_delta"]
-    from tqdm.auto import tqdm
+    from wearnav.progress import Progress
 
-    bar = tqdm(total=total, initial=state["epoch"], desc=cfg.method, unit="epoch", disable=not progress, leave=False)
+    bar = Progress(total=total, initial=state["epoch"], desc=cfg.method, unit="epoch", enabled=progress,
+                   leave=False)
     done_here = 0
     while state["epoch"] < total and (stop_after is None or done_here < stop_after):
         done_here += 1

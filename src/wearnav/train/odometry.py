@@ -13,6 +13,7 @@ epoch exactly and ends with the same weights and metrics as an uninterrupted run
 from __future__ import annotations
 
 import dataclasses
+import logging
 import sys
 import time
 from dataclasses import dataclass, field
@@ -34,6 +35,8 @@ from wearnav.textio import read_json
 from wearnav.train.common import BEST, CHECKPOINTS, LAST, SeededModule, check_run_kind, load_weights, make_trainer
 from wearnav.train.interrupt import stop_between_batches
 from wearnav.windows import WindowConfig, WindowDataset
+
+log = logging.getLogger(__name__)
 
 TRAINING = "training.json"  # what fit() measured; evaluate_run merges it into metrics.json
 DEFAULT_LR, DEFAULT_BATCH = 1e-3, 128
@@ -176,6 +179,8 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
     # A resumed run adds to what earlier attempts measured: epochs already done, wall time spent.
     before_epochs = int(torch.load(last, map_location="cpu", weights_only=False)["epoch"]) + 1 if resumed else 0
     earlier = read_json(run / TRAINING) if resumed and (run / TRAINING).is_file() else {}
+    if resumed:
+        log.info(f"{run.name}: resuming from {last} ({before_epochs} epoch(s) done)")
     t0 = time.perf_counter()
     with stop_between_batches(trainer):  # Ctrl-C / SIGTERM: exit 130 / 143, last.ckpt intact
         trainer.fit(module, train_ds.loader(batch, cfg.seed, shard=True), val_ds.loader(1024, shard=True),
