@@ -57,7 +57,7 @@ def test_simulate_refuses_an_existing_dataset_without_overwrite(sim):
 @pytest.fixture(scope="module")
 def export(sim, tmp_path_factory) -> Path:
     """A Sensor Logger export (no dense truth) of the first simulated walk."""
-    from sensorlogger_fixture import write_export
+    from wearnav.importers.sensorlogger_export import write_export
 
     from wearnav.dataset import Dataset
 
