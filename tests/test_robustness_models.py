@@ -116,7 +116,8 @@ def test_signal_during_train_is_its_exit_code_and_the_run_resumes(signum, code, 
     args = ("train", "test-mlp", "--data", tiny, "--out", tmp_path / "run", "--epochs", "3", "--batch", "64",
             "--no-evaluate")
     got, out, err = run_cli(*args)
-    assert sent and (got, error_of(err, "signal during train")) == (code, line)
+    kept = f"; {tmp_path / 'run'} keeps the last finished epoch; run the same command again to resume"
+    assert sent and (got, error_of(err, "signal during train")) == (code, line + kept)
     last = tmp_path / "run" / "checkpoints" / "last.ckpt"
     import torch
 
@@ -143,7 +144,8 @@ def test_sigterm_to_a_training_process_is_143(small, tmp_path):
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 143, err
-    assert error_of(err, "signal during train") == "error: terminated (SIGTERM)"
+    assert error_of(err, "signal during train") == (f"error: terminated (SIGTERM); {out} keeps the last finished "
+                                                    "epoch; run the same command again to resume")
     assert (out / "checkpoints" / "last.ckpt").is_file() and not (out / "training.json").exists()
 
 
