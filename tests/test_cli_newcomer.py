@@ -104,6 +104,10 @@ def _wait_for_training(proc: subprocess.Popen, epochs: float = 0.0, timeout_s: f
 def test_demo_interrupted_says_what_was_kept_and_resumes(tmp_path, sig, code, word):
     proc = _start_demo(tmp_path, "demo")
     _wait_for_training(proc, epochs=1.1 if sig == signal.SIGINT else 0.0)  # SIGINT: a checkpoint to resume from
+    deadline = time.monotonic() + 60  # on a busy machine the progress line can come before the checkpoint
+    while sig == signal.SIGINT and not list(tmp_path.glob("demo/runs/ronin-*/checkpoints/last.ckpt")):
+        assert time.monotonic() < deadline and proc.poll() is None, "no checkpoint to resume from"
+        time.sleep(0.1)
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == code, err
