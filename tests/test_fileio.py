@@ -117,11 +117,16 @@ def test_a_writer_killed_at_random_moments_leaves_the_old_or_the_new_file(tmp_pa
     server = subprocess.Popen([sys.executable, "-c", FORK_SERVER.format(src=str(SRC)), str(target)],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:
-        for _ in range(20):
+        for k in range(20):
             server.stdin.write("go\n")
             server.stdin.flush()
             writer = int(server.stdout.readline())
-            time.sleep(rng.uniform(0.0, 0.08))
+            if k % 2:  # a random moment (most fall between two writes: json.dumps takes the time)
+                time.sleep(rng.uniform(0.0, 0.08))
+            else:  # the moment the writer's temporary file is seen: mid-write, even on a busy machine
+                deadline = time.monotonic() + 10
+                while not any(f".{writer}." in t for t in temps(target)) and time.monotonic() < deadline:
+                    pass
             os.kill(writer, signal.SIGKILL)
             assert server.stdout.readline().strip() == "reaped"
             left = temps(target)
