@@ -25,6 +25,7 @@ from wearnav.errors import FormatError, ValidationError
 from wearnav.fileio import atomic_path
 from wearnav.models.registry import n_parameters
 from wearnav.preprocess import Aligned, load_sequences
+from wearnav.progress import progress as report_progress
 from wearnav.textio import read_json
 from wearnav.train.odometry import TRAINING, load_model
 from wearnav.trajectory import integrate_velocity
@@ -41,8 +42,6 @@ PERCENTILES = (50, 75, 90, 95)
 def predict_sequence(model, seq: Aligned, window: int, stride: int, batch: int = 512,
                      progress: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Window centre times (N,), predicted velocities (N, 2) and device presence (N, D)."""
-    from wearnav.progress import progress as report_progress
-
     wds = WindowDataset([seq], WindowConfig(window=window, stride=stride, target=None))
     if len(wds) == 0:
         return np.empty(0), np.empty((0, 2)), np.empty((0, len(seq.devices)))
@@ -139,8 +138,6 @@ def summarise(rows: list[dict], errors: np.ndarray) -> dict:
 def evaluate_sequences(model, seqs: list[Aligned], window: int, stride: int, rte_delta: float = 60.0,
                        progress: bool = False) -> tuple[dict, dict[str, pd.DataFrame]]:
     """Per-sequence rows, the overall and per-walking-mode summaries, and the trajectories."""
-    from wearnav.progress import progress as report_progress
-
     rows, trajs = [], {}
     for seq in report_progress(seqs, desc="evaluate", unit="seq", enabled=progress, leave=False):
         row, traj = evaluate_sequence(model, seq, window, stride, rte_delta)

@@ -40,6 +40,7 @@ import numpy as np
 from wearnav.errors import ConfigError, ValidationError, WearnavWarning
 from wearnav.fileio import savez_atomic
 from wearnav.preprocess import PreprocessConfig, align, interpolate_position
+from wearnav.progress import progress as report_progress
 from wearnav.recording import Recording
 from wearnav.timeseries import interp_onto
 
@@ -315,8 +316,6 @@ def segments_from_truth(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Seg
 def label_dataset(view, cfg: LabelConfig = LabelConfig(), from_truth: bool = False,
                   progress: bool = False) -> Segments:
     """All recordings of a dataset view, phone-labelled (or truth-labelled with ``from_truth``)."""
-    from wearnav.progress import progress as report_progress
-
     fn = segments_from_truth if from_truth else label_recording
     parts = [fn(rec, cfg) for rec in report_progress(view, total=len(view), desc="label", unit="rec", enabled=progress)]
     parts = [p for p in parts if p is not None and len(p)]

@@ -20,6 +20,7 @@ from scipy import signal
 
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.frames import FRAME_ALIGN_MODES, align_frames, rotate_stacked
+from wearnav.progress import progress as report_progress
 from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Recording
 from wearnav.rotations import from_wxyz
 from wearnav.timeseries import interp_onto, periods, rate
@@ -239,8 +240,6 @@ def load_sequences(view, cfg, progress: bool = False) -> list[Aligned]:
     """Align every recording of a Dataset view (:class:`wearnav.dataset.Dataset`) for ``cfg``, any
     config with a ``preprocess_config()`` (a TrainConfig, a ClassifyConfig). Aligned sequences are
     cached per process by (file, preprocess config), so a suite preprocesses each recording once."""
-    from wearnav.progress import progress as report_progress
-
     pcfg = cfg.preprocess_config()
     out = []
     for name in report_progress(view.names, desc="preprocess", unit="rec", enabled=progress, leave=False):

@@ -54,6 +54,7 @@ from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWar
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.recording import Recording
+from wearnav.textio import read_json
 from wearnav.train.resolve import resolve_model
 
 ANCHOR_S = 60.0
@@ -158,7 +159,6 @@ def geojson(path_ll: tuple[np.ndarray, np.ndarray], fixes_ll: tuple[np.ndarray, 
 def run_training_record(model_path: str | Path) -> dict:
     """The run's ``training.json`` for a run folder or its checkpoint; ``{}`` where it has none or
     cannot be read (the warnings then say that the training data is unknown: tracking goes on)."""
-    from wearnav.textio import read_json
     from wearnav.train.odometry import TRAINING
 
     p = Path(model_path)

@@ -33,6 +33,7 @@ import pandas as pd
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.errors import ConfigError, ValidationError, check_names
+from wearnav.fileio import write_text_atomic
 from wearnav.fixlabels import LabelConfig, Segments, label_dataset, noise_summary
 from wearnav.textio import read_json
 from wearnav.train.noisy import METHODS, NoisyConfig, fit_noisy, load_predictor, write_history
@@ -383,7 +384,6 @@ def _ade_curves(out: Path, sim: list[dict]) -> str | None:
 
 def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], train: dict[str, Segments],
                test: Segments, real: dict | None, seeds: int, quick: bool) -> Path:
-    from wearnav.fileio import write_text_atomic
     from wearnav.provenance import provenance
 
     p = provenance()

@@ -35,7 +35,9 @@ import torch
 from torch.utils import benchmark
 from torch.utils.flop_counter import FlopCounterMode
 
+from wearnav.fileio import write_text_atomic
 from wearnav.models.registry import build, get, n_parameters
+from wearnav.textio import read_json
 
 DEVICES = 3
 WINDOW = 100
@@ -196,9 +198,7 @@ def write_report(rows, out, odometry_suite=None) -> "Path":
     import pandas as pd
 
     from wearnav import runs
-    from wearnav.fileio import write_text_atomic
     from wearnav.provenance import provenance
-    from wearnav.textio import read_json
 
     out = Path(out)
     df = pd.DataFrame(rows)

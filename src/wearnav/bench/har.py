@@ -26,6 +26,7 @@ import numpy as np
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.errors import ConfigError, FormatError, MissingFileError, check_names
+from wearnav.fileio import write_text_atomic
 from wearnav.textio import read_json
 from wearnav.trust import QUICK_NOTE
 
@@ -394,7 +395,6 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
     """results.md + results.json + PNGs from ``results``: dataset → technique → summary.
     ``invocations``: earlier invocations' wall times (this one's is ``wall_s``); the page gives
     their total, since a resumed benchmark trains across several."""
-    from wearnav.fileio import write_text_atomic
     from wearnav.provenance import provenance
 
     import pandas as pd

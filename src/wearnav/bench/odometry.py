@@ -17,6 +17,7 @@ from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.dataset import Dataset, scorable_split
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run
+from wearnav.fileio import write_text_atomic
 from wearnav.models.registry import check_models, get
 from wearnav.train.odometry import TrainConfig, check_devices, fit, prepare_run, run_hash_exclude, run_record
 
@@ -163,7 +164,6 @@ def write_suite_report(folders, out: str | Path, title: str, splits=TEST_SPLITS,
                        command: str = "wearnav bench odometry") -> Path:
     """results.md + results.json + comparison PNGs (error CDF and ATE box per split) in ``out``;
     ``command``: what the page says produced it."""
-    from wearnav.fileio import write_text_atomic
     from wearnav.report.odometry import plot_box, plot_cdf
     from wearnav.provenance import provenance
 

@@ -50,9 +50,10 @@ from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run, predict_sequence
-from wearnav.fileio import shown_path
+from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.models.registry import build, check_models, get
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
+from wearnav.progress import progress as report_progress
 from wearnav.rotations import from_wxyz
 from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 from wearnav.trajectory import integrate_velocity
@@ -89,8 +90,6 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
                  test_groups: tuple[str, ...] | None = None, progress: bool = True) -> tuple[Path, dict]:
     """Write ``src`` (an imported dataset folder, or an original-format folder read with importer
     ``fmt``) to ``out`` with splits by place. Returns the folder and what was decided."""
-    from wearnav.progress import progress as report_progress
-
     from wearnav.dataset import DatasetWriter
     from wearnav.importers import get_importer
 
@@ -372,7 +371,6 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
 def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBench, wall_s: float) -> Path:
     import torch
 
-    from wearnav.fileio import write_text_atomic
     from wearnav.provenance import provenance
     from wearnav.report.odometry import plot_cdf
 

@@ -13,6 +13,7 @@ from pathlib import Path
 from types import ModuleType
 
 from wearnav.errors import ConfigError
+from wearnav.progress import Progress
 
 FORMATS: dict[str, str] = {
     "ilc2": "wearnav.importers.ilc2",
@@ -35,8 +36,6 @@ def import_dataset(fmt: str, src: str | Path, out: str | Path, limit: int | None
                    progress: bool = True, **options):
     """Read ``src`` with the ``fmt`` importer and write a dataset folder at ``out``; ``options``
     go to that importer's ``read`` (e.g. sensorlogger's ``platform``)."""
-    from wearnav.progress import Progress
-
     from wearnav.dataset import Dataset, DatasetWriter
 
     src = Path(src)

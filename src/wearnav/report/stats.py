@@ -11,6 +11,7 @@ import pandas as pd
 from wearnav.dataset import Dataset
 from wearnav.geo import needs_reimport
 from wearnav.metrics import FIX_MAX_GAP_S, errors_at_reference, label_noise
+from wearnav.progress import progress as report_progress
 from wearnav.recording import device_order
 from wearnav.timeseries import sampling
 
@@ -29,8 +30,6 @@ def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_
     ``needs_reimport``: one line naming the recordings whose positions came from an older lat/lon
     projection (:func:`wearnav.geo.needs_reimport`), or None.
     """
-    from wearnav.progress import progress as report_progress
-
     dev: dict[str, dict] = {}
     labels: dict[tuple[str, str], list] = {}
     fix_err: list[np.ndarray] = []

@@ -35,9 +35,12 @@ import numpy as np
 import torch
 
 from wearnav import runs, trust
-from wearnav.errors import ConfigError, ValidationError, check_field_types
+from wearnav.errors import (ConfigError, FormatError, MissingFileError, ValidationError, WearnavWarning,
+                            check_field_types)
+from wearnav.fileio import write_text_atomic
 from wearnav.models import registry
 from wearnav.preprocess import Aligned, PreprocessConfig, load_sequences
+from wearnav.textio import read_json
 from wearnav.train.common import CHECKPOINTS, LAST, SeededModule, check_run_kind, load_weights, make_trainer
 from wearnav.train.interrupt import stop_between_batches
 from wearnav.windows import WindowConfig, WindowDataset
@@ -274,9 +277,6 @@ def window_labels(wds: WindowDataset, chunk: int = 4096) -> np.ndarray:
 
 def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[str]]:
     """The run's model with its last-epoch weights (eval mode), its config and class names."""
-    from wearnav.errors import FormatError, MissingFileError
-    from wearnav.textio import read_json
-
     run = Path(run)
     check_run_kind(run, "classify")  # an odometry run: say so, not "unknown config keys"
     cfg = runs.read_run_config(run, ClassifyConfig)
@@ -320,8 +320,6 @@ def evaluate_run(run: str | Path, training: dict | None = None, progress: bool =
     true = window_labels(test_ds)
     k = len(classes)
     if training is None and (run / TRAINING).is_file():
-        from wearnav.textio import read_json
-
         training = read_json(run / TRAINING)
     metrics = {
         "model": cfg.model, "classes": classes, "test_windows": int(len(true)),
@@ -374,8 +372,6 @@ def label_recordings(recordings, run: str | Path, out: str | Path, classifier=No
     import json
     import warnings
 
-    from wearnav.errors import WearnavWarning
-    from wearnav.fileio import write_text_atomic
     from wearnav.outputs import check_out_folder, staged_output
 
     check_out_folder(out, (), CLASSIFY_JSON, "classify")
@@ -395,8 +391,6 @@ def trust_warnings(run: Path, cfg: ClassifyConfig, rec) -> list[str]:
     """Reasons not to trust a recording's labels (:mod:`wearnav.trust`), each with what to do:
     devices it lacks, a placement, rate or gravity direction unlike the training data's, a model
     that did not beat always answering the majority class."""
-    from wearnav.textio import read_json
-
     out = []
     if (m := trust.missing_devices(cfg.devices, rec.devices)) is not None:
         out.append(f"{m}: {trust.CLASSIFY_DOMAIN_ADVICE}")
@@ -416,7 +410,6 @@ def _label_into(recordings, model, cfg, classes: list[str], out: Path, found: li
     from matplotlib.figure import Figure
 
     from wearnav.augment import moving_average
-    from wearnav.fileio import write_text_atomic
     from wearnav.preprocess import align
     from wearnav.report.plots import save
 

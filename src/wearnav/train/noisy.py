@@ -52,6 +52,7 @@ from wearnav import runs
 from wearnav.errors import ConfigError
 from wearnav.fileio import atomic_path, save_npy_atomic, write_text_atomic
 from wearnav.fixlabels import Segments
+from wearnav.progress import Progress
 
 log = logging.getLogger(__name__)
 
@@ -275,7 +276,6 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
         half = torch.arange(n) % 2 == 0
     halves = [torch.nonzero(half).ravel(), torch.nonzero(~half).ravel()] if dual else [torch.arange(n)]
     r_delta = state["r_delta"]
-    from wearnav.progress import Progress
 
     bar = Progress(total=total, initial=state["epoch"], desc=cfg.method, unit="epoch", enabled=progress,
                    leave=False)
