@@ -723,44 +723,17 @@ def demo(
     Example:
       wearnav demo --out runs/demo
     """
-    from wearnav.bench.odometry import (METRICS_EXPLAINED, comparison_table, run_suite, suite_configs,
-                                        write_suite_report)
-    from wearnav.dataset import Dataset
+    from wearnav.bench.demo import run_demo
     from wearnav.models.registry import check_models
-    from wearnav.report.plots import plot_trajectories
-    from wearnav.simulate import simulate_dataset
 
-    check_models(_devices(models), "odometry")  # before the data is simulated
+    models_ = _devices(models)
+    check_models(models_, "odometry")  # before anything is written
     _suite_folder(out, "demo")
-    data_dir = out / "data"
-    if (data_dir / "manifest.csv").exists():
-        ds = Dataset.open(data_dir)
-        typer.echo(f"using existing simulated dataset {data_dir}")
-    else:
-        ds = simulate_dataset(preset.value, data_dir, seed=seed, progress=_progress())
-    s = ds.summary()
-    typer.echo(f"simulated {s['recordings']} recordings, {s['total_duration_h']:.2f} h; splits {s['splits']}")
-    plot_trajectories(ds, out / "truth_trajectories.png")
-    # lr 1e-3, not the papers' 1e-4: a few minutes of training instead of ~100 epochs (measured on
-    # `small`: Suite-IN++'s validation velocity MSE after 4 epochs 0.07 at 1e-3, 0.63 at 1e-4).
-    configs = suite_configs(data_dir, _devices(models), epochs=epochs, max_minutes=minutes, seed=seed, patience=5,
-                            lr=1e-3)
-    folders = run_suite(configs, out / "runs", splits=("test", "cross_subject"), progress=_progress(), echo=typer.echo)
-    budget = f"{epochs} epochs" + (f" or {minutes:g} min, whichever ends first," if minutes else "")
-    note = (f"Built-in data: simulator preset `{preset.value}` (seed {seed}). Demo budget: at most {budget} of "
-            "training per learned model (early stopping after 5 epochs without improvement) at Adam lr 1e-3 (the "
-            "papers train ~100 epochs at 1e-4), far below the papers' training; see `wearnav bench odometry` for "
-            "the full comparison. The budget is counted in epochs, not minutes, so the same seed gives the same "
-            "figures on a fast or a busy machine (up to floating-point differences between CPUs).\n\n"
-            + METRICS_EXPLAINED)
-    page = write_suite_report(folders, out, "wearnav demo: odometry on simulated walking",
-                              splits=("test", "cross_subject"), note=note, command=f"wearnav demo --out {out}")
-    for split in ("test", "cross_subject"):
-        table = comparison_table(folders, split)
-        cols = [c for c in ("model", "ATE", "RTE", "STW ATE", "DRW ATE", "epochs", "train s/epoch",
-                            "beats standing still") if c in table]
+    page, tables = run_demo(out, models_, epochs, seed=seed, minutes=minutes, preset=preset.value,
+                            progress=_progress(), echo=typer.echo)
+    for split, table in tables.items():
         typer.echo(f"\n{split} (metres):")
-        typer.echo(table[cols].to_string(index=False, float_format=lambda v: f"{v:.2f}"))
+        typer.echo(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     typer.echo(f"\nreport: {page} (trajectory plots per run under {out / 'runs'}/*/plots)")
 
 
