@@ -214,3 +214,38 @@ def test_alignment_accuracy_on_the_tiny_preset(tiny):
         assert np.median(v) < 3.0 and np.percentile(v, 90) < 6.0 and v.max() < 11.0, (dev, np.median(v), v.max())
     absolute = np.array(absolute)
     assert np.median(absolute) < 2.0 and np.percentile(absolute, 90) < 5.0 and absolute.max() < 10.0
+
+
+def test_initial_mode_is_one_constant_yaw_from_the_first_seconds_only():
+    """The honest test frame (issue 16 §1): the common frame turned by ONE yaw, estimated from the
+    truth's first 10 s; the truth after them is never read (replacing it changes nothing), and the
+    yaw applied does not follow the truth over time (unlike "truth")."""
+    rec, acc = recording({"phone": 35.0, "watch": -80.0, "earbuds": 170.0})
+    a = align(rec, PreprocessConfig(frame_align="initial"))
+    assert a.meta["frame"]["frame"] == "initial"
+    assert a.meta["frame"]["truth"]["yaw_deg"] == pytest.approx(35.0, abs=1.0)
+    assert a.meta["frame"]["truth"]["from_s"] == 10.0
+    # Truth after the first 10 s turned by 60° and shifted: the "initial" input is unchanged,
+    # the "truth" input follows it.
+    late = rec.truth.t > rec.truth.t[0] + 12.0
+    z = (rec.truth.pos[:, 0] + 1j * rec.truth.pos[:, 1])
+    z = np.where(late, (z - z[late][0]) * np.exp(1j * np.deg2rad(60.0)) + z[late][0] + 5.0, z)
+    bent = Recording(rec.name, rec.devices, truth=Trajectory(rec.truth.t, np.stack([z.real, z.imag], 1)))
+    np.testing.assert_array_equal(align(bent, PreprocessConfig(frame_align="initial")).imu, a.imu)
+    truth_mode = align(bent, PreprocessConfig(frame_align="truth"))
+    assert np.abs(truth_mode.imu - a.imu).max() > 1.0
+    # one yaw for the whole walk: the "initial" input is the "common" input turned by a constant
+    c = align(rec, PreprocessConfig(frame_align="common"))
+    m = slice(100, -100)
+    zc, za = frames.horizontal(c.imu[0, m]), frames.horizontal(a.imu[0, m])
+    turn = np.angle(za / zc)[np.abs(zc) > 0.1]
+    assert np.ptp(np.rad2deg(turn)) < 1e-3
+    assert np.rad2deg(-turn[0]) == pytest.approx(35.0, abs=1.0)
+
+
+def test_initial_truth_window():
+    pos = np.full((100, 2), np.nan)
+    pos[20:] = 1.0
+    w = frames.initial_truth(pos, 10.0, 2.0)
+    assert w.sum() == 21 and w[20] and w[40] and not w[41] and not w[19]
+    assert not frames.initial_truth(np.full((5, 2), np.nan), 10.0, 2.0).any()

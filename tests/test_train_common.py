@@ -36,3 +36,17 @@ def test_a_save_killed_midway_keeps_the_previous_checkpoint(tmp_path, monkeypatc
     monkeypatch.undo()
     assert torch.load(path, weights_only=False)["epoch"] == 2
     assert sorted(p.name for p in path.parent.iterdir()) == ["last.ckpt"]
+
+
+def test_schedule_warm_up_then_cosine_to_its_floor():
+    from wearnav.train.common import Schedule
+
+    s = Schedule(warmup_steps=10, total_steps=110, final=0.01)
+    assert s(0) == pytest.approx(0.1) and s(4) == pytest.approx(0.5) and s(9) == pytest.approx(1.0)
+    assert s(10) == pytest.approx(1.0)
+    assert s(60) == pytest.approx(0.01 + 0.99 * 0.5)  # half-way through the cosine
+    assert s(110) == pytest.approx(0.01) and s(500) == pytest.approx(0.01)
+    assert all(s(i) >= s(i + 1) for i in range(10, 120))
+    assert Schedule()(0) == Schedule()(10_000) == 1.0  # no schedule: constant
+    held = Schedule(warmup_steps=10, total_steps=110, decay_from=60)
+    assert held(30) == held(60) == 1.0 and held(85) == pytest.approx(0.01 + 0.99 * 0.5) and held(110) == pytest.approx(0.01)

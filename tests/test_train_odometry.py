@@ -22,6 +22,8 @@ class TinyGait(OdometryModel):
     walking direction. A learned 2×2 map per device (and a dropout, so seeding matters) turns that
     vector into a velocity."""
 
+    default_lr = 2e-3  # its "paper" value, for the recipe test
+
     def __init__(self, n_devices=3, window=100, hidden=16):
         super().__init__()
         self.maps = nn.Parameter(torch.zeros(n_devices, 2, 2))
@@ -233,3 +235,41 @@ class _View:
 
     def load(self, name):
         return self.ds.load(name)
+
+
+def test_test_input_gets_one_constant_yaw_never_the_truth_over_time(tiny, tmp_path):
+    """Issue 16 §1: training may align onto the truth over time; validation and test recordings get
+    the common frame plus one yaw from the truth's first 10 s. The old frame is a named diagnostic
+    that scores differently."""
+    cfg = _cfg(tiny, epochs=1)
+    assert cfg.frame_align == "truth" and cfg.eval_config().frame_align == "initial"
+    assert _cfg(tiny, frame_align="common").eval_config().frame_align == "common"  # never more truth
+    assert _cfg(tiny, frame_align="none", eval_frame_align="truth").eval_config().frame_align == "none"
+    with pytest.raises(ConfigError, match="frame_align"):
+        _cfg(tiny, eval_frame_align="bogus")
+    run = prepare_run(cfg, tmp_path / "run")
+    fit(cfg, run, progress=False)
+    assert runs.read_config(run)["config"]["eval_preprocess"]["frame_align"] == "initial"
+    honest = evaluate_run(run, progress=False)
+    diag = evaluate_run(run, progress=False, preprocess={"eval_frame_align": "truth"}, out_dir=tmp_path / "diag")
+    assert honest["test_frame"] == "initial" and diag["test_frame"] == "truth"
+    a = [r["ate"] for r in honest["splits"]["test"]["sequences"]]
+    b = [r["ate"] for r in diag["splits"]["test"]["sequences"]]
+    assert a != pytest.approx(b, rel=1e-4)
+    assert runs.read_metrics(run)["test_frame"] == "initial"  # the run's own metrics stay honest
+
+
+def test_recipes_fast_by_default_and_paper_one_option_away(tiny, tmp_path):
+    from wearnav.train.odometry import recipe_schedule
+
+    assert TrainConfig(model="test-mlp", data=str(tiny)).recipe == "fast"
+    s = recipe_schedule("fast", epochs=10, steps_per_epoch=20)
+    assert s.warmup_steps == 20 and s.total_steps == 200 and s.decay_from == 100
+    assert recipe_schedule("paper", 10, 20).total_steps == 0  # constant at the model's paper lr
+    with pytest.raises(ConfigError, match="recipe"):
+        _cfg(tiny, recipe="slow")
+    # the paper recipe takes the model's published lr, constant; fast takes 1e-3 with its schedule
+    for recipe, lr in (("paper", TinyGait.default_lr), ("fast", 1e-3)):
+        cfg = _cfg(tiny, epochs=1, lr=None, recipe=recipe)
+        record = fit(cfg, prepare_run(cfg, tmp_path / recipe), progress=False)
+        assert record["lr"] == lr

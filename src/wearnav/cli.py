@@ -21,7 +21,7 @@ from typing import Optional
 import typer
 
 from wearnav.bench.executor import Backend
-from wearnav.errors import Terminated, ValidationError, WearnavError, WearnavWarning, one_line
+from wearnav.errors import ConfigError, Terminated, ValidationError, WearnavError, WearnavWarning, one_line
 from wearnav.importers import FORMATS
 
 app = typer.Typer(
@@ -292,6 +292,24 @@ def models_():
         typer.echo(f"{spec.name:15s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
 
 
+class Recipe(str, Enum):
+    """How a run is optimised (wearnav.train.odometry.RECIPES)."""
+
+    fast = "fast"
+    paper = "paper"
+
+
+RECIPE_HELP = ("fast: Adam lr 1e-3, 1-epoch warm-up, cosine decay over --epochs (learns in a short run); "
+               "paper: the model's published schedule (Suite-IN++: lr 1e-4 constant; needs ~100 epochs).")
+
+
+class TestFrame(str, Enum):
+    """The test recordings' frame (wearnav.frames): honest, or the old time-varying diagnostic."""
+
+    initial = "initial"
+    truth = "truth"
+
+
 class Strategy(str, Enum):
     """Lightning's strategies for one training on several devices (wearnav.train.common)."""
 
@@ -309,7 +327,8 @@ def train(
                                           "devices, phone, watch, earbuds first)."),
     epochs: int = typer.Option(100, help="Maximum epochs (early stopping may end sooner)."),
     seed: int = typer.Option(0, help="Random seed: initial weights, batch order, augmentation (the run's hash includes it)."),
-    lr: Optional[float] = typer.Option(None, help="Learning rate (default: the model's paper value)."),
+    recipe: Recipe = typer.Option(Recipe.fast, help=RECIPE_HELP),
+    lr: Optional[float] = typer.Option(None, help="Learning rate (default: the recipe's)."),
     batch: Optional[int] = typer.Option(None, help="Batch size (default: the model's paper value)."),
     patience: int = typer.Option(10, help="Early-stopping patience in epochs."),
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes of the run (over resumes too)."),
@@ -331,7 +350,7 @@ def train(
     from wearnav.trust import LEARN_ADVICE, did_not_learn
 
     cfg, eval_splits, notes = configure(model, data, _devices(devices) if devices is not None else None,
-                                        ("test",) if evaluate else (), epochs=epochs, seed=seed, lr=lr,
+                                        ("test",) if evaluate else (), epochs=epochs, seed=seed, lr=lr, recipe=recipe.value,
                                         batch=batch, patience=patience, max_minutes=max_time)
     run = prepare_run(cfg, out, eval_splits=eval_splits)
     for note in notes:  # what the data decided (devices, truth gaps, validation, no test split)
@@ -353,6 +372,11 @@ def eval_(
     run: Path = typer.Argument(..., help="A run folder written by `wearnav train`."),
     data: Optional[Path] = typer.Option(None, "--data", help="Dataset to evaluate on (default: the training data)."),
     split: str = typer.Option("test", help="Split(s) to evaluate, comma-separated."),
+    test_frame: Optional[TestFrame] = typer.Option(None, "--test-frame", help="initial (default, the run's "
+                                                   "own): one constant yaw from the first 10 s of truth; truth: "
+                                                   "the truth's yaw over time, a diagnostic (needs --out)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Write metrics.json, trajectories/ and plots/ here "
+                                       "instead of the run folder."),
 ):
     """Evaluate a run: metrics.json, trajectories/*.csv and plots (trajectories, error CDF, ATE box).
 
@@ -362,10 +386,15 @@ def eval_(
     """
     from wearnav.evaluate import evaluate_run
 
-    _on_interrupt(f"{run / 'metrics.json'} is written only when every split is scored; run the same command again")
-    m = evaluate_run(run, data=data, splits=_devices(split), progress=_progress())
+    if test_frame == TestFrame.truth and out is None:
+        raise ConfigError("--test-frame truth is a diagnostic (ground truth inside the test input); "
+                          "give --out so that the run's own metrics stay honest")
+    dest = out if out is not None else run
+    _on_interrupt(f"{dest / 'metrics.json'} is written only when every split is scored; run the same command again")
+    pre = {"eval_frame_align": test_frame.value} if test_frame is not None else None
+    m = evaluate_run(run, data=data, splits=_devices(split), progress=_progress(), preprocess=pre, out_dir=out)
     _echo_json({s: m["splits"][s]["summary"] for s in _devices(split)})
-    typer.echo(f"wrote {run / 'metrics.json'} and {run / 'plots'}")
+    typer.echo(f"wrote {dest / 'metrics.json'} and {dest / 'plots'}")
 
 
 bench_app = typer.Typer(help="The papers' experiments as resumable suites of run folders.", no_args_is_help=True)

@@ -172,7 +172,7 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
     run = Path(run)
     model, cfg = load_model(run)
     if preprocess:
-        unknown = set(preprocess) - {"frame_align", "truth_max_gap", "yaw_deg"}
+        unknown = set(preprocess) - {"frame_align", "eval_frame_align", "truth_max_gap", "yaw_deg"}
         if unknown:
             raise ValidationError(f"not a preprocessing field: {sorted(unknown)}")
         cfg = dataclasses.replace(cfg, **preprocess)
@@ -186,6 +186,9 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
     out = {"model": cfg.model, "run": run.name, "data": str(data or cfg.data),
            "parameters": n_parameters(model), "window": cfg.window,
            "eval_stride": stride or cfg.stride, "preprocess": dict(preprocess or {}),
+           # the test recordings' frame (wearnav.frames): "initial" = one constant yaw from the
+           # truth's first 10 s; "truth" = the truth's yaw over time (a diagnostic)
+           "test_frame": cfg.eval_config().frame_align,
            "training": training if training is not None else old.get("training", {}),
            # splits evaluated earlier on the same data are kept beside the new ones
            "splits": dict(old.get("splits", {})) if data is None or str(data) == old.get("data") else {}}
@@ -193,7 +196,7 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
         raise ValidationError("no split named to evaluate (e.g. --split test)")
     views = {split: scorable_split(ds, split) for split in splits}  # all checked before any write
     for split, view in views.items():
-        seqs = load_sequences(view, cfg, progress)
+        seqs = load_sequences(view, cfg.eval_config(), progress)
         t0 = time.perf_counter()
         res, trajs = evaluate_sequences(model, seqs, cfg.window, stride or cfg.stride, rte_delta, progress)
         res["wall_s"] = round(time.perf_counter() - t0, 2)

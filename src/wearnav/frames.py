@@ -64,7 +64,11 @@ from scipy.ndimage import binary_erosion
 from wearnav.errors import ConfigError
 from wearnav.rotations import rotate_about_vertical
 
-FRAME_ALIGN_MODES = ("none", "common", "truth")
+# "initial": the common frame plus ONE constant yaw onto the truth, estimated from the truth's first
+# ``FrameConfig.initial_s`` seconds only (Suite-IN++'s single initial rotation): the honest test input,
+# whose heading drift stays in. "truth" follows the truth's yaw over time (a training frame and a
+# diagnostic: it removes heading drift from the input using ground truth).
+FRAME_ALIGN_MODES = ("none", "common", "initial", "truth")
 MIN_POWER = 1e-4  # (m/s²)², band power of a 0.01 m/s² rms acceleration
 MAX_INFO = 1e12  # rad⁻² (a micro-degree): exact copies stay finite when summed
 
@@ -87,6 +91,9 @@ class FrameConfig:
     # best on the `small` preset (0°: worst phone error 7.4°, 1°: 5.1°, 2°: 4.2°).
     truth_model_error_deg: float = 2.0
     reference_order: tuple[str, ...] = ("phone",)
+    # Mode "initial": the truth seconds, from the first truth sample, that the one constant yaw onto
+    # the truth is estimated from (the rest of the truth is not looked at).
+    initial_s: float = 10.0
 
     def __post_init__(self) -> None:
         if not self.bands_hz or any(not 0 <= lo < hi for lo, hi in self.bands_hz):
@@ -422,13 +429,26 @@ def truth_yaw(imu_common: np.ndarray, mask: np.ndarray, pos: np.ndarray, rate: f
     return YawTrack(yaw, info, tuple(sorted(bands)), float(np.max(coh)) if coh else 0.0)
 
 
+def initial_truth(pos: np.ndarray, rate: float, seconds: float) -> np.ndarray:
+    """(T,) True at the samples within ``seconds`` of the first finite truth position of ``pos``
+    (T × 2, NaN where missing); all False where there is none."""
+    finite = np.isfinite(pos).all(axis=1)
+    out = np.zeros(finite.size, bool)
+    if finite.any():
+        first = int(np.argmax(finite))
+        out[first:first + int(round(seconds * rate)) + 1] = True
+    return out & finite
+
+
 def align_frames(imu: np.ndarray, mask: np.ndarray, devices: tuple[str, ...], rate: float,
                  pos: np.ndarray | None, mode: str = "truth",
                  cfg: FrameConfig = FrameConfig()) -> tuple[np.ndarray, dict]:
     """Rotate world-frame ``imu`` (D, T, 6) of an aligned recording into one frame.
 
     ``mode`` "common": every device into the reference device's frame; "truth": then the common
-    frame onto the truth's (only where ``pos`` gives usable truth, else it stays "common").
+    frame onto the truth's over time (only where ``pos`` gives usable truth, else it stays "common");
+    "initial": the common frame turned by one constant yaw onto the truth, estimated from the first
+    ``cfg.initial_s`` seconds of ``pos`` only (no truth after them is read).
     Returns the rotated IMU and a plain-dict record of what was done (for ``Aligned.meta``):
     the frame reached, the reference, and per device its yaw relative to the reference with its
     uncertainty and coherence; for "truth" the common frame's yaw relative to the truth."""
@@ -447,13 +467,23 @@ def align_frames(imu: np.ndarray, mask: np.ndarray, devices: tuple[str, ...], ra
             pair = cf.pairs.get((d, cf.reference)) or cf.pairs.get((cf.reference, d))
             record["devices"][name] = YawTrack(cf.yaw[d], cf.info[d], pair.bands if pair else (),
                                                pair.coherence if pair else 0.0).summary()
-    if mode == "truth" and pos is not None:
+    if mode in ("truth", "initial") and pos is not None:
         common = np.stack([rotate_stacked(imu[d], -cf.yaw[d]) for d in range(len(devices))])
-        tr = truth_yaw(common, mask, pos, rate, cfg)
-        if tr.info.any():
-            total = total + tr.yaw[None, :]
-            record["frame"] = "truth"
-            record["truth"] = tr.summary()
+        if mode == "initial":
+            initial = initial_truth(pos, rate, cfg.initial_s)
+            tr = truth_yaw(common, mask, np.where(initial[:, None], pos, np.nan), rate, cfg)
+            if (tr.info * initial).any():
+                yaw0 = _circular_mean(tr.yaw, tr.info * initial)
+                total = total + yaw0
+                record["frame"] = "initial"
+                record["truth"] = {"yaw_deg": round(float(np.rad2deg(yaw0)), 3), "from_s": cfg.initial_s,
+                                   "std_deg": round(float(np.rad2deg(1 / np.sqrt(np.sum(tr.info * initial)))), 3)}
+        else:
+            tr = truth_yaw(common, mask, pos, rate, cfg)
+            if tr.info.any():
+                total = total + tr.yaw[None, :]
+                record["frame"] = "truth"
+                record["truth"] = tr.summary()
     out = np.stack([rotate_stacked(imu[d], -total[d]) for d in range(len(devices))])
     out[~mask] = 0.0
     return out.astype(imu.dtype), record

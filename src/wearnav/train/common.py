@@ -15,8 +15,10 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
+import math
 import time
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import lightning as L
@@ -54,16 +56,45 @@ class AtomicCheckpointIO(TorchCheckpointIO):
             torch.save(checkpoint, tmp)
 
 
-class SeededModule(L.LightningModule):
-    """Adam on ``model``; batch augmentations from :mod:`wearnav.augment` drawn from a generator
-    seeded per epoch; the training loss is ``model.loss(batch)`` → (loss, named parts)."""
+@dataclass(frozen=True)
+class Schedule:
+    """The learning rate's factor (× the base lr) at each optimizer step: a linear warm-up from
+    ``1 / warmup_steps`` to 1 over the first ``warmup_steps`` steps, 1 until ``decay_from``, then a
+    cosine from 1 down to ``final`` at ``total_steps`` (held there after). ``total_steps`` 0: constant 1 (no schedule).
+    A callable object, so ``LambdaLR`` saves its state in the checkpoint and a resumed run goes on
+    from the same step."""
 
-    def __init__(self, model: torch.nn.Module, lr: float, augment: tuple[str, ...] = (), seed: int = 0):
+    warmup_steps: int = 0
+    total_steps: int = 0
+    final: float = 0.01
+    decay_from: int = 0  # the cosine starts here (or after the warm-up, whichever is later)
+
+    def __call__(self, step: int) -> float:
+        if self.total_steps <= 0:
+            return 1.0
+        if step < self.warmup_steps:
+            return (step + 1) / self.warmup_steps
+        start = max(self.warmup_steps, self.decay_from)
+        if step < start:
+            return 1.0
+        span = max(self.total_steps - start, 1)
+        done = min((step - start) / span, 1.0)
+        return self.final + (1.0 - self.final) * 0.5 * (1.0 + math.cos(math.pi * done))
+
+
+class SeededModule(L.LightningModule):
+    """Adam on ``model`` at ``lr`` × ``schedule`` (per optimizer step; default constant); batch
+    augmentations from :mod:`wearnav.augment` drawn from a generator seeded per epoch; the
+    training loss is ``model.loss(batch)`` → (loss, named parts)."""
+
+    def __init__(self, model: torch.nn.Module, lr: float, augment: tuple[str, ...] = (), seed: int = 0,
+                 schedule: Schedule = Schedule()):
         super().__init__()
         self.model = model
         self.lr = lr
         self.augment = tuple(augment)
         self.seed = seed
+        self.schedule = schedule
         self._gen = torch.Generator()
 
     def on_train_epoch_start(self) -> None:
@@ -83,7 +114,11 @@ class SeededModule(L.LightningModule):
         return loss
 
     def configure_optimizers(self):
-        return torch.optim.Adam(self.model.parameters(), lr=self.lr)
+        opt = torch.optim.Adam(self.model.parameters(), lr=self.lr)
+        if self.schedule.total_steps <= 0:
+            return opt
+        return {"optimizer": opt, "lr_scheduler": {"scheduler": torch.optim.lr_scheduler.LambdaLR(opt, self.schedule),
+                                                   "interval": "step"}}
 
 
 STRATEGIES = ("auto", "ddp", "ddp_spawn")
