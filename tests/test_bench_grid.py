@@ -110,6 +110,7 @@ def test_table_v_marks_and_table_vi_columns(tmp_path):
     folders = [fake_run(tmp_path, m, s, a) for m, v in {"suitein++": [1.0, 1.1], "suitein++-abl1": [2.0, 2.2]}.items()
                for s, a in enumerate(v)]
     page = tables.write_grid_report(folders, tmp_path / "page", expected_seeds=2).read_text()
+    assert "| suitein++-abl1 |" not in page[page.index("## Table III"):page.index("## Table V:")]  # Table V only
     t5 = page[page.index("| variant"):page.index("## Table VI")]
     assert "| (1)       |" in t5 and t5.count("✓") == 3  # (1): no module; (6): all three
     t6 = page[page.index("## Table VI"):]

@@ -302,17 +302,22 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
               f"Cells: mean ± std over training seeds (each seed: the mean over sequences), metres. {MARK_NOTE}. `seeds`: complete runs (\"n of N\" "
               "while a row is unfinished).", ""]
     doc: dict = {"rows": labels, "tables": {}}
+    from wearnav.models.suitein import ABLATIONS
+
+    abl = {n: (REFERENCE if n == 6 else f"suitein++-abl{n}") for n in ABLATIONS}  # Table V's rows
+    ablation_rows = set(abl.values()) - {REFERENCE}  # Table V only
     lines += ["## Training", "", training_table(grid, labels, expected_seeds).to_markdown(index=False), ""]
 
     for split in splits:
         cols = table3_columns(split)
-        have = [lab for lab in labels if any(summary_of(r, split) for r in grid[lab])]
+        have = [lab for lab in labels if any(summary_of(r, split) for r in grid[lab]) and lab not in ablation_rows]
         if not have:
             continue
         table, st = marked_table(grid, have, cols, expected_seeds)
         table = table.loc[:, (table != "").any(axis=0)]
         doc["tables"][f"III {split}"] = st
-        lines += [f"## Table III: split `{split}`", "", "ATE and RTE (Δ = 60 s) overall and per walking mode.", "",
+        lines += [f"## Table III: split `{split}`", "", "ATE and RTE (Δ = 60 s) overall and per walking mode "
+                  "(the ablations: Table V).", "",
                   table.to_markdown(index=False), ""]
 
     t4 = [lab for lab in labels if lab == REFERENCE or phone_only(lab, grid)]
@@ -333,9 +338,6 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
         if fig7:
             lines += [f"![Fig. 7]({fig7.name})", ""]
 
-    from wearnav.models.suitein import ABLATIONS
-
-    abl = {n: (REFERENCE if n == 6 else f"suitein++-abl{n}") for n in ABLATIONS}
     t5 = [lab for lab in abl.values() if lab in grid]
     if len(t5) > 1:
         cols5 = {f"{s} ATE": (lambda r, s=s: summary_of(r, s).get("ate_mean")) for s in splits}
