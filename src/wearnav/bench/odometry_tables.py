@@ -25,7 +25,7 @@ import torch
 from wearnav import runs
 from wearnav.bench.efficiency import flops_per_window, windows_per_second
 from wearnav.bench.odometry import MODES, TEST_SPLITS, beats_text, row_label
-from wearnav.errors import ValidationError
+from wearnav.errors import ValidationError, WearnavError
 from wearnav.fileio import write_text_atomic
 from wearnav.models.registry import build, get, n_parameters
 from wearnav.stats import SIGNIFICANCE, bh_adjust, welch_p
@@ -140,7 +140,7 @@ def phone_only(label: str, grid: dict[str, list[GridRun]]) -> bool:
     """Whether a row's model reads the phone only (registry layout "single"); unknown models: no."""
     try:
         return get(grid[label][0].model).layout == "single"
-    except Exception:  # a run of a model this checkout does not register
+    except WearnavError:  # a run of a model this checkout does not register
         return False
 
 
@@ -317,7 +317,7 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
         table = table.loc[:, (table != "").any(axis=0)]
         doc["tables"][f"III {split}"] = st
         lines += [f"## Table III: split `{split}`", "", "ATE and RTE (Δ = 60 s) overall and per walking mode "
-                  "(the ablations: Table V).", "",
+                  "(ablation variants: Table V).", "",
                   table.to_markdown(index=False), ""]
 
     t4 = [lab for lab in labels if lab == REFERENCE or phone_only(lab, grid)]
@@ -352,7 +352,12 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
                   table.to_markdown(index=False), ""]
 
     if measure:
-        rows = [efficiency_row(grid[lab][0]) for lab in labels]
+        rows = []
+        for lab in labels:
+            try:
+                rows.append(efficiency_row(grid[lab][0]))
+            except WearnavError as exc:  # e.g. a run of a model this checkout does not register
+                log.warning("Table VI: %s left out: %s", lab, exc)
         eff = pd.DataFrame(rows)
         doc["tables"]["VI"] = rows
         lines += ["## Table VI: efficiency", "",
