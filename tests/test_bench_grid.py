@@ -127,3 +127,13 @@ def test_speed_from_positions():
     t = np.arange(0, 10, 0.04)
     v = tables.speed_of(t, np.stack([1.5 * t, 0 * t], 1))
     assert v == pytest.approx(1.5)  # the ends too
+
+
+@pytest.mark.parametrize("args, says", [(("--seeds", "0,x"), "--seeds takes comma-separated integers"),
+                                        (("--seeds", "0,0"), "seeds must be distinct"),
+                                        (("--grid", "paper", "--models", "pdr"), "not both")])
+def test_bad_grid_options_are_one_line(tmp_path, monkeypatch, capsys, args, says):
+    from conftest import run_cli
+
+    code, _, err = run_cli(monkeypatch, capsys, "bench", "odometry", "--data", tmp_path / "d", "--out", tmp_path / "s", *args)
+    assert code == 2 and says in err and err.count("\n") == 1

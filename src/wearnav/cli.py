@@ -394,8 +394,8 @@ class Grid(str, Enum):  # wearnav.bench.odometry.GRIDS
 def bench_odometry(
     data: Path = typer.Option(..., "--data", help="Simulated dataset (e.g. `wearnav simulate --preset default`)."),
     out: Path = typer.Option(Path("runs/odometry"), "--out", help="Suite folder (run folders + results.md)."),
-    grid: Grid = typer.Option(Grid.default, help="Named model grid: default (suitein++, suitein, ronin, ronin*, pdr) "
-                              "or paper (every model of Tables III–V; wearnav.bench.odometry.GRIDS)."),
+    grid: Optional[Grid] = typer.Option(None, help="Named model grid: default (suitein++, suitein, ronin, ronin*, pdr; "
+                                        "the default) or paper (every model of Tables III–V; wearnav.bench.odometry.GRIDS)."),
     models: Optional[str] = typer.Option(None, help="Models, comma-separated, instead of --grid."),
     seeds: str = typer.Option("0", help="Training seeds, comma-separated (e.g. 0,1,2): one run per model and seed; "
                                         "each is part of its run's hash."),
@@ -426,6 +426,9 @@ def bench_odometry(
         raise ConfigError(f"--seeds takes comma-separated integers, got {seeds!r}") from None
     if any(s < 0 for s in seed_list):
         raise ConfigError(f"--seeds must be ≥ 0, got {seeds!r}")
+    if models and grid:
+        raise ConfigError("give --models or --grid, not both")
+    grid = grid or Grid.default
     entries = list(_devices(models)) if models else GRIDS[grid.value]
     configs = suite_configs(data, entries, seeds=seed_list, epochs=epochs, patience=patience,
                             max_minutes=max_time, lr=lr)
