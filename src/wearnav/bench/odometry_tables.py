@@ -97,6 +97,11 @@ def summary_of(run: GridRun, split: str, group: str | None = None, name: str | N
     return (res.get("summary") if group is None else res.get(group, {}).get(name)) or {}
 
 
+def summary_of_rows(run: GridRun, split: str) -> list[dict]:
+    """A run's per-sequence rows on ``split`` (name, mode, placement, ate, ...)."""
+    return (run.metrics.get("splits", {}).get(split) or {}).get("sequences", [])
+
+
 def marked_table(grid: dict[str, list[GridRun]], labels: list[str], columns: dict, expected: int | None,
                  reference: str = REFERENCE) -> tuple[pd.DataFrame, dict]:
     """Rows ``labels``; per column ``name: fn(run) -> number | None``, mean ± std over seeds and a
@@ -208,10 +213,6 @@ def velocity_panels(grid: dict[str, list[GridRun]], models=VELOCITY_MODELS, spli
             panels[f"{mode}: {name} (split {split})"] = curves
             break
     return panels
-
-
-def summary_of_rows(run: GridRun, split: str) -> list[dict]:
-    return (run.metrics.get("splits", {}).get(split) or {}).get("sequences", [])
 
 
 def placement_errors(grid: dict[str, list[GridRun]], labels: list[str]) -> dict[str, dict[str, np.ndarray]]:
