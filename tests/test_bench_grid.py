@@ -137,3 +137,13 @@ def test_bad_grid_options_are_one_line(tmp_path, monkeypatch, capsys, args, says
 
     code, _, err = run_cli(monkeypatch, capsys, "bench", "odometry", "--data", tmp_path / "d", "--out", tmp_path / "s", *args)
     assert code == 2 and says in err and err.count("\n") == 1
+
+
+def test_unknown_model_args_refused_before_any_run(tmp_path):
+    from wearnav.simulate import simulate_dataset
+
+    simulate_dataset("tiny", tmp_path / "d", seed=1)
+    cfgs = odometry.suite_configs(tmp_path / "d", [("ronin", {"no_such_switch": 1})], seeds=[0, 1], epochs=1)
+    with pytest.raises(ConfigError, match="no_such_switch"):
+        odometry.run_suite(cfgs, tmp_path / "suite")
+    assert not (tmp_path / "suite").exists() or not any((tmp_path / "suite").iterdir())

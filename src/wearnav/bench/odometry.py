@@ -22,7 +22,7 @@ from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run
 from wearnav.fileio import write_text_atomic
 from wearnav.models.registry import check_models, get
-from wearnav.train.odometry import TrainConfig, check_devices, fit, prepare_run, run_hash_exclude, run_record
+from wearnav.train.odometry import TrainConfig, build_model, check_devices, fit, prepare_run, run_hash_exclude, run_record
 
 DEFAULT_MODELS = ("suitein++", "suitein", "ronin", "ronin*", "pdr")
 TEST_SPLITS = ("test", "test_unseen", "cross_subject")
@@ -98,8 +98,13 @@ def run_job(job: OdometryJob, run: Path) -> Path:
 def check_configs(configs, splits=TEST_SPLITS) -> None:
     """Refuse a suite that could not finish, before its first run folder is written: a model that
     is not an odometry model, a device no recording has, or data whose test splits have no truth
-    to score against (a page of runs scoring 0 sequences)."""
+    to score against (a page of runs scoring 0 sequences), or model_args the model does not take."""
+    built = set()
     for cfg in configs:
+        key = (cfg.model, repr(sorted(cfg.model_args.items())), len(cfg.devices), cfg.window)
+        if key not in built:  # once per grid entry, not per seed
+            build_model(cfg)
+            built.add(key)
         spec = get(cfg.model)
         if spec.task != "odometry":
             raise ConfigError(f"{cfg.model!r} is a {spec.task} model, not an odometry model")
