@@ -79,12 +79,13 @@ def test_cli_choices_are_the_librarys():
     """The CLI spells out some choice lists (so `--help` stays light); they must match the library's."""
     from wearnav import cli
     from wearnav.bench.efficiency import CLOCKS
+    from wearnav.bench.odometry import GRIDS
     from wearnav.importers import FORMATS
     from wearnav.importers.sensorlogger import PLATFORMS
     from wearnav.simulate.presets import PRESETS
 
     for enum, names in ((cli.ImportFormat, FORMATS), (cli.Platform, PLATFORMS), (cli.Preset, PRESETS),
-                        (cli.Clock, CLOCKS)):
+                        (cli.Clock, CLOCKS), (cli.Grid, GRIDS)):
         assert [e.value for e in enum] == list(names), enum
 
 

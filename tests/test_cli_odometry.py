@@ -40,19 +40,28 @@ def test_train_then_eval(tiny, tmp_path, monkeypatch, capsys):
 
 
 def test_bench_suite_resumes_and_results_page(tiny, tmp_path, monkeypatch, capsys):
-    args = ("bench", "odometry", "--data", tiny, "--out", tmp_path / "suite", "--models", "test-mlp", "--epochs", "1")
+    args = ("bench", "odometry", "--data", tiny, "--out", tmp_path / "suite", "--models", "test-mlp", "--epochs", "1",
+            "--seeds", "0,1")
     code, out, err = run(monkeypatch, capsys, *args)
     assert code == 0, err
-    assert "test-mlp-" in out and ": done in " in out and "skipped" not in out
+    assert out.count(": done in ") == 2 and "skipped" not in out  # one run per seed
+    assert len(list((tmp_path / "suite").glob("test-mlp-*/metrics.json"))) == 2
     code, out, err = run(monkeypatch, capsys, *args)
-    assert code == 0 and "complete, skipped" in out
+    assert code == 0 and out.count("complete, skipped") == 2
     page = (tmp_path / "suite" / "results.md").read_text()
-    assert "test-mlp" in page and "cross_subject" in page
+    assert "## Table III: split `cross_subject`" in page and "| test-mlp |" in page and "Table VI" in page
+    metrics = json.loads(next((tmp_path / "suite").glob("test-mlp-*/metrics.json")).read_text())
+    assert set(metrics["splits"]["test"]["by_placement"]) == {"HD", "MP"}  # Table IV's placements
+    assert set(metrics["splits"]["test_unseen"]["by_placement"]) == {"PK", "BG"}
+    # a third seed asked for but not run: the page says so
+    code, out, err = run(monkeypatch, capsys, *args[:-1], "0,1,2", "--report-only")
+    assert code == 0, err
+    assert "| 2 of 3 " in (tmp_path / "suite" / "results.md").read_text()
+    assert not list((tmp_path / "suite").glob("test-mlp-*/training.json"))[2:]  # nothing trained
     code, out, err = run(monkeypatch, capsys, "results", tmp_path / "suite", "--out", tmp_path / "docs" / "results.md")
     assert code == 0, err
     doc = (tmp_path / "docs" / "results.md").read_text()
-    assert "## Odometry comparison" in doc and "img/suite_test_error_cdf.png" in doc
-    assert (tmp_path / "docs" / "img" / "suite_test_error_cdf.png").is_file()
+    assert "## Odometry comparison" in doc and "Table III: split `test`" in doc and "| 2 of 3 " in doc
 
 
 def test_one_line_errors(tiny, tmp_path, monkeypatch, capsys):

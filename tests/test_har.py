@@ -290,7 +290,7 @@ def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
 def test_significance_is_welchs_t_test_over_seeds():
     """p in the HAR tables: Welch's t over per-seed accuracies. Well separated seeds give a small
     p, overlapping ones a large one, one seed says nothing; checked against the t statistic by hand."""
-    from wearnav.bench.har import welch_p
+    from wearnav.stats import welch_p
 
     a, b = [0.80, 0.81, 0.82], [0.90, 0.91, 0.92]
     t = (np.mean(b) - np.mean(a)) / np.sqrt(np.var(a, ddof=1) / 3 + np.var(b, ddof=1) / 3)
@@ -323,7 +323,8 @@ def test_significance_marks_follow_benjamini_hochberg_over_a_datasets_techniques
     (p = 2.6e-4) keeps its †. Table p and p_BH columns and results.json agree with scipy."""
     from scipy.stats import false_discovery_control, ttest_ind
 
-    from wearnav.bench.har import bh_adjust, write_report
+    from wearnav.bench.har import write_report
+    from wearnav.stats import bh_adjust
 
     base = [0.80, 0.81, 0.82]
     seeds = {"rot_x": [0.83, 0.84, 0.86], "rot_y": [0.79, 0.81, 0.83], "rot_z": [0.80, 0.82, 0.81],

@@ -414,51 +414,77 @@ def _execution(jobs: int, executor: Backend, address: Optional[str], threads: Op
     return Execution(jobs=jobs, backend=executor, address=address, threads=threads)
 
 
+class Grid(str, Enum):  # wearnav.bench.odometry.GRIDS
+    default = "default"
+    paper = "paper"
+
+
 @bench_app.command("odometry")
 def bench_odometry(
     data: Path = typer.Option(..., "--data", help="Simulated dataset (e.g. `wearnav simulate --preset default`)."),
     out: Path = typer.Option(Path("runs/odometry"), "--out", help="Suite folder (run folders + results.md)."),
-    models: str = typer.Option(",".join(("suitein++", "suitein", "ronin", "ronin*", "pdr")),
-                               help="Models, comma-separated."),
-    epochs: int = typer.Option(100, help="Maximum epochs per model."),
+    grid: Optional[Grid] = typer.Option(None, help="Named model grid: default (suitein++, suitein, ronin, ronin*, pdr; "
+                                        "the default) or paper (every model of Tables III–V; wearnav.bench.odometry.GRIDS)."),
+    models: Optional[str] = typer.Option(None, help="Models, comma-separated, instead of --grid."),
+    seeds: str = typer.Option("0", help="Training seeds, comma-separated (e.g. 0,1,2): one run per model and seed; "
+                                        "each is part of its run's hash."),
+    epochs: int = typer.Option(100, help="Maximum epochs per model (the same budget for every model)."),
+    patience: int = typer.Option(10, min=1, help="Early stopping: epochs without a better validation loss."),
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
     lr: Optional[float] = typer.Option(None, help="Learning rate for every model (default: each model's paper value)."),
-    seed: int = typer.Option(0, min=0, help=SEED_HELP),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
     address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
+    report_only: bool = typer.Option(False, "--report-only", help="Train nothing: write the page from the runs "
+                                     "already complete (\"n of N seeds\" where a row is unfinished)."),
 ):
-    """Train and evaluate the odometry comparison; complete runs are skipped (the suite resumes).
+    """Train and evaluate the odometry comparison, every model × seed; complete runs are skipped
+    (the suite resumes). The page: Suite-IN++ Tables III–VI (mean ± std over seeds) and Figs. 7, 11.
 
     \b
     Example:
-      wearnav bench odometry --data data/default --out runs/odometry --max-time 15
+      wearnav bench odometry --data data/default --out runs/odometry --seeds 0,1,2 --epochs 30 --jobs 2
     """
-    from wearnav.bench.odometry import run_suite, suite_configs, write_suite_report
+    from wearnav.bench.odometry import GRIDS, run_folder, run_suite, suite_configs
+    from wearnav.bench.odometry_tables import write_grid_report
+    from wearnav.errors import ConfigError
 
-    configs = suite_configs(data, _devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr)
+    try:
+        seed_list = [int(s) for s in _devices(seeds)]
+    except ValueError:
+        raise ConfigError(f"--seeds takes comma-separated integers, got {seeds!r}") from None
+    if any(s < 0 for s in seed_list):
+        raise ConfigError(f"--seeds must be ≥ 0, got {seeds!r}")
+    if models and grid:
+        raise ConfigError("give --models or --grid, not both")
+    grid = grid or Grid.default
+    entries = list(_devices(models)) if models else GRIDS[grid.value]
+    configs = suite_configs(data, entries, seeds=seed_list, epochs=epochs, patience=patience,
+                            max_minutes=max_time, lr=lr)
     _suite_folder(out, "bench odometry")
-    folders = run_suite(configs, out, progress=_progress(), echo=typer.echo,
-                        execution=_execution(jobs, executor, address))
+    if report_only:
+        folders = [run_folder(out, c) for c in configs]
+    else:
+        folders = run_suite(configs, out, progress=_progress(), echo=typer.echo,
+                            execution=_execution(jobs, executor, address))
     from wearnav.dataset import Dataset
 
     prov = Dataset.open(data).provenance
     made = (f"simulator preset `{prov['preset']['name'] if isinstance(prov.get('preset'), dict) else prov.get('preset')}`, "
             f"seed {prov.get('seed')}, wearnav commit {prov.get('commit')}" if prov.get("generator") == "wearnav.simulate"
             else f"imported by {prov.get('importer', prov.get('generator', '?'))}")
-    import os
     import platform
 
     from wearnav.fileio import shown_path
 
     note = (f"Data: `{shown_path(data)}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
-            f"{__import__('torch').__version__}, shared with other work while it ran. Training: at most {epochs} epochs per model"
-            + (f" and {max_time:g} min of training in total (a run given more time resumes from its last "
-               "checkpoint: attempts > 1; `train min` is its total)" if max_time else "")
-            + (f", Adam lr {lr:g} for every model" if lr else ", each model's paper learning rate")
-            + f", training seed {seed}"
-            + ", early stopping on validation velocity MSE (patience 10).")
-    page = write_suite_report(folders, out, "Odometry comparison", note=note)
+            f"{__import__('torch').__version__}, shared with other work while it ran. Grid: "
+            + (f"--models {models}" if models else f"`{grid.value}`") + f", seeds {seeds}; at most {epochs} epochs "
+            f"per run, patience {patience}"
+            + (f", {max_time:g} min of training per run (a run given more time resumes from its last "
+               "checkpoint: attempts > 1)" if max_time else "")
+            + (f", Adam lr {lr:g} for every model" if lr else ", each model's paper learning rate") + ".")
+    page = write_grid_report(folders, out, expected_seeds=len(seed_list), note=note)
     typer.echo(f"wrote {page}")
 
 

@@ -64,6 +64,7 @@ def evaluate_sequence(model, seq: Aligned, window: int, stride: int, rte_delta: 
     t_c, vel, present = predict_sequence(model, seq, window, stride)
     rec = seq.recording
     row = {"name": seq.name, "mode": str(seq.meta.get("mode", "")),
+           "placement": str(seq.meta.get("placement", "")),  # the phone's (HD MP PK BG; Table IV)
            "subject": str(seq.meta.get("subject", "")),
            "devices_present": float(present.sum(axis=1).mean()) if len(present) else 0.0}
     if t_c.size < 2 or rec is None or rec.truth is None:
@@ -137,7 +138,8 @@ def summarise(rows: list[dict], errors: np.ndarray) -> dict:
 
 def evaluate_sequences(model, seqs: list[Aligned], window: int, stride: int, rte_delta: float = 60.0,
                        progress: bool = False) -> tuple[dict, dict[str, pd.DataFrame]]:
-    """Per-sequence rows, the overall and per-walking-mode summaries, and the trajectories."""
+    """Per-sequence rows, the overall, per-walking-mode and per-phone-placement summaries, and the
+    trajectories."""
     rows, trajs = [], {}
     for seq in report_progress(seqs, desc="evaluate", unit="seq", enabled=progress, leave=False):
         row, traj = evaluate_sequence(model, seq, window, stride, rte_delta)
@@ -156,6 +158,9 @@ def evaluate_sequences(model, seqs: list[Aligned], window: int, stride: int, rte
         "summary": summarise(rows, errs([r["name"] for r in rows])),
         "by_mode": {m: summarise([r for r in rows if r["mode"] == m],
                                  errs([r["name"] for r in rows if r["mode"] == m])) for m in modes},
+        "by_placement": {p: summarise([r for r in rows if r["placement"] == p],
+                                      errs([r["name"] for r in rows if r["placement"] == p]))
+                         for p in sorted({r["placement"] for r in rows if r["placement"]})},
         "sequences": rows,
     }
     return result, trajs

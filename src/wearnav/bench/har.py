@@ -17,7 +17,6 @@ from __future__ import annotations
 import os
 import platform
 import time
-import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -27,6 +26,7 @@ from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.errors import ConfigError, FormatError, MissingFileError, check_names
 from wearnav.fileio import write_text_atomic
+from wearnav.stats import SIGNIFICANCE, bh_adjust, welch_p
 from wearnav.textio import read_json
 from wearnav.trust import QUICK_NOTE
 
@@ -233,38 +233,9 @@ def summarise(folders: dict[str, list[Path]]) -> dict[str, dict]:
     return out
 
 
-SIGNIFICANCE = 0.05  # the false discovery rate the HAR tables' † controls, per dataset
 SIGNIFICANCE_NOTE = ("† = differs from the baseline beyond seed spread: Welch's t-test over per-seed accuracies, "
                      f"Benjamini–Hochberg-adjusted p < {SIGNIFICANCE} over the dataset's techniques (p: raw; "
                      "p_BH: adjusted)")
-
-
-def welch_p(a: list[float], b: list[float]) -> float | None:
-    """Two-sided p of Welch's t-test between two techniques' per-seed accuracies. None with
-    fewer than 2 seeds on either side; two constant samples give 0 where they differ, 1 where
-    they agree (the test is undefined there). With 3 seeds only a large, consistent difference
-    has a small p."""
-    from scipy.stats import ttest_ind
-
-    if len(a) < 2 or len(b) < 2:
-        return None
-    if np.ptp(a) == 0 and np.ptp(b) == 0:
-        return 0.0 if a[0] != b[0] else 1.0
-    with warnings.catch_warnings():  # nearly equal seeds (a collapsed model) trip a precision warning
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return float(ttest_ind(a, b, equal_var=False).pvalue)
-
-
-def bh_adjust(p: dict[str, float | None]) -> dict[str, float | None]:
-    """Benjamini–Hochberg-adjusted p values (``scipy.stats.false_discovery_control``, method
-    'bh') of one dataset's techniques against its baseline; None stays None (not tested)."""
-    from scipy.stats import false_discovery_control
-
-    tested = [k for k, v in p.items() if v is not None]
-    adj = false_discovery_control([p[k] for k in tested], method="bh") if tested else []
-    out: dict[str, float | None] = dict.fromkeys(p)
-    out.update({k: float(v) for k, v in zip(tested, adj)})
-    return out
 
 
 def _plot_improvement(dataset: str, summary: dict, path: Path, p_bh: dict[str, float | None]) -> Path | None:

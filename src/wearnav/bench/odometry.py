@@ -1,7 +1,10 @@
-"""The Suite-IN++ comparison (paper 000, Sec. V, Tables III–V analogues) as a list of run configs.
+"""The Suite-IN++ comparison (paper 000, Sec. V, Tables III–VI analogues) as a list of run configs.
 
-Each model is one run folder ``<out>/<model>-<hash8>`` (see :mod:`wearnav.runs`); complete runs
-are skipped, so an interrupted suite resumes. The table builder reads run folders only.
+A grid (:data:`GRIDS`) is a plain list of (registered model, model_args) entries; each entry ×
+training seed is one run folder ``<out>/<model>-<hash8>`` (see :mod:`wearnav.runs`; the seed and
+model_args are part of the hash); complete runs are skipped, so an interrupted suite resumes.
+The pages (:func:`write_suite_report` here, the paper's tables in
+:mod:`wearnav.bench.odometry_tables`) read run folders only.
 """
 
 from __future__ import annotations
@@ -19,16 +22,55 @@ from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run
 from wearnav.fileio import write_text_atomic
 from wearnav.models.registry import check_models, get
-from wearnav.train.odometry import TrainConfig, check_devices, fit, prepare_run, run_hash_exclude, run_record
+from wearnav.train.odometry import TrainConfig, build_model, check_devices, fit, prepare_run, run_hash_exclude, run_record
 
 DEFAULT_MODELS = ("suitein++", "suitein", "ronin", "ronin*", "pdr")
 TEST_SPLITS = ("test", "test_unseen", "cross_subject")
 MODES = ("STW", "PVW", "MVW", "DRW", "DLW")
 
 
-def suite_configs(data: str | Path, models=DEFAULT_MODELS, **train_kw) -> list:
-    check_models(models, "odometry")  # every name, before any config is built
-    return [TrainConfig(model=m, data=str(data), **train_kw) for m in models]
+# Issue #16 §4 "paper" grid: every model of Table III (* = the devices' channels concatenated),
+# the phone-only ionet/imunet of Table IV, the ablations (1)–(5) of Table V ((6) = suitein++) and
+# Suite-IN++ with the six axes mixed in its first extractor block. Names the registry does not
+# hold yet make `--grid paper` refuse to start, naming them: edit this list to run what exists.
+PAPER_GRID: list[tuple[str, dict]] = [
+    ("pdr", {}), ("ronin", {}), ("ronin*", {}), ("ionet", {}), ("ionet*", {}), ("imunet", {}),
+    ("imunet*", {}), ("deepit*", {}), ("rewf", {}), ("deepsense*", {}), ("suitein", {}), ("suitein++", {}),
+    *[(f"suitein++-abl{n}", {}) for n in range(1, 6)],
+    ("suitein++", {"extractor": "mixed"}),
+]
+GRIDS: dict[str, list[tuple[str, dict]]] = {
+    "default": [(m, {}) for m in DEFAULT_MODELS],
+    "paper": PAPER_GRID,
+}
+# How a model_args item reads in a row label; others read "key=value".
+ARG_LABELS = {("extractor", "mixed"): "mixed extractor"}
+
+
+def row_label(model: str, model_args: dict | None = None) -> str:
+    """A grid entry's row label: the model's name, plus its model_args where it has any
+    ("suitein++ (mixed extractor)"), so two entries of one model get two rows."""
+    if not model_args:
+        return model
+    parts = [ARG_LABELS.get((k, v), f"{k}={v}") for k, v in sorted(model_args.items())]
+    return f"{model} ({', '.join(parts)})"
+
+
+def grid_entries(models) -> list[tuple[str, dict]]:
+    """``models`` as (name, model_args) entries: a name stands for (name, {})."""
+    return [(m, {}) if isinstance(m, str) else (m[0], dict(m[1])) for m in models]
+
+
+def suite_configs(data: str | Path, models=DEFAULT_MODELS, seeds=None, **train_kw) -> list:
+    """One TrainConfig per grid entry (a model name or a (name, model_args) pair) and training
+    seed, entry by entry; ``seeds`` None: the one ``seed`` of ``train_kw`` (default 0)."""
+    entries = grid_entries(models)
+    check_models([m for m, _ in entries], "odometry")  # every name, before any config is built
+    seeds = [train_kw.pop("seed", 0)] if seeds is None else list(seeds)
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise ConfigError(f"seeds must be distinct and at least one, got {seeds}")
+    return [TrainConfig(model=m, data=str(data), model_args=args, seed=seed, **train_kw)
+            for m, args in entries for seed in seeds]
 
 
 def run_key(cfg) -> dict:
@@ -56,8 +98,13 @@ def run_job(job: OdometryJob, run: Path) -> Path:
 def check_configs(configs, splits=TEST_SPLITS) -> None:
     """Refuse a suite that could not finish, before its first run folder is written: a model that
     is not an odometry model, a device no recording has, or data whose test splits have no truth
-    to score against (a page of runs scoring 0 sequences)."""
+    to score against (a page of runs scoring 0 sequences), or model_args the model does not take."""
+    built = set()
     for cfg in configs:
+        key = (cfg.model, repr(sorted(cfg.model_args.items())), len(cfg.devices), cfg.window)
+        if key not in built:  # once per grid entry, not per seed
+            build_model(cfg)
+            built.add(key)
         spec = get(cfg.model)
         if spec.task != "odometry":
             raise ConfigError(f"{cfg.model!r} is a {spec.task} model, not an odometry model")
@@ -71,6 +118,11 @@ def check_configs(configs, splits=TEST_SPLITS) -> None:
             scorable_split(ds, split)
 
 
+def run_folder(out: str | Path, cfg) -> Path:
+    """The run folder of ``cfg`` in suite folder ``out``."""
+    return runs.run_dir(out, cfg.model, run_key(cfg))
+
+
 def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = True, echo=print,
               execution: Execution = Execution()) -> list[Path]:
     """Train (or resume) and evaluate every config as ``execution`` says (:mod:`.executor`); skip
@@ -79,7 +131,7 @@ def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = Tru
     out = Path(out)
     jobs = []
     for cfg in configs:
-        run = runs.run_dir(out, cfg.model, run_key(cfg))
+        run = run_folder(out, cfg)
         present = set(Dataset.open(cfg.data).manifest["split"].astype(str))
         use = tuple(s for s in splits if s in present)  # check_configs: at least one
         jobs.append(Job(run_job, OdometryJob(cfg, use, progress and execution.in_process), run))

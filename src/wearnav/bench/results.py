@@ -42,6 +42,12 @@ GLOSSARY: tuple[tuple[str, str, str], ...] = (
                              "surveyed waypoint of a real walk (the only truth they have); mean, median, p75, p95."),
     ("params, MFLOPs per window", "count, 10⁶", "a model's weights, and the floating-point operations of one "
                                                   "forward pass on one window (a multiply-add = 2)."),
+    ("MMACs per window", "10⁶", "multiply-accumulates of one forward pass on one window, as the Suite-IN++ "
+                                "paper counts its \"GFLOPs\" (FLOPs / 2)."),
+    ("HD, MP, PK, BG", "—", "the phone's placement (Suite-IN++ Table IV): handheld, multi-changed, pocket, bag; "
+                            "no training walk has PK or BG."),
+    ("†", "—", "a difference beyond seed spread: Welch's t-test over per-seed values, Benjamini–Hochberg-adjusted "
+               "p < 0.05 (the page says against what)."),
     ("windows/s", "1/s", "inference throughput on this machine at batch 1 or 256 (median of repeats)."),
     ("train s/epoch, train min", "s, min", "measured training time per epoch, and in total over a run's attempts."),
     ("yaw", "°", "frame alignment: error of a device's estimated heading about the vertical against the "
@@ -73,7 +79,7 @@ def _tables(text: str) -> list[tuple[list[str], list[list[str]]]]:
     return tables
 
 
-_NUMBER = re.compile(r"[-+]?\d[\d.]*(e[-+]?\d+)?( ± [\d.]+)?")
+_NUMBER = re.compile(r"[-+]?\d[\d.]*(e[-+]?\d+)?( ± [\d.]+)?( †)?")  # †: beyond seed spread
 _METRIC_WORDS = ("ATE", "ADE", "accuracy", "F1", "error", "mean (m)", "median")
 
 

@@ -102,3 +102,47 @@ def plot_run_split(plots: Path, split: str, result: dict, trajs: dict[str, pd.Da
         if "ate" in r:
             ates.setdefault(r["mode"] or "all", []).append(r["ate"])
     plot_box(dict(sorted(ates.items())), plots / f"{split}_ate_box.png", f"{model} on {split}: ATE per sequence")
+
+
+def plot_cdf_panels(panels: dict[str, dict[str, np.ndarray]], out: Path, title: str) -> Path | None:
+    """One panel per entry of ``panels`` (e.g. a phone placement), in it one empirical CDF of
+    position error (metres) per model (Suite-IN++ Fig. 7)."""
+    panels = {k: {m: e for m, e in v.items() if e.size} for k, v in panels.items()}
+    panels = {k: v for k, v in panels.items() if v}
+    if not panels:
+        return None
+    fig = Figure(figsize=(3.6 * len(panels), 3.6), layout="constrained")
+    for i, (name, errors) in enumerate(panels.items()):
+        ax = fig.add_subplot(1, len(panels), i + 1)
+        for model, e in errors.items():
+            plot_ecdf(ax, e, label=model)
+        ax.set_xlabel("position error (m)")
+        ax.set_ylim(0, 1)
+        ax.grid(alpha=0.3)
+        ax.set_title(name, fontsize=10)
+        if i == 0:
+            ax.set_ylabel("P(error ≤ x)")
+            ax.legend(fontsize=7)
+    fig.suptitle(title, fontsize=11)
+    return save(fig, out)
+
+
+def plot_speed(panels: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]], out: Path, title: str) -> Path | None:
+    """One panel per entry (e.g. a sequence), in it speed (m/s) over time (s) per curve
+    (``{label: (t_s, speed_mps)}``; a curve labelled "truth" is drawn in black): Suite-IN++ Fig. 11."""
+    panels = {k: v for k, v in panels.items() if v}
+    if not panels:
+        return None
+    fig = Figure(figsize=(7.5, 2.6 * len(panels)), layout="constrained")
+    for i, (name, curves) in enumerate(panels.items()):
+        ax = fig.add_subplot(len(panels), 1, i + 1)
+        for label, (t, v) in curves.items():
+            kw = dict(color="black", lw=1.4) if label == "truth" else dict(lw=0.9)
+            ax.plot(t - t[0], v, label=label, **kw)
+        ax.set_ylabel("speed (m/s)")
+        ax.grid(alpha=0.3)
+        ax.set_title(name, fontsize=9)
+        ax.legend(fontsize=7, loc="upper right")
+    ax.set_xlabel("time from the sequence's first scored sample (s)")
+    fig.suptitle(title, fontsize=11)
+    return save(fig, out)
