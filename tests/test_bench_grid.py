@@ -147,3 +147,20 @@ def test_unknown_model_args_refused_before_any_run(tmp_path):
     with pytest.raises(ConfigError, match="no_such_switch"):
         odometry.run_suite(cfgs, tmp_path / "suite")
     assert not (tmp_path / "suite").exists() or not any((tmp_path / "suite").iterdir())
+
+
+def test_test_frame_table_pairs_honest_and_diagnostic_scores(grid_runs, tmp_path):
+    """Issue 16 §1: per model, the honest ATE beside the diagnostic truth-frame ATE of the same runs
+    (only seeds that have both), and their difference."""
+    for folder, extra in ((grid_runs[0], 0.3), (grid_runs[1], 0.1)):  # suitein++ seeds 0 and 1
+        diag = folder / odometry.DIAGNOSTIC_TRUTH_FRAME
+        diag.mkdir()
+        m = json.loads((folder / "metrics.json").read_text())
+        for split in m["splits"].values():
+            split["summary"]["ate_mean"] -= extra
+        (diag / "metrics.json").write_text(json.dumps(m))
+    table = tables.test_frame_table(tables.read_grid(grid_runs), ["suitein++", "ronin"], ("test",))
+    assert list(table["model"]) == ["suitein++"]  # ronin has no diagnostic
+    row = table.iloc[0]
+    assert row["test honest"] == pytest.approx(1.05) and row["test diagnostic"] == pytest.approx(0.85)
+    assert row["test Δ"] == pytest.approx(0.2)

@@ -53,6 +53,11 @@ def test_bench_suite_resumes_and_results_page(tiny, tmp_path, monkeypatch, capsy
     metrics = json.loads(next((tmp_path / "suite").glob("test-mlp-*/metrics.json")).read_text())
     assert set(metrics["splits"]["test"]["by_placement"]) == {"HD", "MP"}  # Table IV's placements
     assert set(metrics["splits"]["test_unseen"]["by_placement"]) == {"PK", "BG"}
+    # issue 16 §1: scored in the honest frame, and once more in the old frame as a diagnostic
+    run_dir = next((tmp_path / "suite").glob("test-mlp-*/metrics.json")).parent
+    assert metrics["test_frame"] == "initial"
+    assert json.loads((run_dir / "diagnostic-truth-frame" / "metrics.json").read_text())["test_frame"] == "truth"
+    assert "## What the honest test frame costs" in page
     # a third seed asked for but not run: the page says so
     code, out, err = run(monkeypatch, capsys, *args[:-1], "0,1,2", "--report-only")
     assert code == 0, err

@@ -431,7 +431,8 @@ def bench_odometry(
     epochs: int = typer.Option(100, help="Maximum epochs per model (the same budget for every model)."),
     patience: int = typer.Option(10, min=1, help="Early stopping: epochs without a better validation loss."),
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
-    lr: Optional[float] = typer.Option(None, help="Learning rate for every model (default: each model's paper value)."),
+    recipe: Recipe = typer.Option(Recipe.fast, help=RECIPE_HELP),
+    lr: Optional[float] = typer.Option(None, help="Learning rate for every model (default: the recipe's)."),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
     address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
@@ -460,7 +461,7 @@ def bench_odometry(
     grid = grid or Grid.default
     entries = list(_devices(models)) if models else GRIDS[grid.value]
     configs = suite_configs(data, entries, seeds=seed_list, epochs=epochs, patience=patience,
-                            max_minutes=max_time, lr=lr)
+                            max_minutes=max_time, lr=lr, recipe=recipe.value)
     _suite_folder(out, "bench odometry")
     if report_only:
         folders = [run_folder(out, c) for c in configs]
@@ -483,7 +484,7 @@ def bench_odometry(
             f"per run, patience {patience}"
             + (f", {max_time:g} min of training per run (a run given more time resumes from its last "
                "checkpoint: attempts > 1)" if max_time else "")
-            + (f", Adam lr {lr:g} for every model" if lr else ", each model's paper learning rate") + ".")
+            + f", recipe `{recipe.value}`" + (f", Adam lr {lr:g} for every model" if lr else "") + ".")
     page = write_grid_report(folders, out, expected_seeds=len(seed_list), note=note)
     typer.echo(f"wrote {page}")
 

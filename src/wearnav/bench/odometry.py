@@ -87,10 +87,21 @@ class OdometryJob:
     progress: bool = False
 
 
+# Where a run of a truth-aligned training is also scored with its test input turned onto the
+# truth's yaw over time (the old, optimistic test frame; issue 16 §1), to measure what the honest
+# frame costs. Never read by a model or a results table other than that comparison.
+DIAGNOSTIC_TRUTH_FRAME = "diagnostic-truth-frame"
+
+
 def run_job(job: OdometryJob, run: Path) -> Path:
-    """Train and evaluate one run folder (an executor job: a pure function of ``job``)."""
+    """Train and evaluate one run folder (an executor job: a pure function of ``job``); where the
+    test frame is the honest "initial" one, also score the diagnostic truth frame into
+    ``run/diagnostic-truth-frame`` (first, so that a complete run has both)."""
     prepare_run(job.cfg, run)
     training = fit(job.cfg, run, progress=job.progress)
+    if job.cfg.eval_config().frame_align == "initial":
+        evaluate_run(run, splits=job.splits, progress=job.progress, training=training,
+                     preprocess={"eval_frame_align": "truth"}, out_dir=run / DIAGNOSTIC_TRUTH_FRAME)
     evaluate_run(run, splits=job.splits, progress=job.progress, training=training)
     return run
 
