@@ -42,6 +42,8 @@ GLOSSARY: tuple[tuple[str, str, str], ...] = (
                              "surveyed waypoint of a real walk (the only truth they have); mean, median, p75, p95."),
     ("params, MFLOPs per window", "count, 10⁶", "a model's weights, and the floating-point operations of one "
                                                   "forward pass on one window (a multiply-add = 2)."),
+    ("MMACs per window", "10⁶", "multiply-accumulates of one forward pass on one window, LSTM/GRU included: "
+                                "what Suite-IN++'s Table VI calls FLOPs."),
     ("windows/s", "1/s", "inference throughput on this machine at batch 1 or 256 (median of repeats)."),
     ("train s/epoch, train min", "s, min", "measured training time per epoch, and in total over a run's attempts."),
     ("yaw", "°", "frame alignment: error of a device's estimated heading about the vertical against the "
