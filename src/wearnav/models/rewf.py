@@ -9,7 +9,7 @@ Its code is not public (Suite-IN++ re-implemented it too); this is our reading:
 - weight extractor, shared: an LSTM (``lstm_hidden`` 256) over each device's feature sequence, its
   last hidden state → linear → one logit per device; weights = Gumbel-softmax (temperature
   ``tau``) over the PRESENT devices while training, its noise-free softmax at inference; an
-  absent device gets weight 0 and its input changes nothing;
+  absent device gets weight 0 and its encoder reads zeros, so its input changes nothing;
 - Σ_j w_j F_j flattened → RoNIN's FC head, ``fc_dim`` 768 wide (768 → 768 → 2, dropout 0.5).
 
 Table VI lists 14,049.1 K parameters and 0.223 G multiply-accumulates; this reading gives
@@ -78,6 +78,9 @@ class ReWF(OdometryModel):
         """Per-device features (B, D, C, L') and fusion weights (B, D), 0 where absent."""
         if x.shape[1] != self.n_devices:
             raise ConfigError(f"rewf: model built for {self.n_devices} devices, got {x.shape[1]}")
+        # An absent device's encoder sees zeros, so in training its data cannot reach the batch
+        # statistics (its weight below is 0 in any case).
+        x = x * (mask > 0).to(x.dtype)[:, :, None, None]
         feats = torch.stack([enc(x[:, j].transpose(1, 2)) for j, enc in enumerate(self.encoders)], 1)
         B, D, C, L = feats.shape
         h, _ = self.weight_lstm(feats.reshape(B * D, C, L).transpose(1, 2))
