@@ -381,7 +381,9 @@ def test_ablation_switches_change_the_computation(number):
 @pytest.mark.parametrize("name", ["suitein++", "suitein"])
 def test_fits_a_linear_function_of_the_mean_acceleration(name):
     """32 random windows whose velocity is a fixed linear map of the mean horizontal acceleration
-    over devices and time: 50 Adam steps must cut the inference-mode error by 4×."""
+    over devices and time: 80 Adam steps must cut the inference-mode error by 4×. (50 steps
+    were enough for the mixed extractor; the paper's row-keeping one at these tiny widths gets
+    2.9× (suitein) in 50 steps and > 20× in 80.)"""
     torch.manual_seed(0)
     g = torch.Generator().manual_seed(7)
     x = torch.randn(32, 3, 100, 6, generator=g)
@@ -401,7 +403,7 @@ def test_fits_a_linear_function_of_the_mean_acceleration(name):
 
     before = eval_mse()
     m.train()
-    for _ in range(50):
+    for _ in range(80):
         opt.zero_grad()
         total, _ = m.loss(b)
         total.backward()

@@ -334,7 +334,20 @@ class GroupedExtractors(nn.Module):
     def forward(self, x: Tensor, mask: Tensor) -> Tensor:
         """x (B, D, L, 6), mask (B, D) → features (B, 1, T', groups·C·H'), the features of group
         g in g·C·H' … (g+1)·C·H' − 1."""
-        h = self._inputs(x)
+        if self.paper and not self.separate and all(r == 1 for r in self.row_pools):
+            # Kernels (1, k) never mix rows: each axis row is run as a sample of its own,
+            # (B·6, D, 1, L), through the one-row code (the same arithmetic and batch-norm
+            # statistics, several times faster than convolutions over 6-row images).
+            B, D, L, R = x.shape
+            rows = x.permute(0, 3, 2, 1).reshape(B * R, 1, L, D).permute(0, 3, 1, 2)
+            h = self._blocks(rows, mask.repeat_interleave(R, dim=0))          # (B·6, 1, T', G·C)
+            T = h.shape[2]
+            return (h.reshape(B, R, T, self.groups, -1).permute(0, 2, 3, 4, 1)
+                    .reshape(B, 1, T, -1))
+        return self._blocks(self._inputs(x), mask)
+
+    def _blocks(self, h: Tensor, mask: Tensor) -> Tensor:
+        """The six blocks on (B, D·c_in, H, L) channels-last input → (B, 1, T', groups·C·H')."""
         if self.training:
             group_mask = mask.repeat_interleave(self.branches, dim=1)
             for conv, norm, pool, rows in zip(self.convs, self.norms, self.pools, self.row_pools):
