@@ -325,6 +325,8 @@ def test_extractor_readings():
         assert torch.equal(pooled(b["x"], b["mask"]), pooled(swapped, b["mask"]))
         paper.eval()
         assert not torch.allclose(paper(b["x"], b["mask"]), paper(swapped, b["mask"]))
+    assert registry.build("suitein++-mixed").cfg == registry.build("suitein++", extractor="mixed").cfg
+    assert registry.build("suitein-mixed").cfg == registry.build("suitein", extractor="mixed").cfg
     with pytest.raises(ConfigError):
         tiny(extractor="rows")
     with pytest.raises(ConfigError):

@@ -595,6 +595,20 @@ def suitein(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
                                         **SUITEIN_SIZE, **kw})
 
 
+# The other reading of the extractor (module docstring), by name so a suite or the CLI can run it
+# (``TrainConfig.model_args={"extractor": "mixed"}`` builds the same).
+@register("suitein++-mixed", task="odometry", layout="multi",
+          description="Suite-IN++ with the six IMU axes mixed in the first extractor block (not the paper's reading)")
+def suitein_pp_mixed(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
+    return suitein_pp(n_devices, window, **{"extractor": "mixed", **kw})
+
+
+@register("suitein-mixed", task="odometry", layout="multi",
+          description="Suite-IN with the six IMU axes mixed in the first extractor block (not the paper's reading)")
+def suitein_mixed(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
+    return suitein(n_devices, window, **{"extractor": "mixed", **kw})
+
+
 # Table V ablations (1)–(5); (6) is suitein++.
 ABLATIONS: dict[int, dict[str, bool]] = {
     1: dict(contrast=False, weighted=False, attentive=False),
