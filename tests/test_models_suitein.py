@@ -90,15 +90,7 @@ def test_other_device_counts_and_window():
     assert m(x, torch.ones(4, 2)).shape == (4, 2)
 
 
-def test_parameters_and_flops_near_the_papers_budget():
-    """Paper Table VI: 498.8 K parameters, 0.020 GFLOPs. Band: ±20 % and 15–25 MFLOPs (a
-    multiply-add counted as 2 FLOPs by FlopCounterMode)."""
-    from wearnav.bench.efficiency import flops_per_window
-
-    m = registry.build("suitein++")
-    params = registry.n_parameters(m)
-    assert 0.4e6 <= params <= 0.6e6, params
-    assert 15e6 <= flops_per_window(m) <= 25e6
+# Parameters and MACs against the paper's Table VI: tests/test_models_size.py.
 
 
 # --- flexible device number --------------------------------------------------------------------
@@ -297,10 +289,13 @@ def test_masked_batch_norm_gradient():
     assert torch.autograd.gradcheck(lambda y, w, b: _MaskedBatchNormFn.apply(y, m, w, b, 1e-5)[0], (y, w, b))
 
 
-def test_grouped_inference_equals_separate_extractors():
+@pytest.mark.parametrize("kw", [{}, {"extractor": "mixed"}, {"sensor_pools": (1, 2, 3, 1, 1, 1)}],
+                         ids=["paper", "mixed", "paper-row-pooling"])
+def test_grouped_inference_equals_separate_extractors(kw):
     """The fused inference path (one grouped convolution, BN folded, ReLU fused, strided max)
-    computes what one Conv1d/BN/ReLU/MaxPool1d stack per extractor computes."""
-    m = registry.build("suitein++")
+    computes what one Conv2d/BN/ReLU/MaxPool2d stack per extractor computes, for both extractor
+    readings and with max-pool along the sensor rows."""
+    m = registry.build("suitein++", **kw)
     g = torch.Generator().manual_seed(3)
     for n in m.extractors.norms:        # non-trivial statistics, so folding matters
         n.running_mean.copy_(torch.rand(n.running_mean.shape, generator=g) - 0.5)
@@ -313,6 +308,29 @@ def test_grouped_inference_equals_separate_extractors():
         m.extractors.separate = True
         plain = m(b["x"], b["mask"])
     assert torch.allclose(fused, plain, atol=1e-5)
+
+
+def test_extractor_readings():
+    """paper: one input channel per device, the six axes are rows kept to the end (C·6 features
+    per step); mixed: the six axes are block 1's input channels. Row max-pooling with kernels
+    shared by the rows makes the features symmetric in pooled axes (why it is off by default):
+    swapping acc x and y changes nothing there, and changes the paper default's output."""
+    paper, mixed = tiny(), tiny(extractor="mixed")
+    assert paper.extractors.convs[0].in_channels == 3 and mixed.extractors.convs[0].in_channels == 18
+    assert paper.extractors.out_channels == 6 * mixed.extractors.out_channels
+    b = batch(B=4)
+    swapped = b["x"][..., [1, 0, 2, 3, 4, 5]]
+    pooled = tiny(sensor_pools=(2, 3, 1, 1, 1, 1)).eval()
+    with torch.no_grad():
+        assert torch.equal(pooled(b["x"], b["mask"]), pooled(swapped, b["mask"]))
+        paper.eval()
+        assert not torch.allclose(paper(b["x"], b["mask"]), paper(swapped, b["mask"]))
+    assert registry.build("suitein++-mixed").cfg == registry.build("suitein++", extractor="mixed").cfg
+    assert registry.build("suitein-mixed").cfg == registry.build("suitein", extractor="mixed").cfg
+    with pytest.raises(ConfigError):
+        tiny(extractor="rows")
+    with pytest.raises(ConfigError):
+        tiny(sensor_pools=(2, 2, 2, 1, 1, 1))        # 6 → 3 → 1 → 0 rows
 
 
 # --- ablation switches -------------------------------------------------------------------------
@@ -365,7 +383,9 @@ def test_ablation_switches_change_the_computation(number):
 @pytest.mark.parametrize("name", ["suitein++", "suitein"])
 def test_fits_a_linear_function_of_the_mean_acceleration(name):
     """32 random windows whose velocity is a fixed linear map of the mean horizontal acceleration
-    over devices and time: 50 Adam steps must cut the inference-mode error by 4×."""
+    over devices and time: 80 Adam steps must cut the inference-mode error by 4×. (50 steps
+    were enough for the mixed extractor; the paper's row-keeping one at these tiny widths gets
+    2.9× (suitein) in 50 steps and > 20× in 80.)"""
     torch.manual_seed(0)
     g = torch.Generator().manual_seed(7)
     x = torch.randn(32, 3, 100, 6, generator=g)
@@ -385,7 +405,7 @@ def test_fits_a_linear_function_of_the_mean_acceleration(name):
 
     before = eval_mse()
     m.train()
-    for _ in range(50):
+    for _ in range(80):
         opt.zero_grad()
         total, _ = m.loss(b)
         total.backward()

@@ -114,6 +114,67 @@ def flops_per_window(model: torch.nn.Module, n_devices: int = DEVICES, window: i
     return int(counter.get_total_flops())
 
 
+def recurrent_macs(module: torch.nn.Module, steps: int, batch: int = 1) -> int:
+    """Multiply-accumulates of an ``nn.LSTM`` / ``nn.GRU`` over ``steps`` time steps, counted
+    analytically as the paper's counter does: per step, direction and layer 4·(in·h + h·h) for
+    an LSTM (four gates), 3·(in·h + h·h) for a GRU; biases and the element-wise gate products
+    are left out. A layer above the first reads h·directions inputs; a projection (LSTM
+    ``proj_size``) is not supported."""
+    if isinstance(module, torch.nn.LSTM):
+        gates = 4
+        if module.proj_size:
+            raise ValueError("recurrent_macs: LSTM proj_size is not supported")
+    elif isinstance(module, torch.nn.GRU):
+        gates = 3
+    else:
+        raise TypeError(f"recurrent_macs: not an LSTM or GRU: {type(module).__name__}")
+    h, dirs = module.hidden_size, 2 if module.bidirectional else 1
+    total, n_in = 0, module.input_size
+    for _ in range(module.num_layers):
+        total += gates * (n_in * h + h * h) * dirs
+        n_in = h * dirs
+    return total * steps * batch
+
+
+def macs_per_window(model: torch.nn.Module, n_devices: int = DEVICES, window: int = WINDOW) -> int:
+    """Multiply-accumulates of one forward pass on one window (batch 1, eval mode): the paper's
+    "FLOPs" (Table VI counts a multiply-add once). Matrix products and convolutions as
+    FlopCounterMode counts them, halved; every ``nn.LSTM`` / ``nn.GRU`` by :func:`recurrent_macs`
+    instead (FlopCounterMode counts no LSTM on a CPU, and a GRU only where it is decomposed into
+    matrix products), so what the counter saw inside a recurrent layer is taken out."""
+    x, mask = window_batch(1, n_devices, window)
+    model.eval()
+    seen_inside, analytic, start = [0], [0], {}
+    with torch.inference_mode(), FlopCounterMode(display=False) as counter:
+        def pre(mod, args):
+            start[id(mod)] = counter.get_total_flops()
+
+        def post(mod, args, out):
+            seen_inside[0] += counter.get_total_flops() - start.pop(id(mod))
+            inp = args[0]
+            if isinstance(inp, torch.nn.utils.rnn.PackedSequence):
+                raise ValueError("macs_per_window: packed sequences are not supported")
+            if inp.ndim == 2:                       # unbatched (L, in)
+                steps, batch = inp.shape[0], 1
+            elif mod.batch_first:
+                batch, steps = inp.shape[:2]
+            else:
+                steps, batch = inp.shape[:2]
+            analytic[0] += recurrent_macs(mod, steps, batch)
+
+        hooks = []
+        for m in model.modules():
+            if isinstance(m, (torch.nn.LSTM, torch.nn.GRU)):
+                hooks += [m.register_forward_pre_hook(pre), m.register_forward_hook(post)]
+        try:
+            model(x, mask)
+        finally:
+            for hk in hooks:
+                hk.remove()
+    flops = counter.get_total_flops() - seen_inside[0]
+    return int(flops // 2 + analytic[0])
+
+
 def windows_per_second(model: torch.nn.Module, batch: int, min_run_time_s: float = MIN_RUN_TIME_S,
                        n_devices: int = DEVICES, window: int = WINDOW, clock: str = "wall") -> tuple[float, float]:
     """Inference throughput at a batch size (eval mode, inference_mode): (median, IQR) windows/s."""
@@ -164,7 +225,8 @@ def _measure(model, name, batches, min_run_time_s, n_devices, window, clock, tra
         model = build(model, n_devices=n_devices, window=window, **build_kw)
     name = name or type(model).__name__
     flops = flops_per_window(model, n_devices, window)
-    row: dict = {"model": name, "params": n_parameters(model), "mflops_per_window": flops / 1e6}
+    row: dict = {"model": name, "params": n_parameters(model), "mflops_per_window": flops / 1e6,
+                 "mmacs_per_window": macs_per_window(model, n_devices, window) / 1e6}
     dense = []
     for b in batches:
         dense.append(dense_gflops(min_run_time_s=min_run_time_s, clock=clock))
@@ -218,7 +280,9 @@ def write_report(rows, out, odometry_suite=None) -> "Path":
              f"this machine: {cpu}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
              f"{int(df['threads'].iloc[0])} thread(s), {df['clock'].iloc[0]} clock.", "",
              "FLOPs per window: one forward pass on one window (3 devices × 100 samples × 6 channels), "
-             "`torch.utils.flop_counter` (a multiply-add = 2 FLOPs). Timings: "
+             "`torch.utils.flop_counter` (a multiply-add = 2 FLOPs; it misses LSTMs). MMACs per window: "
+             "multiply-accumulates, the paper's \"FLOPs (G)\" of Table VI, with every LSTM/GRU counted "
+             "analytically (4 resp. 3 gates × (in·h + h·h) per step, direction and layer). Timings: "
              "`torch.utils.benchmark.Timer.blocked_autorange` (warm-up, then blocks of calls for at least "
              f"{df['min_run_time_s'].iloc[0]:g} s per timing); each column gives the median over blocks and, in its `_iqr` column, the "
              "interquartile range (75th − 25th percentile). Windows/s: inference. "

@@ -8,7 +8,7 @@ rows of that column (:mod:`wearnav.stats`). Only complete runs (``metrics.json``
 with fewer seeds than asked says "n of N".
 
 Table VI is measured here, when the page is written (same machine, same command, 1 torch
-thread); MACs per window come from :func:`macs_per_window`, the one place that says how.
+thread); MACs per window come from :func:`wearnav.bench.efficiency.macs_per_window`.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import pandas as pd
 import torch
 
 from wearnav import runs
-from wearnav.bench.efficiency import flops_per_window, windows_per_second
+from wearnav.bench.efficiency import macs_per_window, windows_per_second
 from wearnav.bench.odometry import DIAGNOSTIC_TRUTH_FRAME, MODES, TEST_SPLITS, beats_text, row_label
 from wearnav.errors import ValidationError, WearnavError
 from wearnav.fileio import write_text_atomic
@@ -147,13 +147,6 @@ def phone_only(label: str, grid: dict[str, list[GridRun]]) -> bool:
         return get(grid[label][0].model).layout == "single"
     except WearnavError:  # a run of a model this checkout does not register
         return False
-
-
-def macs_per_window(model: torch.nn.Module, n_devices: int, window: int) -> float:
-    """Multiply-accumulates of one forward pass on one window, as the paper counts its "GFLOPs".
-    Today FLOPs/2 of :func:`wearnav.bench.efficiency.flops_per_window` (matrix products and
-    convolutions only); switch here to efficiency's MAC counter when it has one."""
-    return flops_per_window(model, n_devices, window) / 2
 
 
 def efficiency_row(run: GridRun, threads: int = 1, min_run_time_s: float = 0.2) -> dict:
@@ -398,8 +391,8 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
         lines += ["## Table VI: efficiency", "",
                   "Measured by this command on this machine, 1 torch thread: trainable parameters; "
                   "MMACs = 10⁶ multiply-accumulates of one forward pass on one window (3 devices × the "
-                  "run's window × 6 channels), counted as FLOPs/2 of `torch.utils.flop_counter` (matrix "
-                  "products and convolutions only); inference windows/s at batch 1 and 256 (median of "
+                  "run's window × 6 channels): FLOPs/2 of `torch.utils.flop_counter` for matrix products and "
+                  "convolutions, every LSTM/GRU counted analytically (4 or 3 gates × (in·h + h·h) per step); inference windows/s at batch 1 and 256 (median of "
                   "`blocked_autorange` blocks). The machine is shared: timings vary with load.", "",
                   eff.to_markdown(index=False, floatfmt=".4g"), ""]
 

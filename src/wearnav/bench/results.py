@@ -42,8 +42,8 @@ GLOSSARY: tuple[tuple[str, str, str], ...] = (
                              "surveyed waypoint of a real walk (the only truth they have); mean, median, p75, p95."),
     ("params, MFLOPs per window", "count, 10⁶", "a model's weights, and the floating-point operations of one "
                                                   "forward pass on one window (a multiply-add = 2)."),
-    ("MMACs per window", "10⁶", "multiply-accumulates of one forward pass on one window, as the Suite-IN++ "
-                                "paper counts its \"GFLOPs\" (FLOPs / 2)."),
+    ("MMACs per window", "10⁶", "multiply-accumulates of one forward pass on one window, LSTM/GRU included: "
+                                "what Suite-IN++'s Table VI calls FLOPs."),
     ("HD, MP, PK, BG", "—", "the phone's placement (Suite-IN++ Table IV): handheld, multi-changed, pocket, bag; "
                             "no training walk has PK or BG."),
     ("†", "—", "a difference beyond seed spread: Welch's t-test over per-seed values, Benjamini–Hochberg-adjusted "

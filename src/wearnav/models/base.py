@@ -43,3 +43,12 @@ def first_present(x: Tensor, mask: Tensor) -> tuple[Tensor, Tensor]:
     idx = present.to(torch.int8).argmax(dim=1)  # argmax returns the first maximal index
     sel = x[torch.arange(x.shape[0], device=x.device), idx]
     return sel * present.any(dim=1).to(x.dtype)[:, None, None], idx
+
+
+def concat_devices(x: Tensor, mask: Tensor) -> Tensor:
+    """The starred baselines' input: the devices' channels side by side in layout order, zeros
+    where a device is absent. x (B, D, L, 6), mask (B, D) → (B, D·6, L), channel d·6 + k = axis k
+    of device d."""
+    B, D, L, C = x.shape
+    x = x * (mask > 0).to(x.dtype)[:, :, None, None]
+    return x.permute(0, 1, 3, 2).reshape(B, D * C, L)

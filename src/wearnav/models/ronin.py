@@ -34,7 +34,7 @@ from __future__ import annotations
 from torch import Tensor, nn
 
 from wearnav.errors import ConfigError
-from wearnav.models.base import OdometryModel, first_present
+from wearnav.models.base import OdometryModel, concat_devices, first_present
 from wearnav.models.registry import register
 
 MIN_WINDOW = 32  # five stride-2 stages: anything shorter has no temporal sample left to pool
@@ -122,8 +122,7 @@ class RoNIN(OdometryModel):
         if D != self.n_devices:
             raise ConfigError(f"model built for {self.n_devices} devices, got input with {D}")
         if self.concat:
-            x = x * (mask > 0).to(x.dtype)[:, :, None, None]
-            return x.permute(0, 1, 3, 2).reshape(B, D * 6, L)
+            return concat_devices(x, mask)
         return first_present(x, mask)[0].transpose(1, 2)
 
     def forward(self, x: Tensor, mask: Tensor) -> Tensor:
