@@ -30,11 +30,12 @@ MODES = ("STW", "PVW", "MVW", "DRW", "DLW")
 
 
 # Issue #16 §4 "paper" grid: every model of Table III (* = the devices' channels concatenated),
-# the phone-only ionet/imunet of Table IV, the ablations (1)–(5) of Table V ((6) = suitein++) and
+# the phone-only ionet (one-directional: Table VI's 114.6 K; the registry's default is EasyTrack's
+# Bi-LSTM) and imunet of Table IV, the ablations (1)–(5) of Table V ((6) = suitein++) and
 # Suite-IN++ with the six axes mixed in its first extractor block. Names the registry does not
 # hold yet make `--grid paper` refuse to start, naming them: edit this list to run what exists.
 PAPER_GRID: list[tuple[str, dict]] = [
-    ("pdr", {}), ("ronin", {}), ("ronin*", {}), ("ionet", {}), ("ionet*", {}), ("imunet", {}),
+    ("pdr", {}), ("ronin", {}), ("ronin*", {}), ("ionet", {"bidirectional": False}), ("ionet*", {}), ("imunet", {}),
     ("imunet*", {}), ("deepit*", {}), ("rewf", {}), ("deepsense*", {}), ("suitein", {}), ("suitein++", {}),
     *[(f"suitein++-abl{n}", {}) for n in range(1, 6)],
     ("suitein++", {"extractor": "mixed"}),
