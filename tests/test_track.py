@@ -25,7 +25,8 @@ from wearnav.importers import ipin2023
 from wearnav.preprocess import align
 from wearnav.recording import Recording
 from wearnav.simulate import WalkConfig, simulate_recording
-from wearnav.track import anchor_to_fixes, apply_anchor, track
+from wearnav.fuse import first_fix_anchor
+from wearnav.track import track
 from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
 from conftest import run_cli
 from test_importers_ipin2023 import LOGS, rows_of
@@ -166,11 +167,11 @@ def test_anchor_recovers_a_known_rotation_and_offset():
     acc = np.full(120, 4.0)
     fixes[5] += [40.0, 0.0]
     acc[5] = 50.0
-    fit = anchor_to_fixes(t, path, fix_t, fixes, acc)
-    assert np.degrees(fit["yaw"]) == pytest.approx(40.0, abs=3.0)
-    assert np.degrees(fit["yaw"]) - 40.0 == pytest.approx(0.0, abs=4 * fit["yaw_std_deg"])
-    assert fit["fixes_used"] == 61  # the first 60 s
-    err = np.linalg.norm(apply_anchor(path, fit) - truth, axis=1)
+    fit = first_fix_anchor(t, path, fix_t, fixes, acc)
+    assert fit.info["heading_offset_deg"] == pytest.approx(40.0, abs=3.0)
+    assert fit.info["heading_offset_deg"] - 40.0 == pytest.approx(0.0, abs=4 * fit.info["yaw_std_deg"])
+    assert fit.info["fixes_used"] == 61  # the first 60 s
+    err = np.linalg.norm(fit.xy - truth, axis=1)
     assert np.median(err) < 2.0
 
 

@@ -160,11 +160,14 @@ def _rigid(t, xy, fix_t, fix_pos, fix_accuracy, first_s: float | None) -> FuseRe
                     "the path is only shifted onto them")
     out = xy @ _rot(yaw).T + offset
     resid = p[:n] @ _rot(yaw).T + offset - fp[:n]
+    rms = float(np.sqrt(np.average(np.sum(resid ** 2, axis=1), weights=w[:n])))
     return FuseResult(out, nan, method,
                       {"fixes": int(len(ft)), "fixes_used": int(n), "fixes_outside_span": outside,
                        "heading_offset_deg": float(np.degrees(yaw)), "offset_m": [float(v) for v in offset],
                        "scale": 1.0, "path_spread_m": spread,
-                       "rms_residual_m": float(np.sqrt(np.average(np.sum(resid ** 2, axis=1), weights=w[:n])))},
+                       "span_s": float(ft[n - 1] - ft[0]), "rms_residual_m": rms,
+                       # the angular error of a rotation fitted to n points at that spread
+                       "yaw_std_deg": float(np.degrees(rms / max(spread, 1e-9) / np.sqrt(n)))},
                       warn)
 
 

@@ -1,0 +1,109 @@
+"""The user protocol of `wearnav bench real-odometry` (issue 25 §2): the path a user gets.
+
+A user has no truth at all: neither the start point nor the site's yaw between the phone's
+magnetic-north frame and the map. So each held-out trace is run through a trained model with no
+yaw applied, its velocities integrated from (0, 0), and the path placed on the recording's own
+location fixes by each anchoring of :mod:`wearnav.fuse`:
+
+``first-fixes``  today's `track`: a rigid fit to the first minute's fixes;
+``rigid``        one rotation + translation fitted to every fix of the walk;
+``smooth``       the smoother (heading offset, scale, drift, a slowly varying fix bias).
+
+Each is scored at the trace's surveyed points, from the second on (as the known-start protocol and
+the raw fixes are), with the path-length ratio per walk: the length of the path through its
+positions at the surveyed times over the truth's through the same points (1 is right; learned
+paths run short). The known-start protocol (true start, site yaw: a floor, not available to a
+user) is the benchmark's main table, beside it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wearnav import fuse, metrics
+from wearnav.dataset import Dataset
+from wearnav.evaluate import predict_sequence
+from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
+from wearnav.train.odometry import load_model
+from wearnav.trajectory import integrate_velocity
+
+log = logging.getLogger(__name__)
+
+RAW_FIXES = "raw phone fixes"
+
+
+def _length(p: np.ndarray) -> float:
+    return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1)))
+
+
+def score_path(t: np.ndarray, xy: np.ndarray, truth_t: np.ndarray, truth_xy: np.ndarray) -> tuple[np.ndarray, float]:
+    """Errors (m) at the surveyed points from the second on, and the path-length ratio through
+    the points inside the path's span (NaN when the truth does not move)."""
+    err = metrics.errors_at_reference(t, xy, truth_t[1:], truth_xy[1:], metrics.FIX_MAX_GAP_S)
+    k = (truth_t >= t[0]) & (truth_t <= t[-1])
+    at = np.stack([np.interp(truth_t[k], t, xy[:, j]) for j in range(2)], axis=1)
+    true_len = _length(truth_xy[k])
+    return err, (_length(at) / true_len if true_len > 0 else float("nan"))
+
+
+def user_protocol(run: str | Path, data: str | Path, split: str = "test",
+                  cfg: fuse.FuseConfig = fuse.FuseConfig()) -> dict:
+    """Per anchoring of :data:`wearnav.fuse.ANCHORS`: the errors at the surveyed points of
+    ``split`` of ``data`` for the model of ``run`` (a run folder) under the user protocol, the
+    path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk."""
+    model, tcfg = load_model(run)
+    tcfg = dataclasses.replace(tcfg, frame_align="none", yaw_deg=0.0, truth_max_gap=SURVEYED_TRUTH_MAX_GAP_S)
+    view = Dataset.open(data).split(split)
+    out: dict = {a: {"errors": [], "length_ratio": []} for a in fuse.ANCHORS}
+    out["smooth"]["traces"] = {}
+    smooth_s, walk_s = 0.0, 0.0
+    for seq in load_sequences(view, tcfg):
+        rec = seq.recording
+        if rec is None or rec.truth is None or rec.fixes is None or len(rec.fixes) == 0:
+            continue
+        t_c, vel, _ = predict_sequence(model, seq, tcfg.window, tcfg.stride)
+        if t_c.size < 2:
+            continue
+        t = seq.t[(seq.t >= t_c[0]) & (seq.t <= t_c[-1])]
+        xy = integrate_velocity(t_c, vel, t, np.zeros(2))
+        fx = rec.fixes
+        for anchor, fn in fuse.ANCHORS.items():
+            t0 = time.perf_counter()
+            res = fn(t, xy, fx.t, fx.pos[:, :2], fx.accuracy) if anchor != "smooth" else \
+                fuse.smooth(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, cfg)
+            if anchor == "smooth":
+                smooth_s += time.perf_counter() - t0
+                walk_s += float(t[-1] - t[0])
+                out["smooth"]["traces"][rec.name] = {
+                    "method": res.method, "warnings": res.warnings,
+                    **{k: v for k, v in res.info.items() if k not in ("x", "config", "smoother")}}
+            err, ratio = score_path(t, res.xy, rec.truth.t, rec.truth.pos[:, :2])
+            out[anchor]["errors"].append(err)
+            out[anchor]["length_ratio"].append(ratio)
+    for a in fuse.ANCHORS:
+        e = np.concatenate(out[a]["errors"]) if out[a]["errors"] else np.empty(0)
+        out[a]["errors"] = [round(float(x), 3) for x in e]
+    out["smooth_s_per_hour"] = round(smooth_s / walk_s * 3600.0, 3) if walk_s else None
+    out["config"] = dataclasses.asdict(cfg)
+    return out
+
+
+def raw_fix_length_ratio(data: str | Path, split: str = "test") -> list[float]:
+    """The path-length ratio of the raw fixes (the latest fix at each surveyed point) per trace."""
+    out = []
+    view = Dataset.open(data).split(split)
+    for name in view.names:
+        rec = view.load(name)
+        if rec.fixes is None or rec.truth is None or len(rec.fixes) < 2:
+            continue
+        _, ratio = score_path(rec.fixes.t, rec.fixes.pos[:, :2], rec.truth.t, rec.truth.pos[:, :2])
+        out.append(ratio)
+    return out
+
+
+__all__ = ["user_protocol", "score_path", "raw_fix_length_ratio", "RAW_FIXES"]
