@@ -63,13 +63,16 @@ class FuseConfig:
 
     node_s: float = 1.0  # spacing of the path's nodes, s
     scale_prior: float = 1.0  # prior median of the odometry's scale
-    scale_prior_log_sigma: float = 0.2  # σ of log(scale): ±20 % at 1 σ
+    scale_prior_log_sigma: float = 0.05  # σ of log(scale): ±5 % at 1 σ (looser let indoor fixes, which
+    # move less than the walker, shrink the path: IPIN training walks, PDR, docs in the module)
     drift_sigma_rad_s: float = np.radians(10.0) / 600.0  # heading drift prior: 10° per 10 min at 1 σ
-    bias_sigma_m: float = 4.0  # stationary σ per axis of the fixes' slowly varying error
+    bias_sigma_m: float = 3.0  # stationary σ per axis of the fixes' slowly varying error
     bias_correlation_s: float = 120.0  # its correlation time (GNSS errors wander over minutes)
     bias_knot_s: float = 30.0  # knot spacing of the bias, s
     robust_scale: float = 2.0  # Cauchy loss scale on the normalised fix residual (|r|/σ)
     wide_m: float = 100.0  # fixes reporting a wider accuracy are counted as wide
+    fix_lag_s: float = 0.0  # a fix stamped t describes where the walker was at t − fix_lag_s
+    heading_walk_deg_per_sqrt_min: float = 5.0  # random-walk heading error between bias knots (0: off)
 
 
 @dataclasses.dataclass
@@ -146,7 +149,7 @@ def _rigid(t, xy, fix_t, fix_pos, fix_accuracy, first_s: float | None) -> FuseRe
                           ["no location fix inside the walk: the path starts at (0, 0) in the odometry's own frame"])
     w = 1.0 / fix_sigma_m(acc) ** 2
     p = np.stack([np.interp(ft, t, xy[:, k]) for k in range(2)], axis=1)
-    n = len(ft) if first_s is None else max(2, int(np.sum(ft <= ft[0] + first_s)))
+    n = len(ft) if first_s is None else min(len(ft), max(2, int(np.sum(ft <= ft[0] + first_s))))
     while True:
         yaw, offset, spread = rigid_fit(p[:n], fp[:n], w[:n])
         if spread >= MIN_SPREAD_M or n >= len(ft):
@@ -182,19 +185,29 @@ class _Problem:
         self.knots = np.linspace(tn[0], tn[-1], n_knots)
         self.a = np.exp(-np.diff(self.knots) / cfg.bias_correlation_s)  # Gauss–Markov step factor
         # fix k's position between nodes, and its bias between knots (linear weights)
-        self.i_n, self.w_n = _lin(tn, ft)
+        self.i_n, self.w_n = _lin(tn, ft - cfg.fix_lag_s)
         self.i_b, self.w_b = _lin(self.knots, ft)
+        self.walk = cfg.heading_walk_deg_per_sqrt_min > 0
+        self.i_h, self.w_h = _lin(self.knots, tn[:-1])  # each displacement's heading between knots
+        self.n_params = self.n_global + (3 if self.walk else 2) * len(self.knots)
 
     n_global = 5  # θ, log s, ω, o_x, o_y
 
+    def heading(self, x: np.ndarray) -> np.ndarray:
+        """The heading correction (rad) of each displacement."""
+        h = x[0] + x[2] * self.tau
+        if self.walk:
+            hk = x[self.n_global + 2 * len(self.knots):]
+            h = h + hk[self.i_h] * (1 - self.w_h) + hk[self.i_h + 1] * self.w_h
+        return h
+
     def path(self, x: np.ndarray) -> np.ndarray:
         """Node positions (complex, m) for parameters ``x``."""
-        th, ls, om = x[0], x[1], x[2]
-        step = np.exp(ls) * np.exp(1j * (th + om * self.tau)) * self.d
+        step = np.exp(x[1]) * np.exp(1j * self.heading(x)) * self.d
         return (x[3] + 1j * x[4]) + np.concatenate([[0.0], np.cumsum(step)])
 
     def bias(self, x: np.ndarray) -> np.ndarray:
-        b = x[self.n_global:].reshape(-1, 2)
+        b = x[self.n_global:self.n_global + 2 * len(self.knots)].reshape(-1, 2)
         return b[:, 0] + 1j * b[:, 1]
 
     def fix_residual(self, x: np.ndarray) -> np.ndarray:
@@ -215,16 +228,24 @@ class _Problem:
         b = self.bias(x)
         sb = cfg.bias_sigma_m
         prior_b = np.concatenate([[b[0] / sb], (b[1:] - self.a * b[:-1]) / (sb * np.sqrt(1 - self.a ** 2))])
-        return np.concatenate([rf.real, rf.imag, prior_b.real, prior_b.imag,
-                               [(x[1] - np.log(cfg.scale_prior)) / cfg.scale_prior_log_sigma,
-                                x[2] / cfg.drift_sigma_rad_s]])
+        out = [rf.real, rf.imag, prior_b.real, prior_b.imag,
+               [(x[1] - np.log(cfg.scale_prior)) / cfg.scale_prior_log_sigma, x[2] / cfg.drift_sigma_rad_s]]
+        if self.walk:  # h_0 = 0 (θ holds the offset), then a random walk between knots
+            hk = x[self.n_global + 2 * len(self.knots):]
+            sd = np.radians(cfg.heading_walk_deg_per_sqrt_min) * np.sqrt(np.diff(self.knots) / 60.0)
+            out.append(np.concatenate([[hk[0] / 1e-3], np.diff(hk) / sd]))
+        return np.concatenate(out)
 
     def sparsity(self):
         """Which parameters each residual depends on (for a sparse finite-difference Jacobian)."""
         from scipy.sparse import lil_matrix
 
         nk, nf = len(self.knots), len(self.ft)
-        m = lil_matrix((2 * nf + 2 * nk + 2, self.n_global + 2 * nk), dtype=int)
+        m = lil_matrix((2 * nf + 2 * nk + 2 + (nk if self.walk else 0), self.n_params), dtype=int)
+        if self.walk:
+            m[:2 * nf, self.n_global + 2 * nk:] = 1  # a fix depends on every heading knot before it
+            for k in range(nk):
+                m[2 * nf + 2 * nk + 2 + k, self.n_global + 2 * nk + max(k - 1, 0):self.n_global + 2 * nk + k + 1] = 1
         for half in range(2):
             rows = half * nf + np.arange(nf)
             m[rows, :self.n_global] = 1
@@ -272,11 +293,11 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
     pn = np.stack([np.interp(tn, t, xy[:, k]) for k in range(2)], axis=1)
     d = np.diff(pn[:, 0] + 1j * pn[:, 1])
     prob = _Problem(tn, d, ft, fz[:, 0] + 1j * fz[:, 1], sigma, cfg)
-    if x0 is None or len(x0) != prob.n_global + 2 * len(prob.knots):
+    if x0 is None or len(x0) != prob.n_params:
         yaw = rigid.info["heading_offset_deg"]
         o = _rot(np.radians(yaw)) @ pn[0] + np.asarray(rigid.info["offset_m"])
         x0 = np.concatenate([[np.radians(yaw), np.log(cfg.scale_prior), 0.0, o[0], o[1]],
-                             np.zeros(2 * len(prob.knots))])
+                             np.zeros(prob.n_params - prob.n_global)])
     sol = least_squares(prob.residuals, x0, jac_sparsity=prob.sparsity(), method="trf", x_scale="jac")
     x = sol.x
     r = np.abs(prob.fix_residual(x))
@@ -311,7 +332,7 @@ def _node_sigma(prob: _Problem, x: np.ndarray, jac, pnode: np.ndarray) -> np.nda
     except (np.linalg.LinAlgError, ValueError):
         return np.full(len(pnode), np.nan)
     rel = pnode - (x[3] + 1j * x[4])
-    step = np.exp(x[1]) * np.exp(1j * (x[0] + x[2] * prob.tau)) * prob.d
+    step = np.exp(x[1]) * np.exp(1j * prob.heading(x)) * prob.d
     d_om = np.concatenate([[0.0], np.cumsum(1j * prob.tau * step)])
     cols = [1j * rel, rel, d_om, np.ones_like(rel), 1j * np.ones_like(rel)]  # ∂p/∂(θ, log s, ω, ox, oy)
     jp = np.stack([np.stack([c.real for c in cols], 1), np.stack([c.imag for c in cols], 1)], 1)  # (N, 2, 5)
@@ -355,7 +376,8 @@ class IncrementalFuser:
         x0 = None
         if self._x is not None:
             n_knots = max(2, int(np.ceil((self.t[-1] - self.t[0]) / self.cfg.bias_knot_s)) + 1)
-            x0 = np.concatenate([self._x[:5], np.zeros(2 * n_knots)])
+            per_knot = 3 if self.cfg.heading_walk_deg_per_sqrt_min > 0 else 2
+            x0 = np.concatenate([self._x[:_Problem.n_global], np.zeros(per_knot * n_knots)])
         res = smooth(np.asarray(self.t), np.asarray(self.xy), f[:, 0], f[:, 1:3], f[:, 3], self.cfg, x0=x0)
         if res.method == "smooth":
             self._x = np.asarray(res.info["x"])

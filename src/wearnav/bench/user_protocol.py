@@ -51,26 +51,32 @@ def score_path(t: np.ndarray, xy: np.ndarray, truth_t: np.ndarray, truth_xy: np.
     return err, (_length(at) / true_len if true_len > 0 else float("nan"))
 
 
-def user_protocol(run: str | Path, data: str | Path, split: str = "test",
-                  cfg: fuse.FuseConfig = fuse.FuseConfig()) -> dict:
-    """Per anchoring of :data:`wearnav.fuse.ANCHORS`: the errors at the surveyed points of
-    ``split`` of ``data`` for the model of ``run`` (a run folder) under the user protocol, the
-    path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk."""
+def _paths(run, data, split):
+    """(recording, t, path from (0, 0) in the phone's world frame, no yaw) per trace of ``split``."""
     model, tcfg = load_model(run)
     tcfg = dataclasses.replace(tcfg, frame_align="none", yaw_deg=0.0, truth_max_gap=SURVEYED_TRUTH_MAX_GAP_S)
-    view = Dataset.open(data).split(split)
-    out: dict = {a: {"errors": [], "length_ratio": []} for a in fuse.ANCHORS}
-    out["smooth"]["traces"] = {}
-    smooth_s, walk_s = 0.0, 0.0
-    for seq in load_sequences(view, tcfg):
+    for seq in load_sequences(Dataset.open(data).split(split), tcfg):
         rec = seq.recording
-        if rec is None or rec.truth is None or rec.fixes is None or len(rec.fixes) == 0:
+        if rec is None or rec.truth is None:
             continue
         t_c, vel, _ = predict_sequence(model, seq, tcfg.window, tcfg.stride)
         if t_c.size < 2:
             continue
         t = seq.t[(seq.t >= t_c[0]) & (seq.t <= t_c[-1])]
-        xy = integrate_velocity(t_c, vel, t, np.zeros(2))
+        yield rec, t, integrate_velocity(t_c, vel, t, np.zeros(2))
+
+
+def user_protocol(run: str | Path, data: str | Path, split: str = "test",
+                  cfg: fuse.FuseConfig = fuse.FuseConfig()) -> dict:
+    """Per anchoring of :data:`wearnav.fuse.ANCHORS`: the errors at the surveyed points of
+    ``split`` of ``data`` for the model of ``run`` (a run folder) under the user protocol, the
+    path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk."""
+    out: dict = {a: {"errors": [], "length_ratio": []} for a in fuse.ANCHORS}
+    out["smooth"]["traces"] = {}
+    smooth_s, walk_s = 0.0, 0.0
+    for rec, t, xy in _paths(run, data, split):
+        if rec.fixes is None or len(rec.fixes) == 0:
+            continue
         fx = rec.fixes
         for anchor, fn in fuse.ANCHORS.items():
             t0 = time.perf_counter()
@@ -93,6 +99,40 @@ def user_protocol(run: str | Path, data: str | Path, split: str = "test",
     return out
 
 
+def user_table(folders: dict[str, Path], data: str | Path, fixes: dict | None, split: str = "test",
+               cfg: fuse.FuseConfig = fuse.FuseConfig()) -> tuple[list[dict], dict]:
+    """The user-protocol rows (raw fixes, then each model × anchoring) and the raw per-run results."""
+    raw = {}
+    rows = []
+    if fixes:
+        ratio = raw_fix_length_ratio(data, split)
+        rows.append({"path": RAW_FIXES, "traces": fixes["sequences"], "points": fixes["points"],
+                     **_stats(np.asarray(fixes["point_errors"])), "length ratio": _median(ratio)})
+    for label, run in folders.items():
+        r = raw[label] = user_protocol(run, data, split, cfg)
+        for anchor in fuse.ANCHORS:
+            e = np.asarray(r[anchor]["errors"])
+            rows.append({"path": f"{label} · {ANCHOR_LABEL[anchor]}", "traces": len(r[anchor]["length_ratio"]),
+                         "points": int(e.size), **_stats(e), "length ratio": _median(r[anchor]["length_ratio"])})
+    return rows, raw
+
+
+ANCHOR_LABEL = {"first-fixes": "first-fix anchoring (`track` before)", "rigid": "rigid fit to all fixes",
+                "smooth": "smoother (`track` now)"}
+
+
+def _median(x) -> float:
+    x = np.asarray(x, float)
+    return round(float(np.nanmedian(x)), 3) if np.isfinite(x).any() else float("nan")
+
+
+def _stats(e: np.ndarray) -> dict:
+    if e.size == 0:
+        return {k: float("nan") for k in ("median (m)", "p75 (m)", "p95 (m)", "mean (m)")}
+    return {"median (m)": float(np.median(e)), "p75 (m)": float(np.percentile(e, 75)),
+            "p95 (m)": float(np.percentile(e, 95)), "mean (m)": float(e.mean())}
+
+
 def raw_fix_length_ratio(data: str | Path, split: str = "test") -> list[float]:
     """The path-length ratio of the raw fixes (the latest fix at each surveyed point) per trace."""
     out = []
@@ -106,4 +146,4 @@ def raw_fix_length_ratio(data: str | Path, split: str = "test") -> list[float]:
     return out
 
 
-__all__ = ["user_protocol", "score_path", "raw_fix_length_ratio", "RAW_FIXES"]
+__all__ = ["user_protocol", "user_table", "score_path", "raw_fix_length_ratio", "RAW_FIXES"]
