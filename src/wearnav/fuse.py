@@ -73,6 +73,7 @@ class FuseConfig:
     wide_m: float = 100.0  # fixes reporting a wider accuracy are counted as wide
     fix_lag_s: float = 0.0  # a fix stamped t describes where the walker was at t − fix_lag_s
     heading_walk_deg_per_sqrt_min: float = 5.0  # random-walk heading error between bias knots (0: off)
+    odometry_walk_m_per_sqrt_s: float = 0.0  # random-walk position error of the odometry at the knots (0: off)
 
 
 @dataclasses.dataclass
@@ -188,8 +189,13 @@ class _Problem:
         self.i_n, self.w_n = _lin(tn, ft - cfg.fix_lag_s)
         self.i_b, self.w_b = _lin(self.knots, ft)
         self.walk = cfg.heading_walk_deg_per_sqrt_min > 0
+        self.slack = cfg.odometry_walk_m_per_sqrt_s > 0
         self.i_h, self.w_h = _lin(self.knots, tn[:-1])  # each displacement's heading between knots
-        self.n_params = self.n_global + (3 if self.walk else 2) * len(self.knots)
+        self.i_s, self.w_s = _lin(self.knots, tn)  # each node's slack between knots
+        nk = len(self.knots)
+        self.h0 = self.n_global + 2 * nk  # first heading knot
+        self.s0 = self.h0 + (nk if self.walk else 0)  # first slack knot (x, y pairs)
+        self.n_params = self.s0 + (2 * nk if self.slack else 0)
 
     n_global = 5  # θ, log s, ω, o_x, o_y
 
@@ -197,14 +203,23 @@ class _Problem:
         """The heading correction (rad) of each displacement."""
         h = x[0] + x[2] * self.tau
         if self.walk:
-            hk = x[self.n_global + 2 * len(self.knots):]
+            hk = x[self.h0:self.s0]
             h = h + hk[self.i_h] * (1 - self.w_h) + hk[self.i_h + 1] * self.w_h
         return h
+
+    def slack_xy(self, x: np.ndarray) -> np.ndarray:
+        """The odometry's position error at the knots (complex, m)."""
+        e = x[self.s0:].reshape(-1, 2)
+        return e[:, 0] + 1j * e[:, 1]
 
     def path(self, x: np.ndarray) -> np.ndarray:
         """Node positions (complex, m) for parameters ``x``."""
         step = np.exp(x[1]) * np.exp(1j * self.heading(x)) * self.d
-        return (x[3] + 1j * x[4]) + np.concatenate([[0.0], np.cumsum(step)])
+        p = (x[3] + 1j * x[4]) + np.concatenate([[0.0], np.cumsum(step)])
+        if self.slack:
+            e = self.slack_xy(x)
+            p = p + e[self.i_s] * (1 - self.w_s) + e[self.i_s + 1] * self.w_s
+        return p
 
     def bias(self, x: np.ndarray) -> np.ndarray:
         b = x[self.n_global:self.n_global + 2 * len(self.knots)].reshape(-1, 2)
@@ -231,9 +246,14 @@ class _Problem:
         out = [rf.real, rf.imag, prior_b.real, prior_b.imag,
                [(x[1] - np.log(cfg.scale_prior)) / cfg.scale_prior_log_sigma, x[2] / cfg.drift_sigma_rad_s]]
         if self.walk:  # h_0 = 0 (θ holds the offset), then a random walk between knots
-            hk = x[self.n_global + 2 * len(self.knots):]
+            hk = x[self.h0:self.s0]
             sd = np.radians(cfg.heading_walk_deg_per_sqrt_min) * np.sqrt(np.diff(self.knots) / 60.0)
             out.append(np.concatenate([[hk[0] / 1e-3], np.diff(hk) / sd]))
+        if self.slack:  # e_0 = 0 (the origin holds the start), then a random walk
+            e = self.slack_xy(x)
+            sd = cfg.odometry_walk_m_per_sqrt_s * np.sqrt(np.diff(self.knots))
+            r = np.concatenate([[e[0] / 1e-3], np.diff(e) / sd])
+            out += [r.real, r.imag]
         return np.concatenate(out)
 
     def sparsity(self):
@@ -241,11 +261,18 @@ class _Problem:
         from scipy.sparse import lil_matrix
 
         nk, nf = len(self.knots), len(self.ft)
-        m = lil_matrix((2 * nf + 2 * nk + 2 + (nk if self.walk else 0), self.n_params), dtype=int)
+        n_rows = 2 * nf + 2 * nk + 2 + (nk if self.walk else 0) + (2 * nk if self.slack else 0)
+        m = lil_matrix((n_rows, self.n_params), dtype=int)
+        m[:2 * nf, self.h0:] = 1  # a fix depends on every heading knot before it, and on the slack
+        row = 2 * nf + 2 * nk + 2
         if self.walk:
-            m[:2 * nf, self.n_global + 2 * nk:] = 1  # a fix depends on every heading knot before it
             for k in range(nk):
-                m[2 * nf + 2 * nk + 2 + k, self.n_global + 2 * nk + max(k - 1, 0):self.n_global + 2 * nk + k + 1] = 1
+                m[row + k, self.h0 + max(k - 1, 0):self.h0 + k + 1] = 1
+            row += nk
+        if self.slack:
+            for k in range(2 * nk):
+                kk = k % nk
+                m[row + k, self.s0 + 2 * max(kk - 1, 0):self.s0 + 2 * kk + 2] = 1
         for half in range(2):
             rows = half * nf + np.arange(nf)
             m[rows, :self.n_global] = 1
@@ -376,7 +403,7 @@ class IncrementalFuser:
         x0 = None
         if self._x is not None:
             n_knots = max(2, int(np.ceil((self.t[-1] - self.t[0]) / self.cfg.bias_knot_s)) + 1)
-            per_knot = 3 if self.cfg.heading_walk_deg_per_sqrt_min > 0 else 2
+            per_knot = 2 + (self.cfg.heading_walk_deg_per_sqrt_min > 0) + 2 * (self.cfg.odometry_walk_m_per_sqrt_s > 0)
             x0 = np.concatenate([self._x[:_Problem.n_global], np.zeros(per_knot * n_knots)])
         res = smooth(np.asarray(self.t), np.asarray(self.xy), f[:, 0], f[:, 1:3], f[:, 3], self.cfg, x0=x0)
         if res.method == "smooth":

@@ -146,4 +146,53 @@ def raw_fix_length_ratio(data: str | Path, split: str = "test") -> list[float]:
     return out
 
 
-__all__ = ["user_protocol", "user_table", "score_path", "raw_fix_length_ratio", "RAW_FIXES"]
+def simulator_rows(model: str = "pdr", duration_s: float = 300.0, walks_per_mode: int = 2,
+                   noise_level: str = "L3", seed: int = 0, cfg: fuse.FuseConfig = fuse.FuseConfig()) -> list[dict]:
+    """On simulated walks (dense truth; the simulator's correlated fix error with multipath jumps,
+    :mod:`wearnav.simulate.fixes`), per walking mode: the error against truth at 1-s samples of
+    the odometry alone (an untrained baseline by name, phone only, from (0, 0) in the phone's world
+    frame; given its best rotation + translation onto the *truth* over the whole walk, an oracle no
+    user has, so a generous bound for it), the fixes alone (linear between fixes) and the smoother."""
+    from wearnav.simulate.config import MODES, WalkConfig
+    from wearnav.simulate.walk import simulate_recording
+    from wearnav.train.resolve import resolve_model
+    from wearnav.preprocess import align
+
+    _, tcfg = resolve_model(model, "odometry")  # refuses a learned model by name: untrained baselines only
+    tcfg = dataclasses.replace(tcfg, devices=("phone",), frame_align="none")
+    net = build_untrained(model, tcfg)
+    rows = []
+    for mode in MODES:
+        errs: dict[str, list] = {"odometry alone (oracle rigid fit to truth)": [], "fixes alone": [],
+                                 "smoother": []}
+        for k in range(walks_per_mode):
+            placement = "MP" if mode in ("PVW", "MVW") else "HD"
+            rec = simulate_recording(WalkConfig(name=f"{mode}_{k}", mode=mode, placement=placement, duration_s=duration_s,
+                                                noise_level=noise_level), seed=seed + 1000 * k + MODES.index(mode))
+            seq = align(rec, tcfg.preprocess_config())
+            t_c, vel, _ = predict_sequence(net, seq, tcfg.window, tcfg.stride)
+            t = seq.t[(seq.t >= t_c[0]) & (seq.t <= t_c[-1])]
+            xy = integrate_velocity(t_c, vel, t, np.zeros(2))
+            tt = np.arange(t[0], t[-1], 1.0)
+            truth = np.stack([np.interp(tt, rec.truth.t, rec.truth.pos[:, j]) for j in range(2)], axis=1)
+            fx = rec.fixes
+            odo = fuse.rigid_anchor(t, xy, tt, truth, np.full(tt.size, 1.0)).xy
+            sm = fuse.smooth(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, cfg).xy
+            fixes_at = np.stack([np.interp(tt, fx.t, fx.pos[:, j]) for j in range(2)], axis=1)
+            for label, path_t, path in (("odometry alone (oracle rigid fit to truth)", t, odo),
+                                        ("smoother", t, sm), ("fixes alone", tt, fixes_at)):
+                at = np.stack([np.interp(tt, path_t, path[:, j]) for j in range(2)], axis=1)
+                errs[label].append(np.linalg.norm(at - truth, axis=1))
+        for label, e in errs.items():
+            rows.append({"mode": mode, "path": label, "walks": walks_per_mode, **_stats(np.concatenate(e))})
+    return rows
+
+
+def build_untrained(model: str, tcfg):
+    """An untrained baseline (PDR) for phone-only input at the config's window and rate."""
+    from wearnav.models.registry import build
+
+    return build(model, n_devices=len(tcfg.devices), window=tcfg.window, rate=tcfg.rate).eval()
+
+
+__all__ = ["simulator_rows", "user_protocol", "user_table", "score_path", "raw_fix_length_ratio", "RAW_FIXES"]
