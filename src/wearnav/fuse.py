@@ -73,7 +73,7 @@ class FuseConfig:
     wide_m: float = 100.0  # fixes reporting a wider accuracy are counted as wide
     fix_lag_s: float = 0.0  # a fix stamped t describes where the walker was at t − fix_lag_s
     heading_walk_deg_per_sqrt_min: float = 5.0  # random-walk heading error between bias knots (0: off)
-    odometry_walk_m_per_sqrt_s: float = 0.0  # random-walk position error of the odometry at the knots (0: off)
+    odometry_walk_m_per_sqrt_s: float = 0.3  # random-walk position error of the odometry at the knots (0: off)
 
 
 @dataclasses.dataclass
@@ -263,7 +263,15 @@ class _Problem:
         nk, nf = len(self.knots), len(self.ft)
         n_rows = 2 * nf + 2 * nk + 2 + (nk if self.walk else 0) + (2 * nk if self.slack else 0)
         m = lil_matrix((n_rows, self.n_params), dtype=int)
-        m[:2 * nf, self.h0:] = 1  # a fix depends on every heading knot before it, and on the slack
+        m[:2 * nf, self.h0:self.s0] = 1  # a fix depends on every heading knot (before it)
+        if self.slack:  # and on the slack knots around its nodes
+            i_n = np.clip(self.i_n, 0, len(self.tn) - 2)
+            for dn in (0, 1):
+                ks = self.i_s[i_n + dn]
+                for dk in (0, 1):
+                    for ax in range(2):
+                        for half in range(2):
+                            m[half * nf + np.arange(nf), self.s0 + 2 * (ks + dk) + ax] = 1
         row = 2 * nf + 2 * nk + 2
         if self.walk:
             for k in range(nk):
@@ -325,7 +333,8 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
         o = _rot(np.radians(yaw)) @ pn[0] + np.asarray(rigid.info["offset_m"])
         x0 = np.concatenate([[np.radians(yaw), np.log(cfg.scale_prior), 0.0, o[0], o[1]],
                              np.zeros(prob.n_params - prob.n_global)])
-    sol = least_squares(prob.residuals, x0, jac_sparsity=prob.sparsity(), method="trf", x_scale="jac")
+    sol = least_squares(prob.residuals, x0, jac_sparsity=prob.sparsity(), method="trf", x_scale="jac",
+                        ftol=1e-6, xtol=1e-6)
     x = sol.x
     r = np.abs(prob.fix_residual(x))
     weight = 1.0 / (1.0 + (r / cfg.robust_scale) ** 2)  # the Cauchy loss's IRLS weight
