@@ -147,12 +147,14 @@ def raw_fix_length_ratio(data: str | Path, split: str = "test") -> list[float]:
 
 
 def simulator_rows(model: str = "pdr", duration_s: float = 300.0, walks_per_mode: int = 2,
-                   noise_level: str = "L3", seed: int = 0, cfg: fuse.FuseConfig = fuse.FuseConfig()) -> list[dict]:
+                   noise_level: str = "L3", seed: int = 0, cfg: fuse.FuseConfig = fuse.FuseConfig(),
+                   modes: tuple[str, ...] | None = None) -> list[dict]:
     """On simulated walks (dense truth; the simulator's correlated fix error with multipath jumps,
     :mod:`wearnav.simulate.fixes`), per walking mode: the error against truth at 1-s samples of
     the odometry alone (an untrained baseline by name, phone only, from (0, 0) in the phone's world
     frame; given its best rotation + translation onto the *truth* over the whole walk, an oracle no
-    user has, so a generous bound for it), the fixes alone (linear between fixes) and the smoother."""
+    user has, so a generous bound for it; and placed by first-fix anchoring, as a user gets it), the
+    fixes alone (linear between fixes) and the smoother; ``modes`` (default: all) the walking modes."""
     from wearnav.simulate.config import MODES, WalkConfig
     from wearnav.simulate.walk import simulate_recording
     from wearnav.train.resolve import resolve_model
@@ -162,9 +164,9 @@ def simulator_rows(model: str = "pdr", duration_s: float = 300.0, walks_per_mode
     tcfg = dataclasses.replace(tcfg, devices=("phone",), frame_align="none")
     net = build_untrained(model, tcfg)
     rows = []
-    for mode in MODES:
-        errs: dict[str, list] = {"odometry alone (oracle rigid fit to truth)": [], "fixes alone": [],
-                                 "smoother": []}
+    odo_oracle, odo_first = "odometry alone (oracle rigid fit to truth)", "odometry alone (first-fix anchoring)"
+    for mode in modes or MODES:
+        errs: dict[str, list] = {odo_oracle: [], odo_first: [], "fixes alone": [], "smoother": []}
         for k in range(walks_per_mode):
             placement = "MP" if mode in ("PVW", "MVW") else "HD"
             rec = simulate_recording(WalkConfig(name=f"{mode}_{k}", mode=mode, placement=placement, duration_s=duration_s,
@@ -177,10 +179,11 @@ def simulator_rows(model: str = "pdr", duration_s: float = 300.0, walks_per_mode
             truth = np.stack([np.interp(tt, rec.truth.t, rec.truth.pos[:, j]) for j in range(2)], axis=1)
             fx = rec.fixes
             odo = fuse.rigid_anchor(t, xy, tt, truth, np.full(tt.size, 1.0)).xy
+            first = fuse.first_fix_anchor(t, xy, fx.t, fx.pos[:, :2], fx.accuracy).xy
             sm = fuse.smooth(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, cfg).xy
             fixes_at = np.stack([np.interp(tt, fx.t, fx.pos[:, j]) for j in range(2)], axis=1)
-            for label, path_t, path in (("odometry alone (oracle rigid fit to truth)", t, odo),
-                                        ("smoother", t, sm), ("fixes alone", tt, fixes_at)):
+            for label, path_t, path in ((odo_oracle, t, odo), (odo_first, t, first), ("smoother", t, sm),
+                                        ("fixes alone", tt, fixes_at)):
                 at = np.stack([np.interp(tt, path_t, path[:, j]) for j in range(2)], axis=1)
                 errs[label].append(np.linalg.norm(at - truth, axis=1))
         for label, e in errs.items():
