@@ -53,11 +53,13 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from wearnav.errors import ValidationError
+from wearnav.errors import FormatError, ValidationError
+from wearnav.textio import read_json
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +69,7 @@ ANCHOR_S = 60.0  # first-fix anchoring: fixes of the first minute (today's `trac
 MIN_SPREAD_M = 5.0  # below this weighted RMS spread the heading is not observable from fixes
 DOWNWEIGHT = 0.2  # a fix whose robust weight falls below this (|r| > 2 c) counts as down-weighted
 DISAGREE_SHARE = 0.5  # more than this share down-weighted: the fixes disagree, fall back
+CALIBRATION_JSON = "fuse_calibration.json"  # in a run folder: the model's odometry_walk_sigma
 
 
 @dataclasses.dataclass(frozen=True)
@@ -388,14 +391,64 @@ def _node_sigma(prob: _Problem, x: np.ndarray, jac, pnode: np.ndarray) -> np.nda
     return np.sqrt(np.maximum(var, 0.0))
 
 
+def odometry_walk_sigma(walks) -> dict:
+    """Calibrate ``odometry_walk_m_per_sqrt_s`` on walks with truth (a model's validation walks).
+
+    ``walks`` yields (t (N,) s, odometry xy (N, 2) m, truth_t (M,) s, truth_xy (M, 2) m). Each path
+    is fitted to its truth points by rotation, scale and translation (the unknowns the smoother
+    estimates otherwise); the residual's increments between consecutive truth points, over √Δt,
+    give the random walk's σ per axis, robustly: their median / √(2 ln 2) (the median length of a
+    2-D Gaussian with σ per axis is σ √(2 ln 2))."""
+    rates, n = [], 0
+    for t, xy, tt, tp in walks:
+        k = (tt >= t[0]) & (tt <= t[-1])
+        if k.sum() < 3:
+            continue
+        p = np.stack([np.interp(tt[k], t, xy[:, j]) for j in range(2)], axis=1)
+        zp = (p[:, 0] + 1j * p[:, 1]) - np.mean(p[:, 0] + 1j * p[:, 1])
+        zq = (tp[k, 0] + 1j * tp[k, 1]) - np.mean(tp[k, 0] + 1j * tp[k, 1])
+        a = np.sum(np.conj(zp) * zq) / max(float(np.sum(np.abs(zp) ** 2)), 1e-12)  # scale · e^{iθ}
+        dt = np.diff(tt[k])
+        rates.append(np.abs(np.diff(a * zp - zq))[dt > 0] / np.sqrt(dt[dt > 0]))
+        n += 1
+    if n == 0:
+        return {"odometry_walk_m_per_sqrt_s": None, "walks": 0}
+    sigma = float(np.median(np.concatenate(rates)) / np.sqrt(2 * np.log(2)))
+    return {"odometry_walk_m_per_sqrt_s": round(sigma, 4), "walks": n}
+
+
 ANCHORS = {"first-fixes": first_fix_anchor, "rigid": rigid_anchor, "smooth": smooth}
 
 
-def fuse(t, xy, fix_t, fix_pos, fix_accuracy, anchor: str = "smooth") -> FuseResult:
+def fuse(t, xy, fix_t, fix_pos, fix_accuracy, anchor: str = "smooth", cfg: FuseConfig = FuseConfig()) -> FuseResult:
     """The path of odometry ``xy`` placed on the fixes by ``anchor`` (first-fixes | rigid | smooth)."""
     if anchor not in ANCHORS:
         raise ValidationError(f"unknown anchoring {anchor!r}; one of {', '.join(ANCHORS)}")
+    if anchor == "smooth":
+        return smooth(t, xy, fix_t, fix_pos, fix_accuracy, cfg)
     return ANCHORS[anchor](t, xy, fix_t, fix_pos, fix_accuracy)
+
+
+def config_for_run(run) -> tuple[FuseConfig, dict | None]:
+    """The smoother's config for a model's run folder (or a checkpoint inside it): the defaults,
+    with the odometry's random walk from ``CALIBRATION_JSON`` where the run has one (written by
+    `wearnav bench real-odometry` from the model's validation walks); the calibration read, or None."""
+    if run is None:
+        return FuseConfig(), None
+    p = Path(run)
+    folder = p.parent.parent if p.is_file() else p
+    f = folder / CALIBRATION_JSON
+    if not f.is_file():
+        return FuseConfig(), None
+    try:
+        cal = read_json(f)
+        sigma = float(cal["odometry_walk_m_per_sqrt_s"])
+    except (FormatError, KeyError, TypeError, ValueError):
+        log.warning("%s: unreadable calibration, the smoother's defaults are used", f)
+        return FuseConfig(), None
+    if not (np.isfinite(sigma) and sigma > 0):
+        return FuseConfig(), None
+    return dataclasses.replace(FuseConfig(), odometry_walk_m_per_sqrt_s=sigma), cal
 
 
 class IncrementalFuser:
@@ -432,5 +485,5 @@ class IncrementalFuser:
         return res
 
 
-__all__ = ["FuseConfig", "FuseResult", "smooth", "rigid_anchor", "first_fix_anchor", "fuse", "ANCHORS",
+__all__ = ["config_for_run", "odometry_walk_sigma", "CALIBRATION_JSON", "FuseConfig", "FuseResult", "smooth", "rigid_anchor", "first_fix_anchor", "fuse", "ANCHORS",
            "IncrementalFuser", "fix_sigma_m", "rigid_fit"]

@@ -251,8 +251,10 @@ def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy:
         summary["warnings"].append(f"{rec.name}: no location fixes: the path is not placed on a map")
         warnings.warn(WearnavWarning(summary["warnings"][-1]))
     else:
-        res = fuse.fuse(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, anchor)
+        fcfg, cal = fuse.config_for_run(summary["run"]) if Path(summary["run"]).exists() else (fuse.FuseConfig(), None)
+        res = fuse.fuse(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, anchor, fcfg)
         summary["anchoring"] = {"requested": anchor, "method": res.method, "description": ANCHOR_TEXT[res.method],
+                                "odometry_calibration": cal or "none in the run: the smoother's defaults",
                                 **{k: _rounded(v) for k, v in res.info.items() if k not in ("x", "smoother")}}
         summary["warnings"] += [f"{rec.name}: {w}" for w in res.warnings]
         for w in res.warnings:

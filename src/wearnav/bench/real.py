@@ -30,7 +30,9 @@ The benchmark
 6. **scores the path a user gets** where the data has fixes (issue 25): the user protocol of
    :mod:`wearnav.bench.user_protocol` (no start point, no site yaw; the path placed on the
    recording's own fixes by first-fix anchoring, a rigid fit, or the smoother), beside the
-   known-start protocol of steps 2–3, which is named as such in the report.
+   known-start protocol of steps 2–3, which is named as such in the report. Each model's
+   smoother is calibrated on its validation walks first (the odometry's random walk,
+   :func:`wearnav.fuse.odometry_walk_sigma`), stored in its run folder for `track`.
 
 Optionally ``train_data`` (a simulated dataset) trains the learned models instead of the real
 training floors: the sim-to-real test of issue 11. Everything is a run folder; complete runs
@@ -50,7 +52,7 @@ import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.bench.user_protocol import user_table
+from wearnav.bench.user_protocol import ensure_calibration, user_table
 from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
@@ -424,6 +426,8 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
         lines += ["Known-start protocol (each trace starts at its true first point, input turned by the site "
                   "yaw: a floor, not available to a user):", "", table.to_markdown(index=False, floatfmt=".2f"), ""]
         if s.get("fixes"):
+            doc["sites"][site]["calibration"] = {label: ensure_calibration(run, sites["main"]["data"])
+                                                 for label, run in folders_with_eval(folders, site).items()}
             rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"])
             doc["sites"][site]["user_protocol"] = {"table": rows, "runs": raw}
             lines += [USER_PROTOCOL_TEXT, "", pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), ""]

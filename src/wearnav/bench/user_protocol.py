@@ -25,11 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from wearnav import fuse, metrics
+from wearnav import fuse, metrics, runs
 from wearnav.dataset import Dataset
 from wearnav.evaluate import predict_sequence
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
 from wearnav.train.odometry import load_model
+from wearnav.textio import read_json
 from wearnav.trajectory import integrate_velocity
 
 log = logging.getLogger(__name__)
@@ -66,11 +67,18 @@ def _paths(run, data, split):
         yield rec, t, integrate_velocity(t_c, vel, t, np.zeros(2))
 
 
+def calibrate(run: str | Path, data: str | Path, split: str = "val") -> dict:
+    """:func:`wearnav.fuse.odometry_walk_sigma` of the run's model on the ``split`` walks of ``data``."""
+    return fuse.odometry_walk_sigma((t, xy, rec.truth.t, rec.truth.pos[:, :2]) for rec, t, xy in _paths(run, data, split))
+
+
 def user_protocol(run: str | Path, data: str | Path, split: str = "test",
-                  cfg: fuse.FuseConfig = fuse.FuseConfig()) -> dict:
+                  cfg: fuse.FuseConfig | None = None) -> dict:
     """Per anchoring of :data:`wearnav.fuse.ANCHORS`: the errors at the surveyed points of
     ``split`` of ``data`` for the model of ``run`` (a run folder) under the user protocol, the
-    path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk."""
+    path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk.
+    ``cfg``: the smoother's; default the run's own (:func:`wearnav.fuse.config_for_run`)."""
+    cfg = cfg if cfg is not None else fuse.config_for_run(run)[0]
     out: dict = {a: {"errors": [], "length_ratio": []} for a in fuse.ANCHORS}
     out["smooth"]["traces"] = {}
     smooth_s, walk_s = 0.0, 0.0
@@ -99,9 +107,23 @@ def user_protocol(run: str | Path, data: str | Path, split: str = "test",
     return out
 
 
+def ensure_calibration(run: str | Path, data: str | Path, split: str = "val") -> dict:
+    """The run's smoother calibration (:func:`calibrate` on its ``split`` walks of ``data``, the
+    building it was trained on), computed once and stored in the run folder as
+    :data:`wearnav.fuse.CALIBRATION_JSON` (`track` reads it from there)."""
+    f = Path(run) / fuse.CALIBRATION_JSON
+    if f.is_file():
+        return read_json(f)
+    cal = {**calibrate(run, data, split), "data": str(data), "split": split,
+           "method": "wearnav.fuse.odometry_walk_sigma on the model's validation walks"}
+    runs.write_json(f, cal)
+    return cal
+
+
 def user_table(folders: dict[str, Path], data: str | Path, fixes: dict | None, split: str = "test",
-               cfg: fuse.FuseConfig = fuse.FuseConfig()) -> tuple[list[dict], dict]:
-    """The user-protocol rows (raw fixes, then each model × anchoring) and the raw per-run results."""
+               cfg: fuse.FuseConfig | None = None) -> tuple[list[dict], dict]:
+    """The user-protocol rows (raw fixes, then each model × anchoring) and the raw per-run results;
+    ``cfg`` None: each run's own calibrated config."""
     raw = {}
     rows = []
     if fixes:
@@ -198,4 +220,4 @@ def build_untrained(model: str, tcfg):
     return build(model, n_devices=len(tcfg.devices), window=tcfg.window, rate=tcfg.rate).eval()
 
 
-__all__ = ["simulator_rows", "user_protocol", "user_table", "score_path", "raw_fix_length_ratio", "RAW_FIXES"]
+__all__ = ["ensure_calibration", "calibrate", "simulator_rows", "user_protocol", "user_table", "score_path", "raw_fix_length_ratio", "RAW_FIXES"]
