@@ -94,7 +94,9 @@ class FuseConfig:
 @dataclasses.dataclass
 class FuseResult:
     """The fused path and what the fit found. ``xy`` (N, 2) m east/north at the input times;
-    ``sigma_m`` (N,) its 1-σ per-axis uncertainty (m, from the fit's covariance; NaN unknown)."""
+    ``sigma_m`` (N,) its 1-σ per-axis uncertainty (m, NaN unknown) from the fit's covariance of
+    the global unknowns (heading offset, scale, drift, origin) only: the knots' share (heading
+    and odometry walks) is left out, so it understates the error between fixes."""
 
     xy: np.ndarray
     sigma_m: np.ndarray
