@@ -55,7 +55,7 @@ def test_simulated_sensorlogger_export_imports_and_tracks_with_pdr_by_name(tmp_p
     assert p.returncode == 0, p.stderr
     assert p.stdout.startswith("model input: pdr on phone, watch, earbuds")
     summary = json.loads((tmp_path / "t" / "track.json").read_text())
-    assert summary["model"] == "pdr" and summary["length_m"] > 50 and "yaw_deg" in summary["anchoring"]
+    assert summary["model"] == "pdr" and summary["length_m"] > 50 and "heading_offset_deg" in summary["anchoring"]
     assert (tmp_path / "t" / "trajectory.geojson").is_file()  # lat/lon made it there and back
 
 

@@ -25,7 +25,9 @@ from wearnav.importers import ipin2023
 from wearnav.preprocess import align
 from wearnav.recording import Recording
 from wearnav.simulate import WalkConfig, simulate_recording
-from wearnav.track import anchor_to_fixes, apply_anchor, track
+from wearnav.errors import ConfigError, WearnavWarning
+from wearnav.fuse import first_fix_anchor
+from wearnav.track import track
 from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
 from conftest import run_cli
 from test_importers_ipin2023 import LOGS, rows_of
@@ -166,11 +168,11 @@ def test_anchor_recovers_a_known_rotation_and_offset():
     acc = np.full(120, 4.0)
     fixes[5] += [40.0, 0.0]
     acc[5] = 50.0
-    fit = anchor_to_fixes(t, path, fix_t, fixes, acc)
-    assert np.degrees(fit["yaw"]) == pytest.approx(40.0, abs=3.0)
-    assert np.degrees(fit["yaw"]) - 40.0 == pytest.approx(0.0, abs=4 * fit["yaw_std_deg"])
-    assert fit["fixes_used"] == 61  # the first 60 s
-    err = np.linalg.norm(apply_anchor(path, fit) - truth, axis=1)
+    fit = first_fix_anchor(t, path, fix_t, fixes, acc)
+    assert fit.info["heading_offset_deg"] == pytest.approx(40.0, abs=3.0)
+    assert fit.info["heading_offset_deg"] - 40.0 == pytest.approx(0.0, abs=4 * fit.info["yaw_std_deg"])
+    assert fit.info["fixes_used"] == 61  # the first 60 s
+    err = np.linalg.norm(fit.xy - truth, axis=1)
     assert np.median(err) < 2.0
 
 
@@ -296,3 +298,31 @@ def test_track_command_subsets_and_one_line_errors(setup, tmp_path, monkeypatch,
     code, _, err = run(monkeypatch, capsys, "track", tmp_path / "ds", "--name", EXPORT,
                        "--model", ronin_run / "checkpoints" / "best.ckpt", "--out", tmp_path / "o4")
     assert code == 2 and "corrupt or incompatible checkpoint" in err and err.count("\n") == 1
+
+
+def test_track_anchorings_and_a_walk_without_fixes(setup, tmp_path):
+    """Issue 25: `track` smooths by default (each point's σ in the CSV and GeoJSON, what was used in
+    track.json), `--anchor first-fixes` gives the old anchoring, and a recording without fixes
+    keeps the path from (0, 0) and says so (a warning, not silence)."""
+    _, rec, run = setup
+    folder = write_export(rec, tmp_path / EXPORT, platform="android")
+    smooth = track(folder, run, tmp_path / "smooth")
+    a = smooth["anchoring"]
+    assert a["method"] == "smooth" and a["requested"] == "smooth"
+    assert {"fixes_used", "fixes_down_weighted", "scale", "heading_offset_deg"} <= set(a)
+    assert 0.5 < a["scale"] < 2.0
+    traj = pd.read_csv(tmp_path / "smooth" / "trajectory.csv")
+    assert traj["sigma_m"].gt(0).all() and traj["sigma_m"].lt(50).all()
+    gj = json.loads((tmp_path / "smooth" / "trajectory.geojson").read_text())
+    line = next(f for f in gj["features"] if f["geometry"]["type"] == "LineString")
+    assert len(line["properties"]["sigma_m"]) == len(line["geometry"]["coordinates"])
+    first = track(folder, run, tmp_path / "first", anchor="first-fixes")
+    assert first["anchoring"]["method"] == "first-fixes"
+    assert "sigma_m" not in pd.read_csv(tmp_path / "first" / "trajectory.csv").columns
+    with pytest.raises(ConfigError):
+        track(folder, run, tmp_path / "bad", anchor="magic")
+    h5 = dataclasses.replace(rec, fixes=None).save(tmp_path / "nofix.h5")
+    with pytest.warns(WearnavWarning, match="no location fixes"):
+        bare = track(h5, run, tmp_path / "bare")
+    assert bare["anchoring"]["method"] == "none"
+    assert "east" not in pd.read_csv(tmp_path / "bare" / "trajectory.csv").columns

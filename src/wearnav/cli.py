@@ -46,6 +46,12 @@ class Platform(str, Enum):  # wearnav.importers.sensorlogger.PLATFORMS
     android = "android"
 
 
+class Anchor(str, Enum):  # wearnav.fuse.ANCHORS
+    smooth = "smooth"
+    rigid = "rigid"
+    first_fixes = "first-fixes"
+
+
 class Preset(str, Enum):  # wearnav.simulate.presets.PRESETS
     tiny = "tiny"
     small = "small"
@@ -235,8 +241,11 @@ def track(
     out: Path = typer.Option(..., "--out", help="Folder for trajectory.csv / .png / .geojson and track.json."),
     name: Optional[str] = typer.Option(None, help="Which recording of a dataset folder (or export of a folder of exports)."),
     platform: Optional[Platform] = typer.Option(None, help="For an export without Metadata.csv."),
+    anchor: Anchor = typer.Option(Anchor.smooth, help="How the path is placed on the recording's location "
+                                  "fixes: smooth (a robust smoother over every fix), rigid (one rotation + "
+                                  "translation over every fix), first-fixes (over the first minute's)."),
 ):
-    """The walking path of one recording: predict, integrate from (0, 0), anchor on the first location fixes.
+    """The walking path of one recording: predict, integrate from (0, 0), place it on the location fixes.
 
     \b
     Example:
@@ -244,7 +253,8 @@ def track(
     """
     from wearnav.track import track as track_
 
-    summary = track_(src, model, out, name=name, platform=_value(platform), progress=_progress())
+    summary = track_(src, model, out, name=name, platform=_value(platform), progress=_progress(),
+                     anchor=_value(anchor))
     typer.echo(f"model input: {summary['model']} on {', '.join(summary['model_devices'])}; used "
                f"{', '.join(summary['devices_used'])} (frame: {summary['frame']}, reference "
                f"{summary['frame_reference']})")

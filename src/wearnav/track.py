@@ -28,15 +28,15 @@ and write into the output folder:
     placement or gravity direction unlike the model's training data, a model that did not beat
     standing still, a path implausible for walking.
 
-Anchoring: the common frame has an arbitrary yaw and the path starts at (0, 0); the yaw and offset
-that map it onto the fixes are the weighted least-squares 2-D rotation + translation (Procrustes
-without scale, Umeyama 1991) between the path at the fix times and the fixes, over the fixes of the
-first ``ANCHOR_S`` seconds, each weighted by 1/accuracy² (fixes without an accuracy get the median
-weight). Where the path spreads less than ``MIN_ANCHOR_SPREAD_M`` (weighted RMS about its centre)
-over those fixes the yaw is not observable, so later fixes are added until it does (or all are
-used); ``track.json`` reports the fixes used, the weighted RMS residual and a 1-σ yaw uncertainty
-≈ residual / (spread · √n) (the angular error of a rotation fitted to n points at that spread). Only the first fixes are used so that the path drifts
-freely afterwards: the map shows the odometry, not the GNSS track.
+Anchoring: the common frame has an arbitrary yaw and the path starts at (0, 0); ``anchor``
+(``--anchor``) places it on the recording's location fixes by :mod:`wearnav.fuse`:
+``smooth`` (default) the robust smoother over every fix (heading offset, scale, heading drift,
+a slowly varying fix bias; each point's 1-σ ``sigma_m`` in the CSV and GeoJSON), ``rigid`` one
+rotation + translation over every fix, ``first-fixes`` the same over the first ``ANCHOR_S``
+seconds' fixes (the path then drifts freely: the map shows the odometry alone). ``track.json``
+says what was used under ``anchoring``: the fixes used and down-weighted, stale, wide or outside
+the walk, the scale and heading offset. A recording without fixes keeps the path from (0, 0) and
+says so; fixes that all disagree fall back to first-fix anchoring, with a warning.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav import geo, trust
+from wearnav import fuse, geo, trust
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.outputs import check_out_folder, staged_output
@@ -57,7 +57,15 @@ from wearnav.recording import Recording
 from wearnav.textio import read_json
 from wearnav.train.resolve import resolve_model
 
-ANCHOR_S = 60.0
+ANCHOR_S = fuse.ANCHOR_S
+ANCHOR_TEXT = {
+    "smooth": "robust smoother over every fix (wearnav.fuse): heading offset, scale (prior), heading drift, "
+              "slowly varying fix bias; fixes weighted by their reported accuracy",
+    "rigid": "weighted (1/σ²) least-squares rotation + translation over every fix of the walk",
+    "first-fixes": f"weighted (1/σ²) least-squares rotation + translation over the fixes of the first "
+                   f"{fuse.ANCHOR_S:g} s",
+    "none": "not placed on the fixes",
+}
 MIN_ANCHOR_SPREAD_M = 5.0
 TRAJ_FORMAT = "%.4f"
 TRACK_JSON = "track.json"  # the marker: a folder holding it was written by `wearnav track`
@@ -99,54 +107,21 @@ def load_input(src: str | Path, name: str | None = None, platform: str | None = 
 
 # ---- anchoring ---------------------------------------------------------------------------------
 
-def anchor_to_fixes(t: np.ndarray, xy: np.ndarray, fix_t: np.ndarray, fix_pos: np.ndarray,
-                    fix_accuracy: np.ndarray) -> dict:
-    """Rotation + translation (see module docstring) mapping path ``xy`` (at times ``t``) onto
-    the first fixes. Returns ``yaw`` (rad), ``offset`` (2,), the fixes used and the fit's residual;
-    raises ValidationError when fewer than two fixes lie under the path."""
-    inside = np.flatnonzero((fix_t >= t[0]) & (fix_t <= t[-1]))
-    if inside.size < 2:
-        raise ValidationError("fewer than two location fixes lie inside the tracked span")
-    p_all = np.stack([np.interp(fix_t[inside], t, xy[:, k]) for k in range(2)], axis=1)
-    q_all = fix_pos[inside, :2]
-    acc = fix_accuracy[inside]
-    w_all = np.where(np.isfinite(acc) & (acc > 0), 1.0 / np.maximum(acc, 0.5) ** 2, np.nan)
-    w_all = np.where(np.isfinite(w_all), w_all, np.nanmedian(w_all) if np.isfinite(w_all).any() else 1.0)
-    n = max(2, int(np.sum(fix_t[inside] <= fix_t[inside[0]] + ANCHOR_S)))
-    while True:
-        p, q, w = p_all[:n], q_all[:n], w_all[:n]
-        pc = p - np.average(p, axis=0, weights=w)
-        spread = float(np.sqrt(np.average(np.sum(pc ** 2, axis=1), weights=w)))
-        if spread >= MIN_ANCHOR_SPREAD_M or n == len(p_all):
-            break
-        n += 1
-    qc = q - np.average(q, axis=0, weights=w)
-    # 2-D Procrustes: the angle maximising Σ w q·R(θ)p
-    cross = np.sum(w * (pc[:, 0] * qc[:, 1] - pc[:, 1] * qc[:, 0]))
-    dot = np.sum(w * np.sum(pc * qc, axis=1))
-    yaw = float(np.arctan2(cross, dot))
-    rot = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
-    offset = np.average(q, axis=0, weights=w) - rot @ np.average(p, axis=0, weights=w)
-    resid = (p @ rot.T + offset) - q
-    return {"yaw": yaw, "offset": offset, "fixes_used": int(n),
-            "span_s": float(fix_t[inside[n - 1]] - fix_t[inside[0]]), "path_spread_m": spread,
-            "rms_residual_m": (rms := float(np.sqrt(np.average(np.sum(resid ** 2, axis=1), weights=w)))),
-            "yaw_std_deg": float(np.degrees(rms / max(spread, 1e-9) / np.sqrt(n)))}
-
-
-def apply_anchor(xy: np.ndarray, fit: dict) -> np.ndarray:
-    yaw = fit["yaw"]
-    rot = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
-    return xy @ rot.T + fit["offset"]
-
-
 def geojson(path_ll: tuple[np.ndarray, np.ndarray], fixes_ll: tuple[np.ndarray, np.ndarray],
-            fix_t: np.ndarray, fix_accuracy: np.ndarray, props: dict) -> dict:
-    """A FeatureCollection: the path as a LineString, each fix as a Point (RFC 7946: lon, lat)."""
+            fix_t: np.ndarray, fix_accuracy: np.ndarray, props: dict, sigma_m: np.ndarray | None = None,
+            t: np.ndarray | None = None) -> dict:
+    """A FeatureCollection: the path as a LineString (with ``sigma_m``, the 1-σ per-axis uncertainty
+    of each of its points in metres, where known; ``t`` their times), each fix as a Point
+    (RFC 7946: lon, lat)."""
     def coords(lat, lon):
         return [[round(float(a), 8), round(float(b), 8)] for a, b in zip(lon, lat)]
+    extra = {}
+    if sigma_m is not None and np.isfinite(sigma_m).any():
+        extra["sigma_m"] = [None if not np.isfinite(s) else round(float(s), 2) for s in sigma_m]
+        if t is not None:
+            extra["t"] = [round(float(v), 3) for v in t]
     feats = [{"type": "Feature", "geometry": {"type": "LineString", "coordinates": coords(*path_ll)},
-              "properties": {"kind": "path", **props}}]
+              "properties": {"kind": "path", **props, **extra}}]
     for (lon, lat), t, a in zip(coords(*fixes_ll), fix_t, fix_accuracy):
         feats.append({"type": "Feature", "geometry": {"type": "Point", "coordinates": [lon, lat]},
                       "properties": {"kind": "fix", "t": round(float(t), 3),
@@ -205,13 +180,16 @@ def trust_warnings(model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: n
 # ---- the command -------------------------------------------------------------------------------
 
 def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | None = None,
-          platform: str | None = None, progress: bool = False) -> dict:
-    """Track one recording (see module docstring); returns what ``track.json`` holds."""
+          platform: str | None = None, progress: bool = False, anchor: str = "smooth") -> dict:
+    """Track one recording (see module docstring); ``anchor`` places the path on the fixes
+    (:data:`wearnav.fuse.ANCHORS`); returns what ``track.json`` holds."""
     from wearnav.evaluate import predict_sequence
     from wearnav.preprocess import align
     from wearnav.trajectory import integrate_velocity
 
     out = Path(out)
+    if anchor not in fuse.ANCHORS:
+        raise ConfigError(f"unknown anchoring {anchor!r}; one of {', '.join(fuse.ANCHORS)}")
     check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")  # before any work
     model, cfg = resolve_model(model_path, "odometry")  # a run folder, checkpoint or `pdr`
     rec = load_input(src, name, platform)
@@ -256,34 +234,42 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
     for w in summary["warnings"]:
         warnings.warn(WearnavWarning(w))
     with staged_output(out, TRACK_JSON, "track") as stage:
-        _write_track(stage, out, table, t, xy, rec, cfg, seq, summary)
+        _write_track(stage, out, table, t, xy, rec, cfg, seq, summary, anchor)
     return summary
 
 
 def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy: np.ndarray, rec: Recording,
-                 cfg, seq, summary: dict) -> None:
-    """Anchor on the fixes and write the files into ``stage`` (moved to ``out`` afterwards)."""
+                 cfg, seq, summary: dict, anchor: str = "smooth") -> None:
+    """Place the path on the fixes by ``anchor`` (:mod:`wearnav.fuse`) and write the files into
+    ``stage`` (moved to ``out`` afterwards)."""
     anchored = None
     fx = rec.fixes
-    if fx is not None and len(fx) >= 2:
-        try:
-            fit = anchor_to_fixes(t, xy, fx.t, fx.pos[:, :2], fx.accuracy)
-        except ValidationError as exc:
-            summary["anchoring"] = f"not anchored: {exc.reason}"
-        else:
-            anchored = apply_anchor(xy, fit)
+    if fx is None or len(fx) == 0:
+        summary["anchoring"] = {"method": "none", "requested": anchor,
+                                "note": "the recording has no location fixes: the path starts at (0, 0) "
+                                        "in the odometry's own frame"}
+        summary["warnings"].append(f"{rec.name}: no location fixes: the path is not placed on a map")
+        warnings.warn(WearnavWarning(summary["warnings"][-1]))
+    else:
+        fcfg, cal = fuse.config_for_run(summary["run"]) if Path(summary["run"]).exists() else (fuse.FuseConfig(), None)
+        res = fuse.fuse(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, anchor, fcfg)
+        summary["anchoring"] = {"requested": anchor, "method": res.method, "description": ANCHOR_TEXT[res.method],
+                                "odometry_calibration": cal or "none in the run: the smoother's defaults",
+                                **{k: _rounded(v) for k, v in res.info.items() if k not in ("x", "smoother")}}
+        summary["warnings"] += [f"{rec.name}: {w}" for w in res.warnings]
+        for w in res.warnings:
+            warnings.warn(WearnavWarning(f"{rec.name}: {w}"))
+        if res.method != "none":
+            anchored = res.xy
             table["east"], table["north"] = anchored[:, 0], anchored[:, 1]
-            summary["anchoring"] = {"yaw_deg": round(float(np.degrees(fit["yaw"])), 2),
-                                    "offset_m": [round(float(v), 3) for v in fit["offset"]],
-                                    **{k: (round(v, 3) if isinstance(v, float) else v)
-                                       for k, v in fit.items() if k not in ("yaw", "offset")},
-                                    "method": f"weighted (1/accuracy²) least-squares rotation + translation "
-                                              f"over the fixes of the first {ANCHOR_S:g} s"}
+            if np.isfinite(res.sigma_m).any():
+                table["sigma_m"] = res.sigma_m
             lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
             if lat0 is not None and lon0 is not None:
                 gj = geojson(geo.local_to_latlon(anchored, float(lat0), float(lon0)),
                              geo.local_to_latlon(fx.pos[:, :2], float(lat0), float(lon0)),
-                             fx.t, fx.accuracy, {"recording": rec.name, "model": cfg.model})
+                             fx.t, fx.accuracy, {"recording": rec.name, "model": cfg.model, "anchor": res.method},
+                             sigma_m=res.sigma_m, t=t)
                 write_text_atomic(json.dumps(gj), stage / "trajectory.geojson")
                 summary["geojson"] = str(out / "trajectory.geojson")
             else:
@@ -294,6 +280,16 @@ def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy:
     summary["files"] = ["trajectory.csv", "trajectory.png", TRACK_JSON] + (
         ["trajectory.geojson"] if (stage / "trajectory.geojson").is_file() else [])
     write_text_atomic(json.dumps(summary, indent=2, default=str), stage / TRACK_JSON)
+
+
+def _rounded(v):
+    if isinstance(v, float):
+        return round(v, 4)
+    if isinstance(v, list):
+        return [_rounded(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _rounded(x) for k, x in v.items()}
+    return v
 
 
 def plot_track(table: pd.DataFrame, devices: tuple[str, ...], anchored, fixes, summary: dict,
@@ -330,4 +326,4 @@ def plot_track(table: pd.DataFrame, devices: tuple[str, ...], anchored, fixes, s
     return save(fig, out)
 
 
-__all__ = ["track", "load_input", "anchor_to_fixes", "apply_anchor", "ANCHOR_S"]
+__all__ = ["track", "load_input", "ANCHOR_S"]

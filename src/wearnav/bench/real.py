@@ -27,6 +27,12 @@ The benchmark
    training groups (which are used for nothing else).
 5. **puts the phone's own fixes beside the models** where the data has them (IPIN): the raw
    GNSS error at the same surveyed points (nearest fix within ``metrics.FIX_MAX_GAP_S``).
+6. **scores the path a user gets** where the data has fixes (issue 25): the user protocol of
+   :mod:`wearnav.bench.user_protocol` (no start point, no site yaw; the path placed on the
+   recording's own fixes by first-fix anchoring, a rigid fit, or the smoother), beside the
+   known-start protocol of steps 2–3, which is named as such in the report. Each model's
+   smoother is calibrated on its validation walks first (the odometry's random walk,
+   :func:`wearnav.fuse.odometry_walk_sigma`), stored in its run folder for `track`.
 
 Optionally ``train_data`` (a simulated dataset) trains the learned models instead of the real
 training floors: the sim-to-real test of issue 11. Everything is a run folder; complete runs
@@ -46,6 +52,7 @@ import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.bench.user_protocol import ensure_calibration, user_table
 from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
@@ -416,12 +423,33 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
         if table.empty:
             lines += ["(no complete runs yet)", ""]
             continue
-        lines += [table.to_markdown(index=False, floatfmt=".2f"), ""]
+        lines += ["Known-start protocol (each trace starts at its true first point, input turned by the site "
+                  "yaw: a floor, not available to a user):", "", table.to_markdown(index=False, floatfmt=".2f"), ""]
+        if s.get("fixes"):
+            doc["sites"][site]["calibration"] = {label: ensure_calibration(run, sites["main"]["data"])
+                                                 for label, run in folders_with_eval(folders, site).items()}
+            rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"])
+            doc["sites"][site]["user_protocol"] = {"table": rows, "runs": raw}
+            lines += [USER_PROTOCOL_TEXT, "", pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), ""]
         cdf = plot_cdf(errors, out / f"{site}_error_cdf.png", f"error at surveyed points, {info['source']} test")
         traj = _plot_examples(folders, site, out / f"{site}_trajectories.png", info["source"])
         lines += [f"![{q.stem}]({q.name})" for q in (cdf, traj) if q] + [""]
     runs.write_json(out / "results.json", doc)
     return write_text_atomic("\n".join(lines), out / "results.md")
+
+
+USER_PROTOCOL_TEXT = (
+    "User protocol (issue 25: no truth at all, neither the start point nor the site yaw; "
+    ":mod:`wearnav.bench.user_protocol`): each model's path integrated from (0, 0) in the phone's own "
+    "world frame and placed on the recording's own location fixes by first-fix anchoring (today's "
+    "`track` until now), one rigid fit to all fixes, or the smoother (:mod:`wearnav.fuse`, `track`'s "
+    "default). Errors at the same surveyed points; *length ratio*: median over walks of the path's "
+    "length through its positions at the surveyed times over the truth's (1 is right).")
+
+
+def folders_with_eval(folders: dict[str, Path], site: str) -> dict[str, Path]:
+    """The runs of ``folders`` scored on ``site`` (complete evaluation)."""
+    return {label: run for label, run in folders.items() if runs.is_complete(run / f"eval_{site}")}
 
 
 def _plot_examples(folders: dict[str, Path], site: str, path: Path, source: str, k: int = 4) -> Path | None:

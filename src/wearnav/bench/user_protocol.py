@@ -1,0 +1,223 @@
+"""The user protocol of `wearnav bench real-odometry` (issue 25 §2): the path a user gets.
+
+A user has no truth at all: neither the start point nor the site's yaw between the phone's
+magnetic-north frame and the map. So each held-out trace is run through a trained model with no
+yaw applied, its velocities integrated from (0, 0), and the path placed on the recording's own
+location fixes by each anchoring of :mod:`wearnav.fuse`:
+
+``first-fixes``  today's `track`: a rigid fit to the first minute's fixes;
+``rigid``        one rotation + translation fitted to every fix of the walk;
+``smooth``       the smoother (heading offset, scale, drift, a slowly varying fix bias).
+
+Each is scored at the trace's surveyed points, from the second on (as the known-start protocol and
+the raw fixes are), with the path-length ratio per walk: the length of the path through its
+positions at the surveyed times over the truth's through the same points (1 is right; learned
+paths run short). The known-start protocol (true start, site yaw: a floor, not available to a
+user) is the benchmark's main table, beside it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wearnav import fuse, metrics, runs
+from wearnav.dataset import Dataset
+from wearnav.evaluate import predict_sequence
+from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
+from wearnav.train.odometry import load_model
+from wearnav.textio import read_json
+from wearnav.trajectory import integrate_velocity
+
+log = logging.getLogger(__name__)
+
+RAW_FIXES = "raw phone fixes"
+
+
+def _length(p: np.ndarray) -> float:
+    return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1)))
+
+
+def score_path(t: np.ndarray, xy: np.ndarray, truth_t: np.ndarray, truth_xy: np.ndarray) -> tuple[np.ndarray, float]:
+    """Errors (m) at the surveyed points from the second on, and the path-length ratio through
+    the points inside the path's span (NaN when the truth does not move)."""
+    err = metrics.errors_at_reference(t, xy, truth_t[1:], truth_xy[1:], metrics.FIX_MAX_GAP_S)
+    k = (truth_t >= t[0]) & (truth_t <= t[-1])
+    at = np.stack([np.interp(truth_t[k], t, xy[:, j]) for j in range(2)], axis=1)
+    true_len = _length(truth_xy[k])
+    return err, (_length(at) / true_len if true_len > 0 else float("nan"))
+
+
+def _paths(run, data, split):
+    """(recording, t, path from (0, 0) in the phone's world frame, no yaw) per trace of ``split``."""
+    model, tcfg = load_model(run)
+    tcfg = dataclasses.replace(tcfg, frame_align="none", yaw_deg=0.0, truth_max_gap=SURVEYED_TRUTH_MAX_GAP_S)
+    for seq in load_sequences(Dataset.open(data).split(split), tcfg):
+        rec = seq.recording
+        if rec is None or rec.truth is None:
+            continue
+        t_c, vel, _ = predict_sequence(model, seq, tcfg.window, tcfg.stride)
+        if t_c.size < 2:
+            continue
+        t = seq.t[(seq.t >= t_c[0]) & (seq.t <= t_c[-1])]
+        yield rec, t, integrate_velocity(t_c, vel, t, np.zeros(2))
+
+
+def calibrate(run: str | Path, data: str | Path, split: str = "val") -> dict:
+    """:func:`wearnav.fuse.odometry_walk_sigma` of the run's model on the ``split`` walks of ``data``."""
+    return fuse.odometry_walk_sigma((t, xy, rec.truth.t, rec.truth.pos[:, :2]) for rec, t, xy in _paths(run, data, split))
+
+
+def user_protocol(run: str | Path, data: str | Path, split: str = "test",
+                  cfg: fuse.FuseConfig | None = None) -> dict:
+    """Per anchoring of :data:`wearnav.fuse.ANCHORS`: the errors at the surveyed points of
+    ``split`` of ``data`` for the model of ``run`` (a run folder) under the user protocol, the
+    path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk.
+    ``cfg``: the smoother's; default the run's own (:func:`wearnav.fuse.config_for_run`)."""
+    cfg = cfg if cfg is not None else fuse.config_for_run(run)[0]
+    out: dict = {a: {"errors": [], "length_ratio": []} for a in fuse.ANCHORS}
+    out["smooth"]["traces"] = {}
+    smooth_s, walk_s = 0.0, 0.0
+    for rec, t, xy in _paths(run, data, split):
+        if rec.fixes is None or len(rec.fixes) == 0:
+            continue
+        fx = rec.fixes
+        for anchor, fn in fuse.ANCHORS.items():
+            t0 = time.perf_counter()
+            res = fn(t, xy, fx.t, fx.pos[:, :2], fx.accuracy) if anchor != "smooth" else \
+                fuse.smooth(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, cfg)
+            if anchor == "smooth":
+                smooth_s += time.perf_counter() - t0
+                walk_s += float(t[-1] - t[0])
+                out["smooth"]["traces"][rec.name] = {
+                    "method": res.method, "warnings": res.warnings,
+                    **{k: v for k, v in res.info.items() if k not in ("x", "config", "smoother")}}
+            err, ratio = score_path(t, res.xy, rec.truth.t, rec.truth.pos[:, :2])
+            out[anchor]["errors"].append(err)
+            out[anchor]["length_ratio"].append(ratio)
+    for a in fuse.ANCHORS:
+        e = np.concatenate(out[a]["errors"]) if out[a]["errors"] else np.empty(0)
+        out[a]["errors"] = [round(float(x), 3) for x in e]
+    out["smooth_s_per_hour"] = round(smooth_s / walk_s * 3600.0, 3) if walk_s else None
+    out["config"] = dataclasses.asdict(cfg)
+    return out
+
+
+def ensure_calibration(run: str | Path, data: str | Path, split: str = "val") -> dict:
+    """The run's smoother calibration (:func:`calibrate` on its ``split`` walks of ``data``, the
+    building it was trained on), computed once and stored in the run folder as
+    :data:`wearnav.fuse.CALIBRATION_JSON` (`track` reads it from there)."""
+    f = Path(run) / fuse.CALIBRATION_JSON
+    if f.is_file():
+        return read_json(f)
+    cal = {**calibrate(run, data, split), "data": str(data), "split": split,
+           "method": "wearnav.fuse.odometry_walk_sigma on the model's validation walks"}
+    runs.write_json(f, cal)
+    return cal
+
+
+def user_table(folders: dict[str, Path], data: str | Path, fixes: dict | None, split: str = "test",
+               cfg: fuse.FuseConfig | None = None) -> tuple[list[dict], dict]:
+    """The user-protocol rows (raw fixes, then each model × anchoring) and the raw per-run results;
+    ``cfg`` None: each run's own calibrated config."""
+    raw = {}
+    rows = []
+    if fixes:
+        ratio = raw_fix_length_ratio(data, split)
+        rows.append({"path": RAW_FIXES, "traces": fixes["sequences"], "points": fixes["points"],
+                     **_stats(np.asarray(fixes["point_errors"])), "length ratio": _median(ratio)})
+    for label, run in folders.items():
+        r = raw[label] = user_protocol(run, data, split, cfg)
+        for anchor in fuse.ANCHORS:
+            e = np.asarray(r[anchor]["errors"])
+            rows.append({"path": f"{label} · {ANCHOR_LABEL[anchor]}", "traces": len(r[anchor]["length_ratio"]),
+                         "points": int(e.size), **_stats(e), "length ratio": _median(r[anchor]["length_ratio"])})
+    return rows, raw
+
+
+ANCHOR_LABEL = {"first-fixes": "first-fix anchoring (`track` before)", "rigid": "rigid fit to all fixes",
+                "smooth": "smoother (`track` now)"}
+
+
+def _median(x) -> float:
+    x = np.asarray(x, float)
+    return round(float(np.nanmedian(x)), 3) if np.isfinite(x).any() else float("nan")
+
+
+def _stats(e: np.ndarray) -> dict:
+    if e.size == 0:
+        return {k: float("nan") for k in ("median (m)", "p75 (m)", "p95 (m)", "mean (m)")}
+    return {"median (m)": float(np.median(e)), "p75 (m)": float(np.percentile(e, 75)),
+            "p95 (m)": float(np.percentile(e, 95)), "mean (m)": float(e.mean())}
+
+
+def raw_fix_length_ratio(data: str | Path, split: str = "test") -> list[float]:
+    """The path-length ratio of the raw fixes (the latest fix at each surveyed point) per trace."""
+    out = []
+    view = Dataset.open(data).split(split)
+    for name in view.names:
+        rec = view.load(name)
+        if rec.fixes is None or rec.truth is None or len(rec.fixes) < 2:
+            continue
+        _, ratio = score_path(rec.fixes.t, rec.fixes.pos[:, :2], rec.truth.t, rec.truth.pos[:, :2])
+        out.append(ratio)
+    return out
+
+
+def simulator_rows(model: str = "pdr", duration_s: float = 300.0, walks_per_mode: int = 2,
+                   noise_level: str = "L3", seed: int = 0, cfg: fuse.FuseConfig = fuse.FuseConfig(),
+                   modes: tuple[str, ...] | None = None) -> list[dict]:
+    """On simulated walks (dense truth; the simulator's correlated fix error with multipath jumps,
+    :mod:`wearnav.simulate.fixes`), per walking mode: the error against truth at 1-s samples of
+    the odometry alone (an untrained baseline by name, phone only, from (0, 0) in the phone's world
+    frame; given its best rotation + translation onto the *truth* over the whole walk, an oracle no
+    user has, so a generous bound for it; and placed by first-fix anchoring, as a user gets it), the
+    fixes alone (linear between fixes) and the smoother; ``modes`` (default: all) the walking modes."""
+    from wearnav.simulate.config import MODES, WalkConfig
+    from wearnav.simulate.walk import simulate_recording
+    from wearnav.train.resolve import resolve_model
+    from wearnav.preprocess import align
+
+    _, tcfg = resolve_model(model, "odometry")  # refuses a learned model by name: untrained baselines only
+    tcfg = dataclasses.replace(tcfg, devices=("phone",), frame_align="none")
+    net = build_untrained(model, tcfg)
+    rows = []
+    odo_oracle, odo_first = "odometry alone (oracle rigid fit to truth)", "odometry alone (first-fix anchoring)"
+    for mode in modes or MODES:
+        errs: dict[str, list] = {odo_oracle: [], odo_first: [], "fixes alone": [], "smoother": []}
+        for k in range(walks_per_mode):
+            placement = "MP" if mode in ("PVW", "MVW") else "HD"
+            rec = simulate_recording(WalkConfig(name=f"{mode}_{k}", mode=mode, placement=placement, duration_s=duration_s,
+                                                noise_level=noise_level), seed=seed + 1000 * k + MODES.index(mode))
+            seq = align(rec, tcfg.preprocess_config())
+            t_c, vel, _ = predict_sequence(net, seq, tcfg.window, tcfg.stride)
+            t = seq.t[(seq.t >= t_c[0]) & (seq.t <= t_c[-1])]
+            xy = integrate_velocity(t_c, vel, t, np.zeros(2))
+            tt = np.arange(t[0], t[-1], 1.0)
+            truth = np.stack([np.interp(tt, rec.truth.t, rec.truth.pos[:, j]) for j in range(2)], axis=1)
+            fx = rec.fixes
+            odo = fuse.rigid_anchor(t, xy, tt, truth, np.full(tt.size, 1.0)).xy
+            first = fuse.first_fix_anchor(t, xy, fx.t, fx.pos[:, :2], fx.accuracy).xy
+            sm = fuse.smooth(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, cfg).xy
+            fixes_at = np.stack([np.interp(tt, fx.t, fx.pos[:, j]) for j in range(2)], axis=1)
+            for label, path_t, path in ((odo_oracle, t, odo), (odo_first, t, first), ("smoother", t, sm),
+                                        ("fixes alone", tt, fixes_at)):
+                at = np.stack([np.interp(tt, path_t, path[:, j]) for j in range(2)], axis=1)
+                errs[label].append(np.linalg.norm(at - truth, axis=1))
+        for label, e in errs.items():
+            rows.append({"mode": mode, "path": label, "walks": walks_per_mode, **_stats(np.concatenate(e))})
+    return rows
+
+
+def build_untrained(model: str, tcfg):
+    """An untrained baseline (PDR) for phone-only input at the config's window and rate."""
+    from wearnav.models.registry import build
+
+    return build(model, n_devices=len(tcfg.devices), window=tcfg.window, rate=tcfg.rate).eval()
+
+
+__all__ = ["ensure_calibration", "calibrate", "simulator_rows", "user_protocol", "user_table", "score_path", "raw_fix_length_ratio", "RAW_FIXES"]

@@ -1,0 +1,159 @@
+"""wearnav.fuse: the smoother recovers a walk's heading offset and scale from noisy fixes with
+outliers, and says what it did on degenerate inputs."""
+
+import numpy as np
+import pytest
+
+from wearnav import fuse
+from wearnav.errors import ValidationError
+
+
+def walk(duration_s=600.0, seed=0):
+    """A 1.2 m/s walk along a rectangle-ish loop with turns: times (N,), truth (N, 2) m."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration_s, 0.5)
+    heading = np.cumsum(np.where(rng.random(t.size) < 0.01, rng.choice([-1, 1], t.size) * np.pi / 2, 0.0))
+    heading += 0.05 * np.sin(0.05 * t)
+    v = 1.2 * np.stack([np.cos(heading), np.sin(heading)], 1)
+    truth = np.concatenate([[[0.0, 0.0]], np.cumsum(v[:-1] * 0.5, axis=0)]) + [100.0, -50.0]
+    return t, truth
+
+
+def odometry_of(truth, scale=0.8, yaw_deg=30.0):
+    """The truth seen by an odometry that is short by ``scale`` and turned by ``yaw_deg``, from (0, 0)."""
+    yaw = np.radians(yaw_deg)
+    r = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
+    return scale * (truth - truth[0]) @ r.T
+
+
+def fixes_of(t, truth, sigma_m=3.0, outliers=0.1, seed=1):
+    rng = np.random.default_rng(seed)
+    ft = t[::2] + 0.3
+    ft = ft[ft <= t[-1]]
+    z = np.stack([np.interp(ft, t, truth[:, k]) for k in range(2)], 1) + rng.normal(0, sigma_m, (ft.size, 2))
+    bad = rng.random(ft.size) < outliers
+    z[bad] += rng.normal(0, 60.0, (bad.sum(), 2))
+    return ft, z, np.full(ft.size, 1.515 * sigma_m), bad
+
+
+def test_scale_and_offset_recovered_with_outliers():
+    t, truth = walk()
+    xy = odometry_of(truth)
+    ft, z, acc, bad = fixes_of(t, truth)
+    res = fuse.smooth(t, xy, ft, z, acc)
+    assert res.method == "smooth" and not res.warnings
+    # stated tolerances: the true scale of the odometry is 1/0.8, the offset -30°
+    assert res.info["scale"] == pytest.approx(1 / 0.8, rel=0.03)
+    assert res.info["heading_offset_deg"] == pytest.approx(-30.0, abs=2.0)
+    err = np.linalg.norm(res.xy - truth, axis=1)
+    assert np.median(err) < 2.0
+    # the outliers (60 m σ) are down-weighted, and hardly any good fix is
+    assert res.info["fixes_down_weighted"] >= 0.8 * bad.sum()
+    assert res.info["fixes_down_weighted"] <= bad.sum() + 0.05 * (~bad).sum()
+    assert np.all(np.isfinite(res.sigma_m)) and np.all(res.sigma_m > 0)
+
+
+def test_smooth_beats_rigid_and_first_fixes_on_a_short_path():
+    t, truth = walk()
+    xy = odometry_of(truth)
+    ft, z, acc, _ = fixes_of(t, truth)
+    errs = {a: np.median(np.linalg.norm(fuse.fuse(t, xy, ft, z, acc, a).xy - truth, axis=1))
+            for a in fuse.ANCHORS}
+    assert errs["smooth"] < errs["rigid"] < errs["first-fixes"] + 1e-9
+
+
+def test_no_fixes_leaves_the_path_and_warns():
+    t, truth = walk(120.0)
+    xy = odometry_of(truth)
+    res = fuse.smooth(t, xy, np.empty(0), np.empty((0, 2)), np.empty(0))
+    assert res.method == "none" and "no location fix" in res.warnings[0]
+    np.testing.assert_array_equal(res.xy, xy)
+
+
+def test_fixes_outside_the_span_are_ignored_and_counted():
+    t, truth = walk(120.0)
+    xy = odometry_of(truth)
+    res = fuse.smooth(t, xy, np.array([-50.0, 500.0]), np.zeros((2, 2)), np.ones(2))
+    assert res.method == "none" and res.info["fixes_outside_span"] == 2
+
+
+def test_one_fix_shifts_only():
+    t, truth = walk(120.0)
+    xy = odometry_of(truth)
+    res = fuse.smooth(t, xy, np.array([10.0]), np.array([[5.0, 7.0]]), np.array([3.0]))
+    assert res.warnings and "heading unknown" in res.warnings[0]
+    np.testing.assert_allclose([np.interp(10.0, t, res.xy[:, k]) for k in range(2)], [5.0, 7.0], atol=1e-9)
+    np.testing.assert_allclose(res.xy - res.xy[0], xy - xy[0], atol=1e-9)  # not rotated
+
+
+def test_identical_fixes_do_not_collapse_the_path():
+    t, truth = walk(300.0)
+    xy = odometry_of(truth)
+    ft = np.arange(0.0, 300.0, 1.0)
+    res = fuse.smooth(t, xy, ft, np.tile([3.0, 4.0], (ft.size, 1)), np.full(ft.size, 5.0))
+    length = np.sum(np.linalg.norm(np.diff(res.xy, axis=0), axis=1))
+    assert length > 0.5 * np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1))  # scale held by its prior
+    assert res.warnings  # said, not silent
+    assert res.info["fixes_repeated"] == ft.size - 1
+
+
+def test_nan_accuracy_takes_the_median():
+    t, truth = walk(300.0)
+    xy = odometry_of(truth)
+    ft, z, acc, _ = fixes_of(t, truth, outliers=0.0)
+    acc[::3] = np.nan
+    res = fuse.smooth(t, xy, ft, z, acc)
+    assert res.method == "smooth" and res.info["fixes_nan_accuracy"] == int(np.ceil(ft.size / 3))
+    assert res.info["scale"] == pytest.approx(1 / 0.8, rel=0.05)
+    np.testing.assert_allclose(fuse.fix_sigma_m(np.array([np.nan, 3.03, -1.0])), [2.0, 2.0, 2.0])
+
+
+def test_fixes_that_all_disagree_fall_back_to_first_fixes():
+    t, truth = walk(300.0)
+    xy = odometry_of(truth)
+    rng = np.random.default_rng(3)
+    ft = np.arange(0.0, 300.0, 1.0)
+    z = rng.uniform(-500, 500, (ft.size, 2))  # each fix anywhere, claiming 3 m
+    res = fuse.smooth(t, xy, ft, z, np.full(ft.size, 3.0))
+    assert res.method == "first-fixes"
+    assert any("disagree" in w for w in res.warnings)
+
+
+def test_incremental_matches_batch():
+    t, truth = walk(300.0)
+    xy = odometry_of(truth)
+    ft, z, acc, _ = fixes_of(t, truth, outliers=0.0)
+    inc = fuse.IncrementalFuser()
+    fi = 0
+    for k in range(t.size):
+        inc.add_odometry(t[k], xy[k])
+        while fi < ft.size and ft[fi] <= t[k]:
+            inc.add_fix(ft[fi], *z[fi], acc[fi])
+            fi += 1
+        if k in (t.size // 2, t.size - 1):
+            res = inc.result()
+    batch = fuse.smooth(t, xy, ft, z, acc)
+    np.testing.assert_allclose(res.xy, batch.xy, atol=0.05)
+    with pytest.raises(ValidationError):
+        inc.add_odometry(t[0], xy[0])
+
+
+def test_odometry_walk_sigma_recovers_a_known_random_walk_and_is_read_back(tmp_path):
+    """Odometry = truth turned, scaled, shifted, plus a 2-D random walk of 0.3 m/√s per axis,
+    scored at truth points every 5 s: the calibration gives 0.3 / 0.8 within 15 % (the walk is in
+    the odometry's units, the smoother's in metres after the scale 1/0.8); a run folder's
+    calibration file sets the smoother's config, a bad one leaves the defaults."""
+    rng = np.random.default_rng(4)
+    walks = []
+    for k in range(5):
+        t, truth = walk(600.0, seed=k)
+        rw = np.cumsum(rng.normal(0, 0.3 * np.sqrt(0.5), (t.size, 2)), axis=0)
+        walks.append((t, odometry_of(truth) + rw, t[::10], truth[::10]))
+    cal = fuse.odometry_walk_sigma(walks)
+    assert cal["walks"] == 5 and cal["odometry_walk_m_per_sqrt_s"] == pytest.approx(0.3 / 0.8, rel=0.15)
+    assert fuse.odometry_walk_sigma([]) == {"odometry_walk_m_per_sqrt_s": None, "walks": 0}
+    (tmp_path / fuse.CALIBRATION_JSON).write_text('{"odometry_walk_m_per_sqrt_s": 0.21}')
+    cfg, read = fuse.config_for_run(tmp_path)
+    assert cfg.odometry_walk_m_per_sqrt_s == 0.21 and read["odometry_walk_m_per_sqrt_s"] == 0.21
+    (tmp_path / fuse.CALIBRATION_JSON).write_text('{"odometry_walk_m_per_sqrt_s": "x"}')
+    assert fuse.config_for_run(tmp_path) == (fuse.FuseConfig(), None)
