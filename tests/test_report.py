@@ -353,3 +353,7 @@ def test_results_drop_removes_a_superseded_suite_and_missing_figures_are_refused
     with pytest.raises(MissingFileError, match="summary.png"):
         collect([suite("d", "![summary](summary.png)")], out, keep=True)
     assert "suite: d" not in out.read_text()  # nothing written
+    # a section from before sections were marked is dropped by its heading text
+    out.write_text(out.read_text() + "\n## Old comparison\n\nold numbers\n")
+    collect([], out, keep=True, drop=("Old comparison",))
+    assert "old numbers" not in out.read_text() and "## C <!-- suite: c -->" in out.read_text()

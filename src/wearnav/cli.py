@@ -724,7 +724,7 @@ def results_(
     out: Path = typer.Option(Path("docs/results.md"), "--out", help="The page to write."),
     keep: bool = typer.Option(False, "--keep", help="Keep the page's other suites' sections (update suite by suite)."),
     drop: Optional[list[str]] = typer.Option(None, "--drop", help="With --keep: remove this suite's kept sections "
-                                             "(a suite folder name; repeatable)."),
+                                             "(a suite folder name, or an unmarked section's heading; repeatable)."),
 ):
     """Stitch the suites' generated pages into one results page (figures copied to its img/).
 

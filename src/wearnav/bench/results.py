@@ -161,8 +161,8 @@ def collect(suites: list[Path], out: Path, title: str = "Measured results", keep
     each page links into ``out.parent/img/<suite>_<file>``. With ``keep``, the sections of the
     existing ``out`` (each one a suite's generated page) stay, in their order, unless a suite given
     now has the same heading (its title and folder name): results measured on another machine or session are updated suite by
-    suite instead of being lost. ``drop``: suite folder names whose kept sections are removed
-    (superseded by a later suite). A page linking a figure its suite does not hold is refused."""
+    suite instead of being lost. ``drop``: suite folder names (or, for a section from before
+    sections were marked, its heading text) whose kept sections are removed (superseded). A page linking a figure its suite does not hold is refused."""
     out = Path(out)
     img = out.parent / "img"
     p = provenance()
@@ -195,7 +195,8 @@ def collect(suites: list[Path], out: Path, title: str = "Measured results", keep
         new += _sections(text)
     old = _sections(read_text(out)) if keep and out.is_file() else []
     tags = {re.sub(r"[^A-Za-z0-9_-]+", "_", d) for d in drop}
-    old = [(h, t) for h, t in old if not any(h.endswith(f"<!-- suite: {d} -->") for d in tags)]
+    old = [(h, t) for h, t in old
+           if not any(h.endswith(f"<!-- suite: {d} -->") for d in tags) and h[3:] not in drop]
     fresh = dict(new)
     merged = [(h, fresh.pop(h) if h in fresh else t) for h, t in old] + [(h, t) for h, t in new if h in fresh]
     merged = [(h, _relative_paths(t)) for h, t in merged if h not in (HEADLINE, GLOSSARY_HEADING)]
