@@ -568,6 +568,27 @@ def bench_efficiency(
     typer.echo(str(write_report(rows, out, odometry_suite)))
 
 
+@bench_app.command("fusion")
+def bench_fusion(
+    data: Path = typer.Option(..., "--data", help="A simulated dataset (`wearnav simulate`): dense truth and fixes."),
+    out: Path = typer.Option(Path("runs/fusion"), "--out", help="Folder for results.md / results.json."),
+    model: str = typer.Option("pdr", help="An untrained odometry baseline (no training)."),
+    split: Optional[str] = typer.Option(None, help="One split of --data (default: every recording)."),
+):
+    """Odometry alone, fixes alone and the smoother against the simulator's truth, per walking mode,
+    and the smoother's seconds per hour of walk.
+
+    \b
+    Example:
+      wearnav bench fusion --data data/sim --out runs/fusion
+    """
+    from wearnav.bench.user_protocol import fusion_table, write_fusion_page
+    from wearnav.outputs import check_suite_folder
+
+    check_suite_folder(out, "bench fusion")  # its page is written at the end: nothing kept before
+    typer.echo(str(write_fusion_page(fusion_table(data, model, split), data, out)))
+
+
 # ---- activity / placement recognition (issue 9, paper 002) ------------------------------------
 
 @bench_app.command("har")
