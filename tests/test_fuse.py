@@ -175,3 +175,26 @@ def test_odometry_walk_sigma_recovers_a_known_random_walk_and_is_read_back(tmp_p
     assert cfg.odometry_walk_m_per_sqrt_s == 0.21 and read["odometry_walk_m_per_sqrt_s"] == 0.21
     (tmp_path / fuse.CALIBRATION_JSON).write_text('{"odometry_walk_m_per_sqrt_s": "x"}')
     assert fuse.config_for_run(tmp_path) == (fuse.FuseConfig(), None)
+
+
+def test_bias_share_moves_the_fix_error_into_the_bias():
+    """bias_share: the bias prior's σ is √share · the fixes' median σ (so it follows the reported
+    accuracy), and on fixes whose error is what the share models (1 Hz, 3 m per axis, correlated
+    over 20 s, reported right) the scale is recovered; a share of 1 (no white error) is refused."""
+    t, truth = walk(300.0)
+    rng = np.random.default_rng(5)
+    ft = np.arange(0.3, t[-1], 1.0)
+    b, a = np.zeros((ft.size, 2)), np.exp(-1.0 / 20.0)
+    for k in range(1, ft.size):
+        b[k] = a * b[k - 1] + np.sqrt(1 - a * a) * 3.0 * rng.normal(size=2)
+    z = np.stack([np.interp(ft, t, truth[:, j]) for j in range(2)], 1) + b
+    xy = odometry_of(truth)
+    for acc in (4.5, 45.0):
+        res = fuse.smooth(t, xy, ft, z, np.full(ft.size, acc), fuse.FuseConfig(**fuse.MEASURED_FIX_BIAS))
+        assert res.method == "smooth", res.warnings
+        assert res.info["fix_bias_sigma_m"] == pytest.approx(np.sqrt(0.9) * acc / fuse.RADIUS_68)
+        if acc < 10:  # fixes reported 10× too wide say little about the scale
+            assert res.info["scale"] == pytest.approx(1.25, rel=0.05)  # correlated fixes tell less: the ±5 % prior pulls
+    assert fuse.smooth(t, xy, ft, z, np.full(ft.size, 4.5)).info["fix_bias_sigma_m"] == fuse.FuseConfig().bias_sigma_m
+    with pytest.raises(ValidationError):
+        fuse.FuseConfig(bias_share=1.0)
