@@ -276,8 +276,78 @@ def fusion_table(data: str | Path, model: str = "pdr", split: str | None = None,
             "config": dataclasses.asdict(cfg)}
 
 
-def write_fusion_page(table: dict, data: str | Path, out: str | Path) -> Path:
-    """results.md + results.json in ``out`` for :func:`fusion_table`'s ``table``."""
+def _live_lines(live: dict) -> list[str]:
+    return ["## The live receiver's smoother (fixed lag)", "",
+            f"One simulated standard walk of {live['walk_min']} min (odometry at {live['odometry_hz']} Hz, "
+            f"{live['fixes']} fixes), fed to `wearnav.fuse.IncrementalFuser` ({live['lag_s']:g}-s window) in time "
+            f"order and solved every {live['every_s']:g} s: {live['updates']} updates, "
+            f"**{live['ms_per_update_median']} ms per update** (median; p95 {live['ms_per_update_p95']} ms; "
+            f"{live['ms_first_tenth_median']} ms in the walk's first tenth after the first window, "
+            f"{live['ms_last_tenth_median']} ms in its last), where the batch smoother over the whole walk took "
+            f"{live['batch_s']} s. Its final path lies {live['gap_to_batch_median_m']} m (median; p95 "
+            f"{live['gap_to_batch_p95_m']} m) from the batch smoother's; median error against truth "
+            f"{live['live_error_median_m']} m (batch {live['batch_error_median_m']} m).", ""]
+
+
+def fixed_lag_run(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig(), lag_s: float = 300.0,
+                  every_s: float = 10.0) -> dict:
+    """The live receiver's smoother (:class:`wearnav.fuse.IncrementalFuser`) on one simulated
+    recording: odometry and fixes fed in time order, the path asked for every ``every_s`` seconds.
+    Returns the seconds per update (median, p95, and the medians over the first tenth after the
+    first window and over the last tenth: equal when the cost does not grow with the walk), and
+    the final path's median / p95 distance from the batch smoother's and both errors against truth."""
+    from wearnav.preprocess import align
+
+    seq = align(rec, tcfg.preprocess_config())
+    t_c, vel, _ = predict_sequence(net, seq, tcfg.window, tcfg.stride)
+    t = seq.t[(seq.t >= t_c[0]) & (seq.t <= t_c[-1])]
+    xy = integrate_velocity(t_c, vel, t, np.zeros(2))
+    fx = rec.fixes
+    order = np.argsort(fx.t, kind="stable")
+    ft, fp, acc = fx.t[order], fx.pos[order, :2], fx.accuracy[order]
+    inc = fuse.IncrementalFuser(cfg, lag_s=lag_s)
+    times, fi, next_s = [], 0, t[0] + every_s
+    for k in range(t.size):
+        inc.add_odometry(t[k], xy[k])
+        while fi < ft.size and ft[fi] <= t[k]:
+            inc.add_fix(ft[fi], fp[fi, 0], fp[fi, 1], acc[fi])
+            fi += 1
+        if t[k] >= next_s or k == t.size - 1:
+            next_s += every_s
+            t0 = time.perf_counter()
+            live = inc.result()
+            times.append(time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    batch = fuse.smooth(t, xy, ft, fp, acc, cfg)
+    batch_s = time.perf_counter() - t0
+    truth = np.stack([np.interp(t, rec.truth.t, rec.truth.pos[:, j]) for j in range(2)], axis=1)
+    gap = np.linalg.norm(live.xy - batch.xy, axis=1)
+    e_live, e_batch = np.linalg.norm(live.xy - truth, axis=1), np.linalg.norm(batch.xy - truth, axis=1)
+    ms = np.asarray(times) * 1e3
+    tenth = max(1, ms.size // 10)
+    first = ms[min(ms.size - 1, int(lag_s // every_s) + 1):][:tenth]
+    return {"walk_min": round(float(t[-1] - t[0]) / 60.0, 1), "odometry_hz": round(float((t.size - 1) / (t[-1] - t[0])), 1),
+            "fixes": int(ft.size), "lag_s": lag_s, "every_s": every_s, "updates": int(ms.size), "method": live.method,
+            "ms_per_update_median": round(float(np.median(ms)), 1), "ms_per_update_p95": round(float(np.percentile(ms, 95)), 1),
+            "ms_first_tenth_median": round(float(np.median(first)), 1), "ms_last_tenth_median": round(float(np.median(ms[-tenth:])), 1),
+            "batch_s": round(batch_s, 3),
+            "gap_to_batch_median_m": round(float(np.median(gap)), 2), "gap_to_batch_p95_m": round(float(np.percentile(gap, 95)), 2),
+            "live_error_median_m": round(float(np.median(e_live)), 2), "batch_error_median_m": round(float(np.median(e_batch)), 2)}
+
+
+def live_walk(minutes: float, model: str = "pdr", seed: int = 0, cfg: fuse.FuseConfig = fuse.FuseConfig()) -> dict:
+    """:func:`fixed_lag_run` on one simulated standard walk of ``minutes`` (the simulator's fixes)."""
+    from wearnav.simulate.config import WalkConfig
+    from wearnav.simulate.walk import simulate_recording
+
+    net, tcfg = _untrained(model)
+    rec = simulate_recording(WalkConfig(name="live", mode="STW", placement="HD", duration_s=60.0 * minutes), seed=seed)
+    return fixed_lag_run(rec, net, tcfg, cfg)
+
+
+def write_fusion_page(table: dict, data: str | Path, out: str | Path, live: dict | None = None) -> Path:
+    """results.md + results.json in ``out`` for :func:`fusion_table`'s ``table`` (and
+    :func:`live_walk`'s result, where given)."""
     import os
     import platform
 
@@ -288,7 +358,7 @@ def write_fusion_page(table: dict, data: str | Path, out: str | Path) -> Path:
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    runs.write_json(out / "results.json", {**table, "data": str(data)})
+    runs.write_json(out / "results.json", {**table, "data": str(data), "live": live})
     p = provenance()
     df = pd.DataFrame(table["rows"])
     wide = df.pivot_table(index="mode", columns="path", values="median (m)", sort=False)[list(SIM_PATHS)]
@@ -312,6 +382,7 @@ def write_fusion_page(table: dict, data: str | Path, out: str | Path) -> Path:
              overall.to_markdown(index=False, floatfmt=".2f"), "",
              f"The smoother took {table['smooth_s']:.2f} s for {table['walk_s'] / 60:.1f} min of walk: "
              f"**{table['smooth_s_per_hour']} s per hour of walk** (one process; the machine is shared).", "",
+             *(_live_lines(live) if live else []),
              "## Median error per walking mode (m)", "",
              wide.to_markdown(floatfmt=".2f"), "",
              "## Every statistic", "",
