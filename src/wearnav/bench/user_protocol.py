@@ -283,7 +283,8 @@ def _live_lines(live: dict) -> list[str]:
             f"order and solved every {live['every_s']:g} s: {live['updates']} updates, "
             f"**{live['ms_per_update_median']} ms per update** (median; p95 {live['ms_per_update_p95']} ms; "
             f"{live['ms_first_tenth_median']} ms in the walk's first tenth after the first window, "
-            f"{live['ms_last_tenth_median']} ms in its last), where the batch smoother over the whole walk took "
+            f"{live['ms_last_tenth_median']} ms in its last; solver evaluations per update "
+            f"{live['solver_evaluations_first_tenth']} and {live['solver_evaluations_last_tenth']}), where the batch smoother over the whole walk took "
             f"{live['batch_s']} s. Its final path lies {live['gap_to_batch_median_m']} m (median; p95 "
             f"{live['gap_to_batch_p95_m']} m) from the batch smoother's; median error against truth "
             f"{live['live_error_median_m']} m (batch {live['batch_error_median_m']} m).", ""]
@@ -306,7 +307,7 @@ def fixed_lag_run(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig(), lag_
     order = np.argsort(fx.t, kind="stable")
     ft, fp, acc = fx.t[order], fx.pos[order, :2], fx.accuracy[order]
     inc = fuse.IncrementalFuser(cfg, lag_s=lag_s)
-    times, fi, next_s = [], 0, t[0] + every_s
+    times, evals, fi, next_s = [], [], 0, t[0] + every_s
     for k in range(t.size):
         inc.add_odometry(t[k], xy[k])
         while fi < ft.size and ft[fi] <= t[k]:
@@ -317,6 +318,7 @@ def fixed_lag_run(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig(), lag_
             t0 = time.perf_counter()
             live = inc.result()
             times.append(time.perf_counter() - t0)
+            evals.append(live.info.get("solver_evaluations", 0))
     t0 = time.perf_counter()
     batch = fuse.smooth(t, xy, ft, fp, acc, cfg)
     batch_s = time.perf_counter() - t0
@@ -325,11 +327,14 @@ def fixed_lag_run(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig(), lag_
     e_live, e_batch = np.linalg.norm(live.xy - truth, axis=1), np.linalg.norm(batch.xy - truth, axis=1)
     ms = np.asarray(times) * 1e3
     tenth = max(1, ms.size // 10)
-    first = ms[min(ms.size - 1, int(lag_s // every_s) + 1):][:tenth]
+    i0 = min(ms.size - 1, int(lag_s // every_s) + 1)
+    first, ev = ms[i0:][:tenth], np.asarray(evals, float)
     return {"walk_min": round(float(t[-1] - t[0]) / 60.0, 1), "odometry_hz": round(float((t.size - 1) / (t[-1] - t[0])), 1),
             "fixes": int(ft.size), "lag_s": lag_s, "every_s": every_s, "updates": int(ms.size), "method": live.method,
             "ms_per_update_median": round(float(np.median(ms)), 1), "ms_per_update_p95": round(float(np.percentile(ms, 95)), 1),
             "ms_first_tenth_median": round(float(np.median(first)), 1), "ms_last_tenth_median": round(float(np.median(ms[-tenth:])), 1),
+            "solver_evaluations_first_tenth": round(float(np.mean(ev[i0:][:tenth])), 1),
+            "solver_evaluations_last_tenth": round(float(np.mean(ev[-tenth:])), 1),
             "batch_s": round(batch_s, 3),
             "gap_to_batch_median_m": round(float(np.median(gap)), 2), "gap_to_batch_p95_m": round(float(np.percentile(gap, 95)), 2),
             "live_error_median_m": round(float(np.median(e_live)), 2), "batch_error_median_m": round(float(np.median(e_batch)), 2)}
