@@ -25,3 +25,36 @@ def test_simulator_rows_smoother_beats_the_users_odometry_and_the_fixes():
     print(med)
     assert med["smoother"] < med["fixes alone"]
     assert med["smoother"] < med["odometry alone (first-fix anchoring)"]
+
+
+def test_bench_fusion_writes_a_page_that_results_stitches(tmp_path, monkeypatch, capsys):
+    """`wearnav bench fusion` on a two-walk simulated dataset: results.md with the per-mode table
+    and the smoother's seconds per hour, results.json with every path per mode and over all, and
+    `wearnav results` takes the page in under its suite marker; --live-min times the fixed-lag
+    smoother on a simulated walk."""
+    import json
+
+    from conftest import run_cli
+    from wearnav.bench.results import collect
+    from wearnav.dataset import write_dataset
+    from wearnav.simulate.config import WalkConfig
+    from wearnav.simulate.walk import simulate_recording
+
+    recs = [(simulate_recording(WalkConfig(name=f"{m}_0", mode=m, placement="HD", duration_s=60.0), seed=k), "test")
+            for k, m in enumerate(("STW", "DLW"))]
+    write_dataset(tmp_path / "sim", recs)
+    code, out, err = run_cli(monkeypatch, capsys, "bench", "fusion", "--data", tmp_path / "sim", "--out", tmp_path / "fusion",
+                             "--live-min", "2")
+    assert code == 0, err
+    page = (tmp_path / "fusion" / "results.md").read_text()
+    table = json.loads((tmp_path / "fusion" / "results.json").read_text())
+    assert "| STW " in page and "| DLW " in page and "s per hour of walk" in page
+    assert {(r["mode"], r["path"]) for r in table["rows"]} == {
+        (m, p) for m in ("DLW", "STW", "all") for p in ("odometry alone (oracle rigid fit to truth)",
+                                                         "odometry alone (first-fix anchoring)", "fixes alone", "smoother")}
+    assert table["smooth_s_per_hour"] > 0 and table["walk_s"] > 100
+    live = table["live"]  # a 2-min walk: shorter than the 300-s window, so the batch solve, updated
+    assert live["updates"] >= 10 and live["gap_to_batch_median_m"] < 0.5 and "ms per update" in page
+    assert all(np.isfinite(r["median (m)"]) and r["walks"] == (2 if r["mode"] == "all" else 1) for r in table["rows"])
+    stitched = collect([tmp_path / "fusion"], tmp_path / "docs" / "results.md").read_text()
+    assert "Fusion on the simulator" in stitched and "<!-- suite: fusion -->" in stitched

@@ -119,23 +119,41 @@ def test_fixes_that_all_disagree_fall_back_to_first_fixes():
     assert any("disagree" in w for w in res.warnings)
 
 
-def test_incremental_matches_batch():
-    t, truth = walk(300.0)
-    xy = odometry_of(truth)
-    ft, z, acc, _ = fixes_of(t, truth, outliers=0.0)
-    inc = fuse.IncrementalFuser()
-    fi = 0
+def test_fixed_lag_agrees_with_batch_and_stays_in_its_window():
+    """The fixed-lag smoother (a 120-s window, updated every 20 s on a 10-min walk, an odometry
+    random walk and 5 % outlier fixes) ends within 0.5 m median / 1.5 m at the 95th percentile of
+    the batch smoother's path, recovers the scale, and never solves more than its window."""
+    t, truth = walk(600.0, seed=2)
+    rng = np.random.default_rng(3)
+    xy = odometry_of(truth) + np.cumsum(rng.normal(0, 0.1 * np.sqrt(0.5), (t.size, 2)), axis=0)
+    ft, z, acc, _ = fixes_of(t, truth, outliers=0.05)
+    inc = fuse.IncrementalFuser(lag_s=120.0, step_s=30.0)
+    fi, nodes = 0, []
     for k in range(t.size):
         inc.add_odometry(t[k], xy[k])
         while fi < ft.size and ft[fi] <= t[k]:
             inc.add_fix(ft[fi], *z[fi], acc[fi])
             fi += 1
-        if k in (t.size // 2, t.size - 1):
+        if k % 40 == 39 or k == t.size - 1:
             res = inc.result()
+            nodes.append(res.info.get("nodes", 0))
     batch = fuse.smooth(t, xy, ft, z, acc)
-    np.testing.assert_allclose(res.xy, batch.xy, atol=0.05)
+    gap = np.linalg.norm(res.xy - batch.xy, axis=1)
+    assert res.method == "smooth-fixed-lag" and res.xy.shape == xy.shape
+    assert np.median(gap) < 0.5 and np.percentile(gap, 95) < 1.5
+    assert res.info["scale"] == pytest.approx(1.25, rel=0.03)
+    assert res.info["slices_marginalised"] >= 10 and max(nodes) <= 120 + 30 + 2
     with pytest.raises(ValidationError):
         inc.add_odometry(t[0], xy[0])
+
+
+def test_fixed_lag_before_any_fix_is_the_batch_fallback():
+    t, truth = walk(120.0)
+    inc = fuse.IncrementalFuser(lag_s=60.0, step_s=30.0)
+    for k in range(t.size):
+        inc.add_odometry(t[k], odometry_of(truth)[k])
+    res = inc.result()
+    assert res.method == "none" and res.warnings
 
 
 def test_odometry_walk_sigma_recovers_a_known_random_walk_and_is_read_back(tmp_path):
@@ -157,3 +175,26 @@ def test_odometry_walk_sigma_recovers_a_known_random_walk_and_is_read_back(tmp_p
     assert cfg.odometry_walk_m_per_sqrt_s == 0.21 and read["odometry_walk_m_per_sqrt_s"] == 0.21
     (tmp_path / fuse.CALIBRATION_JSON).write_text('{"odometry_walk_m_per_sqrt_s": "x"}')
     assert fuse.config_for_run(tmp_path) == (fuse.FuseConfig(), None)
+
+
+def test_bias_share_moves_the_fix_error_into_the_bias():
+    """bias_share: the bias prior's σ is √share · the fixes' median σ (so it follows the reported
+    accuracy), and on fixes whose error is what the share models (1 Hz, 3 m per axis, correlated
+    over 20 s, reported right) the scale is recovered; a share of 1 (no white error) is refused."""
+    t, truth = walk(300.0)
+    rng = np.random.default_rng(5)
+    ft = np.arange(0.3, t[-1], 1.0)
+    b, a = np.zeros((ft.size, 2)), np.exp(-1.0 / 20.0)
+    for k in range(1, ft.size):
+        b[k] = a * b[k - 1] + np.sqrt(1 - a * a) * 3.0 * rng.normal(size=2)
+    z = np.stack([np.interp(ft, t, truth[:, j]) for j in range(2)], 1) + b
+    xy = odometry_of(truth)
+    for acc in (4.5, 45.0):
+        res = fuse.smooth(t, xy, ft, z, np.full(ft.size, acc), fuse.FuseConfig(**fuse.MEASURED_FIX_BIAS))
+        assert res.method == "smooth", res.warnings
+        assert res.info["fix_bias_sigma_m"] == pytest.approx(np.sqrt(0.9) * acc / fuse.RADIUS_68)
+        if acc < 10:  # fixes reported 10× too wide say little about the scale
+            assert res.info["scale"] == pytest.approx(1.25, rel=0.05)  # correlated fixes tell less: the ±5 % prior pulls
+    assert fuse.smooth(t, xy, ft, z, np.full(ft.size, 4.5)).info["fix_bias_sigma_m"] == fuse.FuseConfig().bias_sigma_m
+    with pytest.raises(ValidationError):
+        fuse.FuseConfig(bias_share=1.0)

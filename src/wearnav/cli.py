@@ -568,6 +568,30 @@ def bench_efficiency(
     typer.echo(str(write_report(rows, out, odometry_suite)))
 
 
+@bench_app.command("fusion")
+def bench_fusion(
+    data: Path = typer.Option(..., "--data", help="A simulated dataset (`wearnav simulate`): dense truth and fixes."),
+    out: Path = typer.Option(Path("runs/fusion"), "--out", help="Folder for results.md / results.json."),
+    model: str = typer.Option("pdr", help="An untrained odometry baseline (no training)."),
+    split: Optional[str] = typer.Option(None, help="One split of --data (default: every recording)."),
+    live_min: float = typer.Option(0.0, "--live-min", min=0.0, help="Also time the live receiver's fixed-lag "
+                                   "smoother on one simulated walk this long (minutes; 0: not)."),
+):
+    """Odometry alone, fixes alone and the smoother against the simulator's truth, per walking mode,
+    the smoother's seconds per hour of walk, and (--live-min) the fixed-lag smoother's time per update.
+
+    \b
+    Example:
+      wearnav bench fusion --data data/sim --out runs/fusion --live-min 60
+    """
+    from wearnav.bench.user_protocol import fusion_table, live_walk, write_fusion_page
+    from wearnav.outputs import check_suite_folder
+
+    check_suite_folder(out, "bench fusion")  # its page is written at the end: nothing kept before
+    live = live_walk(live_min, model) if live_min > 0 else None
+    typer.echo(str(write_fusion_page(fusion_table(data, model, split), data, out, live)))
+
+
 # ---- activity / placement recognition (issue 9, paper 002) ------------------------------------
 
 @bench_app.command("har")
