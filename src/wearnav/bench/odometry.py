@@ -37,8 +37,8 @@ MODES = ("STW", "PVW", "MVW", "DRW", "DLW")
 PAPER_GRID: list[tuple[str, dict]] = [
     ("pdr", {}), ("ronin", {}), ("ronin*", {}), ("ionet", {"bidirectional": False}), ("ionet*", {}), ("imunet", {}),
     ("imunet*", {}), ("deepit*", {}), ("rewf", {}), ("deepsense*", {}), ("suitein", {}), ("suitein++", {}),
-    *[(f"suitein++-abl{n}", {}) for n in range(1, 6)],
     ("suitein++", {"extractor": "mixed"}),
+    *[(f"suitein++-abl{n}", {}) for n in range(1, 6)],
 ]
 GRIDS: dict[str, list[tuple[str, dict]]] = {
     "default": [(m, {}) for m in DEFAULT_MODELS],
