@@ -52,7 +52,7 @@ def grid_runs(tmp_path):
 
 
 def test_row_labels_and_seeded_configs(tmp_path):
-    assert odometry.row_label("suitein++", {"extractor": "mixed"}) == "suitein++ (mixed extractor)"
+    assert odometry.row_label("suitein++", {"extractor": "mixed"}) == "suitein++ (extractor=mixed)"
     assert odometry.row_label("ronin", {"width": 8}) == "ronin (width=8)" and odometry.row_label("pdr", {}) == "pdr"
     from wearnav.simulate import simulate_dataset
 
@@ -64,7 +64,7 @@ def test_row_labels_and_seeded_configs(tmp_path):
     assert [c.seed for c in odometry.suite_configs(data, ["pdr"], seed=4)] == [4]  # the one-seed call as before
     with pytest.raises(ConfigError):
         odometry.suite_configs(data, ["pdr"], seeds=[1, 1])
-    assert ("suitein++", {"extractor": "mixed"}) in odometry.GRIDS["paper"]
+    assert ("suitein++-rows", {}) in odometry.GRIDS["paper"]
     assert {f"suitein++-abl{n}" for n in range(1, 6)} <= {m for m, _ in odometry.GRIDS["paper"]}
 
 

@@ -248,6 +248,12 @@ def test_velocity_losses_by_hand():
     expected = (parts["vel"] + 0.1 * parts["vel_glb"] + parts["vel_loc"] + 0.2 * parts["con"]
                 + 0.05 * parts["orth"])
     assert total.item() == pytest.approx(expected.item(), rel=1e-6)
+    # the trainer's aux_scale weighs the contrastive and orthogonality terms only
+    m.aux_scale = 0.25
+    ramped, parts = m.loss(b)
+    expected = (parts["vel"] + 0.1 * parts["vel_glb"] + parts["vel_loc"]
+                + 0.25 * (0.2 * parts["con"] + 0.05 * parts["orth"]))
+    assert ramped.item() == pytest.approx(expected.item(), rel=1e-6) and ramped.item() < total.item()
     # Eq. 21 starts as v_glb + v_loc.
     assert torch.allclose(p["v"], p["v_glb"] + p["v_loc"], atol=1e-6)
 
@@ -289,7 +295,7 @@ def test_masked_batch_norm_gradient():
     assert torch.autograd.gradcheck(lambda y, w, b: _MaskedBatchNormFn.apply(y, m, w, b, 1e-5)[0], (y, w, b))
 
 
-@pytest.mark.parametrize("kw", [{}, {"extractor": "mixed"}, {"sensor_pools": (1, 2, 3, 1, 1, 1)}],
+@pytest.mark.parametrize("kw", [{"extractor": "paper"}, {}, {"extractor": "paper", "sensor_pools": (1, 2, 3, 1, 1, 1)}],
                          ids=["paper", "mixed", "paper-row-pooling"])
 def test_grouped_inference_equals_separate_extractors(kw):
     """The fused inference path (one grouped convolution, BN folded, ReLU fused, strided max)
@@ -315,22 +321,25 @@ def test_extractor_readings():
     per step); mixed: the six axes are block 1's input channels. Row max-pooling with kernels
     shared by the rows makes the features symmetric in pooled axes (why it is off by default):
     swapping acc x and y changes nothing there, and changes the paper default's output."""
-    paper, mixed = tiny(), tiny(extractor="mixed")
+    paper, mixed = tiny(extractor="paper"), tiny(extractor="mixed")
     assert paper.extractors.convs[0].in_channels == 3 and mixed.extractors.convs[0].in_channels == 18
     assert paper.extractors.out_channels == 6 * mixed.extractors.out_channels
     b = batch(B=4)
     swapped = b["x"][..., [1, 0, 2, 3, 4, 5]]
-    pooled = tiny(sensor_pools=(2, 3, 1, 1, 1, 1)).eval()
+    pooled = tiny(extractor="paper", sensor_pools=(2, 3, 1, 1, 1, 1)).eval()
     with torch.no_grad():
         assert torch.equal(pooled(b["x"], b["mask"]), pooled(swapped, b["mask"]))
         paper.eval()
         assert not torch.allclose(paper(b["x"], b["mask"]), paper(swapped, b["mask"]))
-    assert registry.build("suitein++-mixed").cfg == registry.build("suitein++", extractor="mixed").cfg
-    assert registry.build("suitein-mixed").cfg == registry.build("suitein", extractor="mixed").cfg
+    from wearnav.models.suitein import ROWS_SIZE
+
+    assert registry.build("suitein++").cfg.extractor == "mixed"  # the default reading (module docstring)
+    assert registry.build("suitein++-rows").cfg == registry.build("suitein++", **ROWS_SIZE).cfg
+    assert registry.build("suitein").cfg.extractor == "paper"  # Suite-IN's own size needs the rows
     with pytest.raises(ConfigError):
         tiny(extractor="rows")
     with pytest.raises(ConfigError):
-        tiny(sensor_pools=(2, 2, 2, 1, 1, 1))        # 6 → 3 → 1 → 0 rows
+        tiny(extractor="paper", sensor_pools=(2, 2, 2, 1, 1, 1))        # 6 → 3 → 1 → 0 rows
 
 
 # --- ablation switches -------------------------------------------------------------------------

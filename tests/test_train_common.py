@@ -48,5 +48,8 @@ def test_schedule_warm_up_then_cosine_to_its_floor():
     assert s(110) == pytest.approx(0.01) and s(500) == pytest.approx(0.01)
     assert all(s(i) >= s(i + 1) for i in range(10, 120))
     assert Schedule()(0) == Schedule()(10_000) == 1.0  # no schedule: constant
+    ramp = Schedule(total_steps=100, aux_warmup_steps=40)
+    assert ramp.aux(0) == 0.0 and ramp.aux(10) == pytest.approx(0.25) and ramp.aux(40) == ramp.aux(99) == 1.0
+    assert Schedule().aux(0) == 1.0  # no ramp: the auxiliary losses count from the start
     held = Schedule(warmup_steps=10, total_steps=110, decay_from=60)
     assert held(30) == held(60) == 1.0 and held(85) == pytest.approx(0.01 + 0.99 * 0.5) and held(110) == pytest.approx(0.01)

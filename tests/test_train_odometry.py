@@ -265,6 +265,7 @@ def test_recipes_fast_by_default_and_paper_one_option_away(tiny, tmp_path):
     assert TrainConfig(model="test-mlp", data=str(tiny)).recipe == "fast"
     s = recipe_schedule("fast", epochs=10, steps_per_epoch=20)
     assert s.warmup_steps == 20 and s.total_steps == 200 and s.decay_from == 100
+    assert s.aux_warmup_steps == 100  # Suite-IN++'s contrastive terms ramp in over the first half
     assert recipe_schedule("paper", 10, 20).total_steps == 0  # constant at the model's paper lr
     with pytest.raises(ConfigError, match="recipe"):
         _cfg(tiny, recipe="slow")

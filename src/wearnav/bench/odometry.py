@@ -32,12 +32,12 @@ MODES = ("STW", "PVW", "MVW", "DRW", "DLW")
 # Issue #16 §4 "paper" grid: every model of Table III (* = the devices' channels concatenated),
 # the phone-only ionet (one-directional: Table VI's 114.6 K; the registry's default is EasyTrack's
 # Bi-LSTM) and imunet of Table IV, the ablations (1)–(5) of Table V ((6) = suitein++) and
-# Suite-IN++ with the six axes mixed in its first extractor block. Names the registry does not
+# Suite-IN++ with the paper's row-keeping extractor (suitein++-rows). Names the registry does not
 # hold yet make `--grid paper` refuse to start, naming them: edit this list to run what exists.
 PAPER_GRID: list[tuple[str, dict]] = [
     ("pdr", {}), ("ronin", {}), ("ronin*", {}), ("ionet", {"bidirectional": False}), ("ionet*", {}), ("imunet", {}),
     ("imunet*", {}), ("deepit*", {}), ("rewf", {}), ("deepsense*", {}), ("suitein", {}), ("suitein++", {}),
-    ("suitein++", {"extractor": "mixed"}),
+    ("suitein++-rows", {}),
     *[(f"suitein++-abl{n}", {}) for n in range(1, 6)],
 ]
 GRIDS: dict[str, list[tuple[str, dict]]] = {
@@ -45,7 +45,7 @@ GRIDS: dict[str, list[tuple[str, dict]]] = {
     "paper": PAPER_GRID,
 }
 # How a model_args item reads in a row label; others read "key=value".
-ARG_LABELS = {("extractor", "mixed"): "mixed extractor"}
+ARG_LABELS: dict = {}
 
 
 def row_label(model: str, model_args: dict | None = None) -> str:

@@ -18,6 +18,10 @@ class OdometryModel(nn.Module):
     ``learned = False`` and may have no parameters."""
 
     learned: bool = True
+    # Weight (0–1) on the model's auxiliary losses (Suite-IN++'s contrastive and orthogonality
+    # terms), set per step by the trainer's recipe (wearnav.train.common.Schedule.aux): the "fast"
+    # recipe ramps them in while the velocity is learned first.
+    aux_scale: float = 1.0
 
     def forward(self, x: Tensor, mask: Tensor) -> Tensor:  # pragma: no cover - abstract
         raise NotImplementedError

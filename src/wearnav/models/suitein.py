@@ -19,23 +19,26 @@ Choices where the paper is silent (aimed at its budget of ≈ 0.5 M parameters, 
 
 * Extractors (eqs. 1–2): six blocks conv → batch norm → ReLU → max-pool → dropout 0.2 with
   temporal kernels [3, 2, 2, 2, 2, 2] (the paper's), widths ``widths`` and pool sizes ``pools``
-  (ours: 16, 24, 32, 32, 32, 28 channels; max-pool over time by 2 in blocks 4–6). The paper's
-  extractor (``extractor="paper"``, the default) slides the kernels "over the time dimension
-  ... without altering the sensor channel dimensionality" (Sec. IV-B): each of the six IMU
-  axes is a row of its own (kernels (1, k) on one input channel, shared by the rows, as in
-  DeepConvLSTM [7]); the rows are flattened into the features after block 6 (C·6 per step).
-  The paper also pools "along the temporal and sensor channel dimension"; ``sensor_pools``
-  does that along the rows, but off by default: with kernels shared by the rows, a max over
-  rows is symmetric in them (swap acc x and y → the same features; tested), so the model could
-  not tell a velocity's x from its y. ``extractor="mixed"`` is the other reading, the six axes
-  as the first convolution's input channels (block 1 mixes them; with these widths 3.8 M MACs,
-  177 K parameters). Time goes 100 → 11 steps, so the GRU of eq. 14 still sees a sequence.
-  These widths give 498.9 K parameters and 21.0 M multiply-accumulates per window (GRU
-  included), the paper's 498.8 K and 0.020 G (Table VI; its "FLOPs" are MACs); where to spend
-  them is our guess. Max-pool comes before ReLU (they commute) and dropout after the pool,
-  which is the paper's block with less work. Cost of the six rows on a CPU (1 thread): one
-  training step at batch 128 takes ≈ 1.2–1.5 s against 0.13 s for the mixed reading; the
-  activations are six times as many rows at full time resolution, and memory-bound.
+  (max-pool over time by 2 in blocks 4–6; time goes 100 → 11 steps, so the GRU of eq. 14 still
+  sees a sequence). Two readings of "six 1-D CNN blocks", both at the paper's size (498.8 K
+  parameters, 0.020 G MACs, Table VI; its "FLOPs" are MACs, GRU included):
+  - ``extractor="mixed"`` (the default): the six IMU axes are the first convolution's input
+    channels (block 1 mixes them). Widths 48, 64, 64, 76, 72, 68: 496.8 K parameters, 19.4 M MACs.
+  - ``extractor="paper"`` (``suitein++-rows``, ``ROWS_SIZE``): the kernels slide "over the time
+    dimension ... without altering the sensor channel dimensionality" (Sec. IV-B): each axis is
+    a row of its own (kernels (1, k) on one input channel, shared by the rows, as in
+    DeepConvLSTM [7]), the rows flattened into the features after block 6. Widths 16, 24, 32,
+    32, 32, 28: 498.9 K parameters, 21.0 M MACs. The paper also pools "along the temporal and
+    sensor channel dimension"; ``sensor_pools`` does that along the rows, but off by default:
+    with kernels shared by the rows, a max over rows is symmetric in them (swap acc x and y →
+    the same features; tested), so the model could not tell a velocity's x from its y.
+  Why the default is "mixed" (measured on `small`, seed 0, 12 epochs, the "fast" recipe, 1
+  thread): the row reading's activations are six rows at full time resolution, so one training
+  step at batch 128 takes ≈ 1.2–1.5 s against ≈ 0.15 s (10× the training time on a CPU), and it
+  learns later (validation velocity MSE at the trivial 0.63 for 8 epochs without the auxiliary-
+  loss ramp, 30 epochs to 0.063; the mixed reading 0.021 after 4 epochs). The odometry grid
+  compares the two on accuracy (docs/results.md). Max-pool comes before ReLU (they commute) and
+  dropout after the pool, which is the paper's block with less work.
 * All D devices' global and local extractors run as ONE grouped convolution (groups = devices ×
   branches) in channels-last layout; arithmetic is that of separate extractors (tested). Small
   temporal convolutions are memory-bound, so at inference batch norm is folded into the
@@ -79,8 +82,9 @@ Table V variants → switches (registered as ``suitein++-abl1`` … ``-abl5``; (
     Suite-IN [3]: contrast=True weighted=False attentive=False (local features only in eq. 3–5).
 
 Suite-IN is built at its own size (Table VI: 104.3 K parameters, 0.026 G MACs; its widths are
-not given in this paper): ``SUITEIN_SIZE`` (widths 24, 32, 36, 36, 24, 16, GRU 56: 102.5 K
-parameters, 26.6 M MACs). Its ``widths`` etc. can be overridden like any hyper-parameter.
+not given in this paper): ``SUITEIN_SIZE`` (the row-keeping extractor, widths 24, 32, 36, 36,
+24, 16, GRU 56: 102.5 K parameters, 26.6 M MACs; the mixed reading has ≥ 235 K parameters by
+the time it reaches 16 M MACs, so it cannot be Suite-IN's size). Its ``widths`` etc. can be overridden like any hyper-parameter.
 """
 
 from __future__ import annotations
@@ -105,13 +109,14 @@ EXTRACTORS = ("paper", "mixed")  # SuiteINConfig.extractor
 class SuiteINConfig:
     n_devices: int = 3
     window: int = 100                       # samples at 25 Hz (Sec. V-A)
-    widths: tuple[int, ...] = (16, 24, 32, 32, 32, 28)
+    widths: tuple[int, ...] = (48, 64, 64, 76, 72, 68)
     kernels: tuple[int, ...] = (3, 2, 2, 2, 2, 2)   # the paper's temporal kernels
     pools: tuple[int, ...] = (1, 1, 1, 2, 2, 2)
     # "paper": each IMU axis stays a row of its own through the blocks (temporal kernels (1, k)
-    # slide over time on every row, max-pool by ``sensor_pools`` along the axes); "mixed": the six
-    # axes are the first convolution's input channels (block 1 mixes them). Module docstring.
-    extractor: str = "paper"
+    # slide over time on every row, max-pool by ``sensor_pools`` along the axes; ROWS_SIZE gives
+    # it the paper's size); "mixed" (default, measured: module docstring): the six axes are the
+    # first convolution's input channels (block 1 mixes them).
+    extractor: str = "mixed"
     sensor_pools: tuple[int, ...] = (1, 1, 1, 1, 1, 1)     # paper: rows kept (module docstring)
     dropout: float = 0.2
     glb_pool: int = 3                       # eq. 9
@@ -553,7 +558,8 @@ class SuiteIN(OdometryModel):
 
     def loss(self, batch: dict[str, Tensor]) -> tuple[Tensor, dict[str, Tensor]]:
         """Eq. 25: λ_v·L_vel (23) + λ_v^glb·L_vel^glb (7) + λ_v^loc·L_vel^loc (22) + λ_c·L_con (3)
-        + λ_o·L_orth (5), with the terms of switched-off modules left out."""
+        + λ_o·L_orth (5), with the terms of switched-off modules left out; the last two × the
+        trainer's ``aux_scale`` (1 in the paper's recipe; ramped in by the "fast" recipe)."""
         c = self.cfg
         x, mask, vel = batch["x"], batch["mask"].to(batch["x"].dtype), batch["vel"]
         p = self.parts(x, mask)
@@ -566,7 +572,7 @@ class SuiteIN(OdometryModel):
         if c.contrast:
             named["con"] = contrastive_loss(p["h_glb"], p["h_loc"], mask, c.tau)
             named["orth"] = orthogonality_loss(p["h_glb"], p["h_loc"], mask)
-            total = total + c.w_con * named["con"] + c.w_orth * named["orth"]
+            total = total + self.aux_scale * (c.w_con * named["con"] + c.w_orth * named["orth"])
         return total, named
 
 
@@ -588,7 +594,9 @@ def suitein_pp(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
 
 # Suite-IN's own size (Table VI: 104.3 K parameters, 0.026 G MACs): no attentive local analysis
 # to hold parameters, so wider middle blocks and a narrower last one and GRU.
-SUITEIN_SIZE: dict[str, object] = dict(widths=(24, 32, 36, 36, 24, 16), gru_hidden=56)
+SUITEIN_SIZE: dict[str, object] = dict(extractor="paper", widths=(24, 32, 36, 36, 24, 16), gru_hidden=56)
+# Suite-IN++ with the paper's row-keeping extractor at the paper's size (498.9 K, 21.0 M MACs).
+ROWS_SIZE: dict[str, object] = dict(extractor="paper", widths=(16, 24, 32, 32, 32, 28))
 
 
 @register("suitein", task="odometry", layout="multi",
@@ -598,18 +606,13 @@ def suitein(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
                                         **SUITEIN_SIZE, **kw})
 
 
-# The other reading of the extractor (module docstring), by name so a suite or the CLI can run it
-# (``TrainConfig.model_args={"extractor": "mixed"}`` builds the same).
-@register("suitein++-mixed", task="odometry", layout="multi",
-          description="Suite-IN++ with the six IMU axes mixed in the first extractor block (not the paper's reading)")
-def suitein_pp_mixed(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
-    return suitein_pp(n_devices, window, **{"extractor": "mixed", **kw})
-
-
-@register("suitein-mixed", task="odometry", layout="multi",
-          description="Suite-IN with the six IMU axes mixed in the first extractor block (not the paper's reading)")
-def suitein_mixed(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
-    return suitein(n_devices, window, **{"extractor": "mixed", **kw})
+# The paper's row-keeping reading of the extractor at the paper's size (module docstring), by name
+# so a suite or the CLI can run it (``model_args=ROWS_SIZE`` builds the same).
+@register("suitein++-rows", task="odometry", layout="multi",
+          description="Suite-IN++ with the paper's row-keeping extractor (each IMU axis its own row; ~10x the "
+                      "training time on a CPU)")
+def suitein_pp_rows(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
+    return suitein_pp(n_devices, window, **{**ROWS_SIZE, **kw})
 
 
 # Table V ablations (1)–(5); (6) is suitein++.

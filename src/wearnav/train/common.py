@@ -68,6 +68,7 @@ class Schedule:
     total_steps: int = 0
     final: float = 0.01
     decay_from: int = 0  # the cosine starts here (or after the warm-up, whichever is later)
+    aux_warmup_steps: int = 0  # auxiliary losses ramp in linearly over these steps (:meth:`aux`)
 
     def __call__(self, step: int) -> float:
         if self.total_steps <= 0:
@@ -80,6 +81,11 @@ class Schedule:
         span = max(self.total_steps - start, 1)
         done = min((step - start) / span, 1.0)
         return self.final + (1.0 - self.final) * 0.5 * (1.0 + math.cos(math.pi * done))
+
+    def aux(self, step: int) -> float:
+        """The weight (0–1) on a model's auxiliary losses at ``step``: 0 → 1 linearly over
+        ``aux_warmup_steps`` (none: 1 throughout)."""
+        return 1.0 if self.aux_warmup_steps <= 0 else min(step / self.aux_warmup_steps, 1.0)
 
 
 class SeededModule(L.LightningModule):
@@ -103,6 +109,8 @@ class SeededModule(L.LightningModule):
         self._gen.manual_seed(base + 7)
 
     def training_step(self, batch, batch_idx):
+        if hasattr(self.model, "aux_scale"):
+            self.model.aux_scale = self.schedule.aux(self.global_step)
         if self.augment:
             batch = augment_batch(self.augment, batch, self._gen)
         loss, parts = self.model.loss(batch)

@@ -153,7 +153,8 @@ def recipe_schedule(recipe: str, epochs: int, steps_per_epoch: int) -> Schedule:
     if recipe == "paper":
         return Schedule()
     total = epochs * steps_per_epoch
-    return Schedule(warmup_steps=steps_per_epoch, total_steps=total, decay_from=int(FAST_HOLD * total))
+    hold = int(FAST_HOLD * total)
+    return Schedule(warmup_steps=steps_per_epoch, total_steps=total, decay_from=hold, aux_warmup_steps=hold)
 
 
 class OdometryModule(SeededModule):
