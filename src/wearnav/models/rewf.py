@@ -27,7 +27,7 @@ from wearnav.errors import ConfigError
 from wearnav.models.base import OdometryModel
 from wearnav.models.deepit import masked_softmax
 from wearnav.models.registry import register
-from wearnav.models.ronin import BasicBlock1D
+from wearnav.models.ronin import resnet_layers
 
 
 class ResNetEncoder(nn.Module):
@@ -36,19 +36,8 @@ class ResNetEncoder(nn.Module):
     def __init__(self, in_channels: int = 6, blocks=(2, 2, 2, 2), base: int = 64, trans_planes: int = 128,
                  input_stride: int = 1):
         super().__init__()
-        layers: list[nn.Module] = [nn.Conv1d(in_channels, base, 7, input_stride, 3, bias=False),
-                                   nn.BatchNorm1d(base), nn.ReLU(inplace=True)]
-        if input_stride > 1:
-            layers.append(nn.MaxPool1d(3, 2, 1))
-        self.input_block = nn.Sequential(*layers)
-        groups, c = [], base
-        for i, n in enumerate(blocks):
-            width, stride = base * 2 ** i, 1 if i == 0 else 2
-            groups += [BasicBlock1D(c, width, stride)] + [BasicBlock1D(width, width) for _ in range(n - 1)]
-            c = width
-        self.groups = nn.Sequential(*groups)
-        self.transition = nn.Sequential(nn.Conv1d(c, trans_planes, 1, bias=False), nn.BatchNorm1d(trans_planes))
-        self.halvings = (2 if input_stride > 1 else 0) + len(blocks) - 1
+        self.input_block, self.groups, self.transition, self.halvings = resnet_layers(
+            in_channels, blocks, base, trans_planes, input_stride)
 
     def length(self, window: int) -> int:
         return -(-window // 2 ** self.halvings)

@@ -63,6 +63,26 @@ class BasicBlock1D(nn.Module):
         return self.relu(out + skip)
 
 
+def resnet_layers(in_channels: int, blocks=(2, 2, 2, 2), base: int = 64, trans_planes: int = 128,
+                  input_stride: int = 2) -> tuple[nn.Sequential, nn.Sequential, nn.Sequential, int]:
+    """RoNIN's ResNet-18-1D body: the input block (7-tap convolution with ``input_stride``, batch
+    norm, ReLU, and a stride-2 max-pool where ``input_stride`` > 1), the residual groups (widths
+    ``base`` · 2^i, stride 2 from the second) and the 1×1 transition to ``trans_planes``; and how
+    many times they halve the length (all padded: L → ceil(L / 2^halvings))."""
+    layers: list[nn.Module] = [nn.Conv1d(in_channels, base, 7, input_stride, 3, bias=False),
+                               nn.BatchNorm1d(base), nn.ReLU(inplace=True)]
+    if input_stride > 1:
+        layers.append(nn.MaxPool1d(3, 2, 1))
+    groups, c = [], base
+    for i, n in enumerate(blocks):
+        width, stride = base * 2 ** i, 1 if i == 0 else 2
+        groups += [BasicBlock1D(c, width, stride)] + [BasicBlock1D(width, width) for _ in range(n - 1)]
+        c = width
+    transition = nn.Sequential(nn.Conv1d(c, trans_planes, 1, bias=False), nn.BatchNorm1d(trans_planes))
+    halvings = (2 if input_stride > 1 else 0) + len(blocks) - 1
+    return nn.Sequential(*layers), nn.Sequential(*groups), transition, halvings
+
+
 class ResNet1D(nn.Module):
     """RoNIN's ResNet-18-1D backbone and FC output head: (B, C, L) → (B, n_out)."""
 
@@ -71,18 +91,9 @@ class ResNet1D(nn.Module):
         super().__init__()
         if window < MIN_WINDOW:
             raise ConfigError(f"RoNIN ResNet needs windows of at least {MIN_WINDOW} samples, got {window}")
-        self.input_block = nn.Sequential(
-            nn.Conv1d(in_channels, base, 7, 2, 3, bias=False), nn.BatchNorm1d(base), nn.ReLU(inplace=True),
-            nn.MaxPool1d(3, 2, 1))
-        layers, c = [], base
-        for i, n in enumerate(blocks):
-            width, stride = base * 2 ** i, 1 if i == 0 else 2
-            layers += [BasicBlock1D(c, width, stride)] + [BasicBlock1D(width, width) for _ in range(n - 1)]
-            c = width
-        self.groups = nn.Sequential(*layers)
-        self.transition = nn.Sequential(nn.Conv1d(c, trans_planes, 1, bias=False), nn.BatchNorm1d(trans_planes))
-        # Length after the stride-2 input conv, the max-pool and three stride-2 groups (all padded).
-        length = -(-window // 2 ** (2 + len(blocks) - 1))
+        self.input_block, self.groups, self.transition, halvings = resnet_layers(in_channels, blocks, base,
+                                                                                 trans_planes, input_stride=2)
+        length = -(-window // 2 ** halvings)
         self.fc = nn.Sequential(
             nn.Linear(trans_planes * length, fc_dim), nn.ReLU(inplace=True), nn.Dropout(dropout),
             nn.Linear(fc_dim, fc_dim), nn.ReLU(inplace=True), nn.Dropout(dropout),
