@@ -221,3 +221,50 @@ def test_the_lock_is_taken_by_rank_zero_only(tmp_path, monkeypatch):
     finally:
         p.kill()
         p.wait()
+
+
+SIGTERM_SCRIPT = """
+import os, signal, sys, time
+from pathlib import Path
+from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.errors import Terminated
+
+def slow(config, folder):
+    Path(config["mark"] + str(config["x"])).write_text(str(os.getpid()))
+    time.sleep(120)
+
+def on_term(signum, frame):
+    raise Terminated("terminated (SIGTERM)")
+
+signal.signal(signal.SIGTERM, on_term)  # as wearnav.cli.main does
+root = Path(sys.argv[1])
+try:
+    run_jobs([Job(slow, {"x": i, "mark": str(root / "started")}, root / f"run{i}") for i in range(2)],
+             Execution(jobs=2), echo=lambda s: None)
+except Terminated:
+    sys.exit(143)
+"""
+
+
+def test_sigterm_stops_a_multi_process_suite_at_once(tmp_path):
+    """SIGTERM (or Ctrl-C) to a suite running jobs in worker processes ends it within seconds,
+    workers included, instead of waiting for the runs still training (they resume later)."""
+    import signal
+    import subprocess
+
+    script = tmp_path / "suite.py"
+    script.write_text(SIGTERM_SCRIPT)
+    proc = subprocess.Popen([sys.executable, str(script), str(tmp_path)])
+    marks = [tmp_path / f"started{i}" for i in range(2)]
+    deadline = time.monotonic() + 60
+    while not all(m.exists() and m.read_text() for m in marks):
+        assert time.monotonic() < deadline and proc.poll() is None, "the workers did not start"
+        time.sleep(0.1)
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=30) == 143
+    assert time.monotonic() - t0 < 30  # not the jobs' 120 s
+    time.sleep(0.5)
+    for m in marks:  # no worker left running
+        with pytest.raises(ProcessLookupError):
+            os.kill(int(m.read_text()), 0)

@@ -114,7 +114,8 @@ def run_jobs(jobs: Sequence[Job], execution: Execution = Execution(),
              echo: Callable[[str], None] | None = None) -> list[Path]:
     """Run every incomplete job (longest first) as ``execution`` says; returns every job's folder,
     in the order given. The first failure stops the run (jobs already running finish) and is
-    raised here."""
+    raised here; Ctrl-C or SIGTERM stop it at once (local worker processes still running a job are
+    terminated; their runs resume from their last checkpoint)."""
     say = echo or log.info
     todo = []
     for job in jobs:
@@ -170,10 +171,23 @@ def _run_processes(todo: list[Job], ex: Execution, finished) -> None:
                     wall = fut.result()  # a failed job raises here
                     k += 1
                     finished(k, job, wall)
-        except BaseException:
+        except BaseException as exc:
             for fut in pending:
                 fut.cancel()
+            if not isinstance(exc, Exception):  # Ctrl-C, SIGTERM: do not wait for the runs still training
+                _stop_workers(pool)
             raise
+
+
+def _stop_workers(pool) -> None:
+    """Terminate a ProcessPoolExecutor's worker processes (their runs resume from their last
+    checkpoint: every write of a run is atomic), so that leaving the ``with`` block does not wait
+    for jobs that are still running. Python 3.14 names this ``terminate_workers``."""
+    if hasattr(pool, "terminate_workers"):
+        pool.terminate_workers()
+        return
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        proc.terminate()
 
 
 def _run_ray(todo: list[Job], ex: Execution, finished) -> None:
