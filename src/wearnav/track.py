@@ -66,7 +66,6 @@ ANCHOR_TEXT = {
                    f"{fuse.ANCHOR_S:g} s",
     "none": "not placed on the fixes",
 }
-MIN_ANCHOR_SPREAD_M = 5.0
 TRAJ_FORMAT = "%.4f"
 TRACK_JSON = "track.json"  # the marker: a folder holding it was written by `wearnav track`
 TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.geojson", TRACK_JSON)
