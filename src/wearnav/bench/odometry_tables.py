@@ -28,6 +28,9 @@ from wearnav.bench.odometry import DIAGNOSTIC_TRUTH_FRAME, MODES, TEST_SPLITS, b
 from wearnav.errors import ValidationError, WearnavError
 from wearnav.fileio import write_text_atomic
 from wearnav.models.registry import build, get, n_parameters
+from wearnav.models.suitein import ABLATIONS
+from wearnav.provenance import provenance
+from wearnav.report.odometry import plot_cdf_panels, plot_speed
 from wearnav.stats import SIGNIFICANCE, bh_adjust, welch_p
 
 log = logging.getLogger(__name__)
@@ -301,8 +304,6 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
                       splits=TEST_SPLITS, measure: bool = True) -> Path:
     """results.md + results.json + fig7_placement_cdf.png / fig11_speed.png in ``out`` from the
     complete ones of ``folders``; ``measure``: Table VI (timed now)."""
-    from wearnav.provenance import provenance
-    from wearnav.report.odometry import plot_cdf_panels, plot_speed
 
     out = Path(out)
     grid = read_grid(folders)
@@ -321,7 +322,6 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
               f"Cells: mean ± std over training seeds (each seed: the mean over sequences), metres. {MARK_NOTE}. `seeds`: complete runs (\"n of N\" "
               "while a row is unfinished).", ""]
     doc: dict = {"rows": labels, "tables": {}}
-    from wearnav.models.suitein import ABLATIONS
 
     abl = {n: (REFERENCE if n == 6 else f"suitein++-abl{n}") for n in ABLATIONS}  # Table V's rows
     ablation_rows = set(abl.values()) - {REFERENCE}  # Table V only
