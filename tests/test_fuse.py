@@ -4,7 +4,7 @@ outliers, and says what it did on degenerate inputs."""
 import numpy as np
 import pytest
 
-from wearnav import fuse
+from wearnav import fuse, fuse_live
 from wearnav.errors import ValidationError
 
 
@@ -127,7 +127,7 @@ def test_fixed_lag_agrees_with_batch_and_stays_in_its_window():
     rng = np.random.default_rng(3)
     xy = odometry_of(truth) + np.cumsum(rng.normal(0, 0.1 * np.sqrt(0.5), (t.size, 2)), axis=0)
     ft, z, acc, _ = fixes_of(t, truth, outliers=0.05)
-    inc = fuse.IncrementalFuser(lag_s=120.0, step_s=30.0)
+    inc = fuse_live.IncrementalFuser(lag_s=120.0, step_s=30.0)
     fi, nodes = 0, []
     for k in range(t.size):
         inc.add_odometry(t[k], xy[k])
@@ -149,7 +149,7 @@ def test_fixed_lag_agrees_with_batch_and_stays_in_its_window():
 
 def test_fixed_lag_before_any_fix_is_the_batch_fallback():
     t, truth = walk(120.0)
-    inc = fuse.IncrementalFuser(lag_s=60.0, step_s=30.0)
+    inc = fuse_live.IncrementalFuser(lag_s=60.0, step_s=30.0)
     for k in range(t.size):
         inc.add_odometry(t[k], odometry_of(truth)[k])
     res = inc.result()

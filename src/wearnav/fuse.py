@@ -44,7 +44,7 @@ one fix, or fixes that do not spread (all identical) → translation onto them o
 down-weighted (they disagree with the odometry and each other) → the first-fix anchoring of
 :func:`first_fix_anchor`.
 
-:class:`IncrementalFuser` is the same estimate as a fixed-lag smoother for the live receiver:
+:class:`wearnav.fuse_live.IncrementalFuser` is the same estimate as a fixed-lag smoother for the live receiver:
 each update solves only the last ``lag_s`` seconds, the walk before them marginalised into a
 Gaussian prior on the window's start state, so its cost does not grow with the session (a
 1-hour synthetic walk, 50-Hz odometry, 1-Hz fixes, an update every 10 s, 300-s window, one core:
@@ -158,7 +158,7 @@ def _inside(t: np.ndarray, fix_t, fix_pos, fix_accuracy):
     return fix_t[k], fix_pos[k], acc[k], int(len(fix_t) - k.sum())
 
 
-def _repeated(fix_pos: np.ndarray) -> np.ndarray:
+def repeated_fixes(fix_pos: np.ndarray) -> np.ndarray:
     """True for a fix at exactly the previous fix's position (a stale fix re-reported)."""
     return np.concatenate([[False], np.all(np.diff(fix_pos, axis=0) == 0, axis=1)]) if len(fix_pos) else \
         np.zeros(0, bool)
@@ -210,10 +210,10 @@ def _rigid(t, xy, fix_t, fix_pos, fix_accuracy, first_s: float | None) -> FuseRe
                       warn)
 
 
-class _Problem:
+class Problem:
     """The smoother's residuals over nodes ``tn`` with displacements ``d`` (complex) and fixes."""
 
-    def __init__(self, tn, d, ft, fz, sigma, cfg: FuseConfig, prior: "_Prior | None" = None):
+    def __init__(self, tn, d, ft, fz, sigma, cfg: FuseConfig, prior: "Prior | None" = None):
         self.tn, self.d, self.cfg, self.prior = tn, d, cfg, prior
         self.bias_sigma_m = cfg.bias_sigma_m
         self.tau = tn[:-1] - 0.5 * (tn[0] + tn[-1])  # time of each displacement about the middle
@@ -350,7 +350,7 @@ class _Problem:
         if self.prior is not None:
             from scipy.sparse import vstack
 
-            p = lil_matrix((_Prior.size, self.n_params), dtype=int)
+            p = lil_matrix((Prior.size, self.n_params), dtype=int)
             p[:, :self.n_global + 2] = 1
             m = vstack([m, p]).tolil()
         return m
@@ -375,21 +375,21 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
     facts = {"fixes": int(len(ft)), "fixes_outside_span": outside,
              "fixes_nan_accuracy": int(np.sum(~(np.isfinite(acc) & (acc > 0)))),
              "fixes_wide": int(np.sum(acc > cfg.wide_m)),
-             "fixes_repeated": int(_repeated(fz).sum())}
-    fresh = ~_repeated(fz)  # a stale fix says nothing new: only the first of a run is used
+             "fixes_repeated": int(repeated_fixes(fz).sum())}
+    fresh = ~repeated_fixes(fz)  # a stale fix says nothing new: only the first of a run is used
     ft, fz, acc, sigma = ft[fresh], fz[fresh], acc[fresh], sigma[fresh]
     rigid = rigid_anchor(t, xy, ft, fz, acc)
     if len(ft) < 2 or rigid.info.get("path_spread_m", 0.0) < 1e-6 or rigid.warnings:
         rigid.info.update(facts)
         return rigid
-    prob = _problem(t, xy, ft, fz[:, 0] + 1j * fz[:, 1], sigma, t[0], t[-1], cfg)
+    prob = build_problem(t, xy, ft, fz[:, 0] + 1j * fz[:, 1], sigma, t[0], t[-1], cfg)
     tn = prob.tn
     if x0 is None or len(x0) != prob.n_params:
         yaw = rigid.info["heading_offset_deg"]
         o = _rot(np.radians(yaw)) @ xy[0] + np.asarray(rigid.info["offset_m"])
         x0 = np.concatenate([[np.radians(yaw), np.log(cfg.scale_prior), 0.0, o[0], o[1]],
                              np.zeros(prob.n_params - prob.n_global)])
-    sol = _solve(prob, x0)
+    sol = solve(prob, x0)
     x = sol.x
     r = np.abs(prob.fix_residual(x))
     weight = 1.0 / (1.0 + (r / cfg.robust_scale) ** 2)  # the Cauchy loss's IRLS weight
@@ -397,7 +397,7 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
     # the path at the input times, and its σ from the fit's covariance (globals only)
     pnode = prob.path(x)
     out = np.stack([np.interp(t, tn, pnode.real), np.interp(t, tn, pnode.imag)], axis=1)
-    sig_node = _node_sigma(prob, x, sol.jac, pnode)
+    sig_node = node_sigma(prob, x, sol.jac, pnode)
     info = {**facts, "fixes_used": int(len(ft) - down), "fixes_down_weighted": down,
             "heading_offset_deg": float(np.degrees(x[0])), "scale": float(np.exp(x[1])),
             "heading_drift_deg_per_min": float(np.degrees(x[2]) * 60.0),
@@ -416,7 +416,7 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
     return FuseResult(out, np.interp(t, tn, sig_node), "smooth", info, [])
 
 
-def _node_sigma(prob: _Problem, x: np.ndarray, jac, pnode: np.ndarray) -> np.ndarray:
+def node_sigma(prob: Problem, x: np.ndarray, jac, pnode: np.ndarray) -> np.ndarray:
     """Per-axis 1-σ (m) of each node from the covariance of the global unknowns (θ, log s, ω, o)."""
     try:
         j = jac.toarray() if hasattr(jac, "toarray") else np.asarray(jac)
@@ -493,8 +493,8 @@ def config_for_run(run) -> tuple[FuseConfig, dict | None]:
 
 
 @dataclasses.dataclass(frozen=True)
-class _Prior:
-    """A Gaussian on :meth:`_Problem.start_state`: ``mean`` (7,), ``sqrt_info`` (7, 7) with
+class Prior:
+    """A Gaussian on :meth:`Problem.start_state`: ``mean`` (7,), ``sqrt_info`` (7, 7) with
     sqrt_infoᵀ sqrt_info the inverse covariance."""
 
     mean: np.ndarray
@@ -507,7 +507,7 @@ def _nodes(t0: float, t1: float, node_s: float) -> np.ndarray:
     return np.append(tn, t1) if t1 - tn[-1] > 1e-9 else tn
 
 
-def _problem(t, xy, ft, fz, sigma, t0, t1, cfg, prior=None) -> _Problem:
+def build_problem(t, xy, ft, fz, sigma, t0, t1, cfg, prior=None) -> Problem:
     """The smoother's problem over [t0, t1] s (the odometry interpolated onto its nodes, the fixes
     inside it)."""
     tn = _nodes(t0, t1, cfg.node_s)
@@ -515,178 +515,13 @@ def _problem(t, xy, ft, fz, sigma, t0, t1, cfg, prior=None) -> _Problem:
     k = (ft >= t0) & (ft <= t1)
     sigma = sigma[k]
     share = cfg.bias_share
-    prob = _Problem(tn, np.diff(pn[:, 0] + 1j * pn[:, 1]), ft[k], fz[k],
+    prob = Problem(tn, np.diff(pn[:, 0] + 1j * pn[:, 1]), ft[k], fz[k],
                     np.maximum(sigma * np.sqrt(1.0 - share), MIN_SIGMA_M) if share > 0 else sigma, cfg, prior)
     if share > 0 and sigma.size:
         prob.bias_sigma_m = float(np.sqrt(share) * np.median(sigma))
     return prob
 
 
-def _init_from(prob: _Problem, old: _Problem, x_old: np.ndarray) -> np.ndarray:
-    """Starting values for ``prob`` from a solution of ``old`` that covers its start."""
-    x = np.zeros(prob.n_params)
-    mid_new, mid_old = 0.5 * (prob.tn[0] + prob.tn[-1]), 0.5 * (old.tn[0] + old.tn[-1])
-    p0 = old.path(x_old)
-    p0 = np.interp(prob.tn[0], old.tn, p0.real) + 1j * np.interp(prob.tn[0], old.tn, p0.imag)
-    x[:5] = [x_old[0] + x_old[2] * (mid_new - mid_old), x_old[1], x_old[2], p0.real, p0.imag]
-    b = old.bias(x_old)
-    bk = np.interp(prob.knots, old.knots, b.real) + 1j * np.interp(prob.knots, old.knots, b.imag)
-    x[prob.n_global:prob.n_global + 2 * len(prob.knots)] = np.stack([bk.real, bk.imag], 1).ravel()
-    return x
-
-
-def _solve(prob: _Problem, x0: np.ndarray):
+def solve(prob: Problem, x0: np.ndarray):
     return least_squares(prob.residuals, x0, jac_sparsity=prob.sparsity(), method="trf", x_scale="jac",
                          ftol=1e-6, xtol=1e-6)
-
-
-def _marginal_at_end(prob: _Problem, sol) -> _Prior:
-    """The Gaussian (Laplace) marginal of :meth:`_Problem.end_state` under ``prob``'s solution:
-    the prior that carries everything before ``prob``'s end into the next window."""
-    x = sol.x
-    j = sol.jac.toarray() if hasattr(sol.jac, "toarray") else np.asarray(sol.jac)
-    cov = np.linalg.inv(j.T @ j + 1e-9 * np.eye(len(x)))  # unobserved directions get a huge variance
-    f0, g = prob.end_state(x), np.empty((_Prior.size, len(x)))
-    for i in range(len(x)):  # the end state's gradient by finite differences (it is cheap)
-        dx = np.zeros(len(x))
-        dx[i] = 1e-6 * max(1.0, abs(x[i]))
-        g[:, i] = (prob.end_state(x + dx) - f0) / dx[i]
-    cov_f = g @ cov @ g.T
-    cov_f = 0.5 * (cov_f + cov_f.T) + 1e-9 * np.eye(_Prior.size)
-    info = np.linalg.inv(cov_f)
-    return _Prior(f0, np.linalg.cholesky(0.5 * (info + info.T)).T)
-
-
-class _Rows:
-    """A growable (n, width) float array: amortised O(1) appends, views without copying."""
-
-    def __init__(self, width: int):
-        self._a = np.empty((256, width))
-        self._n = 0
-
-    def __len__(self) -> int:
-        return self._n
-
-    def extend(self, rows) -> None:
-        rows = np.asarray(rows, np.float64).reshape(-1, self._a.shape[1])
-        while self._n + len(rows) > len(self._a):
-            self._a = np.concatenate([self._a, np.empty_like(self._a)])
-        self._a[self._n:self._n + len(rows)] = rows
-        self._n += len(rows)
-
-    def append(self, row) -> None:
-        self.extend([row])
-
-    def view(self) -> np.ndarray:
-        return self._a[:self._n]
-
-
-class IncrementalFuser:
-    """The smoother as a fixed-lag smoother, updated as data arrives (the live receiver): append
-    odometry positions and fixes, ask for the path as often as wanted.
-
-    Each :meth:`result` solves only the last ``lag_s`` (+ up to ``step_s``) seconds: the same
-    problem as :func:`smooth` over that window, with the walk before it replaced by a Gaussian prior
-    on the window's start state (position, heading, fix bias, scale, drift). Whenever the window
-    exceeds ``lag_s + step_s``, its oldest ``step_s`` seconds are frozen (the path there is kept as
-    last solved) and marginalised: the smoother is solved over that slice alone under the previous
-    prior, so the new prior holds exactly the data before the new window start (no fix is counted
-    twice), to first order (a Laplace approximation at the slice's solution). The cost of an update
-    is therefore bounded by the window, however long the session. Until the first solution (two
-    fixes that spread) the walk so far is fused by :func:`smooth`, with its fallbacks."""
-
-    def __init__(self, cfg: FuseConfig = FuseConfig(), lag_s: float = 300.0, step_s: float = 30.0):
-        if step_s < cfg.node_s or lag_s < step_s:
-            raise ValidationError(f"the fixed lag needs lag_s ≥ step_s ≥ node_s; got {lag_s}, {step_s}")
-        self.cfg, self.lag_s, self.step_s = cfg, float(lag_s), float(step_s)
-        self._odo = _Rows(3)  # t (s), x, y (m)
-        self._fix = _Rows(4)  # t (s), east, north, accuracy (m)
-        self._start: float | None = None  # the window's first node, s (None: not started)
-        self._prior: _Prior | None = None
-        self._last: tuple[_Problem, np.ndarray] | None = None  # the latest window and its solution
-        self._frozen = _Rows(3)  # the frozen path: x, y (m), σ (m) at the odometry times before the window
-        self.marginalised = 0  # slices frozen so far
-
-    def add_odometry(self, t_s: float, xy_m) -> None:
-        t = self._odo.view()[:, 0]
-        if t.size and t_s <= t[-1]:
-            raise ValidationError(f"odometry times must increase: {t_s} after {t[-1]}")
-        xy = np.asarray(xy_m, np.float64)
-        self._odo.append([float(t_s), xy[0], xy[1]])
-
-    def add_fix(self, t_s: float, east_m: float, north_m: float, accuracy_m: float = np.nan) -> None:
-        self._fix.append([float(t_s), float(east_m), float(north_m), float(accuracy_m)])
-
-    @property
-    def t(self) -> np.ndarray:
-        """The odometry times so far (s)."""
-        return self._odo.view()[:, 0]
-
-    def _arrays(self, t0: float):
-        """The odometry from the sample at or before ``t0`` on, and the fresh fixes inside it."""
-        odo = self._odo.view()
-        i = max(0, int(np.searchsorted(odo[:, 0], t0, side="right")) - 1)
-        t, xy = odo[i:, 0], odo[i:, 1:]
-        f = self._fix.view()
-        f = f[np.isfinite(f[:, 0]) & (f[:, 0] >= t0) & (f[:, 0] <= t[-1]) & np.all(np.isfinite(f[:, 1:3]), axis=1)]
-        f = f[np.argsort(f[:, 0], kind="stable")]
-        f = f[~_repeated(f[:, 1:3])]
-        return t, xy, f[:, 0], f[:, 1] + 1j * f[:, 2], fix_sigma_m(f[:, 3])
-
-    def result(self) -> FuseResult:
-        """The fused path at every odometry time so far (frozen part, then the window)."""
-        odo = self._odo.view()
-        if len(odo) < 2:
-            raise ValidationError("the fixed-lag smoother needs at least two odometry positions")
-        t_all = odo[:, 0]
-        if self._last is None:  # not started: the whole walk by the batch smoother
-            f = self._fix.view()
-            res = smooth(t_all, odo[:, 1:], f[:, 0], f[:, 1:3], f[:, 3], self.cfg)
-            if res.method != "smooth":
-                return res
-            self._start = float(t_all[0])
-            t, xy, ft, fz, sig = self._arrays(self._start)
-            prob = _problem(t, xy, ft, fz, sig, self._start, float(t_all[-1]), self.cfg)
-            self._last = (prob, np.asarray(res.info["x"]))
-        t_end = float(t_all[-1])
-        while t_end - self._start > self.lag_s + self.step_s:
-            self._advance()
-        t, xy, ft, fz, sig = self._arrays(self._start)
-        prob = _problem(t, xy, ft, fz, sig, self._start, t_end, self.cfg, self._prior)
-        sol = _solve(prob, _init_from(prob, *self._last))
-        self._last = (prob, sol.x)
-        pn = prob.path(sol.x)
-        r = np.abs(prob.fix_residual(sol.x))
-        down = int(np.sum(1.0 / (1.0 + (r / self.cfg.robust_scale) ** 2) < DOWNWEIGHT))
-        k = slice(len(self._frozen), None)  # the odometry times from the window's start on
-        win = np.stack([np.interp(t_all[k], prob.tn, pn.real), np.interp(t_all[k], prob.tn, pn.imag)], axis=1)
-        sig_w = np.interp(t_all[k], prob.tn, _node_sigma(prob, sol.x, sol.jac, pn))
-        frozen = self._frozen.view()
-        xy_out = np.concatenate([frozen[:, :2], win])
-        sig_out = np.concatenate([frozen[:, 2], sig_w])
-        info = {"fixes_window": int(len(prob.ft)), "fixes_down_weighted_window": down,
-                "window_start_s": self._start, "lag_s": self.lag_s, "slices_marginalised": self.marginalised,
-                "heading_offset_deg": float(np.degrees(sol.x[0])), "scale": float(np.exp(sol.x[1])),
-                "heading_drift_deg_per_min": float(np.degrees(sol.x[2]) * 60.0),
-                "nodes": int(len(prob.tn)), "solver_evaluations": int(sol.nfev), "config": dataclasses.asdict(self.cfg)}
-        return FuseResult(xy_out, sig_out, "smooth-fixed-lag", info, [])
-
-    def _advance(self) -> None:
-        """Freeze the window's oldest ``step_s`` seconds (as last solved) and marginalise them."""
-        new_start = self._start + self.step_s
-        prob_w, x_w = self._last
-        t_all = self.t
-        tk = t_all[len(self._frozen):int(np.searchsorted(t_all, new_start, side="left"))]
-        pw = prob_w.path(x_w)
-        self._frozen.extend(np.stack([np.interp(tk, prob_w.tn, pw.real), np.interp(tk, prob_w.tn, pw.imag),
-                                      np.full(tk.size, np.nan)], axis=1))
-        t, xy, ft, fz, sig = self._arrays(self._start)
-        piece = _problem(t, xy, ft, fz, sig, self._start, new_start, self.cfg, self._prior)
-        sol = _solve(piece, _init_from(piece, prob_w, x_w))
-        self._prior = _marginal_at_end(piece, sol)
-        self._start = new_start
-        self.marginalised += 1
-
-
-__all__ = ["MEASURED_FIX_BIAS", "config_for_run", "odometry_walk_sigma", "CALIBRATION_JSON", "FuseConfig", "FuseResult", "smooth", "rigid_anchor", "first_fix_anchor", "fuse", "ANCHORS",
-           "IncrementalFuser", "fix_sigma_m", "rigid_fit"]

@@ -28,8 +28,15 @@ import numpy as np
 from wearnav import fuse, metrics, runs
 from wearnav.dataset import Dataset
 from wearnav.evaluate import predict_sequence
-from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
+from wearnav.fileio import write_text_atomic
+from wearnav.fuse_live import IncrementalFuser
+from wearnav.models.registry import build
+from wearnav.provenance import provenance
+from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, align, load_sequences
+from wearnav.simulate.config import MODES, WalkConfig
+from wearnav.simulate.walk import simulate_recording
 from wearnav.train.odometry import load_model
+from wearnav.train.resolve import resolve_model
 from wearnav.textio import read_json
 from wearnav.trajectory import integrate_velocity
 
@@ -177,7 +184,6 @@ SIM_PATHS = (ODO_ORACLE, ODO_FIRST, FIXES_ALONE, SMOOTHER)
 
 def _untrained(model: str):
     """An untrained baseline by name (PDR: no training) for phone-only input, and its config."""
-    from wearnav.train.resolve import resolve_model
 
     _, tcfg = resolve_model(model, "odometry")  # refuses a learned model by name: untrained baselines only
     tcfg = dataclasses.replace(tcfg, devices=("phone",), frame_align="none")
@@ -191,7 +197,6 @@ def simulated_errors(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig()) -
     is given its best rotation + translation onto the *truth* over the whole walk (an oracle no
     user has, so a generous bound for it) and, as a user gets it, first-fix anchoring; the fixes
     alone are linear between fixes."""
-    from wearnav.preprocess import align
 
     seq = align(rec, tcfg.preprocess_config())
     t_c, vel, _ = predict_sequence(net, seq, tcfg.window, tcfg.stride)
@@ -220,8 +225,6 @@ def simulator_rows(model: str = "pdr", duration_s: float = 300.0, walks_per_mode
     """:func:`simulated_errors` per walking mode on walks simulated here (``walks_per_mode`` of
     ``duration_s`` each; the simulator's correlated fix error with multipath jumps,
     :mod:`wearnav.simulate.fixes`); ``modes`` (default: all) the walking modes."""
-    from wearnav.simulate.config import MODES, WalkConfig
-    from wearnav.simulate.walk import simulate_recording
 
     net, tcfg = _untrained(model)
     rows = []
@@ -279,7 +282,7 @@ def fusion_table(data: str | Path, model: str = "pdr", split: str | None = None,
 def _live_lines(live: dict) -> list[str]:
     return ["## The live receiver's smoother (fixed lag)", "",
             f"One simulated standard walk of {live['walk_min']} min (odometry at {live['odometry_hz']} Hz, "
-            f"{live['fixes']} fixes), fed to `wearnav.fuse.IncrementalFuser` ({live['lag_s']:g}-s window) in time "
+            f"{live['fixes']} fixes), fed to `wearnav.fuse_live.IncrementalFuser` ({live['lag_s']:g}-s window) in time "
             f"order and solved every {live['every_s']:g} s: {live['updates']} updates, "
             f"**{live['ms_per_update_median']} ms per update** (median; p95 {live['ms_per_update_p95']} ms; "
             f"{live['ms_first_tenth_median']} ms in the walk's first tenth after the first window, "
@@ -292,12 +295,11 @@ def _live_lines(live: dict) -> list[str]:
 
 def fixed_lag_run(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig(), lag_s: float = 300.0,
                   every_s: float = 10.0) -> dict:
-    """The live receiver's smoother (:class:`wearnav.fuse.IncrementalFuser`) on one simulated
+    """The live receiver's smoother (:class:`wearnav.fuse_live.IncrementalFuser`) on one simulated
     recording: odometry and fixes fed in time order, the path asked for every ``every_s`` seconds.
     Returns the seconds per update (median, p95, and the medians over the first tenth after the
     first window and over the last tenth: equal when the cost does not grow with the walk), and
     the final path's median / p95 distance from the batch smoother's and both errors against truth."""
-    from wearnav.preprocess import align
 
     seq = align(rec, tcfg.preprocess_config())
     t_c, vel, _ = predict_sequence(net, seq, tcfg.window, tcfg.stride)
@@ -306,7 +308,7 @@ def fixed_lag_run(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig(), lag_
     fx = rec.fixes
     order = np.argsort(fx.t, kind="stable")
     ft, fp, acc = fx.t[order], fx.pos[order, :2], fx.accuracy[order]
-    inc = fuse.IncrementalFuser(cfg, lag_s=lag_s)
+    inc = IncrementalFuser(cfg, lag_s=lag_s)
     times, evals, fi, next_s = [], [], 0, t[0] + every_s
     for k in range(t.size):
         inc.add_odometry(t[k], xy[k])
@@ -342,8 +344,6 @@ def fixed_lag_run(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig(), lag_
 
 def live_walk(minutes: float, model: str = "pdr", seed: int = 0, cfg: fuse.FuseConfig = fuse.FuseConfig()) -> dict:
     """:func:`fixed_lag_run` on one simulated standard walk of ``minutes`` (the simulator's fixes)."""
-    from wearnav.simulate.config import WalkConfig
-    from wearnav.simulate.walk import simulate_recording
 
     net, tcfg = _untrained(model)
     rec = simulate_recording(WalkConfig(name="live", mode="STW", placement="HD", duration_s=60.0 * minutes), seed=seed)
@@ -358,8 +358,6 @@ def write_fusion_page(table: dict, data: str | Path, out: str | Path, live: dict
 
     import pandas as pd
 
-    from wearnav.fileio import write_text_atomic
-    from wearnav.provenance import provenance
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -397,7 +395,6 @@ def write_fusion_page(table: dict, data: str | Path, out: str | Path, live: dict
 
 def build_untrained(model: str, tcfg):
     """An untrained baseline (PDR) for phone-only input at the config's window and rate."""
-    from wearnav.models.registry import build
 
     return build(model, n_devices=len(tcfg.devices), window=tcfg.window, rate=tcfg.rate).eval()
 
