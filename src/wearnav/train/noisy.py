@@ -53,6 +53,7 @@ from wearnav.errors import ConfigError
 from wearnav.fileio import atomic_path, save_npy_atomic, write_text_atomic
 from wearnav.fixlabels import Segments
 from wearnav.progress import Progress
+from wearnav.rotations import rotate_about_vertical
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +85,7 @@ class NoisyConfig:
     low_weight: float = 0.1  # ... get this weight
     coteach_forget: float = 0.2  # Co-teaching's ε
     coteach_tk: float = 0.1  # T_k as a share of the joint epochs
+    yaw_augment: bool = False  # turn each segment's input by a random yaw, its prediction back (RoNIN's)
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -154,6 +156,14 @@ def coadapt_losses(l1: Tensor, l2: Tensor, ratio: float, low_share: float = 0.2,
     return (w2 * l1[s2]).sum() / B, (w1 * l2[s1]).sum() / B, s1, s2
 
 
+def turn(v: Tensor, angle: Tensor) -> Tensor:
+    """Segments (B, L, 6) (acc and gyro turned) or displacements (B, 2) turned about the vertical
+    by ``angle`` (B,) rad, counter-clockwise seen from above."""
+    if v.dim() == 2:
+        return rotate_about_vertical(torch.cat([v, torch.zeros_like(v[:, :1])], 1), angle)[:, :2]
+    return rotate_about_vertical(v.reshape(*v.shape[:-1], 2, 3), angle.view(-1, 1, 1)).reshape(v.shape)
+
+
 # ---- models ---------------------------------------------------------------------------------------
 
 class Resampled(nn.Module):
@@ -220,30 +230,33 @@ def _save(run: Path, state: dict) -> None:
 
 
 def fit_noisy(cfg: NoisyConfig, train: Segments, run: str | Path, progress: bool = False, echo=None,
-              stop_after: int | None = None, monitor=None) -> dict:
+              stop_after: int | None = None, monitor=None, device: str | None = None) -> dict:
     """Train ``cfg.method`` on ``train`` (phone labels; ``basemodel-gt`` uses the truth) in run folder
     ``run``; resumes from ``state.pt``. ``stop_after``: return after that many epochs of this call (an
     interruption, for tests). ``monitor``: a function of the ensemble's displacement function
     (segments (N, L, 6) → (N, 2)) whose dict is added to each epoch's history (held-out ADE over the
     epochs, a diagnostic that never steers training). Returns the training record. Holds the run
-    folder's lock while it runs (:func:`wearnav.runs.locked`): a second process is refused."""
+    folder's lock while it runs (:func:`wearnav.runs.locked`): a second process is refused.
+    ``device``: where to train (default: the GPU where there is one, else the CPU); the state file is
+    the same either way, so a run may resume on the other."""
+    dev = torch.device(device or ("cuda" if torch.cuda.is_available() else "cpu"))
     with runs.locked(run):
-        return _fit_noisy(cfg, train, Path(run), progress, echo, stop_after, monitor)
+        return _fit_noisy(cfg, train, Path(run), progress, echo, stop_after, monitor, dev)
 
 
 def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, echo, stop_after: int | None,
-               monitor) -> dict:
-    x = torch.as_tensor(train.x, dtype=torch.float32)
+               monitor, dev: torch.device) -> dict:
+    x = torch.as_tensor(train.x, dtype=torch.float32, device=dev)
     use_truth = cfg.method == "basemodel-gt"
     y_np = train.truth if use_truth else train.label
     if not np.isfinite(y_np).all():
         raise ConfigError(f"{cfg.method}: training labels have NaN (basemodel-gt needs dense truth)")
-    y = torch.as_tensor(y_np, dtype=torch.float32)
-    truth = torch.as_tensor(train.truth, dtype=torch.float32)  # bookkeeping only (Fig. 6), may be NaN
-    node0 = torch.as_tensor(train.node0, dtype=torch.long)
-    node1 = torch.as_tensor(train.node1, dtype=torch.long)
+    y = torch.as_tensor(y_np, dtype=torch.float32, device=dev)
+    truth = torch.as_tensor(train.truth, dtype=torch.float32, device=dev)  # bookkeeping only (Fig. 6), may be NaN
+    node0 = torch.as_tensor(train.node0, dtype=torch.long, device=dev)
+    node1 = torch.as_tensor(train.node1, dtype=torch.long, device=dev)
     n = len(train)
-    models = build_models(cfg, train.x.shape[1])
+    models = [m.to(dev) for m in build_models(cfg, train.x.shape[1])]
     from wearnav.models.easytrack import BaseModel
 
     for m in models:
@@ -253,7 +266,7 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
     dual = len(models) == 2
     cnal = cfg.method in ("easytrack", "nocoadapt")
     aux = cfg.method == "aux"
-    corr = nn.Parameter(torch.zeros(train.n_nodes if cnal else (n if aux else 0), 2))
+    corr = nn.Parameter(torch.zeros(train.n_nodes if cnal else (n if aux else 0), 2, device=dev))
     opts = [_adam(m.parameters(), cfg.lr, cfg) for m in models]
     opt_c = _adam([corr], cfg.lr_cnal, cfg) if (cnal or aux) else None
     ae_epochs = cfg.ae_epochs if base else 0
@@ -275,6 +288,7 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
     if half.all() or not half.any():
         half = torch.arange(n) % 2 == 0
     halves = [torch.nonzero(half).ravel(), torch.nonzero(~half).ravel()] if dual else [torch.arange(n)]
+    halves = [h.to(dev) for h in halves]
     r_delta = state["r_delta"]
 
     bar = Progress(total=total, initial=state["epoch"], desc=cfg.method, unit="epoch", enabled=progress,
@@ -302,7 +316,7 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
         if phase == "ae":
             for k, m in enumerate(models):
                 for b in _batches(halves[k].numel(), cfg.batch, gen):
-                    idx = halves[k][b]
+                    idx = halves[k][b.to(dev)]
                     loss = m.reconstruction_loss(x[idx])
                     opts[k].zero_grad()
                     loss.backward()
@@ -312,9 +326,14 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
         else:
             r_t = r_tau(T, cfg.joint_epochs, cfg.tau, cfg.eta) if phase == "joint" else 1.0
             for b in _batches(n, cfg.batch, gen):
+                b = b.to(dev)
                 xb, yb = x[b], y[b]
-                hs = [m.encode(xb) for m in models] if base else [None] * len(models)
-                preds = [m.displacement(xb, h) if base else m.displacement(xb) for m, h in zip(models, hs)]
+                angle = (torch.rand(xb.shape[0], generator=gen) * (2 * math.pi)).to(dev) if cfg.yaw_augment else None
+                xin = xb if angle is None else turn(xb, angle)
+                hs = [m.encode(xin) for m in models] if base else [None] * len(models)
+                preds = [m.displacement(xin, h) if base else m.displacement(xin) for m, h in zip(models, hs)]
+                if angle is not None:  # back to the labels' frame, so every loss below is unchanged
+                    preds = [turn(p, -angle) for p in preds]
                 if cnal:
                     target = cnal_labels(yb, corr, node0[b], node1[b])
                 elif aux:
@@ -324,7 +343,7 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
                 tgt_models = target if phase == "joint" else yb
                 losses = [instance_mse(p, tgt_models) for p in preds]
                 B = xb.shape[0]
-                total_loss = torch.zeros(())
+                total_loss = torch.zeros((), device=dev)
                 if dual and phase == "joint" and cfg.method in ("easytrack", "nocnal", "coteaching"):
                     if cfg.method == "coteaching":
                         ratio = 1.0 - cfg.coteach_forget * min(T / max(1.0, cfg.coteach_tk * cfg.joint_epochs), 1.0)
@@ -345,7 +364,7 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
                         sums["sel_noise_corr_cm"] += 100 * float(e_cor.sum())
                         sums["n_sel"] += int(sel.numel())
                         if ep == total - 1:
-                            sel_noise_last.append(e_cor.numpy())
+                            sel_noise_last.append(e_cor.cpu().numpy())
                     e_all = (tb - yb).norm(dim=1)
                     if torch.isfinite(e_all).all():
                         sums["all_noise_cm"] += 100 * float(e_all.mean())
@@ -354,7 +373,7 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
                         total_loss = total_loss + l.mean()
                     sums["r_s"] += 1.0
                 if base:
-                    rec = sum(m.reconstruction_loss(xb, h) for m, h in zip(models, hs))
+                    rec = sum(m.reconstruction_loss(xin, h) for m, h in zip(models, hs))
                     total_loss = total_loss + cfg.lambda_r * rec
                     sums["rec"] += rec.item()
                 if (cnal or aux) and phase == "joint":
@@ -385,13 +404,13 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
                "s": time.perf_counter() - t0}
         if opt_c is not None and cnal and np.isfinite(train.truth).all():
             rec["corrected_label_noise_median_cm"] = 100 * float(np.median(np.linalg.norm(
-                train.truth - cnal_labels(y, corr.detach(), node0, node1).numpy(), axis=1)))
+                train.truth - cnal_labels(y, corr.detach(), node0, node1).cpu().numpy(), axis=1)))
         if monitor is not None:
             for m in models:
                 m.eval()
             with torch.no_grad():
-                rec.update(monitor(lambda xs: torch.stack([m.displacement(torch.as_tensor(xs, dtype=torch.float32))
-                                                             for m in models]).mean(0).numpy()))
+                rec.update(monitor(lambda xs: torch.stack([m.displacement(torch.as_tensor(xs, dtype=torch.float32, device=dev))
+                                                             for m in models]).mean(0).cpu().numpy()))
         state["history"].append(rec)
         state["epoch"] = ep + 1
         state["r_delta"] = r_delta
