@@ -2,6 +2,7 @@
 training, and the quick benchmark end to end."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -318,3 +319,13 @@ def test_real_part_trains_on_fixes_and_scores_at_sparse_points(tmp_path):
     assert len(doc["test_routes"]) == 1 and len(doc["train_routes"]) == 2
     for m in ("easytrack", "basemodel", "pdr", "gnss"):
         assert doc["summary"][m]["points"] >= 3 and doc["summary"][m]["median_m"] >= 0
+
+
+def test_ipin_held_out_routes_are_real_odometrys_test_trials():
+    from wearnav.bench.easytrack import IPIN_TEST_ROUTES
+    from wearnav.bench.real import SITE_DEFAULTS
+
+    names = [f"IPIN2023_T3_TrainingTrial{t:02d}_repetition{r:02d}" for t in (1, 2, 3, 4, 5, 21, 22, 23, 24, 25, 51, 52)
+             for r in (1, 2)]
+    held = sorted({int(n[25:27]) for n in names if re.search(IPIN_TEST_ROUTES, n)})
+    assert held == [int(t) for t in SITE_DEFAULTS["ipin2023"][1]] == [4, 24, 52]
