@@ -2,6 +2,7 @@
 training, and the quick benchmark end to end."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -32,15 +33,31 @@ def test_r_tau_follows_eq_15():
 
 
 def test_r_delta_is_a_moving_average_of_the_share_below_the_threshold():
-    losses = torch.tensor([0.1, 0.3, 0.2, 0.5])  # two below δ = 0.24 → p_δ = 0.5
-    assert r_delta_update(0.0, losses, 0.24, 0.02) == pytest.approx(0.01)
-    assert r_delta_update(0.5, losses, 0.24, 0.02) == pytest.approx(0.5)
-    assert r_delta_update(1.0, losses, 0.24, 0.1) == pytest.approx(0.95)
+    target = torch.zeros(4, 2)
+    pred = torch.tensor([[0.1, 0.0], [0.0, 0.3], [0.2, 0.0], [0.3, 0.4]])  # errors 0.1, 0.3, 0.2, 0.5 m
+    assert r_delta_update(0.0, pred, target, 0.24, 0.02) == pytest.approx(0.01)  # p_δ = 0.5
+    assert r_delta_update(0.5, pred, target, 0.24, 0.02) == pytest.approx(0.5)
+    assert r_delta_update(1.0, pred, target, 0.24, 0.1) == pytest.approx(0.95)
     r = 0.0
     for _ in range(2000):  # converges to p_δ
-        r = r_delta_update(r, losses, 0.24, 0.02)
+        r = r_delta_update(r, pred, target, 0.24, 0.02)
     assert r == pytest.approx(0.5, abs=1e-6)
     assert r_select(0.3, 0.6) == 0.6 and r_select(0.7, 0.6) == 0.7  # eq. 16
+
+
+def test_r_delta_compares_delta_with_the_displacement_error_in_metres():
+    """30 % of the instances 0.1 m off, 70 % 0.5 m off: R_δ → 0.3 with δ = 0.24 m. (Compared with
+    the per-instance MSE in m², 0.005 and 0.125, every instance counted as clean: R_δ → 1.)"""
+    rng = np.random.default_rng(3)
+    err = np.r_[np.full(30, 0.1), np.full(70, 0.5)]
+    ang = rng.uniform(0, 2 * np.pi, 100)
+    target = torch.tensor(rng.normal(size=(100, 2)), dtype=torch.float32)
+    pred = target + torch.tensor(np.c_[err * np.cos(ang), err * np.sin(ang)], dtype=torch.float32)
+    assert noisy.instance_error(pred, target).numpy() == pytest.approx(err, abs=1e-6)
+    r = 0.0
+    for _ in range(1000):
+        r = r_delta_update(r, pred, target, NoisyConfig().delta, NoisyConfig().beta)
+    assert r == pytest.approx(0.3, abs=1e-6)
 
 
 def test_small_loss_selection_and_weights():
@@ -99,6 +116,64 @@ def test_cnal_loss_eq_13_by_hand():
     want = ((0 + 0) + (0 + 1)) / 4 + 1.0 * (0.5 + 0.0) / 2
     assert float(cnal_loss(label, corr, node0, node1, pred, gamma=1.0)) == pytest.approx(want)
     assert instance_mse(pred, label).tolist() == pytest.approx([(0.09 + 0.16) / 2, 0.5])
+
+
+def _chain_with_known_noise(n=2000, seed=0):
+    """A chain of n consecutive segments whose nodes carry an AR(1) position error (ρ = 0.5,
+    stationary σ 0.1835 m per axis, so the label noise |e_i+1 − e_i| is Rayleigh with median
+    ≈ 21.6 cm, DS_L1's) and the true displacements (walking 1.2 m/s, turning)."""
+    rng = np.random.default_rng(seed)
+    sigma, rho = 0.1835, 0.5
+    e = np.zeros((n + 1, 2))
+    e[0] = rng.normal(scale=sigma, size=2)
+    for i in range(1, n + 1):
+        e[i] = rho * e[i - 1] + rng.normal(scale=sigma * math.sqrt(1 - rho ** 2), size=2)
+    heading = np.cumsum(rng.normal(scale=0.2, size=n))
+    d = 1.2 * np.c_[np.cos(heading), np.sin(heading)]
+    label = d + e[1:] - e[:-1]
+    return (torch.tensor(label, dtype=torch.float32), torch.tensor(d, dtype=torch.float32),
+            torch.arange(n), torch.arange(1, n + 1))
+
+
+def _fit_cnal(label, truth, node0, node1, gamma, steps=3000):
+    """Only the corrections, Adam at the paper's CNAL rate 2e-4 (betas as NoisyConfig), full batch,
+    a perfect predictor d̂ = d. Returns the corrected labels' median noise (m)."""
+    cfg = NoisyConfig()
+    corr = torch.nn.Parameter(torch.zeros(len(label) + 1, 2))
+    opt = torch.optim.Adam([corr], lr=cfg.lr_cnal, betas=cfg.betas)
+    for _ in range(steps):
+        opt.zero_grad()
+        cnal_loss(label, corr, node0, node1, truth, gamma).backward()
+        opt.step()
+    fixed = cnal_labels(label, corr.detach(), node0, node1)
+    return float((fixed - truth).norm(dim=1).median())
+
+
+def test_cnal_corrections_move_with_the_default_gamma():
+    """γ = 1 in the paper's centimetres is 0.01 in metres; with γ = 1 in metres the L1 term's pull
+    (1 m per m) outweighs the MSE's below ~1 m of error and the corrections never move."""
+    label, truth, node0, node1 = _chain_with_known_noise()
+    raw = float((label - truth).norm(dim=1).median())
+    assert raw == pytest.approx(0.216, abs=0.015)
+    fixed = _fit_cnal(label, truth, node0, node1, NoisyConfig().gamma)
+    assert fixed < 0.75 * raw
+    assert _fit_cnal(label, truth, node0, node1, 1.0) == pytest.approx(raw, rel=0.01)  # γ = 1 m⁻¹: stuck
+
+
+def test_aux_corrections_move_to_the_regularised_optimum():
+    """AUX: MSE(d̃_i + c_i, d̂) + γ_aux·mean‖c_i‖² is minimal at c_i = (d̂ − d̃)/(1 + 2γ_aux)."""
+    label = torch.tensor([[1.0, 0.0], [0.5, 0.5], [0.0, -1.2], [0.8, 0.3]])
+    pred = label + torch.tensor([[0.3, -0.1], [-0.2, 0.25], [0.05, 0.4], [-0.5, 0.0]])
+    g = NoisyConfig().gamma_aux
+    corr = torch.nn.Parameter(torch.zeros(4, 2))
+    opt = torch.optim.Adam([corr], lr=1e-3, betas=NoisyConfig().betas)
+    for _ in range(3000):
+        opt.zero_grad()
+        noisy.aux_loss(label, corr, pred, g).backward()
+        opt.step()
+    want = (pred - label) / (1 + 2 * g)
+    assert corr.detach().numpy() == pytest.approx(want.numpy(), abs=2e-3)
+    assert float(corr.detach().norm(dim=1).min()) > 0.03
 
 
 # ---- phone labels (eq. 4) and their noise (eqs. 5–7) ----------------------------------------------
@@ -244,3 +319,13 @@ def test_real_part_trains_on_fixes_and_scores_at_sparse_points(tmp_path):
     assert len(doc["test_routes"]) == 1 and len(doc["train_routes"]) == 2
     for m in ("easytrack", "basemodel", "pdr", "gnss"):
         assert doc["summary"][m]["points"] >= 3 and doc["summary"][m]["median_m"] >= 0
+
+
+def test_ipin_held_out_routes_are_real_odometrys_test_trials():
+    from wearnav.bench.easytrack import IPIN_TEST_ROUTES
+    from wearnav.bench.real import SITE_DEFAULTS
+
+    names = [f"IPIN2023_T3_TrainingTrial{t:02d}_repetition{r:02d}" for t in (1, 2, 3, 4, 5, 21, 22, 23, 24, 25, 51, 52)
+             for r in (1, 2)]
+    held = sorted({int(n[25:27]) for n in names if re.search(IPIN_TEST_ROUTES, n)})
+    assert held == [int(t) for t in SITE_DEFAULTS["ipin2023"][1]] == [4, 24, 52]

@@ -639,7 +639,7 @@ def bench_easytrack(
     test_routes: Optional[str] = typer.Option(None, "--test-routes",
                                               help="Regex: recordings of --data held out for testing, the rest "
                                               "train (default: the dataset's `test` split, else IPIN's "
-                                              "Trial(05|25|52)_)."),
+                                              "Trial(04|24|52)_, the real-odometry test trials)."),
     km: Optional[float] = typer.Option(None, help="Simulated walking per noise level, km (default 3; --quick 0.25)."),
     joint_epochs: Optional[int] = typer.Option(None, "--joint-epochs", help="Joint epochs (paper 190; default 30)."),
     levels: Optional[str] = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),

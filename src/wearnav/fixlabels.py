@@ -39,6 +39,7 @@ import numpy as np
 
 from wearnav.errors import ConfigError, ValidationError, WearnavWarning
 from wearnav.fileio import savez_atomic
+from wearnav.metrics import FIX_MAX_GAP_S
 from wearnav.preprocess import PreprocessConfig, align, interpolate_position
 from wearnav.progress import progress as report_progress
 from wearnav.recording import Recording
@@ -48,7 +49,6 @@ from wearnav.timeseries import interp_onto
 # receiver, a placeholder position or a copy of one fix. Their labels would all be 0 m, so the
 # recording is left out with a warning (a standing walker's real GNSS still scatters by metres).
 FIX_SPREAD_MIN_M = 0.01
-FIX_FRAME_MAX_GAP_S = 2.5  # fixes are interpolated onto the IMU clock across at most this gap
 
 
 @dataclass(frozen=True)
@@ -198,8 +198,8 @@ def fix_frame_yaw(imu: np.ndarray, t: np.ndarray, rate: float, t_fix: np.ndarray
     pdr = PDR(n_devices=1, window=W, rate=rate)
     acc = np.stack([imu[s:s + W, :3] for s in starts]).astype(np.float64)
     h = pdr.heading(pdr.bandpass(acc))
-    p0, ok0 = interp_onto(t[starts], t_fix, p_fix, max_gap=FIX_FRAME_MAX_GAP_S)
-    p1, ok1 = interp_onto(t[starts + W - 1], t_fix, p_fix, max_gap=FIX_FRAME_MAX_GAP_S)
+    p0, ok0 = interp_onto(t[starts], t_fix, p_fix, max_gap=FIX_MAX_GAP_S)
+    p1, ok1 = interp_onto(t[starts + W - 1], t_fix, p_fix, max_gap=FIX_MAX_GAP_S)
     d = np.asarray(p1) - np.asarray(p0)
     speed = np.linalg.norm(d, axis=1) / ((W - 1) / rate)
     use = ok0 & ok1 & (speed > 0.4) & (speed < 2.5)

@@ -31,8 +31,10 @@ importers (gyro/orientation onto acc) 0.25 s        a fixed time: merging sensor
                                                     sample or two is jitter, more is a hole
 ``preprocess.interpolate_position``   1 s           dense truth only; sparse waypoints (seconds
                                                     apart) are not turned into dense targets
-``metrics.errors_at_reference``       caller's      ``"nearest"``: fixes within 2 s of a truth
+``metrics.errors_at_reference``       caller's      ``"nearest"``: fixes within 2.5 s of a truth
                                                     point (``metrics.FIX_MAX_GAP_S``)
+``fixlabels.fix_frame_yaw``           2.5 s         fixes onto the IMU clock across one missed
+                                                    1-Hz fix (``metrics.FIX_MAX_GAP_S``)
 ====================================  ============  ==============================================
 """
 

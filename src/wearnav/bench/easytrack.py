@@ -32,6 +32,7 @@ import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.bench.real import IPIN_TEST_TRIALS
 from wearnav.errors import ConfigError, ValidationError, check_names
 from wearnav.fileio import write_text_atomic
 from wearnav.fixlabels import LabelConfig, Segments, label_dataset, noise_summary
@@ -42,7 +43,9 @@ from wearnav.trust import QUICK_NOTE
 LEVELS = ("L1", "L2", "L3")
 MAIN = ("easytrack", "coteaching", "aux", "basemodel", "basemodel-gt", "ionet", "ronin")
 ABLATION = ("nocnal", "nocoadapt")
-IPIN_TEST_ROUTES = r"Trial(05|25|52)_"  # held-out routes; trials 01/02 (simulator calibration) train only
+# held-out routes: the recordings of real-odometry's IPIN test trials (04/24/52, recording names
+# IPIN2023_T3_TrainingTrial04_repetition01 ...); trials 01/02 (simulator calibration) train only
+IPIN_TEST_ROUTES = r"Trial(" + "|".join(f"{t:02d}" for t in IPIN_TEST_TRIALS) + r")_"
 IPIN_METHODS = ("easytrack", "basemodel")
 
 log = logging.getLogger(__name__)

@@ -68,10 +68,14 @@ from wearnav.textio import read_json
 
 DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
 TRUTH_MAX_GAP_S = SURVEYED_TRUTH_MAX_GAP_S
+# IPIN 2023 Track 3's held-out routes (meta ``trial``), for every benchmark on IPIN (this one, the
+# user protocol, `bench easytrack`'s real part): three of the eleven routes, none of them the
+# simulator's calibration trials 01–02.
+IPIN_TEST_TRIALS = (4, 24, 52)
 # Grouping and held-out groups per source; neither holds data the simulator was calibrated on.
 SITE_DEFAULTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "ilc2": ("floor_name", ("F2", "F4")),
-    "ipin2023": ("trial", ("4", "24", "52")),
+    "ipin2023": ("trial", tuple(str(t) for t in IPIN_TEST_TRIALS)),
 }
 CALIBRATION = {"ilc2": ("floor_name", {"F1"}), "ipin2023": ("trial", {"1", "2"})}
 PERCENTILES = (50, 75, 95)
