@@ -244,3 +244,26 @@ def test_real_part_trains_on_fixes_and_scores_at_sparse_points(tmp_path):
     assert len(doc["test_routes"]) == 1 and len(doc["train_routes"]) == 2
     for m in ("easytrack", "basemodel", "pdr", "gnss"):
         assert doc["summary"][m]["points"] >= 3 and doc["summary"][m]["median_m"] >= 0
+
+
+def test_jump_filter_counts_and_reports_what_it_drops(walk):
+    """A gross fix jump (25 m and back) makes two labels no walker makes: the filter drops exactly
+    those, the segments count them per recording and noise_summary reports count and share."""
+    import dataclasses
+
+    from wearnav.fixlabels import noise_summary
+
+    all_kept = label_recording(walk, LabelConfig(max_speed=None))
+    f = walk.fixes
+    k = int(np.searchsorted(f.t, all_kept.t0[len(all_kept) // 2]))
+    pos = f.pos.copy()
+    pos[k, 0] += 25.0
+    jumped = dataclasses.replace(walk, fixes=dataclasses.replace(f, pos=pos))
+    n_all = len(label_recording(jumped, LabelConfig(max_speed=None)))
+    with pytest.warns(UserWarning, match="dropped 2 of"):
+        seg = label_recording(jumped, LabelConfig())
+    assert seg.dropped.tolist() == [n_all - len(seg)] == [2]
+    s = noise_summary(seg)
+    assert s["dropped_labels"] == 2 and s["dropped_share"] == pytest.approx(2 / n_all, abs=1e-5)
+    both = Segments.concat([seg, seg])
+    assert both.dropped.tolist() == [2, 2] and noise_summary(both)["dropped_labels"] == 4
