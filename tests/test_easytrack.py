@@ -329,3 +329,26 @@ def test_ipin_held_out_routes_are_real_odometrys_test_trials():
              for r in (1, 2)]
     held = sorted({int(n[25:27]) for n in names if re.search(IPIN_TEST_ROUTES, n)})
     assert held == [int(t) for t in SITE_DEFAULTS["ipin2023"][1]] == [4, 24, 52]
+
+
+def test_jump_filter_counts_and_reports_what_it_drops(walk):
+    """A gross fix jump (25 m and back) makes two labels no walker makes: the filter drops exactly
+    those, the segments count them per recording and noise_summary reports count and share."""
+    import dataclasses
+
+    from wearnav.fixlabels import noise_summary
+
+    all_kept = label_recording(walk, LabelConfig(max_speed=None))
+    f = walk.fixes
+    k = int(np.searchsorted(f.t, all_kept.t0[len(all_kept) // 2]))
+    pos = f.pos.copy()
+    pos[k, 0] += 25.0
+    jumped = dataclasses.replace(walk, fixes=dataclasses.replace(f, pos=pos))
+    n_all = len(label_recording(jumped, LabelConfig(max_speed=None)))
+    with pytest.warns(UserWarning, match="dropped 2 of"):
+        seg = label_recording(jumped, LabelConfig())
+    assert seg.dropped.tolist() == [n_all - len(seg)] == [2]
+    s = noise_summary(seg)
+    assert s["dropped_labels"] == 2 and s["dropped_share"] == pytest.approx(2 / n_all, abs=1e-5)
+    both = Segments.concat([seg, seg])
+    assert both.dropped.tolist() == [2, 2] and noise_summary(both)["dropped_labels"] == 4

@@ -11,8 +11,9 @@ from wearnav.errors import ConfigError
 from wearnav.recording import ACC_NORM_MEDIAN_RANGE, Recording
 from wearnav.simulate import (SubjectParams, LABEL_NOISE_MEDIAN_M, MODES, SCENES, FixNoise, WalkConfig,
                               plan_dataset, sample_subject, simulate_dataset,
-                              simulate_recording, simulate_walk)
-from wearnav.metrics import label_noise
+                              simulate_fixes, simulate_recording, simulate_walk)
+from wearnav.fixlabels import LabelConfig, plausible_labels
+from wearnav.metrics import label_noise, label_noise_correlation
 from wearnav.rotations import as_matrix as matrix_from_wxyz
 from wearnav.simulate.geometry import angle_between, apply, exp_so3
 from wearnav.simulate.imu import G_WORLD, IMU_SPECS
@@ -484,3 +485,52 @@ def test_bad_configuration_is_rejected(tmp_path):
         WalkConfig(mode="STW", placement="HD", removal="watch:table")
     with pytest.raises(ConfigError):
         FixNoise.from_level("L9")
+
+
+# ---- phone-like label noise: correlated neighbours, a heavy tail, Table I medians (issue #17 §3) ----
+
+def _label_chain(level: str, seed: int, n: int = 6000):
+    """Phone labels of an n-segment 1-s fix chain of a walker at 1.3 m/s (turning slowly), passed
+    through the labeller's jump filter: (noise vectors d_e (m, 2), consecutive indices, dropped)."""
+    t = np.arange(0.0, n + 1.0)
+    ang = 0.3 * np.sin(t / 60.0)
+    truth = np.cumsum(1.3 * np.stack([np.cos(ang), np.sin(ang)], 1), axis=0)
+    fx = simulate_fixes(t, truth, FixNoise.from_level(level), np.random.default_rng(seed))
+    true_at = truth[np.searchsorted(t, fx.t)]
+    label, d_true, dt = np.diff(fx.pos, axis=0), np.diff(true_at, axis=0), np.diff(fx.t)
+    ok = (dt == 1.0) & plausible_labels(label, dt, LabelConfig().max_speed)
+    noise = (d_true - label)[ok]
+    idx = np.flatnonzero(ok)
+    consecutive = np.flatnonzero(idx[1:] == idx[:-1] + 1)
+    return noise, consecutive, int(((dt == 1.0) & ~ok).sum())
+
+
+@pytest.fixture(scope="module")
+def label_chains():
+    return {lv: _label_chain(lv, seed=7) for lv in ("L1", "L2", "L3")}
+
+
+@pytest.mark.parametrize("level", ["L1", "L2", "L3"])
+def test_label_noise_medians_after_the_jump_filter_match_table_one(label_chains, level):
+    noise, _, _ = label_chains[level]
+    assert noise.shape[0] > 5000
+    med = np.median(np.linalg.norm(noise, axis=1))
+    assert med == pytest.approx(LABEL_NOISE_MEDIAN_M[level], abs=0.01)
+
+
+@pytest.mark.parametrize("level", ["L1", "L2", "L3"])
+def test_label_noise_of_neighbours_is_positively_correlated(label_chains, level):
+    """A phone's filtered fixes carry a velocity error that lasts seconds, so consecutive labels'
+    noises share a sign (IPIN T01-02 phone fixes: lag-1 r 0.15-0.45, docs/realism.md)."""
+    noise, consecutive, _ = label_chains[level]
+    rx, ry = label_noise_correlation(noise, consecutive)
+    assert 0.2 <= rx <= 0.45 and 0.2 <= ry <= 0.45
+
+
+@pytest.mark.parametrize("level", ["L1", "L2", "L3"])
+def test_label_noise_has_a_heavy_tail_that_survives_the_filter(label_chains, level):
+    """Fig. 1a: phone-label noise over 200 cm exists; ramped multipath episodes make it."""
+    noise, _, dropped = label_chains[level]
+    mag = np.linalg.norm(noise, axis=1)
+    assert np.mean(mag > 1.0) >= 0.01 and np.mean(mag > 2.0) >= 0.002
+    assert dropped / (dropped + mag.size) < 0.005  # the filter drops only gross jumps
