@@ -10,6 +10,7 @@ import torch
 
 from tests.conftest import run_cli
 from wearnav import metrics
+from wearnav.errors import ConfigError
 from wearnav.fixlabels import LabelConfig, Segments, fix_frame_yaw, label_recording, neighbour_correlation, \
     segments_from_truth
 from wearnav.train import noisy
@@ -352,3 +353,27 @@ def test_jump_filter_counts_and_reports_what_it_drops(walk):
     assert s["dropped_labels"] == 2 and s["dropped_share"] == pytest.approx(2 / n_all, abs=1e-5)
     both = Segments.concat([seg, seg])
     assert both.dropped.tolist() == [2, 2] and noise_summary(both)["dropped_labels"] == 4
+
+
+def test_overlapping_segments_start_every_stride_on_interpolated_fixes(walk):
+    """stride_s 0.2: five segment starts per fix spacing; every label is the difference of the
+    fixes linearly interpolated at its two ends; back-to-back segments (stride = segment) are the
+    fix pairs themselves, so the default is unchanged."""
+    plain = label_recording(walk, LabelConfig(max_speed=None))
+    over = label_recording(walk, LabelConfig(max_speed=None, stride_s=0.2))
+    f = walk.fixes
+    assert np.isin(plain.t0, f.t).all() and np.isin(plain.t1, f.t).all()  # nodes are fixes
+    assert 4.5 * len(plain) < len(over) <= 5 * len(plain) + 5
+    np.testing.assert_allclose(np.diff(np.unique(over.node_t))[:20], 0.2, atol=0.02)
+    interp = np.stack([np.interp(over.node_t, f.t, f.pos[:, k]) for k in range(2)], axis=1)
+    np.testing.assert_allclose(over.node_pos, interp, atol=1e-9)
+    np.testing.assert_allclose(over.label, over.node_pos[over.node1] - over.node_pos[over.node0], atol=1e-9)
+    np.testing.assert_allclose(over.t1 - over.t0, 1.0, atol=0.25)
+    # the IMU of a segment starting between two fixes is the samples from its own start time
+    k = int(np.flatnonzero(~np.isin(over.t0, f.t))[0])
+    assert not np.allclose(over.x[k], over.x[k - 1])
+    # truth between the same two times, so the label noise statistics stay meaningful
+    assert np.isfinite(over.truth).all()
+    assert abs(np.median(np.linalg.norm(over.noise(), axis=1)) - np.median(np.linalg.norm(plain.noise(), axis=1))) < 0.08
+    with pytest.raises(ConfigError):
+        LabelConfig(stride_s=0.3)

@@ -65,11 +65,19 @@ class LabelConfig:
     tolerance: float = 0.25  # allowed relative deviation of a fix pair's spacing from segment_s
     align_to_fixes: bool = True  # turn the IMU frame onto the fixes' east/north frame
     max_speed: float | None = 5.0  # m/s: drop gross fix jumps (module docstring); None keeps all
+    stride_s: float | None = None  # start a segment every stride_s (overlapping; module docstring); None: segment_s
 
     def __post_init__(self):
         if not self.segment_s > 0 or not self.rate > 0 or not 0 <= self.tolerance < 1:
             raise ConfigError(f"segment_s and rate must be positive and tolerance in [0, 1), got "
                               f"{self.segment_s}, {self.rate}, {self.tolerance}")
+        if self.stride_s is not None and not (self.stride_s > 0 and abs(self.segment_s / self.stride_s - self.steps) < 1e-6):
+            raise ConfigError(f"stride_s must divide segment_s ({self.segment_s} s) into whole steps, got {self.stride_s}")
+
+    @property
+    def steps(self) -> int:
+        """Segment starts per fix spacing (1: back-to-back segments between fixes)."""
+        return max(1, int(round(self.segment_s / (self.stride_s or self.segment_s))))
 
     @property
     def samples(self) -> int:
@@ -259,8 +267,9 @@ def _dense_truth(rec: Recording) -> bool:
     return rec.truth is not None and len(rec.truth) > 1 and float(np.median(np.diff(rec.truth.t))) <= 0.2
 
 
-def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Segments | None:
-    """Phone-labelled segments of one recording (None if it has no usable fix pair)."""
+def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig(), warn_drops: bool = True) -> Segments | None:
+    """Phone-labelled segments of one recording (None if it has no usable fix pair). ``warn_drops``:
+    warn when the jump filter drops labels (:func:`label_dataset` warns once for all recordings)."""
     if rec.fixes is None or len(rec.fixes) < 2 or "phone" not in rec.devices:
         return None
     spread = float(np.max(np.ptp(rec.fixes.pos[:, :2], axis=0)))
@@ -271,40 +280,66 @@ def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Segment
     seq = _aligned_phone(rec, cfg)
     N = cfg.samples
     t_fix, p_fix = rec.fixes.t, rec.fixes.pos[:, :2]
-    pairs = _fix_chain(t_fix, cfg, seq.t[0], seq.t[-1])
-    keep = []
-    for i, j in pairs:
-        s = int(np.searchsorted(seq.t, t_fix[i] - 0.5 / cfg.rate))
-        if s + N <= seq.t.size and seq.mask[0, s:s + N].all():
-            keep.append((i, j, s))
+    t_pt, p_pt, span = _chain_points(_fix_chain(t_fix, cfg, seq.t[0], seq.t[-1]), t_fix, p_fix, cfg.steps)
+    keep = []  # (start point, end point, first IMU sample)
+    for a, b in span:
+        for k in range(a, b - cfg.steps + 1):
+            s = int(np.searchsorted(seq.t, t_pt[k] - 0.5 / cfg.rate))
+            if s + N <= seq.t.size and seq.mask[0, s:s + N].all():
+                keep.append((k, k + cfg.steps, s))
     n_drop = 0
     if keep:
         ij = np.array([(i, j) for i, j, _ in keep])
-        ok = plausible_labels(p_fix[ij[:, 1]] - p_fix[ij[:, 0]], t_fix[ij[:, 1]] - t_fix[ij[:, 0]], cfg.max_speed)
+        ok = plausible_labels(p_pt[ij[:, 1]] - p_pt[ij[:, 0]], t_pt[ij[:, 1]] - t_pt[ij[:, 0]], cfg.max_speed)
         n_drop = int((~ok).sum())
-        if n_drop:
+        if n_drop and warn_drops:
             warnings.warn(f"{rec.name}: the jump filter (max_speed {cfg.max_speed} m/s) dropped {n_drop} of "
                           f"{len(keep)} labels", WearnavWarning, stacklevel=2)
         keep = [k for k, good in zip(keep, ok) if good]
     if not keep:
         return None
-    nodes = sorted({k for i, j, _ in keep for k in (i, j)})
+    nodes = np.array(sorted({k for i, j, _ in keep for k in (i, j)}))
     node_of = {k: n for n, k in enumerate(nodes)}
     x = np.stack([seq.imu[0, s:s + N] for _, _, s in keep]).astype(np.float32)
     i_idx = np.array([i for i, _, _ in keep])
     j_idx = np.array([j for _, j, _ in keep])
-    label = p_fix[j_idx] - p_fix[i_idx]
+    label = p_pt[j_idx] - p_pt[i_idx]
     truth = np.full_like(label, np.nan)
     start = np.full((1, 2), np.nan)
     if _dense_truth(rec):
-        tt = interpolate_position(rec.truth.t, rec.truth.pos, t_fix[np.array(nodes)])
+        tt = interpolate_position(rec.truth.t, rec.truth.pos, t_pt[nodes])
         truth = tt[[node_of[j] for j in j_idx]] - tt[[node_of[i] for i in i_idx]]
         start = tt[:1]
     return Segments(x=x, label=label, truth=truth, traj=np.zeros(len(keep), np.int64),
                     node0=np.array([node_of[i] for i in i_idx]), node1=np.array([node_of[j] for j in j_idx]),
-                    t0=t_fix[i_idx], t1=t_fix[j_idx], node_pos=p_fix[np.array(nodes)],
-                    node_traj=np.zeros(len(nodes), np.int64), node_t=t_fix[np.array(nodes)],
+                    t0=t_pt[i_idx], t1=t_pt[j_idx], node_pos=p_pt[nodes],
+                    node_traj=np.zeros(len(nodes), np.int64), node_t=t_pt[nodes],
                     names=[rec.name], start_pos=start, dropped=np.array([n_drop]))
+
+
+def _chain_points(pairs: list[tuple[int, int]], t_fix: np.ndarray, p_fix: np.ndarray, steps: int
+                  ) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
+    """The points segments start and end on: every fix of the chain of ``pairs`` and, with
+    ``steps`` > 1, ``steps`` − 1 points evenly between each pair, positions linearly interpolated
+    between the two fixes. Returns times, positions and each unbroken chain's [first, last] point
+    indices (a segment spans ``steps`` points: the fix spacing)."""
+    t_pt, p_pt, span = [], [], []
+    k = 0
+    while k < len(pairs):
+        chain = [pairs[k][0]]
+        while k < len(pairs) and pairs[k][0] == chain[-1]:
+            chain.append(pairs[k][1])
+            k += 1
+        first = len(t_pt)
+        for a, b in zip(chain[:-1], chain[1:]):
+            for q in range(steps):
+                w = q / steps
+                t_pt.append((1 - w) * t_fix[a] + w * t_fix[b])
+                p_pt.append((1 - w) * p_fix[a] + w * p_fix[b])
+        t_pt.append(t_fix[chain[-1]])
+        p_pt.append(p_fix[chain[-1]])
+        span.append((first, len(t_pt) - 1))
+    return np.asarray(t_pt, dtype=np.float64), np.asarray(p_pt, dtype=np.float64).reshape(-1, 2), span
 
 
 def segments_from_truth(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Segments | None:
@@ -339,9 +374,14 @@ def segments_from_truth(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Seg
 def label_dataset(view, cfg: LabelConfig = LabelConfig(), from_truth: bool = False,
                   progress: bool = False) -> Segments:
     """All recordings of a dataset view, phone-labelled (or truth-labelled with ``from_truth``)."""
-    fn = segments_from_truth if from_truth else label_recording
-    parts = [fn(rec, cfg) for rec in report_progress(view, total=len(view), desc="label", unit="rec", enabled=progress)]
+    recs = report_progress(view, total=len(view), desc="label", unit="rec", enabled=progress)
+    parts = [segments_from_truth(rec, cfg) if from_truth else label_recording(rec, cfg, warn_drops=False) for rec in recs]
     parts = [p for p in parts if p is not None and len(p)]
+    dropped = sum(int(p.dropped.sum()) for p in parts if p.dropped is not None)
+    if dropped:
+        hit = sum(int((p.dropped > 0).sum()) for p in parts if p.dropped is not None)
+        warnings.warn(f"the jump filter (max_speed {cfg.max_speed} m/s) dropped {dropped} of "
+                      f"{dropped + sum(len(p) for p in parts)} labels in {hit} recording(s)", WearnavWarning, stacklevel=2)
     if not parts:
         raise ValidationError("no recording gave a labelled segment (need phone IMU and fixes that move"
                               + (" and dense truth)" if from_truth else ")"))
