@@ -20,7 +20,12 @@ Segmentation. Fix spacing need not equal the segment length: from a node at time
 node is the fix nearest t_i + ``segment_s``; the pair is a segment only when its spacing is within
 ± ``tolerance`` · ``segment_s`` of it (an outage breaks the chain, a new chain starts after it).
 The model input is the ``round(segment_s · rate)`` IMU samples from t_i on (a fixed length, as
-the paper's segments of size N). A label faster than ``max_speed`` is a gross fix jump, not a
+the paper's segments of size N). Overlapping segments (``stride_s``, e.g. 0.2 s): a segment also
+starts every ``stride_s`` between two fixes, its ends' positions linearly interpolated between the
+fixes around them (the interpolated points are nodes too, so CNAL corrects them). The paper's
+Table I implies this: 41 K segments over 8.3 km is one segment per ~0.2 m of path, while a 1-s
+segment of walking covers ~1 m (its phone labels average ~100 cm, §III-B), i.e. ~5 starts per
+segment length. A label faster than ``max_speed`` is a gross fix jump, not a
 displacement, and is dropped: a plausibility check the phone can make on its own (indoors, GNSS
 fixes jump by tens of metres; a single such label dominates an MSE). The threshold, 5 m/s, is a
 brisk walker (≤ 2.5 m/s) plus 2.5 m of label noise: the 1–3 m errors of a multipath episode the
