@@ -318,8 +318,12 @@ def test_real_part_trains_on_fixes_and_scores_at_sparse_points(tmp_path):
             w.add(rec, split="test" if k == 0 else "train")
     doc = real_part(tmp_path / "real", tmp_path / "out", BenchConfig.quick(), LabelConfig(), None, 1)
     assert len(doc["test_routes"]) == 1 and len(doc["train_routes"]) == 2
-    for m in ("easytrack", "basemodel", "pdr", "gnss"):
-        assert doc["summary"][m]["points"] >= 3 and doc["summary"][m]["median_m"] >= 0
+    for proto in ("user", "known"):
+        for m in ("easytrack", "basemodel", "pdr", "gnss"):
+            assert doc["summary"][proto][m]["points"] >= 3 and doc["summary"][proto][m]["median_m"] >= 0
+    # the user protocol starts from the phone's own fix, not the surveyed point: different errors
+    assert doc["summary"]["user"]["pdr"]["mean_m"] != doc["summary"]["known"]["pdr"]["mean_m"]
+    assert doc["summary"]["user"]["gnss"] == doc["summary"]["known"]["gnss"]
 
 
 def test_ipin_held_out_routes_are_real_odometrys_test_trials():
