@@ -642,6 +642,11 @@ def bench_easytrack(
                                               "Trial(04|24|52)_, the real-odometry test trials)."),
     km: Optional[float] = typer.Option(None, help="Simulated walking per noise level, km (default 3; --quick 0.25)."),
     joint_epochs: Optional[int] = typer.Option(None, "--joint-epochs", help="Joint epochs (paper 190; default 30)."),
+    ae_epochs: Optional[int] = typer.Option(None, "--ae-epochs", help="Auto-encoder pre-training epochs (paper 5)."),
+    pre_epochs: Optional[int] = typer.Option(None, "--pre-epochs", help="Per-model pre-training epochs (paper 5)."),
+    stride: Optional[float] = typer.Option(None, "--stride", help="Start a 1-s segment every STRIDE s (0.2: ~5 "
+                                           "overlapping segments per second, as the paper's Table I counts; "
+                                           "default: back to back)."),
     levels: Optional[str] = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),
     methods: Optional[str] = typer.Option(None, help="Methods, comma-separated (default: all)."),
 ):
@@ -660,8 +665,10 @@ def bench_easytrack(
     changes = {}
     if km is not None:
         changes["km"] = km
-    if joint_epochs is not None:
-        changes["joint_epochs"] = joint_epochs
+    for key, value in (("joint_epochs", joint_epochs), ("ae_epochs", ae_epochs), ("pre_epochs", pre_epochs),
+                       ("stride_s", stride)):
+        if value is not None:
+            changes[key] = value
     if levels:
         changes["levels"] = tuple(_devices(levels))
     if methods:

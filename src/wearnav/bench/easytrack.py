@@ -61,6 +61,7 @@ class BenchConfig:
     ae_epochs: int = 5
     pre_epochs: int = 5
     joint_epochs: int = 30
+    stride_s: float | None = None  # overlapping segments (fixlabels.LabelConfig.stride_s); None: back to back
     sim_seed: int = 0
     levels: tuple[str, ...] = LEVELS
     methods: tuple[str, ...] = MAIN + ABLATION
@@ -461,7 +462,8 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
     devices = ", ".join(sorted(set(df["device"]))) if not df.empty else "cpu"
     reduction = (f"**Reduced from the paper** (200 epochs: 5 AE + 5 per model + 190 joint; ~8.5 km per level): here "
                  f"{bc.ae_epochs} AE + {bc.pre_epochs} pre-training + {bc.joint_epochs} joint epochs, "
-                 f"~{bc.km:g} km of simulated walking per level, {seeds} seed(s), trained on {devices}.")
+                 f"~{bc.km:g} km of simulated walking per level, {seeds} seed(s), trained on {devices}"
+                 + (f"; a segment starts every {bc.stride_s:g} s." if bc.stride_s else "."))
     title = (f"# EasyTrack: odometry from the phone's own location fixes (paper 004): {', '.join(bc.levels)}, "
              f"{bc.ae_epochs + bc.pre_epochs + bc.joint_epochs} epochs, ~{bc.km:g} km per level"
              + (f" (--quick: {QUICK_NOTE})" if quick else ""))
@@ -571,7 +573,7 @@ def run_benchmark(out: str | Path, quick: bool = False, seeds: int = 1, executio
     bc = bc or (BenchConfig.quick() if quick else BenchConfig())
     if quick:
         echo(f"--quick: {QUICK_NOTE} (tiny data, 1–2 epochs per phase)")
-    lc = LabelConfig()
+    lc = LabelConfig(stride_s=bc.stride_s)
     plan = real_plan(Path(data), out, bc, lc, test_routes, seeds, echo) if data else None
     train, test = sim_segments(out, bc, lc, echo)
     caches, test_cache = _caches(out, bc, lc)
