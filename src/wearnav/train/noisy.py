@@ -353,7 +353,8 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
             m.train()
         # running sums stay on the device (no host sync per batch); read once at the epoch's end
         sums = {"loss": zero.clone(), "rec": zero.clone(), "r_s": 0.0, "sel_noise_cm": zero.clone(),
-                "sel_noise_corr_cm": zero.clone(), "all_noise_cm": zero.clone(), "n_sel": 0, "n_b": 0}
+                "sel_noise_corr_cm": zero.clone(), "all_noise_cm": zero.clone(), "sel_disp_cm": zero.clone(),
+                "all_disp_cm": zero.clone(), "n_sel": 0, "n_b": 0}
         sel_noise_last = []
         if phase == "ae":
             for k, m in enumerate(models):
@@ -409,6 +410,9 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
                         if ep == total - 1:
                             sel_noise_last.append(e_cor.cpu().numpy())
                         sums["all_noise_cm"] += 100 * (tb - yb).norm(dim=1).mean()
+                        # are the small-loss instances the clean ones, or the easy (short) ones?
+                        sums["sel_disp_cm"] += 100 * tb[sel].norm(dim=1).sum()
+                        sums["all_disp_cm"] += 100 * tb.norm(dim=1).mean()
                 else:
                     for l in losses:
                         total_loss = total_loss + l.mean()
@@ -443,6 +447,8 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
                "selected_noise_cm": sums["sel_noise_cm"] / sums["n_sel"] if sums["n_sel"] else None,
                "selected_noise_corrected_cm": sums["sel_noise_corr_cm"] / sums["n_sel"] if sums["n_sel"] else None,
                "batch_noise_cm": sums["all_noise_cm"] / nb if sums["n_sel"] else None,
+               "selected_displacement_cm": sums["sel_disp_cm"] / sums["n_sel"] if sums["n_sel"] else None,
+               "batch_displacement_cm": sums["all_disp_cm"] / nb if sums["n_sel"] else None,
                "s": time.perf_counter() - t0}
         if opt_c is not None and cnal and np.isfinite(train.truth).all():
             rec["corrected_label_noise_median_cm"] = 100 * float(np.median(np.linalg.norm(
