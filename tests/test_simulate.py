@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import signal
 from scipy.integrate import cumulative_trapezoid
 
 from wearnav.dataset import Dataset
@@ -359,6 +360,12 @@ def test_subjects_and_gait_ranges():
     assert np.median(cad) == pytest.approx(1.76, abs=0.02)
     lo, hi = np.percentile(cad, [10, 90])
     assert 1.66 <= lo and hi <= 1.88
+    # gait follows speed: cadence rises with it, and the bounce with the step (inverted pendulum),
+    # keeping the 2.5–5 cm of typical walkers
+    step = np.array([s.step_length_m for s in subjects])
+    bounce = np.array([s.bounce_m for s in subjects])
+    assert np.corrcoef(speed, cad)[0, 1] > 0.5 and np.corrcoef(step, bounce)[0, 1] > 0.8
+    assert 0.025 < np.median(bounce) < 0.05 and bounce.min() > 0.01 and bounce.max() < 0.08
     w = simulate_walk(_cfg(duration_s=40, imu_noise=False, hold="texting"), seed=2)
     tr = w.recording.truth
     m = (tr.t > w.scenario.bouts[0][0] + 3) & (tr.t < w.scenario.bouts[0][1] - 3)
@@ -367,6 +374,42 @@ def test_subjects_and_gait_ranges():
     k = int(round(100 / w.cadence_hz))
     ptp = np.median([np.ptp(z[i:i + k]) for i in range(0, len(z) - k, k)])
     assert 0.015 < ptp < 0.07
+
+
+def _weinberg_and_step_rate(w) -> tuple[float, float]:
+    """From the phone's IMU alone: Weinberg's step feature, the median over steps of
+    (a_max − a_min)^¼ of the band-passed vertical world-frame acceleration between successive
+    peaks, and the step frequency (steps/s, from the median peak interval)."""
+    s = w.recording.devices["phone"]
+    vert = np.einsum("nij,nj->ni", matrix_from_wxyz(s.quat.astype(np.float64)), s.acc.astype(np.float64))[:, 2]
+    rate = 1.0 / float(np.median(np.diff(s.t)))
+    a, b = w.scenario.bouts[0]
+    m = (s.t > a + 2.0) & (s.t < b - 2.0)
+    v = signal.sosfiltfilt(signal.butter(2, (0.8, 4.0), btype="band", fs=rate, output="sos"), vert[m])
+    peaks, _ = signal.find_peaks(v, distance=int(0.35 * rate))
+    weinberg = np.median([np.ptp(v[i:j]) ** 0.25 for i, j in zip(peaks[:-1], peaks[1:])])
+    return float(weinberg), float(rate / np.median(np.diff(peaks)))
+
+
+def test_walker_speed_is_observable_from_the_phone_imu():
+    """Fast walkers take longer steps at a higher cadence, and a longer step lifts the body higher
+    (inverted pendulum), so the hand-held phone's vertical acceleration tells the walk's speed:
+    over 40 walkers, Weinberg's feature and the step frequency explain most of the spread of the
+    mean true speed (a linear fit's R²: 0.71 here, 0.61–0.84 over five other seeds). With speed
+    drawn independently of cadence and bounce the same fit gave R² = 0.07."""
+    rng = np.random.default_rng(7)
+    feats, speed = [], []
+    for i in range(40):
+        cfg = WalkConfig(name="g", subject=sample_subject(rng, f"g{i}"), mode="STW", placement="HD",
+                         phone_hold="texting", duration_s=20.0, devices=("phone",))
+        w = simulate_walk(cfg, seed=100 + i)
+        feats.append(_weinberg_and_step_rate(w))
+        speed.append(w.recording.meta["speed_mps"])
+    X = np.column_stack([np.ones(len(speed)), np.array(feats)])
+    y = np.array(speed)
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    r2 = 1.0 - np.sum((y - X @ coef) ** 2) / np.sum((y - y.mean()) ** 2)
+    assert r2 > 0.55, r2
 
 
 # ---- location fixes --------------------------------------------------------------------------

@@ -90,7 +90,8 @@ CLAIMED = {
 # per parameter (the page's table), then what is not calibrated.
 CALIBRATION_COLUMNS = ("simulator parameter (src/wearnav/simulate/)", "calibrated against", "real recordings")
 CALIBRATION_TABLE: tuple[tuple[str, str, str], ...] = (
-    ("walker population cadence N(1.76, 0.06) steps/s (`config.sample_subject`)",
+    ("walker population cadence about 1.77 ± 0.07 steps/s, rising with speed as 1.77 · (v / 1.16)^0.22 "
+     "(`config.sample_subject`)",
      "cadence, f_dom of every placement",
      "all sources above (real walkers: 1.66–1.88 steps/s)"),
     ("step-to-step timing variability `step_time_cv` (path: cadence wander over one step)",

@@ -160,7 +160,9 @@ class Body:
         x, y, theta, phi, a = (c[:, i] for i in (BaseMotion.X, BaseMotion.Y, BaseMotion.THETA,
                                                  BaseMotion.PHASE, BaseMotion.ENV))
         a = np.clip(a, 0.0, 1.0)
-        amp = a * np.clip(c[:, BaseMotion.SPEED_RATIO], 0.8, 1.2)  # gait amplitude grows with speed
+        # Gait amplitude grows with speed: with cadence ∝ v^0.5 (path) the step grows ∝ v^0.5 and
+        # the pendulum's rise ∝ step² ∝ v (config.pendulum_excursion), so linearly in v/v₀.
+        amp = a * np.clip(c[:, BaseMotion.SPEED_RATIO], 0.8, 1.2)
         amp = amp * (1.0 + 0.5 * np.tanh(2.0 * self.step_amp(t)))  # smooth (C²) limit to 0.5 … 1.5
         psi = 0.5 * phi
         post = self._posture(t)

@@ -73,24 +73,55 @@ class SubjectParams:
         return self.speed_mps / self.cadence_hz
 
 
+# Gait coupled to speed (sample_subject). Between walkers, preferred cadence rises with speed
+# more weakly than within one walker (path.BaseMotion: cadence ∝ v^0.5; Kuo 2001: step length
+# ∝ v^0.42 within subjects), because faster walkers are mostly taller ones with longer steps;
+# the exponent is also bounded by the real walkers' cadence (1.66–1.88 steps/s, docs/realism.md)
+# over this population's wide speed range.
+CADENCE_MEDIAN_HZ = 1.77  # at the median speed; the real bands leave little room (docs/realism.md): 1.76
+# put the bag's f_dom median at its band's lower edge (1.753), 1.77 the hand's near its upper one (1.791)
+SPEED_MEDIAN_MPS = 1.16  # of the accepted walkers (the step-length limits trim fast short ones)
+CADENCE_SPEED_EXP = 0.22
+CADENCE_JITTER = 0.012  # relative std of a walker's own cadence at a given speed
+LEG_OF_HEIGHT = 0.53  # leg length / stature (Winter), the pendulum's length
+KNEE_FLEXION = 0.6  # stance knee flexion flattens the compass gait's arc (Saunders et al. 1953)
+BOUNCE_JITTER = 0.15  # a walker's own bounce at a given step length: ×(1 ± this), uniform
+
+
+def pendulum_excursion(step_m: float, leg_m: float) -> float:
+    """Rise of the hip over a stiff-legged step: a leg of length l vaulting over the stance foot,
+    half a step s on either side, h = l·(1 − cos(asin(s / 2l))); the inverse of Zijlstra & Hof's
+    (2003) step-length estimate s = 2·√(2lh − h²) from the trunk's vertical excursion."""
+    return leg_m * (1.0 - np.cos(np.arcsin(step_m / (2.0 * leg_m))))
+
+
 def sample_subject(rng: np.random.Generator, name: str) -> SubjectParams:
-    """A random but plausible walker: speed 0.85–1.55 m/s, step 0.45–0.85 m, cadence about
-    N(1.76, 0.06) steps/s within 1.6–2.0 (real walkers in the shipped recordings: 1.66–1.88,
-    docs/realism.md), and its own step-to-step variability."""
+    """A random but plausible walker: speed 0.85–1.55 m/s, step 0.45–0.85 m, cadence rising with
+    speed (1.77 · (v / 1.16)^0.22 steps/s, ±1.2 % per walker; the population's cadence is about
+    1.77 ± 0.07 within 1.6–2.0, 10–90 % in 1.68–1.86, like the real walkers in the shipped
+    recordings, 1.66–1.88, docs/realism.md), a vertical bounce that is the inverted-pendulum rise
+    of its step over its leg (:func:`pendulum_excursion` × knee flexion 0.6, ± 15 % uniform: 10–90 % in
+    2.5–5.3 cm), a hand bounce in proportion (0.26–0.42 of it),
+    and its own step-to-step variability. Fast walkers thus step faster and bounce more, as real
+    ones do, so their speed can be told from the IMU (Weinberg's step-length model relies on it)."""
+    # One draw per field as before the coupling, so a seed's walkers keep their other traits.
     height = float(rng.uniform(1.55, 1.92))
     while True:
         speed = float(rng.uniform(0.85, 1.55))
-        cadence = float(np.clip(rng.normal(1.76, 0.06), 1.6, 2.0))
+        cadence = CADENCE_MEDIAN_HZ * (speed / SPEED_MEDIAN_MPS) ** CADENCE_SPEED_EXP
+        cadence = float(np.clip(cadence * (1.0 + CADENCE_JITTER * rng.standard_normal()), 1.6, 2.0))
         step = speed / cadence
         # Step length scales with stature (about 0.26 H … 0.47 H at normal speeds).
         if 0.45 <= step <= 0.85 and 0.25 * height <= step <= 0.47 * height:
             break
+    rise = KNEE_FLEXION * pendulum_excursion(step, LEG_OF_HEIGHT * height)
+    bounce = rise * float(rng.uniform(1.0 - BOUNCE_JITTER, 1.0 + BOUNCE_JITTER))
     return SubjectParams(
         name=name,
         height_m=round(height, 3),
         speed_mps=round(speed, 3),
         cadence_hz=round(cadence, 3),
-        bounce_m=round(float(rng.uniform(0.025, 0.05)), 4),
+        bounce_m=round(bounce, 4),
         sway_m=round(float(rng.uniform(0.025, 0.055)), 4),
         ripple_m=round(float(rng.uniform(0.015, 0.035)), 4),
         bounce_harmonic=round(float(rng.uniform(0.0, 0.12)), 3),
@@ -112,7 +143,7 @@ def sample_subject(rng: np.random.Generator, name: str) -> SubjectParams:
         thigh_wobble_mm=round(float(rng.uniform(0.4, 0.8)), 3),
         hand_impact=round(float(rng.uniform(1.5, 3.0)), 3),
         hand_bob_deg=round(float(rng.uniform(2.5, 4.5)), 3),
-        hand_bounce_m=round(float(rng.uniform(0.008, 0.016)), 4),
+        hand_bounce_m=round(bounce * float(rng.uniform(0.26, 0.42)), 4),  # ≈ 0.008–0.016 at a 3.5 cm bounce
         wrist_wobble_deg=round(float(rng.uniform(5.0, 11.0)), 3),
     )
 
