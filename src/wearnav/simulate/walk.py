@@ -22,7 +22,7 @@ from wearnav.simulate.path import BaseMotion
 from wearnav.simulate.placement import Earbuds, Phone, PosePath, Removed, Watch
 from wearnav.simulate.scenario import WALK_RAMP_S, Scenario, make_scenario
 
-SIMULATOR_VERSION = 2  # 2: calibrated against real walking (docs/realism.md)
+SIMULATOR_VERSION = 3  # 2: calibrated against real walking (docs/realism.md); 3: speed in the gait (cadence, bounce), receiver-filter fix error
 _STREAMS = ("scenario", "path", "body", "phone", "watch", "earbuds", "removal", "area",
             "imu_phone", "imu_watch", "imu_earbuds", "fixes")
 
