@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import platform
 import re
 import time
 from pathlib import Path
@@ -329,10 +330,12 @@ def _pct(share) -> str:
     return "—" if share is None else f"{100 * share:.2f}"
 
 
-def _mean_sd(mean, sd, n) -> str:
+def _mean_sd(mean, sd, n, seeds: int) -> str:
+    """A cell in cm: mean ± sd over its seeds, their count added where it is not every seed."""
     if not n or not np.isfinite(mean):
         return "—"
-    return f"{100 * mean:.1f} ± {100 * sd:.1f} ({int(n)})" if n > 1 and np.isfinite(sd) else f"{100 * mean:.1f} (1)"
+    cell = f"{100 * mean:.1f} ± {100 * sd:.1f}" if n > 1 and np.isfinite(sd) else f"{100 * mean:.1f}"
+    return cell if int(n) == seeds else f"{cell} (n={int(n)})"
 
 
 def _claim(df: pd.DataFrame, table: pd.DataFrame, mean_d: float) -> str:
@@ -462,7 +465,8 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
     devices = ", ".join(sorted(set(df["device"]))) if not df.empty else "cpu"
     reduction = (f"**Reduced from the paper** (200 epochs: 5 AE + 5 per model + 190 joint; ~8.5 km per level): here "
                  f"{bc.ae_epochs} AE + {bc.pre_epochs} pre-training + {bc.joint_epochs} joint epochs, "
-                 f"~{bc.km:g} km of simulated walking per level, {seeds} seed(s), trained on {devices}"
+                 f"~{bc.km:g} km of simulated walking per level, {seeds} seed(s). Machine: {platform.machine()}, "
+                 f"trained on {devices}"
                  + (f"; a segment starts every {bc.stride_s:g} s." if bc.stride_s else "."))
     title = (f"# EasyTrack: odometry from the phone's own location fixes (paper 004): {', '.join(bc.levels)}, "
              f"{bc.ae_epochs + bc.pre_epochs + bc.joint_epochs} epochs, ~{bc.km:g} km per level"
@@ -472,8 +476,8 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
              f"{p['wearnav']} {p['commit']}).", "", reduction, "",
              f"Segments of {lc.segment_s:g} s at {lc.rate:g} Hz (phone IMU in the world frame, turned onto the fixes' "
              "east/north frame from the IMU and fixes only). Test: "
-             f"{len(test.names)} held-out simulated trajectories ({len(test)} segments, truth labels).", "",
-             "## Phone labels per noise level (eqs. 5–7)", "",
+             f"{len(test.names)} held-out simulated trajectories ({len(test)} segments, truth labels).", ""]
+    noise = ["## Phone labels per noise level (eqs. 5–7)", "",
              "Paper Table I: median label noise 21.6 / 27.6 / 33.5 cm, ~8.5 km per level; Fig. 1a: noise over 200 cm "
              "exists. Neighbour correlation: Pearson r of consecutive segments' noise, per axis (eq. 7; the paper "
              "gives no number). Dropped: labels faster than the jump filter's "
@@ -487,7 +491,7 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
                       "p90 (cm)": s["label_noise_p90_cm"], "> 1 m (%)": _pct(s.get("label_noise_over_1m")),
                       "> 2 m (%)": _pct(s.get("label_noise_over_2m")), "dropped (%)": _pct(s.get("dropped_share")),
                       "neighbour r (x, y)": f"{nc['x']:.3f}, {nc['y']:.3f}" if nc["x"] is not None else "—"})
-    lines += [pd.DataFrame(nrows).to_markdown(index=False), ""]
+    noise += [pd.DataFrame(nrows).to_markdown(index=False), ""]
     table = pd.DataFrame()
     if not df.empty:
         table = df.pivot_table(index="method", columns="level", values="ade", aggfunc="mean")
@@ -496,7 +500,7 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
         sd = df.pivot_table(index="method", columns="level", values="ade", aggfunc="std").reindex(order)
         n = df.pivot_table(index="method", columns="level", values="ade", aggfunc="count").reindex(order)
         shown = pd.DataFrame({f"{c} ADE (cm)": [_mean_sd(table.loc[m, c], sd.loc[m, c] if c in sd else None,
-                                                          n.loc[m, c] if c in n else 0) for m in order]
+                                                          n.loc[m, c] if c in n else 0, seeds) for m in order]
                               for c in table.columns}, index=order)
         still = next((m["trivial_ade_m"] for m in sim if "trivial_ade_m" in m), None)
         unlearned = sorted({f"{m['method']} {m['level']}" for m in sim if m.get("beats_trivial") is False})
@@ -504,7 +508,7 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
                  + (f"NOT beaten by: {', '.join(unlearned)}." if unlearned else "every run beats it."))
         mean_d = float(np.mean(np.linalg.norm(test.truth, axis=1))) if len(test) else float("nan")
         lines += ["## ADE on held-out trajectories (Fig. 3, ablation Fig. 4)", "",
-                  f"Mean ± sd over seeds (n), cm. {reduction}{beats} The test segments' mean true displacement is "
+                  f"Mean ± sd over {seeds} seed(s) (n= where a cell has fewer), cm. {reduction}{beats} The test segments' mean true displacement is "
                   f"{100 * mean_d:.1f} cm (the paper's phone labels average ~100 cm and its BaseModel-GT scores 11.2 cm, "
                   "11 % of that).", "", shown.to_markdown(), ""]
         lines += [_claim(df, table, mean_d), ""]
@@ -513,6 +517,7 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
                   "Fig. 7 uses L1):", "", ate.round(2).to_markdown(), "",
                   "Training time (seconds per epoch, mean over methods' non-AE epochs; minutes per run):", "",
                   df.groupby("method")[["s_epoch", "min"]].mean().round(2).to_markdown(), ""]
+    lines += noise
     hist = {}
     for m in sim:
         if m["method"] == "easytrack" and m["seed"] == 0:

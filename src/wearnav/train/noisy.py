@@ -476,7 +476,7 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
     timed = [h["s"] for h in hist if h["phase"] != "ae"] or [h["s"] for h in hist]
     return {"epochs": total, "ae_epochs": ae_epochs, "pre_epochs": cfg.pre_epochs, "joint_epochs": cfg.joint_epochs,
             "wall_s": state["wall_s"], "s_per_epoch": float(np.mean(timed)) if timed else None,
-            "device": str(dev), "history": hist}
+            "device": str(dev) + (f" ({torch.cuda.get_device_name(dev)})" if dev.type == "cuda" else ""), "history": hist}
 
 
 def load_predictor(cfg: NoisyConfig, run: str | Path, window: int):
