@@ -381,3 +381,34 @@ def test_overlapping_segments_start_every_stride_on_interpolated_fixes(walk):
     assert abs(np.median(np.linalg.norm(over.noise(), axis=1)) - np.median(np.linalg.norm(plain.noise(), axis=1))) < 0.08
     with pytest.raises(ConfigError):
         LabelConfig(stride_s=0.3)
+
+
+def test_base_study_splits_a_walks_error_into_speed_and_heading():
+    """per_walk on hand-made predictions: half the true displacement turned by 10° is a speed ratio
+    of 0.5 and a heading error of 10° on every walk."""
+    from wearnav.bench.easytrack_base import per_walk
+
+    rng = np.random.default_rng(0)
+    truth = rng.normal(0, 1, (40, 2)) + np.array([1.0, 0.0])
+    a = np.radians(10.0)
+    pred = 0.5 * truth @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
+    seg = Segments(x=np.zeros((40, 25, 6), np.float32), label=truth, truth=truth, traj=np.repeat([0, 1], 20),
+                   node0=np.arange(40), node1=np.arange(1, 41), t0=np.arange(40.0), t1=np.arange(1.0, 41.0),
+                   node_pos=np.zeros((41, 2)), node_traj=np.zeros(41, np.int64), node_t=np.arange(41.0),
+                   names=["a", "b"])
+    pw = per_walk(pred, seg)
+    np.testing.assert_allclose(pw["speed ratio"], 0.5)
+    np.testing.assert_allclose(pw["heading error (°, median)"], 10.0, atol=1e-9)
+    assert (pw["ADE (cm)"] > 0).all()
+
+
+@pytest.mark.slow
+def test_bench_easytrack_base_writes_one_row_per_variant(tmp_path, monkeypatch, capsys):
+    code, out, err = run_cli(monkeypatch, capsys, "bench", "easytrack-base", "--out", tmp_path / "b", "--km", "0.3",
+                             "--joint-epochs", "1")
+    assert code == 0, err
+    page = (tmp_path / "b" / "results.md").read_text()
+    for name in ("paper input, 30 % of the walking", "| paper input ", "+ yaw augmentation", "+ overlapping segments (0.2 s)",
+                 "diagnostic: truth frame"):
+        assert name in page
+    assert "Per held-out walk" in page and "speed ratio" in page

@@ -101,7 +101,7 @@ class NoisyConfig:
     coteach_forget: float = 0.2  # Co-teaching's ε
     coteach_tk: float = 0.1  # T_k as a share of the joint epochs
     yaw_augment: bool = True  # turn each segment's input by a random yaw, its prediction back (RoNIN's; not
-    # in the paper: with ~7 k segments it takes BaseModel-GT's held-out ADE from 46 to 40 cm, docs/results.md)
+    # in the paper: with ~7 k segments it takes BaseModel-GT's held-out ADE from 46 to 40 cm, docs/design.md)
 
     def __post_init__(self):
         if self.method not in METHODS:
