@@ -683,6 +683,7 @@ def bench_easytrack_base(
     out: Path = typer.Option(Path("runs/easytrack-base"), "--out", help="Suite folder (data, run folders, results.md)."),
     km: float = typer.Option(8.5, help="Simulated L1 walking, km."),
     joint_epochs: int = typer.Option(40, "--joint-epochs", help="Joint epochs (after 5 AE + 5 pre-training)."),
+    seeds: int = typer.Option(1, min=1, help="Seeds per variant."),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
 ):
     """Why EasyTrack's BaseModel-GT is far from the paper's: one input change at a time, per walk.
@@ -695,7 +696,7 @@ def bench_easytrack_base(
     from wearnav.bench.easytrack_base import run_study
 
     _suite_folder(out, "bench easytrack-base")
-    page = run_study(out, BenchConfig(km=km, joint_epochs=joint_epochs), _execution(jobs, Backend.local, None),
+    page = run_study(out, BenchConfig(km=km, joint_epochs=joint_epochs), seeds, _execution(jobs, Backend.local, None),
                      echo=typer.echo)
     typer.echo(f"wrote {page}")
 
