@@ -100,8 +100,8 @@ class NoisyConfig:
     low_weight: float = 0.1  # ... get this weight
     coteach_forget: float = 0.2  # Co-teaching's ε
     coteach_tk: float = 0.1  # T_k as a share of the joint epochs
-    yaw_augment: bool = True  # turn each segment's input by a random yaw, its prediction back (RoNIN's; not
-    # in the paper: with ~7 k segments it takes BaseModel-GT's held-out ADE from 46 to 40 cm, docs/design.md)
+    yaw_augment: bool = True  # turn each segment's input by a random yaw, its prediction back (not in the
+    # paper; RoNIN trains so). Its effect on BaseModel-GT: `wearnav bench easytrack-base`, docs/results.md
 
     def __post_init__(self):
         if self.method not in METHODS:
