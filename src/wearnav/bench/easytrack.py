@@ -534,12 +534,12 @@ def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], tra
                              "selected noise raw (cm)": round(j[-1]["selected_noise_cm"] or float("nan"), 1),
                              "selected, CNAL-corrected (cm)": round(j[-1]["selected_noise_corrected_cm"] or float("nan"), 1),
                              "all instances (cm)": round(j[-1]["batch_noise_cm"] or float("nan"), 1),
-                             "selected |d| (cm)": round(j[-1].get("selected_displacement_cm") or float("nan"), 1),
-                             "all |d| (cm)": round(j[-1].get("batch_displacement_cm") or float("nan"), 1),
+                             "selected ‖d‖ (cm)": round(j[-1].get("selected_displacement_cm") or float("nan"), 1),
+                             "all ‖d‖ (cm)": round(j[-1].get("batch_displacement_cm") or float("nan"), 1),
                              "corrected labels' median noise (cm)": round(j[-1].get("corrected_label_noise_median_cm",
                                                                                      float("nan")), 1)})
         lines += ["Last joint epoch (mean label noise |d_e| of the instances each model selected for its peer, and "
-                  "their mean true displacement |d| beside the batch's: small-loss selection is meant to keep clean "
+                  "their mean true displacement ‖d‖ beside the batch's: small-loss selection is meant to keep clean "
                   "labels, but while the model's own error exceeds the label noise it keeps short, easy segments):", "",
                   pd.DataFrame(rows).to_markdown(index=False), ""]
     links = _plots(out, table, hist, train, sim)

@@ -22,6 +22,7 @@ The page ``<out>/results.md`` is what ``wearnav results`` stitches into docs/res
 from __future__ import annotations
 
 import dataclasses
+import platform
 from pathlib import Path
 
 import numpy as np
@@ -111,11 +112,12 @@ def run_study(out: str | Path, bc: BenchConfig, seeds: int = 1, execution: Execu
                                                                                   record)))
             files.append((v, cfg, km, train, test))
     run_jobs(jobs, execution, echo)
-    per, walks = [], []
+    per, walks, devices = [], [], set()
     for job, (v, cfg, km, train, test) in zip(jobs, files):
         te = Segments.load(test)
         pw = per_walk(load_predictor(cfg, job.folder, te.x.shape[1])(te.x), te)
         ade = runs.read_metrics(job.folder)["ade_m"]
+        devices.add(runs.read_metrics(job.folder)["training"].get("device", "cpu"))
         per.append({"variant": v.name, "km": km, "segments": len(Segments.load(train)), "epochs": cfg.ae_epochs
                     + cfg.pre_epochs + cfg.joint_epochs, "seed": cfg.seed, "ade": 100 * ade,
                     "rel": ade / float(np.mean(np.linalg.norm(te.truth, axis=1))),
@@ -127,7 +129,7 @@ def run_study(out: str | Path, bc: BenchConfig, seeds: int = 1, execution: Execu
     for name, g in df.groupby("variant", sort=False):
         rows.append({"variant": name, "km": g["km"].iloc[0], "segments": g["segments"].iloc[0],
                      "epochs": g["epochs"].iloc[0], "ADE (cm)": f"{g['ade'].mean():.1f} ± {g['ade'].std():.1f}"
-                     if len(g) > 1 else f"{g['ade'].mean():.1f}", "ADE / mean |d|": round(g["rel"].mean(), 2),
+                     if len(g) > 1 else f"{g['ade'].mean():.1f}", "ADE / mean ‖d‖": round(g["rel"].mean(), 2),
                      "speed ratio per walk, seed 0 (min–max)": g["speed"].iloc[0],
                      "heading error (°, median of walks)": round(g["heading"].mean(), 1)})
     p = provenance()
@@ -138,7 +140,8 @@ def run_study(out: str | Path, bc: BenchConfig, seeds: int = 1, execution: Execu
              f"a fifth, the same number of steps). Paper 004: ADE {PAPER_ADE_CM} cm on phone labels of "
              f"~{PAPER_LABEL_CM:g} cm ({PAPER_ADE_CM / PAPER_LABEL_CM:.2f} of the displacement). Speed ratio: a walk's "
              "predicted over its true path length (1 is right); heading error: median angle between predicted and "
-             "true displacement.", "", pd.DataFrame(rows).to_markdown(index=False), "",
+             f"true displacement. Machine: {platform.machine()}, trained on {', '.join(sorted(devices))}.", "",
+             pd.DataFrame(rows).to_markdown(index=False), "",
              "Per held-out walk (seed 0):", "",
              pd.concat(walks).query("seed == 0")[["variant", "walk", "ADE (cm)", "speed ratio",
                                                   "heading error (°, median)"]].round(2).to_markdown(index=False), ""]
