@@ -254,7 +254,9 @@ def fix_frame_yaw(imu: np.ndarray, t: np.ndarray, rate: float, t_fix: np.ndarray
     return yaw, info
 
 
-def _aligned_phone(rec: Recording, cfg: LabelConfig):
+def aligned_phone(rec: Recording, cfg: LabelConfig):
+    """The recording's phone IMU as the labeller sees it: world frame, resampled, turned onto its
+    own fixes' east/north frame (:func:`fix_frame_yaw`; module docstring, "Input")."""
     seq = align(rec, cfg.preprocess())
     if cfg.align_to_fixes and rec.fixes is not None and len(rec.fixes) >= 3:
         from wearnav.frames import rotate_stacked
@@ -282,7 +284,7 @@ def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig(), warn_drops
         warnings.warn(f"{rec.name}: all {len(rec.fixes)} location fixes lie at one point (spread "
                       f"{spread:.3g} m): its labels would all be 0 m, so it is left out", WearnavWarning, stacklevel=2)
         return None
-    seq = _aligned_phone(rec, cfg)
+    seq = aligned_phone(rec, cfg)
     N = cfg.samples
     t_fix, p_fix = rec.fixes.t, rec.fixes.pos[:, :2]
     t_pt, p_pt, span = _chain_points(_fix_chain(t_fix, cfg, seq.t[0], seq.t[-1]), t_fix, p_fix, cfg.steps)
@@ -352,7 +354,7 @@ def segments_from_truth(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Seg
     module docstring). The IMU frame is still turned onto the fixes' frame, never the truth's."""
     if not _dense_truth(rec) or "phone" not in rec.devices:
         return None
-    seq = _aligned_phone(rec, cfg)
+    seq = aligned_phone(rec, cfg)
     pos = interpolate_position(rec.truth.t, rec.truth.pos, seq.t)
     N = cfg.samples
     starts = np.arange(0, seq.t.size - N, N)

@@ -36,11 +36,18 @@ from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.bench.real import IPIN_TEST_TRIALS
 from wearnav.errors import ConfigError, ValidationError, check_names
 from wearnav.fileio import write_text_atomic
-from wearnav.fixlabels import LabelConfig, Segments, label_dataset, noise_summary
+from wearnav.dataset import Dataset
+from wearnav.evaluate import SPARSE_MAX_GAP, predict_sequence
+from wearnav.fixlabels import LabelConfig, Segments, aligned_phone, label_dataset, noise_summary
+from wearnav.models.registry import build
+from wearnav.provenance import provenance
+from wearnav.report.plots import plot_ecdf, save
+from wearnav.simulate.presets import plan_phone_only, simulate_plan
 from wearnav.textio import read_json
 from wearnav.train.noisy import METHODS, NoisyConfig, fit_noisy, load_predictor, write_history
 from wearnav.stats import welch_p
 from wearnav.timeseries import interp_onto
+from wearnav.trajectory import integrate_velocity
 from wearnav.trust import QUICK_NOTE
 
 LEVELS = ("L1", "L2", "L3")
@@ -80,9 +87,7 @@ class BenchConfig:
 
 # ---- data -----------------------------------------------------------------------------------------
 
-def _dataset(path: Path, plan, echo) -> "Dataset":  # noqa: F821
-    from wearnav.dataset import Dataset
-    from wearnav.simulate.presets import simulate_plan
+def _dataset(path: Path, plan, echo) -> Dataset:
 
     if (path / "manifest.csv").is_file():
         return Dataset.open(path)
@@ -99,7 +104,6 @@ def _caches(out: Path, bc: BenchConfig, lc: LabelConfig) -> tuple[dict[str, Path
 
 def sim_segments(out: Path, bc: BenchConfig, lc: LabelConfig, echo=print) -> tuple[dict[str, Segments], Segments]:
     """Phone-labelled training segments per level and truth-labelled test segments (cached)."""
-    from wearnav.simulate.presets import plan_phone_only
 
     data = out / "data"
     caches, test_cache = _caches(out, bc, lc)
@@ -221,7 +225,6 @@ def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_rout
 def real_plan(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_routes: str | None, seeds: int,
               echo=print) -> RealPlan:
     """The real part's training labels (cached) and one job per method × seed."""
-    from wearnav.dataset import Dataset
 
     ds = Dataset.open(data)
     names = list(ds.names)
@@ -257,11 +260,6 @@ def real_plan(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_rout
 
 def real_scores(plan: RealPlan, out: Path, lc: LabelConfig) -> dict:
     """Score the real part's trained runs, PDR and the raw fixes at the test routes' surveyed points."""
-    from wearnav.dataset import Dataset
-    from wearnav.evaluate import SPARSE_MAX_GAP, predict_sequence
-    from wearnav.fixlabels import _aligned_phone
-    from wearnav.models.registry import build
-    from wearnav.trajectory import integrate_velocity
 
     ds, train, test_names, train_names = Dataset.open(plan.data), plan.train, plan.test_names, plan.train_names
     preds: dict[str, list] = {}
@@ -275,7 +273,7 @@ def real_scores(plan: RealPlan, out: Path, lc: LabelConfig) -> dict:
         rec = ds.load(name)
         if rec.truth is None or len(rec.truth) < 2:
             continue
-        seq = _aligned_phone(rec, lc)
+        seq = aligned_phone(rec, lc)
         tt, tp = rec.truth.t, rec.truth.pos[:, :2]
         inside = np.flatnonzero((tt >= seq.t[0]) & (tt <= seq.t[-1] - N / lc.rate))
         if inside.size < 2:
@@ -369,7 +367,6 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
-    from wearnav.report.plots import plot_ecdf, save
 
     links = []
     # label-noise CDF (eqs. 5-7)
@@ -431,7 +428,6 @@ def _plots(out: Path, table: pd.DataFrame, hist: dict, train: dict[str, Segments
 def _ade_curves(out: Path, sim: list[dict]) -> str | None:
     from matplotlib.figure import Figure
 
-    from wearnav.report.plots import save
 
     curves: dict[str, dict[str, list]] = {}
     for m in sim:
@@ -456,7 +452,6 @@ def _ade_curves(out: Path, sim: list[dict]) -> str | None:
 
 def write_page(out: Path, bc: BenchConfig, lc: LabelConfig, sim: list[dict], train: dict[str, Segments],
                test: Segments, real: dict | None, seeds: int, quick: bool) -> Path:
-    from wearnav.provenance import provenance
 
     p = provenance()
     df = pd.DataFrame([{"method": m["method"], "level": m["level"], "seed": m["seed"], "ade": m.get("ade_m"),

@@ -66,6 +66,9 @@ from wearnav import runs
 from wearnav.errors import ConfigError
 from wearnav.fileio import atomic_path, save_npy_atomic, write_text_atomic
 from wearnav.fixlabels import Segments
+from wearnav.models.easytrack import BaseModel
+from wearnav.models.registry import build
+from wearnav.models.ronin import MIN_WINDOW
 from wearnav.progress import Progress
 from wearnav.rotations import rotate_about_vertical
 
@@ -229,15 +232,11 @@ class Registry(nn.Module):
 
 
 def build_models(cfg: NoisyConfig, window: int) -> list[nn.Module]:
-    from wearnav.models.easytrack import BaseModel
-    from wearnav.models.registry import build
 
     torch.manual_seed(cfg.seed * 7919 + 11)
     if cfg.method == "ionet":
         return [Registry(build("ionet", n_devices=1, window=window))]
     if cfg.method == "ronin":
-        from wearnav.models.ronin import MIN_WINDOW
-
         return [Resampled(build("ronin", n_devices=1, window=max(window, MIN_WINDOW)), max(window, MIN_WINDOW))]
     n = 2 if cfg.method in DUAL else 1
     models = []
@@ -296,8 +295,6 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
     node1 = torch.as_tensor(train.node1, dtype=torch.long, device=dev)
     n = len(train)
     models = [m.to(dev) for m in build_models(cfg, train.x.shape[1])]
-    from wearnav.models.easytrack import BaseModel
-
     for m in models:
         if isinstance(m, BaseModel):
             m.set_normalisation(x)
