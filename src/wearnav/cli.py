@@ -7,7 +7,6 @@ failure into one line on stderr (see :func:`main`).
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import signal
@@ -20,9 +19,10 @@ from typing import Optional
 
 import typer
 
-from wearnav.bench.executor import Backend
+from wearnav.cli_bench import bench_app
+from wearnav.cli_common import (KEPT, NOTHING_KEPT, RECIPE_HELP, ImportFormat, Recipe, choice_value, echo_json,
+                                 on_interrupt, progress_enabled, split_list, suite_folder)
 from wearnav.errors import ConfigError, Terminated, ValidationError, WearnavError, WearnavWarning, one_line
-from wearnav.importers import FORMATS
 
 app = typer.Typer(
     help="Inertial odometry and activity recognition from everyday wearables.",
@@ -31,13 +31,13 @@ app = typer.Typer(
     add_completion=False,
     rich_markup_mode=None,  # click's plain help: flags read as flags (`--quick`, not `--quick <bool>`)
 )
+app.add_typer(bench_app, name="bench")
 
 
 # Options with a fixed set of values: typer lists them in --help and rejects any other (exit 2).
 # Each mirrors the library's own list (tests/test_cli.py checks that they agree); a command passes
 # ``.value`` on, a plain str. The simulator presets and Sensor Logger platforms are spelt out here
 # rather than imported, so that `wearnav --help` does not load the simulator or pandas' importers.
-ImportFormat = Enum("ImportFormat", {f: f for f in FORMATS}, type=str)  # wearnav.importers.FORMATS
 
 
 class Platform(str, Enum):  # wearnav.importers.sensorlogger.PLATFORMS
@@ -63,43 +63,6 @@ class SimFormat(str, Enum):
     sensorlogger = "sensorlogger"  # one walk as a Sensor Logger export (wearnav.importers.sensorlogger_export)
 
 
-class Clock(str, Enum):  # wearnav.bench.efficiency.CLOCKS
-    wall = "wall"
-    cpu = "cpu"
-
-
-def _value(choice: Enum | None) -> str | None:
-    return None if choice is None else choice.value
-
-
-def _echo_json(obj) -> None:
-    typer.echo(json.dumps(obj, indent=2, default=str))
-
-
-# What an interrupted command keeps and how to resume, said on the one line that ends it (exit
-# 130 / 143); a command that writes sets it before its work starts (:func:`_on_interrupt`).
-NOTHING_KEPT = "nothing was written; run the same command again"
-_KEPT = {"line": NOTHING_KEPT}
-
-
-def _on_interrupt(line: str) -> None:
-    _KEPT["line"] = line
-
-
-def _suite_folder(out: Path, command: str) -> None:
-    """A suite's --out: refused if its results.md is the user's; an interruption keeps finished runs."""
-    from wearnav.outputs import check_suite_folder
-
-    check_suite_folder(out, command)
-    _on_interrupt(f"finished runs are kept in {out}; run the same command again to resume")
-
-
-def _progress() -> bool:
-    """Long work reports progress: a bar on a terminal, log lines every 30 s otherwise (the choice
-    is :mod:`wearnav.progress`'s)."""
-    return True
-
-
 @app.command()
 def simulate(
     out: Path = typer.Option(..., "--out", help="Dataset folder to write."),
@@ -119,15 +82,15 @@ def simulate(
     if format_ is SimFormat.sensorlogger:
         from wearnav.importers.sensorlogger_export import simulated_export
 
-        _echo_json(simulated_export(out, seed=seed))
+        echo_json(simulated_export(out, seed=seed))
         return
     from wearnav.outputs import check_new_dataset
     from wearnav.simulate import simulate_dataset
 
     check_new_dataset(out, overwrite, "simulate")
-    _on_interrupt(f"nothing was written to {out}; run the same command again")
-    ds = simulate_dataset(preset.value, out, seed=seed, progress=_progress())
-    _echo_json(ds.summary())
+    on_interrupt(f"nothing was written to {out}; run the same command again")
+    ds = simulate_dataset(preset.value, out, seed=seed, progress=progress_enabled())
+    echo_json(ds.summary())
 
 
 @app.command()
@@ -150,12 +113,12 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
         rec = Recording.load(path)
         if (stale := needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
             warnings.warn(WearnavWarning(f"{path}: {stale}"))
-        _echo_json(rec.summary())
+        echo_json(rec.summary())
         return
     ds = Dataset.open(path)
     summary = ds.summary()
     summary["names"] = ds.names_line()  # what `wearnav info DATASET/<name>.h5` and `plot --name` can show
-    stats = dataset_stats(ds, progress=_progress())
+    stats = dataset_stats(ds, progress=progress_enabled())
     summary["device_rates"] = {
         dev: {"rate_hz": round(d["rate_hz"], 2), "jitter_iqr_ms": round(d["jitter_iqr_ms"], 3),
               "gyro_share": round(d["gyro_share"], 3), "orientation_share": round(d["orientation_share"], 3)}
@@ -172,7 +135,7 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
                                            for k, v in stats["fix_error_m"].items()}
     if stats["needs_reimport"]:
         warnings.warn(WearnavWarning(f"{path}: {stats['needs_reimport']}"))
-    _echo_json(summary)
+    echo_json(summary)
 
 
 @app.command("import")
@@ -194,14 +157,14 @@ def import_(
     from wearnav.importers import import_dataset
     from wearnav.outputs import check_new_dataset
 
-    fmt, platform = fmt.value, _value(platform)
+    fmt, platform = fmt.value, choice_value(platform)
     if platform is not None and fmt != "sensorlogger":
         raise typer.BadParameter("--platform is for the sensorlogger format only")
     check_new_dataset(out, overwrite, "import")
-    _on_interrupt(f"nothing was written to {out}; run the same command again")
+    on_interrupt(f"nothing was written to {out}; run the same command again")
     options = {"platform": platform} if platform is not None else {}
-    ds = import_dataset(fmt, src, out, limit=limit, progress=_progress(), **options)
-    _echo_json(ds.summary())
+    ds = import_dataset(fmt, src, out, limit=limit, progress=progress_enabled(), **options)
+    echo_json(ds.summary())
 
 
 @app.command()
@@ -253,12 +216,12 @@ def track(
     """
     from wearnav.track import track as track_
 
-    summary = track_(src, model, out, name=name, platform=_value(platform), progress=_progress(),
-                     anchor=_value(anchor))
+    summary = track_(src, model, out, name=name, platform=choice_value(platform), progress=progress_enabled(),
+                     anchor=choice_value(anchor))
     typer.echo(f"model input: {summary['model']} on {', '.join(summary['model_devices'])}; used "
                f"{', '.join(summary['devices_used'])} (frame: {summary['frame']}, reference "
                f"{summary['frame_reference']})")
-    _echo_json({k: summary[k] for k in ("recording", "duration_s", "length_m", "end_xy_m", "files")
+    echo_json({k: summary[k] for k in ("recording", "duration_s", "length_m", "end_xy_m", "files")
                 if k in summary} | {"anchoring": summary.get("anchoring", "no location fixes")})
 
 
@@ -276,12 +239,8 @@ def datasets_report(
     """
     from wearnav.report.datasets_page import write_datasets_report
 
-    _on_interrupt(f"datasets imported so far are kept in {work}; run the same command again")
+    on_interrupt(f"datasets imported so far are kept in {work}; run the same command again")
     typer.echo(str(write_datasets_report(data, out, work)))
-
-
-def _devices(devices: str) -> tuple[str, ...]:
-    return tuple(d.strip() for d in devices.split(",") if d.strip())
 
 
 @app.command("models")
@@ -300,17 +259,6 @@ def models_():
         except Exception as exc:  # a model that cannot be built with defaults still gets listed
             n = f"? ({type(exc).__name__})"
         typer.echo(f"{spec.name:15s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
-
-
-class Recipe(str, Enum):
-    """How a run is optimised (wearnav.train.odometry.RECIPES)."""
-
-    fast = "fast"
-    paper = "paper"
-
-
-RECIPE_HELP = ("fast: Adam lr 1e-3, 1-epoch warm-up, cosine decay over --epochs (learns in a short run); "
-               "paper: the model's published schedule (Suite-IN++: lr 1e-4 constant; needs ~100 epochs).")
 
 
 class TestFrame(str, Enum):
@@ -359,22 +307,22 @@ def train(
     from wearnav.train.odometry import configure, fit, prepare_run
     from wearnav.trust import LEARN_ADVICE, did_not_learn
 
-    cfg, eval_splits, notes = configure(model, data, _devices(devices) if devices is not None else None,
+    cfg, eval_splits, notes = configure(model, data, split_list(devices) if devices is not None else None,
                                         ("test",) if evaluate else (), epochs=epochs, seed=seed, lr=lr, recipe=recipe.value,
                                         batch=batch, patience=patience, max_minutes=max_time)
     run = prepare_run(cfg, out, eval_splits=eval_splits)
     for note in notes:  # what the data decided (devices, truth gaps, validation, no test split)
         typer.echo(note, err=True)
     evaluate = bool(eval_splits)
-    _on_interrupt(f"{run} keeps the last finished epoch; run the same command again to resume")
+    on_interrupt(f"{run} keeps the last finished epoch; run the same command again to resume")
     with locked(run):  # one process per run folder, from training through its metrics
-        record = fit(cfg, run, progress=_progress(), devices=num_devices, strategy=strategy.value)
-        _echo_json({"run": str(run), "training": {k: v for k, v in record.items() if k != "training_data"}})
+        record = fit(cfg, run, progress=progress_enabled(), devices=num_devices, strategy=strategy.value)
+        echo_json({"run": str(run), "training": {k: v for k, v in record.items() if k != "training_data"}})
         if (unlearned := did_not_learn(record)) is not None:  # wearnav.trust
             warnings.warn(WearnavWarning(f"{run}: {unlearned}: {LEARN_ADVICE}"))
         if evaluate:
-            m = evaluate_run(run, splits=("test",), training=record, progress=_progress())
-            _echo_json({"test": m["splits"]["test"]["summary"]})
+            m = evaluate_run(run, splits=("test",), training=record, progress=progress_enabled())
+            echo_json({"test": m["splits"]["test"]["summary"]})
 
 
 @app.command("eval")
@@ -400,305 +348,11 @@ def eval_(
         raise ConfigError("--test-frame truth is a diagnostic (ground truth inside the test input); "
                           "give --out so that the run's own metrics stay honest")
     dest = out if out is not None else run
-    _on_interrupt(f"{dest / 'metrics.json'} is written only when every split is scored; run the same command again")
+    on_interrupt(f"{dest / 'metrics.json'} is written only when every split is scored; run the same command again")
     pre = {"eval_frame_align": test_frame.value} if test_frame is not None else None
-    m = evaluate_run(run, data=data, splits=_devices(split), progress=_progress(), preprocess=pre, out_dir=out)
-    _echo_json({s: m["splits"][s]["summary"] for s in _devices(split)})
+    m = evaluate_run(run, data=data, splits=split_list(split), progress=progress_enabled(), preprocess=pre, out_dir=out)
+    echo_json({s: m["splits"][s]["summary"] for s in split_list(split)})
     typer.echo(f"wrote {dest / 'metrics.json'} and {dest / 'plots'}")
-
-
-bench_app = typer.Typer(help="The papers' experiments as resumable suites of run folders.", no_args_is_help=True)
-app.add_typer(bench_app, name="bench")
-
-# How a suite's runs are spread (wearnav.bench.executor); none of it enters a run's hash.
-JOBS_HELP = "Runs at once in local processes (1: one after another in this process)."
-EXECUTOR_HELP = "local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav[cluster]')."
-SEED_HELP = "Random seed of every run (its weights, batch order and augmentation; part of the run's hash)."
-ADDRESS_HELP = ("With --executor ray: the cluster to join (host:port, or 'auto': the one `ray start` joined here); "
-                "default: $RAY_ADDRESS or that cluster if there is one, else a new Ray on this machine.")
-
-
-def _execution(jobs: int, executor: Backend, address: Optional[str], threads: Optional[int] = None):
-    from wearnav.bench.executor import Execution
-
-    return Execution(jobs=jobs, backend=executor, address=address, threads=threads)
-
-
-class Grid(str, Enum):  # wearnav.bench.odometry.GRIDS
-    default = "default"
-    paper = "paper"
-
-
-@bench_app.command("odometry")
-def bench_odometry(
-    data: Path = typer.Option(..., "--data", help="Simulated dataset (e.g. `wearnav simulate --preset default`)."),
-    out: Path = typer.Option(Path("runs/odometry"), "--out", help="Suite folder (run folders + results.md)."),
-    grid: Optional[Grid] = typer.Option(None, help="Named model grid: default (suitein++, suitein, ronin, ronin*, pdr; "
-                                        "the default) or paper (every model of Tables III–V; wearnav.bench.odometry.GRIDS)."),
-    models: Optional[str] = typer.Option(None, help="Models, comma-separated, instead of --grid."),
-    seeds: str = typer.Option("0", help="Training seeds, comma-separated (e.g. 0,1,2): one run per model and seed; "
-                                        "each is part of its run's hash."),
-    epochs: int = typer.Option(100, help="Maximum epochs per model (the same budget for every model)."),
-    patience: int = typer.Option(10, min=1, help="Early stopping: epochs without a better validation loss."),
-    max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
-    recipe: Recipe = typer.Option(Recipe.fast, help=RECIPE_HELP),
-    lr: Optional[float] = typer.Option(None, help="Learning rate for every model (default: the recipe's)."),
-    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
-    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
-    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
-    report_only: bool = typer.Option(False, "--report-only", help="Train nothing: write the page from the runs "
-                                     "already complete (\"n of N seeds\" where a row is unfinished)."),
-):
-    """Train and evaluate the odometry comparison, every model × seed; complete runs are skipped
-    (the suite resumes). The page: Suite-IN++ Tables III–VI (mean ± std over seeds) and Figs. 7, 11.
-
-    \b
-    Example:
-      wearnav bench odometry --data data/default --out runs/odometry --seeds 0,1,2 --epochs 30 --jobs 2
-    """
-    from wearnav.bench.odometry import GRIDS, run_folder, run_suite, suite_configs
-    from wearnav.bench.odometry_tables import write_grid_report
-    from wearnav.errors import ConfigError
-
-    try:
-        seed_list = [int(s) for s in _devices(seeds)]
-    except ValueError:
-        raise ConfigError(f"--seeds takes comma-separated integers, got {seeds!r}") from None
-    if any(s < 0 for s in seed_list):
-        raise ConfigError(f"--seeds must be ≥ 0, got {seeds!r}")
-    if models and grid:
-        raise ConfigError("give --models or --grid, not both")
-    grid = grid or Grid.default
-    entries = list(_devices(models)) if models else GRIDS[grid.value]
-    configs = suite_configs(data, entries, seeds=seed_list, epochs=epochs, patience=patience,
-                            max_minutes=max_time, lr=lr, recipe=recipe.value)
-    _suite_folder(out, "bench odometry")
-    if report_only:
-        folders = [run_folder(out, c) for c in configs]
-    else:
-        folders = run_suite(configs, out, progress=_progress(), echo=typer.echo,
-                            execution=_execution(jobs, executor, address))
-    from wearnav.dataset import Dataset
-
-    prov = Dataset.open(data).provenance
-    made = (f"simulator preset `{prov['preset']['name'] if isinstance(prov.get('preset'), dict) else prov.get('preset')}`, "
-            f"seed {prov.get('seed')}, wearnav commit {prov.get('commit')}" if prov.get("generator") == "wearnav.simulate"
-            else f"imported by {prov.get('importer', prov.get('generator', '?'))}")
-    import platform
-
-    from wearnav.fileio import shown_path
-
-    note = (f"Data: `{shown_path(data)}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
-            f"{__import__('torch').__version__}, shared with other work while it ran. Grid: "
-            + (f"--models {models}" if models else f"`{grid.value}`") + f", seeds {seeds}; at most {epochs} epochs "
-            f"per run, patience {patience}"
-            + (f", {max_time:g} min of training per run (a run given more time resumes from its last "
-               "checkpoint: attempts > 1)" if max_time else "")
-            + f", recipe `{recipe.value}`" + (f", Adam lr {lr:g} for every model" if lr else "") + ".")
-    page = write_grid_report(folders, out, expected_seeds=len(seed_list), note=note)
-    typer.echo(f"wrote {page}")
-
-
-@bench_app.command("real-odometry")
-def bench_real_odometry(
-    data: Path = typer.Option(..., "--data", help="A real building: an imported dataset folder, or its original files with --format."),
-    out: Path = typer.Option(Path("runs/real"), "--out", help="Suite folder (split data, run folders, results.md)."),
-    format_: Optional[ImportFormat] = typer.Option(None, "--format", help="Importer for --data when it is not imported yet."),
-    test_data: Optional[Path] = typer.Option(None, "--test-data", help="Another building to test on (never trained on)."),
-    test_format: Optional[ImportFormat] = typer.Option(None, "--test-format", help="Importer for --test-data."),
-    group_by: Optional[str] = typer.Option(None, help="Meta key that groups recordings by place (default per source: ilc2 floor_name, ipin2023 trial)."),
-    test_groups: Optional[str] = typer.Option(None, help="Held-out groups, comma-separated (default per source: ilc2 F2,F4; ipin2023 4,24,52)."),
-    test_group_by: Optional[str] = typer.Option(None, help="--group-by for --test-data."),
-    test_test_groups: Optional[str] = typer.Option(None, help="--test-groups for --test-data."),
-    train_data: Optional[Path] = typer.Option(None, "--train-data", help="Train the learned models on this (simulated) dataset instead: sim-to-real."),
-    models: str = typer.Option("ronin,suitein++,pdr", help="Models, comma-separated (phone only)."),
-    epochs: int = typer.Option(100, min=1, help="Maximum epochs per model."),
-    max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
-    lr: float = typer.Option(1e-3, help="Adam learning rate for every learned model."),
-    seed: int = typer.Option(0, min=0, help=SEED_HELP),
-    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
-    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
-    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
-):
-    """Phone-only odometry trained on some floors/routes of a real building, scored at the surveyed
-    points of held-out ones (and of another building); PDR and the raw phone fixes beside them.
-
-    \b
-    Example:
-      wearnav bench real-odometry --data data/ilc2 --test-data data/ipin --out runs/real/ilc2 --max-time 15
-    """
-    from wearnav.bench.real import RealBench, run_benchmark
-
-    _suite_folder(out, "bench real-odometry")
-    bench = RealBench(models=_devices(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr,
-                      train_data=str(train_data) if train_data else None)
-    page = run_benchmark(data, out, test_data, _value(format_), _value(test_format), group_by,
-                         _devices(test_groups) if test_groups else None, test_group_by,
-                         _devices(test_test_groups) if test_test_groups else None, bench,
-                         progress=_progress(), echo=typer.echo, execution=_execution(jobs, executor, address))
-    typer.echo(f"wrote {page}")
-
-
-@bench_app.command("efficiency")
-def bench_efficiency(
-    out: Path = typer.Option(Path("runs/efficiency"), "--out", help="Folder for results.md / results.json."),
-    models: str = typer.Option("suitein++,suitein,ronin,ronin*,pdr", help="Models, comma-separated."),
-    threads: Optional[int] = typer.Option(None, min=1, help="Intra-op threads (default: torch's)."),
-    clock: Clock = typer.Option(Clock.wall, help="cpu: the process's CPU time (steadier on a shared machine "
-                                "with 1 thread)."),
-    min_run_time: float = typer.Option(0.2, min=0.001, help="Seconds each timing runs (torch's blocked_autorange)."),
-    odometry_suite: Optional[Path] = typer.Option(None, help="Odometry suite folder: adds its training s/epoch."),
-):
-    """Parameters, FLOPs per window, inference windows/s at batch 1 and 256, fraction of the FLOP-bound limit.
-
-    \b
-    Example:
-      wearnav bench efficiency --out runs/efficiency --models pdr,ronin
-    """
-    from wearnav.bench.efficiency import measure, write_report
-    from wearnav.models.registry import check_models
-
-    from wearnav.outputs import check_suite_folder
-
-    check_suite_folder(out, "bench efficiency")  # its page is written at the end: nothing kept before
-    rows = []
-    for m in check_models(_devices(models)):  # every name before the first is measured
-        typer.echo(f"measuring {m} ...")
-        rows.append(measure(m, threads=threads, clock=clock.value, min_run_time_s=min_run_time))
-    typer.echo(str(write_report(rows, out, odometry_suite)))
-
-
-@bench_app.command("fusion")
-def bench_fusion(
-    data: Path = typer.Option(..., "--data", help="A simulated dataset (`wearnav simulate`): dense truth and fixes."),
-    out: Path = typer.Option(Path("runs/fusion"), "--out", help="Folder for results.md / results.json."),
-    model: str = typer.Option("pdr", help="An untrained odometry baseline (no training)."),
-    split: Optional[str] = typer.Option(None, help="One split of --data (default: every recording)."),
-    live_min: float = typer.Option(0.0, "--live-min", min=0.0, help="Also time the live receiver's fixed-lag "
-                                   "smoother on one simulated walk this long (minutes; 0: not)."),
-):
-    """Odometry alone, fixes alone and the smoother against the simulator's truth, per walking mode,
-    the smoother's seconds per hour of walk, and (--live-min) the fixed-lag smoother's time per update.
-
-    \b
-    Example:
-      wearnav bench fusion --data data/sim --out runs/fusion --live-min 60
-    """
-    from wearnav.bench.user_protocol import fusion_table, live_walk, write_fusion_page
-    from wearnav.outputs import check_suite_folder
-
-    check_suite_folder(out, "bench fusion")  # its page is written at the end: nothing kept before
-    live = live_walk(live_min, model) if live_min > 0 else None
-    typer.echo(str(write_fusion_page(fusion_table(data, model, split), data, out, live)))
-
-
-# ---- activity / placement recognition (issue 9, paper 002) ------------------------------------
-
-@bench_app.command("har")
-def bench_har(
-    out: Path = typer.Option(Path("runs/har"), "--out", help="Suite folder (imported data, run folders, results.md)."),
-    data: Path = typer.Option(Path("../shared/data"), "--data", help="Folder holding the public datasets."),
-    datasets: Optional[str] = typer.Option(None, help="Datasets, comma-separated (default: all; --quick: uci-hapt)."),
-    seeds: Optional[int] = typer.Option(None, min=1, help="Seeds per technique (default 3; --quick 1)."),
-    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
-    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
-    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
-    epochs: Optional[int] = typer.Option(None, min=1, help="Epochs per run (default 30; --quick 1)."),
-    steps: Optional[int] = typer.Option(None, min=1, help="Instead of --epochs: each dataset's epochs give the "
-                                        "baseline about this many gradient steps (expanded sets the same epochs)."),
-    techniques: Optional[str] = typer.Option(None, help="Techniques, comma-separated (default: all applicable)."),
-    max_time: Optional[float] = typer.Option(None, "--max-time", help="Minutes of training per run (not hashed)."),
-    quick: bool = typer.Option(False, "--quick", help="A tiny subset and 1 epoch: checks the pipeline only."),
-    threads: int = typer.Option(1, min=1, help="Torch intra-op threads per run (1 is fastest for this small model)."),
-):
-    """The paper-002 HAR benchmark: baseline and ten techniques per dataset; runs resume.
-
-    \b
-    Example:
-      wearnav bench har --out runs/har --datasets uci-hapt --techniques baseline --seeds 1
-    """
-    from wearnav.bench.har import run_benchmark
-
-    _suite_folder(out, "bench har")
-    page = run_benchmark(data, out, _devices(datasets) if datasets else None, seeds or (1 if quick else 3),
-                         _execution(jobs, executor, address, threads), quick, epochs,
-                         _devices(techniques) if techniques else None, max_time, echo=typer.echo, steps=steps)
-    typer.echo(f"wrote {page}")
-
-
-@bench_app.command("easytrack")
-def bench_easytrack(
-    out: Path = typer.Option(Path("runs/easytrack"), "--out", help="Suite folder (data, run folders, results.md)."),
-    quick: bool = typer.Option(False, "--quick", help="Tiny data, 1–2 epochs per phase: checks the pipeline only."),
-    seeds: int = typer.Option(1, min=1, help="Seeds per method and level."),
-    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
-    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
-    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
-    data: Optional[Path] = typer.Option(None, "--data", help="Real dataset (wearnav folder: phone IMU, fixes, sparse "
-                                        "truth), e.g. an `wearnav import ipin2023` output."),
-    test_routes: Optional[str] = typer.Option(None, "--test-routes",
-                                              help="Regex: recordings of --data held out for testing, the rest "
-                                              "train (default: the dataset's `test` split, else IPIN's "
-                                              "Trial(04|24|52)_, the real-odometry test trials)."),
-    km: Optional[float] = typer.Option(None, help="Simulated walking per noise level, km (default 3; --quick 0.25)."),
-    joint_epochs: Optional[int] = typer.Option(None, "--joint-epochs", help="Joint epochs (paper 190; default 30)."),
-    ae_epochs: Optional[int] = typer.Option(None, "--ae-epochs", help="Auto-encoder pre-training epochs (paper 5)."),
-    pre_epochs: Optional[int] = typer.Option(None, "--pre-epochs", help="Per-model pre-training epochs (paper 5)."),
-    stride: Optional[float] = typer.Option(None, "--stride", help="Start a 1-s segment every STRIDE s (0.2: ~5 "
-                                           "overlapping segments per second, as the paper's Table I counts; "
-                                           "default: back to back)."),
-    levels: Optional[str] = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),
-    methods: Optional[str] = typer.Option(None, help="Methods, comma-separated (default: all)."),
-):
-    """EasyTrack (paper 004): methods × noise levels on simulated phone labels, and a real GNSS test.
-
-    \b
-    Example:
-      wearnav bench easytrack --out runs/easytrack --quick
-    """
-    import dataclasses as _dc
-
-    from wearnav.bench.easytrack import BenchConfig, run_benchmark
-
-    _suite_folder(out, "bench easytrack")
-    bc = BenchConfig.quick() if quick else BenchConfig()
-    changes = {}
-    if km is not None:
-        changes["km"] = km
-    for key, value in (("joint_epochs", joint_epochs), ("ae_epochs", ae_epochs), ("pre_epochs", pre_epochs),
-                       ("stride_s", stride)):
-        if value is not None:
-            changes[key] = value
-    if levels:
-        changes["levels"] = tuple(_devices(levels))
-    if methods:
-        changes["methods"] = tuple(_devices(methods))
-    page = run_benchmark(out, quick, seeds, _execution(jobs, executor, address), data, test_routes,
-                         _dc.replace(bc, **changes), echo=typer.echo)
-    typer.echo(f"wrote {page}")
-
-
-@bench_app.command("easytrack-base")
-def bench_easytrack_base(
-    out: Path = typer.Option(Path("runs/easytrack-base"), "--out", help="Suite folder (data, run folders, results.md)."),
-    km: float = typer.Option(8.5, help="Simulated L1 walking, km."),
-    joint_epochs: int = typer.Option(40, "--joint-epochs", help="Joint epochs (after 5 AE + 5 pre-training)."),
-    seeds: int = typer.Option(1, min=1, help="Seeds per variant."),
-    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
-):
-    """Why EasyTrack's BaseModel-GT is far from the paper's: one input change at a time, per walk.
-
-    \b
-    Example:
-      wearnav bench easytrack-base --out runs/easytrack-base --km 1 --joint-epochs 5
-    """
-    from wearnav.bench.easytrack import BenchConfig
-    from wearnav.bench.easytrack_base import run_study
-
-    _suite_folder(out, "bench easytrack-base")
-    page = run_study(out, BenchConfig(km=km, joint_epochs=joint_epochs), seeds, _execution(jobs, Backend.local, None),
-                     echo=typer.echo)
-    typer.echo(f"wrote {page}")
 
 
 @app.command("label-from-fixes", short_help="Label IMU segments by the phone's location fixes (EasyTrack); "
@@ -722,7 +376,7 @@ def label_from_fixes(
     from wearnav.outputs import staged_output
     from wearnav.runs import write_json
 
-    seg = label_dataset(Dataset.open(dataset), LabelConfig(segment_s=segment, rate=rate), progress=_progress())
+    seg = label_dataset(Dataset.open(dataset), LabelConfig(segment_s=segment, rate=rate), progress=progress_enabled())
     summary = noise_summary(seg)
     with staged_output(out, "label_noise.json", "label-from-fixes") as stage:  # all three files or none
         seg.save(stage / "segments.npz")
@@ -812,7 +466,7 @@ def realism(
     """
     from wearnav.realism import realism_report
 
-    _on_interrupt(f"subsets imported so far are kept in {work}; run the same command again")
+    on_interrupt(f"subsets imported so far are kept in {work}; run the same command again")
     realism_report(data, out, work, n_sim=n_sim, limit=limit, seed=seed, before=before,
                    json_out=json_out, progress=True)
     typer.echo(str(out))
@@ -846,11 +500,11 @@ def demo(
     from wearnav.bench.demo import run_demo
     from wearnav.models.registry import check_models
 
-    models_ = _devices(models)
+    models_ = split_list(models)
     check_models(models_, "odometry")  # before anything is written
-    _suite_folder(out, "demo")
+    suite_folder(out, "demo")
     page, tables = run_demo(out, models_, epochs, seed=seed, minutes=minutes, preset=preset.value,
-                            progress=_progress(), echo=typer.echo)
+                            progress=progress_enabled(), echo=typer.echo)
     for split, table in tables.items():
         typer.echo(f"\n{split} (metres):")
         typer.echo(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
@@ -909,7 +563,7 @@ def _log_to_stderr() -> None:
 
 def _main() -> None:
     _log_to_stderr()
-    _KEPT["line"] = NOTHING_KEPT
+    KEPT["line"] = NOTHING_KEPT
     with warnings.catch_warnings():
         # Only wearnav's own warnings concern the user (a truncated file imported flagged); a
         # library's RuntimeWarning about arithmetic on values that are then refused is noise.
@@ -935,11 +589,11 @@ def _main() -> None:
             _fail(_os_error_line(exc), 2)
         except (Terminated, KeyboardInterrupt) as exc:
             _fail(("interrupted" if isinstance(exc, KeyboardInterrupt) else "terminated (SIGTERM)")
-                  + f"; {_KEPT['line']}", 130 if isinstance(exc, KeyboardInterrupt) else 143)
+                  + f"; {KEPT['line']}", 130 if isinstance(exc, KeyboardInterrupt) else 143)
         except Exception as exc:
             if os.environ.get("WEARNAV_DEBUG"):
                 raise
             _fail(f"internal error ({exc.__class__.__name__}: {exc}); this is a bug in wearnav, "
                   "please report it with the command you ran (WEARNAV_DEBUG=1 shows the traceback)", 1)
         if isinstance(code, int) and code:  # typer turns Ctrl-C into exit code 130
-            _fail(f"interrupted; {_KEPT['line']}" if code == 130 else f"exit code {code}", code)
+            _fail(f"interrupted; {KEPT['line']}" if code == 130 else f"exit code {code}", code)

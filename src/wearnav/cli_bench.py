@@ -1,0 +1,313 @@
+"""``wearnav bench``: the papers' experiments as resumable suites of run folders (each command a
+thin layer over its :mod:`wearnav.bench` module, imported when it runs so that ``--help`` stays fast)."""
+
+from __future__ import annotations
+
+import os
+from enum import Enum
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from wearnav.bench.executor import Backend
+from wearnav.cli_common import (RECIPE_HELP, ImportFormat, Recipe, choice_value, progress_enabled, split_list,
+                                suite_folder)
+
+
+class Clock(str, Enum):  # wearnav.bench.efficiency.CLOCKS
+    wall = "wall"
+    cpu = "cpu"
+
+
+bench_app = typer.Typer(help="The papers' experiments as resumable suites of run folders.", no_args_is_help=True)
+
+# How a suite's runs are spread (wearnav.bench.executor); none of it enters a run's hash.
+JOBS_HELP = "Runs at once in local processes (1: one after another in this process)."
+EXECUTOR_HELP = "local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav[cluster]')."
+SEED_HELP = "Random seed of every run (its weights, batch order and augmentation; part of the run's hash)."
+ADDRESS_HELP = ("With --executor ray: the cluster to join (host:port, or 'auto': the one `ray start` joined here); "
+                "default: $RAY_ADDRESS or that cluster if there is one, else a new Ray on this machine.")
+
+
+def _execution(jobs: int, executor: Backend, address: Optional[str], threads: Optional[int] = None):
+    from wearnav.bench.executor import Execution
+
+    return Execution(jobs=jobs, backend=executor, address=address, threads=threads)
+
+
+class Grid(str, Enum):  # wearnav.bench.odometry.GRIDS
+    default = "default"
+    paper = "paper"
+
+
+@bench_app.command("odometry")
+def bench_odometry(
+    data: Path = typer.Option(..., "--data", help="Simulated dataset (e.g. `wearnav simulate --preset default`)."),
+    out: Path = typer.Option(Path("runs/odometry"), "--out", help="Suite folder (run folders + results.md)."),
+    grid: Optional[Grid] = typer.Option(None, help="Named model grid: default (suitein++, suitein, ronin, ronin*, pdr; "
+                                        "the default) or paper (every model of Tables III–V; wearnav.bench.odometry.GRIDS)."),
+    models: Optional[str] = typer.Option(None, help="Models, comma-separated, instead of --grid."),
+    seeds: str = typer.Option("0", help="Training seeds, comma-separated (e.g. 0,1,2): one run per model and seed; "
+                                        "each is part of its run's hash."),
+    epochs: int = typer.Option(100, help="Maximum epochs per model (the same budget for every model)."),
+    patience: int = typer.Option(10, min=1, help="Early stopping: epochs without a better validation loss."),
+    max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
+    recipe: Recipe = typer.Option(Recipe.fast, help=RECIPE_HELP),
+    lr: Optional[float] = typer.Option(None, help="Learning rate for every model (default: the recipe's)."),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
+    report_only: bool = typer.Option(False, "--report-only", help="Train nothing: write the page from the runs "
+                                     "already complete (\"n of N seeds\" where a row is unfinished)."),
+):
+    """Train and evaluate the odometry comparison, every model × seed; complete runs are skipped
+    (the suite resumes). The page: Suite-IN++ Tables III–VI (mean ± std over seeds) and Figs. 7, 11.
+
+    \b
+    Example:
+      wearnav bench odometry --data data/default --out runs/odometry --seeds 0,1,2 --epochs 30 --jobs 2
+    """
+    from wearnav.bench.odometry import GRIDS, run_folder, run_suite, suite_configs
+    from wearnav.bench.odometry_tables import write_grid_report
+    from wearnav.errors import ConfigError
+
+    try:
+        seed_list = [int(s) for s in split_list(seeds)]
+    except ValueError:
+        raise ConfigError(f"--seeds takes comma-separated integers, got {seeds!r}") from None
+    if any(s < 0 for s in seed_list):
+        raise ConfigError(f"--seeds must be ≥ 0, got {seeds!r}")
+    if models and grid:
+        raise ConfigError("give --models or --grid, not both")
+    grid = grid or Grid.default
+    entries = list(split_list(models)) if models else GRIDS[grid.value]
+    configs = suite_configs(data, entries, seeds=seed_list, epochs=epochs, patience=patience,
+                            max_minutes=max_time, lr=lr, recipe=recipe.value)
+    suite_folder(out, "bench odometry")
+    if report_only:
+        folders = [run_folder(out, c) for c in configs]
+    else:
+        folders = run_suite(configs, out, progress=progress_enabled(), echo=typer.echo,
+                            execution=_execution(jobs, executor, address))
+    from wearnav.dataset import Dataset
+
+    prov = Dataset.open(data).provenance
+    made = (f"simulator preset `{prov['preset']['name'] if isinstance(prov.get('preset'), dict) else prov.get('preset')}`, "
+            f"seed {prov.get('seed')}, wearnav commit {prov.get('commit')}" if prov.get("generator") == "wearnav.simulate"
+            else f"imported by {prov.get('importer', prov.get('generator', '?'))}")
+    import platform
+
+    from wearnav.fileio import shown_path
+
+    note = (f"Data: `{shown_path(data)}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
+            f"{__import__('torch').__version__}, shared with other work while it ran. Grid: "
+            + (f"--models {models}" if models else f"`{grid.value}`") + f", seeds {seeds}; at most {epochs} epochs "
+            f"per run, patience {patience}"
+            + (f", {max_time:g} min of training per run (a run given more time resumes from its last "
+               "checkpoint: attempts > 1)" if max_time else "")
+            + f", recipe `{recipe.value}`" + (f", Adam lr {lr:g} for every model" if lr else "") + ".")
+    page = write_grid_report(folders, out, expected_seeds=len(seed_list), note=note)
+    typer.echo(f"wrote {page}")
+
+
+@bench_app.command("real-odometry")
+def bench_real_odometry(
+    data: Path = typer.Option(..., "--data", help="A real building: an imported dataset folder, or its original files with --format."),
+    out: Path = typer.Option(Path("runs/real"), "--out", help="Suite folder (split data, run folders, results.md)."),
+    format_: Optional[ImportFormat] = typer.Option(None, "--format", help="Importer for --data when it is not imported yet."),
+    test_data: Optional[Path] = typer.Option(None, "--test-data", help="Another building to test on (never trained on)."),
+    test_format: Optional[ImportFormat] = typer.Option(None, "--test-format", help="Importer for --test-data."),
+    group_by: Optional[str] = typer.Option(None, help="Meta key that groups recordings by place (default per source: ilc2 floor_name, ipin2023 trial)."),
+    test_groups: Optional[str] = typer.Option(None, help="Held-out groups, comma-separated (default per source: ilc2 F2,F4; ipin2023 4,24,52)."),
+    test_group_by: Optional[str] = typer.Option(None, help="--group-by for --test-data."),
+    test_test_groups: Optional[str] = typer.Option(None, help="--test-groups for --test-data."),
+    train_data: Optional[Path] = typer.Option(None, "--train-data", help="Train the learned models on this (simulated) dataset instead: sim-to-real."),
+    models: str = typer.Option("ronin,suitein++,pdr", help="Models, comma-separated (phone only)."),
+    epochs: int = typer.Option(100, min=1, help="Maximum epochs per model."),
+    max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
+    lr: float = typer.Option(1e-3, help="Adam learning rate for every learned model."),
+    seed: int = typer.Option(0, min=0, help=SEED_HELP),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
+):
+    """Phone-only odometry trained on some floors/routes of a real building, scored at the surveyed
+    points of held-out ones (and of another building); PDR and the raw phone fixes beside them.
+
+    \b
+    Example:
+      wearnav bench real-odometry --data data/ilc2 --test-data data/ipin --out runs/real/ilc2 --max-time 15
+    """
+    from wearnav.bench.real import RealBench, run_benchmark
+
+    suite_folder(out, "bench real-odometry")
+    bench = RealBench(models=split_list(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr,
+                      train_data=str(train_data) if train_data else None)
+    page = run_benchmark(data, out, test_data, choice_value(format_), choice_value(test_format), group_by,
+                         split_list(test_groups) if test_groups else None, test_group_by,
+                         split_list(test_test_groups) if test_test_groups else None, bench,
+                         progress=progress_enabled(), echo=typer.echo, execution=_execution(jobs, executor, address))
+    typer.echo(f"wrote {page}")
+
+
+@bench_app.command("efficiency")
+def bench_efficiency(
+    out: Path = typer.Option(Path("runs/efficiency"), "--out", help="Folder for results.md / results.json."),
+    models: str = typer.Option("suitein++,suitein,ronin,ronin*,pdr", help="Models, comma-separated."),
+    threads: Optional[int] = typer.Option(None, min=1, help="Intra-op threads (default: torch's)."),
+    clock: Clock = typer.Option(Clock.wall, help="cpu: the process's CPU time (steadier on a shared machine "
+                                "with 1 thread)."),
+    min_run_time: float = typer.Option(0.2, min=0.001, help="Seconds each timing runs (torch's blocked_autorange)."),
+    odometry_suite: Optional[Path] = typer.Option(None, help="Odometry suite folder: adds its training s/epoch."),
+):
+    """Parameters, FLOPs per window, inference windows/s at batch 1 and 256, fraction of the FLOP-bound limit.
+
+    \b
+    Example:
+      wearnav bench efficiency --out runs/efficiency --models pdr,ronin
+    """
+    from wearnav.bench.efficiency import measure, write_report
+    from wearnav.models.registry import check_models
+
+    from wearnav.outputs import check_suite_folder
+
+    check_suite_folder(out, "bench efficiency")  # its page is written at the end: nothing kept before
+    rows = []
+    for m in check_models(split_list(models)):  # every name before the first is measured
+        typer.echo(f"measuring {m} ...")
+        rows.append(measure(m, threads=threads, clock=clock.value, min_run_time_s=min_run_time))
+    typer.echo(str(write_report(rows, out, odometry_suite)))
+
+
+@bench_app.command("fusion")
+def bench_fusion(
+    data: Path = typer.Option(..., "--data", help="A simulated dataset (`wearnav simulate`): dense truth and fixes."),
+    out: Path = typer.Option(Path("runs/fusion"), "--out", help="Folder for results.md / results.json."),
+    model: str = typer.Option("pdr", help="An untrained odometry baseline (no training)."),
+    split: Optional[str] = typer.Option(None, help="One split of --data (default: every recording)."),
+    live_min: float = typer.Option(0.0, "--live-min", min=0.0, help="Also time the live receiver's fixed-lag "
+                                   "smoother on one simulated walk this long (minutes; 0: not)."),
+):
+    """Odometry alone, fixes alone and the smoother against the simulator's truth, per walking mode,
+    the smoother's seconds per hour of walk, and (--live-min) the fixed-lag smoother's time per update.
+
+    \b
+    Example:
+      wearnav bench fusion --data data/sim --out runs/fusion --live-min 60
+    """
+    from wearnav.bench.user_protocol import fusion_table, live_walk, write_fusion_page
+    from wearnav.outputs import check_suite_folder
+
+    check_suite_folder(out, "bench fusion")  # its page is written at the end: nothing kept before
+    live = live_walk(live_min, model) if live_min > 0 else None
+    typer.echo(str(write_fusion_page(fusion_table(data, model, split), data, out, live)))
+
+
+# ---- activity / placement recognition (issue 9, paper 002) ------------------------------------
+
+@bench_app.command("har")
+def bench_har(
+    out: Path = typer.Option(Path("runs/har"), "--out", help="Suite folder (imported data, run folders, results.md)."),
+    data: Path = typer.Option(Path("../shared/data"), "--data", help="Folder holding the public datasets."),
+    datasets: Optional[str] = typer.Option(None, help="Datasets, comma-separated (default: all; --quick: uci-hapt)."),
+    seeds: Optional[int] = typer.Option(None, min=1, help="Seeds per technique (default 3; --quick 1)."),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
+    epochs: Optional[int] = typer.Option(None, min=1, help="Epochs per run (default 30; --quick 1)."),
+    steps: Optional[int] = typer.Option(None, min=1, help="Instead of --epochs: each dataset's epochs give the "
+                                        "baseline about this many gradient steps (expanded sets the same epochs)."),
+    techniques: Optional[str] = typer.Option(None, help="Techniques, comma-separated (default: all applicable)."),
+    max_time: Optional[float] = typer.Option(None, "--max-time", help="Minutes of training per run (not hashed)."),
+    quick: bool = typer.Option(False, "--quick", help="A tiny subset and 1 epoch: checks the pipeline only."),
+    threads: int = typer.Option(1, min=1, help="Torch intra-op threads per run (1 is fastest for this small model)."),
+):
+    """The paper-002 HAR benchmark: baseline and ten techniques per dataset; runs resume.
+
+    \b
+    Example:
+      wearnav bench har --out runs/har --datasets uci-hapt --techniques baseline --seeds 1
+    """
+    from wearnav.bench.har import run_benchmark
+
+    suite_folder(out, "bench har")
+    page = run_benchmark(data, out, split_list(datasets) if datasets else None, seeds or (1 if quick else 3),
+                         _execution(jobs, executor, address, threads), quick, epochs,
+                         split_list(techniques) if techniques else None, max_time, echo=typer.echo, steps=steps)
+    typer.echo(f"wrote {page}")
+
+
+@bench_app.command("easytrack")
+def bench_easytrack(
+    out: Path = typer.Option(Path("runs/easytrack"), "--out", help="Suite folder (data, run folders, results.md)."),
+    quick: bool = typer.Option(False, "--quick", help="Tiny data, 1–2 epochs per phase: checks the pipeline only."),
+    seeds: int = typer.Option(1, min=1, help="Seeds per method and level."),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
+    data: Optional[Path] = typer.Option(None, "--data", help="Real dataset (wearnav folder: phone IMU, fixes, sparse "
+                                        "truth), e.g. an `wearnav import ipin2023` output."),
+    test_routes: Optional[str] = typer.Option(None, "--test-routes",
+                                              help="Regex: recordings of --data held out for testing, the rest "
+                                              "train (default: the dataset's `test` split, else IPIN's "
+                                              "Trial(04|24|52)_, the real-odometry test trials)."),
+    km: Optional[float] = typer.Option(None, help="Simulated walking per noise level, km (default 3; --quick 0.25)."),
+    joint_epochs: Optional[int] = typer.Option(None, "--joint-epochs", help="Joint epochs (paper 190; default 30)."),
+    ae_epochs: Optional[int] = typer.Option(None, "--ae-epochs", help="Auto-encoder pre-training epochs (paper 5)."),
+    pre_epochs: Optional[int] = typer.Option(None, "--pre-epochs", help="Per-model pre-training epochs (paper 5)."),
+    stride: Optional[float] = typer.Option(None, "--stride", help="Start a 1-s segment every STRIDE s (0.2: ~5 "
+                                           "overlapping segments per second, as the paper's Table I counts; "
+                                           "default: back to back)."),
+    levels: Optional[str] = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),
+    methods: Optional[str] = typer.Option(None, help="Methods, comma-separated (default: all)."),
+):
+    """EasyTrack (paper 004): methods × noise levels on simulated phone labels, and a real GNSS test.
+
+    \b
+    Example:
+      wearnav bench easytrack --out runs/easytrack --quick
+    """
+    import dataclasses as _dc
+
+    from wearnav.bench.easytrack import BenchConfig, run_benchmark
+
+    suite_folder(out, "bench easytrack")
+    bc = BenchConfig.quick() if quick else BenchConfig()
+    changes = {}
+    if km is not None:
+        changes["km"] = km
+    for key, value in (("joint_epochs", joint_epochs), ("ae_epochs", ae_epochs), ("pre_epochs", pre_epochs),
+                       ("stride_s", stride)):
+        if value is not None:
+            changes[key] = value
+    if levels:
+        changes["levels"] = tuple(split_list(levels))
+    if methods:
+        changes["methods"] = tuple(split_list(methods))
+    page = run_benchmark(out, quick, seeds, _execution(jobs, executor, address), data, test_routes,
+                         _dc.replace(bc, **changes), echo=typer.echo)
+    typer.echo(f"wrote {page}")
+
+
+@bench_app.command("easytrack-base")
+def bench_easytrack_base(
+    out: Path = typer.Option(Path("runs/easytrack-base"), "--out", help="Suite folder (data, run folders, results.md)."),
+    km: float = typer.Option(8.5, help="Simulated L1 walking, km."),
+    joint_epochs: int = typer.Option(40, "--joint-epochs", help="Joint epochs (after 5 AE + 5 pre-training)."),
+    seeds: int = typer.Option(1, min=1, help="Seeds per variant."),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+):
+    """Why EasyTrack's BaseModel-GT is far from the paper's: one input change at a time, per walk.
+
+    \b
+    Example:
+      wearnav bench easytrack-base --out runs/easytrack-base --km 1 --joint-epochs 5
+    """
+    from wearnav.bench.easytrack import BenchConfig
+    from wearnav.bench.easytrack_base import run_study
+
+    suite_folder(out, "bench easytrack-base")
+    page = run_study(out, BenchConfig(km=km, joint_epochs=joint_epochs), seeds, _execution(jobs, Backend.local, None),
+                     echo=typer.echo)
+    typer.echo(f"wrote {page}")
