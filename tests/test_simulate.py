@@ -355,7 +355,7 @@ def test_subjects_and_gait_ranges():
     cad = np.array([s.cadence_hz for s in subjects])
     assert speed.min() >= 0.8 and speed.max() <= 1.6 and np.ptp(speed) > 0.4
     assert cad.min() >= 1.6 and cad.max() <= 2.0 and np.ptp(cad) > 0.2
-    # calibrated to the real walkers in ../shared/data (docs/realism.md): median ≈ 1.76 steps/s,
+    # calibrated to the real walkers in ../shared/data (docs/realism.md): median ≈ 1.77 steps/s,
     # most between 1.66 and 1.88
     assert np.median(cad) == pytest.approx(1.76, abs=0.02)
     lo, hi = np.percentile(cad, [10, 90])
@@ -564,7 +564,7 @@ def test_label_noise_medians_after_the_jump_filter_match_table_one(label_chains,
 @pytest.mark.parametrize("level", ["L1", "L2", "L3"])
 def test_label_noise_of_neighbours_is_positively_correlated(label_chains, level):
     """A phone's filtered fixes carry a velocity error that lasts seconds, so consecutive labels'
-    noises share a sign (IPIN T01-02 phone fixes: lag-1 r 0.15-0.45, docs/realism.md)."""
+    noises share a sign (IPIN T01-02 phone fixes: lag-1 r 0.15-0.45 by two estimators, docs/design.md)."""
     noise, consecutive, _ = label_chains[level]
     rx, ry = label_noise_correlation(noise, consecutive)
     assert 0.2 <= rx <= 0.45 and 0.2 <= ry <= 0.45
