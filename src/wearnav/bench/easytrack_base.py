@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav import metrics, runs
-from wearnav.bench.easytrack import BenchConfig, EasyJob, run_job, sim_segments
+from wearnav.bench.easytrack import BenchConfig, EasyJob, run_job, sim_segment_files
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.dataset import Dataset
 from wearnav.fileio import write_text_atomic
@@ -65,14 +65,13 @@ VARIANTS = (Variant("less-data", "paper input, 30 % of the walking", yaw_augment
 
 
 def _segments(out: Path, bc: BenchConfig, v: Variant) -> tuple[Path, Path]:
-    """Training and test segment files of a variant (cached)."""
+    """Training and test segment files of a variant (made the first time)."""
     if not v.truth_frame:
-        sim_segments(out, bc, LabelConfig(stride_s=v.stride_s), echo=lambda s: None)
-        data, tag = out / "data", runs.config_hash(dataclasses.asdict(LabelConfig(stride_s=v.stride_s)))
-        return data / f"L1_km{bc.km:g}_s{bc.sim_seed}_{tag}_train.npz", data / f"test_n{bc.test_walks}_s{bc.sim_seed}_{tag}.npz"
+        caches, test = sim_segment_files(out, bc, LabelConfig(stride_s=v.stride_s), echo=lambda s: None)
+        return caches["L1"], test
     train, test = out / "data" / f"L1_km{bc.km:g}_truth_frame_train.npz", out / "data" / "test_truth_frame.npz"
     if not (train.is_file() and test.is_file()):
-        sim_segments(out, bc, LabelConfig(), echo=lambda s: None)  # simulates the walks
+        sim_segment_files(out, bc, LabelConfig(), echo=lambda s: None)  # simulates the walks
         lc = TruthFrameLabels(align_to_fixes=False)
         label_dataset(Dataset.open(out / "data" / f"sim_L1_km{bc.km:g}_s{bc.sim_seed}"), lc).save(train)
         label_dataset(Dataset.open(out / "data" / f"sim_test_n{bc.test_walks}_s{bc.sim_seed}"), lc,
@@ -98,27 +97,31 @@ def run_study(out: str | Path, bc: BenchConfig, seeds: int = 1, execution: Execu
     out = Path(out)
     bc = dataclasses.replace(bc, levels=("L1",))
     jobs, files = [], []
+    kms = {v: round(bc.km * v.km_share, 2) for v in VARIANTS}
+    segment_files = {v: _segments(out, dataclasses.replace(bc, km=kms[v]), v) for v in VARIANTS}
     for seed in range(seeds):
         for v in VARIANTS:
             steps = 5 if v.stride_s else 1  # overlapping segments: ~5× the segments, a fifth of the epochs
             cfg = NoisyConfig(method="basemodel-gt", seed=seed, yaw_augment=v.yaw_augment,
                               ae_epochs=max(1, bc.ae_epochs // steps), pre_epochs=max(1, bc.pre_epochs // steps),
                               joint_epochs=max(1, bc.joint_epochs // steps))
-            km = round(bc.km * v.km_share, 2)
-            train, test = _segments(out, dataclasses.replace(bc, km=km), v)
+            km, (train, test) = kms[v], segment_files[v]
             record = {"noisy": dataclasses.asdict(cfg), "variant": dataclasses.asdict(v), "km": km,
                       "sim_seed": bc.sim_seed, "test_walks": bc.test_walks, "part": "base-study"}
             jobs.append(Job(run_job, EasyJob(cfg, train, test, record), runs.run_dir(out / "runs", f"{v.key}-s{seed}",
                                                                                   record)))
-            files.append((v, cfg, km, train, test))
+            files.append((v, cfg, km))
     run_jobs(jobs, execution, echo)
     per, walks, devices = [], [], set()
-    for job, (v, cfg, km, train, test) in zip(jobs, files):
-        te = Segments.load(test)
+    tests = {v: Segments.load(test) for v, (_, test) in segment_files.items()}  # each file read once
+    sizes = {v: len(Segments.load(train)) for v, (train, _) in segment_files.items()}
+    for job, (v, cfg, km) in zip(jobs, files):
+        te = tests[v]
         pw = per_walk(load_predictor(cfg, job.folder, te.x.shape[1])(te.x), te)
-        ade = runs.read_metrics(job.folder)["ade_m"]
-        devices.add(runs.read_metrics(job.folder)["training"].get("device", "cpu"))
-        per.append({"variant": v.name, "km": km, "segments": len(Segments.load(train)), "epochs": cfg.ae_epochs
+        m = runs.read_metrics(job.folder)
+        ade = m["ade_m"]
+        devices.add(m["training"].get("device", "cpu"))
+        per.append({"variant": v.name, "km": km, "segments": sizes[v], "epochs": cfg.ae_epochs
                     + cfg.pre_epochs + cfg.joint_epochs, "seed": cfg.seed, "ade": 100 * ade,
                     "rel": ade / float(np.mean(np.linalg.norm(te.truth, axis=1))),
                     "speed": f"{pw['speed ratio'].min():.2f}–{pw['speed ratio'].max():.2f}",
