@@ -20,6 +20,7 @@ from typing import Optional
 import typer
 
 from wearnav.cli_bench import bench_app
+from wearnav.cli_models import register as register_model_commands
 from wearnav.cli_common import (KEPT, NOTHING_KEPT, RECIPE_HELP, ImportFormat, Recipe, choice_value, echo_json,
                                  on_interrupt, progress_enabled, split_list, suite_folder)
 from wearnav.errors import ConfigError, Terminated, ValidationError, WearnavError, WearnavWarning, one_line
@@ -32,6 +33,7 @@ app = typer.Typer(
     rich_markup_mode=None,  # click's plain help: flags read as flags (`--quick`, not `--quick <bool>`)
 )
 app.add_typer(bench_app, name="bench")
+register_model_commands(app)
 
 
 # Options with a fixed set of values: typer lists them in --help and rejects any other (exit 2).
@@ -199,8 +201,10 @@ def plot(
 def track(
     src: Path = typer.Argument(..., metavar="INPUT",
                                help="A Sensor Logger export (folder or .zip), a recording (.h5), or a dataset folder."),
-    model: Path = typer.Option(..., "--model", help="A run folder of `wearnav train`, one of its checkpoints, "
-                               "or an untrained baseline by name (pdr)."),
+    model: Optional[Path] = typer.Option(None, "--model", help="A run folder of `wearnav train`, one of its "
+                                         "checkpoints, a shipped model or an untrained baseline by name (pdr); "
+                                         "default: the shipped phone model, or phone-watch-earbuds where the "
+                                         "recording has a watch or earbuds (`wearnav models`)."),
     out: Path = typer.Option(..., "--out", help="Folder for trajectory.csv / .png / .geojson and track.json."),
     name: Optional[str] = typer.Option(None, help="Which recording of a dataset folder (or export of a folder of exports)."),
     platform: Optional[Platform] = typer.Option(None, help="For an export without Metadata.csv."),
@@ -212,13 +216,15 @@ def track(
 
     \b
     Example:
+      wearnav track my_walk.zip --out walk
       wearnav track data/sim --model runs/sipp --out walk
     """
     from wearnav.track import track as track_
 
     summary = track_(src, model, out, name=name, platform=choice_value(platform), progress=progress_enabled(),
                      anchor=choice_value(anchor))
-    typer.echo(f"model input: {summary['model']} on {', '.join(summary['model_devices'])}; used "
+    shipped = f" (shipped model {summary['shipped_model']})" if summary.get("shipped_model") else ""
+    typer.echo(f"model input: {summary['model']}{shipped} on {', '.join(summary['model_devices'])}; used "
                f"{', '.join(summary['devices_used'])} (frame: {summary['frame']}, reference "
                f"{summary['frame_reference']})")
     echo_json({k: summary[k] for k in ("recording", "duration_s", "length_m", "end_xy_m", "files")
@@ -241,24 +247,6 @@ def datasets_report(
 
     on_interrupt(f"datasets imported so far are kept in {work}; run the same command again")
     typer.echo(str(write_datasets_report(data, out, work)))
-
-
-@app.command("models")
-def models_():
-    """List the registered models: name, task, device layout, parameters.
-
-    \b
-    Example:
-      wearnav models
-    """
-    from wearnav.models.registry import available, n_parameters
-
-    for spec in available():
-        try:
-            n = f"{n_parameters(spec.build(n_devices=3, window=100)):,}"
-        except Exception as exc:  # a model that cannot be built with defaults still gets listed
-            n = f"? ({type(exc).__name__})"
-        typer.echo(f"{spec.name:15s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
 
 
 class TestFrame(str, Enum):
@@ -395,19 +383,23 @@ def label_from_fixes(
 def classify_(
     input_: Path = typer.Argument(..., metavar="INPUT",
                                   help="A recording (.h5), a dataset folder, or a Sensor Logger export (folder or zip)."),
-    model: Path = typer.Option(..., "--model", help="A classifier run folder (from `wearnav bench har`)."),
+    model: Optional[Path] = typer.Option(None, "--model", help="A classifier run folder (from `wearnav bench har`); "
+                                         "default: the shipped activity model (`wearnav models`)."),
     out: Path = typer.Option(..., "--out", help="Folder for <name>_intervals.csv and <name>_timeline.png."),
 ):
     """Label a recording's activity (or placement) per window: intervals CSV + timeline PNG over |acc|.
 
     \b
     Example:
+      wearnav classify my_walk.zip --out activity
       wearnav classify data/sim --model runs/har/runs/uci-hapt/baseline --out activity
     """
     from wearnav.recording import Recording
     from wearnav.train.classify import label_recordings
+    from wearnav.pretrained import model_path
     from wearnav.train.resolve import resolve_model
 
+    model = model_path(model, "classify")  # a shipped model's folder where none is given or one is named
     classifier = resolve_model(model, "classify")  # before the input is read
     if input_.is_file() and input_.suffix == ".h5":
         recs = [Recording.load(input_)]

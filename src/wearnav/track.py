@@ -21,7 +21,8 @@ and write into the output folder:
     lon/lat, converted back by :func:`wearnav.geo.local_to_latlon` (``east``, ``north`` are their
     WGS-84 east-north-up metres about that origin).
 ``track.json``
-    What was done: model, run, devices used and present, frame reference, anchoring fit, and
+    What was done: model, run (``shipped_model``: the shipped model's name where no ``--model`` was
+    given or one was named, :mod:`wearnav.pretrained`), devices used and present, frame reference, anchoring fit, and
     ``warnings`` (one line each; also shown on the console), e.g. a recording imported with an
     older lat/lon projection (:func:`wearnav.geo.needs_reimport`), or a reason not to trust the
     path (:func:`trust_warnings`, :mod:`wearnav.trust`): devices the recording lacks, a rate,
@@ -49,7 +50,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav import fuse, geo, trust
+from wearnav import fuse, geo, pretrained, trust
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.outputs import check_out_folder, staged_output
@@ -178,7 +179,7 @@ def trust_warnings(model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: n
 
 # ---- the command -------------------------------------------------------------------------------
 
-def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | None = None,
+def track(src: str | Path, model_path: str | Path | None, out: str | Path, name: str | None = None,
           platform: str | None = None, progress: bool = False, anchor: str = "smooth") -> dict:
     """Track one recording (see module docstring); ``anchor`` places the path on the fixes
     (:data:`wearnav.fuse.ANCHORS`); returns what ``track.json`` holds."""
@@ -190,8 +191,13 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
     if anchor not in fuse.ANCHORS:
         raise ConfigError(f"unknown anchoring {anchor!r}; one of {', '.join(fuse.ANCHORS)}")
     check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")  # before any work
-    model, cfg = resolve_model(model_path, "odometry")  # a run folder, checkpoint or `pdr`
+    if model_path is not None:  # a bad --model is said before the input is read
+        model_path = pretrained.model_path(model_path, "odometry")
+        model, cfg = resolve_model(model_path, "odometry")  # a run folder, checkpoint, shipped model or `pdr`
     rec = load_input(src, name, platform)
+    if model_path is None:  # the shipped model for the devices the recording has
+        model_path = pretrained.model_path(None, "odometry", rec.devices)
+        model, cfg = resolve_model(model_path, "odometry")
     usable = [d for d in cfg.devices if d in rec.devices]
     if not usable:
         raise ValidationError(f"no IMU stream the model can use: it was trained on "
@@ -217,6 +223,7 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
     frame = seq.meta.get("frame", {})
     summary: dict = {
         "recording": rec.name, "source": str(src), "model": cfg.model, "run": str(model_path),
+        "shipped_model": pretrained.shipped_name(model_path),
         "model_devices": list(cfg.devices), "devices_in_recording": list(rec.devices),
         "devices_used": usable, "device_share_of_windows": share,
         "rate_hz": cfg.rate, "window": cfg.window, "stride": cfg.stride,

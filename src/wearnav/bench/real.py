@@ -59,6 +59,7 @@ from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run, predict_sequence
 from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.models.registry import build, check_models, get
+from wearnav.pretrained.mix import MIX_FRAME, is_mix
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
 from wearnav.progress import progress as report_progress
 from wearnav.rotations import from_wxyz
@@ -202,13 +203,14 @@ def site_yaw(seqs, window: int = 100, stride: int = 10) -> dict:
             "phone_axis_yaw_deg": device_axis_yaw(seqs)}
 
 
-def estimate_site_yaw(data: Path, split: str = "train", devices=("phone",), rate: float = 25.0,
+def estimate_site_yaw(data: Path, split: str | None = "train", devices=("phone",), rate: float = 25.0,
                       progress: bool = False) -> dict:
-    """:func:`site_yaw` of the ``split`` traces of dataset ``data`` (no yaw applied, no frame alignment);
-    ``progress``: report the traces' loading (:mod:`wearnav.progress`)."""
+    """:func:`site_yaw` of the ``split`` traces (None: all) of dataset ``data`` (no yaw applied, no
+    frame alignment); ``progress``: report the traces' loading (:mod:`wearnav.progress`)."""
     cfg = TrainConfig(model="pdr", data=str(data), devices=tuple(devices), rate=rate, frame_align="none",
                       truth_max_gap=TRUTH_MAX_GAP_S)
-    return site_yaw(load_sequences(Dataset.open(data).split(split), cfg, progress))
+    ds = Dataset.open(data)
+    return site_yaw(load_sequences(ds.split(split) if split else ds, cfg, progress))
 
 
 # ---- the phone's own fixes --------------------------------------------------------------------
@@ -251,17 +253,19 @@ class RealBench:
     lr: float | None = 1e-3  # as the simulator comparison (`wearnav bench odometry --lr 1e-3`); None: paper values
     window: int = 100
     stride: int = 10
-    train_data: str | None = None  # a simulated dataset to train on instead (sim-to-real)
+    train_data: str | None = None  # a simulated dataset or a mix (wearnav.pretrained.mix) to train on instead
 
     def __post_init__(self) -> None:
         check_models(self.models, "odometry")  # before any data is prepared
 
 
-def _train_config(model: str, data: str, yaw: float, bench: RealBench, simulated: bool):
+def _train_config(model: str, data: str, yaw: float, bench: RealBench, elsewhere: bool):
     kw = dict(model=model, data=data, devices=("phone",), epochs=bench.epochs, patience=bench.patience,
               max_minutes=bench.max_minutes, seed=bench.seed, window=bench.window, stride=bench.stride,
               lr=bench.lr)
-    if simulated:  # the simulator's own truth frame and dense truth
+    if elsewhere and is_mix(data):  # several sources, truth turned into each input's common frame
+        return TrainConfig(**kw, frame_align=MIX_FRAME, truth_max_gap=TRUTH_MAX_GAP_S)
+    if elsewhere:  # the simulator's own truth frame and dense truth
         return TrainConfig(**kw)
     return TrainConfig(**kw, frame_align="none", truth_max_gap=TRUTH_MAX_GAP_S, yaw_deg=yaw)
 
@@ -293,12 +297,27 @@ def run_job(job: RealJob, run: Path) -> Path:
     return run
 
 
-def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str | None = None,
-                  test_fmt: str | None = None, group_by: str | None = None, test_groups=None,
-                  test_group_by: str | None = None, test_test_groups=None, bench: RealBench = RealBench(),
-                  progress: bool = True, echo=print, execution: Execution = Execution()) -> Path:
-    """Prepare the data, estimate the site yaws, train/evaluate every model (as ``execution``
-    says, :mod:`.executor`), write results.md."""
+@dataclasses.dataclass
+class Plan:
+    """A real-building suite ready to run: its folder, sites (data, split, yaw, fixes), jobs."""
+
+    out: Path
+    sites: dict
+    jobs: list
+    bench: RealBench
+    t_start: float
+
+    def finish(self) -> Path:
+        """Write results.md once the jobs have run (:func:`write_report`)."""
+        wall = time.perf_counter() - self.t_start
+        return write_report(self.out, self.sites, suite_runs(self.out, self.sites["main"]["data"]), self.bench, wall)
+
+
+def plan_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str | None = None,
+                   test_fmt: str | None = None, group_by: str | None = None, test_groups=None,
+                   test_group_by: str | None = None, test_test_groups=None, bench: RealBench = RealBench(),
+                   progress: bool = True, echo=print, in_process: bool = True) -> Plan:
+    """Prepare the data, estimate the site yaws and list a job per model (:func:`run_job`)."""
     out = Path(out)
     t_start = time.perf_counter()
     sites = {}
@@ -319,15 +338,25 @@ def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str
     yaw = sites["main"]["yaw"]["yaw_deg"]
     jobs = []
     for model in bench.models:
-        simulated = bool(bench.train_data) and get(model).learned
-        cfg = _train_config(model, bench.train_data if simulated else str(main), yaw, bench, simulated)
+        elsewhere = bool(bench.train_data) and get(model).learned
+        cfg = _train_config(model, bench.train_data if elsewhere else str(main), yaw, bench, elsewhere)
         run = runs.run_dir(out / "runs", model, run_hash_exclude(run_record(cfg)))
         evals = tuple(RealEval(site["data"], site["yaw"]["yaw_deg"], run / f"eval_{s}") for s, site in sites.items())
-        jobs.append(Job(run_job, RealJob(cfg, evals, progress and execution.in_process), run,
+        jobs.append(Job(run_job, RealJob(cfg, evals, progress and in_process), run,
                         marks=tuple(e.out_dir for e in evals)))
-    run_jobs(jobs, execution, echo)
-    wall = time.perf_counter() - t_start
-    return write_report(out, sites, suite_runs(out, str(main)), bench, wall)
+    return Plan(out, sites, jobs, bench, t_start)
+
+
+def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str | None = None,
+                  test_fmt: str | None = None, group_by: str | None = None, test_groups=None,
+                  test_group_by: str | None = None, test_test_groups=None, bench: RealBench = RealBench(),
+                  progress: bool = True, echo=print, execution: Execution = Execution()) -> Path:
+    """Prepare the data, estimate the site yaws, train/evaluate every model (as ``execution``
+    says, :mod:`.executor`), write results.md."""
+    plan = plan_benchmark(data, out, test_data, fmt, test_fmt, group_by, test_groups, test_group_by,
+                          test_test_groups, bench, progress, echo, execution.in_process)
+    run_jobs(plan.jobs, execution, echo)
+    return plan.finish()
 
 
 def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
@@ -343,7 +372,9 @@ def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
         if get(train["model"]).learned and Path(train["data"]).resolve() != Path(main_data).resolve():
             prov = Dataset.open(train["data"]).provenance
             made = (f"simulator `{Path(train['data']).name}` (commit {prov.get('commit', '?')})"
-                    if prov.get("generator") == "wearnav.simulate" else f"`{Path(train['data']).name}`")
+                    if prov.get("generator") == "wearnav.simulate" else
+                    f"{' + '.join(q['part'] for q in prov['parts'])} (`{Path(train['data']).name}`)"
+                    if is_mix(train["data"]) else f"`{Path(train['data']).name}`")
             label = f"{label} · {made}"
         labelled.append((not get(train["model"]).learned, "·" in label, label, run))
     return {label: run for *_, label, run in sorted(labelled, key=lambda x: x[:3])}
@@ -386,7 +417,9 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
     from wearnav.report.odometry import plot_cdf
 
     p = provenance()
-    title = f"Odometry in real buildings: trained on {sites['main']['split']['source']}"
+    src = sites['main']['split']['source']
+    title = (f"Odometry in real buildings: trained on {src}" if not bench.train_data else
+             f"Odometry in real buildings: trained on `{Path(bench.train_data).name}`, tested on {src}")
     lines = [f"# {title}", "",
              f"Generated by `wearnav bench real-odometry` ({p['created']}, wearnav {p['wearnav']} {p['commit']}); "
              f"this invocation {wall_s / 60:.1f} min of wall time (each run's own training minutes are in its row) on "
@@ -411,7 +444,8 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
         test = [g for g, c in info["groups"].items() if "test" in c]
         train = [g for g, c in info["groups"].items() if "test" not in c]
         n = {k: sum(c.get(k, 0) for c in info["groups"].values()) for k in ("train", "val", "test")}
-        head = "Held-out groups of the training building" if site == "main" else "Another building, never trained on"
+        head = ("Another building, never trained on" if site != "main" else "Held-out groups of the training building"
+                if not bench.train_data else "Held-out groups (a learned row trained elsewhere says where)")
         lines += [f"## {head}: `{info['source']}`", "",
                   f"Source `{shown_path(info['src'])}`, grouped by `{info['group_by']}`: test {', '.join(sorted(test))} "
                   f"({n['test']} traces); " + (f"training groups {', '.join(sorted(train))} ({n['train']} train, "
@@ -430,7 +464,8 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
         lines += ["Known-start protocol (each trace starts at its true first point, input turned by the site "
                   "yaw: a floor, not available to a user):", "", table.to_markdown(index=False, floatfmt=".2f"), ""]
         if s.get("fixes"):
-            doc["sites"][site]["calibration"] = {label: ensure_calibration(run, sites["main"]["data"])
+            # each model's smoother is calibrated on the validation walks of the data it trained on
+            doc["sites"][site]["calibration"] = {label: ensure_calibration(run, _trained_on(run, sites["main"]["data"]))
                                                  for label, run in folders_with_eval(folders, site).items()}
             rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"])
             doc["sites"][site]["user_protocol"] = {"table": rows, "runs": raw}
@@ -449,6 +484,13 @@ USER_PROTOCOL_TEXT = (
     "`track` until now), one rigid fit to all fixes, or the smoother (:mod:`wearnav.fuse`, `track`'s "
     "default). Errors at the same surveyed points; *length ratio*: median over walks of the path's "
     "length through its positions at the surveyed times over the truth's (1 is right).")
+
+
+def _trained_on(run: Path, main_data: str) -> str:
+    """The data a learned run trained on (its validation walks calibrate its smoother); the main
+    site's for a model that is not learned."""
+    train = runs.read_config(run)["config"]["train"]
+    return train["data"] if get(train["model"]).learned and train.get("data") else main_data
 
 
 def folders_with_eval(folders: dict[str, Path], site: str) -> dict[str, Path]:

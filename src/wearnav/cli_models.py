@@ -1,0 +1,67 @@
+"""The ``wearnav`` commands about models themselves: ``models`` (what is registered and what
+ships) and ``pretrain`` (train, measure and install the shipped models). Registered on the main
+app by :mod:`wearnav.cli`; imports stay inside the commands so that ``--help`` stays fast."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from wearnav.cli_common import progress_enabled, suite_folder
+
+
+def models_():
+    """List the registered models (name, task, device layout, parameters), then the models shipped
+    with this installation (used by `track` and `classify` without --model).
+
+    \b
+    Example:
+      wearnav models
+    """
+    from wearnav import pretrained
+    from wearnav.models.registry import available, n_parameters
+
+    for spec in available():
+        try:
+            n = f"{n_parameters(spec.build(n_devices=3, window=100)):,}"
+        except Exception as exc:  # a model that cannot be built with defaults still gets listed
+            n = f"? ({type(exc).__name__})"
+        typer.echo(f"{spec.name:15s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
+    typer.echo("\nshipped (pretrained; `wearnav track`/`classify` use them without --model, card: MODEL_CARD.md):")
+    for s in pretrained.SHIPPED.values():
+        where = f"{s.size_bytes() / 1e6:.1f} MB  {s.path / pretrained.CARD}" if s.installed else \
+            "not installed (wearnav pretrain --install)"
+        typer.echo(f"{s.name:20s} {s.task:9s} {','.join(s.devices):22s} {where}")
+        typer.echo(f"{'':20s} {s.summary}")
+
+
+def pretrain(
+    data: Path = typer.Option(Path("../shared/data"), "--data", help="Folder holding the public datasets (ILC2, IPIN 2023, MotionSense)."),
+    out: Path = typer.Option(Path("runs/pretrained"), "--out", help="Suite folder: run folders, leave-one-building-out suites, results.md."),
+    work: Optional[Path] = typer.Option(None, "--work", help="Where imported, simulated and mixed data go (default OUT/data)."),
+    epochs: int = typer.Option(8, min=1, help="Epochs of every odometry model (the schedule is set by them)."),
+    max_time: Optional[float] = typer.Option(45.0, "--max-time", help="Cap on each odometry run's minutes (slow machines)."),
+    jobs: int = typer.Option(1, min=1, help="Runs at once in local processes (1: one after another in this process)."),
+    install: bool = typer.Option(False, "--install", help="Copy the trained models into the package (wearnav/pretrained/models)."),
+):
+    """Train the shipped models (phone, phone+watch+earbuds odometry on ILC2 + IPIN + the simulator;
+    activity on MotionSense), measure leave-one-building-out, write model cards; resumes.
+
+    \b
+    Example:
+      wearnav pretrain --data ../shared/data --out runs/pretrained --jobs 2 --install
+    """
+    from wearnav.bench.executor import Execution
+    from wearnav.pretrained.recipe import Recipe, pretrain as pretrain_
+
+    suite_folder(out, "pretrain")
+    page = pretrain_(data, out, work, Recipe(epochs=epochs, max_minutes=max_time), Execution(jobs=jobs),
+                     install=install, progress=progress_enabled(), echo=typer.echo)
+    typer.echo(f"wrote {page}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("models")(models_)
+    app.command("pretrain")(pretrain)

@@ -1,0 +1,157 @@
+"""`wearnav pretrain`: the one command that trains, measures and installs the shipped models.
+
+1. **Data** (under ``work``, reused when present): ILC2 site 1 (all floors) and IPIN 2023 Track 3
+   (all trials) imported from the shared data root, the simulator's ``default`` preset (seed 0),
+   MotionSense for the activity model; three mixes of the odometry sources
+   (:mod:`wearnav.pretrained.mix`): everything, everything but IPIN, everything but ILC2.
+2. **Runs** (one executor job each, resumable run folders under ``out/runs``): Suite-IN++ on the
+   phone alone and on phone + watch + earbuds, both on the whole mix; the activity baseline on
+   MotionSense; and the leave-one-building-out measurement: the same phone recipe trained on a
+   mix without one building, scored at that building's held-out surveyed points beside PDR and
+   its raw GNSS (:mod:`wearnav.bench.real`, suites ``out/lobo-ipin`` and ``out/lobo-ilc2``).
+3. **Cards and install**: a MODEL_CARD.md per model (:mod:`wearnav.pretrained.cards`), and with
+   ``install`` the trimmed runs copied into the package (:data:`wearnav.pretrained.MODELS_DIR`).
+
+Every learned model trains for the same ``epochs`` (the "fast" recipe's schedule is set by
+them); ``max_minutes`` only caps a run on a slow machine and is stated in the card.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+from pathlib import Path
+
+import torch
+
+from wearnav import runs
+from wearnav.bench import har
+from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.bench.real import TRUTH_MAX_GAP_S, RealBench, plan_benchmark
+from wearnav.bench.user_protocol import ensure_calibration
+from wearnav.errors import MissingFileError
+from wearnav.fileio import atomic_path
+from wearnav.pretrained import ACTIVITY, MULTI, PHONE, SHIPPED, cards
+from wearnav.pretrained.mix import MIX_FRAME, Part, write_mix
+from wearnav.train.common import BEST, CHECKPOINTS, LAST
+from wearnav.train.classify import run_folder
+from wearnav.train.odometry import TRAINING, TrainConfig, fit, prepare_run, run_hash_exclude, run_record
+
+MODEL = "suitein++"
+# name → (importer, folder under the shared data root)
+SOURCES = {"ilc2": ("ilc2", "ilc2_indoor_location"), "ipin": ("ipin2023", "ipin2023_track3"),
+           "motionsense": ("motionsense", "motionsense")}
+MIXES = {"mix-all": ("ilc2", "ipin", "sim"), "mix-noipin": ("ilc2", "sim"), "mix-noilc2": ("ipin", "sim")}
+# leave-one-building-out suite → (the building scored, the mix trained on)
+LOBO = {"lobo-ipin": ("ipin", "mix-noipin"), "lobo-ilc2": ("ilc2", "mix-noilc2")}
+
+
+@dataclasses.dataclass(frozen=True)
+class Recipe:
+    """What decides the shipped models (saved with them)."""
+
+    epochs: int = 8
+    patience: int = 10
+    max_minutes: float | None = 45.0  # per odometry run: a cap for slow machines, the epochs decide
+    lr: float = 1e-3
+    har_epochs: int = 5
+    seed: int = 0
+    preset: str = "default"  # the simulator's
+
+
+def prepare_data(data_root: Path, work: Path, recipe: Recipe, progress: bool = True, echo=print) -> dict[str, Path]:
+    """Import, simulate and mix (each once; a folder with its manifest is reused)."""
+    from wearnav.importers import import_dataset
+    from wearnav.simulate import simulate_dataset
+
+    folders = {}
+    for name, (fmt, src) in SOURCES.items():
+        folders[name] = work / name
+        if not (folders[name] / "manifest.csv").is_file():
+            if not (data_root / src).exists():
+                raise MissingFileError(f"no {src}/ here: the shipped models train on it (see --data)", data_root)
+            echo(f"importing {src} ...")
+            import_dataset(fmt, data_root / src, folders[name], progress=progress)
+    folders["sim"] = work / "sim"
+    if not (folders["sim"] / "manifest.csv").is_file():
+        echo(f"simulating preset {recipe.preset} ...")
+        simulate_dataset(recipe.preset, folders["sim"], seed=recipe.seed, progress=progress)
+    parts = {"ilc2": Part(str(folders["ilc2"]), "ilc2"), "ipin": Part(str(folders["ipin"]), "ipin"),
+             "sim": Part(str(folders["sim"]), "sim", yaw="recording")}
+    for mix, names in MIXES.items():
+        folders[mix] = work / mix
+        if not (folders[mix] / "manifest.csv").is_file():
+            echo(f"writing {mix} ({' + '.join(names)}) ...")
+            write_mix([parts[n] for n in names], folders[mix], progress=progress)
+    return folders
+
+
+def odometry_config(mix: Path, devices: tuple[str, ...], recipe: Recipe) -> TrainConfig:
+    """The shipped odometry recipe: Suite-IN++ in the mix's frame (the frame `track` feeds)."""
+    return TrainConfig(model=MODEL, data=str(mix), devices=devices, epochs=recipe.epochs, patience=recipe.patience,
+                       max_minutes=recipe.max_minutes, lr=recipe.lr, seed=recipe.seed, frame_align=MIX_FRAME,
+                       truth_max_gap=TRUTH_MAX_GAP_S)
+
+
+def run_odometry(cfg: TrainConfig, run: Path) -> Path:
+    """Train (or resume) and calibrate the smoother on the mix's validation walks (an executor job)."""
+    prepare_run(cfg, run)
+    fit(cfg, run, progress=False)
+    ensure_calibration(run, cfg.data)
+    return run
+
+
+def shipped_jobs(folders: dict[str, Path], out: Path, recipe: Recipe) -> dict[str, Job]:
+    jobs = {}
+    for name in (PHONE, MULTI):
+        cfg = odometry_config(folders["mix-all"], SHIPPED[name].devices, recipe)
+        run = runs.run_dir(out / "runs", name, run_hash_exclude(run_record(cfg)))
+        jobs[name] = Job(run_odometry, cfg, run, cost=2 if name == MULTI else 1)
+    cfg = har.baseline_config(har.DATASETS["motionsense"], folders["motionsense"], epochs=recipe.har_epochs,
+                              seed=recipe.seed)
+    jobs[ACTIVITY] = Job(har.run_job, cfg, run_folder(out / "runs", ACTIVITY, cfg), cost=0)
+    return jobs
+
+
+def pretrain(data_root: Path, out: Path, work: Path | None = None, recipe: Recipe = Recipe(),
+             execution: Execution = Execution(), install: bool = False, progress: bool = True, echo=print) -> Path:
+    """Steps 1–3 of the module docstring; returns the page (``out/results.md``)."""
+    out = Path(out)
+    work = Path(work) if work else out / "data"
+    folders = prepare_data(Path(data_root), work, recipe, progress, echo)
+    shipped = shipped_jobs(folders, out, recipe)
+    plans = {suite: plan_benchmark(folders[site], out / suite, bench=RealBench(
+        models=(MODEL, "pdr"), epochs=recipe.epochs, patience=recipe.patience, max_minutes=recipe.max_minutes,
+        lr=recipe.lr, seed=recipe.seed, train_data=str(folders[mix])), progress=progress, echo=echo,
+        in_process=execution.in_process) for suite, (site, mix) in LOBO.items()}
+    run_jobs(list(shipped.values()) + [j for p in plans.values() for j in p.jobs], execution, echo)
+    lobo = {suite: plan.finish() for suite, plan in plans.items()}
+    runs.write_json(out / "recipe.json", {"recipe": dataclasses.asdict(recipe), "data_root": str(data_root),
+                                          "work": str(work)})
+    for name, job in shipped.items():
+        cards.write_card(SHIPPED[name], job.folder, recipe, folders, lobo)
+        if install:
+            install_run(job.folder, SHIPPED[name].path, BEST if SHIPPED[name].task == "odometry" else LAST)
+            echo(f"installed {name}: {SHIPPED[name].size_bytes() / 1e6:.1f} MB in {SHIPPED[name].path}")
+    return cards.write_page(out, {n: j.folder for n, j in shipped.items()}, lobo, recipe)
+
+
+KEEP = ("config.yaml", TRAINING, "metrics.json", "fuse_calibration.json", cards.CARD)
+
+
+def install_run(run: Path, dest: Path, which: str = BEST) -> Path:
+    """Copy what inference needs of ``run`` into ``dest``: its config, records and card, and the
+    weights of checkpoint ``which`` only (no optimiser state; a Lightning checkpoint holds ~3× them)."""
+    tmp = dest.with_name(f".{dest.name}.partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    (tmp / CHECKPOINTS).mkdir(parents=True)
+    for name in KEEP:
+        if (run / name).is_file():
+            shutil.copy2(run / name, tmp / name)
+    ckpt = torch.load(run / CHECKPOINTS / which, map_location="cpu", weights_only=False)
+    with atomic_path(tmp / CHECKPOINTS / which) as p:
+        torch.save({"state_dict": ckpt["state_dict"]}, p)
+    if dest.exists():
+        shutil.rmtree(dest)
+    tmp.rename(dest)
+    return dest

@@ -1,0 +1,146 @@
+"""Shipped models (issue 18 §1): the training mix, installing a run, and `track` / `classify`
+without --model on a stranger's Sensor Logger export."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from wearnav import pretrained
+from wearnav.bench.real import RealBench, _train_config, estimate_site_yaw
+from wearnav.dataset import Dataset, write_dataset
+from wearnav.errors import ConfigError
+from wearnav.importers.sensorlogger_export import write_export
+from wearnav.pretrained.mix import MIX_FRAME, Part, recording_yaw, write_mix
+from wearnav.pretrained.recipe import install_run
+from wearnav.simulate import WalkConfig, simulate_dataset, simulate_recording
+from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
+from conftest import run_cli
+from test_bench_real import _building
+
+
+@pytest.fixture(scope="module")
+def sources(tmp_path_factory):
+    """A stand-in building (phone frame turned 40° from its survey, points every 5 s) and the
+    simulator's own recordings (each device with its drawn yaw offset, dense truth)."""
+    root = tmp_path_factory.mktemp("mix")
+    sim = simulate_dataset("tiny", root / "sim", seed=2, progress=False)
+    recs = [sim.load(n) for n in sim.filter(mode=["STW", "DRW"]).names]
+    write_dataset(root / "building", _building(recs, 40.0))
+    return root
+
+
+def _wrapped(deg: float) -> float:
+    return (deg + 180.0) % 360.0 - 180.0
+
+
+def test_mix_turns_every_source_into_its_own_input_frame(sources, tmp_path):
+    out = write_mix([Part(str(sources / "building"), "bldg"), Part(str(sources / "sim"), "sim", yaw="recording")],
+                    tmp_path / "mix", progress=False)
+    ds = Dataset.open(out)
+    parts = {p["part"]: p for p in ds.provenance["parts"]}
+    assert parts["bldg"]["recordings"] == len(Dataset.open(sources / "building"))
+    assert parts["sim"]["recordings"] == len(Dataset.open(sources / "sim"))
+    assert set(ds.manifest["split"]) <= {"train", "val"}
+    # the building's part, turned by its site yaw: PDR now finds no yaw left (the site yaw was ~40°)
+    assert abs(_wrapped(parts["bldg"]["site_yaw"]["yaw_deg"] - 40.0)) < 25.0
+    write_dataset(tmp_path / "bldg", [(ds.load(n), "") for n in ds.names if n.startswith("bldg-")])
+    assert abs(_wrapped(estimate_site_yaw(tmp_path / "bldg", split=None)["yaw_deg"])) < 0.5
+    # every simulated walk: its own truth-based yaw is gone; the sensor data is untouched
+    sim = Dataset.open(sources / "sim")
+    for name in sim.names[:3]:
+        turned, original = ds.load(f"sim-{name}"), sim.load(name)
+        before = np.degrees(recording_yaw(original, ("phone",)))
+        assert abs(_wrapped(turned.meta["truth_turned_deg"] - before)) < 1e-3 and abs(before) > 1.0
+        assert abs(np.degrees(recording_yaw(turned, ("phone",)))) < 0.1
+        np.testing.assert_array_equal(turned.devices["phone"].acc, original.devices["phone"].acc)
+        np.testing.assert_allclose(np.linalg.norm(np.diff(turned.truth.pos[:, :2], axis=0), axis=1),
+                                   np.linalg.norm(np.diff(original.truth.pos[:, :2], axis=0), axis=1), atol=1e-9)
+    # a model trained elsewhere on a mix trains in the mix's frame, from joined surveyed points
+    cfg = _train_config("suitein++", str(out), 12.0, RealBench(train_data=str(out)), elsewhere=True)
+    assert (cfg.frame_align, cfg.yaw_deg) == (MIX_FRAME, 0.0) and cfg.truth_max_gap > 1.0
+
+
+def test_an_installed_run_keeps_only_the_weights_and_predicts_the_same(tmp_path):
+    rec = simulate_recording(WalkConfig(mode="STW", placement="HD", duration_s=30), seed=3)
+    write_dataset(tmp_path / "ds", [(rec, "train"), (dataclasses.replace(rec, name="v"), "val")])
+    cfg = TrainConfig(model="suitein++", data=str(tmp_path / "ds"), epochs=1, stride=50, devices=("phone",))
+    run = prepare_run(cfg, tmp_path / "run")
+    fit(cfg, run, progress=False)
+    dest = install_run(run, tmp_path / "shipped")
+    full = (run / "checkpoints" / "best.ckpt").stat().st_size
+    assert (dest / "checkpoints" / "best.ckpt").stat().st_size < 0.6 * full
+    assert set(torch.load(dest / "checkpoints" / "best.ckpt", weights_only=False)) == {"state_dict"}
+    (a, _), (b, _) = load_model(run), load_model(dest)
+    x, mask = torch.randn(4, 1, 100, 6, generator=torch.Generator().manual_seed(0)), torch.ones(4, 1)
+    assert torch.equal(a.predict(x, mask), b.predict(x, mask))
+
+
+def test_a_missing_shipped_model_is_one_clear_line(monkeypatch, tmp_path):
+    monkeypatch.setattr(pretrained, "MODELS_DIR", tmp_path)
+    with pytest.raises(ConfigError, match="no shipped model 'phone'.*--model RUN"):
+        pretrained.model_path(None, "odometry", ("phone",))
+    with pytest.raises(ConfigError, match="a classify model, not odometry"):
+        pretrained.model_path("activity", "odometry")
+    assert pretrained.model_path("runs/x", "odometry") == "runs/x"
+
+
+# ---- the shipped models themselves (issue 18, "done when") ------------------------------------
+
+needs_shipped = pytest.mark.skipif(len(pretrained.installed()) < len(pretrained.SHIPPED),
+                                   reason="the shipped models are not installed (wearnav pretrain --install)")
+
+
+@needs_shipped
+def test_shipped_models_are_small_and_carry_a_card():
+    for spec in pretrained.SHIPPED.values():
+        assert spec.size_bytes() < 5e6, spec.name
+        card = (spec.path / pretrained.CARD).read_text()
+        assert "## Known limits" in card and "licence" in card.lower()
+
+
+@pytest.fixture(scope="module")
+def stranger(tmp_path_factory):
+    """A stranger's walk as Sensor Logger exports it: phone, watch, earbuds and GPS fixes."""
+    root = tmp_path_factory.mktemp("stranger")
+    rec = simulate_recording(WalkConfig(mode="STW", placement="HD", duration_s=150), seed=11)
+    return write_export(rec, root / "walk"), rec
+
+
+@needs_shipped
+@pytest.mark.slow
+def test_track_without_model_lies_on_the_walks_own_fixes(stranger, monkeypatch, capsys, tmp_path):
+    export, rec = stranger
+    code, out, err = run_cli(monkeypatch, capsys, "track", str(export), "--out", str(tmp_path / "t"))
+    assert code == 0, err
+    summary = json.loads((tmp_path / "t" / "track.json").read_text())
+    assert summary["shipped_model"] == pretrained.MULTI and "shipped model" in out
+    geo = json.loads((tmp_path / "t" / "trajectory.geojson").read_text())
+    line = next(f for f in geo["features"] if f["geometry"]["type"] == "LineString")
+    table = __import__("pandas").read_csv(tmp_path / "t" / "trajectory.csv")
+    assert len(line["geometry"]["coordinates"]) > 10
+    # on its fixes: the path at each fix time lies within a few metres of it (fixes ~1-3 m noise)
+    fx = rec.fixes
+    at = np.stack([np.interp(fx.t, table["t"], table[c]) for c in ("east", "north")], axis=1)
+    inside = (fx.t >= table["t"].iloc[0]) & (fx.t <= table["t"].iloc[-1])
+    gap = np.linalg.norm(at[inside] - fx.pos[inside, :2], axis=1)
+    assert np.median(gap) < 5.0
+    # phone only: the phone model
+    phone_only = dataclasses.replace(rec, devices={"phone": rec.devices["phone"]})
+    export2 = write_export(phone_only, tmp_path / "phone_walk")
+    code, out, err = run_cli(monkeypatch, capsys, "track", str(export2), "--out", str(tmp_path / "t2"))
+    assert code == 0, err
+    assert json.loads((tmp_path / "t2" / "track.json").read_text())["shipped_model"] == pretrained.PHONE
+
+
+@needs_shipped
+def test_classify_without_model_writes_a_timeline(stranger, monkeypatch, capsys, tmp_path):
+    export, _ = stranger
+    code, out, err = run_cli(monkeypatch, capsys, "classify", str(export), "--out", str(tmp_path / "c"))
+    assert code == 0, err
+    assert list((tmp_path / "c").glob("*_timeline.png")) and list((tmp_path / "c").glob("*_intervals.csv"))
+    assert "walking" in out
