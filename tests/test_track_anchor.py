@@ -85,8 +85,8 @@ def _median_distance_to(out, good_t, good_xy) -> float:
 @pytest.mark.parametrize("anchor", ["smooth", "rigid", "first-fixes"])
 def test_a_cached_and_a_wide_first_fix_do_not_pull_the_path(exports, tmp_path, anchor):
     """Every anchoring: the path's median distance to the good fixes is within TOLERANCE_M of the
-    path's without the two bad fixes, and so is the path itself at every instant; and track.json, the GeoJSON and fixes.csv mark them dropped
-    (jump, wide) with weight 0."""
+    path's without the two bad fixes, and so is the path itself at every instant; track.json, the
+    GeoJSON and fixes.csv mark them dropped (jump, wide) with weight 0."""
     rec, run, folders, clean, _ = exports
     t_clean = clean.t - time_origin(dataclasses.replace(rec, fixes=clean))
     res = {name: track(folder, run, tmp_path / name, anchor=anchor) for name, folder in folders.items()}

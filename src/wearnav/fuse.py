@@ -209,8 +209,8 @@ def _with_fixes(res: FuseResult, check: FixCheck, k: np.ndarray, facts: dict,
         if n < len(k):
             check.mark(k[n:], UNUSED, f"after the first {res.info['span_s']:.0f} s of good fixes")
     res.info.update({**facts, **check.info()})
-    if res.method == "none" and res.info["fixes_dropped"]:
-        res.warnings[0] += " (every fix dropped: " + ", ".join(f"{n} {r}" for r, n in res.info["fixes_dropped"].items()) + ")"
+    if res.method == "none" and (dropped := res.info["fixes_dropped"]):
+        res.warnings[0] += f" (every fix dropped: {', '.join(f'{n} {r}' for r, n in dropped.items())})"
     res.warnings[:0] = check.warnings
     res.fixes = check
     return res
