@@ -85,8 +85,8 @@ ANCHOR_S = fuse.ANCHOR_S
 ANCHOR_TEXT = {
     "smooth": "robust smoother over every fix (wearnav.fuse): heading offset, scale (prior), heading drift, "
               "slowly varying fix bias; fixes weighted by their reported accuracy",
-    "rigid": "weighted (1/σ²) least-squares rotation + translation over every fix of the walk",
-    "first-fixes": f"weighted (1/σ²) least-squares rotation + translation over the fixes of the first "
+    "rigid": "weighted (1/σ²) least-squares rotation + translation over every kept fix of the walk",
+    "first-fixes": f"weighted (1/σ²) least-squares rotation + translation over the kept fixes of the first "
                    f"{fuse.ANCHOR_S:g} s",
     "none": "not placed on the fixes",
 }
