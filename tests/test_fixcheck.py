@@ -35,6 +35,18 @@ def test_fixes_that_only_scatter_are_all_kept(bias_m):
     assert not check.warnings
 
 
+def test_fast_fixes_claiming_too_little_are_kept():
+    """10-Hz fixes scattering 2 m per axis while claiming 1.5 m (a 68 % radius of 1 m per axis):
+    consecutive fixes differ by more than their claims allow, but not by twice their accuracy
+    floored at 3 m (JUMP_MARGIN, JUMP_MIN_ACCURACY_M): none is dropped."""
+    ft, _, _, truth = walk_fixes(sigma_m=0.0)
+    t = np.arange(0.0, ft[-1], 0.1)
+    z = np.stack([np.interp(t, ft, truth[:, k]) for k in range(2)], 1)
+    z += np.random.default_rng(0).normal(0, 2.0, z.shape)
+    check = check_fixes(t[0], t[-1], t, z, np.full(t.size, 1.5), wide_m=100.0)
+    assert check.counts()["dropped"] == 0 and not check.warnings
+
+
 def test_cached_wide_stale_outside_and_invalid_fixes_are_dropped_with_a_reason():
     """The first fix cached 400 m away claiming 5 m, the second 1500 m wide (and 700 m off), the
     third a NaN position, the fourth a repeat of the fifth's position before it, one glitch 80 m

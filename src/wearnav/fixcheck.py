@@ -13,7 +13,7 @@ must not pull the anchoring of :mod:`wearnav.fuse`, and the output says which fi
                       first of a run is used);
 ``jump``              a position the walker cannot have been at (:func:`jumps`): reaching it from the
                       fixes the walk's majority agrees on would take more than ``MAX_SPEED_M_S``
-                      beyond both fixes' reported accuracies, e.g. a cached first fix.
+                      beyond twice both fixes' reported accuracies, e.g. a cached first fix.
 
 Those are ``dropped``; the rest are kept, and the anchoring then marks each kept fix ``used``,
 ``down-weighted`` (the smoother's robust weight below :data:`wearnav.fuse.DOWNWEIGHT`) or
@@ -31,6 +31,12 @@ import numpy as np
 USED, DOWN_WEIGHTED, UNUSED, DROPPED = "used", "down-weighted", "unused", "dropped"
 NO_POSITION, OUTSIDE, WIDE, REPEAT, JUMP = "no position", "outside the walk", "wide", "repeat", "jump"
 MAX_SPEED_M_S = 10.0  # a walker (or runner) does not move faster; a fix implying more is a jump
+# The accuracy (a 68 % radius, 1.515 σ per axis) allowed twice over in the jump test: two fixes'
+# honest errors then differ by more than the margin with odds of about 1e-4 (a 2-D Gaussian of
+# σ √2 beyond 6.1 σ), whatever their rate; and no fix counts as better than 3 m (phones report
+# 1–3 m at best, and fixes a tenth of a second apart still scatter by metres).
+JUMP_MARGIN = 2.0
+JUMP_MIN_ACCURACY_M = 3.0
 JUMP_SHARE = 0.5  # more than this share of the kept fixes jumping: they disagree, drop none for it
 FILL_ACCURACY_M = 1.515  # accuracy assumed where no fix reports one (1 m per axis, as fuse.fix_sigma_m)
 
@@ -82,22 +88,23 @@ def repeated_fixes(fix_pos: np.ndarray) -> np.ndarray:
         np.zeros(0, bool)
 
 
-def _consistent(t, z, acc, i, j, max_speed_m_s: float) -> np.ndarray:
-    """Can the walker have been at fix i and at fix j: |z_i − z_j| ≤ v |t_i − t_j| + a_i + a_j."""
-    return np.linalg.norm(z[i] - z[j], axis=-1) <= max_speed_m_s * np.abs(t[i] - t[j]) + acc[i] + acc[j]
+def _consistent(t, z, margin, i, j, max_speed_m_s: float) -> np.ndarray:
+    """Can the walker have been at fix i and at fix j: |z_i − z_j| ≤ v |t_i − t_j| + m_i + m_j."""
+    return np.linalg.norm(z[i] - z[j], axis=-1) <= max_speed_m_s * np.abs(t[i] - t[j]) + margin[i] + margin[j]
 
 
 def jumps(t: np.ndarray, z: np.ndarray, accuracy: np.ndarray, max_speed_m_s: float = MAX_SPEED_M_S) -> np.ndarray:
     """True for each fix (times ``t`` (M,) s increasing, positions ``z`` (M, 2) m, accuracies (M,) m)
     that jumps: consecutive fixes are consistent when the walker can have been at both
-    (:func:`_consistent`); runs of consistent fixes form segments, and the one with most fixes (the
+    (:func:`_consistent`, each fix's margin ``JUMP_MARGIN`` × its accuracy, at least
+    ``JUMP_MIN_ACCURACY_M``); runs of consistent fixes form segments, and the one with most fixes (the
     later one on a tie: cached fixes come first) is trusted. From its ends the fixes are walked
     outwards in time, each kept when consistent with the last kept fix. So a cached start, however
     many fixes long, is judged against the later fixes, and a glitch against the fixes on both sides."""
     n = len(t)
     if n < 2:
         return np.zeros(n, bool)
-    acc = filled_accuracy(accuracy)
+    acc = JUMP_MARGIN * np.maximum(filled_accuracy(accuracy), JUMP_MIN_ACCURACY_M)
     ok = _consistent(t, z, acc, np.arange(n - 1), np.arange(1, n), max_speed_m_s)
     starts = np.concatenate([[0], np.flatnonzero(~ok) + 1])
     ends = np.append(starts[1:], n)
