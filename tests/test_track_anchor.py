@@ -113,6 +113,8 @@ def test_a_cached_and_a_wide_first_fix_do_not_pull_the_path(exports, tmp_path, a
     table = pd.read_csv(tmp_path / "bad" / "fixes.csv", keep_default_na=False)
     assert list(table["status"][:2]) == ["dropped", "dropped"] and list(table["reason"][:2]) == ["jump", "wide"]
     assert len(table) == len(points) and set(table["status"]) <= STATUSES
+    np.testing.assert_allclose(table["unix_time"], 1_700_000_000.123 + table["t"], atol=2e-3)
+    np.testing.assert_allclose(table[["lon", "lat"]], [p["geometry"]["coordinates"] for p in points], atol=1e-9)
     # track.json stays short: counts and reasons, the per-fix detail in the GeoJSON and fixes.csv
     assert len((tmp_path / "bad" / "track.json").read_text().splitlines()) < 150
 

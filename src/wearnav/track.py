@@ -178,13 +178,13 @@ def geojson(path_ll: tuple[np.ndarray, np.ndarray], t: np.ndarray, fixes_ll: tup
 
 def fix_table(fx, fixes: FixCheck, t0_unix_s: float | None, latlon: tuple | None) -> pd.DataFrame:
     """``fixes.csv``: one row per fix of the recording (module docstring)."""
-    table = pd.DataFrame({"index": np.arange(len(fx.t)), "t": fx.t})
+    table = pd.DataFrame({"index": np.arange(len(fx.t)), "t": np.round(fx.t, 3)})
     if t0_unix_s is not None:
-        table["unix_time"] = t0_unix_s + fx.t
-    table["east"], table["north"] = fx.pos[:, 0], fx.pos[:, 1]
+        table["unix_time"] = np.round(t0_unix_s + fx.t, 3)
+    table["east"], table["north"] = np.round(fx.pos[:, 0], 3), np.round(fx.pos[:, 1], 3)
     if latlon is not None:
         table["lat"], table["lon"] = np.round(latlon[0], COORD_DIGITS), np.round(latlon[1], COORD_DIGITS)
-    table["accuracy_m"] = fx.accuracy
+    table["accuracy_m"] = np.round(fx.accuracy, 2)
     table["status"], table["reason"], table["weight"] = fixes.status, fixes.reason, np.round(fixes.weight, 3)
     return table
 
@@ -328,7 +328,7 @@ def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy:
         fix_ll = geo.local_to_latlon(fx.pos[:, :2], float(lat0), float(lon0)) if has_origin else None
         t0_unix = rec.meta["t0_unix_ns"] * 1e-9 if "t0_unix_ns" in rec.meta else None
         with atomic_path(stage / "fixes.csv") as tmp:
-            fix_table(fx, res.fixes, t0_unix, fix_ll).to_csv(tmp, index=False, float_format="%.10g")
+            fix_table(fx, res.fixes, t0_unix, fix_ll).to_csv(tmp, index=False)
         if res.method != "none":
             anchored = res.xy
             table["east"], table["north"] = anchored[:, 0], anchored[:, 1]
