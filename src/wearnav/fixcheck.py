@@ -154,4 +154,4 @@ def check_fixes(t0: float, t1: float, fix_t, fix_pos, fix_accuracy, wide_m: floa
 
 
 __all__ = ["FixCheck", "check_fixes", "jumps", "repeated_fixes", "filled_accuracy", "MAX_SPEED_M_S",
-           "USED", "DOWN_WEIGHTED", "UNUSED", "DROPPED"]
+           "USED", "DOWN_WEIGHTED", "UNUSED", "DROPPED", "NO_POSITION", "OUTSIDE", "WIDE", "REPEAT", "JUMP"]

@@ -71,7 +71,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from wearnav.errors import FormatError, ValidationError
-from wearnav.fixcheck import DOWN_WEIGHTED, UNUSED, USED, FixCheck, check_fixes
+from wearnav.fixcheck import (DOWN_WEIGHTED, NO_POSITION, OUTSIDE, REPEAT, UNUSED, USED, WIDE, FixCheck,
+                              check_fixes)
 from wearnav.textio import read_json
 
 log = logging.getLogger(__name__)
@@ -166,11 +167,11 @@ def _kept(t: np.ndarray, fix_t, fix_pos, fix_accuracy, wide_m: float):
     k = k[np.argsort(ft[k], kind="stable")]
     fp = np.asarray(fix_pos, np.float64)[k, :2] if k.size else np.empty((0, 2))
     acc = np.asarray(fix_accuracy, np.float64)
-    inside = int(np.sum(check.reason != "no position") - np.sum(check.reason == "outside the walk"))
+    inside = int(np.sum(check.reason != NO_POSITION) - np.sum(check.reason == OUTSIDE))
     facts = {"fixes": inside, "fixes_outside_span": int(len(ft) - inside),
              "fixes_nan_accuracy": int(np.sum(~(np.isfinite(acc[k]) & (acc[k] > 0)))),
-             "fixes_wide": int(np.sum(check.reason == "wide")),
-             "fixes_repeated": int(np.sum(check.reason == "repeat"))}
+             "fixes_wide": int(np.sum(check.reason == WIDE)),
+             "fixes_repeated": int(np.sum(check.reason == REPEAT))}
     return check, k, ft[k], fp, acc[k], facts
 
 
@@ -202,7 +203,7 @@ def _with_fixes(res: FuseResult, check: FixCheck, k: np.ndarray, facts: dict,
     if weight is not None:
         down = weight < DOWNWEIGHT
         check.mark(k[~down], USED, weight=weight[~down])
-        check.mark(k[down], DOWN_WEIGHTED, "robust weight below %g" % DOWNWEIGHT, weight[down])
+        check.mark(k[down], DOWN_WEIGHTED, f"robust weight below {DOWNWEIGHT:g}", weight[down])
     elif k.size:
         n = res.info.get("fixes_used", len(k))
         check.mark(k[:n], USED, weight=1.0)
