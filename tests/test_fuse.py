@@ -47,9 +47,10 @@ def test_scale_and_offset_recovered_with_outliers():
     assert res.info["heading_offset_deg"] == pytest.approx(-30.0, abs=2.0)
     err = np.linalg.norm(res.xy - truth, axis=1)
     assert np.median(err) < 2.0
-    # the outliers (60 m σ) are down-weighted, and hardly any good fix is
-    assert res.info["fixes_down_weighted"] >= 0.8 * bad.sum()
-    assert res.info["fixes_down_weighted"] <= bad.sum() + 0.05 * (~bad).sum()
+    # the outliers (60 m σ) are dropped as jumps (issue 18 §5) or down-weighted, and hardly any good fix is
+    caught = res.info["fixes_down_weighted"] + res.info["fixes_dropped"].get("jump", 0)
+    assert caught >= 0.8 * bad.sum()
+    assert caught <= bad.sum() + 0.05 * (~bad).sum()
     assert np.all(np.isfinite(res.sigma_m)) and np.all(res.sigma_m > 0)
 
 
@@ -198,3 +199,63 @@ def test_bias_share_moves_the_fix_error_into_the_bias():
     assert fuse.smooth(t, xy, ft, z, np.full(ft.size, 4.5)).info["fix_bias_sigma_m"] == fuse.FuseConfig().bias_sigma_m
     with pytest.raises(ValidationError):
         fuse.FuseConfig(bias_share=1.0)
+
+
+def cached_start(t, truth):
+    """Clean 1-Hz fixes, and the same with a cached first fix (400 m away, claiming 5 m) and a wide
+    second one (1500 m, 700 m off) put before them, as a phone's first fixes often are."""
+    ft, z, acc, _ = fixes_of(t, truth, outliers=0.0)
+    bad_t = np.concatenate([ft[0] - np.array([0.2, 0.1]), ft])
+    bad_z = np.concatenate([z[:1] + [[400.0, -60.0], [500.0, 500.0]], z])
+    bad_acc = np.concatenate([[5.0, 1500.0], acc])
+    return (ft, z, acc), (bad_t, bad_z, bad_acc)
+
+
+@pytest.mark.parametrize("anchor", list(fuse.ANCHORS))
+def test_a_cached_and_a_wide_first_fix_do_not_move_any_anchoring(anchor):
+    """Issue 18 §5: with a cached first fix and a wide second one, every anchoring gives the path it
+    gives without them (to 1 mm: the same fixes reach the fit) and says which fixes it dropped and
+    why; the per-fix statuses cover every fix given."""
+    t, truth = walk(300.0)
+    t = t + 1.0  # the bad fixes fall inside the walk
+    xy = odometry_of(truth)
+    clean, bad = cached_start(t, truth)
+    ref, res = fuse.fuse(t, xy, *clean, anchor), fuse.fuse(t, xy, *bad, anchor)
+    assert res.method == ref.method == anchor
+    assert np.max(np.linalg.norm(res.xy - ref.xy, axis=1)) < 1e-3
+    assert res.info["fixes_dropped_index"] == {"wide": [1], "jump": [0]}
+    assert res.info["fixes_dropped"] == {"wide": 1, "jump": 1}
+    assert len(res.fixes.status) == len(bad[0]) and list(res.fixes.status[:2]) == ["dropped", "dropped"]
+    assert list(res.fixes.reason[:2]) == ["jump", "wide"]
+    n = res.info["fix_status"]
+    assert n["dropped"] == 2 and sum(n.values()) == len(bad[0])
+    assert n["used"] == res.info["fixes_used"]
+
+
+def test_first_fixes_anchor_on_the_first_minute_of_good_fixes():
+    """First-fix anchoring fits the good fixes of the first 60 s after the dropped ones (61 at 1 Hz),
+    marks the later ones unused, and lies on the truth (2 m median; the same without the bad fixes)."""
+    t, truth = walk(300.0)
+    t = t + 1.0
+    xy = odometry_of(truth, scale=1.0)
+    _, bad = cached_start(t, truth)
+    res = fuse.first_fix_anchor(t, xy, *bad)
+    assert res.info["fixes_used"] == 61
+    assert res.info["fix_status"] == {"used": 61, "down-weighted": 0, "unused": len(bad[0]) - 63, "dropped": 2}
+    assert set(res.fixes.reason[res.fixes.status == "unused"]) == {"after the first 60 s of good fixes"}
+    assert np.all(res.fixes.weight[res.fixes.status == "used"] == 1.0)
+    assert np.median(np.linalg.norm(res.xy - truth, axis=1)) < 2.0
+
+
+def test_smooth_marks_down_weighted_fixes_with_their_weight():
+    """The smoother's per-fix weight is its robust (Cauchy) weight: below DOWNWEIGHT exactly where
+    the status says down-weighted, and those are mostly the outliers."""
+    t, truth = walk()
+    ft, z, acc, bad = fixes_of(t, truth, outliers=0.03)
+    res = fuse.smooth(t, odometry_of(truth), ft, z, acc)
+    st, w = res.fixes.status, res.fixes.weight
+    assert np.array_equal(st == "down-weighted", (w < fuse.DOWNWEIGHT) & res.fixes.kept)
+    assert res.info["fixes_down_weighted"] == int(np.sum(st == "down-weighted"))
+    assert np.all(w[st == "used"] >= fuse.DOWNWEIGHT) and np.all(w[st == "dropped"] == 0)
+    caught = (st != "used") & bad
+    assert caught.sum() >= 0.8 * bad.sum() and ((st != "used") & ~bad).sum() <= 0.05 * (~bad).sum()

@@ -24,8 +24,8 @@ so that, with d_j the odometry displacement between 1-s nodes (``node_s``) at ti
     fix k:  z_k ≈ p(t_k − fix_lag_s) + b(t_k) + n_k,
 
 n_k ~ N(0, σ_k² I), σ_k = reported accuracy / 1.515 (the accuracy is a 68 % radius, as
-:mod:`wearnav.simulate.fixes` models it; NaN accuracy takes the median of the others, fixes wider
-than ``wide_m`` are kept but weigh almost nothing). Where the fixes and the path disagree, the
+:mod:`wearnav.simulate.fixes` models it; NaN accuracy takes the median of the others; fixes wider
+than ``wide_m`` are dropped, below). Where the fixes and the path disagree, the
 priors share the difference between the fix bias b (bounded, minutes long) and the odometry's
 errors (h and e, growing with time): a trial that let every 1-s position follow its fixes with
 a free scale came out worse than a rigid fit on unseen walks (issue 25), so the path moves only
@@ -36,12 +36,17 @@ and the simulator, never on the benchmark's held-out routes (:mod:`wearnav.bench
 The Jacobian is by finite differences over a sparsity pattern; a one-hour walk (3600 fixes)
 takes about 3 s on one core.
 
-Fixes the robust loss gives less than a fifth of a weight count as down-weighted; stale fixes (the
-same position as the previous one) are counted and only the first of a run is used (a phone
-re-reporting its last fix says nothing new); wide ones are counted. Fallbacks, each said in the
-result's ``warnings``: no fix inside the walk → the path is returned unmoved (from (0, 0));
-one fix, or fixes that do not spread (all identical) → translation onto them only; most fixes
-down-weighted (they disagree with the odometry and each other) → the first-fix anchoring of
+Before any fit, every fix is classified by :func:`wearnav.fixcheck.check_fixes` (issue 18 §5): a
+NaN position, a time outside the walk, an accuracy wider than ``wide_m``, a stale repeat of the
+previous fix (a phone re-reporting its last fix says nothing new) or a jump no walker could make
+(a cached first fix hundreds of metres away) is dropped, with its reason, in all three
+anchorings; the rest are marked used, or down-weighted where the robust loss gives them less than a
+fifth of a weight (smoother), or unused (first-fix anchoring, after its first minute).
+:attr:`FuseResult.fixes` holds the status, reason and weight of every fix given; ``info`` the
+counts (``fix_status``, ``fixes_dropped`` by reason, ``fixes_dropped_index``). Fallbacks, each said
+in the result's ``warnings``: no kept fix inside the walk → the path is returned unmoved (from
+(0, 0)); one fix, or fixes that do not spread (all identical) → translation onto them only; most
+fixes down-weighted (they disagree with the odometry and each other) → the first-fix anchoring of
 :func:`first_fix_anchor`.
 
 :class:`wearnav.fuse_live.IncrementalFuser` is the same estimate as a fixed-lag smoother for the live receiver:
@@ -66,6 +71,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from wearnav.errors import FormatError, ValidationError
+from wearnav.fixcheck import (DOWN_WEIGHTED, NO_POSITION, OUTSIDE, REPEAT, UNUSED, USED, WIDE, FixCheck,
+                              check_fixes)
 from wearnav.textio import read_json
 
 log = logging.getLogger(__name__)
@@ -97,7 +104,7 @@ class FuseConfig:
     bias_correlation_s: float = 120.0  # its correlation time (GNSS errors wander over minutes)
     bias_knot_s: float = 30.0  # knot spacing of the bias, s
     robust_scale: float = 2.0  # Cauchy loss scale on the normalised fix residual (|r|/σ)
-    wide_m: float = 100.0  # fixes reporting a wider accuracy are counted as wide
+    wide_m: float = 100.0  # fixes reporting a wider accuracy are dropped (wearnav.fixcheck)
     fix_lag_s: float = 0.0  # a fix stamped t describes where the walker was at t − fix_lag_s
     heading_walk_deg_per_sqrt_min: float = 5.0  # random-walk heading error between bias knots (0: off)
     odometry_walk_m_per_sqrt_s: float = 0.3  # random-walk position error of the odometry at the knots (0: off)
@@ -114,13 +121,15 @@ class FuseResult:
     """The fused path and what the fit found. ``xy`` (N, 2) m east/north at the input times;
     ``sigma_m`` (N,) its 1-σ per-axis uncertainty (m, NaN unknown) from the fit's covariance of
     the global unknowns (heading offset, scale, drift, origin) only: the knots' share (heading
-    and odometry walks) is left out, so it understates the error between fixes."""
+    and odometry walks) is left out, so it understates the error between fixes. ``fixes``: the
+    status, reason and weight of every fix given (:class:`wearnav.fixcheck.FixCheck`)."""
 
     xy: np.ndarray
     sigma_m: np.ndarray
     method: str
     info: dict
     warnings: list[str]
+    fixes: FixCheck | None = None
 
 
 def fix_sigma_m(accuracy: np.ndarray) -> np.ndarray:
@@ -149,39 +158,71 @@ def _rot(yaw: float) -> np.ndarray:
     return np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
 
 
-def _inside(t: np.ndarray, fix_t, fix_pos, fix_accuracy):
-    fix_t = np.asarray(fix_t, np.float64)
-    fix_pos = np.asarray(fix_pos, np.float64)
-    fix_pos = fix_pos[:, :2] if fix_pos.ndim == 2 and fix_pos.shape[0] else np.empty((0, 2))
+def _kept(t: np.ndarray, fix_t, fix_pos, fix_accuracy, wide_m: float):
+    """The fixes' check (:func:`wearnav.fixcheck.check_fixes`), the indices of the kept ones in
+    time order, and their times, positions (M, 2) and accuracies; the record of the counts."""
+    check = check_fixes(t[0], t[-1], fix_t, fix_pos, fix_accuracy, wide_m)
+    ft = np.asarray(fix_t, np.float64)
+    k = np.flatnonzero(check.kept)
+    k = k[np.argsort(ft[k], kind="stable")]
+    fp = np.asarray(fix_pos, np.float64)[k, :2] if k.size else np.empty((0, 2))
     acc = np.asarray(fix_accuracy, np.float64)
-    k = np.isfinite(fix_t) & np.all(np.isfinite(fix_pos), axis=1) & (fix_t >= t[0]) & (fix_t <= t[-1])
-    return fix_t[k], fix_pos[k], acc[k], int(len(fix_t) - k.sum())
+    inside = int(np.sum(check.reason != NO_POSITION) - np.sum(check.reason == OUTSIDE))
+    facts = {"fixes": inside, "fixes_outside_span": int(len(ft) - inside),
+             "fixes_nan_accuracy": int(np.sum(~(np.isfinite(acc[k]) & (acc[k] > 0)))),
+             "fixes_wide": int(np.sum(check.reason == WIDE)),
+             "fixes_repeated": int(np.sum(check.reason == REPEAT))}
+    return check, k, ft[k], fp, acc[k], facts
 
 
-def repeated_fixes(fix_pos: np.ndarray) -> np.ndarray:
-    """True for a fix at exactly the previous fix's position (a stale fix re-reported)."""
-    return np.concatenate([[False], np.all(np.diff(fix_pos, axis=0) == 0, axis=1)]) if len(fix_pos) else \
-        np.zeros(0, bool)
+def first_fix_anchor(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy,
+                     cfg: FuseConfig = FuseConfig()) -> FuseResult:
+    """Today's anchoring: a rigid fit over the kept fixes (bad ones dropped first) of the first
+    ``ANCHOR_S`` seconds after the first kept fix (more while the path spreads less than
+    ``MIN_SPREAD_M`` over them)."""
+    return _anchored(t, xy, fix_t, fix_pos, fix_accuracy, ANCHOR_S, cfg)
 
 
-def first_fix_anchor(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy) -> FuseResult:
-    """Today's anchoring: a rigid fit over the fixes of the first ``ANCHOR_S`` seconds (more while
-    the path spreads less than ``MIN_SPREAD_M`` over them)."""
-    return _rigid(t, xy, fix_t, fix_pos, fix_accuracy, first_s=ANCHOR_S)
+def rigid_anchor(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy,
+                 cfg: FuseConfig = FuseConfig()) -> FuseResult:
+    """One rotation + translation fitted to every kept fix of the walk, weighted by 1/σ²."""
+    return _anchored(t, xy, fix_t, fix_pos, fix_accuracy, None, cfg)
 
 
-def rigid_anchor(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy) -> FuseResult:
-    """One rotation + translation fitted to every fix of the walk, weighted by 1/σ²."""
-    return _rigid(t, xy, fix_t, fix_pos, fix_accuracy, first_s=None)
-
-
-def _rigid(t, xy, fix_t, fix_pos, fix_accuracy, first_s: float | None) -> FuseResult:
+def _anchored(t, xy, fix_t, fix_pos, fix_accuracy, first_s: float | None, cfg: FuseConfig) -> FuseResult:
     t, xy = np.asarray(t, np.float64), np.asarray(xy, np.float64)
-    ft, fp, acc, outside = _inside(t, fix_t, fix_pos, fix_accuracy)
+    check, k, ft, fp, acc, facts = _kept(t, fix_t, fix_pos, fix_accuracy, cfg.wide_m)
+    res = _rigid(t, xy, ft, fp, acc, first_s)
+    return _with_fixes(res, check, k, facts)
+
+
+def _with_fixes(res: FuseResult, check: FixCheck, k: np.ndarray, facts: dict,
+                weight: np.ndarray | None = None) -> FuseResult:
+    """``res`` with the per-fix statuses of the kept fixes ``k`` (the first ``fixes_used`` used by
+    a rigid fit; by their robust ``weight`` for the smoother) and the counts in its info."""
+    if weight is not None:
+        down = weight < DOWNWEIGHT
+        check.mark(k[~down], USED, weight=weight[~down])
+        check.mark(k[down], DOWN_WEIGHTED, f"robust weight below {DOWNWEIGHT:g}", weight[down])
+    elif k.size:
+        n = res.info.get("fixes_used", len(k))
+        check.mark(k[:n], USED, weight=1.0)
+        if n < len(k):
+            check.mark(k[n:], UNUSED, f"after the first {res.info['span_s']:.0f} s of good fixes")
+    res.info.update({**facts, **check.info()})
+    if res.method == "none" and (dropped := res.info["fixes_dropped"]):
+        res.warnings[0] += f" (every fix dropped: {', '.join(f'{n} {r}' for r, n in dropped.items())})"
+    res.warnings[:0] = check.warnings
+    res.fixes = check
+    return res
+
+
+def _rigid(t, xy, ft, fp, acc, first_s: float | None) -> FuseResult:
+    """The rigid fit over kept fixes (times ``ft`` increasing, ``fp`` (M, 2), ``acc`` (M,))."""
     method = "first-fixes" if first_s is not None else "rigid"
     nan = np.full(len(t), np.nan)
     if ft.size == 0:
-        return FuseResult(xy.copy(), nan, "none", {"fixes": 0, "fixes_outside_span": outside},
+        return FuseResult(xy.copy(), nan, "none", {"fixes_used": 0},
                           ["no location fix inside the walk: the path starts at (0, 0) in the odometry's own frame"])
     w = 1.0 / fix_sigma_m(acc) ** 2
     p = np.stack([np.interp(ft, t, xy[:, k]) for k in range(2)], axis=1)
@@ -201,7 +242,7 @@ def _rigid(t, xy, fix_t, fix_pos, fix_accuracy, first_s: float | None) -> FuseRe
     resid = p[:n] @ _rot(yaw).T + offset - fp[:n]
     rms = float(np.sqrt(np.average(np.sum(resid ** 2, axis=1), weights=w[:n])))
     return FuseResult(out, nan, method,
-                      {"fixes": int(len(ft)), "fixes_used": int(n), "fixes_outside_span": outside,
+                      {"fixes_used": int(n),
                        "heading_offset_deg": float(np.degrees(yaw)), "offset_m": [float(v) for v in offset],
                        "scale": 1.0, "path_spread_m": spread,
                        "span_s": float(ft[n - 1] - ft[0]), "rms_residual_m": rms,
@@ -370,18 +411,11 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
     t, xy = np.asarray(t, np.float64), np.asarray(xy, np.float64)
     if t.ndim != 1 or xy.shape != (t.size, 2) or t.size < 2 or np.any(np.diff(t) <= 0):
         raise ValidationError(f"the odometry path needs increasing times and (N, 2) positions; got {xy.shape}")
-    ft, fz, acc, outside = _inside(t, fix_t, fix_pos, fix_accuracy)
+    check, kept, ft, fz, acc, facts = _kept(t, fix_t, fix_pos, fix_accuracy, cfg.wide_m)
     sigma = fix_sigma_m(acc)
-    facts = {"fixes": int(len(ft)), "fixes_outside_span": outside,
-             "fixes_nan_accuracy": int(np.sum(~(np.isfinite(acc) & (acc > 0)))),
-             "fixes_wide": int(np.sum(acc > cfg.wide_m)),
-             "fixes_repeated": int(repeated_fixes(fz).sum())}
-    fresh = ~repeated_fixes(fz)  # a stale fix says nothing new: only the first of a run is used
-    ft, fz, acc, sigma = ft[fresh], fz[fresh], acc[fresh], sigma[fresh]
-    rigid = rigid_anchor(t, xy, ft, fz, acc)
+    rigid = _rigid(t, xy, ft, fz, acc, None)
     if len(ft) < 2 or rigid.info.get("path_spread_m", 0.0) < 1e-6 or rigid.warnings:
-        rigid.info.update(facts)
-        return rigid
+        return _with_fixes(rigid, check, kept, facts)
     prob = build_problem(t, xy, ft, fz[:, 0] + 1j * fz[:, 1], sigma, t[0], t[-1], cfg)
     tn = prob.tn
     if x0 is None or len(x0) != prob.n_params:
@@ -398,7 +432,7 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
     pnode = prob.path(x)
     out = np.stack([np.interp(t, tn, pnode.real), np.interp(t, tn, pnode.imag)], axis=1)
     sig_node = node_sigma(prob, x, sol.jac, pnode)
-    info = {**facts, "fixes_used": int(len(ft) - down), "fixes_down_weighted": down,
+    info = {"fixes_used": int(len(ft) - down), "fixes_down_weighted": down,
             "heading_offset_deg": float(np.degrees(x[0])), "scale": float(np.exp(x[1])),
             "heading_drift_deg_per_min": float(np.degrees(x[2]) * 60.0),
             "origin_m": [float(x[3]), float(x[4])],
@@ -407,13 +441,12 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
             "nodes": int(len(tn)), "solver_evaluations": int(sol.nfev),
             "config": dataclasses.asdict(cfg), "x": [float(v) for v in x]}
     if down > DISAGREE_SHARE * len(ft):
-        first = first_fix_anchor(t, xy, ft, fz, acc)
-        first.info.update(facts)
+        first = _with_fixes(_rigid(t, xy, ft, fz, acc, ANCHOR_S), check, kept, facts)
         first.info["smoother"] = info
         first.warnings.append(f"{down} of {len(ft)} location fixes disagree with the path and with each other: "
                               "fell back to anchoring on the first minute's fixes")
         return first
-    return FuseResult(out, np.interp(t, tn, sig_node), "smooth", info, [])
+    return _with_fixes(FuseResult(out, np.interp(t, tn, sig_node), "smooth", info, []), check, kept, facts, weight)
 
 
 def node_sigma(prob: Problem, x: np.ndarray, jac, pnode: np.ndarray) -> np.ndarray:
@@ -465,9 +498,7 @@ def fuse(t, xy, fix_t, fix_pos, fix_accuracy, anchor: str = "smooth", cfg: FuseC
     """The path of odometry ``xy`` placed on the fixes by ``anchor`` (first-fixes | rigid | smooth)."""
     if anchor not in ANCHORS:
         raise ValidationError(f"unknown anchoring {anchor!r}; one of {', '.join(ANCHORS)}")
-    if anchor == "smooth":
-        return smooth(t, xy, fix_t, fix_pos, fix_accuracy, cfg)
-    return ANCHORS[anchor](t, xy, fix_t, fix_pos, fix_accuracy)
+    return ANCHORS[anchor](t, xy, fix_t, fix_pos, fix_accuracy, cfg)
 
 
 def config_for_run(run) -> tuple[FuseConfig, dict | None]:

@@ -8,8 +8,9 @@ import dataclasses
 import numpy as np
 
 from wearnav.errors import ValidationError
+from wearnav.fixcheck import repeated_fixes
 from wearnav.fuse import (DOWNWEIGHT, FuseConfig, FuseResult, Prior, Problem, build_problem, fix_sigma_m,
-                          node_sigma, repeated_fixes, smooth, solve)
+                          node_sigma, smooth, solve)
 
 
 def _init_from(prob: Problem, old: Problem, x_old: np.ndarray) -> np.ndarray:

@@ -16,10 +16,27 @@ and write into the output folder:
     The path with its start and end, and per-device presence over time.
 ``trajectory.geojson``
     Only when the recording has fixes and a lat/lon origin (``meta["origin_lat"/"origin_lon"]``,
-    written by the importers that project lat/lon with :func:`wearnav.geo.latlon_to_local`): the
-    anchored path as a LineString and the fixes as Points (with time and accuracy), in WGS-84
-    lon/lat, converted back by :func:`wearnav.geo.local_to_latlon` (``east``, ``north`` are their
-    WGS-84 east-north-up metres about that origin).
+    written by the importers that project lat/lon with :func:`wearnav.geo.latlon_to_local`): an
+    RFC 7946 FeatureCollection (WGS-84, no ``crs`` member; coordinates ``[lon, lat]`` rounded to
+    1e-7° ≈ 1 cm, converted back by :func:`wearnav.geo.local_to_latlon`): the format map tools read
+    (geojson.io, QGIS, Leaflet). First feature, the anchored path as one LineString; its
+    properties: ``kind`` "path"; ``recording``; ``model``; ``anchor`` (the anchoring used: smooth,
+    rigid or first-fixes); ``start_time``, ``end_time`` (ISO 8601 UTC, null where the recording
+    keeps no Unix time, ``meta["t0_unix_ns"]``); ``t_start_s``, ``t_end_s``, ``duration_s`` (s since
+    the recording's start, as the CSV's ``t``); ``length_m`` (the anchored path's length, m);
+    ``median_sigma_m`` (the median 1-σ per-axis uncertainty of its points, m; null unless smoothed);
+    ``fix_status`` (how many fixes were used, down-weighted, unused, dropped); where the σ is known,
+    ``sigma_m`` and ``t``, one per vertex. Then one Point per fix of the recording, properties:
+    ``kind`` "fix"; ``index`` (its row in ``fixes.csv``); ``time`` (ISO 8601 UTC, or null); ``t``
+    (s since the start); ``accuracy_m`` (the reported 68 % radius, null if none); ``status`` (used |
+    down-weighted | unused | dropped, :mod:`wearnav.fixcheck`); ``reason`` (why dropped: no position,
+    outside the walk, wide, repeat, jump; why down-weighted or unused; "" if used); ``weight`` (its
+    weight in the fit relative to a fix of its accuracy: the smoother's robust weight, 1 for a
+    rigid fit's fixes, 0 if not used).
+``fixes.csv``
+    Where the recording has fixes: one row per fix, ``index``, ``t`` (s), ``unix_time`` (where
+    known), ``east``, ``north`` (m), ``lat``, ``lon`` (where the recording has a lat/lon origin),
+    ``accuracy_m``, ``status``, ``reason``, ``weight`` (as in the GeoJSON).
 ``track.json``
     What was done: model, run (``shipped_model``: the shipped model's name where no ``--model`` was
     given or one was named, :mod:`wearnav.pretrained`), devices used and present, frame reference, anchoring fit, and
@@ -34,10 +51,15 @@ Anchoring: the common frame has an arbitrary yaw and the path starts at (0, 0); 
 ``smooth`` (default) the robust smoother over every fix (heading offset, scale, heading drift,
 a slowly varying fix bias; each point's 1-σ ``sigma_m`` in the CSV and GeoJSON), ``rigid`` one
 rotation + translation over every fix, ``first-fixes`` the same over the first ``ANCHOR_S``
-seconds' fixes (the path then drifts freely: the map shows the odometry alone). ``track.json``
-says what was used under ``anchoring``: the fixes used and down-weighted, stale, wide or outside
-the walk, the scale and heading offset. A recording without fixes keeps the path from (0, 0) and
-says so; fixes that all disagree fall back to first-fix anchoring, with a warning.
+seconds' good fixes (the path then drifts freely: the map shows the odometry alone). Bad fixes
+are dropped first, whichever the anchoring (:mod:`wearnav.fixcheck`: a phone's first fix is often
+cached, hundreds of metres away, or 100–2000 m wide). ``track.json`` says what was used under
+``anchoring``: ``fix_status`` (counts), ``fixes_dropped`` (counts by reason) and
+``fixes_dropped_index`` (at most ``INDEX_LIST_MAX`` per reason), ``fixes_dropped_at_import``
+(cached fixes stamped before the recording, which the Sensor Logger importer leaves out), the scale
+and heading offset; the per-fix detail is in ``fixes.csv`` and the GeoJSON. A recording without
+fixes keeps the path from (0, 0) and says so; fixes that all disagree fall back to first-fix
+anchoring, with a warning.
 """
 
 from __future__ import annotations
@@ -45,6 +67,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import warnings
+from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +76,7 @@ import pandas as pd
 from wearnav import fuse, geo, pretrained, trust
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.fileio import atomic_path, write_text_atomic
+from wearnav.fixcheck import FixCheck
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.recording import Recording
 from wearnav.textio import read_json
@@ -62,14 +86,16 @@ ANCHOR_S = fuse.ANCHOR_S
 ANCHOR_TEXT = {
     "smooth": "robust smoother over every fix (wearnav.fuse): heading offset, scale (prior), heading drift, "
               "slowly varying fix bias; fixes weighted by their reported accuracy",
-    "rigid": "weighted (1/σ²) least-squares rotation + translation over every fix of the walk",
-    "first-fixes": f"weighted (1/σ²) least-squares rotation + translation over the fixes of the first "
+    "rigid": "weighted (1/σ²) least-squares rotation + translation over every kept fix of the walk",
+    "first-fixes": f"weighted (1/σ²) least-squares rotation + translation over the kept fixes of the first "
                    f"{fuse.ANCHOR_S:g} s",
     "none": "not placed on the fixes",
 }
 TRAJ_FORMAT = "%.4f"
 TRACK_JSON = "track.json"  # the marker: a folder holding it was written by `wearnav track`
-TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.geojson", TRACK_JSON)
+TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.geojson", "fixes.csv", TRACK_JSON)
+COORD_DIGITS = 7  # GeoJSON and fixes.csv lat/lon decimals: 1e-7° is 1.1 cm
+INDEX_LIST_MAX = 10  # track.json lists at most this many dropped fixes' indices per reason
 
 
 # ---- input -------------------------------------------------------------------------------------
@@ -107,26 +133,61 @@ def load_input(src: str | Path, name: str | None = None, platform: str | None = 
 
 # ---- anchoring ---------------------------------------------------------------------------------
 
-def geojson(path_ll: tuple[np.ndarray, np.ndarray], fixes_ll: tuple[np.ndarray, np.ndarray],
-            fix_t: np.ndarray, fix_accuracy: np.ndarray, props: dict, sigma_m: np.ndarray | None = None,
-            t: np.ndarray | None = None) -> dict:
-    """A FeatureCollection: the path as a LineString (with ``sigma_m``, the 1-σ per-axis uncertainty
-    of each of its points in metres, where known; ``t`` their times), each fix as a Point
-    (RFC 7946: lon, lat)."""
+def iso_utc(unix_s: float | None) -> str | None:
+    """ISO 8601 UTC with milliseconds ("2023-11-14T22:13:20.123Z"); None without a Unix time."""
+    if unix_s is None or not np.isfinite(unix_s):
+        return None
+    return datetime.fromtimestamp(float(unix_s), tz=timezone.utc).isoformat(timespec="milliseconds")[:-6] + "Z"
+
+
+def _num(v: float, digits: int) -> float | None:
+    return round(float(v), digits) if np.isfinite(v) else None
+
+
+def geojson(path_ll: tuple[np.ndarray, np.ndarray], t: np.ndarray, fixes_ll: tuple[np.ndarray, np.ndarray],
+            fix_t: np.ndarray, fix_accuracy: np.ndarray, fixes: FixCheck, props: dict,
+            sigma_m: np.ndarray | None = None, t0_unix_s: float | None = None) -> dict:
+    """The RFC 7946 FeatureCollection of the module docstring: the anchored path (lat, lon arrays
+    at times ``t`` s, 1-σ ``sigma_m`` m where known) as one LineString with ``props`` and the
+    derived properties, each fix (``fixes_ll`` lat, lon; ``fix_t`` s; ``fix_accuracy`` m; its
+    status in ``fixes``) as a Point. ``t0_unix_s``: the Unix time of t = 0, where known."""
     def coords(lat, lon):
-        return [[round(float(a), 8), round(float(b), 8)] for a, b in zip(lon, lat)]
-    extra = {}
-    if sigma_m is not None and np.isfinite(sigma_m).any():
-        extra["sigma_m"] = [None if not np.isfinite(s) else round(float(s), 2) for s in sigma_m]
-        if t is not None:
-            extra["t"] = [round(float(v), 3) for v in t]
-    feats = [{"type": "Feature", "geometry": {"type": "LineString", "coordinates": coords(*path_ll)},
-              "properties": {"kind": "path", **props, **extra}}]
-    for (lon, lat), t, a in zip(coords(*fixes_ll), fix_t, fix_accuracy):
-        feats.append({"type": "Feature", "geometry": {"type": "Point", "coordinates": [lon, lat]},
-                      "properties": {"kind": "fix", "t": round(float(t), 3),
-                                     "accuracy_m": None if not np.isfinite(a) else round(float(a), 2)}})
+        return [[round(float(a), COORD_DIGITS), round(float(b), COORD_DIGITS)] for a, b in zip(lon, lat)]
+
+    def when(v):
+        return iso_utc(None if t0_unix_s is None else t0_unix_s + float(v))
+
+    lat, lon = path_ll
+    known = sigma_m is not None and bool(np.isfinite(sigma_m).any())
+    line = {"kind": "path", **props, "start_time": when(t[0]), "end_time": when(t[-1]),
+            "t_start_s": round(float(t[0]), 3), "t_end_s": round(float(t[-1]), 3),
+            "duration_s": round(float(t[-1] - t[0]), 3),
+            "median_sigma_m": _num(np.nanmedian(sigma_m), 2) if known else None,
+            "fix_status": fixes.counts()}
+    if known:
+        line["sigma_m"] = [_num(v, 2) for v in sigma_m]
+        line["t"] = [round(float(v), 3) for v in t]
+    feats = [{"type": "Feature", "geometry": {"type": "LineString", "coordinates": coords(lat, lon)},
+              "properties": line}]
+    for k, ((x, y), ft, a) in enumerate(zip(coords(*fixes_ll), fix_t, fix_accuracy)):
+        feats.append({"type": "Feature", "geometry": {"type": "Point", "coordinates": [x, y]},
+                      "properties": {"kind": "fix", "index": k, "time": when(ft), "t": _num(ft, 3),
+                                     "accuracy_m": _num(a, 2), "status": str(fixes.status[k]),
+                                     "reason": str(fixes.reason[k]), "weight": round(float(fixes.weight[k]), 3)}})
     return {"type": "FeatureCollection", "features": feats}
+
+
+def fix_table(fx, fixes: FixCheck, t0_unix_s: float | None, latlon: tuple | None) -> pd.DataFrame:
+    """``fixes.csv``: one row per fix of the recording (module docstring)."""
+    table = pd.DataFrame({"index": np.arange(len(fx.t)), "t": np.round(fx.t, 3)})
+    if t0_unix_s is not None:
+        table["unix_time"] = np.round(t0_unix_s + fx.t, 3)
+    table["east"], table["north"] = np.round(fx.pos[:, 0], 3), np.round(fx.pos[:, 1], 3)
+    if latlon is not None:
+        table["lat"], table["lon"] = np.round(latlon[0], COORD_DIGITS), np.round(latlon[1], COORD_DIGITS)
+    table["accuracy_m"] = np.round(fx.accuracy, 2)
+    table["status"], table["reason"], table["weight"] = fixes.status, fixes.reason, np.round(fixes.weight, 3)
+    return table
 
 
 # ---- can the path be trusted? (wearnav.trust) --------------------------------------------------
@@ -248,7 +309,7 @@ def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy:
                  cfg, seq, summary: dict, anchor: str = "smooth") -> None:
     """Place the path on the fixes by ``anchor`` (:mod:`wearnav.fuse`) and write the files into
     ``stage`` (moved to ``out`` afterwards)."""
-    anchored = None
+    anchored, res = None, None
     fx = rec.fixes
     if fx is None or len(fx) == 0:
         summary["anchoring"] = {"method": "none", "requested": anchor,
@@ -261,30 +322,40 @@ def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy:
         res = fuse.fuse(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, anchor, fcfg)
         summary["anchoring"] = {"requested": anchor, "method": res.method, "description": ANCHOR_TEXT[res.method],
                                 "odometry_calibration": cal or "none in the run: the smoother's defaults",
-                                **{k: _rounded(v) for k, v in res.info.items() if k not in ("x", "smoother")}}
+                                **{k: _rounded(v) for k, v in res.info.items() if k not in ("x", "smoother")},
+                                "fixes_dropped_index": {r: i[:INDEX_LIST_MAX] for r, i in
+                                                        res.info["fixes_dropped_index"].items()},
+                                "fixes_dropped_at_import": int(rec.meta.get("dropped_stale_fixes", 0)),
+                                "per_fix": "fixes.csv" + (" and trajectory.geojson" if res.method != "none" else "")}
         summary["warnings"] += [f"{rec.name}: {w}" for w in res.warnings]
         for w in res.warnings:
             warnings.warn(WearnavWarning(f"{rec.name}: {w}"))
+        lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
+        has_origin = lat0 is not None and lon0 is not None
+        fix_ll = geo.local_to_latlon(fx.pos[:, :2], float(lat0), float(lon0)) if has_origin else None
+        t0_unix = rec.meta["t0_unix_ns"] * 1e-9 if "t0_unix_ns" in rec.meta else None
+        with atomic_path(stage / "fixes.csv") as tmp:
+            fix_table(fx, res.fixes, t0_unix, fix_ll).to_csv(tmp, index=False)
         if res.method != "none":
             anchored = res.xy
             table["east"], table["north"] = anchored[:, 0], anchored[:, 1]
             if np.isfinite(res.sigma_m).any():
                 table["sigma_m"] = res.sigma_m
-            lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
-            if lat0 is not None and lon0 is not None:
-                gj = geojson(geo.local_to_latlon(anchored, float(lat0), float(lon0)),
-                             geo.local_to_latlon(fx.pos[:, :2], float(lat0), float(lon0)),
-                             fx.t, fx.accuracy, {"recording": rec.name, "model": cfg.model, "anchor": res.method},
-                             sigma_m=res.sigma_m, t=t)
-                write_text_atomic(json.dumps(gj), stage / "trajectory.geojson")
+            if has_origin:
+                length = float(np.sum(np.linalg.norm(np.diff(anchored, axis=0), axis=1)))
+                gj = geojson(geo.local_to_latlon(anchored, float(lat0), float(lon0)), t, fix_ll, fx.t, fx.accuracy,
+                             res.fixes, {"recording": rec.name, "model": cfg.model, "anchor": res.method,
+                                         "length_m": round(length, 2)}, sigma_m=res.sigma_m, t0_unix_s=t0_unix)
+                write_text_atomic(json.dumps(gj, allow_nan=False), stage / "trajectory.geojson")
                 summary["geojson"] = str(out / "trajectory.geojson")
             else:
                 summary["geojson"] = "not written: the recording's fixes have no lat/lon origin"
     with atomic_path(stage / "trajectory.csv") as tmp:
         table.to_csv(tmp, index=False, float_format=TRAJ_FORMAT)
-    plot_track(table, seq.devices, anchored, fx, summary, stage / "trajectory.png")
-    summary["files"] = ["trajectory.csv", "trajectory.png", TRACK_JSON] + (
-        ["trajectory.geojson"] if (stage / "trajectory.geojson").is_file() else [])
+    kept = res.fixes.kept if fx is not None and len(fx) and res.fixes is not None else None
+    plot_track(table, seq.devices, anchored, fx, summary, stage / "trajectory.png", kept)
+    summary["files"] = ["trajectory.csv", "trajectory.png", TRACK_JSON] + [
+        f for f in ("trajectory.geojson", "fixes.csv") if (stage / f).is_file()]
     write_text_atomic(json.dumps(summary, indent=2, default=str), stage / TRACK_JSON)
 
 
@@ -299,9 +370,10 @@ def _rounded(v):
 
 
 def plot_track(table: pd.DataFrame, devices: tuple[str, ...], anchored, fixes, summary: dict,
-               out: Path) -> Path:
+               out: Path, kept: np.ndarray | None = None) -> Path:
     """The path (anchored on the fixes where there are some) with start and end, and per-device
-    presence over time."""
+    presence over time; of the fixes only the ``kept`` ones (all if None) are drawn, so that a
+    cached fix far away does not shrink the map."""
     from matplotlib.figure import Figure
 
     from wearnav.report.plots import save
@@ -310,7 +382,9 @@ def plot_track(table: pd.DataFrame, devices: tuple[str, ...], anchored, fixes, s
     ax, ax_dev = fig.subplots(2, 1, height_ratios=[5, 1])
     xy = anchored if anchored is not None else table[["x", "y"]].to_numpy()
     if anchored is not None:
-        ax.scatter(fixes.pos[:, 0], fixes.pos[:, 1], s=8, c="tab:red", alpha=0.6, label="location fixes")
+        k = np.ones(len(fixes.t), bool) if kept is None else kept
+        ax.scatter(fixes.pos[k, 0], fixes.pos[k, 1], s=8, c="tab:red", alpha=0.6,
+                   label="location fixes" + (f" ({int(np.sum(~k))} dropped, not drawn)" if (~k).any() else ""))
     ax.plot(xy[:, 0], xy[:, 1], color="tab:blue", lw=1.2, label=f"path ({summary['model']})")
     ax.plot(*xy[0], "o", color="tab:green", ms=8, label="start")
     ax.plot(*xy[-1], "s", color="black", ms=7, label="end")
