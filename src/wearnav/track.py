@@ -51,6 +51,7 @@ import pandas as pd
 
 from wearnav import fuse, geo, trust
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
+from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.recording import Recording
@@ -131,11 +132,15 @@ def geojson(path_ll: tuple[np.ndarray, np.ndarray], fixes_ll: tuple[np.ndarray, 
 # ---- can the path be trusted? (wearnav.trust) --------------------------------------------------
 
 def run_training_record(model_path: str | Path) -> dict:
-    """The run's ``training.json`` for a run folder or its checkpoint; ``{}`` where it has none or
-    cannot be read (the warnings then say that the training data is unknown: tracking goes on)."""
+    """The run's ``training.json`` for a run folder or its checkpoint, or the copy an exported model
+    file carries in its header; ``{}`` where it has none or cannot be read (the warnings then say
+    that the training data is unknown: tracking goes on)."""
     from wearnav.train.odometry import TRAINING
 
     p = Path(model_path)
+    if is_exported(p):
+        record = read_header(p).get("training")
+        return record if isinstance(record, dict) else {}
     run = p.parent.parent if p.is_file() else p
     try:
         record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}

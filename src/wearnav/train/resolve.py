@@ -1,5 +1,5 @@
-"""The one reading of a command's ``--model``: a run folder, one of its checkpoints, or the name of
-an untrained baseline (a registry model with ``learned=False``, e.g. ``pdr``), turned into the
+"""The one reading of a command's ``--model``: a run folder, one of its checkpoints, a model file of
+``wearnav export`` (``.onnx``, ``.pt``), or the name of an untrained baseline (a registry model with ``learned=False``, e.g. ``pdr``), turned into the
 model and the config that says how to feed it.
 
 ``wearnav track`` and ``wearnav classify`` take their ``--model`` through :func:`resolve_model`; a
@@ -12,6 +12,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from wearnav.errors import ConfigError, FormatError
+from wearnav.export.header import is_exported
+from wearnav.export.runtime import load_exported
 from wearnav.models import registry
 from wearnav.train import classify, odometry
 from wearnav.train.common import BEST, CHECKPOINTS, RUN_KINDS, check_run_kind
@@ -27,7 +29,8 @@ def resolve_model(arg: str | Path, task: str):
 
     Odometry: ``(model, TrainConfig)``; classify: ``(model, ClassifyConfig, class names)``. An
     existing path is a run folder (best weights for odometry) or a checkpoint inside its
-    ``checkpoints/``; otherwise ``arg`` must name an untrained baseline of ``task``, built with the
+    ``checkpoints/``, or an exported model file (:func:`wearnav.export.runtime.load_exported`: run by
+    ONNX Runtime or TorchScript, its config from the file's header); otherwise ``arg`` must name an untrained baseline of ``task``, built with the
     default :class:`wearnav.train.odometry.TrainConfig` (25 Hz, 100-sample windows, the first of
     phone, watch, earbuds that the recording has). Anything else is a ConfigError naming what is
     accepted.
@@ -35,6 +38,8 @@ def resolve_model(arg: str | Path, task: str):
     if task not in RUN_KINDS or task == "noisy":
         raise ValueError(f"task must be odometry or classify, got {task!r}")
     p = Path(arg)
+    if is_exported(p):
+        return load_exported(p, task)
     if p.exists():
         if p.is_file():
             if task != "odometry" or p.parent.name != CHECKPOINTS:
