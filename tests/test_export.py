@@ -188,9 +188,10 @@ def test_wrong_suffix_and_wrong_task_are_refused(run_of, exported, monkeypatch, 
     assert code == 2 and "is an odometry model (ronin) exported" in err and "wearnav track" in err
 
 
-def test_classifier_export_gives_the_runs_logits(walk, tmp_path):
-    """A classifier run (random weights) exported to both formats: logits within PARITY_TOL, and
-    the file resolves to the run's config and class names."""
+def test_classifier_export_gives_the_runs_logits_and_labels(walk, tmp_path, monkeypatch, capsys):
+    """A classifier run (random weights) exported to both formats: logits within PARITY_TOL, the
+    file resolves to the run's config and class names, and `wearnav classify` with the ONNX file
+    writes the run's intervals and warnings."""
     root, _ = walk
     cfg = classify.ClassifyConfig(model="har-cnn-bilstm", data=str(root / "ds"), model_args={"hidden": 8})
     run = tmp_path / "har"
@@ -211,3 +212,24 @@ def test_classifier_export_gives_the_runs_logits(walk, tmp_path):
         diff = float((exported(x, mask) - ref).abs().max())
         print(f"har-cnn-bilstm {fmt}: max |Δlogit| {diff:.2e}")
         assert diff < PARITY_TOL and cfg_x == cfg and classes_x == classes
+    for model_arg, out in ((run, "a"), (tmp_path / "h.onnx", "b")):
+        code, _, err = run_cli(monkeypatch, capsys, "classify", root / "ds", "--model", model_arg, "--out", tmp_path / out)
+        assert code == 0, err
+    a, b = (pd.read_csv(tmp_path / d / "walk_intervals.csv") for d in "ab")
+    assert len(a) >= 1 and a[["start_s", "end_s", "label", "windows"]].equals(b[["start_s", "end_s", "label", "windows"]])
+    assert np.abs(a["mean_confidence"] - b["mean_confidence"]).max() <= 1e-3
+    warn = [json.loads((tmp_path / d / "classify.json").read_text())["warnings"] for d in "ab"]
+    assert warn[0] == warn[1]
+
+
+@pytest.mark.slow
+def test_export_speed_times_every_runtime():
+    """The speed table's function on a small RoNIN: one row per runtime and batch, positive rates,
+    the exports' parity within tolerance."""
+    from wearnav.export.speed import export_speed, speed_table
+
+    rows = export_speed("ronin", batches=(1, 4), min_run_time_s=0.01, blocks=(1, 1, 1, 1))
+    assert [(r["runtime"], r["batch"]) for r in rows] == [
+        (rt, b) for b in (1, 4) for rt in ("pytorch", "pytorch-traced-graph", "onnxruntime", "torchscript")]
+    assert all(r["win_per_s"] > 0 and r["max_abs_diff"] < PARITY_TOL and r["threads"] == 1 for r in rows)
+    assert "batch 4 (windows/s)" in speed_table(rows)

@@ -20,8 +20,6 @@ from wearnav.train.classify import ClassifyConfig
 from wearnav.train.common import RUN_KINDS
 from wearnav.train.odometry import TrainConfig
 
-IMU_CHANNELS = 6  # acc x y z, gyro x y z per device
-
 
 class ExportedModel:
     """An exported network behind the PyTorch calls wearnav makes: ``model(x, mask)`` /

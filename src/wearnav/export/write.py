@@ -29,8 +29,8 @@ from torch import nn
 
 from wearnav import runs
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.export.header import FORMATS, HEADER_FORMAT, KEY, ONNX_MISSING, EXTRA_FILE, onnxruntime
-from wearnav.export.runtime import IMU_CHANNELS, load_file
+from wearnav.export.header import EXTRA_FILE, FORMATS, HEADER_FORMAT, IMU_CHANNELS, KEY, ONNX_MISSING, onnxruntime
+from wearnav.export.runtime import load_file
 from wearnav.fileio import atomic_path
 from wearnav.models import registry
 from wearnav.provenance import provenance
