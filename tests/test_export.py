@@ -23,7 +23,7 @@ from conftest import run_cli
 from wearnav import runs
 from wearnav.dataset import DatasetWriter
 from wearnav.export.header import FORMATS, read_header
-from wearnav.export.write import PARITY_TOL, export_model, load_run
+from wearnav.export.write import PARITY_TOL, export_model, load_run, make_header
 from wearnav.importers.sensorlogger_export import write_export
 from wearnav.models import registry
 from wearnav.simulate import WalkConfig, simulate_recording
@@ -107,15 +107,16 @@ def _inputs(batch_masks, window: int = 100, seed: int = 7):
 @pytest.mark.parametrize("fmt", ["onnx", "torchscript"])
 def test_export_matches_pytorch_with_absent_devices(run_of, exported, name, fmt):
     """The exported file, read back through `--model`'s one reading (resolve_model), gives the
-    PyTorch run's velocities within PARITY_TOL m/s for every mask, at batch 1 and 6 (the traced
-    batch is 2), and its header rebuilds the run's config."""
+    PyTorch run's velocities within PARITY_TOL m/s for every mask, at batch 1, 6 and 132 (the
+    traced batch is 2), and its header rebuilds the run's config."""
     run = run_of(name)
     model, cfg = odometry.load_model(run)
     out, written = exported(name, fmt)
     model_x, cfg_x = resolve_model(out, "odometry")
     assert cfg_x == cfg
     diffs = []
-    for masks in (MASKS, [[1, 0, 0]], [[0, 0, 1]]):  # a batch; a phone-only sample; earbuds alone
+    # a batch; a phone-only sample; earbuds alone; 132 windows (Suite-IN++ runs > 64 in chunks)
+    for masks in (MASKS, [[1, 0, 0]], [[0, 0, 1]], MASKS * 22):
         x, mask = _inputs(masks)
         with torch.no_grad():
             ref = model(x, mask)
@@ -233,3 +234,30 @@ def test_export_speed_times_every_runtime():
         (rt, b) for b in (1, 4) for rt in ("pytorch", "pytorch-traced-graph", "onnxruntime", "torchscript")]
     assert all(r["win_per_s"] > 0 and r["max_abs_diff"] < PARITY_TOL and r["threads"] == 1 for r in rows)
     assert "batch 4 (windows/s)" in speed_table(rows)
+
+
+def _network_models() -> list[str]:
+    return [s.name for s in registry.available() if s.learned and s.task in ("odometry", "classify")]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", _network_models())
+def test_every_registered_network_exports_to_both_formats(name, tmp_path):
+    """Each learned registry model at its default size (random weights, 3 devices; a classifier 6
+    classes) writes an ONNX and a TorchScript file that pass the export's own parity check."""
+    from wearnav.train.classify import ClassifyConfig
+
+    task = registry.get(name).task
+    torch.manual_seed(0)
+    if task == "odometry":
+        cfg = odometry.TrainConfig(model=name, data="")
+        model, classes = odometry.build_model(cfg), None
+    else:
+        cfg = ClassifyConfig(model=name, data="", devices=DEVICES)
+        classes = [f"c{i}" for i in range(6)]
+        model = registry.build(name, n_devices=3, window=cfg.window, n_classes=6)
+    header = make_header(task, cfg, classes)
+    for fmt, suffix in FORMATS.items():
+        written = export_model(model, header, fmt, tmp_path / f"m{suffix}")
+        print(f"{name} {fmt}: max |Δ| {written['max_abs_diff']:.2e}, {written['bytes'] / 1e6:.2f} MB")
+        assert written["max_abs_diff"] < PARITY_TOL

@@ -232,7 +232,7 @@ def track(
 
 @app.command("export")
 def export_(
-    run: Path = typer.Argument(..., help="A run folder of `wearnav train` (or a classifier's)."),
+    run: Path = typer.Argument(..., metavar="RUN", help="A run folder of `wearnav train` (or a classifier's)."),
     format_: ExportFormat = typer.Option(..., "--format", help="onnx (ONNX Runtime; needs wearnav[onnx]) or "
                                          "torchscript (torch.jit)."),
     out: Path = typer.Option(..., "--out", help="The file to write: .onnx or .pt. It carries the model's window, "

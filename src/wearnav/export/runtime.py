@@ -9,6 +9,7 @@ an object with the calls that :func:`wearnav.evaluate.predict_sequence` and
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -55,10 +56,13 @@ class OnnxModel(ExportedModel):
 
 
 class TorchScriptModel(ExportedModel):
-    """A TorchScript file run by ``torch.jit`` on the CPU."""
+    """A TorchScript file run by ``torch.jit`` on the CPU. Recent PyTorch (2.13 here) marks
+    ``torch.jit`` deprecated; the warning is not shown here, and ONNX is the format to prefer."""
 
     def __init__(self, path: str | Path):
-        self.module = torch.jit.load(str(path), map_location="cpu").eval()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            self.module = torch.jit.load(str(path), map_location="cpu").eval()
 
     @torch.no_grad()
     def __call__(self, x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:

@@ -61,7 +61,8 @@ def _by_name(name: str, task: str):
     try:
         spec = registry.get(name)
     except ConfigError:
-        raise ConfigError(f"no such run folder or checkpoint, nor a model name ({hint})", name) from None
+        raise ConfigError(f"no such run folder or checkpoint (nor an exported .onnx / .pt file), nor a model name "
+                          f"({hint})", name) from None
     if spec.task != task:
         what, command = RUN_KINDS.get(spec.task, (f"a {spec.task} model", "another command"))
         raise ConfigError(f"is {what}, not {RUN_KINDS[task][0]}; use {command}", name)
