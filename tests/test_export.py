@@ -214,10 +214,12 @@ def test_classifier_export_gives_the_runs_logits_and_labels(walk, tmp_path, monk
         print(f"har-cnn-bilstm {fmt}: max |Δlogit| {diff:.2e}")
         assert diff < PARITY_TOL and cfg_x == cfg and classes_x == classes
     for model_arg, out in ((run, "a"), (tmp_path / "h.onnx", "b")):
-        code, _, err = run_cli(monkeypatch, capsys, "classify", root / "ds", "--model", model_arg, "--out", tmp_path / out)
+        code, _, err = run_cli(monkeypatch, capsys, "classify", root / "ds", "--model", model_arg,
+                               "--out", tmp_path / out)
         assert code == 0, err
     a, b = (pd.read_csv(tmp_path / d / "walk_intervals.csv") for d in "ab")
-    assert len(a) >= 1 and a[["start_s", "end_s", "label", "windows"]].equals(b[["start_s", "end_s", "label", "windows"]])
+    cols = ["start_s", "end_s", "label", "windows"]
+    assert len(a) >= 1 and a[cols].equals(b[cols])
     assert np.abs(a["mean_confidence"] - b["mean_confidence"]).max() <= 1e-3
     warn = [json.loads((tmp_path / d / "classify.json").read_text())["warnings"] for d in "ab"]
     assert warn[0] == warn[1]

@@ -1,6 +1,7 @@
 """The one reading of a command's ``--model``: a run folder, one of its checkpoints, a model file of
-``wearnav export`` (``.onnx``, ``.pt``), or the name of an untrained baseline (a registry model with ``learned=False``, e.g. ``pdr``), turned into the
-model and the config that says how to feed it.
+``wearnav export`` (``.onnx``, ``.pt``), or the name of an untrained baseline (a registry model
+with ``learned=False``, e.g. ``pdr``), turned into the model and the config that says how to
+feed it.
 
 ``wearnav track`` and ``wearnav classify`` take their ``--model`` through :func:`resolve_model`; a
 run of the wrong kind is refused saying what it is and which command takes it
@@ -28,12 +29,12 @@ def resolve_model(arg: str | Path, task: str):
     """The model behind ``arg`` for a command of ``task`` (``odometry`` or ``classify``).
 
     Odometry: ``(model, TrainConfig)``; classify: ``(model, ClassifyConfig, class names)``. An
-    existing path is a run folder (best weights for odometry) or a checkpoint inside its
-    ``checkpoints/``, or an exported model file (:func:`wearnav.export.runtime.load_exported`: run by
-    ONNX Runtime or TorchScript, its config from the file's header); otherwise ``arg`` must name an untrained baseline of ``task``, built with the
-    default :class:`wearnav.train.odometry.TrainConfig` (25 Hz, 100-sample windows, the first of
-    phone, watch, earbuds that the recording has). Anything else is a ConfigError naming what is
-    accepted.
+    existing path is a run folder (best weights for odometry), a checkpoint inside its
+    ``checkpoints/``, or an exported model file (:func:`wearnav.export.runtime.load_exported`: run
+    by ONNX Runtime or TorchScript, its config from the file's header); otherwise ``arg`` must
+    name an untrained baseline of ``task``, built with the default
+    :class:`wearnav.train.odometry.TrainConfig` (25 Hz, 100-sample windows, the first of phone,
+    watch, earbuds that the recording has). Anything else is a ConfigError naming what is accepted.
     """
     if task not in RUN_KINDS or task == "noisy":
         raise ValueError(f"task must be odometry or classify, got {task!r}")
