@@ -146,6 +146,7 @@ def test_track_runs_the_onnx_export_like_the_run(walk, run_of, exported, tmp_pat
           f"{np.mean(diff > 0):.3f}")
     assert diff.max() <= 1e-4 + 1e-9 and np.mean(diff > 0) < 0.01
     assert b["model"] == "suitein++" and b["window"] == a["window"] and b["stride"] == a["stride"]
+    assert (a["runtime"], b["runtime"]) == ("pytorch", "onnxruntime")
     assert b["warnings"] == a["warnings"]  # the file's header carries the run's training record
 
 

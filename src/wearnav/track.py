@@ -21,7 +21,8 @@ and write into the output folder:
     lon/lat, converted back by :func:`wearnav.geo.local_to_latlon` (``east``, ``north`` are their
     WGS-84 east-north-up metres about that origin).
 ``track.json``
-    What was done: model, run, devices used and present, frame reference, anchoring fit, and
+    What was done: model, run, runtime (pytorch, or onnxruntime / torchscript for a file of
+    `wearnav export`), devices used and present, frame reference, anchoring fit, and
     ``warnings`` (one line each; also shown on the console), e.g. a recording imported with an
     older lat/lon projection (:func:`wearnav.geo.needs_reimport`), or a reason not to trust the
     path (:func:`trust_warnings`, :mod:`wearnav.trust`): devices the recording lacks, a rate,
@@ -222,6 +223,7 @@ def track(src: str | Path, model_path: str | Path, out: str | Path, name: str | 
     frame = seq.meta.get("frame", {})
     summary: dict = {
         "recording": rec.name, "source": str(src), "model": cfg.model, "run": str(model_path),
+        "runtime": getattr(model, "runtime", "pytorch"),  # onnxruntime / torchscript: a `wearnav export` file
         "model_devices": list(cfg.devices), "devices_in_recording": list(rec.devices),
         "devices_used": usable, "device_share_of_windows": share,
         "rate_hz": cfg.rate, "window": cfg.window, "stride": cfg.stride,

@@ -25,7 +25,9 @@ from wearnav.train.odometry import TrainConfig
 class ExportedModel:
     """An exported network behind the PyTorch calls wearnav makes: ``model(x, mask)`` /
     ``predict(x, mask)`` with x (B, D, L, 6), mask (B, D) → (B, outputs) float32 on the CPU;
-    ``eval()`` and ``parameters()`` (none) for the callers that ask."""
+    ``eval()`` and ``parameters()`` (none) for the callers that ask; ``runtime`` names what runs it."""
+
+    runtime = ""
 
     def __call__(self, x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -43,6 +45,8 @@ class ExportedModel:
 class OnnxModel(ExportedModel):
     """An ONNX file run by ONNX Runtime on the CPU with ``threads`` intra-op threads (None: its default)."""
 
+    runtime = "onnxruntime"
+
     def __init__(self, path: str | Path, threads: int | None = None):
         self.session = onnx_session(path, threads)
         self.path = Path(path)
@@ -58,6 +62,8 @@ class OnnxModel(ExportedModel):
 class TorchScriptModel(ExportedModel):
     """A TorchScript file run by ``torch.jit`` on the CPU. Recent PyTorch (2.13 here) marks
     ``torch.jit`` deprecated; the warning is not shown here, and ONNX is the format to prefer."""
+
+    runtime = "torchscript"
 
     def __init__(self, path: str | Path):
         with warnings.catch_warnings():
