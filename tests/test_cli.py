@@ -80,12 +80,13 @@ def test_cli_choices_are_the_librarys():
     from wearnav import cli, cli_bench
     from wearnav.bench.efficiency import CLOCKS
     from wearnav.bench.odometry import GRIDS
+    from wearnav.export.header import FORMATS as EXPORT_FORMATS
     from wearnav.importers import FORMATS
     from wearnav.importers.sensorlogger import PLATFORMS
     from wearnav.simulate.presets import PRESETS
 
     for enum, names in ((cli.ImportFormat, FORMATS), (cli.Platform, PLATFORMS), (cli.Preset, PRESETS),
-                        (cli_bench.Clock, CLOCKS), (cli_bench.Grid, GRIDS)):
+                        (cli_bench.Clock, CLOCKS), (cli_bench.Grid, GRIDS), (cli.ExportFormat, EXPORT_FORMATS)):
         assert [e.value for e in enum] == list(names), enum
 
 

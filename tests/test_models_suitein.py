@@ -472,7 +472,7 @@ def test_time_call_is_blocked_autorange_median_and_iqr(monkeypatch):
     monkeypatch.setattr(efficiency.benchmark.Timer, "blocked_autorange",
                         lambda self, min_run_time: seen.append((self._task_spec.num_threads, min_run_time))
                         or type("M", (), {"times": [1.0, 2.0, 3.0], "number_per_run": 5})())
-    with efficiency._threads(2):
+    with efficiency.torch_threads(2):
         t = efficiency.time_call(lambda: None, 0.3)
     assert seen == [(2, 0.3)] and (t.q25_s, t.median_s, t.q75_s, t.calls_per_block) == (1.5, 2.0, 2.5, 5)
 

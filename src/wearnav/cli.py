@@ -60,6 +60,11 @@ class Preset(str, Enum):  # wearnav.simulate.presets.PRESETS
     default = "default"
 
 
+class ExportFormat(str, Enum):  # wearnav.export.header.FORMATS
+    onnx = "onnx"
+    torchscript = "torchscript"
+
+
 class SimFormat(str, Enum):
     dataset = "dataset"  # a wearnav dataset folder (the --preset)
     sensorlogger = "sensorlogger"  # one walk as a Sensor Logger export (wearnav.importers.sensorlogger_export)
@@ -202,9 +207,9 @@ def track(
     src: Path = typer.Argument(..., metavar="INPUT",
                                help="A Sensor Logger export (folder or .zip), a recording (.h5), or a dataset folder."),
     model: Optional[Path] = typer.Option(None, "--model", help="A run folder of `wearnav train`, one of its "
-                                         "checkpoints, a shipped model or an untrained baseline by name (pdr); "
-                                         "default: the shipped phone model, or phone-watch-earbuds where the "
-                                         "recording has a watch or earbuds (`wearnav models`)."),
+                                         "checkpoints, a file of `wearnav export` (.onnx, .pt), a shipped model or "
+                                         "an untrained baseline by name (pdr); default: the shipped phone model, or "
+                                         "phone-watch-earbuds where the recording has a watch or earbuds (`wearnav models`)."),
     out: Path = typer.Option(..., "--out", help="Folder for trajectory.csv / .png / .geojson and track.json."),
     name: Optional[str] = typer.Option(None, help="Which recording of a dataset folder (or export of a folder of exports)."),
     platform: Optional[Platform] = typer.Option(None, help="For an export without Metadata.csv."),
@@ -229,6 +234,26 @@ def track(
                f"{summary['frame_reference']})")
     echo_json({k: summary[k] for k in ("recording", "duration_s", "length_m", "end_xy_m", "files")
                 if k in summary} | {"anchoring": summary.get("anchoring", "no location fixes")})
+
+
+@app.command("export")
+def export_(
+    run: Path = typer.Argument(..., metavar="RUN", help="A run folder of `wearnav train` (or a classifier's)."),
+    format_: ExportFormat = typer.Option(..., "--format", help="onnx (ONNX Runtime; needs wearnav[onnx]) or "
+                                         "torchscript (torch.jit)."),
+    out: Path = typer.Option(..., "--out", help="The file to write: .onnx or .pt. It carries the model's window, "
+                             "rate, stride, devices and config (see README, Export)."),
+):
+    """Export a run's network to one ONNX or TorchScript file, checked against PyTorch before it is kept.
+
+    \b
+    Example:
+      wearnav export runs/sipp --format onnx --out sipp.onnx
+      wearnav track walk.zip --model sipp.onnx --out walk
+    """
+    from wearnav.export.write import export_run
+
+    echo_json(export_run(run, choice_value(format_), out))
 
 
 @app.command("datasets-report")
@@ -383,8 +408,9 @@ def label_from_fixes(
 def classify_(
     input_: Path = typer.Argument(..., metavar="INPUT",
                                   help="A recording (.h5), a dataset folder, or a Sensor Logger export (folder or zip)."),
-    model: Optional[Path] = typer.Option(None, "--model", help="A classifier run folder (from `wearnav bench har`); "
-                                         "default: the shipped activity model (`wearnav models`)."),
+    model: Optional[Path] = typer.Option(None, "--model", help="A classifier run folder (from `wearnav bench har`) "
+                                         "or its file of `wearnav export` (.onnx, .pt); default: the shipped activity "
+                                         "model (`wearnav models`)."),
     out: Path = typer.Option(..., "--out", help="Folder for <name>_intervals.csv and <name>_timeline.png."),
 ):
     """Label a recording's activity (or placement) per window: intervals CSV + timeline PNG over |acc|.

@@ -39,7 +39,8 @@ and write into the output folder:
     ``accuracy_m``, ``status``, ``reason``, ``weight`` (as in the GeoJSON).
 ``track.json``
     What was done: model, run (``shipped_model``: the shipped model's name where no ``--model`` was
-    given or one was named, :mod:`wearnav.pretrained`), devices used and present, frame reference, anchoring fit, and
+    given or one was named, :mod:`wearnav.pretrained`), runtime (pytorch, or onnxruntime / torchscript
+    for a file of `wearnav export`), devices used and present, frame reference, anchoring fit, and
     ``warnings`` (one line each; also shown on the console), e.g. a recording imported with an
     older lat/lon projection (:func:`wearnav.geo.needs_reimport`), or a reason not to trust the
     path (:func:`trust_warnings`, :mod:`wearnav.trust`): devices the recording lacks, a rate,
@@ -75,6 +76,7 @@ import pandas as pd
 
 from wearnav import fuse, geo, pretrained, trust
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
+from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.fixcheck import FixCheck
 from wearnav.outputs import check_out_folder, staged_output
@@ -193,11 +195,15 @@ def fix_table(fx, fixes: FixCheck, t0_unix_s: float | None, latlon: tuple | None
 # ---- can the path be trusted? (wearnav.trust) --------------------------------------------------
 
 def run_training_record(model_path: str | Path) -> dict:
-    """The run's ``training.json`` for a run folder or its checkpoint; ``{}`` where it has none or
-    cannot be read (the warnings then say that the training data is unknown: tracking goes on)."""
+    """The run's ``training.json`` for a run folder or its checkpoint, or the copy an exported model
+    file carries in its header; ``{}`` where it has none or cannot be read (the warnings then say
+    that the training data is unknown: tracking goes on)."""
     from wearnav.train.odometry import TRAINING
 
     p = Path(model_path)
+    if is_exported(p):
+        record = read_header(p).get("training")
+        return record if isinstance(record, dict) else {}
     run = p.parent.parent if p.is_file() else p
     try:
         record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
@@ -285,6 +291,7 @@ def track(src: str | Path, model_path: str | Path | None, out: str | Path, name:
     summary: dict = {
         "recording": rec.name, "source": str(src), "model": cfg.model, "run": str(model_path),
         "shipped_model": pretrained.shipped_name(model_path),
+        "runtime": getattr(model, "runtime", "pytorch"),  # onnxruntime / torchscript: a `wearnav export` file
         "model_devices": list(cfg.devices), "devices_in_recording": list(rec.devices),
         "devices_used": usable, "device_share_of_windows": share,
         "rate_hz": cfg.rate, "window": cfg.window, "stride": cfg.stride,

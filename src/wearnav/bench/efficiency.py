@@ -80,7 +80,8 @@ def time_call(fn: Callable[[], object], min_run_time_s: float = MIN_RUN_TIME_S, 
 
 
 @contextmanager
-def _threads(n: int | None):
+def torch_threads(n: int | None):
+    """Run the block with ``n`` torch intra-op threads (None: the current setting), then restore."""
     old = torch.get_num_threads()
     torch.set_num_threads(n or old)
     try:
@@ -213,7 +214,7 @@ def measure(model: torch.nn.Module | str, name: str | None = None, batches: Sequ
     the training-step timing. Each timing runs for at least ``min_run_time_s``."""
     if clock not in CLOCKS:
         raise ValueError(f"clock must be one of {sorted(CLOCKS)}, got {clock!r}")
-    with _threads(threads):
+    with torch_threads(threads):
         return _measure(model, name, batches, min_run_time_s, n_devices, window, clock, train_batch, build_kw)
 
 

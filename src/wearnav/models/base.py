@@ -37,6 +37,12 @@ class OdometryModel(nn.Module):
         """Velocity (B, 2) for inference; the same as ``forward`` unless a model says otherwise."""
         return self(x, mask)
 
+    def for_export(self) -> nn.Module:
+        """The module that :mod:`wearnav.export` traces into TorchScript or ONNX: the same
+        arithmetic as ``forward`` in eval mode, without CPU-only fused kernels or Python control
+        flow that depends on the batch size. Default: the model itself."""
+        return self.eval()
+
 
 def first_present(x: Tensor, mask: Tensor) -> tuple[Tensor, Tensor]:
     """The single-device models' input: for each sample, the first device of the layout with

@@ -89,6 +89,7 @@ the time it reaches 16 M MACs, so it cannot be Suite-IN's size). Its ``widths`` 
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, replace
 
@@ -281,8 +282,10 @@ if _CONV_RELU is not None and _CONV_RELU not in flop_registry:   # FlopCounterMo
         return conv_flop_count(x_shape, w_shape, out_shape)
 
 
-def conv_relu(h: Tensor, w: Tensor, b: Tensor, conv: nn.Conv2d) -> Tensor:
-    if _CONV_RELU is not None and h.device.type == "cpu" and not torch.is_grad_enabled():
+def conv_relu(h: Tensor, w: Tensor, b: Tensor, conv: nn.Conv2d, fused: bool = True) -> Tensor:
+    """ReLU(conv(h)) with weights w, bias b and ``conv``'s geometry; ``fused``: oneDNN's fused
+    kernel where it applies (CPU inference), else plain ``F.conv2d`` (what an export traces)."""
+    if fused and _CONV_RELU is not None and h.device.type == "cpu" and not torch.is_grad_enabled():
         return _CONV_RELU(h, w, b, list(conv.padding), list(conv.stride), list(conv.dilation),
                           conv.groups, "relu", [], "")
     return F.relu_(F.conv2d(h, w, b, conv.stride, conv.padding, conv.dilation, conv.groups))
@@ -303,6 +306,9 @@ class GroupedExtractors(nn.Module):
     into it and max-pool follows (ReLU and max commute). ``separate = True`` runs the plain
     reading instead, one Conv2d/BatchNorm/ReLU/MaxPool2d stack per extractor in a Python loop,
     from the same parameters (inference only; tests compare the two, the benchmark times both).
+    ``fused = False`` keeps the folded batch norm but runs plain ``F.conv2d`` + ReLU over the
+    whole batch at once: no CPU-only kernel and no chunking that depends on the batch size, so
+    TorchScript tracing and ONNX export (:meth:`SuiteIN.for_export`) see one graph for any batch.
     """
 
     def __init__(self, cfg: SuiteINConfig):
@@ -312,6 +318,7 @@ class GroupedExtractors(nn.Module):
         self.paper = cfg.extractor == "paper"
         self.pools, self.row_pools, self.p = cfg.pools, cfg.row_pools, cfg.dropout
         self.separate = False
+        self.fused = True
         self.chunk = 64     # windows per inference pass through the blocks
         self.convs = nn.ModuleList()
         self.norms = nn.ModuleList()
@@ -373,9 +380,10 @@ class GroupedExtractors(nn.Module):
         # On a CPU a chunk of windows keeps every block's activations in the core's cache; a
         # whole large batch streams them through memory (measured: 1.5× slower at batch 256).
         out = []
-        for hc in h.split(self.chunk if h.device.type == "cpu" else len(h)):
+        chunks = h.split(self.chunk) if self.fused and h.device.type == "cpu" else (h,)
+        for hc in chunks:
             for conv, pool, rows, (w, b) in zip(self.convs, self.pools, self.row_pools, folded):
-                hc = max_pool_time(conv_relu(hc, w, b, conv), pool, rows)
+                hc = max_pool_time(conv_relu(hc, w, b, conv, self.fused), pool, rows)
             out.append(self._features(hc))
         return out[0] if len(out) == 1 else torch.cat(out)
 
@@ -555,6 +563,13 @@ class SuiteIN(OdometryModel):
 
     def forward(self, x: Tensor, mask: Tensor) -> Tensor:
         return self.parts(x, mask)["v"]
+
+    def for_export(self) -> "SuiteIN":
+        """A copy without the fused CPU kernels and batch chunking (:class:`GroupedExtractors`'
+        ``fused``), in eval mode: the same arithmetic as one graph for any batch size."""
+        model = copy.deepcopy(self).eval()
+        model.extractors.fused = False
+        return model
 
     def loss(self, batch: dict[str, Tensor]) -> tuple[Tensor, dict[str, Tensor]]:
         """Eq. 25: λ_v·L_vel (23) + λ_v^glb·L_vel^glb (7) + λ_v^loc·L_vel^loc (22) + λ_c·L_con (3)

@@ -37,6 +37,7 @@ import torch
 from wearnav import runs, trust
 from wearnav.errors import (ConfigError, FormatError, MissingFileError, ValidationError, WearnavWarning,
                             check_field_types)
+from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import write_text_atomic
 from wearnav.models import registry
 from wearnav.preprocess import Aligned, PreprocessConfig, load_sequences
@@ -390,14 +391,19 @@ def label_recordings(recordings, run: str | Path, out: str | Path, classifier=No
 def trust_warnings(run: Path, cfg: ClassifyConfig, rec) -> list[str]:
     """Reasons not to trust a recording's labels (:mod:`wearnav.trust`), each with what to do:
     devices it lacks, a placement, rate or gravity direction unlike the training data's, a model
-    that did not beat always answering the majority class."""
+    that did not beat always answering the majority class. ``run``: the run folder, or the model file
+    of ``wearnav export`` whose header holds the run's records."""
     out = []
     if (m := trust.missing_devices(cfg.devices, rec.devices)) is not None:
         out.append(f"{m}: {trust.CLASSIFY_DOMAIN_ADVICE}")
-    record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
+    if is_exported(run):  # a `wearnav export` file carries both records in its header
+        header = read_header(run)
+        record, metrics = header.get("training") or {}, header.get("metrics") or {}
+    else:
+        record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
+        metrics = runs.read_metrics(run) if runs.is_complete(run) else {}
     facts = trust.recording_facts(rec, cfg.devices, cfg.window / cfg.rate)
     out += [f"{f}: {trust.CLASSIFY_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, record.get("training_data"))]
-    metrics = runs.read_metrics(run) if runs.is_complete(run) else {}
     if (m := trust.did_not_learn(metrics)) is not None:
         out.append(f"{m}: {trust.CLASSIFY_LEARN_ADVICE}")
     return [f"{rec.name}: {w}" for w in out]

@@ -1,0 +1,266 @@
+"""`wearnav export` (issue 18 §4): ONNX and TorchScript files against PyTorch, and `track` /
+`classify` running them.
+
+Run folders are made as `wearnav train` leaves them (config.yaml by ``prepare_run``) with random
+weights in ``checkpoints/best.ckpt`` (batch-norm statistics drawn too, so their folding into the
+convolutions is exercised): parity needs no training. Models: Suite-IN++ (per-device branches and
+masked fusion), RoNIN (the first present device), RoNIN* (the devices' channels side by side) and
+the HAR classifier.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from conftest import run_cli
+from wearnav import runs
+from wearnav.dataset import DatasetWriter
+from wearnav.export.header import FORMATS, read_header
+from wearnav.export.write import PARITY_TOL, export_model, load_run, make_header
+from wearnav.importers.sensorlogger_export import write_export
+from wearnav.models import registry
+from wearnav.simulate import WalkConfig, simulate_recording
+from wearnav.track import track
+from wearnav.train import classify, odometry
+from wearnav.train.common import CHECKPOINTS, LAST
+from wearnav.train.resolve import resolve_model
+
+# Small versions of the models (export and parity do not depend on the widths).
+SMALL = {"suitein++": {"widths": (8, 8, 8, 8, 8, 8), "gru_hidden": 8, "loc_dim": 8, "loc_hidden": 8},
+         "ronin": {"blocks": (1, 1, 1, 1)}, "ronin*": {"blocks": (1, 1, 1, 1)}}
+DEVICES = ("phone", "watch", "earbuds")
+# masks of the parity batch: phone only, all, one device missing (each), watch only
+MASKS = [[1, 0, 0], [1, 1, 1], [0, 1, 1], [1, 0, 1], [1, 1, 0], [0, 1, 0]]
+
+
+def _random_weights(model: torch.nn.Module, path, seed: int = 0) -> None:
+    """Save ``model`` with seeded random batch-norm statistics as a Lightning checkpoint."""
+    g = torch.Generator().manual_seed(seed)
+    state = model.state_dict()
+    for k, v in state.items():
+        if k.endswith("running_mean"):
+            state[k] = torch.randn(v.shape, generator=g) * 0.5
+        elif k.endswith("running_var"):
+            state[k] = torch.rand(v.shape, generator=g) + 0.5
+    path.parent.mkdir(parents=True, exist_ok=True)
+    torch.save({"state_dict": {f"model.{k}": v for k, v in state.items()}}, path)
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory):
+    root = tmp_path_factory.mktemp("export")
+    rec = simulate_recording(WalkConfig(mode="PVW", placement="MP", duration_s=40), seed=3)
+    with DatasetWriter(root / "ds", {"made_by": "test_export"}) as w:
+        w.add(rec, split="train")
+        w.add(dataclasses.replace(rec, name="walk_val"), split="val")
+    return root, rec
+
+
+@pytest.fixture(scope="module")
+def run_of(walk):
+    root, _ = walk
+    made = {}
+
+    def make(name: str):
+        if name not in made:
+            cfg = odometry.TrainConfig(model=name, data=str(root / "ds"), model_args=SMALL.get(name, {}), stride=20)
+            run = odometry.prepare_run(cfg, root / f"run_{name}")
+            torch.manual_seed(0)
+            _random_weights(odometry.build_model(cfg), run / CHECKPOINTS / odometry.BEST)
+            made[name] = run
+        return made[name]
+
+    return make
+
+
+@pytest.fixture(scope="module")
+def exported(run_of, tmp_path_factory):
+    """exported(name, fmt) → (file, what export_model returned): each model exported once per format."""
+    root = tmp_path_factory.mktemp("files")
+    made = {}
+
+    def make(name: str, fmt: str):
+        if (name, fmt) not in made:
+            out = root / f"{name.replace('*', '_star')}{FORMATS[fmt]}"
+            made[name, fmt] = out, export_model(*load_run(run_of(name)), fmt, out)
+        return made[name, fmt]
+
+    return make
+
+
+def _inputs(batch_masks, window: int = 100, seed: int = 7):
+    g = torch.Generator().manual_seed(seed)
+    mask = torch.tensor(batch_masks, dtype=torch.float32)
+    x = torch.randn(len(mask), len(DEVICES), window, 6, generator=g)
+    x[..., 2] += 9.81  # gravity on the world z axis, as the models see it
+    return x, mask
+
+
+@pytest.mark.parametrize("name", ["suitein++", "ronin", "ronin*"])
+@pytest.mark.parametrize("fmt", ["onnx", "torchscript"])
+def test_export_matches_pytorch_with_absent_devices(run_of, exported, name, fmt):
+    """The exported file, read back through `--model`'s one reading (resolve_model), gives the
+    PyTorch run's velocities within PARITY_TOL m/s for every mask, at batch 1, 6 and 132 (the
+    traced batch is 2), and its header rebuilds the run's config."""
+    run = run_of(name)
+    model, cfg = odometry.load_model(run)
+    out, written = exported(name, fmt)
+    model_x, cfg_x = resolve_model(out, "odometry")
+    assert cfg_x == cfg
+    diffs = []
+    # a batch; a phone-only sample; earbuds alone; 132 windows (Suite-IN++ runs > 64 in chunks)
+    for masks in (MASKS, [[1, 0, 0]], [[0, 0, 1]], MASKS * 22):
+        x, mask = _inputs(masks)
+        with torch.no_grad():
+            ref = model(x, mask)
+        assert ref.abs().max() > 1e-3  # random weights give non-trivial outputs
+        diffs.append(float((model_x.predict(x, mask) - ref).abs().max()))
+    print(f"{name} {fmt}: max |Δv| {max(diffs):.2e} m/s (export's own check {written['max_abs_diff']:.2e})")
+    assert max(diffs) < PARITY_TOL
+    header = read_header(out)
+    assert (header["task"], header["model"], header["devices"]) == ("odometry", name, list(DEVICES))
+    assert (header["window"], header["rate_hz"], header["stride"]) == (100, 25.0, 20)
+
+
+def test_track_runs_the_onnx_export_like_the_run(walk, run_of, exported, tmp_path):
+    """`wearnav track` on a Sensor Logger export with the run folder and with its ONNX file: the
+    same path up to trajectory.csv's 0.1 mm resolution (velocities agree to ~1e-7 m/s, so over
+    40 s the paths differ by ~1e-6 m: at most one rounding step, and at few samples)."""
+    _, rec = walk
+    run = run_of("suitein++")
+    onnx_file, _ = exported("suitein++", "onnx")
+    folder = write_export(rec, tmp_path / "2023-11-14_22-13-20", platform="ios")
+    a = track(folder, run, tmp_path / "a")
+    b = track(folder, onnx_file, tmp_path / "b")
+    ta, tb = (pd.read_csv(tmp_path / d / "trajectory.csv") for d in "ab")
+    assert len(ta) == len(tb) > 100 and a["length_m"] > 1.0
+    diff = np.abs(ta[["x", "y"]].to_numpy() - tb[["x", "y"]].to_numpy())
+    print(f"track: path {a['length_m']} m, max |Δxy| {diff.max():.2e} m, share of coordinates differing "
+          f"{np.mean(diff > 0):.3f}")
+    assert diff.max() <= 1e-4 + 1e-9 and np.mean(diff > 0) < 0.01
+    assert b["model"] == "suitein++" and b["window"] == a["window"] and b["stride"] == a["stride"]
+    assert (a["runtime"], b["runtime"]) == ("pytorch", "onnxruntime")
+    assert b["warnings"] == a["warnings"]  # the file's header carries the run's training record
+
+
+def test_export_command_writes_a_checked_file(run_of, monkeypatch, capsys, tmp_path):
+    run = run_of("ronin*")
+    code, out, err = run_cli(monkeypatch, capsys, "export", run, "--format", "torchscript", "--out", tmp_path / "r.pt")
+    assert code == 0, err
+    written = json.loads(out)
+    assert written["model"] == "ronin*" and written["task"] == "odometry" and written["bytes"] > 10_000
+    assert 0 <= written["max_abs_diff"] < written["tolerance"] == PARITY_TOL
+
+
+def test_pdr_is_refused_with_one_line(walk, monkeypatch, capsys, tmp_path):
+    root, _ = walk
+    cfg = odometry.TrainConfig(model="pdr", data=str(root / "ds"))
+    run = odometry.prepare_run(cfg, tmp_path / "pdr")
+    odometry.fit(cfg, run, progress=False)
+    code, _, err = run_cli(monkeypatch, capsys, "export", run, "--format", "onnx", "--out", tmp_path / "p.onnx")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "not a learned network" in err and "--model pdr" in err
+    assert not (tmp_path / "p.onnx").exists()
+
+
+def test_without_onnxruntime_one_line_names_the_extra(run_of, exported, monkeypatch, capsys, tmp_path):
+    run = run_of("ronin")
+    out, _ = exported("ronin", "onnx")
+    monkeypatch.setitem(sys.modules, "onnxruntime", None)  # `import onnxruntime` now raises ImportError
+    for args in (("track", "x.zip", "--model", out, "--out", tmp_path / "t"),
+                 ("export", run, "--format", "onnx", "--out", tmp_path / "s.onnx")):
+        code, _, err = run_cli(monkeypatch, capsys, *args)
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert "wearnav[onnx]" in err
+
+
+def test_wrong_suffix_and_wrong_task_are_refused(run_of, exported, monkeypatch, capsys, tmp_path):
+    run = run_of("ronin")
+    code, _, err = run_cli(monkeypatch, capsys, "export", run, "--format", "onnx", "--out", tmp_path / "r.pt")
+    assert code == 2 and "ends in .onnx" in err and not (tmp_path / "r.pt").exists()
+    pt, _ = exported("ronin", "torchscript")
+    code, _, err = run_cli(monkeypatch, capsys, "classify", "x.h5", "--model", pt, "--out", tmp_path / "c")
+    assert code == 2 and "is an odometry model (ronin) exported" in err and "wearnav track" in err
+
+
+def test_classifier_export_gives_the_runs_logits_and_labels(walk, tmp_path, monkeypatch, capsys):
+    """A classifier run (random weights) exported to both formats: logits within PARITY_TOL, the
+    file resolves to the run's config and class names, and `wearnav classify` with the ONNX file
+    writes the run's intervals and warnings."""
+    root, _ = walk
+    cfg = classify.ClassifyConfig(model="har-cnn-bilstm", data=str(root / "ds"), model_args={"hidden": 8})
+    run = tmp_path / "har"
+    runs.write_config(run, classify.run_record(cfg))
+    classes = ["walk", "stand", "sit"]
+    runs.write_json(run / classify.TRAINING, {"classes": classes})
+    torch.manual_seed(0)
+    model = registry.build(cfg.model, n_devices=1, window=cfg.window, n_classes=3, **cfg.model_args)
+    _random_weights(model, run / CHECKPOINTS / LAST)
+    model, _, _ = classify.load_model(run)
+    x, mask = _inputs([[1]] * 5, window=cfg.window)
+    x = x[:, :1]
+    with torch.no_grad():
+        ref = model(x, mask)
+    for fmt, name in (("onnx", "h.onnx"), ("torchscript", "h.pt")):
+        export_model(*load_run(run), fmt, tmp_path / name)
+        exported, cfg_x, classes_x = resolve_model(tmp_path / name, "classify")
+        diff = float((exported(x, mask) - ref).abs().max())
+        print(f"har-cnn-bilstm {fmt}: max |Δlogit| {diff:.2e}")
+        assert diff < PARITY_TOL and cfg_x == cfg and classes_x == classes
+    for model_arg, out in ((run, "a"), (tmp_path / "h.onnx", "b")):
+        code, _, err = run_cli(monkeypatch, capsys, "classify", root / "ds", "--model", model_arg,
+                               "--out", tmp_path / out)
+        assert code == 0, err
+    a, b = (pd.read_csv(tmp_path / d / "walk_intervals.csv") for d in "ab")
+    cols = ["start_s", "end_s", "label", "windows"]
+    assert len(a) >= 1 and a[cols].equals(b[cols])
+    assert np.abs(a["mean_confidence"] - b["mean_confidence"]).max() <= 1e-3
+    warn = [json.loads((tmp_path / d / "classify.json").read_text())["warnings"] for d in "ab"]
+    assert warn[0] == warn[1]
+
+
+@pytest.mark.slow
+def test_export_speed_times_every_runtime():
+    """The speed table's function on a small RoNIN: one row per runtime and batch, positive rates,
+    the exports' parity within tolerance."""
+    from wearnav.export.speed import export_speed, speed_table
+
+    rows = export_speed("ronin", batches=(1, 4), min_run_time_s=0.01, blocks=(1, 1, 1, 1))
+    assert [(r["runtime"], r["batch"]) for r in rows] == [
+        (rt, b) for b in (1, 4) for rt in ("pytorch", "pytorch-traced-graph", "onnxruntime", "torchscript")]
+    assert all(r["win_per_s"] > 0 and r["max_abs_diff"] < PARITY_TOL and r["threads"] == 1 for r in rows)
+    assert "batch 4 (windows/s)" in speed_table(rows)
+
+
+def _network_models() -> list[str]:
+    return [s.name for s in registry.available() if s.learned and s.task in ("odometry", "classify")]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", _network_models())
+def test_every_registered_network_exports_to_both_formats(name, tmp_path):
+    """Each learned registry model at its default size (random weights, 3 devices; a classifier 6
+    classes) writes an ONNX and a TorchScript file that pass the export's own parity check."""
+    from wearnav.train.classify import ClassifyConfig
+
+    task = registry.get(name).task
+    torch.manual_seed(0)
+    if task == "odometry":
+        cfg = odometry.TrainConfig(model=name, data="")
+        model, classes = odometry.build_model(cfg), None
+    else:
+        cfg = ClassifyConfig(model=name, data="", devices=DEVICES)
+        classes = [f"c{i}" for i in range(6)]
+        model = registry.build(name, n_devices=3, window=cfg.window, n_classes=6)
+    header = make_header(task, cfg, classes)
+    for fmt, suffix in FORMATS.items():
+        written = export_model(model, header, fmt, tmp_path / f"m{suffix}")
+        print(f"{name} {fmt}: max |Δ| {written['max_abs_diff']:.2e}, {written['bytes'] / 1e6:.2f} MB")
+        assert written["max_abs_diff"] < PARITY_TOL
