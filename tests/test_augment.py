@@ -67,3 +67,18 @@ def test_registry():
         augment.get("nope")
     with pytest.raises(ConfigError, match="registered twice"):
         augment.register("rotate_yaw")(lambda b, g: b)
+
+
+def test_scale_motion_scales_each_windows_motion_about_its_mean_and_keeps_the_targets():
+    g = torch.Generator().manual_seed(0)
+    x = torch.randn(64, 3, 100, 6, dtype=torch.float64) + torch.tensor([0, 0, 9.81, 0, 0, 0.1], dtype=torch.float64)
+    b = {"x": x.clone(), "mask": torch.ones(64, 3), "vel": torch.randn(64, 2)}
+    out = augment.get("scale_motion")(b, g)
+    assert out["vel"] is b["vel"] and torch.equal(b["x"], x)  # targets kept, input untouched
+    mean = x.mean(dim=2, keepdim=True)
+    torch.testing.assert_close(out["x"].mean(dim=2, keepdim=True), mean)  # gravity, steady turn kept
+    factor = (out["x"] - mean).std(dim=(1, 2, 3)) / (x - mean).std(dim=(1, 2, 3))
+    # one factor per sample, the same for every device and channel, spread over MOTION_SCALE
+    torch.testing.assert_close(out["x"] - mean, factor.view(-1, 1, 1, 1) * (x - mean))
+    lo, hi = augment.MOTION_SCALE
+    assert lo <= float(factor.min()) < 0.8 and 1.3 < float(factor.max()) <= hi

@@ -6,11 +6,17 @@ into the frame its own IMU input will have — the phone's world frame after the
 alignment (:func:`wearnav.frames.align_frames`, mode ``common``) — by one constant yaw, and the
 models train in that frame (``frame_align="common"``, the frame `wearnav track` feeds them):
 
-``site``        a real building: one yaw for all its recordings, estimated by PDR from their
-                surveyed points (:func:`wearnav.bench.real.site_yaw`: the phone's rotation vector
-                refers to magnetic north, the survey to a floor plan). The truth-frame estimator of
-                :mod:`wearnav.frames` does not work on surveyed points joined by straight lines
-                (measured on 16 ILC2/IPIN traces: per-trace yaws 50–180° apart within a site).
+``axis``        a real building where the phone is held in the hand, pointing ahead (ILC2, IPIN
+                2023: meta ``placement`` "handheld"): one yaw for all its recordings (the phone's
+                rotation vector refers to magnetic north, the survey to a floor plan), the angle
+                of the phone's +y axis against the surveyed direction of walking
+                (:func:`wearnav.bench.real.device_axis_yaw`). The yaw that `bench real-odometry`
+                fits for PDR carries PDR's own heading bias, which differs by building (ILC2: PDR
+                −20.0°, the axis −1.0°; IPIN: PDR +3.3°, the axis +6.6°), and a model trained on
+                the simulator alone found −11.3° and +12.1°: either would teach a mixed model a
+                different rotation per building. The truth-frame estimator of :mod:`wearnav.frames`
+                does not work on surveyed points joined by straight lines (measured on 16 ILC2/IPIN
+                traces: per-trace yaws 50–180° apart within a site).
 ``recording``   the simulator: one yaw per recording from its dense truth (each simulated device's
                 orientation has its own drawn yaw offset), :func:`wearnav.frames.truth_yaw` over
                 the whole walk — the estimate of mode ``initial`` without its 10-s limit.
@@ -35,7 +41,7 @@ from wearnav.progress import progress as report_progress
 from wearnav.recording import Fixes, Recording, Trajectory
 
 MIX_FRAME = "common"  # the frame the mix's truth is in, and the frame its models train in
-YAW_METHODS = ("site", "recording")
+YAW_METHODS = ("axis", "recording")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,7 +51,7 @@ class Part:
 
     data: str
     name: str
-    yaw: str = "site"
+    yaw: str = "axis"
 
     def __post_init__(self):
         if self.yaw not in YAW_METHODS:
@@ -82,11 +88,15 @@ def recording_yaw(rec: Recording, devices: tuple[str, ...], rate: float = 25.0) 
     return _circular_mean(tr.yaw, tr.info) if tr.info.any() else None
 
 
-def site_yaw_deg(data: str | Path, rate: float = 25.0) -> dict:
-    """:func:`wearnav.bench.real.site_yaw` over every recording of ``data`` (all are training)."""
+def axis_yaw(data: str | Path, rate: float = 25.0) -> dict:
+    """The ``axis`` yaw of every recording of ``data`` (all are training): the phone's +y axis
+    against the surveyed walking direction, and PDR's fit beside it for the record."""
     from wearnav.bench.real import estimate_site_yaw  # bench.real imports the trainer: keep it lazy
 
-    return estimate_site_yaw(Path(data), split=None, rate=rate)
+    found = estimate_site_yaw(Path(data), split=None, rate=rate)
+    if found.get("phone_axis_yaw_deg") is None:
+        raise ValidationError("the phone has no orientation to take its axis from", data)
+    return {"yaw_deg": found["phone_axis_yaw_deg"], "pdr_yaw_deg": found["yaw_deg"], "segments": found["segments"]}
 
 
 def write_mix(parts: list[Part], out: str | Path, devices: tuple[str, ...] = ("phone",), rate: float = 25.0,
@@ -100,7 +110,7 @@ def write_mix(parts: list[Part], out: str | Path, devices: tuple[str, ...] = ("p
         for part in parts:
             ds = Dataset.open(part.data)
             names = ds.names
-            site = site_yaw_deg(part.data, rate) if part.yaw == "site" else None
+            site = axis_yaw(part.data, rate) if part.yaw == "axis" else None
             kept = skipped = 0
             for name in report_progress(names, desc=f"mix {part.name}", unit="rec", enabled=progress, leave=False):
                 rec = ds.load(name)

@@ -2,14 +2,15 @@
 
 1. **Data** (under ``work``, reused when present): ILC2 site 1 (all floors) and IPIN 2023 Track 3
    (all trials) imported from the shared data root, the simulator's ``default`` preset (seed 0),
-   MotionSense for the activity model; three mixes of the odometry sources
-   (:mod:`wearnav.pretrained.mix`): everything, everything but IPIN, everything but ILC2.
-2. **Runs** (one executor job each, resumable run folders under ``out/runs``): Suite-IN++ on the
+   MotionSense for the activity model.
+2. **Mixes** of the odometry sources (:mod:`wearnav.pretrained.mix`, each building's truth turned
+   by its phones' axis yaw): everything, everything but IPIN, everything but ILC2.
+3. **Runs** (one executor job each, resumable run folders under ``out/runs``): Suite-IN++ on the
    phone alone and on phone + watch + earbuds, both on the whole mix; the activity baseline on
    MotionSense; and the leave-one-building-out measurement: the same phone recipe trained on a
    mix without one building, scored at that building's held-out surveyed points beside PDR and
    its raw GNSS (:mod:`wearnav.bench.real`, suites ``out/lobo-ipin`` and ``out/lobo-ilc2``).
-3. **Cards and install**: a MODEL_CARD.md per model (:mod:`wearnav.pretrained.cards`), and with
+4. **Cards and install**: a MODEL_CARD.md per model (:mod:`wearnav.pretrained.cards`), and with
    ``install`` the trimmed runs copied into the package (:data:`wearnav.pretrained.MODELS_DIR`).
 
 Every learned model trains for the same ``epochs`` (the "fast" recipe's schedule is set by
@@ -57,6 +58,7 @@ class Recipe:
     har_epochs: int = 5
     seed: int = 0
     preset: str = "default"  # the simulator's
+    augment: tuple[str, ...] = ("rotate_yaw",)
 
 
 def prepare_data(data_root: Path, work: Path, recipe: Recipe, progress: bool = True, echo=print) -> dict[str, Path]:
@@ -90,6 +92,7 @@ def odometry_config(mix: Path, devices: tuple[str, ...], recipe: Recipe) -> Trai
     """The shipped odometry recipe: Suite-IN++ in the mix's frame (the frame `track` feeds)."""
     return TrainConfig(model=MODEL, data=str(mix), devices=devices, epochs=recipe.epochs, patience=recipe.patience,
                        max_minutes=recipe.max_minutes, lr=recipe.lr, seed=recipe.seed, frame_align=MIX_FRAME,
+                       augment=recipe.augment,
                        truth_max_gap=TRUTH_MAX_GAP_S)
 
 
@@ -122,7 +125,7 @@ def pretrain(data_root: Path, out: Path, work: Path | None = None, recipe: Recip
     shipped = shipped_jobs(folders, out, recipe)
     plans = {suite: plan_benchmark(folders[site], out / suite, bench=RealBench(
         models=(MODEL, "pdr"), epochs=recipe.epochs, patience=recipe.patience, max_minutes=recipe.max_minutes,
-        lr=recipe.lr, seed=recipe.seed, train_data=str(folders[mix])), progress=progress, echo=echo,
+        lr=recipe.lr, seed=recipe.seed, train_data=str(folders[mix]), augment=recipe.augment), progress=progress, echo=echo,
         in_process=execution.in_process) for suite, (site, mix) in LOBO.items()}
     run_jobs(list(shipped.values()) + [j for p in plans.values() for j in p.jobs], execution, echo)
     lobo = {suite: plan.finish() for suite, plan in plans.items()}
