@@ -77,7 +77,7 @@ def test_help_lists_the_choices(monkeypatch, capsys, command, listed):
 
 def test_cli_choices_are_the_librarys():
     """The CLI spells out some choice lists (so `--help` stays light); they must match the library's."""
-    from wearnav import cli, cli_bench
+    from wearnav import cli, cli_bench, cli_models
     from wearnav.bench.efficiency import CLOCKS
     from wearnav.bench.odometry import GRIDS
     from wearnav.export.header import FORMATS as EXPORT_FORMATS
@@ -86,7 +86,7 @@ def test_cli_choices_are_the_librarys():
     from wearnav.simulate.presets import PRESETS
 
     for enum, names in ((cli.ImportFormat, FORMATS), (cli.Platform, PLATFORMS), (cli.Preset, PRESETS),
-                        (cli_bench.Clock, CLOCKS), (cli_bench.Grid, GRIDS), (cli.ExportFormat, EXPORT_FORMATS)):
+                        (cli_bench.Clock, CLOCKS), (cli_bench.Grid, GRIDS), (cli_models.ExportFormat, EXPORT_FORMATS)):
         assert [e.value for e in enum] == list(names), enum
 
 

@@ -33,7 +33,6 @@ app = typer.Typer(
     rich_markup_mode=None,  # click's plain help: flags read as flags (`--quick`, not `--quick <bool>`)
 )
 app.add_typer(bench_app, name="bench")
-register_model_commands(app)
 
 
 # Options with a fixed set of values: typer lists them in --help and rejects any other (exit 2).
@@ -58,11 +57,6 @@ class Preset(str, Enum):  # wearnav.simulate.presets.PRESETS
     tiny = "tiny"
     small = "small"
     default = "default"
-
-
-class ExportFormat(str, Enum):  # wearnav.export.header.FORMATS
-    onnx = "onnx"
-    torchscript = "torchscript"
 
 
 class SimFormat(str, Enum):
@@ -234,26 +228,6 @@ def track(
                f"{summary['frame_reference']})")
     echo_json({k: summary[k] for k in ("recording", "duration_s", "length_m", "end_xy_m", "files")
                 if k in summary} | {"anchoring": summary.get("anchoring", "no location fixes")})
-
-
-@app.command("export")
-def export_(
-    run: Path = typer.Argument(..., metavar="RUN", help="A run folder of `wearnav train` (or a classifier's)."),
-    format_: ExportFormat = typer.Option(..., "--format", help="onnx (ONNX Runtime; needs wearnav[onnx]) or "
-                                         "torchscript (torch.jit)."),
-    out: Path = typer.Option(..., "--out", help="The file to write: .onnx or .pt. It carries the model's window, "
-                             "rate, stride, devices and config (see README, Export)."),
-):
-    """Export a run's network to one ONNX or TorchScript file, checked against PyTorch before it is kept.
-
-    \b
-    Example:
-      wearnav export runs/sipp --format onnx --out sipp.onnx
-      wearnav track walk.zip --model sipp.onnx --out walk
-    """
-    from wearnav.export.write import export_run
-
-    echo_json(export_run(run, choice_value(format_), out))
 
 
 @app.command("datasets-report")
@@ -527,6 +501,9 @@ def demo(
         typer.echo(f"\n{split} (metres):")
         typer.echo(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     typer.echo(f"\nreport: {page} (trajectory plots per run under {out / 'runs'}/*/plots)")
+
+
+register_model_commands(app)  # models, pretrain, export (wearnav.cli_models), listed after the rest
 
 
 def _os_error_line(exc: OSError) -> str:

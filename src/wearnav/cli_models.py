@@ -1,15 +1,22 @@
 """The ``wearnav`` commands about models themselves: ``models`` (what is registered and what
-ships) and ``pretrain`` (train, measure and install the shipped models). Registered on the main
+ships), ``pretrain`` (train, measure and install the shipped models) and ``export`` (a run as
+one ONNX or TorchScript file). Registered on the main
 app by :mod:`wearnav.cli`; imports stay inside the commands so that ``--help`` stays fast."""
 
 from __future__ import annotations
 
+from enum import Enum
 from pathlib import Path
 from typing import Optional
 
 import typer
 
-from wearnav.cli_common import progress_enabled, suite_folder
+from wearnav.cli_common import choice_value, echo_json, progress_enabled, suite_folder
+
+
+class ExportFormat(str, Enum):  # wearnav.export.header.FORMATS
+    onnx = "onnx"
+    torchscript = "torchscript"
 
 
 def models_():
@@ -62,6 +69,26 @@ def pretrain(
     typer.echo(f"wrote {page}")
 
 
+def export_(
+    run: Path = typer.Argument(..., metavar="RUN", help="A run folder of `wearnav train` (or a classifier's)."),
+    format_: ExportFormat = typer.Option(..., "--format", help="onnx (ONNX Runtime; needs wearnav[onnx]) or "
+                                         "torchscript (torch.jit)."),
+    out: Path = typer.Option(..., "--out", help="The file to write: .onnx or .pt. It carries the model's window, "
+                             "rate, stride, devices and config (see README, Export)."),
+):
+    """Export a run's network to one ONNX or TorchScript file, checked against PyTorch before it is kept.
+
+    \b
+    Example:
+      wearnav export runs/sipp --format onnx --out sipp.onnx
+      wearnav track walk.zip --model sipp.onnx --out walk
+    """
+    from wearnav.export.write import export_run
+
+    echo_json(export_run(run, choice_value(format_), out))
+
+
 def register(app: typer.Typer) -> None:
     app.command("models")(models_)
     app.command("pretrain")(pretrain)
+    app.command("export")(export_)
