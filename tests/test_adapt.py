@@ -35,10 +35,10 @@ from conftest import error_line, run_cli
 
 WRONG = 0.7  # the wrong model's speed over the true speed (made right on all four walks' truth)
 # The factor fitted from the fixes of the three training walks (86 segments of 10 s) against the
-# same estimator fed the truth of those walks: measured 0.3 %; per walk the two differ by 1–4 %.
-FIX_TOLERANCE = 0.02
-# ... and against 1/WRONG: measured 2.5 %, most of it PDR's own speed error varying by walk
-# (truth factor 0.99–1.05 per walk) while "made right" used all four walks.
+# same estimator fed the truth of those walks: measured +1.7 % (the fixes' noise adds length).
+FIX_TOLERANCE = 0.03
+# ... and against 1/WRONG: measured +3.4 %, the rest PDR's own speed error varying by walk (truth
+# factor 0.99–1.05 per walk) while "made right" used all four walks.
 SCALE_TOLERANCE = 0.05
 
 

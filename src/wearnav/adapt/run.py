@@ -4,9 +4,9 @@ location fixes only (issue 18 §3), written as a new run folder that `wearnav tr
 Methods (:data:`METHODS`):
 
 ``scale``     one factor on the model's speed: the median over the training segments of the
-              speed factor of :func:`wearnav.adapt.segments.compare` (the fixes' displacement,
-              turned into the odometry's frame, projected on the odometry's, over its length²). It
-              is stored as ``velocity_scale`` in the run's ``adaptation.json``, which
+              speed factor of :func:`wearnav.adapt.segments.compare` (the length of the fixes'
+              displacement over the odometry's; a median, so fix jumps do not move it), stored
+              as ``velocity_scale`` in the run's ``adaptation.json``, which
               :func:`wearnav.train.odometry.load_model` applies (:class:`wearnav.models.base.ScaledVelocity`).
 ``finetune``  a few epochs on the segments (:mod:`wearnav.adapt.finetune`), new weights.
 

@@ -164,9 +164,14 @@ def rotate(d: np.ndarray, yaw: np.ndarray) -> np.ndarray:
 
 def compare(d_odo: np.ndarray, d_fix: np.ndarray, t_mid: np.ndarray) -> dict:
     """How one walk's odometry agrees with its fixes, per segment: the length ratio |d_odo| / |d̃|,
-    the speed factor (d̃ turned into the odometry's frame, projected on d_odo, over |d_odo|²: what
-    the odometry's speed must be multiplied by; unbiased under zero-mean fix noise, unlike a ratio
-    of lengths) and the distance |R(ψ) d_odo − d̃| (m) after the walk's own yaw fit."""
+    the speed factor |d̃| / |d_odo| (what the odometry's speed must be multiplied by) and the
+    distance |R(ψ) d_odo − d̃| (m) after the walk's own yaw fit (:func:`segment_yaw`).
+
+    Why lengths and not d̃ projected on the turned odometry: the projection also shrinks by the
+    cosine of every heading disagreement, the fixes' own included. On IPIN's training trials (10-s
+    segments, fixes against the POSI points joined by straight lines, the truth standing in for a
+    perfect odometry) the fixes' length is 0.90 of the truth's (median, 220 segments) and their
+    projection 0.82; on simulated walks the length ratio reads 1–4 % long (fix noise adds length)."""
     ok = np.isfinite(d_odo).all(axis=1) & (np.linalg.norm(d_odo, axis=1) > 1e-6)
     out = {"ratio": np.full(len(d_fix), np.nan), "factor": np.full(len(d_fix), np.nan),
            "error_m": np.full(len(d_fix), np.nan)}
@@ -174,8 +179,9 @@ def compare(d_odo: np.ndarray, d_fix: np.ndarray, t_mid: np.ndarray) -> dict:
         return out
     yaw = segment_yaw(d_odo[ok], d_fix[ok], t_mid[ok])
     odo = rotate(d_odo[ok], yaw)
-    out["ratio"][ok] = np.linalg.norm(d_odo[ok], axis=1) / np.linalg.norm(d_fix[ok], axis=1)
-    out["factor"][ok] = np.sum(d_fix[ok] * odo, axis=1) / np.sum(odo * odo, axis=1)
+    length_odo, length_fix = np.linalg.norm(d_odo[ok], axis=1), np.linalg.norm(d_fix[ok], axis=1)
+    out["ratio"][ok] = length_odo / length_fix
+    out["factor"][ok] = length_fix / length_odo
     out["error_m"][ok] = np.linalg.norm(odo - d_fix[ok], axis=1)
     return out
 
