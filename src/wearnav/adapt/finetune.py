@@ -1,14 +1,26 @@
 """Fine-tuning an odometry model on a user's fix-labelled segments (issue 18 §3, method
 ``finetune``; EasyTrack's idea, paper 004 §III, kept simple: no label-noise model).
 
-Loss per segment i of duration T_i: Huber(A_i · v / T_i, R(−ψ_i) d̃_i / T_i) with δ = ``huber_m_s``,
-on the segment's mean velocity: A_i · v is the model's window velocities integrated over the
-segment (:func:`wearnav.adapt.segments.integration_weights`), d̃_i the fixes' displacement turned
-into the phone's world frame by the yaw ψ_i fitted against the *un-adapted* model
-(:func:`wearnav.adapt.segments.segment_yaw`, fixed for the run so the target does not chase the
-model). Huber, because a fix jump the jump filter lets through (~5 m over 10 s, 0.5 m/s) must
-not dominate the mean. Each walk's windows and labels of a batch are turned by one random yaw, as
-training's ``rotate_yaw`` does, so the model stays yaw-equivariant.
+Loss per segment i of duration T_i, on its mean velocity: Huber(A_i · v / T_i, y_i / T_i), with
+A_i · v the model's window velocities integrated over the segment
+(:func:`wearnav.adapt.segments.integration_weights`) and the target y_i fixed for the run (so it
+does not chase the model), from the fixes' displacement d̃_i and the *un-adapted* model's d_i:
+
+``loss="length"`` (default)  y_i = |d̃_i| · d_i / |d_i|: the fixes' length in the un-adapted
+    model's direction, what the ``scale`` method reads from the fixes;
+``loss="vector"``            y_i = R(−ψ_i) d̃_i: the fixes' displacement turned into the phone's
+    world frame by the yaw fitted against the un-adapted model
+    (:func:`wearnav.adapt.segments.segment_yaw`). Least squares on it learns the mean target,
+    which shrinks by the cosine of every heading disagreement between fixes and odometry (why
+    :func:`wearnav.adapt.segments.compare` uses lengths): with a first development model on
+    IPIN's training trials the adapted paths came out 0.77 of the truth's length, the fixes'
+    own being 0.90. A loss on lengths alone (|A_i · v| against |d̃_i|) leaves the heading free:
+    the same model's known-start error at the training trials' POSI points went from 5.4 to 15.4 m.
+
+Huber, because a fix jump the jump filter lets
+through (~5 m over 10 s, 0.5 m/s) must not dominate the mean. Each walk's windows (and vector
+labels) of a batch are turned by one random yaw, as training's ``rotate_yaw`` does, so the model
+stays yaw-equivariant.
 
 The network stays in eval mode while its weights move (batch-norm statistics frozen, no
 dropout): a few hundred noisy segments are not enough to re-estimate them, and a low learning
@@ -35,6 +47,8 @@ from wearnav.windows import WindowConfig, WindowDataset
 
 log = logging.getLogger(__name__)
 
+LOSSES = ("length", "vector")
+
 
 @dataclass(frozen=True)
 class FinetuneConfig:
@@ -46,9 +60,12 @@ class FinetuneConfig:
     batch: int = 16  # segments per step
     stride_s: float = 1.0  # window spacing while fine-tuning (prediction keeps the run's stride)
     huber_m_s: float = 0.5
+    loss: str = "length"  # "length" or "vector" (module docstring)
     seed: int = 0
 
     def __post_init__(self) -> None:
+        if self.loss not in LOSSES:
+            raise ConfigError(f"fine-tuning loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
         if self.epochs < 1 or self.batch < 1 or self.patience < 1 or not (self.lr > 0 and self.stride_s > 0):
             raise ConfigError(f"fine-tuning needs epochs, batch, patience ≥ 1 and a positive lr and stride, got {self}")
 
@@ -65,15 +82,18 @@ class _Walk:
     duration: torch.Tensor
 
 
-def _prepare(model, seg: WalkSegments, window: int, stride: int) -> _Walk | None:
+def _prepare(model, seg: WalkSegments, window: int, stride: int, loss: str) -> _Walk | None:
     wds = WindowDataset([seg.seq], WindowConfig(window=window, stride=stride, target=None))
     if len(wds) == 0:
         return None
     b = wds[np.arange(len(wds))]
     c = window_centres(seg.seq, window, stride)
     d_odo = odometry_displacements(model, seg, window, stride)
-    yaw = segment_yaw(d_odo, seg.d_fix, 0.5 * (seg.t0 + seg.t1))
-    label = rotate(seg.d_fix, -yaw)
+    if loss == "vector":
+        label = rotate(seg.d_fix, -segment_yaw(d_odo, seg.d_fix, 0.5 * (seg.t0 + seg.t1)))
+    else:
+        length = np.linalg.norm(d_odo, axis=1, keepdims=True)
+        label = np.where(length > 1e-6, d_odo / np.maximum(length, 1e-6), 0.0) * np.linalg.norm(seg.d_fix, axis=1, keepdims=True)
     f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
     return _Walk(b["x"], b["mask"], f32(integration_weights(c, seg.t0, seg.t1)), f32(label), f32(seg.t1 - seg.t0))
 
@@ -132,8 +152,8 @@ def finetune(model: torch.nn.Module, train: list[WalkSegments], held: list[WalkS
     """A fine-tuned copy of ``model`` (module docstring) and one record per epoch (epoch 0: before)."""
     model = copy.deepcopy(model).eval()
     stride = max(1, int(round(cfg.stride_s * rate)))
-    walks = [w for w in (_prepare(model, s, window, stride) for s in train) if w is not None]
-    held_walks = [w for w in (_prepare(model, s, window, stride) for s in held) if w is not None]
+    walks = [w for w in (_prepare(model, s, window, stride, cfg.loss) for s in train) if w is not None]
+    held_walks = [w for w in (_prepare(model, s, window, stride, cfg.loss) for s in held) if w is not None]
     torch.manual_seed(cfg.seed)
     gen = torch.Generator().manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
@@ -162,4 +182,4 @@ def finetune(model: torch.nn.Module, train: list[WalkSegments], held: list[WalkS
     return model.eval(), history
 
 
-__all__ = ["FinetuneConfig", "finetune", "held_out_loss"]
+__all__ = ["FinetuneConfig", "LOSSES", "finetune", "held_out_loss"]
