@@ -181,3 +181,33 @@ def test_cli_method_choices_are_the_librarys():
 def test_finetune_config_is_checked():
     with pytest.raises(Exception):
         FinetuneConfig(epochs=0)
+
+
+@pytest.mark.slow
+def test_bench_adapt_writes_a_page_results_can_stitch(tmp_path):
+    """`bench adapt` end to end on an IPIN-shaped simulated site: trials as routes, the truth thinned
+    to surveyed points every 10 s, held-out trials 4, 24, 52."""
+    from wearnav.bench import results
+    from wearnav.bench.adapt import adapt_table
+    from wearnav.recording import Trajectory
+
+    with DatasetWriter(tmp_path / "site", {"made_by": "test_adapt"}) as w:
+        for k, trial in enumerate((3, 5, 6, 7, 4, 24, 52)):
+            rec = simulate_recording(WalkConfig(name=f"T{trial}", duration_s=150, noise_level="L1"), seed=10 + k)
+            keep = np.arange(0, len(rec.truth.t), 1000)  # 100-Hz truth → a point every 10 s
+            rec = dataclasses.replace(rec, truth=Trajectory(rec.truth.t[keep], rec.truth.pos[keep]),
+                                      meta={**rec.meta, "source": "ipin2023", "trial": trial})
+            w.add(rec, split="train")
+    cfg = TrainConfig(model="suitein", data=str(tmp_path / "site"), devices=("phone",), epochs=1, stride=50,
+                      truth_max_gap=30.0, frame_align="none")
+    base = prepare_run(cfg, tmp_path / "base")
+    fit(cfg, base, progress=False)
+    doc = adapt_table(base, tmp_path / "site", tmp_path / "suite",
+                      cfg=AdaptConfig(min_segments=5, finetune=FinetuneConfig(epochs=1)))
+    assert doc["choice"]["best"] in METHODS
+    assert set(doc["known_start"]) == {"un-adapted", "adapted (scale)", "adapted (finetune)", "PDR"}
+    assert all(r["walks"] == 3 and r["points"] > 20 for r in doc["known_start"].values())
+    assert doc["raw_gnss"]["walks"] == 3
+    page = (tmp_path / "suite" / "results.md").read_text()
+    assert results._GENERATED.search(page)["cmd"] == "wearnav bench adapt"
+    assert results._numbers(page).startswith("un-adapted ")

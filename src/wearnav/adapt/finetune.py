@@ -168,7 +168,7 @@ def finetune(model: torch.nn.Module, train: list[WalkSegments], held: list[WalkS
             opt.zero_grad()
             loss.backward()
             opt.step()
-            losses.append(float(loss))
+            losses.append(float(loss.detach()))
         held_loss = held_out_loss(model, held_walks, cfg)
         history.append({"epoch": epoch, "train_loss": round(float(np.mean(losses)), 6),
                         "held_out_loss": round(held_loss, 6)})
