@@ -19,8 +19,7 @@ import torch
 from wearnav import cli
 from wearnav.adapt import DEFAULT_METHOD, METHODS, AdaptConfig, adapt
 from wearnav.adapt.finetune import FinetuneConfig
-from wearnav.adapt.segments import (compare, integration_weights, odometry_displacements, walk_segments,
-                                    window_centres)
+from wearnav.adapt.segments import compare, integration_weights, odometry_displacements, walk_segments
 from wearnav.dataset import DatasetWriter
 from wearnav.errors import ValidationError
 from wearnav.evaluate import predict_sequence
