@@ -122,6 +122,18 @@ def test_scale_recovers_the_wrong_speed_from_fixes_only(walks, wrong_run, tmp_pa
     assert float(model.scale) == pytest.approx(rec["velocity_scale"], rel=1e-5)
 
 
+def test_adapt_reads_no_truth_and_holds_out_the_end_of_a_single_walk(walks, wrong_run, tmp_path):
+    _, recs, _ = walks
+    wrong, _ = wrong_run
+    with_truth = adapt(recs[:1], wrong, tmp_path / "a", AdaptConfig(min_segments=10))
+    without = adapt([dataclasses.replace(recs[0], truth=None, meta={})], wrong, tmp_path / "b", AdaptConfig(min_segments=10))
+    assert with_truth["velocity_scale"] == without["velocity_scale"]
+    assert with_truth["held_out_after"] == without["held_out_after"]
+    assert without["held_out_by"] == "time"
+    n = without["segments"]["train"] + without["segments"]["held_out"]
+    assert without["segments"]["held_out"] == int(np.ceil(0.2 * n))
+
+
 def test_adapt_refuses_walks_without_fixes_or_too_few_segments(walks, wrong_run, tmp_path):
     _, recs, _ = walks
     wrong, _ = wrong_run
