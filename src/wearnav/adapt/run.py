@@ -26,6 +26,7 @@ import dataclasses
 import hashlib
 import shutil
 import time
+import warnings
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,7 +38,7 @@ from wearnav import fuse, runs
 from wearnav.adapt.finetune import FinetuneConfig, finetune
 from wearnav.adapt.segments import SegmentConfig, WalkSegments, compare, odometry_displacements, summary, walk_segments
 from wearnav.dataset import MANIFEST, Dataset
-from wearnav.errors import ConfigError, FormatError, ValidationError
+from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.models.base import ScaledVelocity
 from wearnav.outputs import staged_output
 from wearnav.recording import Recording
@@ -45,6 +46,8 @@ from wearnav.train.common import BEST, CHECKPOINTS
 from wearnav.train.odometry import ADAPTATION, TRAINING, load_model
 
 METHODS = ("scale", "finetune")
+# Chosen by `wearnav bench adapt` on IPIN 2023's training trials only (docs/design.md, "Adaptation
+# from a user's own fixes"): scale 4.23 m median at their POSI points, finetune 4.93.
 DEFAULT_METHOD = "scale"
 
 
@@ -157,7 +160,14 @@ def adapt(recordings: Iterable[Recording], model_run: str | Path, out: str | Pat
         inner = adapted.inner if isinstance(adapted, ScaledVelocity) else adapted
         velocity_scale, state = base_scale, inner.state_dict()
     after, _ = agreement(adapted, held, window, stride)
-    record.update({
+    improved = after["segment_error_median_m"] < before["segment_error_median_m"]
+    if not improved:
+        warnings.warn(WearnavWarning(
+            f"the held-out walks agree less with their own fixes after adapting ({cfg.method}: median segment error "
+            f"{before['segment_error_median_m']:.2f} → {after['segment_error_median_m']:.2f} m, length ratio "
+            f"{before['length_ratio_median']:.2f} → {after['length_ratio_median']:.2f}): the adaptation may not help; "
+            f"compare both runs with `wearnav track`"))
+    record.update({"held_out_improved": bool(improved),
         "velocity_scale": round(velocity_scale, 6), "base_run": str(model_run.resolve()),
         "base_velocity_scale": base_scale, "recordings": n_rec, "recordings_with_fixes": n_fix_rec,
         "recordings_with_segments": len(walks), "fixes_used": int(sum(w.fixes for w in walks)),
