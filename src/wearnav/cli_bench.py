@@ -311,3 +311,24 @@ def bench_easytrack_base(
     page = run_study(out, BenchConfig(km=km, joint_epochs=joint_epochs), seeds, _execution(jobs, Backend.local, None),
                      echo=typer.echo)
     typer.echo(f"wrote {page}")
+
+
+@bench_app.command("adapt")
+def bench_adapt(
+    model: Path = typer.Option(..., "--model", help="The base run folder (a model never trained on --data)."),
+    data: Path = typer.Option(..., "--data", help="IPIN 2023: the imported dataset folder, or its original files with --format."),
+    out: Path = typer.Option(Path("runs/adapt"), "--out", help="Suite folder (split data, adapted runs, results.md)."),
+    format_: Optional[ImportFormat] = typer.Option(None, "--format", help="Importer for original-format --data."),
+):
+    """The adaptation table (issue 18 §3): adapt on the training trials' GNSS, score at the held-out POSI points.
+
+    \b
+    Example:
+      wearnav bench adapt --model runs/base --data data/ipin --out runs/adapt
+    """
+    from wearnav.bench.adapt import adapt_table
+
+    suite_folder(out, "bench adapt")
+    doc = adapt_table(model, data, out, choice_value(format_), progress=progress_enabled())
+    typer.echo(str(out / "results.md"))
+    typer.echo(f"default method by the training trials: {doc['choice']['best']}; {doc['seconds']['total'] / 60:.1f} min")

@@ -62,3 +62,23 @@ def concat_devices(x: Tensor, mask: Tensor) -> Tensor:
     B, D, L, C = x.shape
     x = x * (mask > 0).to(x.dtype)[:, :, None, None]
     return x.permute(0, 1, 3, 2).reshape(B, D * C, L)
+
+
+class ScaledVelocity(OdometryModel):
+    """``inner``'s velocity times one factor: a user's speed calibration from their own location
+    fixes (:mod:`wearnav.adapt`), applied wherever the run's model is loaded
+    (:func:`wearnav.train.odometry.load_model` reads it from the run's ``adaptation.json``).
+    Heading is untouched: models are yaw-equivariant, so only their speed scale can be calibrated."""
+
+    def __init__(self, inner: nn.Module, scale: float):
+        super().__init__()
+        self.inner = inner
+        self.learned = bool(getattr(inner, "learned", True))
+        self.register_buffer("scale", torch.tensor(float(scale)))
+
+    def forward(self, x: Tensor, mask: Tensor) -> Tensor:
+        return self.inner(x, mask) * self.scale
+
+    @torch.no_grad()
+    def predict(self, x: Tensor, mask: Tensor) -> Tensor:
+        return self.inner.predict(x, mask) * self.scale

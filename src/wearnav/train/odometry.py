@@ -26,9 +26,10 @@ import torch
 
 from wearnav import runs, trust
 from wearnav.dataset import Dataset, scorable_split, train_val_views
-from wearnav.errors import ConfigError, ValidationError, check_field_types, check_names
+from wearnav.errors import ConfigError, FormatError, ValidationError, check_field_types, check_names
 from wearnav.recording import CANONICAL_DEVICES
 from wearnav.models import registry
+from wearnav.models.base import ScaledVelocity
 from wearnav.preprocess import (SPARSE_TRUTH_HZ, SURVEYED_TRUTH_MAX_GAP_S, TRUTH_MAX_GAP_S, PreprocessConfig,
                                 load_sequences)
 from wearnav.textio import read_json
@@ -40,6 +41,9 @@ from wearnav.windows import WindowConfig, WindowDataset
 log = logging.getLogger(__name__)
 
 TRAINING = "training.json"  # what fit() measured; evaluate_run merges it into metrics.json
+# What `wearnav adapt` did to a run (wearnav.adapt): its ``velocity_scale`` multiplies the model's
+# velocity wherever the run is loaded (:func:`load_model`, the one place it is applied).
+ADAPTATION = "adaptation.json"
 DEFAULT_LR, DEFAULT_BATCH = 1e-3, 128
 # How a run is optimised (TrainConfig.recipe): "fast", the default, Adam at DEFAULT_LR with a one-
 # epoch linear warm-up, held for half the epochs, then a cosine decay to 1 % of it at ``epochs``,
@@ -279,15 +283,32 @@ def zero_velocity_mse(ds: WindowDataset) -> float:
 
 
 def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, TrainConfig]:
-    """The model of a run folder with its ``best`` (or ``last``) weights, in eval mode."""
+    """The model of a run folder with its ``best`` (or ``last``) weights, in eval mode; where the
+    run was adapted with a speed scale (:func:`velocity_scale`), wrapped to apply it."""
     run = Path(run)
     check_run_kind(run, "odometry")  # a classifier's run: say so, not "unknown config keys"
     cfg = runs.read_run_config(run, TrainConfig)
     model = build_model(cfg)
     if registry.get(cfg.model).learned:
         load_weights(model, run / CHECKPOINTS / which)
+    scale = velocity_scale(run)
+    if scale != 1.0:
+        model = ScaledVelocity(model, scale)
     model.eval()
     return model, cfg
+
+
+def velocity_scale(run: str | Path) -> float:
+    """The factor `wearnav adapt --method scale` stored in the run's :data:`ADAPTATION` (1.0 where
+    the run was not adapted); an unreadable or non-positive one is a FormatError naming the file."""
+    path = Path(run) / ADAPTATION
+    if not path.is_file():
+        return 1.0
+    doc = read_json(path)
+    scale = doc.get("velocity_scale", 1.0) if isinstance(doc, dict) else None
+    if not isinstance(scale, (int, float)) or not np.isfinite(scale) or scale <= 0:
+        raise FormatError(f"velocity_scale must be a positive number, got {scale!r}", path)
+    return float(scale)
 
 
 

@@ -1,0 +1,203 @@
+"""`wearnav adapt`: a trained odometry run adapted to a user's own walks, from the phone's own
+location fixes only (issue 18 §3), written as a new run folder that `wearnav track` takes.
+
+Methods (:data:`METHODS`):
+
+``scale``     one factor on the model's speed: the median over the training segments of the
+              speed factor of :func:`wearnav.adapt.segments.compare` (the length of the fixes'
+              displacement over the odometry's; a median, so fix jumps do not move it), stored
+              as ``velocity_scale`` in the run's ``adaptation.json``, which
+              :func:`wearnav.train.odometry.load_model` applies (:class:`wearnav.models.base.ScaledVelocity`).
+``finetune``  a few epochs on the segments (:mod:`wearnav.adapt.finetune`), new weights.
+
+A share of the user's segments is held out (:func:`split_walks`): whole recordings where there
+are several, else the last part of the one walk. ``adaptation.json`` says what was done, on how
+many recordings, fixes and segments, and how the held-out segments agree with the model before
+and after (:func:`wearnav.adapt.segments.summary`: length ratio, speed factor, segment error).
+
+The new run folder holds the base run's config.yaml (with ``adapted_from``), training.json
+(what it was trained on, for `track`'s warnings) and smoother calibration where it has one, the
+weights in checkpoints/best.ckpt, and adaptation.json.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import shutil
+import time
+import warnings
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from wearnav import fuse, runs
+from wearnav.adapt.finetune import FinetuneConfig, finetune
+from wearnav.adapt.segments import SegmentConfig, WalkSegments, compare, odometry_displacements, summary, walk_segments
+from wearnav.dataset import MANIFEST, Dataset
+from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
+from wearnav.models.base import ScaledVelocity
+from wearnav.outputs import staged_output
+from wearnav.recording import Recording
+from wearnav.train.common import BEST, CHECKPOINTS
+from wearnav.train.odometry import ADAPTATION, TRAINING, load_model
+
+METHODS = ("scale", "finetune")
+# Chosen by `wearnav bench adapt` on IPIN 2023's training trials only (docs/design.md, "Adaptation
+# from a user's own fixes"): scale 4.23 m median at their POSI points, finetune 4.93.
+DEFAULT_METHOD = "scale"
+
+
+@dataclass(frozen=True)
+class AdaptConfig:
+    """Everything that decides an adaptation (saved in ``adaptation.json``)."""
+
+    method: str = DEFAULT_METHOD
+    segments: SegmentConfig = field(default_factory=SegmentConfig)
+    finetune: FinetuneConfig = field(default_factory=FinetuneConfig)
+    holdout: float = 0.2  # share of the user's recordings (or of one walk's segments) held out
+    min_segments: int = 20  # fewer good segments than this: refused (a median over too few is noise)
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ConfigError(f"unknown adaptation method {self.method!r}; one of {', '.join(METHODS)}")
+        if not 0 < self.holdout < 1 or self.min_segments < 2:
+            raise ConfigError(f"holdout must be in (0, 1) and min_segments ≥ 2, got {self.holdout}, {self.min_segments}")
+
+
+def read_recordings(sources: Iterable[str | Path], split: str | None = None) -> Iterator[Recording]:
+    """Every recording of ``sources``: ``.h5`` recordings, dataset folders (``split``: only that
+    split's recordings) and Sensor Logger exports (a folder, zip, or folder of several)."""
+    from wearnav.importers import sensorlogger
+
+    for src in map(Path, sources):
+        if not src.exists():
+            raise FormatError("no such file or folder", src)
+        if src.is_file() and src.suffix.lower() == ".h5":
+            yield Recording.load(src)
+        elif src.is_dir() and (src / MANIFEST).is_file():
+            ds = Dataset.open(src)
+            view = ds.split(split) if split else ds
+            for name in view.names:
+                yield view.load(name)
+        else:
+            yield from sensorlogger.read(src)
+
+
+def _order(name: str) -> str:
+    return hashlib.sha1(name.encode()).hexdigest()
+
+
+def split_walks(walks: list[WalkSegments], holdout: float) -> tuple[list[WalkSegments], list[WalkSegments], str]:
+    """(training walks, held-out walks, how): with several walks, round(``holdout`` · n) of them
+    (at least one) held out, chosen by a hash of their names; with one walk, its last ``holdout``
+    share of segments in time."""
+    if len(walks) >= 2:
+        ranked = sorted(walks, key=lambda w: _order(w.name))
+        k = max(1, int(round(holdout * len(walks))))
+        return ranked[k:], ranked[:k], "recording"
+    w = walks[0]
+    order = np.argsort(w.t0)
+    k = max(1, int(np.ceil(holdout * len(w))))
+    return [w.subset(order[:-k])], [w.subset(order[-k:])], "time"
+
+
+def agreement(model, walks: list[WalkSegments], window: int, stride: int) -> tuple[dict, list[dict]]:
+    """:func:`wearnav.adapt.segments.summary` of ``model`` on ``walks`` and the per-walk parts."""
+    parts = [compare(odometry_displacements(model, w, window, stride), w.d_fix, 0.5 * (w.t0 + w.t1)) for w in walks]
+    return summary(parts), parts
+
+
+def adapt(recordings: Iterable[Recording], model_run: str | Path, out: str | Path,
+          cfg: AdaptConfig = AdaptConfig()) -> dict:
+    """Adapt the model of run folder ``model_run`` to ``recordings`` (module docstring) into the new
+    run folder ``out``; returns what ``adaptation.json`` holds."""
+    t_start = time.perf_counter()
+    model_run, out = Path(model_run), Path(out)
+    if out.exists() and not runs.is_blank(out):
+        raise ConfigError("exists and is not an empty folder; choose another --out for the adapted run", out)
+    model, tcfg = load_model(model_run)
+    base_scale = float(model.scale) if isinstance(model, ScaledVelocity) else 1.0
+    if cfg.method == "finetune" and not getattr(model, "learned", True):
+        raise ConfigError(f"{tcfg.model} has no weights to fine-tune; use --method scale", model_run)
+    n_rec, n_fix_rec, walks = 0, 0, []
+    for rec in recordings:
+        n_rec += 1
+        n_fix_rec += rec.fixes is not None and len(rec.fixes) > 0
+        w = walk_segments(rec, tcfg, cfg.segments)
+        if w is not None:
+            walks.append(w)
+    if n_fix_rec == 0:
+        raise ValidationError(f"none of the {n_rec} recording(s) has location fixes: adaptation labels the IMU "
+                              "with the phone's own fixes (record with location on)")
+    n_seg = sum(len(w) for w in walks)
+    s = cfg.segments
+    if n_seg < cfg.min_segments:
+        raise ValidationError(f"only {n_seg} segment(s) between good fixes ({s.segment_s:g} s apart, accuracy ≤ "
+                              f"{s.max_accuracy_m:g} m, moved ≥ {s.min_length_m:g} m) in {n_rec} recording(s); "
+                              f"adaptation needs at least {cfg.min_segments}: walk longer with location on")
+    train, held, held_by = split_walks(walks, cfg.holdout)
+    window, stride = tcfg.window, tcfg.stride
+    before, _ = agreement(model, held, window, stride)
+    train_before, train_parts = agreement(model, train, window, stride)
+    record: dict = {"method": cfg.method}
+    if cfg.method == "scale":
+        factor = np.concatenate([p["factor"] for p in train_parts])
+        factor = factor[np.isfinite(factor)]
+        scale = float(np.median(factor))
+        if not (np.isfinite(scale) and scale > 0):
+            raise ValidationError(f"the fixes give no usable speed factor (median {scale:.3g}): does the model move at all?")
+        adapted = ScaledVelocity(model.inner if isinstance(model, ScaledVelocity) else model, base_scale * scale)
+        record["scale_fit"] = {"factor": round(scale, 4), "segments": int(factor.size),
+                               "iqr": [round(float(q), 4) for q in np.percentile(factor, [25, 75])]}
+        velocity_scale, state = base_scale * scale, None
+    else:
+        adapted, history = finetune(model, train, held, window, tcfg.rate, cfg.finetune)
+        record["finetune"] = history
+        inner = adapted.inner if isinstance(adapted, ScaledVelocity) else adapted
+        velocity_scale, state = base_scale, inner.state_dict()
+    after, _ = agreement(adapted, held, window, stride)
+    improved = after["segment_error_median_m"] < before["segment_error_median_m"]
+    if not improved:
+        warnings.warn(WearnavWarning(
+            f"the held-out walks agree less with their own fixes after adapting ({cfg.method}: median segment error "
+            f"{before['segment_error_median_m']:.2f} → {after['segment_error_median_m']:.2f} m, length ratio "
+            f"{before['length_ratio_median']:.2f} → {after['length_ratio_median']:.2f}): the adaptation may not help; "
+            f"compare both runs with `wearnav track`"))
+    record.update({"held_out_improved": bool(improved),
+        "velocity_scale": round(velocity_scale, 6), "base_run": str(model_run.resolve()),
+        "base_velocity_scale": base_scale, "recordings": n_rec, "recordings_with_fixes": n_fix_rec,
+        "recordings_with_segments": len(walks), "fixes_used": int(sum(w.fixes for w in walks)),
+        "segments": {"train": int(sum(len(w) for w in train)), "held_out": int(sum(len(w) for w in held))},
+        "held_out_by": held_by, "held_out_recordings": [w.name for w in held],
+        "held_out_before": before, "held_out_after": after, "train_before": train_before,
+        "config": dataclasses.asdict(cfg), "wall_s": round(time.perf_counter() - t_start, 2),
+    })
+    _write_run(model_run, out, record, state)
+    return record
+
+
+def _write_run(base: Path, out: Path, record: dict, state: dict | None) -> None:
+    """The adapted run folder (module docstring), written whole or not at all."""
+    doc = runs.read_config(base)
+    with staged_output(out, ADAPTATION, "adapt") as stage:
+        extra = {k: v for k, v in doc.items() if k not in ("config", "provenance")}
+        runs.write_config(stage, doc["config"], {**extra, "adapted_from": {"run": str(base.resolve()),
+                                                                           "method": record["method"]}})
+        ckpt = base / CHECKPOINTS / BEST
+        (stage / CHECKPOINTS).mkdir()
+        if state is not None:
+            torch.save({"state_dict": {f"model.{k}": v for k, v in state.items()}, "adapted": record["method"]},
+                       stage / CHECKPOINTS / BEST)
+        elif ckpt.is_file():
+            shutil.copyfile(ckpt, stage / CHECKPOINTS / BEST)
+        for name in (TRAINING, fuse.CALIBRATION_JSON):
+            if (base / name).is_file():
+                shutil.copyfile(base / name, stage / name)
+        runs.write_json(stage / ADAPTATION, record)
+
+
+__all__ = ["AdaptConfig", "METHODS", "DEFAULT_METHOD", "adapt", "agreement", "read_recordings", "split_walks"]
