@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import torch
 
-from wearnav import cli
+from wearnav import cli_models
 from wearnav.adapt import DEFAULT_METHOD, METHODS, AdaptConfig, adapt
 from wearnav.adapt.finetune import FinetuneConfig
 from wearnav.adapt.segments import compare, integration_weights, odometry_displacements, walk_segments
@@ -194,7 +194,7 @@ def test_cli_bad_input_is_one_line(walks, wrong_run, tmp_path, monkeypatch, caps
 
 
 def test_cli_method_choices_are_the_librarys():
-    assert [m.value for m in cli.AdaptMethod] == list(METHODS)
+    assert [m.value for m in cli_models.AdaptMethod] == list(METHODS)
     assert AdaptConfig().method == DEFAULT_METHOD
 
 

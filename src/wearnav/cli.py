@@ -53,11 +53,6 @@ class Anchor(str, Enum):  # wearnav.fuse.ANCHORS
     first_fixes = "first-fixes"
 
 
-class AdaptMethod(str, Enum):  # wearnav.adapt.METHODS
-    scale = "scale"
-    finetune = "finetune"
-
-
 class Preset(str, Enum):  # wearnav.simulate.presets.PRESETS
     tiny = "tiny"
     small = "small"
@@ -315,38 +310,6 @@ def train(
         if evaluate:
             m = evaluate_run(run, splits=("test",), training=record, progress=progress_enabled())
             echo_json({"test": m["splits"]["test"]["summary"]})
-
-
-@app.command()
-def adapt(
-    recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS...", help="The user's own walks with location "
-                                            "fixes: Sensor Logger exports (folder or .zip), recordings (.h5), dataset folders."),
-    model: Path = typer.Option(..., "--model", help="The run folder of `wearnav train` to adapt."),
-    out: Path = typer.Option(..., "--out", help="New run folder for the adapted model (`wearnav track --model OUT`)."),
-    method: AdaptMethod = typer.Option(AdaptMethod.scale, help="scale: one factor on the model's speed (the "
-                                       "default, as measured: docs/design.md); finetune: a few epochs on the fix-labelled segments."),
-    split: Optional[str] = typer.Option(None, help="Of a dataset folder, only this split's recordings."),
-    segment_s: float = typer.Option(10.0, "--segment-s", help="Seconds between the two fixes of a segment."),
-    max_accuracy: float = typer.Option(20.0, "--max-accuracy", help="Leave out fixes reporting a wider accuracy (m)."),
-    epochs: int = typer.Option(5, min=1, help="finetune: maximum epochs (early stopping on held-out segments)."),
-    lr: float = typer.Option(1e-4, help="finetune: learning rate."),
-):
-    """Adapt a trained odometry model to your own walks, using the phone's location fixes as labels.
-
-    \b
-    Example:
-      wearnav adapt my_walks/*.zip --model runs/sipp --out runs/sipp-mine
-      wearnav track walk.zip --model runs/sipp-mine --out walk
-    """
-    from wearnav.adapt import AdaptConfig, adapt as adapt_, read_recordings
-    from wearnav.adapt.finetune import FinetuneConfig
-    from wearnav.adapt.segments import SegmentConfig
-
-    cfg = AdaptConfig(method=method.value, segments=SegmentConfig(segment_s=segment_s, max_accuracy_m=max_accuracy),
-                      finetune=FinetuneConfig(epochs=epochs, lr=lr))
-    record = adapt_(read_recordings(recordings, split), model, out, cfg)
-    echo_json({"run": str(out), **{k: record[k] for k in ("method", "velocity_scale", "recordings", "fixes_used",
-                                                          "segments", "held_out_before", "held_out_after", "wall_s")}})
 
 
 @app.command("eval")
