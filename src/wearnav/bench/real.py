@@ -55,7 +55,7 @@ import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.bench.user_protocol import ensure_calibration, user_table
+from wearnav.bench.user_protocol import ensure_calibration, score_path, user_table
 from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
@@ -424,19 +424,33 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
         yaw = read_json(own)["yaw_deg"] if own.is_file() else sites[site]["yaw"]["yaw_deg"]
         rows.append({"method": label, "site yaw (°)": yaw, "traces": summary["sequences"], "points": summary.get("points", 0),
                      **{k: summary.get(k, float("nan")) for k in ("error_mean", "error_p50", "error_p75", "error_p95")},
+                     "length ratio": length_ratio(run / f"eval_{site}", sites[site]["data"]),
                      "epochs": tr.get("epochs_run", "—"), "train min": round(tr["wall_s"] / 60, 1) if tr.get("wall_s") else "—",
                      BEATS_STILL: beats_text(tr)})
     fx = sites[site].get("fixes")
     if fx:
         errors["raw phone fixes"] = np.asarray(fx["point_errors"])
         rows.append({"method": "raw phone fixes", "site yaw (°)": "—", "traces": fx["sequences"], "points": fx["points"],
-                     **{k: v for k, v in fx.items() if k.startswith("error_")}, "epochs": "—", "train min": "—",
+                     **{k: v for k, v in fx.items() if k.startswith("error_")}, "length ratio": float("nan"), "epochs": "—", "train min": "—",
                      BEATS_STILL: "—"})
     df = pd.DataFrame(rows)
     if not df.empty:
         df = df.rename(columns={"error_mean": "mean (m)", "error_p50": "median (m)", "error_p75": "p75 (m)",
                                 "error_p95": "p95 (m)"})
     return df, errors
+
+
+def length_ratio(eval_dir: Path, data: str) -> float:
+    """Median over the test traces of the path's length through its positions at the surveyed
+    times over the truth's (:func:`wearnav.bench.user_protocol.score_path`; 1 is right, below 1 the
+    path is short), from the trajectories an evaluation wrote."""
+    ds, ratios = Dataset.open(data), []
+    for f in sorted((eval_dir / "trajectories" / "test").glob("*.csv")):
+        df = pd.read_csv(f)
+        if f.stem in ds.names and len(df) > 1:
+            truth = ds.load(f.stem).truth
+            ratios.append(score_path(df["t"].to_numpy(), df[["x", "y"]].to_numpy(), truth.t, truth.pos[:, :2])[1])
+    return round(float(np.nanmedian(ratios)), 3) if np.isfinite(ratios).any() else float("nan")
 
 
 def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBench, wall_s: float) -> Path:
