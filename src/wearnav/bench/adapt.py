@@ -20,6 +20,7 @@ held-out trials play no part in the choice.
 from __future__ import annotations
 
 import dataclasses
+import shutil
 import os
 import platform
 import re
@@ -124,9 +125,13 @@ def user(run: Path, data: Path, split: str) -> dict[str, dict]:
 
 
 def _adapted(model: Path, data: Path, splits: tuple[str, ...], run: Path, cfg: AdaptConfig) -> dict:
-    """Adapt (unless ``run`` holds this adaptation already) and return its ``adaptation.json``."""
+    """Adapt (unless ``run`` holds this adaptation of ``model`` already: one of another base is
+    replaced) and return its ``adaptation.json``."""
     if (run / ADAPTATION).is_file():
-        return read_json(run / ADAPTATION)
+        base = runs.read_config(run).get("adapted_from", {}).get("run")
+        if base == str(Path(model).resolve()):
+            return read_json(run / ADAPTATION)
+        shutil.rmtree(run)
     return adapt(_recordings(data, splits), model, run, cfg)
 
 
