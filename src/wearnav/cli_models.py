@@ -98,8 +98,9 @@ def adapt(
                                             "fixes: Sensor Logger exports (folder or .zip), recordings (.h5), dataset folders."),
     model: Path = typer.Option(..., "--model", help="The run folder of `wearnav train` to adapt."),
     out: Path = typer.Option(..., "--out", help="New run folder for the adapted model (`wearnav track --model OUT`)."),
-    method: AdaptMethod = typer.Option(AdaptMethod.scale, help="scale: one factor on the model's speed (the "
-                                       "default, as measured: docs/design.md); finetune: a few epochs on the fix-labelled segments."),
+    method: AdaptMethod = typer.Option(AdaptMethod.finetune, help="finetune: a few epochs on the fix-labelled "
+                                       "segments (the default, as measured: docs/design.md); scale: one factor on the "
+                                       "model's speed (also for pdr, which has no weights)."),
     split: Optional[str] = typer.Option(None, help="Of a dataset folder, only this split's recordings."),
     segment_s: float = typer.Option(10.0, "--segment-s", help="Seconds between the two fixes of a segment."),
     max_accuracy: float = typer.Option(20.0, "--max-accuracy", help="Leave out fixes reporting a wider accuracy (m)."),
