@@ -134,8 +134,8 @@ def test_adapting_a_model_that_was_right_warns_when_the_held_out_walks_do_not_im
 def test_adapt_reads_no_truth_and_holds_out_the_end_of_a_single_walk(walks, wrong_run, tmp_path):
     _, recs, _ = walks
     wrong, _ = wrong_run
-    with_truth = adapt(recs[:1], wrong, tmp_path / "a", AdaptConfig(min_segments=10))
-    without = adapt([dataclasses.replace(recs[0], truth=None, meta={})], wrong, tmp_path / "b", AdaptConfig(min_segments=10))
+    with_truth = adapt(recs[:1], wrong, tmp_path / "a", AdaptConfig(method="scale", min_segments=10))
+    without = adapt([dataclasses.replace(recs[0], truth=None, meta={})], wrong, tmp_path / "b", AdaptConfig(method="scale", min_segments=10))
     assert with_truth["velocity_scale"] == without["velocity_scale"]
     assert with_truth["held_out_after"] == without["held_out_after"]
     assert without["held_out_by"] == "time"
@@ -148,13 +148,13 @@ def test_adapt_refuses_walks_without_fixes_or_too_few_segments(walks, wrong_run,
     wrong, _ = wrong_run
     no_fixes = [dataclasses.replace(r, fixes=None) for r in recs[:2]]
     with pytest.raises(ValidationError) as e:
-        adapt(no_fixes, wrong, tmp_path / "a")
+        adapt(no_fixes, wrong, tmp_path / "a", AdaptConfig(method="scale"))
     assert "none of the 2 recording(s) has location fixes" in error_line(e.value)
     f = recs[0].fixes
     keep = f.t < f.t[0] + 60  # one minute of fixes: 5 segments of 10 s
     short = dataclasses.replace(recs[0], fixes=Fixes(f.t[keep], f.pos[keep], f.accuracy[keep]))
     with pytest.raises(ValidationError) as e:
-        adapt([short], wrong, tmp_path / "b")
+        adapt([short], wrong, tmp_path / "b", AdaptConfig(method="scale"))
     assert "segment(s) between good fixes" in error_line(e.value) and "at least 20" in error_line(e.value)
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
@@ -186,7 +186,7 @@ def test_cli_bad_input_is_one_line(walks, wrong_run, tmp_path, monkeypatch, caps
     (tmp_path / "nofix").mkdir()
     dataclasses.replace(recs[0], fixes=None).save(tmp_path / "nofix" / "w.h5")
     code, out, err = run_cli(monkeypatch, capsys, "adapt", tmp_path / "nofix" / "w.h5", "--model", wrong,
-                             "--out", tmp_path / "o")
+                             "--out", tmp_path / "o", "--method", "scale")
     assert code == 2 and out == "" and err.count("\n") == 1 and "has location fixes" in err
     code, _, err = run_cli(monkeypatch, capsys, "adapt", root / "ds", "--model", walks[2], "--out", tmp_path / "p",
                            "--method", "finetune")

@@ -36,7 +36,7 @@ class Shipped:
 
     @property
     def installed(self) -> bool:
-        return (self.path / "checkpoints" / "best.ckpt").is_file() and (self.path / "config.yaml").is_file()
+        return any((self.path / "checkpoints").glob("*.ckpt")) and (self.path / "config.yaml").is_file()
 
     def size_bytes(self) -> int:
         return sum(p.stat().st_size for p in self.path.rglob("*") if p.is_file()) if self.path.is_dir() else 0

@@ -75,42 +75,6 @@ def turn(rec: Recording, yaw_rad: float) -> Recording:
         float(np.degrees(yaw_rad)), 3)})
 
 
-STILL_STD = 0.4  # m/s²: a 1-s window whose |acc| varies less than this is standing still
-DENSE_HZ = 10.0
-
-
-def paused_truth(rec: Recording, device: str = "phone") -> Trajectory:
-    """Surveyed points joined as the walker moved between them: within each segment the
-    displacement is spread over the samples where the phone moves (its |acc| standard deviation
-    over 1 s at least :data:`STILL_STD`) and none over the still ones, at :data:`DENSE_HZ`.
-
-    Straight lines at constant speed spread it over the pauses too, so a model learns walking
-    slower than it was (IPIN 2023's walkers stand still 31 % of the time between points, ILC2's
-    3 %). Only the IMU decides where the pauses are; a segment with no motion stays a line."""
-    tr, s = rec.truth, rec.devices[device]
-    t = np.arange(tr.t[0], tr.t[-1], 1.0 / DENSE_HZ)
-    a = np.linalg.norm(s.acc, axis=1)
-    half = 0.5
-    lo, hi = np.searchsorted(s.t, t - half), np.searchsorted(s.t, t + half)
-    c1, c2 = np.concatenate([[0], np.cumsum(a)]), np.concatenate([[0], np.cumsum(a * a)])
-    n = np.maximum(hi - lo, 1)
-    std = np.sqrt(np.maximum((c2[hi] - c2[lo]) / n - ((c1[hi] - c1[lo]) / n) ** 2, 0.0))
-    moving = (std >= STILL_STD) & (hi > lo)
-    seg = np.clip(np.searchsorted(tr.t, t, side="right") - 1, 0, len(tr.t) - 2)
-    w = moving.astype(np.float64)
-    # progress within each segment: cumulative moving time over the segment's moving time
-    cum = np.zeros_like(t)
-    for k in np.unique(seg):
-        idx = np.flatnonzero(seg == k)
-        wk = w[idx] if w[idx].sum() > 0 else np.ones(idx.size)
-        cum[idx] = (np.cumsum(wk) - wk) / wk.sum() if idx.size > 1 else 0.0
-    p0, p1 = tr.pos[seg], tr.pos[seg + 1]
-    pos = p0 + cum[:, None] * (p1 - p0)
-    t = np.append(t, tr.t[-1])
-    pos = np.vstack([pos, tr.pos[-1:]])
-    return Trajectory(t, pos)
-
-
 def recording_yaw(rec: Recording, devices: tuple[str, ...], rate: float = 25.0) -> float | None:
     """The constant yaw (rad) of ``rec``'s common frame relative to its truth, from all of its
     dense truth; None where the truth says nothing (no overlap, no motion)."""
