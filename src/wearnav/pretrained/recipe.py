@@ -32,8 +32,10 @@ from wearnav.bench.real import TRUTH_MAX_GAP_S, RealBench, plan_benchmark
 from wearnav.bench.user_protocol import ensure_calibration
 from wearnav.errors import MissingFileError
 from wearnav.fileio import atomic_path
+from wearnav.importers import import_dataset
 from wearnav.pretrained import ACTIVITY, MULTI, PHONE, SHIPPED, cards
 from wearnav.pretrained.mix import MIX_FRAME, Part, write_mix
+from wearnav.simulate import simulate_dataset
 from wearnav.train.common import BEST, CHECKPOINTS, LAST
 from wearnav.train.classify import run_folder
 from wearnav.train.odometry import TRAINING, TrainConfig, fit, prepare_run, run_hash_exclude, run_record
@@ -63,9 +65,6 @@ class Recipe:
 
 def prepare_data(data_root: Path, work: Path, recipe: Recipe, progress: bool = True, echo=print) -> dict[str, Path]:
     """Import, simulate and mix (each once; a folder with its manifest is reused)."""
-    from wearnav.importers import import_dataset
-    from wearnav.simulate import simulate_dataset
-
     folders = {}
     for name, (fmt, src) in SOURCES.items():
         folders[name] = work / name
