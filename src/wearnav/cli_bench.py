@@ -122,7 +122,7 @@ def bench_real_odometry(
     test_groups: Optional[str] = typer.Option(None, help="Held-out groups, comma-separated (default per source: ilc2 F2,F4; ipin2023 4,24,52)."),
     test_group_by: Optional[str] = typer.Option(None, help="--group-by for --test-data."),
     test_test_groups: Optional[str] = typer.Option(None, help="--test-groups for --test-data."),
-    train_data: Optional[Path] = typer.Option(None, "--train-data", help="Train the learned models on this (simulated) dataset instead: sim-to-real."),
+    train_data: Optional[Path] = typer.Option(None, "--train-data", help="Train the learned models on this dataset instead: the simulator (sim-to-real) or a mix of sources (wearnav.pretrained.mix)."),
     models: str = typer.Option("ronin,suitein++,pdr", help="Models, comma-separated (phone only)."),
     epochs: int = typer.Option(100, min=1, help="Maximum epochs per model."),
     max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
