@@ -66,7 +66,7 @@ def _table(rows: list[dict]) -> str:
     return pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f") if rows else "(nothing measured yet)"
 
 
-def write_card(spec: Shipped, run: Path, recipe, folders: dict[str, Path], lobo: dict[str, Path]) -> Path:
+def write_card(spec: Shipped, run: Path, recipe, lobo: dict[str, Path]) -> Path:
     """``run``/MODEL_CARD.md for shipped model ``spec``."""
     cfg = runs.read_config(run)["config"]["train"]
     training = read_json(run / "training.json") if (run / "training.json").is_file() else {}
@@ -91,7 +91,7 @@ def write_card(spec: Shipped, run: Path, recipe, folders: dict[str, Path], lobo:
                   "## Measured in buildings it never saw (leave-one-building-out)", "",
                   "The same recipe trained without the building, phone only (the rows of `wearnav pretrain`'s "
                   "page, median / p75 / p95 error in metres at the surveyed points):", "",
-                  _table([r for r in lobo_rows(lobo)]), ""]
+                  _table(lobo_rows(lobo)), ""]
     else:
         metrics = runs.read_metrics(run) if (run / "metrics.json").is_file() else {}
         test = metrics.get("splits", {}).get("test", metrics)

@@ -83,7 +83,7 @@ def recording_yaw(rec: Recording, devices: tuple[str, ...], rate: float = 25.0) 
     seq = align(rec, cfg)
     if seq.pos is None:
         return None
-    common, record = align_frames(seq.imu, seq.mask, seq.devices, rate, None, MIX_FRAME)
+    common, _ = align_frames(seq.imu, seq.mask, seq.devices, rate, None, MIX_FRAME)
     tr = truth_yaw(common, seq.mask, seq.pos, rate, FrameConfig())
     return _circular_mean(tr.yaw, tr.info) if tr.info.any() else None
 

@@ -134,7 +134,7 @@ def pretrain(data_root: Path, out: Path, work: Path | None = None, recipe: Recip
     runs.write_json(out / "recipe.json", {"recipe": dataclasses.asdict(recipe), "data_root": str(data_root),
                                           "work": str(work)})
     for name, job in shipped.items():
-        cards.write_card(SHIPPED[name], job.folder, recipe, folders, lobo)
+        cards.write_card(SHIPPED[name], job.folder, recipe, lobo)
         if install:
             install_run(job.folder, SHIPPED[name].path, BEST if SHIPPED[name].task == "odometry" else LAST)
             echo(f"installed {name}: {SHIPPED[name].size_bytes() / 1e6:.1f} MB in {SHIPPED[name].path}")
