@@ -60,3 +60,29 @@ def test_bench_fusion_writes_a_page_that_results_stitches(tmp_path, monkeypatch,
     assert all(np.isfinite(r["median (m)"]) and r["walks"] == (2 if r["mode"] == "all" else 1) for r in table["rows"])
     stitched = collect([tmp_path / "fusion"], tmp_path / "docs" / "results.md").read_text()
     assert "Fusion on the simulator" in stitched and "<!-- suite: fusion -->" in stitched
+
+
+def test_site_calibration_uses_walks_the_model_never_trained_on(tmp_path, monkeypatch):
+    """A learned model on its own building: its validation walks; anywhere else (another building,
+    PDR): the site's training walks. Stored per site, reused, redone when the walks change."""
+    from wearnav.bench import user_protocol
+
+    calls = []
+
+    def fake(run, data, split):
+        calls.append((str(data), split))
+        return {"odometry_walk_m_per_sqrt_s": 0.5, "walks": 3}
+
+    monkeypatch.setattr(user_protocol, "calibrate", fake)
+    site, other = tmp_path / "ipin", tmp_path / "mix"
+    run = tmp_path / "run"
+    run.mkdir()
+    c = user_protocol.site_calibration(run, "main", site, site)
+    assert calls == [(str(site), "val")] and c["split"] == "val"
+    assert (run / "fuse_calibration_main.json").is_file()
+    user_protocol.site_calibration(run, "main", site, site)
+    assert len(calls) == 1  # reused
+    c = user_protocol.site_calibration(run, "main", site, other)
+    assert calls[-1] == (str(site), "train") and "not trained on" in c["method"]
+    user_protocol.site_calibration(run, "test", site, None)
+    assert calls[-1] == (str(site), "train") and (run / "fuse_calibration_test.json").is_file()

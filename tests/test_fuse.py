@@ -6,6 +6,7 @@ import pytest
 
 from wearnav import fuse, fuse_live
 from wearnav.errors import ValidationError
+from wearnav.recording import ANDROID_ENU_FRAME
 
 
 def walk(duration_s=600.0, seed=0):
@@ -172,10 +173,10 @@ def test_odometry_walk_sigma_recovers_a_known_random_walk_and_is_read_back(tmp_p
     assert cal["walks"] == 5 and cal["odometry_walk_m_per_sqrt_s"] == pytest.approx(0.3 / 0.8, rel=0.15)
     assert fuse.odometry_walk_sigma([]) == {"odometry_walk_m_per_sqrt_s": None, "walks": 0}
     (tmp_path / fuse.CALIBRATION_JSON).write_text('{"odometry_walk_m_per_sqrt_s": 0.21}')
-    cfg, read = fuse.config_for_run(tmp_path)
+    cfg, read = fuse.config_for(tmp_path)
     assert cfg.odometry_walk_m_per_sqrt_s == 0.21 and read["odometry_walk_m_per_sqrt_s"] == 0.21
     (tmp_path / fuse.CALIBRATION_JSON).write_text('{"odometry_walk_m_per_sqrt_s": "x"}')
-    assert fuse.config_for_run(tmp_path) == (fuse.FuseConfig(), None)
+    assert fuse.config_for(tmp_path) == (fuse.FuseConfig(), None)
 
 
 def test_bias_share_moves_the_fix_error_into_the_bias():
@@ -259,3 +260,37 @@ def test_smooth_marks_down_weighted_fixes_with_their_weight():
     assert np.all(w[st == "used"] >= fuse.DOWNWEIGHT) and np.all(w[st == "dropped"] == 0)
     caught = (st != "used") & bad
     assert caught.sum() >= 0.8 * bad.sum() and ((st != "used") & ~bad).sum() <= 0.05 * (~bad).sum()
+
+
+def test_heading_prior_only_where_the_frame_is_north_referenced(tmp_path):
+    """Android's rotation vector (ILC2, IPIN) is east/magnetic north/up: a 0° prior for a path in the
+    phone's frame; none for another device's frame, the simulator or an undocumented frame."""
+    android = {"quat_frame": ANDROID_ENU_FRAME}
+    assert fuse.known_heading_deg(android) == 0.0 and fuse.known_heading_deg(android, None) == 0.0
+    assert fuse.known_heading_deg(android, "watch") is None
+    assert fuse.known_heading_deg({"quat_frame": "Sensor Logger orientation, ..."}) is None
+    assert fuse.known_heading_deg({}) is None
+    (tmp_path / fuse.CALIBRATION_JSON).write_text('{"odometry_walk_m_per_sqrt_s": 0.5}')
+    cfg, _ = fuse.config_for(tmp_path, android, "phone")
+    assert cfg.heading_prior_deg == 0.0 and cfg.odometry_walk_m_per_sqrt_s == 0.5
+    assert fuse.config_for(None, {"source": "simulator"})[0] == fuse.FuseConfig()
+
+
+def test_heading_prior_holds_the_heading_where_the_fixes_turn_the_path():
+    """Wide fixes (8 m per axis, as indoors) whose error also turns a 90-s walk by 40° about its
+    middle pull the fitted heading off. A prior at the true heading weighs in by its σ: at 15° it
+    moves the estimate toward the truth, at 3° it holds it within 15° and the path's error falls."""
+    t, truth = walk(90.0, seed=3)
+    xy = odometry_of(truth, scale=1.0, yaw_deg=0.0)  # the odometry's frame is east/north: offset 0
+    ft, z, acc, _ = fixes_of(t, truth, sigma_m=8.0, outliers=0.0)
+    c = truth.mean(axis=0)
+    r = np.radians(40.0)
+    z = (z - c) @ np.array([[np.cos(r), -np.sin(r)], [np.sin(r), np.cos(r)]]).T + c
+    free = fuse.smooth(t, xy, ft, z, acc)
+    loose = fuse.smooth(t, xy, ft, z, acc, fuse.FuseConfig(heading_prior_deg=0.0))
+    tight = fuse.smooth(t, xy, ft, z, acc, fuse.FuseConfig(heading_prior_deg=0.0, heading_prior_sigma_deg=3.0))
+    assert abs(free.info["heading_offset_deg"]) > 25.0
+    assert abs(loose.info["heading_offset_deg"]) < abs(free.info["heading_offset_deg"]) - 1.0
+    assert abs(tight.info["heading_offset_deg"]) < 15.0  # the drift and heading walk still turn the rest
+    err = lambda res: np.median(np.linalg.norm(res.xy - truth, axis=1))  # noqa: E731
+    assert err(tight) < err(loose) < err(free)

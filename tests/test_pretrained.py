@@ -148,3 +148,27 @@ def test_classify_without_model_writes_a_timeline(stranger, monkeypatch, capsys,
     assert code == 0, err
     assert list((tmp_path / "c").glob("*_timeline.png")) and list((tmp_path / "c").glob("*_intervals.csv"))
     assert "walking" in out
+
+
+def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch):
+    """cross_building_calibration: the shipped run's fuse_calibration.json becomes the largest
+    odometry random walk the leave-one-building-out models show on their held-out buildings."""
+    from wearnav import fuse
+    from wearnav.pretrained import recipe
+    from wearnav.textio import read_json
+
+    got = {"lobo-ipin": 0.56, "lobo-ilc2": 0.83}
+    monkeypatch.setattr(recipe, "site_calibration",
+                        lambda run, site, data, trained: {"odometry_walk_m_per_sqrt_s": got[run.parent.parent.name],
+                                                          "walks": 10})
+    monkeypatch.setattr(recipe.runs, "read_config", lambda run: {"config": {"train": {"data": "mix"}}})
+    suites = []
+    for name in got:
+        (tmp_path / name / "runs" / f"{recipe.MODEL}-abc").mkdir(parents=True)
+        suites.append(tmp_path / name)
+    shipped = tmp_path / "shipped"
+    shipped.mkdir()
+    cal = recipe.cross_building_calibration(shipped, suites)
+    assert cal["odometry_walk_m_per_sqrt_s"] == 0.83 and cal["walks"] == 20
+    assert read_json(shipped / fuse.CALIBRATION_JSON)["per_building"] == got
+    assert fuse.config_for(shipped)[0].odometry_walk_m_per_sqrt_s == 0.83

@@ -210,6 +210,8 @@ def test_geojson_and_csv_agree_with_pymap3d_on_a_real_ipin_log(setup, shared_dat
     (warned,) = summary["warnings"]
     assert "this recording has no watch and earbuds" in warned and "`--model pdr`" in warned
     assert summary["geojson"].endswith("trajectory.geojson")
+    # the phone's rotation vector is east/magnetic north/up: the smoother's heading has a 0° prior
+    assert summary["anchoring"]["config"]["heading_prior_deg"] == 0.0
     traj = pd.read_csv(tmp_path / "out" / "trajectory.csv")
     gj = json.loads((tmp_path / "out" / "trajectory.geojson").read_text())
     (line,) = [f for f in gj["features"] if f["geometry"]["type"] == "LineString"]

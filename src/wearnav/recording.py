@@ -32,6 +32,9 @@ FORMAT_VERSION = 1
 CANONICAL_DEVICES = ("phone", "watch", "earbuds")
 LABEL_COLUMNS = ["start", "end", "kind", "value"]
 
+# meta["quat_frame"] of a recording whose phone orientation is Android's rotation vector (ILC2, IPIN 2023):
+# its world frame is east, magnetic north, up, so a path in it needs no heading offset (wearnav.fuse)
+ANDROID_ENU_FRAME = "Android rotation vector: world = east, magnetic north, up"
 STANDARD_GRAVITY = 9.80665  # m/s²; "g" of files that give acceleration in g
 # |acc| of a device is dominated by gravity (9.81 m/s²). A median far outside this band means the
 # data is in g (≈ 1), has gravity removed (≈ 0–3), or is not an accelerometer at all. The band is

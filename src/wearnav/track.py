@@ -325,7 +325,8 @@ def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy:
         summary["warnings"].append(f"{rec.name}: no location fixes: the path is not placed on a map")
         warnings.warn(WearnavWarning(summary["warnings"][-1]))
     else:
-        fcfg, cal = fuse.config_for_run(summary["run"]) if Path(summary["run"]).exists() else (fuse.FuseConfig(), None)
+        fcfg, cal = fuse.config_for(summary["run"] if Path(summary["run"]).exists() else None, rec.meta,
+                                    seq.meta.get("frame", {}).get("reference"))
         res = fuse.fuse(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, anchor, fcfg)
         summary["anchoring"] = {"requested": anchor, "method": res.method, "description": ANCHOR_TEXT[res.method],
                                 "odometry_calibration": cal or "none in the run: the smoother's defaults",

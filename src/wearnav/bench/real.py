@@ -55,7 +55,7 @@ import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.bench.user_protocol import ensure_calibration, score_path, user_table
+from wearnav.bench.user_protocol import score_path, site_calibration, user_table
 from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
@@ -508,10 +508,12 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
                   "yaw: a floor, not available to a user). A learned row scored where it did not train under "
                   "PDR's yaw uses its own estimate from the same training traces (*site yaw* column):", "", table.to_markdown(index=False, floatfmt=".2f"), ""]
         if s.get("fixes"):
-            # each model's smoother is calibrated on the validation walks of the data it trained on
-            doc["sites"][site]["calibration"] = {label: ensure_calibration(run, _trained_on(run, sites["main"]["data"]))
-                                                 for label, run in folders_with_eval(folders, site).items()}
-            rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"])
+            # each model's smoother is calibrated where it is used (user_protocol.site_calibration)
+            cal = doc["sites"][site]["calibration"] = {
+                label: site_calibration(run, site, s["data"], _trained_on(run))
+                for label, run in folders_with_eval(folders, site).items()}
+            rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"],
+                                   walk_sigma={k: c["odometry_walk_m_per_sqrt_s"] for k, c in cal.items()})
             doc["sites"][site]["user_protocol"] = {"table": rows, "runs": raw}
             lines += [USER_PROTOCOL_TEXT, "", pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), ""]
         cdf = plot_cdf(errors, out / f"{site}_error_cdf.png", f"error at surveyed points, {info['source']} test")
@@ -530,11 +532,10 @@ USER_PROTOCOL_TEXT = (
     "length through its positions at the surveyed times over the truth's (1 is right).")
 
 
-def _trained_on(run: Path, main_data: str) -> str:
-    """The data a learned run trained on (its validation walks calibrate its smoother); the main
-    site's for a model that is not learned."""
+def _trained_on(run: Path) -> str | None:
+    """The data a learned run trained on; None for a model that is not learned."""
     train = runs.read_config(run)["config"]["train"]
-    return train["data"] if get(train["model"]).learned and train.get("data") else main_data
+    return train["data"] if get(train["model"]).learned and train.get("data") else None
 
 
 def folders_with_eval(folders: dict[str, Path], site: str) -> dict[str, Path]:

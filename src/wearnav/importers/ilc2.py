@@ -62,7 +62,7 @@ from wearnav.importers.common import (
     read_text,
     strip_compression,
 )
-from wearnav.recording import DeviceStream, Recording, Trajectory
+from wearnav.recording import ANDROID_ENU_FRAME, DeviceStream, Recording, Trajectory
 from wearnav.timeseries import drop_duplicate_times, interp_onto
 
 SOURCE = "ilc2"
@@ -266,7 +266,7 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
         "start_time_unix_ms": int(info["startTime"]) if info.get("startTime", "").isdigit() else None,
         "end_time_unix_ms": int(info["endTime"]) if info.get("endTime", "").isdigit() else None,
         "truth_frame": "ILC2 floor-plan frame, metres (not geo-referenced)",
-        "quat_frame": "Android rotation vector: world = east, magnetic north, up",
+        "quat_frame": ANDROID_ENU_FRAME,
         "dropped_duplicates": meta_dropped,
         "dropped_uncovered": n_uncovered,
         "file": str(path.relative_to(root)) if root is not None and path.is_relative_to(root) else path.name,

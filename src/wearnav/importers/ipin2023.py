@@ -76,7 +76,7 @@ from wearnav.importers.common import (
     read_text,
     strip_compression,
 )
-from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
+from wearnav.recording import ANDROID_ENU_FRAME, DeviceStream, Fixes, Recording, Trajectory
 from wearnav.timeseries import drop_duplicate_times, interp_onto, rate
 
 SOURCE = "ipin2023"
@@ -342,7 +342,7 @@ def _read_log(path: Path) -> Recording:
         "file_format": "mat" if is_mat else "txt",
         "file": path.name,
         "clock": "GetSensorData app clock (s since the log started)",
-        "quat_frame": "Android rotation vector: world = east, magnetic north, up",
+        "quat_frame": ANDROID_ENU_FRAME,
     }
     stream = _imu(data, path, meta)
 
