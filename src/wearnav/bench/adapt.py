@@ -35,7 +35,7 @@ from wearnav import runs
 from wearnav.adapt import METHODS, AdaptConfig, adapt
 from wearnav.adapt.segments import walk_segments
 from wearnav.bench.real import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
-from wearnav.bench.user_protocol import raw_fix_length_ratio, score_path, user_protocol
+from wearnav.bench.user_protocol import calibrate, raw_fix_length_ratio, score_path, user_protocol
 from wearnav.dataset import Dataset
 from wearnav.evaluate import evaluate_run
 from wearnav.fileio import shown_path, write_text_atomic
@@ -118,8 +118,10 @@ def fix_label_bias(model: Path, data: Path, splits: tuple[str, ...]) -> dict:
 
 
 def user(run: Path, data: Path, split: str) -> dict[str, dict]:
-    """Protocol 2 on ``split``, per anchoring of :data:`ANCHORS`."""
-    res = user_protocol(run, data, split)
+    """Protocol 2 on ``split``, per anchoring of :data:`ANCHORS`; the smoother's odometry random walk
+    calibrated on the site's training walks (as `bench real-odometry` does for a model that did not
+    train on them: :func:`wearnav.bench.user_protocol.site_calibration`), not kept in the run."""
+    res = user_protocol(run, data, split, walk_sigma=calibrate(run, data, "train")["odometry_walk_m_per_sqrt_s"])
     return {a: {"walks": len(res[a]["length_ratio"]), **_stats(np.asarray(res[a]["errors"])),
                 "length ratio": _ratio(res[a]["length_ratio"])} for a in ANCHORS}
 
