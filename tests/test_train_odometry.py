@@ -135,6 +135,24 @@ def test_interrupted_and_resumed_run_ends_like_an_uninterrupted_one(tiny, tmp_pa
         assert a["rte"] == pytest.approx(b["rte"], rel=1e-6)
 
 
+def test_a_finished_run_is_kept_not_resumed(tiny, tmp_path):
+    """Fitting a run whose training ended for good (all its epochs, or stopped early) again trains
+    nothing and returns its record (the checkpoint is untouched); one stopped by its time budget
+    would resume."""
+    cfg = _cfg(tiny, epochs=2)
+    run = prepare_run(cfg, tmp_path / "r")
+    first = fit(cfg, run, progress=False)
+    best = run / "checkpoints" / "best.ckpt"
+    stamp = best.stat().st_mtime_ns
+    again = fit(cfg, run, progress=False)
+    assert again == first and not again["resumed"] and best.stat().st_mtime_ns == stamp
+    rec = json.loads((run / "training.json").read_text())
+    (run / "training.json").write_text(json.dumps({**rec, "epochs_run": 1, "stopped_by": "early stopping"}))
+    assert fit(cfg, run, progress=False)["stopped_by"] == "early stopping" and best.stat().st_mtime_ns == stamp
+    (run / "training.json").write_text(json.dumps({**rec, "epochs_run": 1, "stopped_by": "max time"}))
+    assert fit(cfg, run, progress=False)["resumed"]
+
+
 def test_bad_configurations_are_one_line_errors(tiny, tmp_path):
     with pytest.raises(ConfigError, match="unknown model"):
         fit(_cfg(tiny, model="nope"), tmp_path / "r", progress=False)

@@ -195,6 +195,21 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True, devices: int =
         return _fit(cfg, Path(run), progress, devices, strategy)
 
 
+def finished(run: Path, cfg: TrainConfig) -> dict | None:
+    """The training record of ``run`` when its training ended for good: stopped early, or all of
+    ``cfg.epochs`` run. A run stopped by its time budget is not finished (a larger ``--max-time``
+    resumes it). Resuming a finished run restarts early stopping's patience and trains on (seen: a
+    run stopped early after 27 epochs resumed from a last.ckpt at epoch 17 when a second site was
+    added to its benchmark), changing a model already scored."""
+    f = run / TRAINING
+    if not (f.is_file() and (run / CHECKPOINTS / BEST).is_file()):
+        return None
+    rec = read_json(f)
+    if rec.get("stopped_by") == "early stopping" or (rec.get("epochs_run") or 0) >= cfg.epochs:
+        return rec
+    return None
+
+
 def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: str) -> dict:
     L.seed_everything(cfg.seed, workers=True, verbose=False)  # before the weights are drawn
     model = build_model(cfg)
@@ -202,6 +217,9 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
     if not spec.learned:
         runs.write_json(Path(run) / TRAINING, {"learned": False})
         return {"learned": False}
+    if (done := finished(run, cfg)) is not None:  # a finished run is kept, not resumed (its patience would restart)
+        log.info(f"{run.name}: finished earlier ({done['stopped_by']}, {done['epochs_run']} epochs), not resumed")
+        return done
     lr = cfg.lr or (getattr(model, "default_lr", DEFAULT_LR) if cfg.recipe == "paper" else DEFAULT_LR)
     batch = cfg.batch or getattr(model, "default_batch", DEFAULT_BATCH)
     train_view, val_view, val_note = train_val_views(Dataset.open(cfg.data), cfg.train_split, cfg.val_split)
