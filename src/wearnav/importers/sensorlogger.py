@@ -240,14 +240,22 @@ def read_export(folder: str | Path, name: str | None = None, shown_as: str | Non
         raise
 
 
-def _read_export(folder: Path, name: str, file: str, given_platform: str | None = None) -> Recording:
-    platform, standardised, info = _metadata(folder, given_platform)
+def export_tables(folder: Path, platform: str | None = None) -> tuple[str, bool, dict, dict[str, Table]]:
+    """Platform, standardisation, Metadata.csv's descriptive fields and every sensor's table (by
+    file name) of one export folder: what :func:`read_export` builds a Recording from, and what
+    ``wearnav replay`` sends."""
+    platform, standardised, info = _metadata(folder, platform)
     tables = {}
     for fname, sensor in SENSORS.items():
         table = _load(folder, fname, list(sensor.cols), optional_cols=sensor.optional)
         if table is not None:
             tables[fname] = table
+    return platform, standardised, info, tables
+
+
+def _read_export(folder: Path, name: str, file: str, given_platform: str | None = None) -> Recording:
+    platform, standardised, info, tables = export_tables(folder, given_platform)
     return build_recording(tables, platform, standardised, folder, name, file, info)
 
 
-__all__ = ["PLATFORMS", "Unusable", "acceleration_convention", "is_export", "read", "read_export"]
+__all__ = ["PLATFORMS", "Unusable", "acceleration_convention", "export_tables", "is_export", "read", "read_export"]

@@ -106,14 +106,16 @@ class Unusable(FormatError):
 
 def build_recording(tables: dict[str, Table], platform: str, standardised: bool, folder: Path,
                     name: str, file: str, info: dict | None = None,
-                    quat_inverted: Collection[str] | None = None, t0_ns: int | None = None) -> Recording:
+                    quat_inverted: Collection[str] | None = None, t0_ns: int | None = None,
+                    origin: tuple[float, float] | None = None) -> Recording:
     """One Recording from an export's tables (by file name, e.g. ``"WristMotion.csv"``).
 
     ``folder`` is what errors and warnings name; ``info`` goes to meta as it is. ``quat_inverted``
     None checks each device's quaternion direction against its data (the module docstring);
     a collection skips the checks and takes those devices' quaternions as inverted, the others'
     as written (the receiver decides once, on enough data, and keeps to it). ``t0_ns`` (ns since the
-    epoch) replaces the earliest sample as the time origin (the receiver's slices keep the session's)."""
+    epoch) replaces the earliest sample as the time origin and ``origin`` (lat, lon) the first fix as
+    the local frame's origin: the receiver's slices of a session keep the session's."""
     info = info or {}
     s, u = acceleration_convention(platform, standardised)
     units = (f"acceleration read as {'m/s²' if standardised else 'g'} because Metadata.csv says "
@@ -127,7 +129,7 @@ def build_recording(tables: dict[str, Table], platform: str, standardised: bool,
     if not any(x is not None for x in (t_acc, acc_lin, wrist, head)):
         raise FormatError("no motion file (Accelerometer.csv, TotalAcceleration.csv, WristMotion.csv "
                           "or Headphone.csv)", folder)
-    stale = _stale_fixes(loc, min(int(x.t_ns[0]) for x in motion)) if loc is not None else None
+    stale = stale_fixes(loc, min(int(x.t_ns[0]) for x in motion)) if loc is not None else None
     if stale is not None and stale.any():
         loc = Table(loc.path, loc.t_ns[~stale], loc.df[~stale].reset_index(drop=True), loc.duplicates)
     used = [*motion, *([loc] if loc is not None and len(loc.t_ns) else [])]
@@ -241,8 +243,8 @@ def build_recording(tables: dict[str, Table], platform: str, standardised: bool,
             meta["earbud_side"] = str(sides.mode().iloc[0])
     fixes = None
     if loc is not None and len(loc.t_ns):
-        fixes, origin = _fixes(loc, sec(loc.t_ns))
-        meta.update(origin)
+        fixes, where = _fixes(loc, sec(loc.t_ns), origin)
+        meta.update(where)
     return Recording(name=name, devices=devices, fixes=fixes, meta=meta)
 
 
@@ -267,7 +269,7 @@ def _phone_acceleration(t_acc: Table | None, acc_lin: Table | None,
     return acc_lin, True
 
 
-def _stale_fixes(loc: Table, t_motion_ns: int) -> np.ndarray:
+def stale_fixes(loc: Table, t_motion_ns: int) -> np.ndarray:
     """Fixes from before the recording: a cached first fix that the app writes with a negative
     ``seconds_elapsed`` (README.md: negative entries come from "buffering or caching"), often far
     away and with a huge accuracy. Without that column, fixes more than 1 s before the first motion
@@ -381,7 +383,7 @@ def _gyro_residual(rot: Rotation, gyro: np.ndarray | None, t: np.ndarray) -> flo
     return float(np.sum(err[keep]) / np.sum(w[keep] ** 2))
 
 
-def _fixes(loc: Table, t: np.ndarray) -> tuple[Fixes, dict]:
+def _fixes(loc: Table, t: np.ndarray, origin: tuple[float, float] | None = None) -> tuple[Fixes, dict]:
     lat, lon = loc.df["latitude"].to_numpy(np.float64), loc.df["longitude"].to_numpy(np.float64)
     check_latlon(lat, lon, "Location", loc.path)
     if "horizontalAccuracy" in loc.df.columns:
@@ -389,15 +391,16 @@ def _fixes(loc: Table, t: np.ndarray) -> tuple[Fixes, dict]:
         accuracy = np.where(accuracy >= 0, accuracy, np.nan)  # negative = invalid (UNITS.md)
     else:
         accuracy = np.full(len(t), np.nan)
-    pos = geo.latlon_to_local(lat, lon, lat[0], lon[0])
+    lat0, lon0 = (float(lat[0]), float(lon[0])) if origin is None else origin
+    pos = geo.latlon_to_local(lat, lon, lat0, lon0)
     try:
         fixes = Fixes(t=t, pos=pos, accuracy=accuracy)
     except ValidationError as exc:
         raise FormatError(exc.reason, loc.path) from None
-    return fixes, {"origin_lat": float(lat[0]), "origin_lon": float(lon[0]), "projection": geo.PROJECTION}
+    return fixes, {"origin_lat": lat0, "origin_lon": lon0, "projection": geo.PROJECTION}
 
 
 __all__ = ["read", "read_export", "is_export"]
 
 
-__all__ = ["REPORT_GAP_S", "Unusable", "build_recording"]
+__all__ = ["REPORT_GAP_S", "Unusable", "build_recording", "stale_fixes"]
