@@ -47,6 +47,7 @@ class Replay:
     standardised: bool
     messages: list[dict]                 # ready to send, messageId in order
     samples: int
+    shift_ns: int                        # added to every sample time of the export
 
 
 @dataclass
@@ -110,7 +111,7 @@ def build(src: str | Path, batch_s: float = 0.2, session_id: str | None = None,
         payload = [{"name": n, "time": t + shift, "values": v} for t, n, v in rows[start:end]]
         messages.append({"messageId": k, "sessionId": session_id, "deviceId": device_id, "payload": payload,
                          "_due_s": float((batch_of[start] + 1) * batch_s)})
-    return Replay(session_id, device_id, platform, standardised, messages, len(rows))
+    return Replay(session_id, device_id, platform, standardised, messages, len(rows), shift)
 
 
 def _plain(v):
