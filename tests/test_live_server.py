@@ -15,13 +15,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from live_server import LiveServer
 from test_live_push import BAD, assert_same, body, enc
 from wearnav.dataset import Dataset
 from wearnav.importers import sensorlogger
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import replay
 from wearnav.live.export import export_session
+from wearnav.live.process import LiveServer
 
 TOKEN = "t0k3n-for-the-test-only-9f3c"
 

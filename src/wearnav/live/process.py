@@ -1,4 +1,5 @@
-"""A real ``wearnav live`` process on 127.0.0.1 and a free port, for the receiver's tests."""
+"""A real ``wearnav live`` process on 127.0.0.1 and a free port: for ``wearnav live bench`` and the
+receiver's tests (real uvicorn, real HTTP, SIGKILL when asked)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from pathlib import Path
 
 import httpx
 
-ROOT = Path(__file__).resolve().parents[1]
+SRC = Path(__file__).resolve().parents[2]  # the folder holding the wearnav package
 
 
 def free_port() -> int:
@@ -32,7 +33,8 @@ class LiveServer:
         self.proc: subprocess.Popen | None = None
 
     def start(self, timeout_s: float = 30.0) -> "LiveServer":
-        env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "OMP_NUM_THREADS": "1"}
+        path = os.pathsep.join(p for p in (str(SRC), os.environ.get("PYTHONPATH", "")) if p)
+        env = {**os.environ, "PYTHONPATH": path, "OMP_NUM_THREADS": "1"}
         cmd = [sys.executable, "-m", "wearnav", "live", "--host", "127.0.0.1", "--port", str(self.port),
                "--store", str(self.store), *self.args]
         with open(self.log, "ab") as log:
@@ -65,6 +67,14 @@ class LiveServer:
             except subprocess.TimeoutExpired:
                 self.kill()
 
+    def cpu_s(self) -> float | None:
+        """CPU seconds (user + system) the server process has used so far (Linux /proc), or None."""
+        try:
+            fields = Path(f"/proc/{self.proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, AttributeError, IndexError):
+            return None
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
     def output(self) -> str:
         return self.log.read_text(errors="replace")
 
@@ -73,3 +83,6 @@ class LiveServer:
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+
+__all__ = ["LiveServer", "free_port"]
