@@ -52,6 +52,7 @@ def check(raw: bytes):
 # Every refused body, its status and a word of the one-line reason.
 BAD = {
     "not JSON": (b'{"messageId": 1,', 400, "not JSON"),
+    "not UTF-8": (enc(body()).decode().encode("utf-16"), 400, "UTF-8"),
     "NaN": (enc(body()).replace(b"0.1", b"NaN"), 400, "NaN"),
     "Infinity": (enc(body()).replace(b"0.1", b"-Infinity"), 400, "Infinity"),
     "huge number": (enc(body()).replace(b"0.1", b"1e999"), 400, "not finite"),

@@ -79,7 +79,10 @@ def load_phase(work: Path, export: Path, duration_s: float, speed: float) -> dic
     rp = replay.build(export, batch_s=BATCH_S, session_id="bench-load")
     n = min(len(rp.messages), int(round(duration_s * speed / BATCH_S)))
     with LiveServer(work / "load.db", "--no-track") as srv:
+        time.sleep(1.0)   # start-up work done
+        c0, w0 = srv.cpu_s(), time.perf_counter()
         res = replay.send(rp, f"{srv.url}/push", speed=speed, stop_after=n)
+        c1, w1 = srv.cpu_s(), time.perf_counter()
     samples = sum(len(m["payload"]) for m in rp.messages[:n])
     live = export_session(work / "load.db", "bench-load", work / "load-export")
     ref = reference(export, rp.messages[n - 1]["_due_s"])
@@ -88,6 +91,7 @@ def load_phase(work: Path, export: Path, duration_s: float, speed: float) -> dic
     return {"messages": n, "samples": samples, "data_s": round(n * BATCH_S, 1), "speed": speed,
             "wall_s": round(res.wall_s, 2), "schedule_s": round(n * BATCH_S / speed, 2),
             "behind_at_end_s": round(res.late_s, 3), "acknowledged": len(res.acknowledged), "retries": res.retries,
+            "cpu_share_of_one_core": None if c0 is None or c1 is None else round((c1 - c0) / (w1 - w0), 4),
             "ack_ms": {"p50": _pct(lat, 50), "p95": _pct(lat, 95), "p99": _pct(lat, 99),
                        "max": round(1e3 * max(lat), 2) if lat else None},
             "devices": lost_and_duplicated(ref, live_rec)}
@@ -153,7 +157,9 @@ def page(r: dict) -> str:
         f"{ld['messages']} messages ({ld['samples']} samples) in {ld['wall_s']} s (schedule {ld['schedule_s']} s; "
         f"{ld['behind_at_end_s']} s behind at the end), {ld['acknowledged']} acknowledged, {ld['retries']} retries. "
         f"Ack latency: p50 {ld['ack_ms']['p50']} ms, p95 {ld['ack_ms']['p95']} ms, p99 {ld['ack_ms']['p99']} ms, "
-        f"max {ld['ack_ms']['max']} ms. Lost samples: {lost}, duplicated: {dup} (the stored session exported with "
+        f"max {ld['ack_ms']['max']} ms. The server process used "
+        + ("?" if ld["cpu_share_of_one_core"] is None else f"{100 * ld['cpu_share_of_one_core']:.0f} %")
+        + f" of one core (storing only, no tracking: {ld['speed']:g} walkers' worth of pushes). Lost samples: {lost}, duplicated: {dup} (the stored session exported with "
         "`wearnav live export`, compared with `wearnav import` of the same export):", "",
         "| device | samples | lost | duplicated | equal to the import |", "|---|---|---|---|---|", rows, "",
         f"## CPU share at real time ({cpu['seconds']} s, one walker)", "",

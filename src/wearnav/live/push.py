@@ -9,7 +9,7 @@ tszheichoi/awesome-sensor-logger)::
 Every rule below turns a bad body into one :class:`BadPush` (an HTTP status and one line), so
 that the receiver answers 4xx and stores nothing of it:
 
-* not JSON, or JSON holding ``NaN`` / ``Infinity`` (or a number too large for a float) → 400;
+* not UTF-8 JSON, or JSON holding ``NaN`` / ``Infinity`` (or a number too large for a float) → 400;
 * a field of the wrong type or missing; a payload entry that is not ``{"name": str, "time": int,
   "values": {str: number | str | bool | null}}``; a sensor this receiver reads
   (:data:`wearnav.importers.sensorlogger_map.PUSH_NAMES`) without its numeric columns → 422;
@@ -102,10 +102,12 @@ def _check_values(values, name: str, k: int) -> None:
 def parse(body: bytes, now_ns: int, max_future_s: float, max_age_s: float) -> Push:
     """The checked push in ``body`` (module docstring), or :class:`BadPush`."""
     try:
-        doc = json.loads(body, parse_constant=_no_constant)
+        doc = json.loads(body.decode("utf-8"), parse_constant=_no_constant)
     except BadPush:
         raise
-    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
+    except UnicodeDecodeError:
+        raise BadPush(400, "the body is not UTF-8 text") from None
+    except (ValueError, RecursionError) as exc:
         raise BadPush(400, f"the body is not JSON ({type(exc).__name__}: {str(exc)[:80]})") from None
     if not isinstance(doc, dict):
         raise BadPush(422, "the body must be a JSON object with messageId, sessionId, deviceId and payload")

@@ -115,8 +115,9 @@ def build(src: str | Path, batch_s: float = 0.2, session_id: str | None = None,
 
 
 def _plain(v):
+    """A CSV cell as JSON has it: an empty cell (NaN) is null, as the app sends a missing value."""
     if isinstance(v, (np.floating, float)):
-        return float(v)
+        return float(v) if np.isfinite(v) else None
     if isinstance(v, (np.integer,)):
         return int(v)
     if isinstance(v, str) or v is None:
