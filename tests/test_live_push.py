@@ -8,6 +8,7 @@ import json
 import math
 import random
 import sqlite3
+import threading
 import time
 
 import numpy as np
@@ -18,6 +19,7 @@ from hypothesis import strategies as st
 from wearnav.importers import sensorlogger
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import replay
+from wearnav.live.app import Receiver
 from wearnav.live.buffer import SessionBuffer
 from wearnav.live.push import BadPush, parse
 from wearnav.live.store import Store
@@ -204,3 +206,58 @@ def test_buffer_in_any_order_equals_the_importer(export60):
     np.testing.assert_allclose(part.fixes.pos, ref.fixes.pos[k], atol=1e-6)
     assert set(shuffled.devices()) == {"phone", "watch", "earbuds"}
     assert shuffled.devices()["phone"]["rate_hz"] == pytest.approx(100, rel=0.05)
+
+
+class SlowTracker:
+    """A test double of live-page's LiveTracker (same two methods): records what it saw."""
+
+    def __init__(self):
+        self.seen: list[int] = []
+        self.busy = threading.Lock()
+        self.overlap = False
+
+    def update(self, buf) -> bool:
+        if not self.busy.acquire(blocking=False):
+            self.overlap = True
+            return False
+        try:
+            self.seen.append(buf.version)
+            time.sleep(0.3)
+        finally:
+            self.busy.release()
+        return True
+
+    def state(self) -> dict:
+        return {"origin": None, "path": [[0.0, 0.0, 0.0, None]], "anchor": "none", "fixes": [], "activity": None,
+                "warnings": [], "t_s": 0.0}
+
+
+def test_tracker_runs_after_acks_one_thread_per_session_coalesced(tmp_path):
+    """Ten pushes while the tracker is busy make it run once more, not ten times; never two
+    updates of one session at once; the state merges the tracker's with the server's fields."""
+    trackers = []
+
+    def factory():
+        trackers.append(SlowTracker())
+        return trackers[-1]
+
+    rx = Receiver(Store(tmp_path / "live.db"), None, 1 << 20, 1000.0, factory, "ios", False, 120, 7 * DAY)
+    for k in range(10):
+        assert rx.accept(enc(body(messageId=k)), "ios", False) is True
+        time.sleep(0.01)
+    rx.accept(enc(body(sessionId="other")), "ios", False)
+    deadline = time.monotonic() + 5
+    def done():  # the last update saw all ten messages and has finished
+        t = trackers[0]
+        return t.seen and t.seen[-1] == 10 and len(rx.workers["s-1"].latency_s) == len(t.seen)
+
+    while not done() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    t = trackers[0]
+    assert len(trackers) == 2 and not t.overlap
+    assert t.seen[-1] == 10 and len(t.seen) <= 3       # coalesced: the last update saw every message
+    st = rx.state("s-1")
+    assert st["session"] == "s-1" and st["messages"] == 10 and st["path"] == [[0.0, 0.0, 0.0, None]]
+    assert set(st["devices"]["phone"]) == {"rate_hz", "last_seen_unix_s", "samples", "stopped"}
+    assert not st["devices"]["phone"]["stopped"]
+    assert len(rx.workers["s-1"].latency_s) == len(t.seen)
