@@ -128,22 +128,28 @@ def live_bench(
     out: Path = typer.Option(Path("runs/live-bench"), "--out", help="Folder for results.md / results.json."),
     duration: float = typer.Option(60.0, min=1.0, help="Wall seconds of the load phase."),
     speed: float = typer.Option(10.0, min=1.0, help="Replay speed of the load phase (× real time)."),
-    cpu_s: float = typer.Option(30.0, "--cpu-s", min=5.0, help="Seconds of the real-time CPU-share phase."),
+    cpu_s: float = typer.Option(30.0, "--cpu-s", min=2.0, help="Seconds of each real-time walkers phase."),
+    walkers: str = typer.Option("1,2,4,8", help="Walkers (sessions at once, real time) to try, comma-separated."),
     track: bool = typer.Option(True, "--track/--no-track", help="Run the live tracker in the CPU phase "
                                "(where this installation has one)."),
 ):
     """Load the receiver (3 devices × 100 Hz at SPEED× for DURATION s) and measure ack latency,
-    lost / duplicated samples and the server's CPU share at real time.
+    lost / duplicated samples, then walkers at once at real time: CPU share, update latency, capacity.
 
     \b
     Example:
       wearnav live bench --out runs/live-bench
     """
+    from wearnav.cli_common import split_list
     from wearnav.live.bench import run_bench
     from wearnav.outputs import check_suite_folder
 
+    try:
+        counts = tuple(int(x) for x in split_list(walkers))
+    except ValueError:
+        raise typer.BadParameter("--walkers: whole numbers, comma-separated") from None
     check_suite_folder(out, "live bench")
-    typer.echo(str(run_bench(out, duration_s=duration, speed=speed, cpu_s=cpu_s, track=track)))
+    typer.echo(str(run_bench(out, duration_s=duration, speed=speed, cpu_s=cpu_s, track=track, walkers=counts)))
 
 
 def replay(

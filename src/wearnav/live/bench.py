@@ -9,10 +9,11 @@ Sensor Logger export (phone: accelerometer, gravity, gyroscope, orientation at 1
    batches), no tracking: acknowledgement latency (POST sent → 200 received, p50 / p95 / p99 /
    max), whether it kept up, and lost or duplicated samples: the stored session exported and
    compared, device by device, with importing the export directly.
-2. **CPU share**: ``cpu_s`` seconds replayed at real time, with the live tracker where this
-   installation has one: the server process's CPU time (user + system, ``/proc``) over the
-   replay's wall time, as a share of one core, and the tracker's update latency (the oldest
-   unprocessed 200 → its path update done).
+2. **Walkers**: 1, 2, 4, 8 ... sessions (``walkers``) replayed at once at real time for ``cpu_s``
+   seconds each, with the live tracker where this installation has one: the server process's CPU
+   time (user + system, ``/proc``) over the wall time as a share of one core, ack latency, the
+   tracker's update latency (the oldest unprocessed 200 → its path update done), and whether it
+   kept up (stops at the first count that does not): the capacity of this machine.
 
 ``results.json`` and ``results.md`` go to ``out`` (``wearnav results`` stitches the page into
 docs/results.md).
@@ -24,7 +25,9 @@ import importlib.util
 import json
 import os
 import platform
+import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import httpx
@@ -97,38 +100,58 @@ def load_phase(work: Path, export: Path, duration_s: float, speed: float) -> dic
             "devices": lost_and_duplicated(ref, live_rec)}
 
 
-def cpu_phase(work: Path, export: Path, cpu_s: float, track: bool) -> dict:
+def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track: bool) -> dict:
+    """``walkers`` sessions replayed at once at real time into one server (with the live tracker
+    where there is one): its CPU share, ack latency, tracker update latency, and whether it kept up."""
     tracking = track and importlib.util.find_spec("wearnav.live.tracker") is not None
-    rp = replay.build(export, batch_s=BATCH_S, session_id="bench-cpu")
-    n = min(len(rp.messages), int(round(cpu_s / BATCH_S)))
-    with LiveServer(work / "cpu.db", *([] if tracking else ["--no-track"])) as srv:
+    base = replay.build(export, batch_s=BATCH_S, session_id="walker-0")
+    n = min(len(base.messages), int(round(seconds / BATCH_S)))
+    plays = [replace(base, session_id=f"walker-{i}", messages=[{**m, "sessionId": f"walker-{i}"}
+                                                               for m in base.messages[:n]])
+             for i in range(walkers)]
+    results: list = [None] * walkers
+    with LiveServer(work / f"walkers-{walkers}.db", *([] if tracking else ["--no-track"])) as srv:
         time.sleep(1.0)   # start-up work done
         c0, w0 = srv.cpu_s(), time.perf_counter()
-        res = replay.send(rp, f"{srv.url}/push", speed=1.0, stop_after=n)
+        threads = [threading.Thread(target=lambda i=i: results.__setitem__(i, replay.send(plays[i], f"{srv.url}/push")))
+                   for i in range(walkers)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
         c1, w1 = srv.cpu_s(), time.perf_counter()
-        time.sleep(1.0)   # the tracker's last update
+        time.sleep(1.0)   # the trackers' last updates
         stats = httpx.get(f"{srv.url}/stats").json()
-    lat = [x for v in stats.get("update_latency_s", {}).values() for x in v]
-    share = None if c0 is None or c1 is None else round((c1 - c0) / (w1 - w0), 4)
-    return {"seconds": round(w1 - w0, 1), "messages": n, "tracking": tracking, "cpu_share_of_one_core": share,
-            "cores": os.cpu_count(), "ack_ms": {"p50": _pct(res.ack_latency_s, 50), "p99": _pct(res.ack_latency_s, 99)},
-            "update_ms": {"p50": _pct(lat, 50), "p95": _pct(lat, 95), "n": len(lat)}}
+    acks = [x for r in results if r is not None for x in r.ack_latency_s]
+    upd = [x for v in stats.get("update_latency_s", {}).values() for x in v]
+    behind = max((r.late_s for r in results if r is not None), default=float("inf"))
+    complete = all(r is not None and len(r.acknowledged) == n for r in results)
+    upd_p95 = _pct(upd, 95)
+    kept_up = complete and behind < 1.0 and (not tracking or (upd_p95 is not None and upd_p95 < 1000.0))
+    return {"walkers": walkers, "seconds": round(w1 - w0, 1), "messages": n * walkers, "tracking": tracking,
+            "cpu_share_of_one_core": None if c0 is None or c1 is None else round((c1 - c0) / (w1 - w0), 4),
+            "ack_ms": {"p50": _pct(acks, 50), "p99": _pct(acks, 99)}, "behind_at_end_s": round(behind, 3),
+            "update_ms": {"p50": _pct(upd, 50), "p95": upd_p95, "n": len(upd)}, "kept_up": kept_up}
 
 
 def run_bench(out: str | Path, duration_s: float = 60.0, speed: float = 10.0, cpu_s: float = 30.0,
-              track: bool = True, seed: int = 0) -> Path:
+              track: bool = True, walkers: tuple[int, ...] = (1, 2, 4, 8), seed: int = 0) -> Path:
     out = Path(out)
     work = out / "work"
-    for name in ("load.db", "cpu.db"):
-        for suffix in ("", "-wal", "-shm"):
-            (work / (name + suffix)).unlink(missing_ok=True)
+    for db in work.glob("*.db*"):
+        db.unlink()
     export = work / "export"
     if not (export / "Metadata.csv").is_file():
         simulated_export(export, seed=seed, duration_s=max(duration_s * speed, cpu_s) + 2.0)
     if (work / "load-export").exists():
         import shutil
         shutil.rmtree(work / "load-export")
-    result = {"load": load_phase(work, export, duration_s, speed), "cpu": cpu_phase(work, export, cpu_s, track),
+    rows = []
+    for k in sorted(set(walkers) | {1}):
+        rows.append(walkers_phase(work, export, k, cpu_s, track))
+        if not rows[-1]["kept_up"]:
+            break   # more walkers will not keep up either
+    result = {"load": load_phase(work, export, duration_s, speed), "walkers": rows,
               "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count()},
               "provenance": provenance()}
     write_text_atomic(json.dumps(result, indent=1, default=str), out / "results.json")
@@ -136,15 +159,24 @@ def run_bench(out: str | Path, duration_s: float = 60.0, speed: float = 10.0, cp
 
 
 def page(r: dict) -> str:
-    ld, cpu, p = r["load"], r["cpu"], r["provenance"]
+    ld, rows, p = r["load"], r["walkers"], r["provenance"]
     lost = sum(d["lost"] for d in ld["devices"].values())
     dup = sum(d["duplicated"] for d in ld["devices"].values())
-    rows = "\n".join(f"| {dev} | {d['samples']} | {d['lost']} | {d['duplicated']} | {'yes' if d['equal'] else 'no'} |"
+    devs = "\n".join(f"| {dev} | {d['samples']} | {d['lost']} | {d['duplicated']} | {'yes' if d['equal'] else 'no'} |"
                      for dev, d in ld["devices"].items())
-    share = cpu["cpu_share_of_one_core"]
-    share_txt = "not measured (no /proc)" if share is None else f"{100 * share:.1f} % of one core"
-    upd = (f"; tracker update after a 200: p50 {cpu['update_ms']['p50']} ms, p95 {cpu['update_ms']['p95']} ms "
-           f"({cpu['update_ms']['n']} updates)") if cpu["tracking"] else " (tracking off: no live tracker in this installation)"
+    one = rows[0]
+    tracking = one["tracking"]
+
+    def pc(x):
+        return "?" if x is None else f"{100 * x:.1f} %"
+
+    table = "\n".join(
+        f"| {w['walkers']} | {pc(w['cpu_share_of_one_core'])} | {w['ack_ms']['p50']} | {w['ack_ms']['p99']} | "
+        f"{w['update_ms']['p50'] if tracking else '–'} | {w['update_ms']['p95'] if tracking else '–'} | "
+        f"{w['behind_at_end_s']} | {'yes' if w['kept_up'] else 'no'} |" for w in rows)
+    kept = [w["walkers"] for w in rows if w["kept_up"]]
+    capacity = (f"at least {max(kept)} walkers (the most tried"
+                + ("" if len(kept) == len(rows) else f"; {rows[-1]['walkers']} did not keep up") + ")") if kept else "none"
     return "\n".join([
         "# Live receiver (wearnav live)", "",
         f"Generated by `wearnav live bench` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) on this machine: "
@@ -157,15 +189,21 @@ def page(r: dict) -> str:
         f"{ld['messages']} messages ({ld['samples']} samples) in {ld['wall_s']} s (schedule {ld['schedule_s']} s; "
         f"{ld['behind_at_end_s']} s behind at the end), {ld['acknowledged']} acknowledged, {ld['retries']} retries. "
         f"Ack latency: p50 {ld['ack_ms']['p50']} ms, p95 {ld['ack_ms']['p95']} ms, p99 {ld['ack_ms']['p99']} ms, "
-        f"max {ld['ack_ms']['max']} ms. The server process used "
-        + ("?" if ld["cpu_share_of_one_core"] is None else f"{100 * ld['cpu_share_of_one_core']:.0f} %")
-        + f" of one core (storing only, no tracking: {ld['speed']:g} walkers' worth of pushes). Lost samples: {lost}, duplicated: {dup} (the stored session exported with "
-        "`wearnav live export`, compared with `wearnav import` of the same export):", "",
-        "| device | samples | lost | duplicated | equal to the import |", "|---|---|---|---|---|", rows, "",
-        f"## CPU share at real time ({cpu['seconds']} s, one walker)", "",
-        f"The server process used {share_txt} while one walker's pushes arrived in real time"
-        f"{' with live tracking' if cpu['tracking'] else ''}{upd}. Ack latency at real time: p50 "
-        f"{cpu['ack_ms']['p50']} ms, p99 {cpu['ack_ms']['p99']} ms.", ""])
+        f"max {ld['ack_ms']['max']} ms. The server process used {pc(ld['cpu_share_of_one_core'])} of one core "
+        f"(storing only, no tracking: {ld['speed']:g} walkers' worth of pushes). Lost samples: {lost}, duplicated: "
+        f"{dup} (the stored session exported with `wearnav live export`, compared with `wearnav import` of the same "
+        "export):", "",
+        "| device | samples | lost | duplicated | equal to the import |", "|---|---|---|---|---|", devs, "",
+        f"## Walkers at real time ({one['seconds']} s each, {'with' if tracking else 'without'} live tracking)", "",
+        "Each walker is one session (phone, watch, earbuds) pushing in real time; all at once into one server. "
+        "CPU: the server process's user + system time over the wall time, as a share of one core. "
+        + ("Update: from the oldest unprocessed 200 to the tracker's path update done. " if tracking else
+           "No live tracker in this installation: storing and serving only. ")
+        + "Kept up: every message acknowledged, under 1 s behind schedule at the end"
+        + (", update p95 under 1 s." if tracking else "."), "",
+        "| walkers | server CPU | ack p50 ms | ack p99 ms | update p50 ms | update p95 ms | behind at end s | kept up |",
+        "|---|---|---|---|---|---|---|---|", table, "",
+        f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}.", ""])
 
 
 __all__ = ["lost_and_duplicated", "run_bench"]
