@@ -1,0 +1,267 @@
+"""One live session's samples, kept per sensor and turned into a Recording on demand.
+
+Each accepted push adds its payload here (after the store committed it). Samples are kept as the
+app sent them, per sensor (:data:`wearnav.importers.sensorlogger_map.PUSH_NAMES`), sorted by sample
+time whatever order the messages came in; a repeated sample time keeps the sample that arrived
+first (``timeseries.drop_duplicate_times``' rule). :meth:`SessionBuffer.recording` hands them to
+the same tables → Recording step as the CSV importer
+(:func:`wearnav.importers.sensorlogger_build.build_recording`), so the devices, units, signs and
+frames are the importer's: a session holding the same samples as an export gives the same
+Recording.
+
+Slices (``t_from``) keep the session's time origin, its local-frame origin (the first fix) and
+the quaternion direction decided once on the first ``DECIDE_S`` seconds (the importer's checks),
+so every slice lies in one frame.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wearnav.errors import FormatError
+from wearnav.importers.sensorlogger_build import build_recording, stale_fixes
+from wearnav.importers.sensorlogger_map import PUSH_NAMES, SENSORS, Table
+from wearnav.recording import DeviceStream, Fixes, Recording
+
+NS = 1_000_000_000
+DECIDE_S = 10.0   # seconds of data after which the quaternion direction is decided for good
+MARGIN_S = 2.0    # a slice reads this much earlier data, for interpolation at its start
+TEXT_COLS = {"Headphone.csv": "devicelocation"}
+_BUILD_LOCK = threading.Lock()  # warnings.catch_warnings is process-wide
+
+
+@dataclass
+class _Sensor:
+    cols: list[str]
+    chunks: list[tuple[np.ndarray, np.ndarray, list | None]] = field(default_factory=list)
+    optional_seen: set = field(default_factory=set)
+    t: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    vals: np.ndarray | None = None
+    text: list | None = None
+    duplicates: int = 0
+    last_seen_unix_s: float = 0.0
+
+    def consolidate(self) -> None:
+        """Merge the pending chunks: sorted by time (stable: arrival order on ties), first kept."""
+        if not self.chunks:
+            return
+        ts = [self.t, *(c[0] for c in self.chunks)]
+        vs = ([self.vals] if self.vals is not None else []) + [c[1] for c in self.chunks]
+        t, v = np.concatenate(ts), np.concatenate(vs)
+        text = None
+        if any(c[2] is not None for c in self.chunks):
+            text = (self.text or []) + [x for c in self.chunks for x in (c[2] or [None] * len(c[0]))]
+        self.chunks = []
+        order = np.argsort(t, kind="stable")
+        t, v = t[order], v[order]
+        keep = np.concatenate([[True], np.diff(t) > 0]) if t.size else np.zeros(0, bool)
+        self.duplicates += int((~keep).sum())
+        self.t, self.vals = t[keep], v[keep]
+        if text is not None:
+            text = [text[i] for i in order]
+            self.text = [x for x, k in zip(text, keep) if k]
+
+
+class SessionBuffer:
+    """One session's samples so far, already in the Recording convention (the importer's mapping)."""
+
+    def __init__(self, session_id: str, platform: str = "ios", standardised: bool = False):
+        self.session_id = session_id
+        self.platform = platform
+        self.standardised = standardised
+        self.t0_unix_ns: int | None = None
+        self.version = 0
+        self.messages = 0
+        self.ignored: dict[str, int] = {}       # unknown sensor names → samples (stored, not read)
+        self.warnings: list[str] = []
+        self._sensors: dict[str, _Sensor] = {}
+        self._lock = threading.Lock()
+        self._quat_inverted: list[str] | None = None
+        self._cache: tuple | None = None
+
+    # ---- input ------------------------------------------------------------------------------
+
+    def add(self, payload: list[dict], received_unix_s: float | None = None) -> int:
+        """Add one accepted message's payload (checked by :func:`wearnav.live.push.parse`);
+        returns how many samples of known sensors it held."""
+        now = time.time() if received_unix_s is None else received_unix_s
+        rows: dict[str, list[dict]] = {}
+        for item in payload:
+            sensor = PUSH_NAMES.get(item["name"])
+            if sensor is None:
+                self.ignored[item["name"]] = self.ignored.get(item["name"], 0) + 1
+                continue
+            rows.setdefault(sensor.file, []).append(item)
+        n = 0
+        with self._lock:
+            for fname, items in rows.items():
+                spec = SENSORS[fname]
+                s = self._sensors.setdefault(fname, _Sensor(cols=[*spec.cols, *spec.optional]))
+                t = np.fromiter((it["time"] for it in items), np.int64, len(items))
+                v = np.array([[_num(it["values"].get(c)) for c in s.cols] for it in items], np.float64)
+                s.optional_seen.update(c for c in spec.optional if any(c in it["values"] for it in items))
+                tc = TEXT_COLS.get(fname)
+                text = [it["values"].get(tc) for it in items] if tc else None
+                s.chunks.append((t, v, text))
+                s.last_seen_unix_s = now
+                n += len(items)
+            self.version += 1
+            self.messages += 1
+        return n
+
+    # ---- output -----------------------------------------------------------------------------
+
+    def _snapshot(self) -> tuple[int, dict[str, tuple]]:
+        with self._lock:
+            for s in self._sensors.values():
+                s.consolidate()
+            snap = {f: (s.t, s.vals, [*s.cols[:len(SENSORS[f].cols)],
+                                      *[c for c in SENSORS[f].optional if c in s.optional_seen]],
+                        s.text, s.duplicates) for f, s in self._sensors.items() if s.t.size}
+            version = self.version
+        self.t0_unix_ns = self._t0(snap)
+        return version, snap
+
+    @staticmethod
+    def _t0(snap: dict) -> int | None:
+        motion = [v[0][0] for f, v in snap.items() if SENSORS[f].device is not None]
+        if not motion:
+            return None
+        starts = list(motion)
+        if "Location.csv" in snap:
+            loc = _table("", "Location.csv", snap["Location.csv"], 0)
+            fresh = loc.t_ns[~stale_fixes(loc, int(min(motion)))]
+            if fresh.size:
+                starts.append(fresh[0])
+        return int(min(starts))
+
+    def _tables(self, snap: dict, lo_ns: int | None) -> dict[str, Table]:
+        out = {}
+        for fname, entry in snap.items():
+            i = 0 if lo_ns is None else int(np.searchsorted(entry[0], lo_ns))
+            if entry[0].size - i > 0:
+                out[fname] = _table(self.session_id, fname, entry, i)
+        return out
+
+    def _build(self, tables: dict[str, Table], **kw) -> Recording:
+        with _BUILD_LOCK, warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            rec = build_recording(tables, self.platform, self.standardised, Path(f"live:{self.session_id}"),
+                                  self.session_id, f"live session {self.session_id}",
+                                  {"platform_from": "the push URL / wearnav live --platform"},
+                                  t0_ns=self.t0_unix_ns, **kw)
+        self.warnings = [str(w.message) for w in caught]
+        return rec
+
+    def recording(self, t_from: float | None = None) -> Recording:
+        """Every device's stream (and the fixes) with t >= t_from (s since t0), sorted by time;
+        meta as the importer sets it. ``t_from`` None: all of it, with the importer's checks."""
+        version, snap = self._snapshot()
+        key = (version, t_from)
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        if self.t0_unix_ns is None:
+            raise FormatError("no motion samples yet", f"live:{self.session_id}")
+        if t_from is None or self._quat_inverted is None:
+            rec = self._full(snap)
+            if t_from is not None:
+                rec = cut(rec, t_from)
+        else:
+            full_loc = snap.get("Location.csv")
+            origin = None
+            if full_loc is not None:
+                loc = _table(self.session_id, "Location.csv", full_loc, 0)
+                motion0 = min(v[0][0] for f, v in snap.items() if SENSORS[f].device is not None)
+                fresh = ~stale_fixes(loc, int(motion0))
+                if fresh.any():
+                    k = int(np.argmax(fresh))
+                    origin = (float(loc.df["latitude"].iloc[k]), float(loc.df["longitude"].iloc[k]))
+            lo = self.t0_unix_ns + int(round((t_from - MARGIN_S) * NS))
+            rec = cut(self._build(self._tables(snap, lo), quat_inverted=self._quat_inverted, origin=origin), t_from)
+        self._cache = (key, rec)
+        return rec
+
+    def _full(self, snap: dict) -> Recording:
+        tables = self._tables(snap, None)
+        span = self.covered_until()
+        try:
+            rec = self._build(tables)
+        except FormatError:
+            if span >= DECIDE_S:
+                raise
+            # Too little data yet for the importer's plausibility checks: the documented
+            # world←device reading until DECIDE_S seconds are in.
+            return self._build(tables, quat_inverted=())
+        if span >= DECIDE_S and self._quat_inverted is None:
+            self._quat_inverted = list(rec.meta.get("quat_inverted", []))
+        return rec
+
+    def covered_until(self) -> float:
+        """s since t0: min over connected IMU devices of their latest sample time."""
+        _, snap = self._snapshot()
+        last: dict[str, int] = {}
+        for fname, entry in snap.items():
+            dev = SENSORS[fname].device
+            if dev is not None:
+                last[dev] = max(last.get(dev, 0), int(entry[0][-1]))
+        if not last or self.t0_unix_ns is None:
+            return 0.0
+        return (min(last.values()) - self.t0_unix_ns) / NS
+
+    def devices(self) -> dict[str, dict]:
+        """{"phone": {"rate_hz": 99.8, "last_seen_unix_s": ..., "samples": n}, ...}: each device's
+        fastest sensor's rate over its last 2 s of samples, and when a message last carried it."""
+        _, snap = self._snapshot()
+        with self._lock:
+            seen = {f: s.last_seen_unix_s for f, s in self._sensors.items()}
+        out: dict[str, dict] = {}
+        for fname, (t, *_rest) in snap.items():
+            dev = SENSORS[fname].device
+            if dev is None:
+                continue
+            recent = t[t >= t[-1] - 2 * NS]
+            rate = (recent.size - 1) / ((recent[-1] - recent[0]) / NS) if recent.size > 1 and recent[-1] > recent[0] else 0.0
+            d = out.setdefault(dev, {"rate_hz": 0.0, "last_seen_unix_s": 0.0, "samples": 0})
+            if rate >= d["rate_hz"]:
+                d["rate_hz"], d["samples"] = round(float(rate), 1), int(t.size)
+            d["last_seen_unix_s"] = max(d["last_seen_unix_s"], seen[fname])
+        return out
+
+
+def _num(x) -> float:
+    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else np.nan
+
+
+def _table(session_id: str, fname: str, entry: tuple, i: int) -> Table:
+    t, vals, cols, text, dups = entry
+    df = pd.DataFrame(vals[i:, :len(cols)], columns=cols) if len(cols) == vals.shape[1] else \
+        pd.DataFrame(vals[i:], columns=SENSORS[fname].cols + SENSORS[fname].optional)[cols]
+    if text is not None:
+        df[TEXT_COLS[fname]] = text[i:]
+    return Table(Path(f"live:{session_id}/{fname}"), t[i:], df, dups)
+
+
+def cut(rec: Recording, t_from: float) -> Recording:
+    """``rec`` from ``t_from`` (s) on: every stream and the fixes."""
+    devices = {}
+    for dev, s in rec.devices.items():
+        k = s.t >= t_from
+        if k.any():
+            devices[dev] = DeviceStream(t=s.t[k], acc=s.acc[k], gyro=None if s.gyro is None else s.gyro[k],
+                                        quat=None if s.quat is None else s.quat[k], check_units=False)
+    fixes = None
+    if rec.fixes is not None and (k := rec.fixes.t >= t_from).any():
+        fixes = Fixes(t=rec.fixes.t[k], pos=rec.fixes.pos[k], accuracy=rec.fixes.accuracy[k])
+    if not devices:
+        raise FormatError(f"no samples after t = {t_from:g} s yet", rec.meta.get("file"))
+    return Recording(name=rec.name, devices=devices, fixes=fixes, meta=rec.meta)
+
+
+__all__ = ["DECIDE_S", "SessionBuffer", "cut"]

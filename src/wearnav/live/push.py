@@ -1,0 +1,143 @@
+"""One Sensor Logger push body, parsed and checked before anything is stored.
+
+The body is exactly what the app sends by HTTP Push and MQTT (PUSHING.md of
+tszheichoi/awesome-sensor-logger)::
+
+    {"messageId": 0, "sessionId": "...", "deviceId": "...",
+     "payload": [{"name": "accelerometer", "time": <UTC epoch ns>, "values": {"x": ..., ...}}, ...]}
+
+Every rule below turns a bad body into one :class:`BadPush` (an HTTP status and one line), so
+that the receiver answers 4xx and stores nothing of it:
+
+* not UTF-8 JSON, or JSON holding ``NaN`` / ``Infinity`` (or a number too large for a float) → 400;
+* a field of the wrong type or missing; a payload entry that is not ``{"name": str, "time": int,
+  "values": {str: number | str | bool | null}}``; a sensor this receiver reads
+  (:data:`wearnav.importers.sensorlogger_map.PUSH_NAMES`) without its numeric columns → 422;
+* a sample time more than ``max_future_s`` ahead of the server's clock or more than ``max_age_s``
+  behind it → 422;
+* a ``sessionId`` / ``deviceId`` that is not 1–128 of ``A-Z a-z 0-9 _ . : -`` or starts with a dot
+  (it names rows and exported files; nothing with a path separator or ``..`` gets in) → 422.
+
+Unknown sensor names (magnetometer, battery, camera, ...) pass with any flat ``values``: they are
+stored and ignored.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass
+
+from wearnav.importers.sensorlogger_map import PUSH_NAMES
+
+ID_RE = re.compile(r"[A-Za-z0-9_.:-]{1,128}")
+MAX_NAME_LEN = 64
+NS = 1_000_000_000
+
+
+class BadPush(Exception):
+    """A body the receiver refuses: ``status`` (4xx) and one line saying why."""
+
+    def __init__(self, status: int, message: str):
+        super().__init__(message)
+        self.status = status
+        self.message = message
+
+
+@dataclass
+class Push:
+    session_id: str
+    device_id: str
+    message_id: int
+    payload: list[dict]
+
+
+def _no_constant(name: str):
+    raise BadPush(400, f"the body holds {name}, which is not a number in JSON (NaN / inf are refused)")
+
+
+def check_id(value, field: str) -> str:
+    if not isinstance(value, str):
+        raise BadPush(422, f"{field} must be a string")
+    if not ID_RE.fullmatch(value) or value.startswith("."):
+        raise BadPush(422, f"{field} must be 1-128 of A-Z a-z 0-9 _ . : - and not start with a dot")
+    return value
+
+
+def _is_int(x) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def _sample_time(x, k: int) -> int:
+    """ns since the epoch: an integer, or a float that the app's JavaScript wrote for one."""
+    if _is_int(x):
+        return x
+    if isinstance(x, float) and math.isfinite(x):
+        return int(round(x))
+    raise BadPush(422, f"payload[{k}].time must be an integer (ns since the epoch)")
+
+
+def _check_values(values, name: str, k: int) -> None:
+    if not isinstance(values, dict):
+        raise BadPush(422, f"payload[{k}].values must be an object")
+    for key, v in values.items():
+        if isinstance(v, float) and not math.isfinite(v):  # 1e999 parses as inf
+            raise BadPush(400, f"payload[{k}].values.{key} is not finite")
+        if not (v is None or isinstance(v, (int, float, str, bool))):
+            raise BadPush(422, f"payload[{k}].values.{key} must be a number, string, boolean or null")
+    sensor = PUSH_NAMES.get(name)
+    if sensor is None:
+        return
+    for col in sensor.cols:
+        v = values.get(col)
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool)):
+            raise BadPush(422, f"payload[{k}] ({name}) needs a number in values.{col}")
+    for col in sensor.optional:
+        v = values.get(col)
+        if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool)):
+            raise BadPush(422, f"payload[{k}] ({name}) values.{col} must be a number or absent")
+
+
+def parse(body: bytes, now_ns: int, max_future_s: float, max_age_s: float) -> Push:
+    """The checked push in ``body`` (module docstring), or :class:`BadPush`."""
+    try:
+        doc = json.loads(body.decode("utf-8"), parse_constant=_no_constant)
+    except BadPush:
+        raise
+    except UnicodeDecodeError:
+        raise BadPush(400, "the body is not UTF-8 text") from None
+    except (ValueError, RecursionError) as exc:
+        raise BadPush(400, f"the body is not JSON ({type(exc).__name__}: {str(exc)[:80]})") from None
+    if not isinstance(doc, dict):
+        raise BadPush(422, "the body must be a JSON object with messageId, sessionId, deviceId and payload")
+    for key in ("messageId", "sessionId", "deviceId", "payload"):
+        if key not in doc:
+            raise BadPush(422, f"the body has no {key}")
+    mid = doc["messageId"]
+    if not _is_int(mid) or not 0 <= mid < 2 ** 62:
+        raise BadPush(422, "messageId must be a non-negative integer")
+    session, device = check_id(doc["sessionId"], "sessionId"), check_id(doc["deviceId"], "deviceId")
+    payload = doc["payload"]
+    if not isinstance(payload, list):
+        raise BadPush(422, "payload must be a list")
+    lo, hi = now_ns - int(max_age_s * NS), now_ns + int(max_future_s * NS)
+    for k, item in enumerate(payload):
+        if not isinstance(item, dict):
+            raise BadPush(422, f"payload[{k}] must be an object")
+        name = item.get("name")
+        if not isinstance(name, str) or not 0 < len(name) <= MAX_NAME_LEN:
+            raise BadPush(422, f"payload[{k}].name must be a string of 1-{MAX_NAME_LEN} characters")
+        t = _sample_time(item.get("time"), k)
+        if t > hi:
+            raise BadPush(422, f"payload[{k}].time is {(t - now_ns) / NS:.0f} s in the future "
+                               f"(over {max_future_s:g} s ahead of this server's clock)")
+        if t < lo:
+            raise BadPush(422, f"payload[{k}].time is {(now_ns - t) / NS / 86400:.1f} days in the past "
+                               f"(over {max_age_s / 86400:g} days)")
+        item["time"] = t
+        _check_values(item.get("values"), name, k)
+    return Push(session, device, mid, payload)
+
+
+__all__ = ["BadPush", "ID_RE", "Push", "check_id", "parse"]

@@ -1,0 +1,206 @@
+"""The receiver's parts without a server: push validation (with a hypothesis fuzz of bodies, beside
+the importer's property tests), the store's idempotence, and the session buffer against the CSV
+importer (same samples in any message order)."""
+
+from __future__ import annotations
+
+import json
+import math
+import random
+import sqlite3
+import time
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from wearnav.importers import sensorlogger
+from wearnav.importers.sensorlogger_export import simulated_export
+from wearnav.live import replay
+from wearnav.live.buffer import SessionBuffer
+from wearnav.live.push import BadPush, parse
+from wearnav.live.store import Store
+
+DAY = 86400.0
+
+
+def body(**over) -> dict:
+    now = time.time_ns()
+    doc = {"messageId": 3, "sessionId": "s-1", "deviceId": "phone.A:1",
+           "payload": [{"name": "accelerometer", "time": now, "values": {"x": 0.1, "y": -0.2, "z": 0.3}},
+                       {"name": "location", "time": now, "values": {"latitude": 49.4, "longitude": 11.1,
+                                                                     "horizontalAccuracy": 4.0}}]}
+    doc.update(over)
+    return doc
+
+
+def sample(**over) -> dict:
+    item = {"name": "gyroscope", "time": time.time_ns(), "values": {"x": 0.0, "y": 0.0, "z": 0.1}}
+    item.update(over)
+    return item
+
+
+def enc(doc) -> bytes:
+    return json.dumps(doc).encode()
+
+
+def check(raw: bytes):
+    return parse(raw, time.time_ns(), max_future_s=120, max_age_s=7 * DAY)
+
+
+# Every refused body, its status and a word of the one-line reason.
+BAD = {
+    "not JSON": (b'{"messageId": 1,', 400, "not JSON"),
+    "not UTF-8": (enc(body()).decode().encode("utf-16"), 400, "UTF-8"),
+    "NaN": (enc(body()).replace(b"0.1", b"NaN"), 400, "NaN"),
+    "Infinity": (enc(body()).replace(b"0.1", b"-Infinity"), 400, "Infinity"),
+    "huge number": (enc(body()).replace(b"0.1", b"1e999"), 400, "not finite"),
+    "not an object": (b"[1, 2]", 422, "JSON object"),
+    "no payload": (enc({k: v for k, v in body().items() if k != "payload"}), 422, "payload"),
+    "messageId a string": (enc(body(messageId="3")), 422, "messageId"),
+    "messageId negative": (enc(body(messageId=-1)), 422, "messageId"),
+    "messageId a boolean": (enc(body(messageId=True)), 422, "messageId"),
+    "payload an object": (enc(body(payload={"name": "x"})), 422, "payload must be a list"),
+    "entry not an object": (enc(body(payload=[1])), 422, "payload[0]"),
+    "name missing": (enc(body(payload=[{"time": 1, "values": {}}])), 422, "name"),
+    "time a string": (enc(body(payload=[sample(time="now")])), 422, "time"),
+    "values a list": (enc(body(payload=[sample(values=[1, 2, 3])])), 422, "values"),
+    "value nested": (enc(body(payload=[sample(values={"x": {"a": 1}, "y": 0, "z": 0})])), 422, "values.x"),
+    "known sensor, string value": (enc(body(payload=[sample(values={"x": "1", "y": 0, "z": 0})])), 422, "values.x"),
+    "known sensor, column missing": (enc(body(payload=[sample(values={"x": 1, "y": 0})])), 422, "values.z"),
+    "time in the future": (enc(body(payload=[sample(time=time.time_ns() + int(DAY * 1e9))])), 422, "future"),
+    "time years ago": (enc(body(payload=[sample(time=time.time_ns() - int(3 * 365 * DAY * 1e9))])), 422, "past"),
+    "sessionId with a slash": (enc(body(sessionId="../../etc/passwd")), 422, "sessionId"),
+    "sessionId dot-dot": (enc(body(sessionId="..")), 422, "sessionId"),
+    "sessionId hidden": (enc(body(sessionId=".wal")), 422, "sessionId"),
+    "deviceId with a backslash": (enc(body(deviceId="a\\b")), 422, "deviceId"),
+    "deviceId empty": (enc(body(deviceId="")), 422, "deviceId"),
+    "sessionId a number": (enc(body(sessionId=7)), 422, "sessionId"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_body_is_refused_with_its_status(case):
+    raw, status, word = BAD[case]
+    with pytest.raises(BadPush) as exc:
+        check(raw)
+    assert exc.value.status == status
+    assert word in exc.value.message
+
+
+def test_good_body_and_unknown_sensors_pass():
+    doc = body()
+    doc["payload"] += [{"name": "magnetometer", "time": time.time_ns(), "values": {"x": 1, "y": 2, "z": 3}},
+                       {"name": "battery", "time": time.time_ns(), "values": {"batteryLevel": 0.5, "state": "full",
+                                                                              "lowPower": False, "x": None}}]
+    push = check(enc(doc))
+    assert (push.session_id, push.device_id, push.message_id, len(push.payload)) == ("s-1", "phone.A:1", 3, 4)
+    buf = SessionBuffer("s-1")
+    assert buf.add(push.payload) == 2          # accelerometer + location read, the others ignored
+    assert buf.ignored == {"magnetometer": 1, "battery": 1}
+
+
+json_leaf = st.none() | st.booleans() | st.integers(-2 ** 70, 2 ** 70) | st.floats(allow_nan=True) | st.text(max_size=8)
+json_value = st.recursive(json_leaf, lambda kids: st.lists(kids, max_size=4) | st.dictionaries(st.text(max_size=6), kids, max_size=4),
+                          max_leaves=12)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(key=st.sampled_from(["messageId", "sessionId", "deviceId", "payload", "name", "time", "values", "x"]),
+       value=json_value)
+def test_fuzz_one_field_replaced(key, value):
+    """Any value in any field: accepted as a valid push, or refused with a 4xx BadPush; never
+    another exception, and nothing non-finite gets through."""
+    doc = body()
+    if key in ("name", "time", "values"):
+        doc["payload"][0][key] = value
+    elif key == "x":
+        doc["payload"][0]["values"]["x"] = value
+    else:
+        doc[key] = value
+    raw = json.dumps(doc, allow_nan=True).encode()
+    try:
+        push = check(raw)
+    except BadPush as exc:
+        assert 400 <= exc.status < 500
+        return
+    for item in push.payload:
+        for v in item["values"].values():
+            assert not (isinstance(v, float) and not math.isfinite(v))
+
+
+@settings(max_examples=200, deadline=None)
+@given(raw=st.binary(max_size=200) | st.text(max_size=200).map(str.encode))
+def test_fuzz_bytes(raw):
+    try:
+        check(raw)
+    except BadPush as exc:
+        assert exc.status in (400, 422)
+
+
+def test_store_repeat_is_a_no_op(tmp_path):
+    store = Store(tmp_path / "live.db")
+    assert store.add("s", "d", 0, '{"payload": []}', "ios", False) is True
+    assert store.add("s", "d", 0, '{"payload": [1]}', "android", True) is False   # same key: ignored
+    assert store.add("s", "d", 1, '{"payload": []}', "android", True) is True
+    assert store.add("s", "e", 0, '{"payload": []}', "ios", False) is True      # another device
+    assert store.count() == 3
+    assert [(d, m, b) for d, m, b in store.messages("s")][0] == ("d", 0, '{"payload": []}')
+    assert store.sessions()["s"]["platform"] == "ios"   # the first message's settings
+    store.close()
+    db = sqlite3.connect(tmp_path / "live.db")
+    assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+
+
+@pytest.fixture(scope="module")
+def export60(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("sl") / "walk"
+    simulated_export(folder, seed=3, duration_s=40.0)
+    return folder
+
+
+def assert_same(a, b):
+    """Same devices, samples and fixes, to float precision (exactly, where nothing was recomputed)."""
+    assert sorted(a.devices) == sorted(b.devices)
+    for dev in a.devices:
+        x, y = a.devices[dev], b.devices[dev]
+        assert len(x.t) == len(y.t), dev
+        np.testing.assert_allclose(x.t, y.t, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(x.acc, y.acc, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(x.gyro, y.gyro, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(x.quat, y.quat, rtol=1e-6, atol=1e-6)
+    assert len(a.fixes) == len(b.fixes)
+    np.testing.assert_allclose(a.fixes.t, b.fixes.t, atol=1e-9)
+    np.testing.assert_allclose(a.fixes.pos, b.fixes.pos, atol=1e-6)
+    np.testing.assert_allclose(a.fixes.accuracy, b.fixes.accuracy, atol=1e-9)
+
+
+def test_buffer_in_any_order_equals_the_importer(export60):
+    """Messages in order, shuffled, and with repeats give the importer's Recording; slices keep
+    the session's time and local-frame origin."""
+    ref = next(sensorlogger.read(export60))
+    rp = replay.build(export60, batch_s=0.5)
+    msgs = [json.loads(json.dumps({k: v for k, v in m.items() if not k.startswith("_")})) for m in rp.messages]
+    in_order, shuffled = SessionBuffer("a", rp.platform, rp.standardised), SessionBuffer("b", rp.platform, rp.standardised)
+    for m in msgs:
+        in_order.add(m["payload"])
+    order = list(range(len(msgs)))
+    random.Random(0).shuffle(order)
+    for i in order:
+        shuffled.add(msgs[i]["payload"])
+    a, b = in_order.recording(), shuffled.recording()
+    assert_same(ref, a)
+    assert_same(ref, b)
+    assert a.meta["t0_unix_ns"] == b.meta["t0_unix_ns"] == ref.meta["t0_unix_ns"] + rp.shift_ns
+    assert shuffled.covered_until() == pytest.approx(min(s.t[-1] for s in ref.devices.values()), abs=1e-6)
+    part = shuffled.recording(t_from=20.0)
+    for dev, s in part.devices.items():
+        k = ref.devices[dev].t >= 20.0
+        np.testing.assert_allclose(s.t, ref.devices[dev].t[k], atol=1e-9)
+        np.testing.assert_allclose(s.acc, ref.devices[dev].acc[k], atol=1e-6)
+        np.testing.assert_allclose(s.quat, ref.devices[dev].quat[k], atol=1e-6)
+    k = ref.fixes.t >= 20.0
+    np.testing.assert_allclose(part.fixes.pos, ref.fixes.pos[k], atol=1e-6)
+    assert set(shuffled.devices()) == {"phone", "watch", "earbuds"}
+    assert shuffled.devices()["phone"]["rate_hz"] == pytest.approx(100, rel=0.05)
