@@ -1,0 +1,293 @@
+"""The live path and activity of one session as its samples arrive: :class:`LiveTracker`.
+
+Odometry, the way ``track`` runs it (:func:`wearnav.track.odometry`), piece by piece: the session's
+model clock is ``t0 + k / rate`` (``t0`` the devices' common start, as :func:`wearnav.preprocess.align`
+finds it, decided once every device that starts with the others has started), and its windows start
+at every ``stride``-th clock sample, as :class:`wearnav.windows.WindowDataset` cuts them offline. An
+update aligns only the clock from ``context_s`` before the first window not yet predicted up to the
+data's end (:meth:`SessionBuffer.covered_until`), and predicts only the windows that end ``lag_s``
+before it (the zero-phase filters need that much data after a window); the velocities are integrated
+on from the last position (Suite-IN++ eq. 8, :func:`wearnav.trajectory.integrate_velocity`). With a
+preprocessing that is local in time (one device: the common frame is the device's own) each window
+then sees the input it sees offline, and the path agrees with ``track``'s to round-off. With several
+devices the common frame's yaw (:mod:`wearnav.frames`, a 20-s Gaussian kernel and whole-recording band
+choices) is estimated from the context only, so the live input differs slightly from the offline one.
+
+Fusion: the path is placed on the location fixes by :class:`wearnav.fuse_live.IncrementalFuser` (the
+smoother of ``track`` as a fixed-lag smoother), in the east/north frame of the first good fix
+(:mod:`wearnav.fixcheck`, converted by :mod:`wearnav.geo`). Activity: the latest window of the phone
+classified by the shipped activity model as ``classify`` runs it
+(:func:`wearnav.train.classify.window_classes`). Warnings: those the input gives
+(:func:`wearnav.track.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived; the
+walk-plausibility check of ``track`` needs the whole walk and is left to ``track``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wearnav import fuse, geo, pretrained
+from wearnav.errors import ValidationError
+from wearnav.evaluate import predict_sequence
+from wearnav.fixcheck import check_fixes
+from wearnav.fuse_live import IncrementalFuser
+from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
+from wearnav.track import input_warnings, odometry_preprocess, path_times
+from wearnav.train.classify import window_classes
+from wearnav.train.resolve import resolve_model
+from wearnav.trajectory import integrate_velocity
+
+CONTEXT_S = 30.0  # input aligned before the first new window (filters, the common frame's estimate)
+LAG_S = 1.0  # a window is predicted once the data reaches this far past its end (zero-phase filters)
+STEP_S = 1.0  # windows are predicted once this many seconds of them are ready (each update aligns the context)
+POINT_S = 1.0  # the state's path: one point per this many seconds, and the latest one
+ACTIVITY_EVERY_S = 1.0  # the activity label is refreshed at most this often (s of session time)
+TRUST_AFTER_S = 30.0
+# The model and the clock are chosen once the data reaches this far past align's edge tolerance
+# (a device starting later than that after the first counts as put on mid-walk), for the devices'
+# batches to have arrived.
+START_MARGIN_S = 1.0  # the input's warnings once this much of the session has arrived
+ORIGIN_MIN_FIXES = 3  # the origin is the first good fix once this many fixes are kept
+
+
+@dataclasses.dataclass
+class _Odometry:
+    """The windows predicted so far and the integrated path (grows by appending)."""
+
+    t_c: list = dataclasses.field(default_factory=list)  # window centres, s
+    vel: list = dataclasses.field(default_factory=list)  # (2,) m/s
+    t: list = dataclasses.field(default_factory=list)  # path times (clock samples), s
+    xy: list = dataclasses.field(default_factory=list)  # (2,) m, from (0, 0) at the first
+
+
+class LiveTracker:
+    """One session's live path (see module docstring); :meth:`update` from one thread at a time.
+
+    ``model``: an odometry run, exported file or shipped name; None: the shipped model for the
+    devices the session starts with (as ``track``). ``activity_model``: a classifier (None: no
+    activity). ``context_s``, ``lag_s``, ``step_s``: the module's ``CONTEXT_S``, ``LAG_S``, ``STEP_S``;
+    ``fuse_lag_s`` / ``fuse_step_s``: the fixed-lag smoother's window and step."""
+
+    def __init__(self, model: str | Path | None = None, activity_model: str | Path | None = "activity",
+                 context_s: float = CONTEXT_S, lag_s: float = LAG_S, step_s: float = STEP_S,
+                 fuse_lag_s: float = 300.0, fuse_step_s: float = 30.0):
+        self._model_arg = model
+        self.context_s, self.lag_s, self.step_s = float(context_s), float(lag_s), float(step_s)
+        self._fuse_lag = (float(fuse_lag_s), float(fuse_step_s))
+        self.model = self.cfg = self.model_path = None
+        self.classifier = None
+        if activity_model is not None:
+            path = pretrained.model_path(activity_model, "classify")
+            self.classifier = resolve_model(path, "classify")  # (model, config, classes)
+        self.clock0: float | None = None  # the model clock's t = 0 sample, s since the session's t0
+        self._next = 0  # clock index of the next window's start
+        self.odo = _Odometry()
+        self.fuser: IncrementalFuser | None = None
+        self._fused = None  # the latest FuseResult
+        self.origin: tuple[float, float] | None = None
+        self._fix_t = -np.inf  # the latest fix time taken, s
+        self._pending: list[tuple[float, float, float, float]] = []  # fixes before an origin: t, lat, lon, acc
+        self.fixes: list[tuple[float, float, float, float]] = []  # t, east, north, accuracy
+        self._local_fixes = False  # fixes without a geographic origin (metres as given)
+        self.activity: dict | None = None
+        self._activity_at = -np.inf
+        self.warnings: list[str] = []
+        self._trusted = False
+        self.t_s = 0.0
+        self.timings: list[float] = []  # seconds per update that changed something
+
+    # ---- setup -------------------------------------------------------------------------------
+
+    def _start(self, rec) -> bool:
+        """Decide the model and the clock once every device starting with the others has started."""
+        streams = list(rec.devices.values())
+        if not streams:
+            return False
+        first = min(float(s.t[0]) for s in streams)
+        last = max(float(s.t[-1]) for s in streams)
+        tol = (odometry_preprocess(self.cfg) if self.cfg is not None else PreprocessConfig()).edge_tolerance
+        if last - first <= tol + START_MARGIN_S:
+            return False
+        if self.model is None:
+            path = pretrained.model_path(self._model_arg, "odometry", tuple(rec.devices))
+            self.model, self.cfg = resolve_model(path, "odometry")
+            self.model_path = path
+            fcfg = fuse.config_for_run(path)[0] if Path(path).exists() else fuse.FuseConfig()
+            self.fuser = IncrementalFuser(fcfg, *self._fuse_lag)
+        pcfg = odometry_preprocess(self.cfg)
+        if not any(d in rec.devices for d in pcfg.devices):
+            return False
+        self.clock0 = common_span(rec, pcfg.devices, pcfg.edge_tolerance)[0]
+        return True
+
+    # ---- one update --------------------------------------------------------------------------
+
+    def update(self, buf, final: bool = False) -> bool:
+        """Process what is new in ``buf`` (a :class:`wearnav.live.buffer.SessionBuffer`) since the
+        last call; ``final``: the session has ended, predict up to its last sample as ``track`` does.
+        True when the path, the fixes or the activity changed."""
+        tic = time.perf_counter()
+        whole = None
+        if self.clock0 is None:
+            whole = buf.recording()  # the session so far (short): the clock's start, and every fix so far
+            if not self._start(whole):
+                return False
+        pcfg = odometry_preprocess(self.cfg)
+        rate, L, S = pcfg.rate, self.cfg.window, self.cfg.stride
+        covered = float(buf.covered_until())
+        t_from = self.clock0 + max(0, self._next - int(round(self.context_s * rate))) / rate
+        rec = buf.recording(t_from - 1.0)  # a second more: the interpolation's samples before the clock
+        changed = self._take_fixes(whole if whole is not None else rec)
+        end = common_span(rec, pcfg.devices, pcfg.edge_tolerance)[1] if final else covered
+        g_end = int(np.floor((end - self.clock0) * rate + 1e-9))  # the clock's last sample (align's clock())
+        g_last = g_end if final else g_end - int(np.ceil(self.lag_s * rate))  # last sample a window may use
+        ready = (g_last - self._next + 1 - L) // S + 1  # windows that can be predicted now
+        if ready >= (1 if final else max(1, int(round(self.step_s * rate / S)))):
+            changed |= self._predict(rec, pcfg, g_end, g_last)
+        if changed and len(self.odo.t) >= 2:
+            self._fuse()
+        changed |= self._classify(buf, covered)
+        if not self._trusted and covered >= TRUST_AFTER_S:
+            self.warnings += input_warnings(self.model_path, self.cfg, rec)
+            self._trusted, changed = True, True
+        self.t_s = max(self.t_s, covered)
+        if changed:
+            self.timings.append(time.perf_counter() - tic)
+        return changed
+
+    def _predict(self, rec, pcfg, g_end: int, g_last: int) -> bool:
+        """Align the clock from the context to ``g_end``, predict the windows inside ``g_last`` and
+        integrate the path on."""
+        rate, L, S = pcfg.rate, self.cfg.window, self.cfg.stride
+        g_a = max(0, self._next - int(round(self.context_s * rate)))
+        clock = self.clock0 + np.arange(g_a, g_end + 1) / rate  # align's clock(): t0 + k / rate
+        seq = align(rec, pcfg, clock)
+        part = slice(self._next - g_a, g_last - g_a + 1)
+        seq = Aligned(seq.name, seq.t[part], seq.devices, seq.imu[:, part], seq.mask[:, part], None, seq.meta)
+        t_c, vel, _ = predict_sequence(self.model, seq, L, S)
+        if t_c.size == 0:
+            return False
+        self._next += t_c.size * S
+        o = self.odo
+        n_old = len(o.t_c)
+        o.t_c += t_c.tolist()
+        o.vel += vel.tolist()
+        if len(o.t_c) < 2:
+            return False
+        tc, v = np.asarray(o.t_c), np.asarray(o.vel)
+        if not o.t:  # the path starts at the first clock sample after the first centre, at (0, 0)
+            t = path_times(seq.t, tc)
+            xy = integrate_velocity(tc, v, t, np.zeros(2))
+        else:  # on from the last position; the two centres before it give its velocity
+            k = max(0, n_old - 2)
+            t_new = seq.t[(seq.t > o.t[-1]) & (seq.t <= tc[-1])]
+            t = np.concatenate([[o.t[-1]], t_new])
+            xy = integrate_velocity(tc[k:], v[k:], t, np.asarray(o.xy[-1]))[1:]
+            t = t_new
+        for ti, p in zip(t, xy):
+            self.fuser.add_odometry(float(ti), p)
+        o.t += t.tolist()
+        o.xy += xy.tolist()
+        return t.size > 0
+
+    # ---- fixes and fusion ----------------------------------------------------------------------
+
+    def _take_fixes(self, rec) -> bool:
+        """The fixes newer than the last taken, into the frame of the first good fix."""
+        fx = rec.fixes
+        if fx is None or len(fx) == 0:
+            return False
+        new = fx.t > self._fix_t
+        if not new.any():
+            return False
+        self._fix_t = float(fx.t[new][-1])
+        pos, acc, ft = fx.pos[new, :2], fx.accuracy[new], fx.t[new]
+        lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
+        if lat0 is None or lon0 is None:  # metres without a place on Earth: taken as they are
+            self._local_fixes = True
+            for row in zip(ft, pos[:, 0], pos[:, 1], acc):
+                self._add_fix(*row)
+            return True
+        lat, lon = geo.local_to_latlon(pos, float(lat0), float(lon0))
+        self._pending += list(zip(ft.tolist(), lat.tolist(), lon.tolist(), acc.tolist()))
+        if self.origin is None:
+            p = np.asarray(self._pending)
+            check = check_fixes(-np.inf, np.inf, p[:, 0], geo.latlon_to_local(p[:, 1], p[:, 2], p[0, 1], p[0, 2]),
+                                p[:, 3], self.fuser.cfg.wide_m if self.fuser else fuse.FuseConfig().wide_m)
+            if check.kept.sum() < ORIGIN_MIN_FIXES:
+                return False
+            first = int(np.flatnonzero(check.kept)[0])
+            self.origin = (float(p[first, 1]), float(p[first, 2]))
+        p = np.asarray(self._pending)
+        en = geo.latlon_to_local(p[:, 1], p[:, 2], *self.origin)
+        for (t, _, _, a), (e, n) in zip(self._pending, en):
+            self._add_fix(t, e, n, a)
+        self._pending = []
+        return True
+
+    def _add_fix(self, t, e, n, a) -> None:
+        self.fixes.append((float(t), float(e), float(n), float(a)))
+        self.fuser.add_fix(float(t), float(e), float(n), float(a))
+
+    def _fuse(self) -> None:
+        self._fused = self.fuser.result() if self.fixes else None
+
+    # ---- activity ----------------------------------------------------------------------------
+
+    def _classify(self, buf, covered: float) -> bool:
+        """The latest window's activity (at most every ``ACTIVITY_EVERY_S``)."""
+        if self.classifier is None or covered - self._activity_at < ACTIVITY_EVERY_S:
+            return False
+        model, cfg, classes = self.classifier
+        window_s = cfg.window / cfg.rate
+        rec = buf.recording(covered - window_s - 2.0)  # one window and the filters' edges
+        if not all(d in rec.devices for d in cfg.devices):
+            return False
+        try:
+            _, t, cls, _ = window_classes(model, cfg, rec)
+        except ValidationError:  # too little of a device yet (align's span checks)
+            return False
+        if len(cls) == 0:
+            return False
+        self._activity_at = covered
+        label = {"label": classes[int(cls[-1])], "t_s": round(float(t[-1, 1]), 3)}
+        changed = self.activity is None or label["label"] != self.activity["label"]
+        self.activity = label
+        return changed
+
+    # ---- what the page shows -----------------------------------------------------------------
+
+    def path(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+        """Every path sample: times (s), east/north (m; the odometry's own frame where not fused),
+        1-σ (m, NaN unknown) and what placed it."""
+        t = np.asarray(self.odo.t)
+        xy = np.asarray(self.odo.xy).reshape(-1, 2)
+        if self._fused is not None and self._fused.method != "none" and len(self._fused.xy) == len(t):
+            return t, self._fused.xy, self._fused.sigma_m, self._fused.method
+        return t, xy, np.full(len(t), np.nan), "none"
+
+    def state(self) -> dict:
+        """The JSON-able state the page renders (the live contract)."""
+        t, xy, sig, anchor = self.path()
+        step = max(1, int(round(POINT_S * self.cfg.rate))) if self.cfg is not None else 1
+        idx = np.arange(0, len(t), step)
+        if len(t) and idx[-1] != len(t) - 1:
+            idx = np.append(idx, len(t) - 1)
+        return {"origin": list(self.origin) if self.origin is not None else None,
+                "path": [[round(float(t[i]), 3), round(float(xy[i, 0]), 3), round(float(xy[i, 1]), 3),
+                          round(float(sig[i]), 2) if np.isfinite(sig[i]) else None] for i in idx],
+                "anchor": anchor,
+                "fixes": [[round(f[0], 3), round(f[1], 3), round(f[2], 3), round(f[3], 2) if np.isfinite(f[3]) else None]
+                          for f in self.fixes],
+                "activity": self.activity,
+                "warnings": self.warnings + (self._fused.warnings if self._fused is not None else []) + (
+                    [] if self.fixes or self.t_s < TRUST_AFTER_S else
+                    ["no location fixes yet: the path is not placed on a map"]),
+                "t_s": round(float(self.t_s), 3)}
+
+
+__all__ = ["LiveTracker", "CONTEXT_S", "LAG_S", "POINT_S"]
