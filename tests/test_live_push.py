@@ -248,16 +248,28 @@ def test_tracker_runs_after_acks_one_thread_per_session_coalesced(tmp_path):
     rx.accept(enc(body(sessionId="other")), "ios", False)
     deadline = time.monotonic() + 5
     def done():  # the last update saw all ten messages and has finished
-        t = trackers[0]
-        return t.seen and t.seen[-1] == 10 and len(rx.workers["s-1"].latency_s) == len(t.seen)
+        t = rx.workers["s-1"].tracker
+        return t is not None and t.seen and t.seen[-1] == 10 and len(rx.workers["s-1"].latency_s) == len(t.seen)
 
     while not done() and time.monotonic() < deadline:
         time.sleep(0.05)
-    t = trackers[0]
-    assert len(trackers) == 2 and not t.overlap
+    t = rx.workers["s-1"].tracker
+    assert len(trackers) == 2 and rx.workers["other"].tracker is not None and not t.overlap
     assert t.seen[-1] == 10 and len(t.seen) <= 3       # coalesced: the last update saw every message
     st = rx.state("s-1")
     assert st["session"] == "s-1" and st["messages"] == 10 and st["path"] == [[0.0, 0.0, 0.0, None]]
     assert set(st["devices"]["phone"]) == {"rate_hz", "last_seen_unix_s", "samples", "stopped"}
     assert not st["devices"]["phone"]["stopped"]
     assert len(rx.workers["s-1"].latency_s) == len(t.seen)
+
+
+def test_a_tracker_that_cannot_start_is_a_warning_not_a_failed_push(tmp_path):
+    def factory():
+        raise FileNotFoundError("no shipped model")
+
+    rx = Receiver(Store(tmp_path / "live.db"), None, 1 << 20, 1000.0, factory, "ios", False, 120, 7 * DAY)
+    assert rx.accept(enc(body()), "ios", False) is True
+    rx.workers["s-1"].thread.join(5)
+    st = rx.state("s-1")
+    assert st["messages"] == 1 and st["path"] == []
+    assert any("could not start" in w and "no shipped model" in w for w in st["warnings"])

@@ -77,12 +77,15 @@ class RateLimiter:
 
 
 class SessionWorker:
-    """One thread running the session's tracker: ``poke`` after each acknowledged push."""
+    """One thread running the session's tracker: ``poke`` after each acknowledged push. The
+    tracker is made in that thread (loading a model must not hold up a 200); one that cannot be
+    made, or fails, is a warning on the page, never a failed push."""
 
-    def __init__(self, buf: SessionBuffer, tracker):
-        self.buf, self.tracker = buf, tracker
+    def __init__(self, buf: SessionBuffer, tracker_factory: Callable[[], object]):
+        self.buf, self.tracker = buf, None
         self.error: str | None = None
         self.latency_s: list[float] = []   # from the oldest unprocessed ack to its update's end
+        self._factory = tracker_factory
         self._event = threading.Event()
         self._pending_since: float | None = None
         self._lock = threading.Lock()
@@ -96,6 +99,12 @@ class SessionWorker:
         self._event.set()
 
     def _run(self) -> None:
+        try:
+            self.tracker = self._factory()
+        except Exception as exc:
+            self.error = f"live tracking could not start: {type(exc).__name__}: {exc}"
+            log.warning("session %s: %s", self.buf.session_id, self.error)
+            return
         while True:
             self._event.wait()
             self._event.clear()
@@ -105,22 +114,24 @@ class SessionWorker:
                 self.tracker.update(self.buf)
                 self.error = None
             except Exception as exc:  # shown on the page; the next push tries again
-                self.error = f"{type(exc).__name__}: {exc}"
-                log.warning("session %s: tracker failed: %s", self.buf.session_id, self.error)
+                self.error = f"live tracking failed: {type(exc).__name__}: {exc}"
+                log.warning("session %s: %s", self.buf.session_id, self.error)
             if since is not None:
                 self.latency_s.append(time.perf_counter() - since)
                 del self.latency_s[:-10_000]
 
     def state(self) -> dict:
-        st = dict(self.tracker.state())
+        st = dict(self.tracker.state()) if self.tracker is not None else untracked_state(self.buf, "starting")
         if self.error:
-            st["warnings"] = [*st.get("warnings", []), f"live tracking failed: {self.error}"]
+            st["warnings"] = [*st.get("warnings", []), self.error]
         return st
 
 
-def untracked_state(buf: SessionBuffer) -> dict:
+def untracked_state(buf: SessionBuffer, why: str = "off") -> dict:
+    """The state without a tracker: ``why`` "off" (``--no-track``) or "starting"."""
+    note = "tracking is off (wearnav live --no-track)" if why == "off" else "live tracking is starting"
     return {"origin": None, "path": [], "anchor": "none", "fixes": [], "activity": None,
-            "warnings": ["tracking is off (wearnav live --no-track)"], "t_s": buf.covered_until()}
+            "warnings": [note], "t_s": buf.covered_until()}
 
 
 class Receiver:
@@ -136,6 +147,7 @@ class Receiver:
         self.max_future_s, self.max_age_s = max_future_s, max_age_s
         self.buffers: dict[str, SessionBuffer] = {}
         self.workers: dict[str, SessionWorker] = {}
+        self._workers_lock = threading.Lock()
         self.counts = {"accepted": 0, "repeats": 0, "refused": {}}
         self._lock = threading.Lock()   # store + buffer in one order
         for sid, info in store.sessions().items():
@@ -147,13 +159,15 @@ class Receiver:
     def _buffer(self, sid: str, platform: str, standardised: bool) -> SessionBuffer:
         if sid not in self.buffers:
             self.buffers[sid] = SessionBuffer(sid, platform, standardised)
-            if self.tracker_factory is not None:
-                self.workers[sid] = SessionWorker(self.buffers[sid], self.tracker_factory())
         return self.buffers[sid]
 
     def _poke(self, sid: str) -> None:
-        if sid in self.workers:
-            self.workers[sid].poke()
+        if self.tracker_factory is None:
+            return
+        with self._workers_lock:
+            if sid not in self.workers:
+                self.workers[sid] = SessionWorker(self.buffers[sid], self.tracker_factory)
+        self.workers[sid].poke()
 
     def settings(self, request: Request) -> tuple[str, bool]:
         platform = request.query_params.get("platform", self.platform).strip().lower()

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from wearnav.dataset import Dataset, DatasetWriter
 from wearnav.errors import MissingFileError
 from wearnav.live.buffer import SessionBuffer
 from wearnav.live.store import Store
@@ -26,8 +27,6 @@ def session_buffer(store: Store, session_id: str) -> SessionBuffer:
 
 def export_session(store_path: str | Path, session_id: str, out: str | Path):
     """Write the whole session (the importer's checks included) as a one-recording dataset."""
-    from wearnav.dataset import Dataset, DatasetWriter
-
     store_path = Path(store_path)
     if not store_path.is_file():
         raise MissingFileError("no session store here", store_path)
