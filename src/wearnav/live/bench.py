@@ -190,6 +190,12 @@ def page(r: dict) -> str:
         "motion sensors and the watch at 100 Hz, earbuds at 25 Hz, fixes at 1 Hz: 526 samples per second of walk; "
         f"{BATCH_S:g}-s batches). Ack latency: POST sent → 200 received, the message committed to SQLite "
         "(WAL, synchronous=FULL) first. The machine is shared: timings vary with load.", "",
+        "| measure | value |", "|---|---|",
+        f"| ack latency p99 at {ld['speed']:g}× real time (ms) | {ld['ack_ms']['p99']} |",
+        f"| lost samples at {ld['speed']:g}× | {lost} |", f"| duplicated samples at {ld['speed']:g}× | {dup} |",
+        f"| server CPU, one walker (% of one core) | {'?' if one['cpu_share_of_one_core'] is None else round(100 * one['cpu_share_of_one_core'], 1)} |",
+        *([f"| tracker update p95, one walker (ms) | {one['update_ms']['p95']} |"] if tracking else []),
+        f"| walkers kept up at real time | {max(kept) if kept else 0} |", "",
         f"## Load: {ld['data_s']:g} s of walk at {ld['speed']:g}× real time", "",
         f"{ld['messages']} messages ({ld['samples']} samples) in {ld['wall_s']} s (schedule {ld['schedule_s']} s; "
         f"{ld['behind_at_end_s']} s behind at the end), {ld['acknowledged']} acknowledged, {ld['retries']} retries. "
