@@ -13,7 +13,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from test_live_push import body, enc
+from wearnav.live.badinputs import body, enc
 from wearnav.live.process import LiveServer, free_port
 
 MOSQUITTO = shutil.which("mosquitto") or ("/usr/sbin/mosquitto" if Path("/usr/sbin/mosquitto").is_file() else None)

@@ -20,6 +20,7 @@ from wearnav.importers import sensorlogger
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import replay
 from wearnav.live.app import Receiver
+from wearnav.live.badinputs import body, catalogue, enc
 from wearnav.live.buffer import SessionBuffer
 from wearnav.live.push import BadPush, parse
 from wearnav.live.store import Store
@@ -27,59 +28,11 @@ from wearnav.live.store import Store
 DAY = 86400.0
 
 
-def body(**over) -> dict:
-    now = time.time_ns()
-    doc = {"messageId": 3, "sessionId": "s-1", "deviceId": "phone.A:1",
-           "payload": [{"name": "accelerometer", "time": now, "values": {"x": 0.1, "y": -0.2, "z": 0.3}},
-                       {"name": "location", "time": now, "values": {"latitude": 49.4, "longitude": 11.1,
-                                                                     "horizontalAccuracy": 4.0}}]}
-    doc.update(over)
-    return doc
-
-
-def sample(**over) -> dict:
-    item = {"name": "gyroscope", "time": time.time_ns(), "values": {"x": 0.0, "y": 0.0, "z": 0.1}}
-    item.update(over)
-    return item
-
-
-def enc(doc) -> bytes:
-    return json.dumps(doc).encode()
-
-
 def check(raw: bytes):
     return parse(raw, time.time_ns(), max_future_s=120, max_age_s=7 * DAY)
 
 
-# Every refused body, its status and a word of the one-line reason.
-BAD = {
-    "not JSON": (b'{"messageId": 1,', 400, "not JSON"),
-    "not UTF-8": (enc(body()).decode().encode("utf-16"), 400, "UTF-8"),
-    "NaN": (enc(body()).replace(b"0.1", b"NaN"), 400, "NaN"),
-    "Infinity": (enc(body()).replace(b"0.1", b"-Infinity"), 400, "Infinity"),
-    "huge number": (enc(body()).replace(b"0.1", b"1e999"), 400, "not finite"),
-    "not an object": (b"[1, 2]", 422, "JSON object"),
-    "no payload": (enc({k: v for k, v in body().items() if k != "payload"}), 422, "payload"),
-    "messageId a string": (enc(body(messageId="3")), 422, "messageId"),
-    "messageId negative": (enc(body(messageId=-1)), 422, "messageId"),
-    "messageId a boolean": (enc(body(messageId=True)), 422, "messageId"),
-    "payload an object": (enc(body(payload={"name": "x"})), 422, "payload must be a list"),
-    "entry not an object": (enc(body(payload=[1])), 422, "payload[0]"),
-    "name missing": (enc(body(payload=[{"time": 1, "values": {}}])), 422, "name"),
-    "time a string": (enc(body(payload=[sample(time="now")])), 422, "time"),
-    "values a list": (enc(body(payload=[sample(values=[1, 2, 3])])), 422, "values"),
-    "value nested": (enc(body(payload=[sample(values={"x": {"a": 1}, "y": 0, "z": 0})])), 422, "values.x"),
-    "known sensor, string value": (enc(body(payload=[sample(values={"x": "1", "y": 0, "z": 0})])), 422, "values.x"),
-    "known sensor, column missing": (enc(body(payload=[sample(values={"x": 1, "y": 0})])), 422, "values.z"),
-    "time in the future": (enc(body(payload=[sample(time=time.time_ns() + int(DAY * 1e9))])), 422, "future"),
-    "time years ago": (enc(body(payload=[sample(time=time.time_ns() - int(3 * 365 * DAY * 1e9))])), 422, "past"),
-    "sessionId with a slash": (enc(body(sessionId="../../etc/passwd")), 422, "sessionId"),
-    "sessionId dot-dot": (enc(body(sessionId="..")), 422, "sessionId"),
-    "sessionId hidden": (enc(body(sessionId=".wal")), 422, "sessionId"),
-    "deviceId with a backslash": (enc(body(deviceId="a\\b")), 422, "deviceId"),
-    "deviceId empty": (enc(body(deviceId="")), 422, "deviceId"),
-    "sessionId a number": (enc(body(sessionId=7)), 422, "sessionId"),
-}
+BAD = catalogue()  # every refused body, its status and a word of its one-line reason
 
 
 @pytest.mark.parametrize("case", sorted(BAD))

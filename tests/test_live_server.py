@@ -15,11 +15,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from test_live_push import BAD, assert_same, body, enc
+from test_live_push import BAD, assert_same
 from wearnav.dataset import Dataset
 from wearnav.importers import sensorlogger
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import replay
+from wearnav.live.badinputs import body, enc
 from wearnav.live.export import export_session
 from wearnav.live.process import LiveServer
 

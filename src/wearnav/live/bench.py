@@ -14,6 +14,10 @@ Sensor Logger export (phone: accelerometer, gravity, gyroscope, orientation at 1
    time (user + system, ``/proc``) over the wall time as a share of one core, ack latency, the
    tracker's update latency (the oldest unprocessed 200 → its path update done), and whether it
    kept up (stops at the first count that does not): the capacity of this machine.
+3. **Bad input**: :func:`wearnav.live.badinputs.catalogue`, a body over the size limit, random
+   byte mutations of a good body, requests without the token, a flood past the rate limit.
+4. **Faults**: SIGKILL mid-replay and restart (twice): acknowledged messages missing, and the
+   final export against importing the export directly.
 
 ``results.json`` and ``results.md`` go to ``out`` (``wearnav results`` stitches the page into
 docs/results.md).
@@ -26,6 +30,7 @@ import json
 import os
 import platform
 import shutil
+import sqlite3
 import threading
 import time
 from dataclasses import replace
@@ -40,6 +45,7 @@ from wearnav.importers.sensorlogger_build import build_recording
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.importers.sensorlogger_map import Table
 from wearnav.live import replay
+from wearnav.live.badinputs import body, catalogue, enc
 from wearnav.live.export import export_session
 from wearnav.live.process import LiveServer
 from wearnav.provenance import provenance
@@ -135,8 +141,94 @@ def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track:
             "update_ms": {"p50": _pct(upd, 50), "p95": upd_p95, "n": len(upd)}, "kept_up": kept_up}
 
 
+def stored_rows(db: Path) -> int:
+    with sqlite3.connect(db) as c:
+        return c.execute("SELECT COUNT(*) FROM messages").fetchone()[0]
+
+
+def bad_input_phase(work: Path, fuzz: int = 200, seed: int = 0) -> dict:
+    """Every body of :func:`wearnav.live.badinputs.catalogue`, one over the size limit, ``fuzz``
+    random mutations of a good body, a flood past the rate limit and requests without the token:
+    how many were answered with the expected 4xx, and how many rows got stored (0 expected)."""
+    rng = np.random.default_rng(seed)
+    db, token = work / "bad.db", "bench-token"
+    wrong: list[str] = []
+    with LiveServer(db, "--no-track", "--max-body", "65536", "--rate-limit", "20", "--token", token,
+                    token=token) as srv, httpx.Client(base_url=srv.url, headers={"authorization": f"Bearer {token}"}) as c:
+        tried = 0
+        for name, (raw, status, _word) in catalogue().items():
+            tried += 1
+            r = c.post("/push", content=raw)
+            if r.status_code != status:
+                wrong.append(f"{name}: {r.status_code}")
+            time.sleep(0.06)   # under the rate limit
+        big = enc(body(payload=[{"name": "battery", "time": time.time_ns(), "values": {"s": "x" * 70_000}}]))
+        tried += 1
+        if c.post("/push", content=big).status_code != 413:
+            wrong.append("over the size limit")
+        good = enc(body())
+        fz = {"refused": 0, "accepted": 0, "stored": 0, "other": 0}
+        for _ in range(fuzz):
+            raw = bytearray(good)
+            for i in rng.integers(0, len(raw), size=int(rng.integers(1, 6))):
+                raw[i] = int(rng.integers(0, 256))
+            r = c.post("/push", content=bytes(raw))
+            if r.status_code in (400, 422):
+                fz["refused"] += 1
+            elif r.status_code == 200:   # still a valid push (a digit changed, say)
+                fz["accepted"] += 1
+                fz["stored"] += bool(r.json().get("stored"))
+            else:
+                fz["other"] += 1
+            time.sleep(0.06)
+        rows_after_bad = stored_rows(db)
+        no_token = sum(httpx.post(f"{srv.url}/push", content=good).status_code == 401 for _ in range(5))
+        time.sleep(1.0)
+        flood = [c.post("/push", content=enc(body(messageId=1000 + k))).status_code for k in range(100)]
+        rows_flood = stored_rows(db) - rows_after_bad
+    return {"catalogue": tried, "catalogue_wrong": wrong, "fuzz": fuzz, "fuzz_answers": fz,
+            "rows_after_bad": rows_after_bad, "no_token_401": no_token, "flood": len(flood),
+            "flood_429": flood.count(429), "flood_200": flood.count(200), "flood_stored": rows_flood}
+
+
+def kill_phase(work: Path, export: Path, kills: int = 2, speed: float = 10.0, data_s: float = 60.0) -> dict:
+    """A replay at ``speed`` × into a server SIGKILLed ``kills`` times and restarted on the same
+    store: acknowledged messages missing after each restart (0 expected), and whether the final
+    export equals importing the export directly."""
+    db = work / "kill.db"
+    rp = replay.build(export, batch_s=BATCH_S, session_id="bench-kill")
+    n = min(len(rp.messages), int(round(data_s / BATCH_S)))
+    acked: list[int] = []
+    out: dict = {}
+    srv = LiveServer(db, "--no-track").start()
+    sender = threading.Thread(target=lambda: out.update(res=replay.send(
+        rp, f"{srv.url}/push", speed=speed, stop_after=n, on_ack=acked.append)))
+    sender.start()
+    missing = 0
+    try:
+        for k in range(kills):
+            target = (k + 1) * n // (kills + 1)
+            while len(acked) < target and sender.is_alive():
+                time.sleep(0.01)
+            srv.kill()
+            before = set(acked)
+            with sqlite3.connect(db) as c:
+                ids = {m for (m,) in c.execute("SELECT message_id FROM messages")}
+            missing += len(before - ids)
+            srv = LiveServer(db, "--no-track", port=srv.port).start()
+        sender.join()
+    finally:
+        srv.stop()
+    res = out.get("res")
+    live = export_session(db, "bench-kill", work / "kill-export").load("bench-kill")
+    same = lost_and_duplicated(reference(export, rp.messages[n - 1]["_due_s"]), live)
+    return {"kills": kills, "messages": n, "acknowledged": len(res.acknowledged) if res else 0,
+            "retries": res.retries if res else 0, "acknowledged_missing": missing,
+            "export_equal": all(d["equal"] and not d["lost"] and not d["duplicated"] for d in same.values())}
+
+
 def run_bench(out: str | Path, duration_s: float = 60.0, speed: float = 10.0, cpu_s: float = 30.0,
-              track: bool = True, walkers: tuple[int, ...] = (1, 2, 4, 8), seed: int = 0) -> Path:
+              track: bool = True, walkers: tuple[int, ...] = (1, 2, 4, 8), fuzz: int = 200, seed: int = 0) -> Path:
     out = Path(out)
     work = out / "work"
     for db in work.glob("*.db*"):
@@ -144,14 +236,16 @@ def run_bench(out: str | Path, duration_s: float = 60.0, speed: float = 10.0, cp
     export = work / "export"
     if not (export / "Metadata.csv").is_file():
         simulated_export(export, seed=seed, duration_s=max(duration_s * speed, cpu_s) + 2.0)
-    if (work / "load-export").exists():
-        shutil.rmtree(work / "load-export")
+    for folder in ("load-export", "kill-export"):
+        if (work / folder).exists():
+            shutil.rmtree(work / folder)
     rows = []
     for k in sorted(set(walkers) | {1}):
         rows.append(walkers_phase(work, export, k, cpu_s, track))
         if not rows[-1]["kept_up"]:
             break   # more walkers will not keep up either
     result = {"load": load_phase(work, export, duration_s, speed), "walkers": rows,
+              "bad_inputs": bad_input_phase(work, fuzz=fuzz), "faults": kill_phase(work, export, speed=speed),
               "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count()},
               "provenance": provenance()}
     write_text_atomic(json.dumps(result, indent=1, default=str), out / "results.json")
@@ -160,6 +254,7 @@ def run_bench(out: str | Path, duration_s: float = 60.0, speed: float = 10.0, cp
 
 def page(r: dict) -> str:
     ld, rows, p = r["load"], r["walkers"], r["provenance"]
+    bad, fl = r["bad_inputs"], r["faults"]
     lost = sum(d["lost"] for d in ld["devices"].values())
     dup = sum(d["duplicated"] for d in ld["devices"].values())
     devs = "\n".join(f"| {dev} | {d['samples']} | {d['lost']} | {d['duplicated']} | {'yes' if d['equal'] else 'no'} |"
@@ -195,7 +290,9 @@ def page(r: dict) -> str:
         f"| lost samples at {ld['speed']:g}× | {lost} |", f"| duplicated samples at {ld['speed']:g}× | {dup} |",
         f"| server CPU, one walker (% of one core) | {'?' if one['cpu_share_of_one_core'] is None else round(100 * one['cpu_share_of_one_core'], 1)} |",
         *([f"| tracker update p95, one walker (ms) | {one['update_ms']['p95']} |"] if tracking else []),
-        f"| walkers kept up at real time | {max(kept) if kept else 0} |", "",
+        f"| walkers kept up at real time | {max(kept) if kept else 0} |",
+        f"| bad inputs refused as expected | {bad['catalogue'] - len(bad['catalogue_wrong'])} |",
+        f"| acknowledged messages lost in {fl['kills']} SIGKILLs | {fl['acknowledged_missing']} |", "",
         f"## Load: {ld['data_s']:g} s of walk at {ld['speed']:g}× real time", "",
         f"{ld['messages']} messages ({ld['samples']} samples) in {ld['wall_s']} s (schedule {ld['schedule_s']} s; "
         f"{ld['behind_at_end_s']} s behind at the end), {ld['acknowledged']} acknowledged, {ld['retries']} retries. "
@@ -214,7 +311,23 @@ def page(r: dict) -> str:
         + (", update p95 under 1 s." if tracking else "."), "",
         "| walkers | server CPU | ack p50 ms | ack p99 ms | update p50 ms | update p95 ms | behind at end s | kept up |",
         "|---|---|---|---|---|---|---|---|", table, "",
-        f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}.", ""])
+        f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}.", "",
+        "## Bad input and faults", "",
+        f"Bad input (token required, 64-KiB body limit, 20 messages a second): {bad['catalogue']} bad bodies "
+        f"(malformed JSON, not UTF-8, NaN / inf, wrong types, missing columns, times a day ahead or years back, "
+        f"ids with path characters, a body over the limit): {bad['catalogue'] - len(bad['catalogue_wrong'])} answered "
+        f"with the expected 4xx{' (not: ' + '; '.join(bad['catalogue_wrong']) + ')' if bad['catalogue_wrong'] else ''}; "
+        f"{bad['fuzz']} random byte mutations of a good body: {bad['fuzz_answers']['refused']} refused with 400/422, "
+        f"{bad['fuzz_answers']['accepted']} still valid pushes and accepted ({bad['fuzz_answers']['stored']} new), "
+        f"{bad['fuzz_answers']['other']} answered otherwise; rows in the store after all of these: "
+        f"{bad['rows_after_bad']} (the new valid ones only). Without the "
+        f"token: {bad['no_token_401']} of 5 answered 401. A flood of {bad['flood']} messages at once: "
+        f"{bad['flood_429']} answered 429, {bad['flood_200']} accepted, {bad['flood_stored']} stored.", "",
+        f"Faults: {fl['kills']} SIGKILLs of the server during a {fl['messages']}-message replay at {ld['speed']:g}×, "
+        f"each followed by a restart on the same store; acknowledged messages missing after a restart: "
+        f"{fl['acknowledged_missing']}; the replay's retries ({fl['retries']}) filled in the rest "
+        f"({fl['acknowledged']} acknowledged); the final export "
+        f"{'equals' if fl['export_equal'] else 'differs from'} importing the export directly.", ""])
 
 
 __all__ = ["lost_and_duplicated", "run_bench"]
