@@ -101,7 +101,7 @@ def test_store_repeat_is_a_no_op(tmp_path):
     assert store.add("s", "d", 1, '{"payload": []}', "android", True) is True
     assert store.add("s", "e", 0, '{"payload": []}', "ios", False) is True      # another device
     assert store.count() == 3
-    assert [(d, m, b) for d, m, b in store.messages("s")][0] == ("d", 0, '{"payload": []}')
+    assert [(d, m, b) for d, m, _t, b in store.messages("s")][0] == ("d", 0, '{"payload": []}')
     assert store.sessions()["s"]["platform"] == "ios"   # the first message's settings
     store.close()
     db = sqlite3.connect(tmp_path / "live.db")
@@ -226,3 +226,20 @@ def test_a_tracker_that_cannot_start_is_a_warning_not_a_failed_push(tmp_path):
     st = rx.state("s-1")
     assert st["messages"] == 1 and st["path"] == []
     assert any("could not start" in w and "no shipped model" in w for w in st["warnings"])
+
+
+def test_restart_resumes_sessions_from_the_store(tmp_path):
+    """A new Receiver on the same store holds every session as it was: messages, settings, and
+    when each device was last seen (the store's receive times, not the restart's)."""
+    store = Store(tmp_path / "live.db")
+    rx = Receiver(store, None, 1 << 20, 1000.0, None, "android", True, 120, 7 * DAY)
+    for k in range(3):
+        rx.accept(enc(body(messageId=k)), "android", True)
+    seen = rx.state("s-1")["devices"]["phone"]["last_seen_unix_s"]
+    store.close()
+    time.sleep(0.2)
+    again = Receiver(Store(tmp_path / "live.db"), None, 1 << 20, 1000.0, None, "ios", False, 120, 7 * DAY)
+    st = again.state("s-1")
+    assert st["messages"] == 3 and st["devices"]["phone"]["samples"] == 3
+    assert abs(st["devices"]["phone"]["last_seen_unix_s"] - seen) < 0.1
+    assert (again.buffers["s-1"].platform, again.buffers["s-1"].standardised) == ("android", True)

@@ -150,10 +150,8 @@ class Receiver:
         self._workers_lock = threading.Lock()
         self.counts = {"accepted": 0, "repeats": 0, "refused": {}}
         self._lock = threading.Lock()   # store + buffer in one order
-        for sid, info in store.sessions().items():
-            buf = self._buffer(sid, info["platform"], info["standardised"])
-            for _device, _mid, body in store.messages(sid):
-                buf.add(json.loads(body)["payload"])
+        for sid in store.sessions():   # resumed: what a restart finds in the store
+            self.buffers[sid] = SessionBuffer.from_store(store, sid)
             self._poke(sid)
 
     def _buffer(self, sid: str, platform: str, standardised: bool) -> SessionBuffer:

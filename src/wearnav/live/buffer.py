@@ -16,6 +16,7 @@ so every slice lies in one frame.
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 import warnings
@@ -25,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav.errors import FormatError
+from wearnav.errors import FormatError, MissingFileError
 from wearnav.importers.sensorlogger_build import build_recording, stale_fixes
 from wearnav.importers.sensorlogger_map import PUSH_NAMES, SENSORS, Table
 from wearnav.recording import DeviceStream, Fixes, Recording
@@ -85,6 +86,19 @@ class SessionBuffer:
         self._lock = threading.Lock()
         self._quat_inverted: list[str] | None = None
         self._cache: tuple | None = None
+
+    @classmethod
+    def from_store(cls, store, session_id: str) -> "SessionBuffer":
+        """The session rebuilt from a :class:`wearnav.live.store.Store` (on restart, for export):
+        its messages in the order they were stored, with the time each was received."""
+        sessions = store.sessions()
+        if session_id not in sessions:
+            known = ", ".join(sessions) or "none"
+            raise MissingFileError(f"no session {session_id!r} in the store (sessions: {known})", store.path)
+        buf = cls(session_id, sessions[session_id]["platform"], sessions[session_id]["standardised"])
+        for _device, _mid, received_ns, body in store.messages(session_id):
+            buf.add(json.loads(body)["payload"], received_unix_s=received_ns / NS)
+        return buf
 
     # ---- input ------------------------------------------------------------------------------
 

@@ -3,26 +3,12 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from wearnav.dataset import Dataset, DatasetWriter
 from wearnav.errors import MissingFileError
 from wearnav.live.buffer import SessionBuffer
 from wearnav.live.store import Store
-
-
-def session_buffer(store: Store, session_id: str) -> SessionBuffer:
-    """The session's buffer rebuilt from the store (as the receiver does on restart)."""
-    sessions = store.sessions()
-    if session_id not in sessions:
-        known = ", ".join(sessions) or "none"
-        raise MissingFileError(f"no session {session_id!r} in the store (sessions: {known})", store.path)
-    info = sessions[session_id]
-    buf = SessionBuffer(session_id, info["platform"], info["standardised"])
-    for _device, _mid, body in store.messages(session_id):
-        buf.add(json.loads(body)["payload"])
-    return buf
 
 
 def export_session(store_path: str | Path, session_id: str, out: str | Path):
@@ -32,7 +18,7 @@ def export_session(store_path: str | Path, session_id: str, out: str | Path):
         raise MissingFileError("no session store here", store_path)
     store = Store(store_path)
     try:
-        buf = session_buffer(store, session_id)
+        buf = SessionBuffer.from_store(store, session_id)
     finally:
         store.close()
     rec = buf.recording()
@@ -42,4 +28,4 @@ def export_session(store_path: str | Path, session_id: str, out: str | Path):
     return Dataset.open(out)
 
 
-__all__ = ["export_session", "session_buffer"]
+__all__ = ["export_session"]

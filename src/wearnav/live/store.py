@@ -80,11 +80,11 @@ class Store:
         return {r[0]: {"platform": r[1], "standardised": bool(r[2]), "created_ns": r[3], "messages": r[4]}
                 for r in rows}
 
-    def messages(self, session_id: str) -> Iterator[tuple[str, int, str]]:
-        """(device_id, message_id, body) of a session in the order they were stored."""
+    def messages(self, session_id: str) -> Iterator[tuple[str, int, int, str]]:
+        """(device_id, message_id, received_ns, body) of a session in the order they were stored."""
         with self._lock:
-            rows = self._db.execute("SELECT device_id, message_id, body FROM messages WHERE session_id = ? "
-                                    "ORDER BY rowid", (session_id,)).fetchall()
+            rows = self._db.execute("SELECT device_id, message_id, received_ns, body FROM messages "
+                                    "WHERE session_id = ? ORDER BY rowid", (session_id,)).fetchall()
         yield from rows
 
     def message_ids(self, session_id: str) -> set[tuple[str, int]]:
