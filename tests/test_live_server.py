@@ -5,7 +5,10 @@ samples, and SIGKILL mid-replay (every acknowledged message kept, the same final
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
+import subprocess
+import sys
 import threading
 import time
 
@@ -17,12 +20,13 @@ from hypothesis import strategies as st
 
 from test_live_push import BAD, assert_same
 from wearnav.dataset import Dataset
+from wearnav.importers import import_dataset
 from wearnav.importers import sensorlogger
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import replay
 from wearnav.live.badinputs import body, enc
 from wearnav.live.export import export_session
-from wearnav.live.process import LiveServer
+from wearnav.live.process import SRC, LiveServer
 
 TOKEN = "t0k3n-for-the-test-only-9f3c"
 
@@ -106,6 +110,15 @@ def test_token_required_and_never_logged(tmp_path):
         assert c.post("/push", content=raw, headers={"authorization": f"Bearer {TOKEN}"}).status_code == 200
         assert c.post("/push?token=" + TOKEN, content=enc(body(messageId=4))).status_code == 200
         assert c.get("/state?token=" + TOKEN).json()["messages"] == 2
+        assert c.get("/events").status_code == 401
+        with c.stream("GET", "/events?session=s-1&token=" + TOKEN, timeout=10) as r:   # server-sent events
+            assert r.headers["content-type"].startswith("text/event-stream")
+            first = next(line for line in r.iter_lines() if line.startswith("data: "))
+        event = json.loads(first[len("data: "):])
+        assert event["session"] == "s-1" and event["messages"] == 2 and "path" in event
+        assert set(event["devices"]) == {"phone"} and event["devices"]["phone"]["stopped"] is False
+        sessions = c.get("/sessions?token=" + TOKEN).json()
+        assert [x["session"] for x in sessions] == ["s-1"] and sessions[0]["messages"] == 2
         assert stored_rows(db) == 2
     assert TOKEN not in srv.output()
     # --require-token without --token: one is made and printed once (the push URL), then required
@@ -132,8 +145,17 @@ def test_load_10x_no_sample_lost_or_duplicated(tmp_path, export60, imported):
           f"p50 {1e3 * np.percentile(lat, 50):.1f} p95 {1e3 * np.percentile(lat, 95):.1f} "
           f"p99 {1e3 * np.percentile(lat, 99):.1f}; behind schedule at the end {res.late_s:.2f} s")
     assert res.wall_s < 6.0 * 1.5   # kept up with 10× (schedule 6 s)
-    ds = export_session(db, "load", tmp_path / "out")
-    assert_same(imported, Dataset.open(ds.root).load("load"))
+    # `wearnav live export` writes what `wearnav import sensorlogger` writes, with the same samples
+    env = {**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"}
+    run = subprocess.run([sys.executable, "-m", "wearnav", "live", "export", "load", "--store", str(db), "--out",
+                          str(tmp_path / "live-ds")], env=env, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    live, direct = Dataset.open(tmp_path / "live-ds"), import_dataset("sensorlogger", export60, tmp_path / "direct",
+                                                                        progress=False)
+    assert live.names == ["load"] and len(direct) == 1
+    cols = ["duration", "devices", "source", "fixes"]
+    assert live.manifest[cols].to_dict("records") == direct.manifest[cols].to_dict("records")
+    assert_same(direct.load(direct.names[0]), live.load("load"))
 
 
 def test_sigkill_mid_replay_loses_nothing(tmp_path, export60, imported):
