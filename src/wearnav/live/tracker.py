@@ -36,6 +36,7 @@ from wearnav.evaluate import predict_sequence
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse_live import IncrementalFuser
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
+from wearnav.recording import DeviceStream, Recording
 from wearnav.track import input_warnings, odometry_preprocess, path_times
 from wearnav.train.classify import window_classes
 from wearnav.train.resolve import resolve_model
@@ -43,7 +44,13 @@ from wearnav.trajectory import integrate_velocity
 
 CONTEXT_S = 30.0  # input aligned before the first new window (filters, the common frame's estimate)
 LAG_S = 1.0  # a window is predicted once the data reaches this far past its end (zero-phase filters)
-STEP_S = 1.0  # windows are predicted once this many seconds of them are ready (each update aligns the context)
+# Several devices: a window is final once the data reaches this far past it (the common frame's yaw,
+# wearnav.frames, is a 20-s Gaussian kernel estimate: 3 σ); until then it is predicted again at
+# every update, as the provisional end of the path.
+FRAME_LAG_S = 60.0
+STEP_S = 1.0  # an update works once this much more of the session has arrived (each aligns the context)
+FUSE_EVERY_S = 3.0  # the smoother is solved at most this often; the path since is placed rigidly
+PLACE_S = 10.0  # ... on the last this many seconds of the smoothed path (wearnav.fuse.rigid_fit)
 POINT_S = 1.0  # the state's path: one point per this many seconds, and the latest one
 ACTIVITY_EVERY_S = 1.0  # the activity label is refreshed at most this often (s of session time)
 TRUST_AFTER_S = 30.0
@@ -69,14 +76,17 @@ class LiveTracker:
 
     ``model``: an odometry run, exported file or shipped name; None: the shipped model for the
     devices the session starts with (as ``track``). ``activity_model``: a classifier (None: no
-    activity). ``context_s``, ``lag_s``, ``step_s``: the module's ``CONTEXT_S``, ``LAG_S``, ``STEP_S``;
+    activity). ``context_s``, ``lag_s``, ``frame_lag_s``, ``step_s``: the module's ``CONTEXT_S``, ``LAG_S``,
+    ``FRAME_LAG_S``, ``STEP_S``;
     ``fuse_lag_s`` / ``fuse_step_s``: the fixed-lag smoother's window and step."""
 
     def __init__(self, model: str | Path | None = None, activity_model: str | Path | None = "activity",
-                 context_s: float = CONTEXT_S, lag_s: float = LAG_S, step_s: float = STEP_S,
+                 context_s: float = CONTEXT_S, lag_s: float = LAG_S, frame_lag_s: float = FRAME_LAG_S,
+                 step_s: float = STEP_S,
                  fuse_lag_s: float = 300.0, fuse_step_s: float = 30.0):
         self._model_arg = model
         self.context_s, self.lag_s, self.step_s = float(context_s), float(lag_s), float(step_s)
+        self.frame_lag_s = float(frame_lag_s)
         self._fuse_lag = (float(fuse_lag_s), float(fuse_step_s))
         self.model = self.cfg = self.model_path = None
         self.classifier = None
@@ -99,6 +109,9 @@ class LiveTracker:
         self._trusted = False
         self.t_s = 0.0
         self.timings: list[float] = []  # seconds per update that changed something
+        self._state: dict | None = None
+        self._tail = (np.empty(0), np.empty((0, 2)))  # the provisional path after the final one: t, xy
+        self._seen_s = self._fused_s = -np.inf  # session time of the last update's data, of the last fusion
 
     # ---- setup -------------------------------------------------------------------------------
 
@@ -128,40 +141,49 @@ class LiveTracker:
 
     def update(self, buf, final: bool = False) -> bool:
         """Process what is new in ``buf`` (a :class:`wearnav.live.buffer.SessionBuffer`) since the
-        last call; ``final``: the session has ended, predict up to its last sample as ``track`` does.
-        True when the path, the fixes or the activity changed."""
+        last call, once ``step_s`` more of the session has arrived; ``final``: the session has ended,
+        predict up to its last sample as ``track`` does. True when the path, the fixes or the
+        activity changed."""
         tic = time.perf_counter()
         whole = None
         if self.clock0 is None:
             whole = buf.recording()  # the session so far (short): the clock's start, and every fix so far
             if not self._start(whole):
                 return False
+        covered = float(buf.covered_until())
+        if not final and covered - self._seen_s < self.step_s:
+            return False
+        self._seen_s = covered
         pcfg = odometry_preprocess(self.cfg)
         rate, L, S = pcfg.rate, self.cfg.window, self.cfg.stride
-        covered = float(buf.covered_until())
         t_from = self.clock0 + max(0, self._next - int(round(self.context_s * rate))) / rate
-        rec = buf.recording(t_from - 1.0)  # a second more: the interpolation's samples before the clock
-        changed = self._take_fixes(whole if whole is not None else rec)
+        # a second more than the clock needs: the interpolation's samples before its start
+        rec = whole if whole is not None else buf.recording(t_from - 1.0)
+        changed = self._take_fixes(rec)
         end = common_span(rec, pcfg.devices, pcfg.edge_tolerance)[1] if final else covered
         g_end = int(np.floor((end - self.clock0) * rate + 1e-9))  # the clock's last sample (align's clock())
         g_last = g_end if final else g_end - int(np.ceil(self.lag_s * rate))  # last sample a window may use
-        ready = (g_last - self._next + 1 - L) // S + 1  # windows that can be predicted now
-        if ready >= (1 if final else max(1, int(round(self.step_s * rate / S)))):
-            changed |= self._predict(rec, pcfg, g_end, g_last)
-        if changed and len(self.odo.t) >= 2:
+        lag = 0.0 if final else max(self.lag_s, self.frame_lag_s if len(pcfg.devices) > 1 else 0.0)
+        g_final = g_end - int(np.ceil(lag * rate))  # the last sample a final window may use
+        if g_last - self._next + 1 >= L:
+            changed |= self._predict(rec, pcfg, g_end, g_last, g_final)
+        if changed and len(self.odo.t) >= 2 and (final or covered - self._fused_s >= FUSE_EVERY_S):
             self._fuse()
-        changed |= self._classify(buf, covered)
+            self._fused_s = covered
+        changed |= self._classify(rec, covered)
         if not self._trusted and covered >= TRUST_AFTER_S:
             self.warnings += input_warnings(self.model_path, self.cfg, rec)
             self._trusted, changed = True, True
         self.t_s = max(self.t_s, covered)
-        if changed:
+        if changed or self._state is None:
+            self._state = self._snapshot()  # one assignment: state() may be read from another thread
             self.timings.append(time.perf_counter() - tic)
         return changed
 
-    def _predict(self, rec, pcfg, g_end: int, g_last: int) -> bool:
-        """Align the clock from the context to ``g_end``, predict the windows inside ``g_last`` and
-        integrate the path on."""
+    def _predict(self, rec, pcfg, g_end: int, g_last: int, g_final: int) -> bool:
+        """Align the clock from the context to ``g_end`` and predict the windows inside ``g_last``:
+        those inside ``g_final`` for good (the path and the smoother grow by them), the rest as the
+        provisional tail (predicted again at the next update)."""
         rate, L, S = pcfg.rate, self.cfg.window, self.cfg.stride
         g_a = max(0, self._next - int(round(self.context_s * rate)))
         clock = self.clock0 + np.arange(g_a, g_end + 1) / rate  # align's clock(): t0 + k / rate
@@ -171,28 +193,25 @@ class LiveTracker:
         t_c, vel, _ = predict_sequence(self.model, seq, L, S)
         if t_c.size == 0:
             return False
-        self._next += t_c.size * S
+        n = int(np.clip((g_final - self._next - L + 1) // S + 1, 0, t_c.size))  # windows ending by g_final
         o = self.odo
-        n_old = len(o.t_c)
-        o.t_c += t_c.tolist()
-        o.vel += vel.tolist()
-        if len(o.t_c) < 2:
-            return False
-        tc, v = np.asarray(o.t_c), np.asarray(o.vel)
-        if not o.t:  # the path starts at the first clock sample after the first centre, at (0, 0)
-            t = path_times(seq.t, tc)
-            xy = integrate_velocity(tc, v, t, np.zeros(2))
-        else:  # on from the last position; the two centres before it give its velocity
-            k = max(0, n_old - 2)
-            t_new = seq.t[(seq.t > o.t[-1]) & (seq.t <= tc[-1])]
-            t = np.concatenate([[o.t[-1]], t_new])
-            xy = integrate_velocity(tc[k:], v[k:], t, np.asarray(o.xy[-1]))[1:]
-            t = t_new
-        for ti, p in zip(t, xy):
-            self.fuser.add_odometry(float(ti), p)
-        o.t += t.tolist()
-        o.xy += xy.tolist()
-        return t.size > 0
+        if n:
+            n_old = len(o.t_c)
+            o.t_c += t_c[:n].tolist()
+            o.vel += vel[:n].tolist()
+            self._next += n * S
+            if len(o.t_c) >= 2:
+                t, xy = _integrate_on(seq.t, np.asarray(o.t_c), np.asarray(o.vel), n_old, o.t, o.xy)
+                for ti, p in zip(t, xy):
+                    self.fuser.add_odometry(float(ti), p)
+                o.t += t.tolist()
+                o.xy += xy.tolist()
+        self._tail = (np.empty(0), np.empty((0, 2)))
+        if n < t_c.size and len(o.t_c) + t_c.size - n >= 2:
+            tc = np.concatenate([o.t_c, t_c[n:]]) if o.t_c else t_c[n:]
+            v = np.concatenate([np.reshape(o.vel, (-1, 2)), vel[n:]])
+            self._tail = _integrate_on(seq.t, tc, v, len(o.t_c), o.t, o.xy)
+        return True
 
     # ---- fixes and fusion ----------------------------------------------------------------------
 
@@ -238,13 +257,12 @@ class LiveTracker:
 
     # ---- activity ----------------------------------------------------------------------------
 
-    def _classify(self, buf, covered: float) -> bool:
+    def _classify(self, rec, covered: float) -> bool:
         """The latest window's activity (at most every ``ACTIVITY_EVERY_S``)."""
         if self.classifier is None or covered - self._activity_at < ACTIVITY_EVERY_S:
             return False
         model, cfg, classes = self.classifier
-        window_s = cfg.window / cfg.rate
-        rec = buf.recording(covered - window_s - 2.0)  # one window and the filters' edges
+        rec = _tail(rec, covered - cfg.window / cfg.rate - 2.0)  # one window and the filters' edges
         if not all(d in rec.devices for d in cfg.devices):
             return False
         try:
@@ -264,14 +282,26 @@ class LiveTracker:
     def path(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
         """Every path sample: times (s), east/north (m; the odometry's own frame where not fused),
         1-σ (m, NaN unknown) and what placed it."""
-        t = np.asarray(self.odo.t)
-        xy = np.asarray(self.odo.xy).reshape(-1, 2)
-        if self._fused is not None and self._fused.method != "none" and len(self._fused.xy) == len(t):
-            return t, self._fused.xy, self._fused.sigma_m, self._fused.method
-        return t, xy, np.full(len(t), np.nan), "none"
+        t = np.concatenate([self.odo.t, self._tail[0]])
+        xy = np.concatenate([np.reshape(self.odo.xy, (-1, 2)), self._tail[1]])
+        res = self._fused
+        if res is None or res.method == "none" or len(res.xy) < 2:
+            return t, xy, np.full(len(t), np.nan), "none"
+        n = len(res.xy)
+        if n == len(t):
+            return t, res.xy, res.sigma_m, res.method
+        # the samples since the last solve: placed by the rigid fit of the last PLACE_S smoothed seconds
+        k = slice(int(np.searchsorted(t[:n], t[n - 1] - PLACE_S)), n)
+        yaw, offset, _ = fuse.rigid_fit(xy[k], res.xy[k], np.ones(k.stop - k.start))
+        c, s_ = np.cos(yaw), np.sin(yaw)
+        tail = xy[n:] @ np.array([[c, s_], [-s_, c]]) + offset
+        return t, np.concatenate([res.xy, tail]), np.concatenate([res.sigma_m, np.full(len(tail), np.nan)]), res.method
 
     def state(self) -> dict:
-        """The JSON-able state the page renders (the live contract)."""
+        """The JSON-able state the page renders (the live contract), as of the latest update."""
+        return self._state if self._state is not None else self._snapshot()
+
+    def _snapshot(self) -> dict:
         t, xy, sig, anchor = self.path()
         step = max(1, int(round(POINT_S * self.cfg.rate))) if self.cfg is not None else 1
         idx = np.arange(0, len(t), step)
@@ -288,6 +318,31 @@ class LiveTracker:
                     [] if self.fixes or self.t_s < TRUST_AFTER_S else
                     ["no location fixes yet: the path is not placed on a map"]),
                 "t_s": round(float(self.t_s), 3)}
+
+
+def _integrate_on(clock_t: np.ndarray, tc: np.ndarray, v: np.ndarray, n_old: int, t_prev: list, xy_prev: list):
+    """The path at the clock's samples after ``t_prev[-1]`` up to the last window centre of ``tc``
+    (velocities ``v``; the first ``n_old`` already integrated into ``t_prev``, ``xy_prev``), on from
+    the last position (the two centres before it give its velocity), or from (0, 0) at the first
+    sample after the first centre where nothing was integrated yet (:func:`wearnav.track.odometry`)."""
+    if not t_prev:
+        t = path_times(clock_t, tc)
+        return t, integrate_velocity(tc, v, t, np.zeros(2))
+    k = max(0, n_old - 2)
+    t_new = clock_t[(clock_t > t_prev[-1]) & (clock_t <= tc[-1])]
+    xy = integrate_velocity(tc[k:], v[k:], np.concatenate([[t_prev[-1]], t_new]), np.asarray(xy_prev[-1]))
+    return t_new, xy[1:]
+
+
+def _tail(rec: Recording, t_from: float) -> Recording:
+    """``rec``'s device streams from ``t_from`` on (no fixes)."""
+    devices = {}
+    for name, s in rec.devices.items():
+        k = s.t >= t_from
+        if k.sum() >= 2:
+            devices[name] = DeviceStream(*(None if a is None else a[k] for a in (s.t, s.acc, s.gyro, s.quat, s.worn)))
+    return Recording(rec.name, devices, meta=rec.meta) if devices else Recording(rec.name, dict(rec.devices),
+                                                                                    meta=rec.meta)
 
 
 __all__ = ["LiveTracker", "CONTEXT_S", "LAG_S", "POINT_S"]
