@@ -35,6 +35,7 @@ from wearnav.errors import ValidationError
 from wearnav.evaluate import predict_sequence
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse_live import IncrementalFuser
+from wearnav.live.page import page_points
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.recording import DeviceStream, Recording
 from wearnav.track import input_warnings, odometry_preprocess, path_times
@@ -51,7 +52,6 @@ FRAME_LAG_S = 60.0
 STEP_S = 1.0  # an update works once this much more of the session has arrived (each aligns the context)
 FUSE_EVERY_S = 3.0  # the smoother is solved at most this often; the path since is placed rigidly
 PLACE_S = 10.0  # ... on the last this many seconds of the smoothed path (wearnav.fuse.rigid_fit)
-POINT_S = 1.0  # the state's path: one point per this many seconds, and the latest one
 ACTIVITY_EVERY_S = 1.0  # the activity label is refreshed at most this often (s of session time)
 TRUST_AFTER_S = 30.0
 # The model and the clock are chosen once the data reaches this far past align's edge tolerance
@@ -303,13 +303,8 @@ class LiveTracker:
 
     def _snapshot(self) -> dict:
         t, xy, sig, anchor = self.path()
-        step = max(1, int(round(POINT_S * self.cfg.rate))) if self.cfg is not None else 1
-        idx = np.arange(0, len(t), step)
-        if len(t) and idx[-1] != len(t) - 1:
-            idx = np.append(idx, len(t) - 1)
         return {"origin": list(self.origin) if self.origin is not None else None,
-                "path": [[round(float(t[i]), 3), round(float(xy[i, 0]), 3), round(float(xy[i, 1]), 3),
-                          round(float(sig[i]), 2) if np.isfinite(sig[i]) else None] for i in idx],
+                "path": page_points(t, xy, sig, self.cfg.rate if self.cfg is not None else 1.0),
                 "anchor": anchor,
                 "fixes": [[round(f[0], 3), round(f[1], 3), round(f[2], 3), round(f[3], 2) if np.isfinite(f[3]) else None]
                           for f in self.fixes],
@@ -345,4 +340,4 @@ def _tail(rec: Recording, t_from: float) -> Recording:
                                                                                     meta=rec.meta)
 
 
-__all__ = ["LiveTracker", "CONTEXT_S", "LAG_S", "POINT_S"]
+__all__ = ["LiveTracker", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]
