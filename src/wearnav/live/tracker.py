@@ -167,7 +167,7 @@ class LiveTracker:
         g_final = g_end - int(np.ceil(lag * rate))  # the last sample a final window may use
         if g_last - self._next + 1 >= L:
             changed |= self._predict(rec, pcfg, g_end, g_last, g_final)
-        if changed and len(self.odo.t) >= 2 and (final or covered - self._fused_s >= FUSE_EVERY_S):
+        if changed and (final or covered - self._fused_s >= FUSE_EVERY_S):
             self._fuse()
             self._fused_s = covered
         changed |= self._classify(rec, covered)
@@ -253,7 +253,15 @@ class LiveTracker:
         self.fuser.add_fix(float(t), float(e), float(n), float(a))
 
     def _fuse(self) -> None:
-        self._fused = self.fuser.result() if self.fixes else None
+        """The smoother's path: the fixed-lag smoother's over the final path, or before there is one
+        (a session's first ``frame_lag_s``) the batch smoother's over the provisional path."""
+        if not self.fixes:
+            self._fused = None
+        elif len(self.odo.t) >= 2:
+            self._fused = self.fuser.result()
+        elif len(self._tail[0]) >= 2:
+            f = np.asarray(self.fixes)
+            self._fused = fuse.smooth(*self._tail, f[:, 0], f[:, 1:3], f[:, 3], self.fuser.cfg)
 
     # ---- activity ----------------------------------------------------------------------------
 

@@ -122,7 +122,7 @@ const WearnavDraw = (() => {
     drawGrid(ctx, v, tiles);
     for (const [, x, y, acc] of goodFixes) {  // fixes: accuracy circle and centre
       const [px, py] = toPx(v, x, y);
-      ctx.fillStyle = "rgba(214,39,40,0.08)"; ctx.strokeStyle = "rgba(214,39,40,0.35)"; ctx.lineWidth = 1;
+      ctx.fillStyle = "rgba(214,39,40,0.05)"; ctx.strokeStyle = "rgba(214,39,40,0.25)"; ctx.lineWidth = 1;
       if (acc !== null) { ctx.beginPath(); ctx.arc(px, py, Math.max(1, acc * v.scale), 0, 2 * Math.PI); ctx.fill(); ctx.stroke(); }
       ctx.fillStyle = "rgba(214,39,40,0.8)";
       ctx.beginPath(); ctx.arc(px, py, 2, 0, 2 * Math.PI); ctx.fill();
