@@ -1,25 +1,33 @@
 """The live path and activity of one session as its samples arrive: :class:`LiveTracker`.
 
-Odometry, the way ``track`` runs it (:func:`wearnav.track.odometry`), piece by piece: the session's
-model clock is ``t0 + k / rate`` (``t0`` the devices' common start, as :func:`wearnav.preprocess.align`
-finds it, decided once every device that starts with the others has started), and its windows start
-at every ``stride``-th clock sample, as :class:`wearnav.windows.WindowDataset` cuts them offline. An
-update aligns only the clock from ``context_s`` before the first window not yet predicted up to the
-data's end (:meth:`SessionBuffer.covered_until`), and predicts only the windows that end ``lag_s``
-before it (the zero-phase filters need that much data after a window); the velocities are integrated
-on from the last position (Suite-IN++ eq. 8, :func:`wearnav.trajectory.integrate_velocity`). With a
-preprocessing that is local in time (one device: the common frame is the device's own) each window
-then sees the input it sees offline, and the path agrees with ``track``'s to round-off. With several
-devices the common frame's yaw (:mod:`wearnav.frames`, a 20-s Gaussian kernel and whole-recording band
-choices) is estimated from the context only, so the live input differs slightly from the offline one.
+Odometry, the way ``track`` runs it (:func:`wearnav.track.odometry`), piece by piece. The session's
+model clock is ``t0 + k / rate`` (``t0`` the devices' common start as :func:`wearnav.preprocess.align`
+finds it, decided once the devices that start together have started) and its windows start at every
+``stride``-th clock sample, as :class:`wearnav.windows.WindowDataset` cuts them offline. An update
+(once ``STEP_S`` more of the session has arrived) aligns only the clock from ``CONTEXT_S`` before the
+first window not yet final up to the data's end (:meth:`SessionBuffer.covered_until`) and predicts the
+windows that end ``LAG_S`` before it (the zero-phase low-pass needs that much data after a window).
+A window is final once the data reaches ``LAG_S`` past it for one device, ``FRAME_LAG_S`` for several
+(the common frame's yaw, :mod:`wearnav.frames`, is a 20-s Gaussian-kernel estimate that needs data on
+both sides); the path grows by the final windows' velocities, integrated on from its last position
+(Suite-IN++ eq. 8, :func:`wearnav.trajectory.integrate_velocity`), and the windows after them are
+predicted again at each update as the path's provisional end. So each window is predicted once (one
+device) or about ``FRAME_LAG_S / (STEP_S)`` times (several), never the whole session again.
 
-Fusion: the path is placed on the location fixes by :class:`wearnav.fuse_live.IncrementalFuser` (the
-smoother of ``track`` as a fixed-lag smoother), in the east/north frame of the first good fix
-(:mod:`wearnav.fixcheck`, converted by :mod:`wearnav.geo`). Activity: the latest window of the phone
-classified by the shipped activity model as ``classify`` runs it
-(:func:`wearnav.train.classify.window_classes`). Warnings: those the input gives
-(:func:`wearnav.track.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived; the
-walk-plausibility check of ``track`` needs the whole walk and is left to ``track``.
+With one device the preprocessing is local in time: each window sees the input it sees offline and
+the path is ``track``'s to round-off (the tests: 1e-6 m). With several, a final window's common frame
+comes from ``CONTEXT_S`` before it to ``FRAME_LAG_S`` after it instead of the whole walk, so the path
+differs slightly from ``track``'s (measured in tests/test_live_tracker.py).
+
+Fusion: the final path feeds :class:`wearnav.fuse_live.IncrementalFuser` (``track``'s smoother as a
+fixed-lag smoother; before the first final window the provisional path is smoothed whole by
+:func:`wearnav.fuse.smooth`), solved at most every ``FUSE_EVERY_S``; the path since the last solve is
+placed by a rigid fit (:func:`wearnav.fuse.rigid_fit`) on the last ``PLACE_S`` of the smoothed one.
+Everything is in the east/north frame of the first good fix (:mod:`wearnav.fixcheck`; fixes converted
+by :mod:`wearnav.geo`). Activity: the phone's latest window classified by the shipped activity model
+as ``classify`` runs it (:func:`wearnav.train.classify.window_classes`). Warnings: those the input
+gives (:func:`wearnav.track.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
+the smoother's; the walk-plausibility check of ``track`` needs the whole walk and is left to it.
 """
 
 from __future__ import annotations
@@ -53,11 +61,11 @@ STEP_S = 1.0  # an update works once this much more of the session has arrived (
 FUSE_EVERY_S = 3.0  # the smoother is solved at most this often; the path since is placed rigidly
 PLACE_S = 10.0  # ... on the last this many seconds of the smoothed path (wearnav.fuse.rigid_fit)
 ACTIVITY_EVERY_S = 1.0  # the activity label is refreshed at most this often (s of session time)
-TRUST_AFTER_S = 30.0
+TRUST_AFTER_S = 30.0  # the input's warnings once this much of the session has arrived
 # The model and the clock are chosen once the data reaches this far past align's edge tolerance
 # (a device starting later than that after the first counts as put on mid-walk), for the devices'
 # batches to have arrived.
-START_MARGIN_S = 1.0  # the input's warnings once this much of the session has arrived
+START_MARGIN_S = 1.0
 ORIGIN_MIN_FIXES = 3  # the origin is the first good fix once this many fixes are kept
 
 
@@ -76,14 +84,13 @@ class LiveTracker:
 
     ``model``: an odometry run, exported file or shipped name; None: the shipped model for the
     devices the session starts with (as ``track``). ``activity_model``: a classifier (None: no
-    activity). ``context_s``, ``lag_s``, ``frame_lag_s``, ``step_s``: the module's ``CONTEXT_S``, ``LAG_S``,
-    ``FRAME_LAG_S``, ``STEP_S``;
-    ``fuse_lag_s`` / ``fuse_step_s``: the fixed-lag smoother's window and step."""
+    activity). ``context_s``, ``lag_s``, ``frame_lag_s``, ``step_s``: the module's ``CONTEXT_S``,
+    ``LAG_S``, ``FRAME_LAG_S``, ``STEP_S``; ``fuse_lag_s`` / ``fuse_step_s``: the fixed-lag
+    smoother's window and step."""
 
     def __init__(self, model: str | Path | None = None, activity_model: str | Path | None = "activity",
                  context_s: float = CONTEXT_S, lag_s: float = LAG_S, frame_lag_s: float = FRAME_LAG_S,
-                 step_s: float = STEP_S,
-                 fuse_lag_s: float = 300.0, fuse_step_s: float = 30.0):
+                 step_s: float = STEP_S, fuse_lag_s: float = 300.0, fuse_step_s: float = 30.0):
         self._model_arg = model
         self.context_s, self.lag_s, self.step_s = float(context_s), float(lag_s), float(step_s)
         self.frame_lag_s = float(frame_lag_s)
@@ -102,7 +109,6 @@ class LiveTracker:
         self._fix_t = -np.inf  # the latest fix time taken, s
         self._pending: list[tuple[float, float, float, float]] = []  # fixes before an origin: t, lat, lon, acc
         self.fixes: list[tuple[float, float, float, float]] = []  # t, east, north, accuracy
-        self._local_fixes = False  # fixes without a geographic origin (metres as given)
         self.activity: dict | None = None
         self._activity_at = -np.inf
         self.warnings: list[str] = []
@@ -227,7 +233,6 @@ class LiveTracker:
         pos, acc, ft = fx.pos[new, :2], fx.accuracy[new], fx.t[new]
         lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
         if lat0 is None or lon0 is None:  # metres without a place on Earth: taken as they are
-            self._local_fixes = True
             for row in zip(ft, pos[:, 0], pos[:, 1], acc):
                 self._add_fix(*row)
             return True
