@@ -14,6 +14,12 @@ and write into the output folder:
     where the recording has location fixes ``east``, ``north`` (m, the anchored path, below).
 ``trajectory.png``
     The path with its start and end, and per-device presence over time.
+``trajectory.html``
+    The live page's drawing (:mod:`wearnav.live.page`), static and self-contained (opens offline
+    from the file): the path (anchored where it is, 1 point per second) on a metric grid, OSM map
+    tiles under it when the browser is online, the fixes used with their accuracy circles, a time
+    slider, and the path coloured by the activity the shipped activity model finds as
+    ``wearnav classify`` runs it (``track.json`` ``activity`` says which model, or why not).
 ``trajectory.geojson``
     Only when the recording has fixes and a lat/lon origin (``meta["origin_lat"/"origin_lon"]``,
     written by the importers that project lat/lon with :func:`wearnav.geo.latlon_to_local`): an
@@ -97,7 +103,8 @@ ANCHOR_TEXT = {
 }
 TRAJ_FORMAT = "%.4f"
 TRACK_JSON = "track.json"  # the marker: a folder holding it was written by `wearnav track`
-TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.geojson", "fixes.csv", TRACK_JSON)
+TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.html", "trajectory.geojson", "fixes.csv",
+               TRACK_JSON)
 COORD_DIGITS = 7  # GeoJSON and fixes.csv lat/lon decimals: 1e-7° is 1.1 cm
 INDEX_LIST_MAX = 10  # track.json lists at most this many dropped fixes' indices per reason
 
@@ -397,9 +404,40 @@ def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy:
         table.to_csv(tmp, index=False, float_format=TRAJ_FORMAT)
     kept = res.fixes.kept if fx is not None and len(fx) and res.fixes is not None else None
     plot_track(table, seq.devices, anchored, fx, summary, stage / "trajectory.png", kept)
-    summary["files"] = ["trajectory.csv", "trajectory.png", TRACK_JSON] + [
+    write_text_atomic(page_html(t, xy, rec, cfg, summary, res if anchored is not None else None, kept),
+                      stage / "trajectory.html")
+    summary["files"] = ["trajectory.csv", "trajectory.png", "trajectory.html", TRACK_JSON] + [
         f for f in ("trajectory.geojson", "fixes.csv") if (stage / f).is_file()]
     write_text_atomic(json.dumps(summary, indent=2, default=str), stage / TRACK_JSON)
+
+
+def page_html(t: np.ndarray, xy: np.ndarray, rec: Recording, cfg, summary: dict, res=None,
+              kept: np.ndarray | None = None) -> str:
+    """``trajectory.html`` (:mod:`wearnav.live.page`): the live page's drawing of the path (anchored
+    by ``res`` where given, with the ``kept`` fixes; else the odometry's own frame, without fixes),
+    self-contained, with a time slider, coloured by the activity ``classify`` finds
+    (``summary["activity"]`` says which model, or why not)."""
+    from wearnav.live.page import activity_intervals, page_points, trajectory_html
+
+    rows, note = activity_intervals(rec)
+    summary["activity"] = note
+    origin, fixes = None, []
+    if res is not None:
+        fx = rec.fixes
+        k = np.ones(len(fx.t), bool) if kept is None else kept
+        fixes = [[round(float(a), 3), round(float(e), 3), round(float(n), 3), _num(acc, 2)]
+                 for a, (e, n), acc in zip(fx.t[k], fx.pos[k, :2], fx.accuracy[k])]
+        if rec.meta.get("origin_lat") is not None and rec.meta.get("origin_lon") is not None:
+            origin = [float(rec.meta["origin_lat"]), float(rec.meta["origin_lon"])]
+    state = {"origin": origin, "path": page_points(t, res.xy if res is not None else xy,
+                                                   res.sigma_m if res is not None else None, cfg.rate),
+             "anchor": res.method if res is not None else "none", "fixes": fixes, "activity": rows,
+             "warnings": summary["warnings"], "t_s": round(float(t[-1]), 3)}
+    where = (f"placed on the location fixes ({summary['anchoring']['method']})" if res is not None else
+             "the odometry's own frame from (0, 0): not placed on the fixes")
+    return trajectory_html(state, f"{rec.name}: wearnav track",
+                           f"{summary['length_m']:.0f} m in {summary['duration_s']:.0f} s; model {cfg.model}",
+                           note, f"{summary['length_m']:.0f} m, {where}; {len(state['path'])} points (1 per s)")
 
 
 def _rounded(v):
