@@ -117,6 +117,8 @@ def test_token_required_and_never_logged(tmp_path):
         event = json.loads(first[len("data: "):])
         assert event["session"] == "s-1" and event["messages"] == 2 and "path" in event
         assert set(event["devices"]) == {"phone"} and event["devices"]["phone"]["stopped"] is False
+        page = c.get("/?token=" + TOKEN)
+        assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
         sessions = c.get("/sessions?token=" + TOKEN).json()
         assert [x["session"] for x in sessions] == ["s-1"] and sessions[0]["messages"] == 2
         assert stored_rows(db) == 2

@@ -8,10 +8,10 @@ Routes (``wearnav live`` serves them with uvicorn)::
     GET  /state      the same JSON once            (?session=ID; default the latest session)
     GET  /sessions   the sessions in the store, oldest first
     GET  /stats      counters: accepted, repeats, refused by status, tracker update latency
-    GET  /           the live page (wearnav/live/static/index.html)
+    GET  /           the live page (wearnav/live/static/index.html; its files under /static)
 
 With a token set (required when the server listens beyond 127.0.0.1; ``wearnav live`` makes one
-when none is given) every route wants it, as ``Authorization: Bearer T`` or ``?token=T``, compared
+when none is given) every route but ``/static`` (the page's own scripts and styles) wants it, as ``Authorization: Bearer T`` or ``?token=T``, compared
 in constant time; without it: 401 and nothing stored. Refusals are one JSON ``{"error": ...}``
 with a 4xx: 401, 413 (body over ``max_body``), 429 (over ``rate_limit`` messages a second from one
 client, bursts of twice that), 400 / 422 (:mod:`wearnav.live.push`). The token is never logged:
