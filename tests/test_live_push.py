@@ -16,6 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from wearnav.errors import FormatError
 from wearnav.importers import sensorlogger
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import replay
@@ -48,12 +49,16 @@ def test_good_body_and_unknown_sensors_pass():
     doc = body()
     doc["payload"] += [{"name": "magnetometer", "time": time.time_ns(), "values": {"x": 1, "y": 2, "z": 3}},
                        {"name": "battery", "time": time.time_ns(), "values": {"batteryLevel": 0.5, "state": "full",
-                                                                              "lowPower": False, "x": None}}]
+                                                                              "lowPower": False, "x": None}},
+                       {"name": "future sensor", "time": time.time_ns(), "values": {"list": [1, {"a": "b"}]}},
+                       {"name": "camera", "time": time.time_ns(), "values": "aGVsbG8="}]
     push = check(enc(doc))
-    assert (push.session_id, push.device_id, push.message_id, len(push.payload)) == ("s-1", "phone.A:1", 3, 4)
+    assert (push.session_id, push.device_id, push.message_id, len(push.payload)) == ("s-1", "phone.A:1", 3, 6)
     buf = SessionBuffer("s-1")
     assert buf.add(push.payload) == 2          # accelerometer + location read, the others ignored
-    assert buf.ignored == {"magnetometer": 1, "battery": 1}
+    assert buf.ignored == {"magnetometer": 1, "battery": 1, "future sensor": 1, "camera": 1}
+    with pytest.raises(BadPush):               # still finite
+        check(enc(doc).replace(b'[1, {"a"', b'[1e999, {"a"'))
 
 
 json_leaf = st.none() | st.booleans() | st.integers(-2 ** 70, 2 ** 70) | st.floats(allow_nan=True) | st.text(max_size=8)
@@ -243,3 +248,14 @@ def test_restart_resumes_sessions_from_the_store(tmp_path):
     assert st["messages"] == 3 and st["devices"]["phone"]["samples"] == 3
     assert abs(st["devices"]["phone"]["last_seen_unix_s"] - seen) < 0.1
     assert (again.buffers["s-1"].platform, again.buffers["s-1"].standardised) == ("android", True)
+
+
+def test_a_wrong_platform_fails_with_where_to_set_it(export60):
+    """The push carries no platform: an iPhone's session read as Android (acceleration sign
+    flipped) fails the importer's orientation check, with the way to say otherwise."""
+    rp = replay.build(export60, batch_s=1.0)
+    buf = SessionBuffer("wrong", "android", False)
+    for m in rp.messages:
+        buf.add(json.loads(json.dumps(m["payload"])))
+    with pytest.raises(FormatError, match=r"read as platform android.*\?platform=android"):
+        buf.recording()

@@ -207,9 +207,13 @@ class SessionBuffer:
         span = self.covered_until()
         try:
             rec = self._build(tables)
-        except FormatError:
-            if span >= DECIDE_S:
-                raise
+        except FormatError as exc:
+            if span >= DECIDE_S:   # the push carries no platform: say where it is set
+                raise FormatError(
+                    f"{exc.reason} (this session is read as platform {self.platform}, standardisation "
+                    f"{'on' if self.standardised else 'off'}: the push URL's ?platform=android / "
+                    "&standardisation=true, or wearnav live --platform / --standardised, say otherwise)",
+                    exc.source) from None
             # Too little data yet for the importer's plausibility checks: the documented
             # world←device reading until DECIDE_S seconds are in.
             return self._build(tables, quat_inverted=())

@@ -10,15 +10,15 @@ Every rule below turns a bad body into one :class:`BadPush` (an HTTP status and 
 that the receiver answers 4xx and stores nothing of it:
 
 * not UTF-8 JSON, or JSON holding ``NaN`` / ``Infinity`` (or a number too large for a float) → 400;
-* a field of the wrong type or missing; a payload entry that is not ``{"name": str, "time": int,
-  "values": {str: number | str | bool | null}}``; a sensor this receiver reads
-  (:data:`wearnav.importers.sensorlogger_map.PUSH_NAMES`) without its numeric columns → 422;
+* a field of the wrong type or missing; a payload entry without a ``name`` (str) and a ``time``
+  (int, ns); a sensor this receiver reads (:data:`wearnav.importers.sensorlogger_map.PUSH_NAMES`)
+  whose ``values`` is not a flat object holding its numeric columns → 422;
 * a sample time more than ``max_future_s`` ahead of the server's clock or more than ``max_age_s``
   behind it → 422;
 * a ``sessionId`` / ``deviceId`` that is not 1–128 of ``A-Z a-z 0-9 _ . : -`` or starts with a dot
   (it names rows and exported files; nothing with a path separator or ``..`` gets in) → 422.
 
-Unknown sensor names (magnetometer, battery, camera, ...) pass with any flat ``values``: they are
+Unknown sensor names (magnetometer, battery, camera, ...) pass with any JSON ``values``: they are
 stored and ignored.
 """
 
@@ -78,17 +78,30 @@ def _sample_time(x, k: int) -> int:
     raise BadPush(422, f"payload[{k}].time must be an integer (ns since the epoch)")
 
 
+def _finite(x, where: str) -> None:
+    """No inf anywhere in ``x`` (``1e999`` parses as inf; NaN / Infinity are refused at parsing)."""
+    if isinstance(x, float) and not math.isfinite(x):
+        raise BadPush(400, f"{where} is not finite")
+    if isinstance(x, dict):
+        for key, v in x.items():
+            _finite(v, f"{where}.{key}")
+    elif isinstance(x, list):
+        for i, v in enumerate(x):
+            _finite(v, f"{where}[{i}]")
+
+
 def _check_values(values, name: str, k: int) -> None:
-    if not isinstance(values, dict):
-        raise BadPush(422, f"payload[{k}].values must be an object")
-    for key, v in values.items():
-        if isinstance(v, float) and not math.isfinite(v):  # 1e999 parses as inf
-            raise BadPush(400, f"payload[{k}].values.{key} is not finite")
-        if not (v is None or isinstance(v, (int, float, str, bool))):
-            raise BadPush(422, f"payload[{k}].values.{key} must be a number, string, boolean or null")
+    """A sensor this receiver reads: ``values`` a flat object with its numeric columns. Any other
+    sensor: whatever JSON the app sends (stored, ignored), finite."""
+    _finite(values, f"payload[{k}].values")
     sensor = PUSH_NAMES.get(name)
     if sensor is None:
         return
+    if not isinstance(values, dict):
+        raise BadPush(422, f"payload[{k}].values must be an object")
+    for key, v in values.items():
+        if not (v is None or isinstance(v, (int, float, str, bool))):
+            raise BadPush(422, f"payload[{k}].values.{key} must be a number, string, boolean or null")
     for col in sensor.cols:
         v = values.get(col)
         if not (isinstance(v, (int, float)) and not isinstance(v, bool)):
