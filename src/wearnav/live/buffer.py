@@ -20,7 +20,6 @@ import json
 import threading
 import time
 import warnings
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -38,36 +37,70 @@ TEXT_COLS = {"Headphone.csv": "devicelocation"}
 _BUILD_LOCK = threading.Lock()  # warnings.catch_warnings is process-wide
 
 
-@dataclass
 class _Sensor:
-    cols: list[str]
-    chunks: list[tuple[np.ndarray, np.ndarray, list | None]] = field(default_factory=list)
-    optional_seen: set = field(default_factory=set)
-    t: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    vals: np.ndarray | None = None
-    text: list | None = None
-    duplicates: int = 0
-    last_seen_unix_s: float = 0.0
+    """One sensor's samples: sorted by time, a repeated time keeping the first to arrive.
+
+    Kept in arrays that grow by doubling, so that the usual message (later than everything so far)
+    costs only its own rows; one that arrives out of order re-sorts only the rows after its first
+    time, into new arrays (a snapshot handed out before stays as it was)."""
+
+    def __init__(self, cols: list[str], text: bool):
+        self.cols = cols
+        self.chunks: list[tuple[np.ndarray, np.ndarray, list | None]] = []
+        self.optional_seen: set = set()
+        self.n = 0
+        self._t = np.zeros(0, np.int64)
+        self._v = np.zeros((0, len(cols)), np.float64)
+        self._text = np.zeros(0, object) if text else None
+        self.duplicates = 0
+        self.last_seen_unix_s = 0.0
+
+    @property
+    def t(self) -> np.ndarray:
+        return self._t[:self.n]
+
+    @property
+    def vals(self) -> np.ndarray:
+        return self._v[:self.n]
+
+    @property
+    def text(self) -> np.ndarray | None:
+        return None if self._text is None else self._text[:self.n]
 
     def consolidate(self) -> None:
-        """Merge the pending chunks: sorted by time (stable: arrival order on ties), first kept."""
+        """Merge the pending chunks (module docstring's order rule)."""
         if not self.chunks:
             return
-        ts = [self.t, *(c[0] for c in self.chunks)]
-        vs = ([self.vals] if self.vals is not None else []) + [c[1] for c in self.chunks]
-        t, v = np.concatenate(ts), np.concatenate(vs)
-        text = None
-        if any(c[2] is not None for c in self.chunks):
-            text = (self.text or []) + [x for c in self.chunks for x in (c[2] or [None] * len(c[0]))]
+        t = np.concatenate([c[0] for c in self.chunks])
+        v = np.concatenate([c[1] for c in self.chunks])
+        x = None if self._text is None else np.array([y for c in self.chunks for y in (c[2] or [None] * len(c[0]))],
+                                                     object)
         self.chunks = []
-        order = np.argsort(t, kind="stable")
+        if self.n and t.min() <= self._t[self.n - 1]:   # out of order: merge with the rows from t.min() on
+            i = int(np.searchsorted(self.t, t.min(), side="left"))
+            t, v = np.concatenate([self._t[i:self.n], t]), np.concatenate([self._v[i:self.n], v])
+            x = None if x is None else np.concatenate([self._text[i:self.n], x])
+            self._t, self._v = self._t[:i].copy(), self._v[:i].copy()   # new arrays: snapshots keep theirs
+            self._text = None if x is None else self._text[:i].copy()
+            self.n = i
+        order = np.argsort(t, kind="stable")          # earlier arrivals first on equal times
         t, v = t[order], v[order]
-        keep = np.concatenate([[True], np.diff(t) > 0]) if t.size else np.zeros(0, bool)
+        keep = np.concatenate([[True], np.diff(t) > 0])
         self.duplicates += int((~keep).sum())
-        self.t, self.vals = t[keep], v[keep]
-        if text is not None:
-            text = [text[i] for i in order]
-            self.text = [x for x, k in zip(text, keep) if k]
+        t, v = t[keep], v[keep]
+        if x is not None:
+            x = x[order][keep]
+        need = self.n + t.size
+        if need > self._t.size:                       # grow by doubling (new arrays)
+            cap = max(need, 2 * self._t.size, 1024)
+            self._t = np.concatenate([self._t[:self.n], np.zeros(cap - self.n, np.int64)])
+            self._v = np.concatenate([self._v[:self.n], np.zeros((cap - self.n, self._v.shape[1]))])
+            if self._text is not None:
+                self._text = np.concatenate([self._text[:self.n], np.zeros(cap - self.n, object)])
+        self._t[self.n:need], self._v[self.n:need] = t, v
+        if x is not None:
+            self._text[self.n:need] = x
+        self.n = need
 
 
 class SessionBuffer:
@@ -117,7 +150,9 @@ class SessionBuffer:
         with self._lock:
             for fname, items in rows.items():
                 spec = SENSORS[fname]
-                s = self._sensors.setdefault(fname, _Sensor(cols=[*spec.cols, *spec.optional]))
+                if fname not in self._sensors:
+                    self._sensors[fname] = _Sensor([*spec.cols, *spec.optional], fname in TEXT_COLS)
+                s = self._sensors[fname]
                 t = np.fromiter((it["time"] for it in items), np.int64, len(items))
                 v = np.array([[_num(it["values"].get(c)) for c in s.cols] for it in items], np.float64)
                 s.optional_seen.update(c for c in spec.optional if any(c in it["values"] for it in items))
@@ -244,7 +279,7 @@ class SessionBuffer:
             dev = SENSORS[fname].device
             if dev is None:
                 continue
-            recent = t[t >= t[-1] - 2 * NS]
+            recent = t[int(np.searchsorted(t, t[-1] - 2 * NS)):]
             rate = (recent.size - 1) / ((recent[-1] - recent[0]) / NS) if recent.size > 1 and recent[-1] > recent[0] else 0.0
             d = out.setdefault(dev, {"rate_hz": 0.0, "last_seen_unix_s": 0.0, "samples": 0})
             if rate >= d["rate_hz"]:
