@@ -259,3 +259,22 @@ def test_a_wrong_platform_fails_with_where_to_set_it(export60):
         buf.add(json.loads(json.dumps(m["payload"])))
     with pytest.raises(FormatError, match=r"read as platform android.*\?platform=android"):
         buf.recording()
+
+
+def test_sensor_rows_sorted_first_arrival_kept_snapshots_unchanged():
+    buf = SessionBuffer("d")
+    now = time.time_ns()
+
+    def acc(dt_ns, x):
+        return {"name": "accelerometer", "time": now + dt_ns, "values": {"x": x, "y": 0.0, "z": 0.0}}
+
+    buf.add([acc(10, 1.0), acc(20, 2.0)])
+    version, snap = buf._snapshot()
+    t_before = snap["Accelerometer.csv"][0].copy()
+    buf.add([acc(20, 99.0), acc(5, 0.5), acc(30, 3.0)])   # a repeat of t=20 (kept: the first) and an earlier one
+    buf.add([acc(30, 98.0)])
+    _, snap2 = buf._snapshot()
+    t, vals = snap2["Accelerometer.csv"][:2]
+    assert (t - now).tolist() == [5, 10, 20, 30] and vals[:, 0].tolist() == [0.5, 1.0, 2.0, 3.0]
+    assert snap2["Accelerometer.csv"][4] == 2                    # duplicates counted
+    np.testing.assert_array_equal(snap["Accelerometer.csv"][0], t_before)   # the old snapshot as it was
