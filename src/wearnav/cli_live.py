@@ -12,7 +12,7 @@ from typing import Optional
 
 import typer
 
-from wearnav.cli_common import echo_json
+from wearnav.cli_common import echo_json, on_interrupt
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 
@@ -97,6 +97,7 @@ def live(
     typer.echo(f"live page: http://{shown}:{port}/{query}")
     if made:
         typer.echo("(the token was made now; give --token to keep one across restarts)")
+    on_interrupt(f"stopped; every acknowledged message is in {store} (`wearnav live` resumes its sessions)")
     try:
         uvicorn.run(app, host=host, port=port, access_log=False, log_level="warning")
     except SystemExit as exc:  # uvicorn exits when it cannot bind
