@@ -201,7 +201,7 @@ def test_tracker_runs_after_acks_one_thread_per_session_coalesced(tmp_path):
 
     rx = Receiver(Store(tmp_path / "live.db"), None, 1 << 20, 1000.0, factory, "ios", False, 120, 7 * DAY)
     for k in range(10):
-        assert rx.accept(enc(body(messageId=k)), "ios", False) is True
+        assert rx.accept(enc(body(messageId=k)), "ios", False) == "s-1"
         time.sleep(0.01)
     rx.accept(enc(body(sessionId="other")), "ios", False)
     deadline = time.monotonic() + 5
@@ -226,7 +226,7 @@ def test_a_tracker_that_cannot_start_is_a_warning_not_a_failed_push(tmp_path):
         raise FileNotFoundError("no shipped model")
 
     rx = Receiver(Store(tmp_path / "live.db"), None, 1 << 20, 1000.0, factory, "ios", False, 120, 7 * DAY)
-    assert rx.accept(enc(body()), "ios", False) is True
+    assert rx.accept(enc(body()), "ios", False) == "s-1"
     rx.workers["s-1"].thread.join(5)
     st = rx.state("s-1")
     assert st["messages"] == 1 and st["path"] == []

@@ -17,8 +17,8 @@ with a 4xx: 401, 413 (body over ``max_body``), 429 (over ``rate_limit`` messages
 client, bursts of twice that), 400 / 422 (:mod:`wearnav.live.push`). The token is never logged:
 uvicorn's access log is off and this module logs paths without their query.
 
-Tracking: one worker thread per session runs ``tracker.update(buffer)`` after a push is
-acknowledged; pushes arriving while it runs make it run once more when done (coalesced). The
+Tracking: one worker thread per session runs ``tracker.update(buffer)`` once a push's 200 has
+been sent; pushes arriving while it runs make it run once more when done (coalesced). The
 tracker comes from ``tracker_factory`` (None: no tracking, ``wearnav live --no-track``).
 """
 
@@ -34,6 +34,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from starlette.applications import Starlette
+from starlette.background import BackgroundTask
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response, StreamingResponse
@@ -152,14 +153,14 @@ class Receiver:
         self._lock = threading.Lock()   # store + buffer in one order
         for sid in store.sessions():   # resumed: what a restart finds in the store
             self.buffers[sid] = SessionBuffer.from_store(store, sid)
-            self._poke(sid)
+            self.poke(sid)
 
     def _buffer(self, sid: str, platform: str, standardised: bool) -> SessionBuffer:
         if sid not in self.buffers:
             self.buffers[sid] = SessionBuffer(sid, platform, standardised)
         return self.buffers[sid]
 
-    def _poke(self, sid: str) -> None:
+    def poke(self, sid: str) -> None:
         if self.tracker_factory is None:
             return
         with self._workers_lock:
@@ -178,8 +179,10 @@ class Receiver:
             raise BadPush(422, "standardisation must be true or false")
         return platform, flag.lower() in ("true", "1", "on")
 
-    def accept(self, body: bytes, platform: str, standardised: bool) -> bool:
-        """Parse, store (committed), buffer; True when new. Runs in a worker thread."""
+    def accept(self, body: bytes, platform: str, standardised: bool, track: bool = True) -> str | None:
+        """Parse, store (committed), buffer: the session id when new, None for a repeat. Runs in
+        a worker thread. ``track`` False leaves waking the tracker to the caller (:meth:`poke`),
+        which the HTTP route does once its 200 is sent."""
         push = parse(body, time.time_ns(), self.max_future_s, self.max_age_s)
         with self._lock:
             new = self.store.add(push.session_id, push.device_id, push.message_id, body.decode("utf-8"),
@@ -188,9 +191,9 @@ class Receiver:
                 # a session's settings are its first message's (the store keeps those)
                 self._buffer(push.session_id, platform, standardised).add(push.payload)
             self.counts["accepted" if new else "repeats"] += 1
-        if new:
-            self._poke(push.session_id)
-        return new
+        if new and track:
+            self.poke(push.session_id)
+        return push.session_id if new else None
 
     def state(self, sid: str) -> dict:
         buf = self.buffers[sid]
@@ -251,10 +254,11 @@ def create_app(store: str | Path | Store, token: str | None = None, max_body: in
             chunks.append(chunk)
         try:
             settings = rx.settings(request)
-            new = await run_in_threadpool(rx.accept, b"".join(chunks), *settings)
+            sid = await run_in_threadpool(rx.accept, b"".join(chunks), *settings, False)
         except BadPush as exc:
             return refuse(request, exc.status, exc.message)
-        return JSONResponse({"stored": new})
+        # the tracker runs after the 200 has gone out
+        return JSONResponse({"stored": sid is not None}, background=BackgroundTask(rx.poke, sid) if sid else None)
 
     def session_of(request: Request) -> str | JSONResponse:
         sid = request.query_params.get("session") or rx.latest()
