@@ -18,13 +18,14 @@ from hypothesis import strategies as st
 
 from wearnav.errors import FormatError
 from wearnav.importers import sensorlogger
-from wearnav.importers.sensorlogger_export import simulated_export
+from wearnav.importers.sensorlogger_export import simulated_export, write_export
 from wearnav.live import replay
 from wearnav.live.app import Receiver
 from wearnav.live.badinputs import body, catalogue, enc
-from wearnav.live.buffer import SessionBuffer
+from wearnav.live.buffer import AUTO, SessionBuffer
 from wearnav.live.push import BadPush, parse
 from wearnav.live.store import Store
+from wearnav.simulate import WalkConfig, simulate_recording
 
 DAY = 86400.0
 
@@ -278,3 +279,22 @@ def test_sensor_rows_sorted_first_arrival_kept_snapshots_unchanged():
     assert (t - now).tolist() == [5, 10, 20, 30] and vals[:, 0].tolist() == [0.5, 1.0, 2.0, 3.0]
     assert snap2["Accelerometer.csv"][4] == 2                    # duplicates counted
     np.testing.assert_array_equal(snap["Accelerometer.csv"][0], t_before)   # the old snapshot as it was
+
+
+@pytest.mark.parametrize("platform,standardised", [("ios", False), ("ios", True), ("android", False)])
+def test_platform_not_given_is_decided_from_the_data(tmp_path, platform, standardised):
+    """A push URL without ?platform= (Sensor Logger sends none): the session is read in the one
+    convention that passes the importer's checks, and gives the importer's Recording of the export
+    read with its Metadata.csv."""
+    walk = simulate_recording(WalkConfig(mode="PVW", placement="MP", duration_s=20.0), seed=2)
+    folder = write_export(walk, tmp_path / "x", platform=platform, standardised=standardised,
+                          total_acceleration=platform == "android")
+    ref = next(sensorlogger.read(folder))
+    rp = replay.build(folder, batch_s=1.0)
+    buf = SessionBuffer("auto", AUTO)
+    for m in rp.messages:
+        buf.add(json.loads(json.dumps(m["payload"])))
+    got = buf.recording()
+    assert not buf.infer and got.meta["platform"] in ((platform,) if platform == "ios" and not standardised
+                                                       else ("ios", "android"))
+    assert_same(ref, got)

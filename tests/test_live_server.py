@@ -165,12 +165,12 @@ def test_sigkill_mid_replay_loses_nothing(tmp_path, export60, imported):
     acknowledged before the kill is in the store, the replay's retries fill in the rest, the
     restarted server resumed the session, and the export equals an uninterrupted one's."""
     db = tmp_path / "live.db"
-    rp = replay.build(export60, batch_s=0.2, session_id="kill")
+    rp = replay.build(export60, batch_s=0.2, session_id="kill")   # sent without ?platform=: decided from the data
     acked: list[int] = []
     srv = LiveServer(db, "--no-track").start()
     out: dict = {}
     sender = threading.Thread(target=lambda: out.update(res=replay.send(
-        rp, f"{srv.url}/push", speed=10.0, retry_for_s=60.0, on_ack=acked.append)))
+        rp, f"{srv.url}/push", speed=10.0, retry_for_s=60.0, on_ack=acked.append, platform=False)))
     sender.start()
     try:
         while len(acked) < 60:

@@ -55,8 +55,9 @@ def live(
     max_body: int = typer.Option(4 * 1024 * 1024, "--max-body", min=1024, help="Largest push body, bytes (413 above)."),
     rate_limit: float = typer.Option(100.0, "--rate-limit", min=0.1, help="Messages a second per client (429 above; "
                                      "bursts of twice that)."),
-    platform: str = typer.Option("ios", help="The phone's platform when the push URL does not say "
-                                 "(?platform=ios|watchos|android): it decides the acceleration sign."),
+    platform: Optional[str] = typer.Option(None, help="The phone's platform (ios, watchos, android) when the push "
+                                           "URL does not say (?platform=...): it decides the acceleration sign. "
+                                           "Default: decided from each session's data."),
     standardised: bool = typer.Option(False, "--standardised", help="\"Standardise Units & Frames\" is on in the "
                                       "app, when the push URL does not say (?standardisation=true)."),
     model: Optional[Path] = typer.Option(None, "--model", help="Odometry model (as for `wearnav track`)."),
@@ -79,9 +80,12 @@ def live(
     from wearnav.importers.sensorlogger_map import PLATFORMS
     from wearnav.live.app import create_app
 
-    platform = platform.strip().lower()
-    if platform not in PLATFORMS:
-        raise typer.BadParameter(f"--platform must be one of {', '.join(PLATFORMS)}")
+    if platform is not None:
+        platform = platform.strip().lower()
+        if platform not in PLATFORMS:
+            raise typer.BadParameter(f"--platform must be one of {', '.join(PLATFORMS)}")
+    elif standardised:
+        platform = "ios"
     made = False
     if token is None and (require_token or host not in LOCAL_HOSTS):
         token, made = secrets.token_urlsafe(18), True
@@ -160,6 +164,8 @@ def replay(
     batch_s: float = typer.Option(0.2, "--batch-s", min=0.01, help="Batch period (s), as set in the app."),
     token: Optional[str] = typer.Option(None, "--token", help="The receiver's token."),
     session: Optional[str] = typer.Option(None, "--session", help="Session id (default: a new one)."),
+    no_platform: bool = typer.Option(False, "--no-platform", help="Leave the export's platform out of the URL "
+                                     "(as the app's own push URL does; the receiver decides it from the data)."),
 ):
     """Send a Sensor Logger export to a receiver as the app pushes while recording.
 
@@ -171,7 +177,7 @@ def replay(
 
     rp = build(export, batch_s=batch_s, session_id=session)
     typer.echo(f"session {rp.session_id}: {len(rp.messages)} messages, {rp.samples} samples", err=True)
-    res = send(rp, url, speed=speed, token=token)
+    res = send(rp, url, speed=speed, token=token, platform=not no_platform)
     lat = sorted(res.ack_latency_s)
     echo_json({"session": rp.session_id, "messages": len(rp.messages), "acknowledged": len(res.acknowledged),
                "retries": res.retries, "wall_s": round(res.wall_s, 2),

@@ -42,7 +42,7 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from wearnav.importers.sensorlogger_map import PLATFORMS
-from wearnav.live.buffer import SessionBuffer
+from wearnav.live.buffer import AUTO, SessionBuffer
 from wearnav.live.push import BadPush, check_id, parse
 from wearnav.live.store import Store
 
@@ -139,7 +139,7 @@ class Receiver:
     """The app's state: store, buffers, workers, limits (one per app)."""
 
     def __init__(self, store: Store, token: str | None, max_body: int, rate_limit: float,
-                 tracker_factory: Callable[[], object] | None, platform: str, standardised: bool,
+                 tracker_factory: Callable[[], object] | None, platform: str | None, standardised: bool,
                  max_future_s: float, max_age_s: float):
         self.store, self.token, self.max_body = store, token, max_body
         self.limiter = RateLimiter(rate_limit)
@@ -169,15 +169,9 @@ class Receiver:
         self.workers[sid].poke()
 
     def settings(self, request: Request) -> tuple[str, bool]:
-        platform = request.query_params.get("platform", self.platform).strip().lower()
-        if platform not in PLATFORMS:
-            raise BadPush(422, f"platform must be one of {', '.join(PLATFORMS)}")
-        flag = request.query_params.get("standardisation")
-        if flag is None:
-            return platform, self.standardised
-        if flag.lower() not in ("true", "false", "1", "0", "on", "off"):
-            raise BadPush(422, "standardisation must be true or false")
-        return platform, flag.lower() in ("true", "1", "on")
+        """The session's platform and standardisation: the push URL's ``?platform=`` /
+        ``&standardisation=``, else the server's, else ``AUTO`` (decided from the data)."""
+        return settings(request.query_params, self.platform, self.standardised)
 
     def accept(self, body: bytes, platform: str, standardised: bool, track: bool = True) -> str | None:
         """Parse, store (committed), buffer: the session id when new, None for a repeat. Runs in
@@ -207,13 +201,31 @@ class Receiver:
         return next(reversed(self.buffers), None)
 
 
+def settings(query, platform: str | None, standardised: bool) -> tuple[str, bool]:
+    """(platform, standardisation) from a push or MQTT URL's ``query`` (a mapping), else the
+    server's ``platform`` / ``standardised``; a platform given by neither is ``AUTO``."""
+    given = query.get("platform")
+    flag = query.get("standardisation")
+    if flag is not None and flag.lower() not in ("true", "false", "1", "0", "on", "off"):
+        raise BadPush(422, "standardisation must be true or false")
+    std = standardised if flag is None else flag.lower() in ("true", "1", "on")
+    if given is None:
+        if platform is None and flag is None:
+            return AUTO, False
+        return platform or "ios", std
+    given = given.strip().lower()
+    if given not in PLATFORMS:
+        raise BadPush(422, f"platform must be one of {', '.join(PLATFORMS)}")
+    return given, std
+
+
 def _error(status: int, message: str) -> JSONResponse:
     return JSONResponse({"error": message}, status_code=status)
 
 
 def create_app(store: str | Path | Store, token: str | None = None, max_body: int = MAX_BODY,
                rate_limit: float = RATE_LIMIT, tracker_factory: Callable[[], object] | None = None,
-               platform: str = "ios", standardised: bool = False, max_future_s: float = MAX_FUTURE_S,
+               platform: str | None = None, standardised: bool = False, max_future_s: float = MAX_FUTURE_S,
                max_age_s: float = MAX_AGE_S) -> Starlette:
     """The receiver app over the SQLite ``store`` (sessions in it are resumed)."""
     store = store if isinstance(store, Store) else Store(store)
@@ -253,8 +265,8 @@ def create_app(store: str | Path | Store, token: str | None = None, max_body: in
                 return refuse(request, 413, f"body is over the limit of {rx.max_body} bytes")
             chunks.append(chunk)
         try:
-            settings = rx.settings(request)
-            sid = await run_in_threadpool(rx.accept, b"".join(chunks), *settings, False)
+            platform, standardised = rx.settings(request)
+            sid = await run_in_threadpool(rx.accept, b"".join(chunks), platform, standardised, False)
         except BadPush as exc:
             return refuse(request, exc.status, exc.message)
         # the tracker runs after the 200 has gone out
@@ -307,7 +319,13 @@ def create_app(store: str | Path | Store, token: str | None = None, max_body: in
         if not authorized(request):
             return refuse(request, 401, "a valid token is required")
         stored = rx.store.sessions()
-        return JSONResponse([{"session": sid, "platform": info["platform"], "standardised": info["standardised"],
+        def convention(sid: str, info: dict) -> dict:   # AUTO until the session's data decided it
+            buf = rx.buffers.get(sid)
+            if buf is None or buf.infer:
+                return {"platform": info["platform"], "standardised": info["standardised"]}
+            return {"platform": buf.platform, "standardised": buf.standardised}
+
+        return JSONResponse([{"session": sid, **convention(sid, info),
                               "created_unix_s": info["created_ns"] / 1e9, "messages": info["messages"],
                               "devices": sorted(rx.buffers[sid].devices()) if sid in rx.buffers else []}
                              for sid, info in stored.items()])

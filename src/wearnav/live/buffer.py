@@ -33,6 +33,10 @@ from wearnav.recording import DeviceStream, Fixes, Recording
 NS = 1_000_000_000
 DECIDE_S = 10.0   # seconds of data after which the quaternion direction is decided for good
 MARGIN_S = 2.0    # a slice reads this much earlier data, for interpolation at its start
+AUTO = "auto"     # a session whose push URL gave no platform: decided from its data
+# The distinct readings of an app's acceleration (sign, unit: sensorlogger_map.acceleration_convention),
+# tried in this order: iOS with "Standardise Units & Frames" off (the app's default), on, and Android.
+CONVENTIONS = (("ios", False), ("ios", True), ("android", False))
 TEXT_COLS = {"Headphone.csv": "devicelocation"}
 _BUILD_LOCK = threading.Lock()  # warnings.catch_warnings is process-wide
 
@@ -108,8 +112,9 @@ class SessionBuffer:
 
     def __init__(self, session_id: str, platform: str = "ios", standardised: bool = False):
         self.session_id = session_id
-        self.platform = platform
-        self.standardised = standardised
+        self.infer = platform == AUTO    # decided from the data (see _full) until then
+        self.platform, self.standardised = CONVENTIONS[0] if self.infer else (platform, standardised)
+        self.platform_from = "the data" if self.infer else "the push URL / wearnav live --platform"
         self.t0_unix_ns: int | None = None
         self.version = 0
         self.messages = 0
@@ -199,13 +204,13 @@ class SessionBuffer:
                 out[fname] = _table(self.session_id, fname, entry, i)
         return out
 
-    def _build(self, tables: dict[str, Table], **kw) -> Recording:
+    def _build(self, tables: dict[str, Table], convention: tuple[str, bool] | None = None, **kw) -> Recording:
+        platform, standardised = convention or (self.platform, self.standardised)
         with _BUILD_LOCK, warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            rec = build_recording(tables, self.platform, self.standardised, Path(f"live:{self.session_id}"),
+            rec = build_recording(tables, platform, standardised, Path(f"live:{self.session_id}"),
                                   self.session_id, f"live session {self.session_id}",
-                                  {"platform_from": "the push URL / wearnav live --platform"},
-                                  t0_ns=self.t0_unix_ns, **kw)
+                                  {"platform_from": self.platform_from}, t0_ns=self.t0_unix_ns, **kw)
         self.warnings = [str(w.message) for w in caught]
         return rec
 
@@ -238,23 +243,42 @@ class SessionBuffer:
         return rec
 
     def _full(self, snap: dict) -> Recording:
+        """The whole session with the importer's checks. Until ``DECIDE_S`` seconds are in, data too
+        short for the checks is read the documented way (quaternions world←device). A session
+        without a given platform (``AUTO``) is read in the first of ``CONVENTIONS`` that passes the
+        checks (the acceleration sign and the wearables' unit decide whether gravity lies along
+        the orientation's up), provisionally until ``DECIDE_S`` seconds, for good after."""
         tables = self._tables(snap, None)
         span = self.covered_until()
-        try:
-            rec = self._build(tables)
-        except FormatError as exc:
-            if span >= DECIDE_S:   # the push carries no platform: say where it is set
-                raise FormatError(
-                    f"{exc.reason} (this session is read as platform {self.platform}, standardisation "
-                    f"{'on' if self.standardised else 'off'}: the push URL's ?platform=android / "
-                    "&standardisation=true, or wearnav live --platform / --standardised, say otherwise)",
-                    exc.source) from None
-            # Too little data yet for the importer's plausibility checks: the documented
-            # world←device reading until DECIDE_S seconds are in.
+        decided = span >= DECIDE_S
+        tried = [(self.platform, self.standardised)] + ([c for c in CONVENTIONS if c != (self.platform, self.standardised)]
+                                                        if self.infer else [])
+        first_error = None
+        for convention in tried:
+            try:
+                rec = self._build(tables, convention)
+            except FormatError as exc:
+                first_error = first_error or exc
+                continue
+            if self.infer:
+                self.platform, self.standardised = convention
+            if decided:
+                if self.infer:
+                    self.infer, self.platform_from = False, "the data (the first reading that passes the importer's checks)"
+                if self._quat_inverted is None:
+                    self._quat_inverted = list(rec.meta.get("quat_inverted", []))
+            return rec
+        if not decided and not self.infer:
             return self._build(tables, quat_inverted=())
-        if span >= DECIDE_S and self._quat_inverted is None:
-            self._quat_inverted = list(rec.meta.get("quat_inverted", []))
-        return rec
+        if not decided:
+            raise FormatError(f"the phone's platform is decided from the data once {DECIDE_S:g} s are in (the "
+                              "push URL does not say it: ?platform=ios|android&standardisation=true|false)",
+                              first_error.source)
+        raise FormatError(  # the push carries no platform: say where it is set
+            f"{first_error.reason} (this session is read as platform {self.platform}, standardisation "
+            f"{'on' if self.standardised else 'off'}{', none of ' + str(len(tried)) + ' readings fits' if self.infer else ''}: "
+            "the push URL's ?platform=android / &standardisation=true, or wearnav live --platform / "
+            "--standardised, say otherwise)", first_error.source) from None
 
     def covered_until(self) -> float:
         """s since t0: min over connected IMU devices of their latest sample time."""
@@ -317,4 +341,4 @@ def cut(rec: Recording, t_from: float) -> Recording:
     return Recording(name=rec.name, devices=devices, fixes=fixes, meta=rec.meta)
 
 
-__all__ = ["DECIDE_S", "SessionBuffer", "cut"]
+__all__ = ["AUTO", "CONVENTIONS", "DECIDE_S", "SessionBuffer", "cut"]

@@ -15,7 +15,7 @@ import logging
 from urllib.parse import parse_qsl, unquote, urlsplit
 
 from wearnav.errors import ConfigError
-from wearnav.importers.sensorlogger_map import PLATFORMS
+from wearnav.live.app import settings
 from wearnav.live.push import BadPush
 
 log = logging.getLogger("wearnav.live")
@@ -43,11 +43,10 @@ def subscribe(url: str, receiver):
     import paho.mqtt.client as mqtt
 
     cfg = parse_url(url)
-    platform = cfg["query"].get("platform", receiver.platform).strip().lower()
-    if platform not in PLATFORMS:
-        raise ConfigError(f"--mqtt: platform must be one of {', '.join(PLATFORMS)}")
-    flag = cfg["query"].get("standardisation")
-    standardised = receiver.standardised if flag is None else flag.lower() in ("true", "1", "on")
+    try:
+        platform, standardised = settings(cfg["query"], receiver.platform, receiver.standardised)
+    except BadPush as exc:
+        raise ConfigError(f"--mqtt: {exc.message}") from None
     client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, transport=cfg["transport"])
     if cfg["transport"] == "websockets":
         client.ws_set_options(path=WS_PATH)

@@ -8,7 +8,8 @@ go out in batches of ``batch_s`` of sample time, one message per batch with ``me
 columns but ``time`` / ``seconds_elapsed``. Sample times are shifted by one constant so that the
 export's last sample is the moment the replay starts (the receiver refuses times from the
 future), which leaves every time difference as it was. The export's platform and
-standardisation (Metadata.csv; the app does not push them) go in the URL's query.
+standardisation (Metadata.csv; the app does not push them) go in the URL's query, as a user
+types them into the app's push URL (``platform=False``: not, and the receiver decides them).
 
 ``speed`` N sends N seconds of samples per wall second. A message that fails (connection refused,
 5xx, 429) is sent again until acknowledged, so a receiver killed and restarted mid-replay gets
@@ -125,23 +126,25 @@ def _plain(v):
     return v.item() if hasattr(v, "item") else v
 
 
-def push_url(url: str, replay: Replay, token: str | None = None) -> str:
-    """``url`` with the export's platform and standardisation (and the token) in its query."""
+def push_url(url: str, replay: Replay, token: str | None = None, platform: bool = True) -> str:
+    """``url`` with the export's platform and standardisation (``platform`` False: not, as a push
+    URL typed without them; the receiver then decides them from the data) and the token."""
     parts = urlsplit(url)
     query = dict(parse_qsl(parts.query))
-    query.update(platform=replay.platform, standardisation="true" if replay.standardised else "false")
+    if platform:
+        query.update(platform=replay.platform, standardisation="true" if replay.standardised else "false")
     if token:
         query["token"] = token
     return urlunsplit(parts._replace(query=urlencode(query)))
 
 
 def send(replay: Replay, url: str, speed: float = 1.0, token: str | None = None,
-         retry_for_s: float = 60.0, stop_after: int | None = None, on_ack=None) -> Result:
+         retry_for_s: float = 60.0, stop_after: int | None = None, on_ack=None, platform: bool = True) -> Result:
     """POST every message in order at ``speed`` × real time; a failed message is retried (every
     0.1 s, for at most ``retry_for_s`` without any success) before the next is sent."""
     if speed <= 0:
         raise ConfigError(f"speed {speed!r} must be positive")
-    target = push_url(url, replay, token)
+    target = push_url(url, replay, token, platform)
     res = Result()
     t_start = time.perf_counter()
     with httpx.Client(timeout=10.0) as client:
