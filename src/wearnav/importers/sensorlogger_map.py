@@ -23,8 +23,10 @@ Sign convention of accelerations (``s = -1`` flips, ``s = +1`` keeps)
   * ``watchos`` (an export recorded on the Apple Watch alone, layout version 4) is read as iOS:
     the watch follows the iPhone's convention (below).
   * Both facts come from ``Metadata.csv``; without it the import fails unless ``platform`` is
-    given (``wearnav import sensorlogger --platform``), and standardisation is then read as off. ``platform``: README.md, "Accessing Recording
-    Metadata": "platform: Either iOS or Android". ``standardisation`` (true / false) is not in the
+    given (``wearnav import sensorlogger --platform``), and standardisation is then read as off.
+    A push carries neither: the receiver takes them from the push URL or decides them from the data
+    (:mod:`wearnav.live.buffer`). ``platform``: README.md, "Accessing Recording Metadata":
+    "platform: Either iOS or Android". ``standardisation`` (true / false) is not in the
     documentation; it is the column name real exports carry (header ``version,device name,
     recording epoch time,recording time,recording timezone,platform,appVersion,device id,sensors,
     sampleRateMs,standardisation,platform version``). An export without it predates the toggle
@@ -38,6 +40,8 @@ Sign convention of accelerations (``s = -1`` flips, ``s = +1`` keeps)
     Gyroscope sensor, iOS and Android have consistent definitions." The device axes themselves are
     the same on both platforms ("the directions of the axes are the same across platforms").
 
+Phone: its own files are m/s² whatever the toggle, so only ``s`` applies (the assembly, with the
+phone's clock and gravity, is :mod:`wearnav.importers.sensorlogger_build`'s).
 
 Apple Watch (``WristMotion.csv`` → device ``watch``)
   * ``acc = s * u * (acceleration + gravity)`` with ``u = 9.80665`` when the toggle is off, ``u = 1``
@@ -54,7 +58,6 @@ AirPods (``Headphone.csv`` → device ``earbuds``)
     be 9.80665ms-2, regardless of whether "Standardise Units & Frames" is turned on or not".
   * ``gyro = rotationRate`` rad/s (UNITS.md: "in radians per second (rad/s)"). ``devicelocation``
     (left / right) goes to ``meta["earbud_side"]``.
-
 """
 
 from __future__ import annotations
