@@ -298,3 +298,18 @@ def test_platform_not_given_is_decided_from_the_data(tmp_path, platform, standar
     assert not buf.infer and got.meta["platform"] in ((platform,) if platform == "ios" and not standardised
                                                        else ("ios", "android"))
     assert_same(ref, got)
+
+
+def test_covered_until_leaves_out_a_device_that_stopped(export60):
+    """Earbuds that stop sending at 10 s (taken out) do not hold the live path back; while every
+    device sends, the slowest one bounds it."""
+    rp = replay.build(export60, batch_s=1.0)
+    buf = SessionBuffer("c", rp.platform, rp.standardised)
+    for m in rp.messages[:30]:
+        payload = [it for it in m["payload"] if not (it["name"] == "headphone" and m["messageId"] >= 10)]
+        buf.add(json.loads(json.dumps(payload)))
+        if m["messageId"] == 5:
+            ends = {d: s.t[-1] for d, s in buf.recording().devices.items()}
+            assert buf.covered_until() == pytest.approx(min(ends.values()), abs=0.02)
+    rec = buf.recording()
+    assert rec.devices["earbuds"].t[-1] < 11.0 and buf.covered_until() > 28.0

@@ -34,6 +34,7 @@ NS = 1_000_000_000
 DECIDE_S = 10.0   # seconds of data after which the quaternion direction is decided for good
 MARGIN_S = 2.0    # a slice reads this much earlier data, for interpolation at its start
 AUTO = "auto"     # a session whose push URL gave no platform: decided from its data
+CONNECTED_S = 5.0  # a device this far behind the newest (sample time) no longer holds the path back
 # The distinct readings of an app's acceleration (sign, unit: sensorlogger_map.acceleration_convention),
 # tried in this order: iOS with "Standardise Units & Frames" off (the app's default), on, and Android.
 CONVENTIONS = (("ios", False), ("ios", True), ("android", False))
@@ -281,16 +282,20 @@ class SessionBuffer:
             "--standardised, say otherwise)", first_error.source) from None
 
     def covered_until(self) -> float:
-        """s since t0: min over connected IMU devices of their latest sample time."""
+        """s since t0: min over connected IMU devices of their latest sample time (a device's: the
+        earliest of its sensors' latest, as its stream needs them all). Connected: its latest
+        sample is within ``CONNECTED_S`` of the newest of any device (sample time, so that a replay
+        or a restart sees what the live session saw): earbuds taken out do not stop the path."""
         _, snap = self._snapshot()
         last: dict[str, int] = {}
         for fname, entry in snap.items():
             dev = SENSORS[fname].device
             if dev is not None:
-                last[dev] = max(last.get(dev, 0), int(entry[0][-1]))
+                last[dev] = min(last.get(dev, entry[0][-1]), int(entry[0][-1]))
         if not last or self.t0_unix_ns is None:
             return 0.0
-        return (min(last.values()) - self.t0_unix_ns) / NS
+        newest = max(last.values())
+        return (min(t for t in last.values() if t >= newest - CONNECTED_S * NS) - self.t0_unix_ns) / NS
 
     def devices(self) -> dict[str, dict]:
         """{"phone": {"rate_hz": 99.8, "last_seen_unix_s": ..., "samples": n}, ...}: each device's
