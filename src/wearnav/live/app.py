@@ -11,8 +11,9 @@ Routes (``wearnav live`` serves them with uvicorn)::
     GET  /           the live page (wearnav/live/static/index.html; its files under /static)
 
 With a token set (required when the server listens beyond 127.0.0.1; ``wearnav live`` makes one
-when none is given) every route but ``/static`` (the page's own scripts and styles) wants it, as ``Authorization: Bearer T`` or ``?token=T``, compared
-in constant time; without it: 401 and nothing stored. Refusals are one JSON ``{"error": ...}``
+when none is given) every route but ``/static`` (the page's own scripts and styles) wants it, as
+``Authorization: Bearer T`` or ``?token=T``, compared in constant time; without it: 401 and
+nothing stored. Refusals are one JSON ``{"error": ...}``
 with a 4xx: 401, 413 (body over ``max_body``), 429 (over ``rate_limit`` messages a second from one
 client, bursts of twice that), 400 / 422 (:mod:`wearnav.live.push`). The token is never logged:
 uvicorn's access log is off and this module logs paths without their query.
@@ -20,6 +21,10 @@ uvicorn's access log is off and this module logs paths without their query.
 Tracking: one worker thread per session runs ``tracker.update(buffer)`` once a push's 200 has
 been sent; pushes arriving while it runs make it run once more when done (coalesced). The
 tracker comes from ``tracker_factory`` (None: no tracking, ``wearnav live --no-track``).
+
+A session's platform and standardisation (which the app does not push) come from the push URL's
+query (``?platform=android&standardisation=true``), else from ``wearnav live --platform``, else
+from the session's data (:data:`wearnav.live.buffer.AUTO`).
 """
 
 from __future__ import annotations
