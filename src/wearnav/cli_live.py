@@ -16,8 +16,7 @@ from wearnav.cli_common import echo_json, on_interrupt
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 
-live_app = typer.Typer(help="Receive Sensor Logger's HTTP Push: a live path on a page, every message stored.",
-                       invoke_without_command=True)
+live_app = typer.Typer(invoke_without_command=True)  # its help: the docstring of live() below
 
 
 def _lan_address() -> str:
