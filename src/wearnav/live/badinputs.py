@@ -61,6 +61,14 @@ def catalogue() -> dict[str, tuple[bytes, int, str]]:
         "deviceId with a backslash": (enc(body(deviceId="a\\b")), 422, "deviceId"),
         "deviceId empty": (enc(body(deviceId="")), 422, "deviceId"),
         "sessionId a number": (enc(body(sessionId=7)), 422, "sessionId"),
+        "acceleration 1e30": (enc(body()).replace(b"0.1", b"1e30"), 422, "beyond any acceleration"),
+        "rotation rate 1e5": (enc(body(payload=[sample(values={"x": 1e5, "y": 0, "z": 0})])), 422, "rotation rate"),
+        "quaternion not unit": (enc(body(payload=[{"name": "orientation", "time": now, "values": {
+            "qw": 0.0, "qx": 0.0, "qy": 0.0, "qz": 0.0}}])), 422, "norm"),
+        "latitude 999": (enc(body()).replace(b"49.4", b"999"), 422, "out of range"),
+        "quaternion 1e300": (enc(body(payload=[{"name": "orientation", "time": now, "values": {
+            "qw": 1e300, "qx": 0.0, "qy": 0.0, "qz": 0.0}}])), 422, "norm"),
+        "an integer of 400 digits": (enc(body()).replace(b"0.1", b"1" + b"0" * 400), 400, "not finite"),
     }
 
 

@@ -314,8 +314,8 @@ def page(r: dict) -> str:
         f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}.", "",
         "## Bad input and faults", "",
         f"Bad input (token required, 64-KiB body limit, 20 messages a second): {bad['catalogue']} bad bodies "
-        f"(malformed JSON, not UTF-8, NaN / inf, wrong types, missing columns, times a day ahead or years back, "
-        f"ids with path characters, a body over the limit): {bad['catalogue'] - len(bad['catalogue_wrong'])} answered "
+        f"(malformed JSON, not UTF-8, NaN / inf, wrong types, missing columns, values no sensor reports, times a day "
+        f"ahead or years back, ids with path characters, a body over the limit): {bad['catalogue'] - len(bad['catalogue_wrong'])} answered "
         f"with the expected 4xx{' (not: ' + '; '.join(bad['catalogue_wrong']) + ')' if bad['catalogue_wrong'] else ''}; "
         f"{bad['fuzz']} random byte mutations of a good body: {bad['fuzz_answers']['refused']} refused with 400/422, "
         f"{bad['fuzz_answers']['accepted']} still valid pushes and accepted ({bad['fuzz_answers']['stored']} new), "

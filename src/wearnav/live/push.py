@@ -13,6 +13,9 @@ that the receiver answers 4xx and stores nothing of it:
 * a field of the wrong type or missing; a payload entry without a ``name`` (str) and a ``time``
   (int, ns); a sensor this receiver reads (:data:`wearnav.importers.sensorlogger_map.PUSH_NAMES`)
   whose ``values`` is not a flat object holding its numeric columns → 422;
+* a value no sensor reports: an acceleration or gravity over ``ACC_RAW_MAX``, a rotation rate
+  over 2000 °/s, a quaternion whose norm is not 1, a latitude / longitude out of range, an
+  accuracy radius over 2·10⁷ m → 422 (stored, one would make the session's Recording fail);
 * a sample time more than ``max_future_s`` ahead of the server's clock or more than ``max_age_s``
   behind it → 422;
 * a ``sessionId`` / ``deviceId`` that is not 1–128 of ``A-Z a-z 0-9 _ . : -`` or starts with a dot
@@ -29,10 +32,16 @@ import math
 import re
 from dataclasses import dataclass
 
-from wearnav.importers.sensorlogger_map import PUSH_NAMES
+from wearnav.importers.sensorlogger_map import ORIENTATION_COLS, PUSH_NAMES, quat_cols
+from wearnav.recording import ACC_AXIS_MAX, GYRO_AXIS_MAX, POS_ABS_MAX
+from wearnav.rotations import UNIT_NORM_TOL
 
 ID_RE = re.compile(r"[A-Za-z0-9_.:-]{1,128}")
 MAX_NAME_LEN = 64
+# A raw acceleration or gravity value: half the Recording's limit, so that user acceleration plus
+# gravity stays within it (in m/s²; a wearable writing g stays far below in any case).
+ACC_RAW_MAX = ACC_AXIS_MAX / 2
+MAX_INT = 10 ** 300  # larger JSON integers are refused as not finite (float() would overflow)
 NS = 1_000_000_000
 
 
@@ -82,6 +91,8 @@ def _finite(x, where: str) -> None:
     """No inf anywhere in ``x`` (``1e999`` parses as inf; NaN / Infinity are refused at parsing)."""
     if isinstance(x, float) and not math.isfinite(x):
         raise BadPush(400, f"{where} is not finite")
+    if isinstance(x, int) and not isinstance(x, bool) and abs(x) > MAX_INT:   # no float holds it
+        raise BadPush(400, f"{where} is not finite (an integer of {len(str(abs(x)))} digits)")
     if isinstance(x, dict):
         for key, v in x.items():
             _finite(v, f"{where}.{key}")
@@ -110,6 +121,36 @@ def _check_values(values, name: str, k: int) -> None:
         v = values.get(col)
         if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool)):
             raise BadPush(422, f"payload[{k}] ({name}) values.{col} must be a number or absent")
+    _plausible(values, name, k)
+
+
+def _plausible(values: dict, name: str, k: int) -> None:
+    """Values no sensor reports (beyond the Recording's limits, whatever the session's units) are
+    refused here: once stored, one would make every later Recording of the session fail."""
+    def bad(col: str, why: str):
+        raise BadPush(422, f"payload[{k}] ({name}) values.{col} = {values[col]:g} is {why}")
+
+    for col, v in values.items():
+        if not isinstance(v, (int, float)) or isinstance(v, bool):
+            continue
+        if (col in "xyz" and name in ("accelerometer", "totalacceleration", "gravity")) or \
+                col.startswith(("acceleration", "gravity")):
+            if abs(v) > ACC_RAW_MAX:
+                bad(col, f"beyond any acceleration ({ACC_RAW_MAX:.0f}, half of 16 g in m/s²)")
+        elif (col in "xyz" and name == "gyroscope") or col.startswith("rotationRate"):
+            if abs(v) > GYRO_AXIS_MAX:
+                bad(col, f"beyond any rotation rate ({GYRO_AXIS_MAX:.1f} rad/s)")
+    quat = ORIENTATION_COLS if name == "orientation" else quat_cols() if name in ("wrist motion", "headphone") else None
+    if quat is not None:
+        norm = math.hypot(*(float(values[c]) for c in quat))   # no overflow for 1e300
+        if abs(norm - 1.0) > UNIT_NORM_TOL:
+            raise BadPush(422, f"payload[{k}] ({name}) quaternion has norm {norm:.3g}, not 1")
+    if name == "location":
+        if abs(values["latitude"]) > 90 or abs(values["longitude"]) > 180:
+            raise BadPush(422, f"payload[{k}] (location) latitude/longitude out of range")
+        acc = values.get("horizontalAccuracy")
+        if isinstance(acc, (int, float)) and acc > POS_ABS_MAX:
+            bad("horizontalAccuracy", "not an accuracy radius")
 
 
 def parse(body: bytes, now_ns: int, max_future_s: float, max_age_s: float) -> Push:
