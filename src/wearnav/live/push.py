@@ -153,6 +153,12 @@ def _plausible(values: dict, name: str, k: int) -> None:
             bad("horizontalAccuracy", "not an accuracy radius")
 
 
+def _days(ns: int) -> str:
+    """A time span (ns, any size: a corrupt time may be a 300-digit integer) in days, as text."""
+    days = ns // (86400 * NS)
+    return f"{ns / (86400 * NS):.3g}" if days < 10 ** 6 else "over a million"
+
+
 def parse(body: bytes, now_ns: int, max_future_s: float, max_age_s: float) -> Push:
     """The checked push in ``body`` (module docstring), or :class:`BadPush`."""
     try:
@@ -184,10 +190,10 @@ def parse(body: bytes, now_ns: int, max_future_s: float, max_age_s: float) -> Pu
             raise BadPush(422, f"payload[{k}].name must be a string of 1-{MAX_NAME_LEN} characters")
         t = _sample_time(item.get("time"), k)
         if t > hi:
-            raise BadPush(422, f"payload[{k}].time is {(t - now_ns) / NS:.0f} s in the future "
+            raise BadPush(422, f"payload[{k}].time is {_days(t - now_ns)} days in the future "
                                f"(over {max_future_s:g} s ahead of this server's clock)")
         if t < lo:
-            raise BadPush(422, f"payload[{k}].time is {(now_ns - t) / NS / 86400:.1f} days in the past "
+            raise BadPush(422, f"payload[{k}].time is {_days(now_ns - t)} days in the past "
                                f"(over {max_age_s / 86400:g} days)")
         item["time"] = t
         _check_values(item.get("values"), name, k)
