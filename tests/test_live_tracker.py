@@ -57,7 +57,8 @@ def replay_into(tracker: LiveTracker, folder) -> dict:
 
 def offline_times(run: dict, table: pd.DataFrame) -> np.ndarray:
     """The offline path's times on the session's clock (both are s since their own first sample)."""
-    offset_s = (run["buf"].t0_unix_ns - run["replay"].shift_ns) * 1e-9 - (table["unix_time"].iloc[0] - table["t"].iloc[0])
+    t0_offline = table["unix_time"].iloc[0] - table["t"].iloc[0]
+    offset_s = (run["buf"].t0_unix_ns - run["replay"].shift_ns) * 1e-9 - t0_offline
     return table["t"].to_numpy() - offset_s
 
 

@@ -164,7 +164,7 @@ class LiveTracker:
             return False
         self._seen_s = covered
         pcfg = odometry_preprocess(self.cfg)
-        rate, L, S = pcfg.rate, self.cfg.window, self.cfg.stride
+        rate, L = pcfg.rate, self.cfg.window
         t_from = self.clock0 + max(0, self._next - int(round(self.context_s * rate))) / rate
         # a second more than the clock needs: the interpolation's samples before its start
         rec = whole if whole is not None else buf.recording(t_from - 1.0)
@@ -225,7 +225,8 @@ class LiveTracker:
     # ---- fixes and fusion ----------------------------------------------------------------------
 
     def _take_fixes(self, rec) -> bool:
-        """The fixes newer than the last taken, into the frame of the first good fix."""
+        """The fixes newer than the last taken, into the frame of the first good fix (a fix arriving
+        late, older than the latest taken or than ``rec``'s start, is not taken)."""
         fx = rec.fixes
         if fx is None or len(fx) == 0:
             return False
@@ -322,8 +323,8 @@ class LiveTracker:
         return {"origin": list(self.origin) if self.origin is not None else None,
                 "path": page_points(t, xy, sig, self.cfg.rate if self.cfg is not None else 1.0),
                 "anchor": anchor,
-                "fixes": [[round(f[0], 3), round(f[1], 3), round(f[2], 3), round(f[3], 2) if np.isfinite(f[3]) else None]
-                          for f in self.fixes],
+                "fixes": [[round(t, 3), round(e, 3), round(n, 3), round(a, 2) if np.isfinite(a) else None]
+                          for t, e, n, a in self.fixes],
                 "activity": self.activity,
                 "warnings": self.warnings + (self._fused.warnings if self._fused is not None else []) + (
                     [] if self.fixes or self.t_s < TRUST_AFTER_S else
