@@ -128,7 +128,8 @@ def trajectory_html(state: dict, title: str, subtitle: str = "", activity_note: 
     """The self-contained page for ``state`` (the live state's keys, ``activity`` as intervals)."""
     data = json.dumps(state, allow_nan=False).replace("</", "<\\/")  # never ends the script element
     warnings = "".join(f"<li>{html.escape(w)}</li>" for w in state.get("warnings", []))
-    return _PAGE.format(title=html.escape(title), subtitle=html.escape(subtitle), css=(STATIC / "style.css").read_text(),
+    return _PAGE.format(title=html.escape(title), subtitle=html.escape(subtitle),
+                        css=(STATIC / "style.css").read_text(),
                         activity_note=html.escape(activity_note), path_note=html.escape(path_note),
                         warnings=warnings, data=data, draw=(STATIC / "draw.js").read_text(), script=_SCRIPT)
 
