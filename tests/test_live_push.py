@@ -313,3 +313,24 @@ def test_covered_until_leaves_out_a_device_that_stopped(export60):
             assert buf.covered_until() == pytest.approx(min(ends.values()), abs=0.02)
     rec = buf.recording()
     assert rec.devices["earbuds"].t[-1] < 11.0 and buf.covered_until() > 28.0
+
+
+class WaitingTracker(SlowTracker):
+    """Changes the path only on every third update (as LiveTracker waits for a second of data)."""
+
+    def update(self, buf) -> bool:
+        self.seen.append(buf.version)
+        return len(self.seen) % 3 == 0
+
+
+def test_update_latency_runs_from_the_oldest_ack_to_the_update_that_changed_the_path(tmp_path):
+    rx = Receiver(Store(tmp_path / "live.db"), None, 1 << 20, 1000.0, WaitingTracker, "ios", False, 120, 7 * DAY)
+    t0 = time.perf_counter()
+    for k in range(3):
+        rx.accept(enc(body(messageId=k)), "ios", False)
+        deadline = time.monotonic() + 5
+        while len(getattr(rx.workers["s-1"].tracker, "seen", [])) < k + 1 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(0.1)
+    lat = rx.workers["s-1"].latency_s
+    assert len(lat) == 1 and lat[0] >= 0.2 and lat[0] <= time.perf_counter() - t0   # from the first push's ack

@@ -90,7 +90,7 @@ class SessionWorker:
     def __init__(self, buf: SessionBuffer, tracker_factory: Callable[[], object]):
         self.buf, self.tracker = buf, None
         self.error: str | None = None
-        self.latency_s: list[float] = []   # from the oldest unprocessed ack to its update's end
+        self.latency_s: list[float] = []   # the oldest ack not yet on the page → the update that put it there
         self._factory = tracker_factory
         self._event = threading.Event()
         self._pending_since: float | None = None
@@ -116,15 +116,21 @@ class SessionWorker:
             self._event.clear()
             with self._lock:
                 since, self._pending_since = self._pending_since, None
+            changed = False
             try:
-                self.tracker.update(self.buf)
+                changed = bool(self.tracker.update(self.buf))
                 self.error = None
             except Exception as exc:  # shown on the page; the next push tries again
                 self.error = f"live tracking failed: {type(exc).__name__}: {exc}"
                 log.warning("session %s: %s", self.buf.session_id, self.error)
-            if since is not None:
+            if since is None:
+                continue
+            if changed:   # the page's path now holds every push acknowledged since ``since``
                 self.latency_s.append(time.perf_counter() - since)
                 del self.latency_s[:-10_000]
+            else:         # nothing new on the page yet (the tracker waits for more): still pending
+                with self._lock:
+                    self._pending_since = since if self._pending_since is None else min(since, self._pending_since)
 
     def state(self) -> dict:
         st = dict(self.tracker.state()) if self.tracker is not None else untracked_state(self.buf, "starting")

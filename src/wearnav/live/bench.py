@@ -12,8 +12,9 @@ Sensor Logger export (phone: accelerometer, gravity, gyroscope, orientation at 1
 2. **Walkers**: 1, 2, 4, 8 ... sessions (``walkers``) replayed at once at real time for ``cpu_s``
    seconds each, with the live tracker where this installation has one: the server process's CPU
    time (user + system, ``/proc``) over the wall time as a share of one core, ack latency, the
-   tracker's update latency (the oldest unprocessed 200 → its path update done), and whether it
-   kept up (stops at the first count that does not): the capacity of this machine.
+   tracker's update latency (the oldest 200 not yet on the page → the update that changed the
+   path), and whether it kept up (stops at the first count that does not): the capacity of this
+   machine.
 3. **Bad input**: :func:`wearnav.live.badinputs.catalogue`, a body over the size limit, random
    byte mutations of a good body, requests without the token, a flood past the rate limit.
 4. **Faults**: SIGKILL mid-replay and restart (twice): acknowledged messages missing, and the
@@ -305,7 +306,9 @@ def page(r: dict) -> str:
         f"## Walkers at real time ({one['seconds']} s each, {'with' if tracking else 'without'} live tracking)", "",
         "Each walker is one session (phone, watch, earbuds) pushing in real time; all at once into one server. "
         "CPU: the server process's user + system time over the wall time, as a share of one core. "
-        + ("Update: from the oldest unprocessed 200 to the tracker's path update done. " if tracking else
+        + ("Update: from the oldest 200 whose samples are not yet on the page to the tracker update that put them "
+           "there (an update that changed the path, fixes or activity; the tracker reads the buffer once a second "
+           "of new data). " if tracking else
            "No live tracker in this installation: storing and serving only. ")
         + "Kept up: every message acknowledged, under 1 s behind schedule at the end"
         + (", update p95 under 1 s." if tracking else "."), "",
