@@ -52,6 +52,11 @@ from wearnav.live.process import LiveServer
 from wearnav.provenance import provenance
 
 BATCH_S = 0.2
+LATENCY_GOAL_S = 1.0     # issue 23: a push's 200 → the updated path, p95
+# Keeping up with real time: the path trails the pushes by a bounded time, not a growing one. The
+# tracker reads the buffer once per second of new data (live/tracker.py STEP_S), so even an idle
+# server shows ~1 s; twice that means the updates no longer keep pace.
+KEPT_UP_UPDATE_S = 2.0
 
 
 def _pct(x, q) -> float | None:
@@ -135,11 +140,12 @@ def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track:
     behind = max((r.late_s for r in results if r is not None), default=float("inf"))
     complete = all(r is not None and len(r.acknowledged) == n for r in results)
     upd_p95 = _pct(upd, 95)
-    kept_up = complete and behind < 1.0 and (not tracking or (upd_p95 is not None and upd_p95 < 1000.0))
+    kept_up = complete and behind < 1.0 and (not tracking or (upd_p95 is not None and upd_p95 < 1e3 * KEPT_UP_UPDATE_S))
     return {"walkers": walkers, "seconds": round(w1 - w0, 1), "messages": n * walkers, "tracking": tracking,
             "cpu_share_of_one_core": None if c0 is None or c1 is None else round((c1 - c0) / (w1 - w0), 4),
             "ack_ms": {"p50": _pct(acks, 50), "p99": _pct(acks, 99)}, "behind_at_end_s": round(behind, 3),
-            "update_ms": {"p50": _pct(upd, 50), "p95": upd_p95, "n": len(upd)}, "kept_up": kept_up}
+            "update_ms": {"p50": _pct(upd, 50), "p95": upd_p95, "n": len(upd)}, "kept_up": kept_up,
+            "latency_goal_met": None if not tracking or upd_p95 is None else upd_p95 < 1e3 * LATENCY_GOAL_S}
 
 
 def stored_rows(db: Path) -> int:
@@ -311,10 +317,15 @@ def page(r: dict) -> str:
            "of new data). " if tracking else
            "No live tracker in this installation: storing and serving only. ")
         + "Kept up: every message acknowledged, under 1 s behind schedule at the end"
-        + (", update p95 under 1 s." if tracking else "."), "",
+        + (f", update p95 under {KEPT_UP_UPDATE_S:g} s (the path trails by a bounded time); the issue's goal is a "
+           f"p95 under {LATENCY_GOAL_S:g} s." if tracking else "."), "",
         "| walkers | server CPU | ack p50 ms | ack p99 ms | update p50 ms | update p95 ms | behind at end s | kept up |",
         "|---|---|---|---|---|---|---|---|", table, "",
-        f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}.", "",
+        f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}."
+        + ("" if not tracking or one["update_ms"]["p95"] is None else
+           f" Push → path p95 at one walker: {one['update_ms']['p95'] / 1e3:.2f} s, the {LATENCY_GOAL_S:g}-s goal "
+           + ("met." if one["latency_goal_met"] else "not met: the tracker waits for a second of new data before it "
+              "reads the buffer, and a push carries 0.2 s.")), "",
         "## Bad input and faults", "",
         f"Bad input (token required, 64-KiB body limit, 20 messages a second): {bad['catalogue']} bad bodies "
         f"(malformed JSON, not UTF-8, NaN / inf, wrong types, missing columns, values no sensor reports, times a day "
