@@ -132,6 +132,7 @@ def test_three_devices_live_against_track_and_truth(export):
     state = tr.state()
     assert state["activity"]["label"] in tr.classifier[2]
     assert len(state["fixes"]) == len(run["buf"].recording().fixes)
+    assert state["final_t_s"] == pytest.approx(t[-1], abs=1e-3)  # after the final update nothing is provisional
     step = int(round(tr.cfg.rate))
     assert [p[0] for p in state["path"]] == pytest.approx(np.append(t[::step], t[-1]) if (len(t) - 1) % step
                                                           else t[::step], abs=6e-4)

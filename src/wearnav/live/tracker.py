@@ -323,6 +323,8 @@ class LiveTracker:
         return {"origin": list(self.origin) if self.origin is not None else None,
                 "path": page_points(t, xy, sig, self.cfg.rate if self.cfg is not None else 1.0),
                 "anchor": anchor,
+                # the path after this time is provisional: predicted again as data arrives (FRAME_LAG_S)
+                "final_t_s": round(float(self.odo.t[-1]), 3) if self.odo.t else None,
                 "fixes": [[round(t, 3), round(e, 3), round(n, 3), round(a, 2) if np.isfinite(a) else None]
                           for t, e, n, a in self.fixes],
                 "activity": self.activity,

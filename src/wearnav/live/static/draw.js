@@ -105,7 +105,8 @@ const WearnavDraw = (() => {
   }
 
   // Draw everything. data: {origin, path: [[t, x, y, sigma]], fixes: [[t, x, y, acc]]};
-  // opts: {colors: per path point, upto: last path index drawn, tiles: bool, redraw: fn}.
+  // opts: {colors: per path point, upto: last path index drawn, tiles: bool, redraw: fn,
+  //        provisionalFrom: time (s) after which the path is drawn dashed (the live path's provisional end)}.
   function draw(canvas, data, opts = {}) {
     const ratio = window.devicePixelRatio || 1;
     const w = canvas.clientWidth || 800, h = canvas.clientHeight || 600;
@@ -128,11 +129,14 @@ const WearnavDraw = (() => {
       ctx.beginPath(); ctx.arc(px, py, 2, 0, 2 * Math.PI); ctx.fill();
     }
     ctx.lineWidth = 3; ctx.lineCap = "round"; ctx.lineJoin = "round";
+    const provisional = opts.provisionalFrom === undefined || opts.provisionalFrom === null ? Infinity : opts.provisionalFrom;
     for (let i = 1; i <= upto && i < path.length; i++) {
       const [ax, ay] = toPx(v, path[i - 1][1], path[i - 1][2]), [bx, by] = toPx(v, path[i][1], path[i][2]);
       ctx.strokeStyle = (opts.colors && opts.colors[i]) || "#1f77b4";
+      ctx.setLineDash(path[i][0] > provisional ? [6, 5] : []);  // dashed: still being revised
       ctx.beginPath(); ctx.moveTo(ax, ay); ctx.lineTo(bx, by); ctx.stroke();
     }
+    ctx.setLineDash([]);
     if (path.length && upto >= 0) {
       const [sx, sy] = toPx(v, path[0][1], path[0][2]);
       ctx.fillStyle = "#2ca02c"; ctx.beginPath(); ctx.arc(sx, sy, 6, 0, 2 * Math.PI); ctx.fill();

@@ -23,7 +23,8 @@
   function render() {
     const st = window.wearnavState;
     if (!st) return;
-    WearnavDraw.draw(canvas, st, {redraw: render});
+    // dashed after the last final point (all of it while nothing is final yet)
+    WearnavDraw.draw(canvas, st, {redraw: render, provisionalFrom: st.final_t_s === null ? -Infinity : st.final_t_s});
     text($("session"), `session ${st.session || "?"} · ${st.messages || 0} messages`);
     text($("activity"), st.activity ? st.activity.label : "–");
     $("activity").dataset.label = st.activity ? st.activity.label : "";
