@@ -18,6 +18,7 @@ import hashlib
 import io
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -37,6 +38,10 @@ from hypothesis import strategies as st
 from wearnav import cli
 from wearnav.dataset import Dataset, DatasetWriter, write_dataset
 from wearnav.errors import Terminated, ValidationError, WearnavWarning
+from wearnav.live import replay
+from wearnav.live.app import Receiver
+from wearnav.live.push import BadPush
+from wearnav.live.store import Store
 from wearnav.recording import Recording
 
 from conftest import SHARED_DATA, make_stream
@@ -222,6 +227,66 @@ def test_five_percent_absurd_acc_is_refused(fmt, tmp_path):
     assert code == 2 and not (tmp_path / "out").exists()
     line = error_of(err, "5 % of acc samples 1e30")
     assert "16 g" in line or "acc" in line.lower(), line
+
+
+# ---- the live receiver: the same malformations in a push (issue 23 §3) ----------------------------
+
+_PUSH_SEED: list = []
+_NUMBER_LITERAL = re.compile(rb"(?<=[:,\[] )-?\d[\d.eE+-]*")
+PUSH_VALUES = [*BAD_VALUES, "-1", "1e300", '"x"', "null", "true", "[]", "{}"]
+
+
+def _push_seed() -> tuple[list[bytes], str, bool]:
+    """The Sensor Logger seed export as the app would push it (1-s batches), as JSON bodies."""
+    if not _PUSH_SEED:
+        with tempfile.TemporaryDirectory() as tmp:
+            materialise(seed("sensorlogger"), Path(tmp) / "src")
+            rp = replay.build(Path(tmp) / "src" / "export", batch_s=1.0, session_id="seed")
+        bodies = [json.dumps({k: v for k, v in m.items() if not k.startswith("_")}).encode() for m in rp.messages]
+        _PUSH_SEED.append((bodies, rp.platform, rp.standardised))
+    return _PUSH_SEED[0]
+
+
+@PROPERTY
+@given(kind=st.sampled_from(["corrupt_value", "truncate", "duplicate", "reverse", "drop"]),
+       msg=st.floats(0, 1, exclude_max=True), where=st.floats(0, 1, exclude_max=True),
+       value=st.sampled_from(PUSH_VALUES))
+def test_malformed_push_is_stored_or_refused_and_never_poisons_the_session(kind, msg, where, value):
+    """A push with a corrupt value (the importer cases' values and JSON's other types), cut short,
+    repeated, out of order or missing: accepted, or refused with a 4xx and nothing stored; the
+    store holds exactly the accepted messages, and the session still becomes a Recording."""
+    bodies, platform, standardised = _push_seed()
+    bodies = list(bodies)
+    i = int(msg * len(bodies))
+    if kind == "corrupt_value":
+        spots = list(_NUMBER_LITERAL.finditer(bodies[i]))
+        m = spots[int(where * len(spots))]
+        bodies[i] = bodies[i][:m.start()] + value.encode() + bodies[i][m.end():]
+    elif kind == "truncate":
+        bodies[i] = bodies[i][:int(where * len(bodies[i]))]
+    elif kind == "duplicate":
+        bodies.insert(i, bodies[i])
+    elif kind == "reverse":
+        bodies.reverse()
+    else:
+        del bodies[i]
+    with tempfile.TemporaryDirectory() as tmp:
+        rx = Receiver(Store(Path(tmp) / "live.db"), None, 1 << 22, 1e6, None, platform, standardised, 120.0, 7 * 86400.0)
+        new = 0
+        for j, b in enumerate(bodies):
+            try:
+                sid = rx.accept(b, platform, standardised)
+                result = "stored" if sid else "repeat"
+                new += sid is not None
+            except BadPush as exc:
+                assert 400 <= exc.status < 500, exc.message
+                result = f"refused {exc.status}"
+            if j == i or kind in ("reverse", "drop"):   # the message changed, or every one of the sequence
+                OUTCOMES[(f"push {kind}", result)] += 1
+        assert rx.store.count() == new
+        rec = rx.buffers["seed"].recording()
+        assert set(rec.devices) == {"phone", "watch", "earbuds"}
+        rx.store.close()
 
 
 # ---- damaged dataset folders and recording files -----------------------------------------------

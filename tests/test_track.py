@@ -328,3 +328,22 @@ def test_track_anchorings_and_a_walk_without_fixes(setup, tmp_path):
         bare = track(h5, run, tmp_path / "bare")
     assert bare["anchoring"]["method"] == "none"
     assert "east" not in pd.read_csv(tmp_path / "bare" / "trajectory.csv").columns
+    # trajectory.html: the anchored path at 1 point a second (and the last), the kept fixes, the
+    # activity classify finds; without fixes the odometry's own frame and no fixes
+    for out, csv_cols, anchor in (("smooth", ["east", "north"], "smooth"), ("bare", ["x", "y"], "none")):
+        assert "trajectory.html" in json.loads((tmp_path / out / "track.json").read_text())["files"]
+        data = page_data(tmp_path / out / "trajectory.html")
+        traj = pd.read_csv(tmp_path / out / "trajectory.csv")
+        idx = list(range(0, len(traj), 25)) + ([len(traj) - 1] if (len(traj) - 1) % 25 else [])
+        assert data["anchor"] == anchor and len(data["path"]) == len(idx)
+        assert np.allclose([p[1:3] for p in data["path"]], traj[csv_cols].to_numpy()[idx], atol=1.5e-3)
+        assert [a["label"] for a in data["activity"]] and data["activity"][-1]["end_s"] > traj["t"].iloc[-1] - 5
+    assert len(page_data(tmp_path / "smooth" / "trajectory.html")["fixes"]) > 10
+    assert page_data(tmp_path / "bare" / "trajectory.html")["fixes"] == []
+
+
+def page_data(html_file) -> dict:
+    """The data a trajectory.html draws (its inline JSON)."""
+    text, marker = html_file.read_text(), '<script id="wearnav-data" type="application/json">'
+    start = text.index(marker) + len(marker)
+    return json.loads(text[start:text.index("</script>", start)].replace("<\\/", "</"))

@@ -20,6 +20,7 @@ from typing import Optional
 import typer
 
 from wearnav.cli_bench import bench_app
+from wearnav.cli_live import register as register_live_commands
 from wearnav.cli_models import register as register_model_commands
 from wearnav.cli_common import (KEPT, NOTHING_KEPT, RECIPE_HELP, ImportFormat, Recipe, choice_value, echo_json,
                                  on_interrupt, progress_enabled, split_list, suite_folder)
@@ -504,6 +505,7 @@ def demo(
 
 
 register_model_commands(app)  # models, pretrain, export (wearnav.cli_models), listed after the rest
+register_live_commands(app)  # live, live export, live bench, replay (wearnav.cli_live)
 
 
 def _os_error_line(exc: OSError) -> str:

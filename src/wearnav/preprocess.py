@@ -134,6 +134,16 @@ def clock(t0: float, t1: float, rate: float) -> np.ndarray:
     return t0 + np.arange(n) / rate
 
 
+def nominal_rate(fs: float) -> float:
+    """A stream's rate (Hz) to two significant digits, which the low-pass is designed for (its
+    cutoff then moves by at most 5 %: 0.4 × the clock's rate stays well below the clock's
+    Nyquist). The median rate of a jittery clock moves in its third digit with the stretch it is
+    taken over (a simulated 100 Hz watch: 99.83 to 100.56 Hz over 35-s pieces of one walk), and the
+    filter, so the input of a window, would change with the piece of the stream at hand (the live
+    receiver aligns pieces, :mod:`wearnav.live.tracker`)."""
+    return float(f"{fs:.2g}") if fs > 0 else 0.0
+
+
 def _lowpass(x: np.ndarray, fs: float, target_rate: float) -> np.ndarray:
     """Zero-phase Butterworth low-pass at 0.4 × the target rate (0.8 × its Nyquist)."""
     cutoff = 0.4 * target_rate
@@ -161,7 +171,7 @@ def stream_to_clock(s: DeviceStream, t: np.ndarray, cfg: PreprocessConfig,
         acc = acc - rot.inv().apply(np.array([0.0, 0.0, STANDARD_GRAVITY]))
     x = np.concatenate([acc, gyro], axis=1)
     if cfg.lowpass:
-        x = _lowpass(x, s.rate, cfg.rate)
+        x = _lowpass(x, nominal_rate(s.rate), cfg.rate)
     # Valid inside the stream's span, away from holes longer than STREAM_MAX_GAP_PERIODS of its
     # samples, and where the device is worn.
     out, mask = interp_onto(t, s.t, x, max_gap=periods(STREAM_MAX_GAP_PERIODS, s.rate))
@@ -184,12 +194,16 @@ def interpolate_position(truth_t: np.ndarray, truth_pos: np.ndarray, t: np.ndarr
     return np.array(pos, dtype=np.float64)
 
 
-def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig()) -> Aligned:
-    """Resample every configured device of ``rec`` onto one clock (see module docstring)."""
-    t0, t1 = common_span(rec, cfg.devices, cfg.edge_tolerance)
-    t = clock(t0, t1, cfg.rate)
+def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig(), t: np.ndarray | None = None) -> Aligned:
+    """Resample every configured device of ``rec`` onto one clock (see module docstring): ``t``
+    (s, increasing, at ``cfg.rate``) where given (the live receiver aligns a session piece by piece
+    on the clock of its start, :mod:`wearnav.live.tracker`), else the common span's (:func:`clock`)."""
+    if t is None:
+        t0, t1 = common_span(rec, cfg.devices, cfg.edge_tolerance)
+        t = clock(t0, t1, cfg.rate)
     if t.size < 2:
-        raise ValidationError(f"{rec.name}: the devices' common span ({t1 - t0:.3g} s) is shorter than one "
+        span = float(t[-1] - t[0]) if t.size else 0.0
+        raise ValidationError(f"{rec.name}: the devices' common span ({span:.3g} s) is shorter than one "
                               f"sample period at {cfg.rate:g} Hz")
     imu = np.zeros((len(cfg.devices), t.size, 6), np.float32)
     mask = np.zeros((len(cfg.devices), t.size), bool)

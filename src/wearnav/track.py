@@ -14,6 +14,12 @@ and write into the output folder:
     where the recording has location fixes ``east``, ``north`` (m, the anchored path, below).
 ``trajectory.png``
     The path with its start and end, and per-device presence over time.
+``trajectory.html``
+    The live page's drawing (:mod:`wearnav.live.page`), static and self-contained (opens offline
+    from the file): the path (anchored where it is, 1 point per second) on a metric grid, OSM map
+    tiles under it when the browser is online, the fixes used with their accuracy circles, a time
+    slider, and the path coloured by the activity the shipped activity model finds as
+    ``wearnav classify`` runs it (``track.json`` ``activity`` says which model, or why not).
 ``trajectory.geojson``
     Only when the recording has fixes and a lat/lon origin (``meta["origin_lat"/"origin_lon"]``,
     written by the importers that project lat/lon with :func:`wearnav.geo.latlon_to_local`): an
@@ -80,9 +86,11 @@ from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.fixcheck import FixCheck
 from wearnav.outputs import check_out_folder, staged_output
+from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import Recording
 from wearnav.textio import read_json
 from wearnav.train.resolve import resolve_model
+from wearnav.trajectory import integrate_velocity
 
 ANCHOR_S = fuse.ANCHOR_S
 ANCHOR_TEXT = {
@@ -95,7 +103,8 @@ ANCHOR_TEXT = {
 }
 TRAJ_FORMAT = "%.4f"
 TRACK_JSON = "track.json"  # the marker: a folder holding it was written by `wearnav track`
-TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.geojson", "fixes.csv", TRACK_JSON)
+TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.html", "trajectory.geojson", "fixes.csv",
+               TRACK_JSON)
 COORD_DIGITS = 7  # GeoJSON and fixes.csv lat/lon decimals: 1e-7° is 1.1 cm
 INDEX_LIST_MAX = 10  # track.json lists at most this many dropped fixes' indices per reason
 
@@ -212,15 +221,12 @@ def run_training_record(model_path: str | Path) -> dict:
     return record if isinstance(record, dict) else {}
 
 
-def trust_warnings(model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: np.ndarray,
-                   length_m: float) -> list[str]:
-    """One line per reason not to trust the path, each with what to do: devices the recording
-    lacks, a rate / placement / gravity direction unlike the training data's (learned models), a
-    model that did not beat standing still, and a result implausible for walking (PDR's step
-    detector on the same windows)."""
-    from wearnav.evaluate import predict_sequence
+def input_warnings(model_path, cfg, rec: Recording) -> list[str]:
+    """The reasons not to trust a path that the input alone gives (one line each, with what to do):
+    devices the recording lacks, and for learned models a rate / placement / gravity direction
+    unlike the training data's, or a model that did not beat standing still. The live receiver
+    gives these as the session's first half minute arrives (:mod:`wearnav.live.tracker`)."""
     from wearnav.models import registry
-    from wearnav.models.pdr import PDR
 
     out = []
     if (m := trust.missing_devices(cfg.devices, rec.devices)) is not None:
@@ -233,15 +239,60 @@ def trust_warnings(model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: n
         out += [f"{f}: {trust.TRACK_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, known)]
         if (m := trust.did_not_learn(record)) is not None:
             out.append(f"{m}: {trust.LEARN_ADVICE}")
+    return out
+
+
+def walk_warnings(cfg, seq, vel: np.ndarray, length_m: float) -> list[str]:
+    """A result implausible for walking: PDR's step detector on the same windows as the model's
+    velocities ``vel`` over the whole walk of ``length_m`` (none where the window is too short for
+    PDR)."""
+    from wearnav.evaluate import predict_sequence
+    from wearnav.models.pdr import PDR
+
     try:
         pdr = PDR(n_devices=len(cfg.devices), window=cfg.window, rate=cfg.rate)
     except ConfigError:  # a window too short for PDR's step detector: no walking check
-        return out
+        return []
     _, pdr_vel, _ = predict_sequence(pdr, seq, cfg.window, cfg.stride)
     step_rate_hz = np.linalg.norm(pdr_vel, axis=1) / pdr.step_length
     steps = float(np.sum(step_rate_hz) * cfg.stride / cfg.rate)  # windows tile time at the stride
     findings = trust.implausible_walk(np.linalg.norm(vel, axis=1), step_rate_hz, length_m, steps)
-    return out + [f"{f}: {trust.TRACK_RESULT_ADVICE}" for f in findings]
+    return [f"{f}: {trust.TRACK_RESULT_ADVICE}" for f in findings]
+
+
+def trust_warnings(model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: np.ndarray,
+                   length_m: float) -> list[str]:
+    """One line per reason not to trust the path, each with what to do: :func:`input_warnings`
+    (devices, domain, did the model learn) and :func:`walk_warnings` (implausible for walking)."""
+    return input_warnings(model_path, cfg, rec) + walk_warnings(cfg, seq, vel, length_m)
+
+
+# ---- one way to window and run the odometry model (track and the live receiver) ----------------
+
+def odometry_preprocess(cfg) -> PreprocessConfig:
+    """The run's preprocessing for a user's recording: its devices in one common frame (mode
+    "common", :mod:`wearnav.frames`: a user's recording has no truth)."""
+    return dataclasses.replace(cfg.preprocess_config(), frame_align="common")
+
+
+def path_times(clock_t: np.ndarray, t_c: np.ndarray) -> np.ndarray:
+    """The clock's times the path is given at: those between the first and last window centre."""
+    return clock_t[(clock_t >= t_c[0]) & (clock_t <= t_c[-1])]
+
+
+def odometry(model, cfg, rec: Recording, progress: bool = False):
+    """The model's path of ``rec``: the aligned input (:func:`odometry_preprocess`), window centre
+    times, velocities and device presence (:func:`wearnav.evaluate.predict_sequence`), and the
+    path's times and positions, integrated from (0, 0) at the first centre (Suite-IN++ eq. 8,
+    :func:`wearnav.trajectory.integrate_velocity`)."""
+    from wearnav.evaluate import predict_sequence
+
+    seq = align(rec, odometry_preprocess(cfg))
+    t_c, vel, present = predict_sequence(model, seq, cfg.window, cfg.stride, progress=progress)
+    if t_c.size < 2:
+        return seq, t_c, vel, present, np.empty(0), np.empty((0, 2))
+    t = path_times(seq.t, t_c)
+    return seq, t_c, vel, present, t, integrate_velocity(t_c, vel, t, np.zeros(2))
 
 
 # ---- the command -------------------------------------------------------------------------------
@@ -250,10 +301,6 @@ def track(src: str | Path, model_path: str | Path | None, out: str | Path, name:
           platform: str | None = None, progress: bool = False, anchor: str = "smooth") -> dict:
     """Track one recording (see module docstring); ``anchor`` places the path on the fixes
     (:data:`wearnav.fuse.ANCHORS`); returns what ``track.json`` holds."""
-    from wearnav.evaluate import predict_sequence
-    from wearnav.preprocess import align
-    from wearnav.trajectory import integrate_velocity
-
     out = Path(out)
     if anchor not in fuse.ANCHORS:
         raise ConfigError(f"unknown anchoring {anchor!r}; one of {', '.join(fuse.ANCHORS)}")
@@ -270,14 +317,10 @@ def track(src: str | Path, model_path: str | Path | None, out: str | Path, name:
         raise ValidationError(f"no IMU stream the model can use: it was trained on "
                               f"{', '.join(cfg.devices)}; the recording has {', '.join(rec.devices) or 'none'}",
                               src)
-    pcfg = dataclasses.replace(cfg.preprocess_config(), frame_align="common")
-    seq = align(rec, pcfg)
-    t_c, vel, present = predict_sequence(model, seq, cfg.window, cfg.stride, progress=progress)
+    seq, t_c, vel, present, t, xy = odometry(model, cfg, rec, progress)
     if t_c.size < 2:
         raise ValidationError(f"too short to track: {seq.t[-1] - seq.t[0]:.1f} s of common data, the "
                               f"model needs windows of {cfg.window / cfg.rate:g} s", src)
-    t = seq.t[(seq.t >= t_c[0]) & (seq.t <= t_c[-1])]
-    xy = integrate_velocity(t_c, vel, t, np.zeros(2))
     nearest = np.clip(np.searchsorted(t_c, t), 0, len(t_c) - 1)
     prev = np.clip(nearest - 1, 0, len(t_c) - 1)
     nearest = np.where(np.abs(t_c[prev] - t) < np.abs(t_c[nearest] - t), prev, nearest)
@@ -362,9 +405,40 @@ def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy:
         table.to_csv(tmp, index=False, float_format=TRAJ_FORMAT)
     kept = res.fixes.kept if fx is not None and len(fx) and res.fixes is not None else None
     plot_track(table, seq.devices, anchored, fx, summary, stage / "trajectory.png", kept)
-    summary["files"] = ["trajectory.csv", "trajectory.png", TRACK_JSON] + [
+    write_text_atomic(page_html(t, xy, rec, cfg, summary, res if anchored is not None else None, kept),
+                      stage / "trajectory.html")
+    summary["files"] = ["trajectory.csv", "trajectory.png", "trajectory.html", TRACK_JSON] + [
         f for f in ("trajectory.geojson", "fixes.csv") if (stage / f).is_file()]
     write_text_atomic(json.dumps(summary, indent=2, default=str), stage / TRACK_JSON)
+
+
+def page_html(t: np.ndarray, xy: np.ndarray, rec: Recording, cfg, summary: dict, res=None,
+              kept: np.ndarray | None = None) -> str:
+    """``trajectory.html`` (:mod:`wearnav.live.page`): the live page's drawing of the path (anchored
+    by ``res`` where given, with the ``kept`` fixes; else the odometry's own frame, without fixes),
+    self-contained, with a time slider, coloured by the activity ``classify`` finds
+    (``summary["activity"]`` says which model, or why not)."""
+    from wearnav.live.page import activity_intervals, page_points, trajectory_html
+
+    rows, note = activity_intervals(rec)
+    summary["activity"] = note
+    origin, fixes = None, []
+    if res is not None:
+        fx = rec.fixes
+        k = np.ones(len(fx.t), bool) if kept is None else kept
+        fixes = [[round(float(a), 3), round(float(e), 3), round(float(n), 3), _num(acc, 2)]
+                 for a, (e, n), acc in zip(fx.t[k], fx.pos[k, :2], fx.accuracy[k])]
+        if rec.meta.get("origin_lat") is not None and rec.meta.get("origin_lon") is not None:
+            origin = [float(rec.meta["origin_lat"]), float(rec.meta["origin_lon"])]
+    state = {"origin": origin, "path": page_points(t, res.xy if res is not None else xy,
+                                                   res.sigma_m if res is not None else None, cfg.rate),
+             "anchor": res.method if res is not None else "none", "fixes": fixes, "activity": rows,
+             "warnings": summary["warnings"], "t_s": round(float(t[-1]), 3)}
+    where = (f"placed on the location fixes ({summary['anchoring']['method']})" if res is not None else
+             "the odometry's own frame from (0, 0): not placed on the fixes")
+    return trajectory_html(state, f"{rec.name}: wearnav track",
+                           f"{summary['length_m']:.0f} m in {summary['duration_s']:.0f} s; model {cfg.model}",
+                           note, f"{summary['length_m']:.0f} m, {where}; {len(state['path'])} points (1 per s)")
 
 
 def _rounded(v):
@@ -414,4 +488,5 @@ def plot_track(table: pd.DataFrame, devices: tuple[str, ...], anchored, fixes, s
     return save(fig, out)
 
 
-__all__ = ["track", "load_input", "ANCHOR_S"]
+__all__ = ["track", "load_input", "odometry", "odometry_preprocess", "path_times", "input_warnings",
+           "walk_warnings", "ANCHOR_S"]

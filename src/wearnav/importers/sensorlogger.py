@@ -33,98 +33,10 @@ Time
     Duplicated Entries": "erroneous sensors may report the same value twice with identical
     timestamps, likely due to caching".
 
-Sign convention of accelerations (``s = -1`` flips, ``s = +1`` keeps)
-  * Android is the Recording convention. COORDINATES.md: "When you place your phone flat on a table,
-    the gravity vector points in `-z` on iOS and `+z` on Android", and "there is a negative sign
-    difference for all three axes between iOS and Android" for acceleration.
-  * ``s = -1`` for iOS exports made with "Standardise Units & Frames" off, ``s = +1`` otherwise.
-    COORDINATES.md: "Toggling **Standardise Units & Frames** ... will eliminate this difference by
-    automatically converting values logged on iOS to the Android convention".
-  * ``watchos`` (an export recorded on the Apple Watch alone, layout version 4) is read as iOS:
-    the watch follows the iPhone's convention (below).
-  * Both facts come from ``Metadata.csv``; without it the import fails unless ``platform`` is
-    given (``wearnav import sensorlogger --platform``), and standardisation is then read as off. ``platform``: README.md, "Accessing Recording
-    Metadata": "platform: Either iOS or Android". ``standardisation`` (true / false) is not in the
-    documentation; it is the column name real exports carry (header ``version,device name,
-    recording epoch time,recording time,recording timezone,platform,appVersion,device id,sensors,
-    sampleRateMs,standardisation,platform version``). An export without it predates the toggle
-    (version 1.29) and is read as off (CROSSPLATFORM.md: "This is _turned off_ by default").
-  * Apple Watch and AirPods get the same ``s`` as the iPhone. COORDINATES.md: "Acceleration data from
-    the Apple Watch follows the same convention as the iPhone", "The coordinate system across the
-    three pictured devices is always the same and consistent", and the toggle "will convert _all
-    measurements from Apple Watch and AirPods_ to Android's convention". (A Wear OS watch on an
-    Android export is assumed to report the Android convention: ``s = +1``; undocumented.)
-  * Rotation rates are never flipped. COORDINATES.md: "For the rotation rate readings from the
-    Gyroscope sensor, iOS and Android have consistent definitions." The device axes themselves are
-    the same on both platforms ("the directions of the axes are the same across platforms").
 
-Phone accelerometer (device ``phone``)
-  * ``acc = s * TotalAcceleration`` when ``TotalAcceleration.csv`` exists, else
-    ``acc = s * (Accelerometer + Gravity)``, all in m/s² as written. UNITS.md: Accelerometer "`x`, `y`
-    and `z` in meters per second squared"; on Android "**Accelerometer.csv**: measures acceleration
-    _without_ gravity" and "**TotalAcceleration.csv**: measures acceleration _with_ gravity
-    included"; "On iOS, only **Accelerometer.csv** is logged. You may create acceleration with
-    gravity by combining the Accelerometer and Gravity sensor readings"; Gravity "in meters per
-    second squared". Accelerometer.csv without Gravity.csv or TotalAcceleration.csv is an error:
-    there is no gravity to add back; the export's other devices are still imported, and one
-    warning line (and ``meta["left_out"]``) says which file was left out and why.
-  * The phone's clock is the faster acceleration source: TotalAcceleration.csv, or Accelerometer.csv
-    plus Gravity.csv (on Android TotalAcceleration can run at ~59 Hz beside 100 Hz Accelerometer /
-    Gravity / Gyroscope / Orientation); ``meta["phone_clock"]`` names the file and every phone
-    file's rate.
-  * ``gyro = Gyroscope`` rad/s as written. UNITS.md: Gyroscope "in radians per second (rad/s)".
-  * Gravity, Gyroscope and Orientation are interpolated onto the accelerometer's timestamps
-    (``timeseries.interp_onto``: linear; quaternions sign-aligned, linear, renormalised). README.md: "they
-    **do not necessarily align** due to varied sampling rates". Accelerometer samples outside
-    another phone file's span, or inside one of its gaps longer than ``common.MAX_INTERP_GAP_S``, are
-    dropped, never filled (count in ``meta["dropped_uncovered"]``).
-
-Apple Watch (``WristMotion.csv`` → device ``watch``)
-  * ``acc = s * u * (acceleration + gravity)`` with ``u = 9.80665`` when the toggle is off, ``u = 1``
-    when on. UNITS.md, WristMotion: "`gravityX`, `gravityY` and `gravityZ`, in standard gravity (g),
-    when "Standardise Units & Frames" is off (default). The unit is ms-2 when ... on" and the same
-    sentence for `accelerationX/Y/Z`; ``acceleration`` is the user part (the file reports gravity
-    separately, as CoreMotion's device motion does). 9.80665: UNITS.md "Assumes `g` to be 9.80665ms-2".
-  * ``gyro = rotationRate`` rad/s. UNITS.md: "`rotationRateX`, ... in radians per second (rad/s)".
-
-AirPods (``Headphone.csv`` → device ``earbuds``)
-  * ``acc = s * (u * acceleration + gravity)``. UNITS.md, Headphone: "`accelerationX`, ... in standard
-    gravity (g), when "Standardise Units & Frames" is off (default). The unit is ms-2 when ... on"
-    and "`gravityX`, `gravityY` and `gravityZ`, in meters per second squared (ms-2); Assumes `g` to
-    be 9.80665ms-2, regardless of whether "Standardise Units & Frames" is turned on or not".
-  * ``gyro = rotationRate`` rad/s (UNITS.md: "in radians per second (rad/s)"). ``devicelocation``
-    (left / right) goes to ``meta["earbud_side"]``.
-
-Orientation (phone ``qw,qx,qy,qz``; watch and earbuds ``quaternionW/X/Y/Z``)
-  * Read as (w, x, y, z) rotating device-frame vectors into a z-up reference frame (world←device).
-    COORDINATES.md: orientation is "a Tait-Bryan Z-X'-Y'' (yaw → pitch → roll) intrinsic rotation
-    sequence, meaning the device is first rotated around the z axis (yaw), then the rotated x axis
-    (pitch), and finally the twice-rotated y axis (roll)", with "the `x-north-z-vertical` reference
-    frame". Rotating the device by those angles is R = Rz·Rx·Ry, whose columns are the device axes
-    in the reference frame, i.e. world←device. The yaw reference (north, magnetic or true) is kept
-    as it is; the Recording only needs a gravity-aligned frame with a fixed yaw.
-  * The docs do not say outright which way the quaternion maps, so every device's quaternions are
-    checked against its own data: the accelerometer rotated to the world frame must average to
-    about +z (within ``TILT_TOLERANCE_DEG``), and where the gyroscope saw enough rotation, the
-    rotation between successive quaternions must agree with it (``MAX_GYRO_RESIDUAL``). If the
-    quaternions pass only as their inverse, the inverse is used and ``meta["quat_inverted"]``
-    lists the device; if neither passes, the import fails (the usual cause: a wrong ``platform`` /
-    ``standardisation`` in Metadata.csv, i.e. a flipped accelerometer sign).
-  * ``yaw``, ``pitch`` and ``roll`` are not read: their signs differ between platforms
-    (COORDINATES.md, "Differences Between iOS and Android" items 2 and 3).
-
-Location (``Location.csv`` → ``Recording.fixes``)
-  * ``latitude`` / ``longitude`` (UNITS.md: "in degrees") are projected to local east/north metres
-    about the first fix with :func:`wearnav.geo.latlon_to_local` (WGS-84 east-north-up); the origin
-    is kept in ``meta["origin_lat"]`` / ``meta["origin_lon"]``, the converter's name in
-    ``meta["projection"]``. Fixes are 2-D (altitude is not used).
-  * A cached fix from before the recording (negative ``seconds_elapsed``; usually far away with a
-    huge accuracy) is dropped (``meta["dropped_stale_fixes"]``): it must not start the clock.
-  * ``accuracy = horizontalAccuracy`` m, NaN where negative or absent. UNITS.md: "`horizontalAccuracy`,
-    in meters as the radius of uncertainty. ... Negative values indicate it is invalid."
-
-Holes longer than ``REPORT_GAP_S`` in any device's stream (e.g. 10+ s inside a nominally 100 Hz
-WristMotion.csv) are listed in ``meta["gaps"]`` with one warning line; the preprocessing masks them.
+Units, signs and devices per sensor: :mod:`wearnav.importers.sensorlogger_map` (shared with the live
+receiver and the export writer); the tables → Recording step (phone clock, orientation checks,
+fixes, gaps): :mod:`wearnav.importers.sensorlogger_build`.
 
 Sensor Logger records no ground truth: ``truth`` is None and ``labels`` is empty.
 """
@@ -132,75 +44,27 @@ Sensor Logger records no ground truth: ``truth`` is None and ``labels`` is empty
 from __future__ import annotations
 
 import tempfile
-import warnings
 import zipfile
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
 import numpy as np
 import pandas as pd
-from scipy.spatial.transform import Rotation
 
-from wearnav import geo
-from wearnav.errors import (ConfigError, FormatError, MissingFileError, ValidationError, WearnavError,
-                            WearnavWarning)
+from wearnav.errors import ConfigError, FormatError, MissingFileError, WearnavError
 from wearnav.importers.common import (
-    MAX_INTERP_GAP_S,
     check_finite,
-    check_latlon,
     check_source,
     check_unix_time,
     find_file,
     read_csv,
     strip_compression,
 )
-from wearnav.recording import STANDARD_GRAVITY as G  # UNITS.md: "Assumes `g` to be 9.80665ms-2"
-from wearnav.recording import DeviceStream, Fixes, Recording
-from wearnav.rotations import NotUnitQuaternion, from_wxyz, normalize_wxyz, to_wxyz
-from wearnav.timeseries import drop_duplicate_times, interp_onto
-
-# An export's files, columns and units: read here, written by wearnav.importers.sensorlogger_export
-# (one place, so that the two cannot disagree).
-XYZ = ["x", "y", "z"]
-ORIENTATION_COLS = ["qw", "qx", "qy", "qz"]
-DEVICE_FILES = {"watch": "WristMotion.csv", "earbuds": "Headphone.csv"}  # the phone's are its own files
-# UNITS.md: WristMotion's gravity follows the units toggle (g when off), Headphone's is m/s² always.
-GRAVITY_IN_G = {"watch": True, "earbuds": False}
-MOTION_FILES = ("Accelerometer.csv", "TotalAcceleration.csv", *DEVICE_FILES.values())
-KNOWN_FILES = ("Metadata.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv", "Location.csv",
-               *MOTION_FILES)
-SOURCE = "sensorlogger"
-# The world-frame mean of a device's specific force must lie this close to +z (gravity).
-TILT_TOLERANCE_DEG = 20.0
-# Tolerance on the mean world-vertical specific force (real phone data: 9.4–10.1 m/s²).
-MAX_VERTICAL_ERROR = 1.5
-# The gyroscope check on quaternions runs only after this much integrated rotation (rad).
-MIN_ROTATION_FOR_CHECK = 2.0
-# Largest relative mismatch between quaternion increments and gyro increments that still passes.
-MAX_GYRO_RESIDUAL = 0.5
-# The gyro residual leaves out this share of the worst increments (at least 2): a single start-up
-# glitch (one quaternion ~1 rad off, seen in real Android Orientation.csv and AirPods
-# Headphone.csv) makes two huge increments that would otherwise dominate the sum of squares.
-GYRO_RESIDUAL_TRIM = 0.01
-# Platforms Metadata.csv names; a watch-only export says watchos and follows the iPhone's sign.
-PLATFORMS = ("ios", "watchos", "android")
-APPLE = ("ios", "watchos")
-# Holes longer than this in a motion stream are reported (meta["gaps"] and a warning); the
-# preprocessing masks them (it never interpolates across more than a few sample periods).
-REPORT_GAP_S = 1.0
-# Acceleration files whose rates differ by less than this fraction count as equally fast.
-RATE_TIE = 0.05
-
-
-def acceleration_convention(platform: str, standardised: bool) -> tuple[float, float]:
-    """(sign, unit) of an export's acceleration: m/s² in wearnav's (Android) sign = sign × unit ×
-    the value written. iOS / watchOS without "Standardise Units & Frames" write the opposite sign
-    (CROSSPLATFORM.md) and the wearables' acceleration in g (UNITS.md); the phone's own files are
-    m/s² always (their unit is not applied to them)."""
-    sign = -1.0 if (platform in APPLE and not standardised) else 1.0
-    return sign, (1.0 if standardised else G)
-
+from wearnav.importers.sensorlogger_build import Unusable, build_recording
+from wearnav.importers.sensorlogger_map import (KNOWN_FILES, MOTION_FILES, PLATFORMS, SENSORS, Table,
+                                                acceleration_convention)
+from wearnav.recording import Recording
+from wearnav.timeseries import drop_duplicate_times
 
 # ---- discovery ------------------------------------------------------------------------------
 
@@ -299,25 +163,9 @@ def _read_zip(zpath: Path, platform: str | None = None) -> Iterator[Recording]:
             yield read_export(dest, name=name, shown_as=shown, file=file, platform=platform)
 
 
-class Unusable(FormatError):
-    """A device's stream lacks what it needs (gravity, overlap); the export's other devices are
-    still imported."""
-
-
 # ---- one export -----------------------------------------------------------------------------
 
-@dataclass
-class _Table:
-    path: Path
-    t_ns: np.ndarray          # int64 ns since epoch, strictly increasing
-    df: pd.DataFrame
-    duplicates: int
-
-    def values(self, cols: list[str]) -> np.ndarray:
-        return self.df[cols].to_numpy(np.float64)
-
-
-def _load(folder: Path, fname: str, cols: list[str], optional_cols: tuple[str, ...] = ()) -> _Table | None:
+def _load(folder: Path, fname: str, cols: list[str], optional_cols: tuple[str, ...] = ()) -> Table | None:
     """Read one CSV (None if absent): required columns numeric and finite, time increasing."""
     try:
         path = find_file(folder / fname)
@@ -340,7 +188,7 @@ def _load(folder: Path, fname: str, cols: list[str], optional_cols: tuple[str, .
     keep, n_dup = drop_duplicate_times(t_ns, "time", path)
     if n_dup:
         df, t_ns = df.iloc[keep].reset_index(drop=True), t_ns[keep]
-    return _Table(path, t_ns, df, n_dup)
+    return Table(path, t_ns, df, n_dup)
 
 
 def _metadata(folder: Path, given: str | None = None) -> tuple[str, bool, dict]:
@@ -392,298 +240,22 @@ def read_export(folder: str | Path, name: str | None = None, shown_as: str | Non
         raise
 
 
+def export_tables(folder: Path, platform: str | None = None) -> tuple[str, bool, dict, dict[str, Table]]:
+    """Platform, standardisation, Metadata.csv's descriptive fields and every sensor's table (by
+    file name) of one export folder: what :func:`read_export` builds a Recording from, and what
+    ``wearnav replay`` sends."""
+    platform, standardised, info = _metadata(folder, platform)
+    tables = {}
+    for fname, sensor in SENSORS.items():
+        table = _load(folder, fname, list(sensor.cols), optional_cols=sensor.optional)
+        if table is not None:
+            tables[fname] = table
+    return platform, standardised, info, tables
+
+
 def _read_export(folder: Path, name: str, file: str, given_platform: str | None = None) -> Recording:
-    platform, standardised, info = _metadata(folder, given_platform)
-    s, u = acceleration_convention(platform, standardised)
-    units = (f"acceleration read as {'m/s²' if standardised else 'g'} because Metadata.csv says "
-             f"standardisation is {'on' if standardised else 'off'}")
-
-    t_acc = _load(folder, "TotalAcceleration.csv", XYZ)
-    acc_lin = _load(folder, "Accelerometer.csv", XYZ)
-    grav = _load(folder, "Gravity.csv", XYZ)
-    gyro = _load(folder, "Gyroscope.csv", XYZ)
-    ori = _load(folder, "Orientation.csv", ORIENTATION_COLS)
-    wrist = _load(folder, DEVICE_FILES["watch"], [*xyz_cols("rotationRate"), *xyz_cols("gravity"),
-                                              *xyz_cols("acceleration"), *quat_cols()])
-    head = _load(folder, DEVICE_FILES["earbuds"], [*xyz_cols("rotationRate"), *xyz_cols("gravity"),
-                                           *xyz_cols("acceleration"), *quat_cols()])
-    loc = _load(folder, "Location.csv", ["latitude", "longitude"],
-                optional_cols=("horizontalAccuracy", "seconds_elapsed"))
-    motion = [x for x in (t_acc, acc_lin, grav, gyro, ori, wrist, head) if x is not None]
-    if not any(x is not None for x in (t_acc, acc_lin, wrist, head)):
-        raise FormatError("no motion file (Accelerometer.csv, TotalAcceleration.csv, WristMotion.csv "
-                          "or Headphone.csv)", folder)
-    stale = _stale_fixes(loc, min(int(x.t_ns[0]) for x in motion)) if loc is not None else None
-    if stale is not None and stale.any():
-        loc = _Table(loc.path, loc.t_ns[~stale], loc.df[~stale].reset_index(drop=True), loc.duplicates)
-    tables = [*motion, *([loc] if loc is not None and len(loc.t_ns) else [])]
-    t0 = min(int(x.t_ns[0]) for x in tables)
-
-    def sec(t_ns: np.ndarray) -> np.ndarray:
-        return (t_ns - t0).astype(np.float64) * 1e-9
-
-    inverted: list[str] = []
-    uncovered: dict[str, int] = {}
-    devices: dict[str, DeviceStream] = {}
-    left_out: dict[str, str] = {}
-    clock_info: dict = {}
-
-    def phone() -> DeviceStream:
-        base, add_gravity = _phone_acceleration(t_acc, acc_lin, grav)
-        clock_info.update(file=base.path.name, rate_hz=round(_rate(base), 2),
-                          rates_hz={x.path.name: round(_rate(x), 2)
-                                    for x in (t_acc, acc_lin, grav, gyro, ori) if x is not None})
-        t = sec(base.t_ns)
-        acc = base.values(XYZ)
-        keep = np.ones(len(t), bool)
-        w = q = None
-        if add_gravity:
-            g, ok = interp_onto(t, sec(grav.t_ns), grav.values(XYZ), max_gap=MAX_INTERP_GAP_S)
-            acc, keep = acc + g, keep & ok
-        if gyro is not None:
-            w, ok = interp_onto(t, sec(gyro.t_ns), gyro.values(XYZ), max_gap=MAX_INTERP_GAP_S)
-            keep &= ok
-        if ori is not None:
-            q, ok = interp_onto(t, sec(ori.t_ns), _unit_quats(ori.values(ORIENTATION_COLS), ori.path),
-                                max_gap=MAX_INTERP_GAP_S, quaternion=True)
-            keep &= ok
-        if keep.sum() < 2:
-            others = ", ".join(x.path.name for x in (grav if add_gravity else None, gyro, ori) if x is not None)
-            raise Unusable(f"{base.path.name} does not overlap in time with {others}", folder)
-        if not keep.all():
-            uncovered["phone"] = int((~keep).sum())
-            t, acc = t[keep], acc[keep]
-            w = None if w is None else w[keep]
-            q = None if q is None else q[keep]
-        return _stream("phone", t, s * acc, w, q, base.path, ori.path if ori else None,
-                       "phone acceleration is m/s² in every export (UNITS.md)", inverted)
-
-    def watch() -> DeviceStream:
-        gu = u if GRAVITY_IN_G["watch"] else 1.0
-        acc = s * (u * wrist.values(xyz_cols("acceleration")) + gu * wrist.values(xyz_cols("gravity")))
-        return _stream("watch", sec(wrist.t_ns), acc, wrist.values(xyz_cols("rotationRate")),
-                       _unit_quats(wrist.values(quat_cols()), wrist.path), wrist.path,
-                       wrist.path, units, inverted)
-
-    def earbuds() -> DeviceStream:
-        gu = u if GRAVITY_IN_G["earbuds"] else 1.0
-        acc = s * (u * head.values(xyz_cols("acceleration")) + gu * head.values(xyz_cols("gravity")))
-        return _stream("earbuds", sec(head.t_ns), acc, head.values(xyz_cols("rotationRate")),
-                       _unit_quats(head.values(quat_cols()), head.path), head.path,
-                       head.path, units, inverted)
-
-    # Each device on its own: a stream that lacks what it needs (Unusable) leaves the others
-    # importable (one warning line); only when none is usable does the import fail, with the first
-    # device's reason. A failed plausibility check stays fatal: it usually means a wrong
-    # Metadata.csv, which concerns every device.
-    errors: list[WearnavError] = []
-    for dev, present, build in (("phone", t_acc is not None or acc_lin is not None, phone),
-                                ("watch", wrist is not None, watch), ("earbuds", head is not None, earbuds)):
-        if not present:
-            continue
-        try:
-            devices[dev] = build()
-        except Unusable as exc:
-            errors.append(exc)
-            left_out[dev] = str(exc)
-    if not devices:
-        raise errors[0]
-    if left_out:
-        warnings.warn(WearnavWarning(f"{folder}: imported {', '.join(devices)} only; left out "
-                                     + "; ".join(f"{d} ({r})" for d, r in left_out.items())))
-    gaps = {dev: g for dev, st in devices.items() if (g := _gaps(st.t))}
-    if gaps:
-        warnings.warn(WearnavWarning(
-            f"{folder}: " + "; ".join(f"{dev} has {len(g)} gap(s) over {REPORT_GAP_S:g} s "
-                                      f"(longest {max(b - a for a, b in g):.1f} s)" for dev, g in gaps.items())
-            + "; they are masked, never interpolated"))
-
-    meta = {
-        "source": SOURCE,
-        "dataset": "Sensor Logger export",
-        "subject": "", "mode": "", "placement": "",
-        "platform": platform,
-        "standardisation": standardised,
-        **info,
-        "t0_unix_ns": t0,
-        "quat_frame": "Sensor Logger orientation, world z up; phone yaw 0 with x north (iOS true, "
-                      "Android magnetic north); watch / earbuds yaw reference not documented",
-        "quat_inverted": inverted,
-        "dropped_duplicates": {x.path.name: x.duplicates for x in tables if x.duplicates},
-        "dropped_uncovered": uncovered,
-        "file": file,
-    }
-    if "phone" in devices:
-        meta["phone_clock"] = clock_info
-    if left_out:
-        meta["left_out"] = left_out
-    if gaps:
-        meta["gaps"] = gaps
-    if stale is not None and stale.any():
-        meta["dropped_stale_fixes"] = int(stale.sum())
-    if "earbuds" in devices and "devicelocation" in head.df.columns:
-        sides = head.df["devicelocation"].dropna().astype(str)
-        if len(sides):
-            meta["earbud_side"] = str(sides.mode().iloc[0])
-    fixes = None
-    if loc is not None and len(loc.t_ns):
-        fixes, origin = _fixes(loc, sec(loc.t_ns))
-        meta.update(origin)
-    return Recording(name=name, devices=devices, fixes=fixes, meta=meta)
+    platform, standardised, info, tables = export_tables(folder, given_platform)
+    return build_recording(tables, platform, standardised, folder, name, file, info)
 
 
-def _rate(x: _Table) -> float:
-    dt = np.diff(x.t_ns) * 1e-9
-    return float(1.0 / np.median(dt)) if dt.size else 0.0
-
-
-def _phone_acceleration(t_acc: _Table | None, acc_lin: _Table | None,
-                        grav: _Table | None) -> tuple[_Table, bool]:
-    """The phone's acceleration clock: TotalAcceleration.csv as written, or Accelerometer.csv plus
-    Gravity.csv (interpolated onto it), whichever is faster (on a tie the total, which needs no
-    interpolation). On Android TotalAcceleration.csv can run at ~59 Hz while Accelerometer,
-    Gravity, Gyroscope and Orientation run at 100 Hz; the chosen file is ``meta["phone_clock"]``."""
-    lin_ok = acc_lin is not None and grav is not None
-    if t_acc is not None and not (lin_ok and _rate(acc_lin) > (1 + RATE_TIE) * _rate(t_acc)):
-        return t_acc, False
-    if not lin_ok:
-        raise Unusable("holds acceleration without gravity (UNITS.md) and neither Gravity.csv nor "
-                          "TotalAcceleration.csv is there to add it back", acc_lin.path)
-    return acc_lin, True
-
-
-def _stale_fixes(loc: _Table, t_motion_ns: int) -> np.ndarray:
-    """Fixes from before the recording: a cached first fix that the app writes with a negative
-    ``seconds_elapsed`` (README.md: negative entries come from "buffering or caching"), often far
-    away and with a huge accuracy. Without that column, fixes more than 1 s before the first motion
-    sample. They are dropped (count in ``meta["dropped_stale_fixes"]``) so they neither start the
-    recording's clock nor set the local origin."""
-    if "seconds_elapsed" in loc.df.columns:
-        se = pd.to_numeric(loc.df["seconds_elapsed"], errors="coerce").to_numpy(np.float64)
-        return np.isfinite(se) & (se < 0)
-    return loc.t_ns < t_motion_ns - 1_000_000_000
-
-
-def _gaps(t: np.ndarray) -> list[list[float]]:
-    """[start, end] (s) of every hole longer than REPORT_GAP_S."""
-    d = np.diff(t)
-    i = np.flatnonzero(d > REPORT_GAP_S)
-    return [[round(float(t[k]), 3), round(float(t[k + 1]), 3)] for k in i]
-
-
-def xyz_cols(prefix: str) -> list[str]:
-    return [f"{prefix}{a}" for a in "XYZ"]
-
-
-def quat_cols() -> list[str]:
-    return [f"quaternion{a}" for a in "WXYZ"]
-
-
-def _unit_quats(q: np.ndarray, path: Path) -> np.ndarray:
-    try:
-        return normalize_wxyz(q)
-    except NotUnitQuaternion as exc:
-        raise FormatError(f"quaternion at line {exc.row + 2} has norm {exc.norm:.3g}, not a unit "
-                          "quaternion", path) from None
-
-
-def _stream(dev: str, t, acc, gyro, quat, path: Path, qpath: Path | None, units: str,
-            inverted: list[str]) -> DeviceStream:
-    try:
-        stream = DeviceStream(t=t, acc=acc, gyro=gyro, quat=None)
-    except ValidationError as exc:
-        raise FormatError(f"device {dev!r}: {exc.reason}; {units}", path) from None
-    if quat is not None:
-        quat, convention = _check_orientation(quat, acc, gyro, t, qpath)
-        if convention != "world<-device":
-            inverted.append(dev)
-        stream.quat = quat
-        stream.validate()
-    return stream
-
-
-def _check_orientation(q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | None,
-                       t: np.ndarray, path: Path) -> tuple[np.ndarray, str]:
-    """Pick the quaternion direction the data agrees with (see module docstring), or fail.
-
-    A direction passes when the world-frame mean of the specific force lies within
-    TILT_TOLERANCE_DEG of +z and, where the gyro saw enough rotation, the quaternions' rotation
-    increments match the gyro's (relative residual <= MAX_GYRO_RESIDUAL). When both directions
-    pass (a device that stays nearly upright), the one with the smaller gyro residual wins,
-    the documented world←device reading on a tie.
-    """
-    rot = from_wxyz(q_wxyz)
-    found = []
-    for label, r in (("world<-device", rot), ("device<-world (inverted on import)", rot.inv())):
-        mean_world = r.apply(acc).mean(axis=0)
-        tilt = float(np.degrees(np.arccos(np.clip(mean_world[2] / np.linalg.norm(mean_world), -1, 1))))
-        res = _gyro_residual(r, gyro, t)
-        ok = tilt <= TILT_TOLERANCE_DEG and (res is None or res <= MAX_GYRO_RESIDUAL)
-        found.append((ok, res if res is not None else 0.0, label, r, tilt, res))
-    passing = [f for f in found if f[0]]
-    if passing:
-        _, _, label, r, _, _ = min(passing, key=lambda f: f[1])  # stable: world<-device on a tie
-        # Over a walk the mean vertical specific force is g; gravity counted twice (an
-        # acceleration column that already holds it) or not at all shows up here even when the
-        # median |acc| looks plausible.
-        vertical = float(r.apply(acc)[:, 2].mean())
-        if abs(vertical - G) > MAX_VERTICAL_ERROR:
-            raise FormatError(
-                f"mean vertical specific force in the world frame is {vertical:.1f} m/s², expected "
-                f"{G:.1f} (gravity counted twice or missing?)", path)
-        return to_wxyz(r), label
-    (_, _, _, _, tilt_a, res_a), (_, _, _, _, tilt_b, res_b) = found
-    gyro_note = "" if res_a is None else f", gyro residual {res_a:.2f} ({res_b:.2f} inverse)"
-    if min(tilt_a, tilt_b) <= TILT_TOLERANCE_DEG:
-        # Gravity agrees, so the acceleration sign (platform / standardisation) is right; what
-        # disagrees is the orientation with the gyroscope.
-        raise FormatError(
-            f"orientation does not follow the gyroscope: its rotation between samples differs from "
-            f"the gyroscope's by {res_a:.2f} of it ({res_b:.2f} with the inverse rotation), over "
-            f"{MAX_GYRO_RESIDUAL:g} either way, although gravity agrees with it "
-            f"({min(tilt_a, tilt_b):.0f}° from up); the orientation or gyroscope column is unusable", path)
-    raise FormatError(
-        f"orientation does not fit the accelerometer: gravity rotated to the world frame is "
-        f"{tilt_a:.0f}° from up ({tilt_b:.0f}° with the inverse rotation){gyro_note}; is "
-        f"Metadata.csv's platform / standardisation right?", path)
-
-
-def _gyro_residual(rot: Rotation, gyro: np.ndarray | None, t: np.ndarray) -> float | None:
-    """Σ|Δθ_quat − Δθ_gyro|² / Σ|Δθ_gyro|² over successive samples (body-frame increments),
-    leaving out the worst GYRO_RESIDUAL_TRIM of the increments (at least 2) from both sums.
-
-    Near 0 when the quaternions are world←device and agree with the gyro; None when there is
-    no gyro or too little rotation to tell. The trimmed sums make one glitched quaternion (two
-    increments of ~1 rad) irrelevant, while the wrong direction disagrees at most samples.
-    """
-    if gyro is None or len(t) < 3:
-        return None
-    dt = np.diff(t)
-    step = dt <= 2 * np.median(dt)  # across a gap the two increments need not match
-    inc = (rot[:-1][step].inv() * rot[1:][step]).as_rotvec()
-    w = 0.5 * (gyro[:-1] + gyro[1:])[step] * dt[step, None]
-    if np.linalg.norm(w, axis=1).sum() < MIN_ROTATION_FOR_CHECK:
-        return None
-    err = np.sum((inc - w) ** 2, axis=1)
-    n_drop = min(max(2, int(GYRO_RESIDUAL_TRIM * err.size)), err.size - 1)
-    keep = np.argsort(err)[: err.size - n_drop]
-    return float(np.sum(err[keep]) / np.sum(w[keep] ** 2))
-
-
-def _fixes(loc: _Table, t: np.ndarray) -> tuple[Fixes, dict]:
-    lat, lon = loc.df["latitude"].to_numpy(np.float64), loc.df["longitude"].to_numpy(np.float64)
-    check_latlon(lat, lon, "Location", loc.path)
-    if "horizontalAccuracy" in loc.df.columns:
-        accuracy = loc.df["horizontalAccuracy"].to_numpy(np.float64)
-        accuracy = np.where(accuracy >= 0, accuracy, np.nan)  # negative = invalid (UNITS.md)
-    else:
-        accuracy = np.full(len(t), np.nan)
-    pos = geo.latlon_to_local(lat, lon, lat[0], lon[0])
-    try:
-        fixes = Fixes(t=t, pos=pos, accuracy=accuracy)
-    except ValidationError as exc:
-        raise FormatError(exc.reason, loc.path) from None
-    return fixes, {"origin_lat": float(lat[0]), "origin_lon": float(lon[0]), "projection": geo.PROJECTION}
-
-
-__all__ = ["read", "read_export", "is_export"]
+__all__ = ["PLATFORMS", "Unusable", "acceleration_convention", "export_tables", "is_export", "read", "read_export"]

@@ -1,7 +1,7 @@
 """Write a Recording as a Sensor Logger export: the inverse of :mod:`wearnav.importers.sensorlogger`.
 
 Files, columns and unit conventions come from the importer (``DEVICE_FILES``, ``GRAVITY_IN_G``,
-:func:`~wearnav.importers.sensorlogger.acceleration_convention`, ``xyz_cols``), which cites the
+:func:`~wearnav.importers.sensorlogger_map.acceleration_convention`, ``xyz_cols``), which cites the
 app's documentation (``shared/data/sensor_logger_format``: UNITS.md, COORDINATES.md,
 CROSSPLATFORM.md): nanosecond ``time``, columns in the app's order (``z,y,x``), user acceleration
 and gravity split, g units on the Apple wearables when "Standardise Units & Frames" is off, iOS's
@@ -25,8 +25,8 @@ from scipy.spatial.transform import Rotation
 
 from wearnav import geo
 from wearnav.fileio import write_text_atomic
-from wearnav.importers.sensorlogger import (DEVICE_FILES, GRAVITY_IN_G, ORIENTATION_COLS, acceleration_convention,
-                                            quat_cols, xyz_cols)
+from wearnav.importers.sensorlogger_map import (DEVICE_FILES, GRAVITY_IN_G, ORIENTATION_COLS, acceleration_convention,
+                                                quat_cols, xyz_cols)
 from wearnav.outputs import staged_output
 from wearnav.recording import STANDARD_GRAVITY as G
 from wearnav.recording import Recording

@@ -40,7 +40,7 @@ from wearnav.errors import (ConfigError, FormatError, MissingFileError, Validati
 from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import write_text_atomic
 from wearnav.models import registry
-from wearnav.preprocess import Aligned, PreprocessConfig, load_sequences
+from wearnav.preprocess import Aligned, PreprocessConfig, align, load_sequences
 from wearnav.textio import read_json
 from wearnav.train.common import CHECKPOINTS, LAST, SeededModule, check_run_kind, load_weights, make_trainer
 from wearnav.train.interrupt import stop_between_batches
@@ -409,28 +409,39 @@ def trust_warnings(run: Path, cfg: ClassifyConfig, rec) -> list[str]:
     return [f"{rec.name}: {w}" for w in out]
 
 
+def window_classes(model, cfg: ClassifyConfig, rec) -> tuple[Aligned, np.ndarray, np.ndarray, np.ndarray]:
+    """How ``classify`` labels a recording (and the live receiver its latest seconds, and
+    ``track``'s trajectory.html its path): ``rec`` aligned by the run's preprocessing (with eq. 13's
+    moving average when ``cfg.denoise``), cut into windows of the run's length at half-window
+    strides; returns the aligned input, each window's start and end time (N, 2) s, its class index
+    and softmax confidence (N,) (N = 0 when shorter than one window)."""
+    from wearnav.augment import moving_average
+
+    seq = align(rec, cfg.preprocess_config())
+    if cfg.denoise > 1:
+        seq = dataclasses.replace(seq, imu=moving_average(seq.imu, cfg.denoise, axis=1).astype(seq.imu.dtype))
+    wds = WindowDataset([seq], WindowConfig(window=cfg.window, stride=max(1, cfg.window // 2), target=None))
+    if len(wds) == 0:
+        return seq, np.empty((0, 2)), np.empty(0, np.int64), np.empty(0)
+    cls, conf = predict(model, wds)
+    return seq, wds[np.arange(len(wds)).tolist()]["t"].numpy(), cls, conf
+
+
 def _label_into(recordings, model, cfg, classes: list[str], out: Path, found: list[str], run: Path) -> list[str]:
     """Write each recording's intervals CSV and timeline PNG into ``out``; returns the names and
     adds each recording's :func:`trust_warnings` to ``found``."""
     import pandas as pd
     from matplotlib.figure import Figure
 
-    from wearnav.augment import moving_average
-    from wearnav.preprocess import align
     from wearnav.report.plots import save
 
     written = []
     colours = {c: f"C{i % 10}" for i, c in enumerate(classes)}
     for rec in recordings:
-        seq = align(rec, cfg.preprocess_config())
         found += trust_warnings(run, cfg, rec)
-        if cfg.denoise > 1:
-            seq = dataclasses.replace(seq, imu=moving_average(seq.imu, cfg.denoise, axis=1).astype(seq.imu.dtype))
-        wds = WindowDataset([seq], WindowConfig(window=cfg.window, stride=max(1, cfg.window // 2), target=None))
-        if len(wds) == 0:
+        seq, t, cls, conf = window_classes(model, cfg, rec)
+        if len(cls) == 0:
             raise ValidationError(f"shorter than one window ({cfg.window / cfg.rate:g} s)", rec.name)
-        cls, conf = predict(model, wds)
-        t = wds[np.arange(len(wds)).tolist()]["t"].numpy()
         rows = intervals(t[:, 0], t[:, 1], cls, conf, classes)
         df = pd.DataFrame(rows, columns=["start_s", "end_s", "label", "windows", "mean_confidence"])
         if rec.name in written:

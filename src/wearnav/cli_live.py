@@ -1,0 +1,188 @@
+"""The ``wearnav`` commands of the live receiver: ``live`` (serve Sensor Logger's HTTP Push),
+``live export`` (a stored session as a wearnav dataset folder), ``live bench`` (load, latency and
+CPU share) and ``replay`` (send an export as the app would). Registered on the main app by
+:mod:`wearnav.cli`; imports stay inside the commands so that ``--help`` stays fast."""
+
+from __future__ import annotations
+
+import secrets
+import socket
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from wearnav.cli_common import echo_json, on_interrupt
+
+LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
+
+live_app = typer.Typer(invoke_without_command=True)  # its help: the docstring of live() below
+
+
+def _lan_address() -> str:
+    """This machine's address on its local network, as a phone would reach it (a guess: the
+    interface a UDP socket would use; nothing is sent)."""
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            s.connect(("10.255.255.255", 1))
+            return s.getsockname()[0]
+    except OSError:
+        return "<this machine's address>"
+
+
+def _tracker_factory(model: Optional[Path]):
+    try:
+        from wearnav.live.tracker import LiveTracker
+    except ImportError:
+        typer.echo("live tracking is not available in this installation (wearnav.live.tracker); "
+                   "storing and serving only", err=True)
+        return None
+    return lambda: LiveTracker(model=model)
+
+
+@live_app.callback()
+def live(
+    ctx: typer.Context,
+    host: str = typer.Option("127.0.0.1", help="Address to listen on (0.0.0.0: the phone on the same Wi-Fi; "
+                             "then a token is required)."),
+    port: int = typer.Option(8000, min=1, max=65535, help="TCP port."),
+    store: Path = typer.Option(Path("runs/live/live.db"), "--store", help="SQLite session store (created; "
+                               "sessions in it are resumed)."),
+    token: Optional[str] = typer.Option(None, "--token", help="Token the phone sends (made and printed when "
+                                        "listening beyond this machine and none is given)."),
+    require_token: bool = typer.Option(False, "--require-token", help="Want a token on 127.0.0.1 too."),
+    max_body: int = typer.Option(4 * 1024 * 1024, "--max-body", min=1024, help="Largest push body, bytes (413 above)."),
+    rate_limit: float = typer.Option(100.0, "--rate-limit", min=0.1, help="Messages a second per client (429 above; "
+                                     "bursts of twice that)."),
+    platform: Optional[str] = typer.Option(None, help="The phone's platform (ios, watchos, android) when the push "
+                                           "URL does not say (?platform=...): it decides the acceleration sign. "
+                                           "Default: decided from each session's data."),
+    standardised: bool = typer.Option(False, "--standardised", help="\"Standardise Units & Frames\" is on in the "
+                                      "app, when the push URL does not say (?standardisation=true)."),
+    model: Optional[Path] = typer.Option(None, "--model", help="Odometry model (as for `wearnav track`)."),
+    no_track: bool = typer.Option(False, "--no-track", help="Store and serve only; no live path."),
+    mqtt: Optional[str] = typer.Option(None, "--mqtt", help="Also subscribe to ws://broker:port/topic "
+                                       "(Sensor Logger's MQTT publishing)."),
+):
+    """Receive Sensor Logger's HTTP Push: every message stored before its 200, a live path on a page.
+
+    \b
+    Example:
+      wearnav live --host 0.0.0.0 --port 8000
+      (in Sensor Logger: Settings > Data Streaming > HTTP Push, the push URL printed here)
+    """
+    if ctx.invoked_subcommand is not None:
+        return
+    import uvicorn
+
+    from wearnav.errors import ConfigError
+    from wearnav.importers.sensorlogger_map import PLATFORMS
+    from wearnav.live.app import create_app
+
+    if platform is not None:
+        platform = platform.strip().lower()
+        if platform not in PLATFORMS:
+            raise typer.BadParameter(f"--platform must be one of {', '.join(PLATFORMS)}")
+    elif standardised:
+        platform = "ios"
+    made = False
+    if token is None and (require_token or host not in LOCAL_HOSTS):
+        token, made = secrets.token_urlsafe(18), True
+    factory = None if no_track else _tracker_factory(model)
+    app = create_app(store, token=token, max_body=max_body, rate_limit=rate_limit, tracker_factory=factory,
+                     platform=platform, standardised=standardised)
+    if mqtt:
+        from wearnav.live.mqtt import subscribe
+        subscribe(mqtt, app.state.receiver)
+    shown = _lan_address() if host in ("0.0.0.0", "::") else host
+    query = "" if token is None else (f"?token={token}" if made else "?token=<your token>")
+    typer.echo(f"push URL (Sensor Logger > HTTP Push): http://{shown}:{port}/push{query}")
+    typer.echo(f"live page: http://{shown}:{port}/{query}")
+    if made:
+        typer.echo("(the token was made now; give --token to keep one across restarts)")
+    on_interrupt(f"stopped; every acknowledged message is in {store} (`wearnav live` resumes its sessions)")
+    try:
+        uvicorn.run(app, host=host, port=port, access_log=False, log_level="warning")
+    except SystemExit as exc:  # uvicorn exits when it cannot bind
+        raise ConfigError(f"could not listen on {host}:{port} (in use?)") from exc
+
+
+@live_app.command("export")
+def live_export(
+    session: str = typer.Argument(..., help="Session id (`/sessions` lists them)."),
+    store: Path = typer.Option(Path("runs/live/live.db"), "--store", help="The SQLite session store."),
+    out: Path = typer.Option(..., "--out", help="Dataset folder to write (as `wearnav import` writes)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace the dataset that --out already holds."),
+):
+    """Write a stored session as a wearnav dataset folder that `track`, `classify` and the benchmarks read.
+
+    \b
+    Example:
+      wearnav live export replay-3f2a --store runs/live/live.db --out data/my_walk
+    """
+    from wearnav.live.export import export_session
+    from wearnav.outputs import check_new_dataset
+
+    check_new_dataset(out, overwrite, "live export")
+    echo_json(export_session(store, session, out).summary())
+
+
+@live_app.command("bench")
+def live_bench(
+    out: Path = typer.Option(Path("runs/live-bench"), "--out", help="Folder for results.md / results.json."),
+    duration: float = typer.Option(60.0, min=1.0, help="Wall seconds of the load phase."),
+    speed: float = typer.Option(10.0, min=1.0, help="Replay speed of the load phase (× real time)."),
+    cpu_s: float = typer.Option(30.0, "--cpu-s", min=2.0, help="Seconds of each real-time walkers phase."),
+    walkers: str = typer.Option("1,2,4,8", help="Walkers (sessions at once, real time) to try, comma-separated."),
+    track: bool = typer.Option(True, "--track/--no-track", help="Run the live tracker in the CPU phase "
+                               "(where this installation has one)."),
+):
+    """Load the receiver (3 devices × 100 Hz at SPEED× for DURATION s) and measure ack latency,
+    lost / duplicated samples, then walkers at once at real time: CPU share, update latency, capacity.
+
+    \b
+    Example:
+      wearnav live bench --out runs/live-bench
+    """
+    from wearnav.cli_common import split_list
+    from wearnav.live.bench import run_bench
+    from wearnav.outputs import check_suite_folder
+
+    try:
+        counts = tuple(int(x) for x in split_list(walkers))
+    except ValueError:
+        raise typer.BadParameter("--walkers: whole numbers, comma-separated") from None
+    check_suite_folder(out, "live bench")
+    typer.echo(str(run_bench(out, duration_s=duration, speed=speed, cpu_s=cpu_s, track=track, walkers=counts)))
+
+
+def replay(
+    export: Path = typer.Argument(..., help="A Sensor Logger export (folder or .zip)."),
+    url: str = typer.Option("http://127.0.0.1:8000/push", "--url", help="The receiver's push URL."),
+    speed: float = typer.Option(1.0, min=0.01, help="× real time."),
+    batch_s: float = typer.Option(0.2, "--batch-s", min=0.01, help="Batch period (s), as set in the app."),
+    token: Optional[str] = typer.Option(None, "--token", help="The receiver's token."),
+    session: Optional[str] = typer.Option(None, "--session", help="Session id (default: a new one)."),
+    no_platform: bool = typer.Option(False, "--no-platform", help="Leave the export's platform out of the URL "
+                                     "(as the app's own push URL does; the receiver decides it from the data)."),
+):
+    """Send a Sensor Logger export to a receiver as the app pushes while recording.
+
+    \b
+    Example:
+      wearnav replay my_walk.zip --url http://127.0.0.1:8000/push --speed 10
+    """
+    from wearnav.live.replay import build, send
+
+    rp = build(export, batch_s=batch_s, session_id=session)
+    typer.echo(f"session {rp.session_id}: {len(rp.messages)} messages, {rp.samples} samples", err=True)
+    res = send(rp, url, speed=speed, token=token, platform=not no_platform)
+    lat = sorted(res.ack_latency_s)
+    echo_json({"session": rp.session_id, "messages": len(rp.messages), "acknowledged": len(res.acknowledged),
+               "retries": res.retries, "wall_s": round(res.wall_s, 2),
+               "ack_latency_p50_ms": round(1e3 * lat[len(lat) // 2], 2) if lat else None})
+
+
+def register(app: typer.Typer) -> None:
+    app.add_typer(live_app, name="live")
+    app.command("replay")(replay)

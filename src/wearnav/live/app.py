@@ -1,0 +1,369 @@
+"""The receiver: a Starlette app taking Sensor Logger's HTTP Push, storing it, tracking it live.
+
+Routes (``wearnav live`` serves them with uvicorn)::
+
+    POST /push       one Sensor Logger message (wearnav.live.push); 200 {"stored": true|false}
+                     once committed to the store (false: a repeat, a no-op)
+    GET  /events     server-sent events: the session's state, at most 4 times a second
+    GET  /state      the same JSON once            (?session=ID; default the latest session)
+    GET  /sessions   the sessions in the store, oldest first
+    GET  /stats      counters: accepted, repeats, refused by status, tracker update latency
+    GET  /           the live page (wearnav/live/static/index.html; its files under /static)
+
+With a token set (required when the server listens beyond 127.0.0.1; ``wearnav live`` makes one
+when none is given) every route but ``/static`` (the page's own scripts and styles) wants it, as
+``Authorization: Bearer T`` or ``?token=T``, compared in constant time; without it: 401 and
+nothing stored. Refusals are one JSON ``{"error": ...}``
+with a 4xx: 401, 413 (body over ``max_body``), 429 (over ``rate_limit`` messages a second from one
+client, bursts of twice that), 400 / 422 (:mod:`wearnav.live.push`). The token is never logged:
+uvicorn's access log is off and this module logs paths without their query.
+
+Tracking: one worker thread per session runs ``tracker.update(buffer)`` once a push's 200 has
+been sent; pushes arriving while it runs make it run once more when done (coalesced). The
+tracker comes from ``tracker_factory`` (None: no tracking, ``wearnav live --no-track``).
+
+A session's platform and standardisation (which the app does not push) come from the push URL's
+query (``?platform=android&standardisation=true``), else from ``wearnav live --platform``, else
+from the session's data (:data:`wearnav.live.buffer.AUTO`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hmac
+import json
+import logging
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from starlette.applications import Starlette
+from starlette.background import BackgroundTask
+from starlette.concurrency import run_in_threadpool
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response, StreamingResponse
+from starlette.routing import Mount, Route
+from starlette.staticfiles import StaticFiles
+
+from wearnav.importers.sensorlogger_map import PLATFORMS
+from wearnav.live.buffer import AUTO, SessionBuffer
+from wearnav.live.push import BadPush, check_id, parse
+from wearnav.live.store import Store
+
+log = logging.getLogger("wearnav.live")
+STATIC = Path(__file__).parent / "static"
+MAX_BODY = 4 * 1024 * 1024        # bytes; a 1-s batch of 3 devices at 100 Hz is ~150 kB
+RATE_LIMIT = 100.0                 # messages per second per client (burst: twice that)
+MAX_FUTURE_S = 120.0               # sample times this far ahead of the server's clock are refused
+MAX_AGE_S = 7 * 86400.0            # ... and this far behind it
+STOPPED_S = 5.0                    # a device silent this long is shown as stopped
+EVENT_PERIOD_S = 0.25              # /events sends at most 4 states a second
+KEEPALIVE_S = 15.0
+
+
+class RateLimiter:
+    """A token bucket per client address: ``rate`` a second, bursts of ``2 × rate``."""
+
+    def __init__(self, rate: float):
+        self.rate, self.burst = rate, 2.0 * rate
+        self._buckets: dict[str, tuple[float, float]] = {}
+        self._lock = threading.Lock()
+
+    def allow(self, client: str) -> bool:
+        now = time.monotonic()
+        with self._lock:
+            tokens, last = self._buckets.get(client, (self.burst, now))
+            tokens = min(self.burst, tokens + (now - last) * self.rate)
+            ok = tokens >= 1.0
+            self._buckets[client] = (tokens - 1.0 if ok else tokens, now)
+            if len(self._buckets) > 10_000:  # forget idle clients
+                self._buckets = {c: v for c, v in self._buckets.items() if now - v[1] < 60}
+        return ok
+
+
+class SessionWorker:
+    """One thread running the session's tracker: ``poke`` after each acknowledged push. The
+    tracker is made in that thread (loading a model must not hold up a 200); one that cannot be
+    made, or fails, is a warning on the page, never a failed push."""
+
+    def __init__(self, buf: SessionBuffer, tracker_factory: Callable[[], object]):
+        self.buf, self.tracker = buf, None
+        self.error: str | None = None
+        self.latency_s: list[float] = []   # the oldest ack not yet on the page → the update that put it there
+        self._factory = tracker_factory
+        self._event = threading.Event()
+        self._pending_since: float | None = None
+        self._lock = threading.Lock()
+        self.thread = threading.Thread(target=self._run, name=f"track-{buf.session_id}", daemon=True)
+        self.thread.start()
+
+    def poke(self) -> None:
+        with self._lock:
+            if self._pending_since is None:
+                self._pending_since = time.perf_counter()
+        self._event.set()
+
+    def _run(self) -> None:
+        try:
+            self.tracker = self._factory()
+        except Exception as exc:
+            self.error = f"live tracking could not start: {type(exc).__name__}: {exc}"
+            log.warning("session %s: %s", self.buf.session_id, self.error)
+            return
+        while True:
+            self._event.wait()
+            self._event.clear()
+            with self._lock:
+                since, self._pending_since = self._pending_since, None
+            changed = False
+            try:
+                changed = bool(self.tracker.update(self.buf))
+                self.error = None
+            except Exception as exc:  # shown on the page; the next push tries again
+                self.error = f"live tracking failed: {type(exc).__name__}: {exc}"
+                log.warning("session %s: %s", self.buf.session_id, self.error)
+            if since is None:
+                continue
+            if changed:   # the page's path now holds every push acknowledged since ``since``
+                self.latency_s.append(time.perf_counter() - since)
+                del self.latency_s[:-10_000]
+            else:         # nothing new on the page yet (the tracker waits for more): still pending
+                with self._lock:
+                    self._pending_since = since if self._pending_since is None else min(since, self._pending_since)
+
+    def state(self) -> dict:
+        st = dict(self.tracker.state()) if self.tracker is not None else untracked_state(self.buf, "starting")
+        if self.error:
+            st["warnings"] = [*st.get("warnings", []), self.error]
+        return st
+
+
+def untracked_state(buf: SessionBuffer, why: str = "off") -> dict:
+    """The state without a tracker: ``why`` "off" (``--no-track``) or "starting"."""
+    note = "tracking is off (wearnav live --no-track)" if why == "off" else "live tracking is starting"
+    return {"origin": None, "path": [], "anchor": "none", "fixes": [], "activity": None,
+            "warnings": [note], "t_s": buf.covered_until()}
+
+
+class Receiver:
+    """The app's state: store, buffers, workers, limits (one per app)."""
+
+    def __init__(self, store: Store, token: str | None, max_body: int, rate_limit: float,
+                 tracker_factory: Callable[[], object] | None, platform: str | None, standardised: bool,
+                 max_future_s: float, max_age_s: float):
+        self.store, self.token, self.max_body = store, token, max_body
+        self.limiter = RateLimiter(rate_limit)
+        self.tracker_factory = tracker_factory
+        self.platform, self.standardised = platform, standardised
+        self.max_future_s, self.max_age_s = max_future_s, max_age_s
+        self.buffers: dict[str, SessionBuffer] = {}
+        self.workers: dict[str, SessionWorker] = {}
+        self._workers_lock = threading.Lock()
+        self.counts = {"accepted": 0, "repeats": 0, "refused": {}}
+        self._lock = threading.Lock()   # store + buffer in one order
+        for sid in store.sessions():   # resumed: what a restart finds in the store
+            self.buffers[sid] = SessionBuffer.from_store(store, sid)
+            self.poke(sid)
+
+    def _buffer(self, sid: str, platform: str, standardised: bool) -> SessionBuffer:
+        if sid not in self.buffers:
+            self.buffers[sid] = SessionBuffer(sid, platform, standardised)
+        return self.buffers[sid]
+
+    def poke(self, sid: str) -> None:
+        if self.tracker_factory is None:
+            return
+        with self._workers_lock:
+            if sid not in self.workers:
+                self.workers[sid] = SessionWorker(self.buffers[sid], self.tracker_factory)
+        self.workers[sid].poke()
+
+    def settings(self, request: Request) -> tuple[str, bool]:
+        """The session's platform and standardisation: the push URL's ``?platform=`` /
+        ``&standardisation=``, else the server's, else ``AUTO`` (decided from the data)."""
+        return settings(request.query_params, self.platform, self.standardised)
+
+    def accept(self, body: bytes, platform: str, standardised: bool, track: bool = True) -> str | None:
+        """Parse, store (committed), buffer: the session id when new, None for a repeat. Runs in
+        a worker thread. ``track`` False leaves waking the tracker to the caller (:meth:`poke`),
+        which the HTTP route does once its 200 is sent."""
+        push = parse(body, time.time_ns(), self.max_future_s, self.max_age_s)
+        with self._lock:
+            new = self.store.add(push.session_id, push.device_id, push.message_id, body.decode("utf-8"),
+                                 platform, standardised)
+            if new:
+                # a session's settings are its first message's (the store keeps those)
+                self._buffer(push.session_id, platform, standardised).add(push.payload)
+            self.counts["accepted" if new else "repeats"] += 1
+        if new and track:
+            self.poke(push.session_id)
+        return push.session_id if new else None
+
+    def state(self, sid: str) -> dict:
+        buf = self.buffers[sid]
+        worker = self.workers.get(sid)
+        st = worker.state() if worker is not None else untracked_state(buf)
+        now = time.time()
+        devices = {d: {**v, "stopped": now - v["last_seen_unix_s"] > STOPPED_S} for d, v in buf.devices().items()}
+        return {**st, "session": sid, "devices": devices, "messages": buf.messages}
+
+    def latest(self) -> str | None:
+        return next(reversed(self.buffers), None)
+
+
+def settings(query, platform: str | None, standardised: bool) -> tuple[str, bool]:
+    """(platform, standardisation) from a push or MQTT URL's ``query`` (a mapping), else the
+    server's ``platform`` / ``standardised``; a platform given by neither is ``AUTO``."""
+    given = query.get("platform")
+    flag = query.get("standardisation")
+    if flag is not None and flag.lower() not in ("true", "false", "1", "0", "on", "off"):
+        raise BadPush(422, "standardisation must be true or false")
+    std = standardised if flag is None else flag.lower() in ("true", "1", "on")
+    if given is None:
+        if platform is None and flag is None:
+            return AUTO, False
+        return platform or "ios", std
+    given = given.strip().lower()
+    if given not in PLATFORMS:
+        raise BadPush(422, f"platform must be one of {', '.join(PLATFORMS)}")
+    return given, std
+
+
+def _error(status: int, message: str) -> JSONResponse:
+    return JSONResponse({"error": message}, status_code=status)
+
+
+def create_app(store: str | Path | Store, token: str | None = None, max_body: int = MAX_BODY,
+               rate_limit: float = RATE_LIMIT, tracker_factory: Callable[[], object] | None = None,
+               platform: str | None = None, standardised: bool = False, max_future_s: float = MAX_FUTURE_S,
+               max_age_s: float = MAX_AGE_S) -> Starlette:
+    """The receiver app over the SQLite ``store`` (sessions in it are resumed)."""
+    store = store if isinstance(store, Store) else Store(store)
+    rx = Receiver(store, token, max_body, rate_limit, tracker_factory, platform, standardised,
+                  max_future_s, max_age_s)
+
+    def refuse(request: Request, status: int, message: str) -> JSONResponse:
+        rx.counts["refused"][str(status)] = rx.counts["refused"].get(str(status), 0) + 1
+        log.info("%s %s %d %s", request.method, request.url.path, status, message)
+        return _error(status, message)
+
+    def authorized(request: Request) -> bool:
+        if rx.token is None:
+            return True
+        given = request.query_params.get("token", "")
+        header = request.headers.get("authorization", "")
+        if header[:7].lower() == "bearer ":
+            given = header[7:].strip()
+        return hmac.compare_digest(given.encode(), rx.token.encode())
+
+    async def push(request: Request) -> Response:
+        if not authorized(request):
+            return refuse(request, 401, "a valid token is required (Authorization: Bearer T, or ?token=T)")
+        client = request.client.host if request.client else "?"
+        if not rx.limiter.allow(client):
+            return refuse(request, 429, f"over {rx.limiter.rate:g} messages a second from {client}")
+        try:
+            declared = int(request.headers.get("content-length", "0"))
+        except ValueError:
+            return refuse(request, 400, "Content-Length is not a number")
+        if declared > rx.max_body:
+            return refuse(request, 413, f"body of {declared} bytes is over the limit of {rx.max_body}")
+        chunks, size = [], 0
+        async for chunk in request.stream():
+            size += len(chunk)
+            if size > rx.max_body:
+                return refuse(request, 413, f"body is over the limit of {rx.max_body} bytes")
+            chunks.append(chunk)
+        try:
+            platform, standardised = rx.settings(request)
+            sid = await run_in_threadpool(rx.accept, b"".join(chunks), platform, standardised, False)
+        except BadPush as exc:
+            return refuse(request, exc.status, exc.message)
+        # the tracker runs after the 200 has gone out
+        return JSONResponse({"stored": sid is not None}, background=BackgroundTask(rx.poke, sid) if sid else None)
+
+    def session_of(request: Request) -> str | JSONResponse:
+        sid = request.query_params.get("session") or rx.latest()
+        if sid is None:
+            return _error(404, "no session yet: start a recording with HTTP Push on")
+        try:
+            check_id(sid, "session")
+        except BadPush as exc:
+            return _error(exc.status, exc.message)
+        if sid not in rx.buffers:
+            return _error(404, f"no session {sid!r}")
+        return sid
+
+    async def state(request: Request) -> Response:
+        if not authorized(request):
+            return refuse(request, 401, "a valid token is required")
+        sid = session_of(request)
+        if isinstance(sid, Response):
+            return sid
+        return JSONResponse(await run_in_threadpool(rx.state, sid))
+
+    async def events(request: Request) -> Response:
+        if not authorized(request):
+            return refuse(request, 401, "a valid token is required")
+        sid = session_of(request)
+        if isinstance(sid, Response):
+            return sid
+
+        async def stream():
+            last, quiet = None, 0.0
+            while True:
+                text = json.dumps(await run_in_threadpool(rx.state, sid))
+                if text != last:
+                    last, quiet = text, 0.0
+                    yield f"data: {text}\n\n"
+                elif quiet >= KEEPALIVE_S:
+                    quiet = 0.0
+                    yield ": keep-alive\n\n"
+                await asyncio.sleep(EVENT_PERIOD_S)
+                quiet += EVENT_PERIOD_S
+
+        return StreamingResponse(stream(), media_type="text/event-stream",
+                                 headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+
+    async def sessions(request: Request) -> Response:
+        if not authorized(request):
+            return refuse(request, 401, "a valid token is required")
+        stored = rx.store.sessions()
+        def convention(sid: str, info: dict) -> dict:   # AUTO until the session's data decided it
+            buf = rx.buffers.get(sid)
+            if buf is None or buf.infer:
+                return {"platform": info["platform"], "standardised": info["standardised"]}
+            return {"platform": buf.platform, "standardised": buf.standardised}
+
+        return JSONResponse([{"session": sid, **convention(sid, info),
+                              "created_unix_s": info["created_ns"] / 1e9, "messages": info["messages"],
+                              "devices": sorted(rx.buffers[sid].devices()) if sid in rx.buffers else []}
+                             for sid, info in stored.items()])
+
+    async def stats(request: Request) -> Response:
+        if not authorized(request):
+            return refuse(request, 401, "a valid token is required")
+        lat = {sid: w.latency_s[-1000:] for sid, w in rx.workers.items()}
+        return JSONResponse({**rx.counts, "sessions": len(rx.buffers), "tracking": rx.tracker_factory is not None,
+                             "update_latency_s": lat})
+
+    async def index(request: Request) -> Response:
+        if not authorized(request):
+            return refuse(request, 401, "a valid token is required (open the page as /?token=T)")
+        page = STATIC / "index.html"
+        if not page.is_file():
+            return PlainTextResponse("the live page is not installed (wearnav/live/static/index.html); "
+                                     "/state and /events work", status_code=404)
+        return FileResponse(page, headers={"Cache-Control": "no-cache"})
+
+    routes = [Route("/push", push, methods=["POST"]), Route("/events", events), Route("/state", state),
+              Route("/sessions", sessions), Route("/stats", stats), Route("/", index)]
+    if STATIC.is_dir():
+        routes.append(Mount("/static", StaticFiles(directory=STATIC), name="static"))
+    app = Starlette(routes=routes)
+    app.state.receiver = rx
+    return app
+
+
+__all__ = ["MAX_BODY", "RATE_LIMIT", "Receiver", "create_app"]

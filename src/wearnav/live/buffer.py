@@ -1,0 +1,349 @@
+"""One live session's samples, kept per sensor and turned into a Recording on demand.
+
+Each accepted push adds its payload here (after the store committed it). Samples are kept as the
+app sent them, per sensor (:data:`wearnav.importers.sensorlogger_map.PUSH_NAMES`), sorted by sample
+time whatever order the messages came in; a repeated sample time keeps the sample that arrived
+first (``timeseries.drop_duplicate_times``' rule). :meth:`SessionBuffer.recording` hands them to
+the same tables → Recording step as the CSV importer
+(:func:`wearnav.importers.sensorlogger_build.build_recording`), so the devices, units, signs and
+frames are the importer's: a session holding the same samples as an export gives the same
+Recording.
+
+Slices (``t_from``) keep the session's time origin, its local-frame origin (the first fix) and
+the quaternion direction decided once on the first ``DECIDE_S`` seconds (the importer's checks),
+so every slice lies in one frame.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wearnav.errors import FormatError, MissingFileError
+from wearnav.importers.sensorlogger_build import build_recording, stale_fixes
+from wearnav.importers.sensorlogger_map import PUSH_NAMES, SENSORS, Table
+from wearnav.recording import DeviceStream, Fixes, Recording
+
+NS = 1_000_000_000
+DECIDE_S = 10.0   # seconds of data after which the quaternion direction is decided for good
+MARGIN_S = 2.0    # a slice reads this much earlier data, for interpolation at its start
+AUTO = "auto"     # a session whose push URL gave no platform: decided from its data
+CONNECTED_S = 5.0  # a device this far behind the newest (sample time) no longer holds the path back
+# The distinct readings of an app's acceleration (sign, unit: sensorlogger_map.acceleration_convention),
+# tried in this order: iOS with "Standardise Units & Frames" off (the app's default), on, and Android.
+CONVENTIONS = (("ios", False), ("ios", True), ("android", False))
+TEXT_COLS = {"Headphone.csv": "devicelocation"}
+_BUILD_LOCK = threading.Lock()  # warnings.catch_warnings is process-wide
+
+
+class _Sensor:
+    """One sensor's samples: sorted by time, a repeated time keeping the first to arrive.
+
+    Kept in arrays that grow by doubling, so that the usual message (later than everything so far)
+    costs only its own rows; one that arrives out of order re-sorts only the rows after its first
+    time, into new arrays (a snapshot handed out before stays as it was)."""
+
+    def __init__(self, cols: list[str], text: bool):
+        self.cols = cols
+        self.chunks: list[tuple[np.ndarray, np.ndarray, list | None]] = []
+        self.optional_seen: set = set()
+        self.n = 0
+        self._t = np.zeros(0, np.int64)
+        self._v = np.zeros((0, len(cols)), np.float64)
+        self._text = np.zeros(0, object) if text else None
+        self.duplicates = 0
+        self.last_seen_unix_s = 0.0
+
+    @property
+    def t(self) -> np.ndarray:
+        return self._t[:self.n]
+
+    @property
+    def vals(self) -> np.ndarray:
+        return self._v[:self.n]
+
+    @property
+    def text(self) -> np.ndarray | None:
+        return None if self._text is None else self._text[:self.n]
+
+    def consolidate(self) -> None:
+        """Merge the pending chunks (module docstring's order rule)."""
+        if not self.chunks:
+            return
+        t = np.concatenate([c[0] for c in self.chunks])
+        v = np.concatenate([c[1] for c in self.chunks])
+        x = None if self._text is None else np.array([y for c in self.chunks for y in (c[2] or [None] * len(c[0]))],
+                                                     object)
+        self.chunks = []
+        if self.n and t.min() <= self._t[self.n - 1]:   # out of order: merge with the rows from t.min() on
+            i = int(np.searchsorted(self.t, t.min(), side="left"))
+            t, v = np.concatenate([self._t[i:self.n], t]), np.concatenate([self._v[i:self.n], v])
+            x = None if x is None else np.concatenate([self._text[i:self.n], x])
+            self._t, self._v = self._t[:i].copy(), self._v[:i].copy()   # new arrays: snapshots keep theirs
+            self._text = None if x is None else self._text[:i].copy()
+            self.n = i
+        order = np.argsort(t, kind="stable")          # earlier arrivals first on equal times
+        t, v = t[order], v[order]
+        keep = np.concatenate([[True], np.diff(t) > 0])
+        self.duplicates += int((~keep).sum())
+        t, v = t[keep], v[keep]
+        if x is not None:
+            x = x[order][keep]
+        need = self.n + t.size
+        if need > self._t.size:                       # grow by doubling (new arrays)
+            cap = max(need, 2 * self._t.size, 1024)
+            self._t = np.concatenate([self._t[:self.n], np.zeros(cap - self.n, np.int64)])
+            self._v = np.concatenate([self._v[:self.n], np.zeros((cap - self.n, self._v.shape[1]))])
+            if self._text is not None:
+                self._text = np.concatenate([self._text[:self.n], np.zeros(cap - self.n, object)])
+        self._t[self.n:need], self._v[self.n:need] = t, v
+        if x is not None:
+            self._text[self.n:need] = x
+        self.n = need
+
+
+class SessionBuffer:
+    """One session's samples so far, already in the Recording convention (the importer's mapping)."""
+
+    def __init__(self, session_id: str, platform: str = "ios", standardised: bool = False):
+        self.session_id = session_id
+        self.infer = platform == AUTO    # decided from the data (see _full) until then
+        self.platform, self.standardised = CONVENTIONS[0] if self.infer else (platform, standardised)
+        self.platform_from = "the data" if self.infer else "the push URL / wearnav live --platform"
+        self.t0_unix_ns: int | None = None
+        self.version = 0
+        self.messages = 0
+        self.ignored: dict[str, int] = {}       # unknown sensor names → samples (stored, not read)
+        self.warnings: list[str] = []
+        self._sensors: dict[str, _Sensor] = {}
+        self._lock = threading.Lock()
+        self._quat_inverted: list[str] | None = None
+        self._cache: tuple | None = None
+
+    @classmethod
+    def from_store(cls, store, session_id: str) -> "SessionBuffer":
+        """The session rebuilt from a :class:`wearnav.live.store.Store` (on restart, for export):
+        its messages in the order they were stored, with the time each was received."""
+        sessions = store.sessions()
+        if session_id not in sessions:
+            known = ", ".join(sessions) or "none"
+            raise MissingFileError(f"no session {session_id!r} in the store (sessions: {known})", store.path)
+        buf = cls(session_id, sessions[session_id]["platform"], sessions[session_id]["standardised"])
+        for _device, _mid, received_ns, body in store.messages(session_id):
+            buf.add(json.loads(body)["payload"], received_unix_s=received_ns / NS)
+        return buf
+
+    # ---- input ------------------------------------------------------------------------------
+
+    def add(self, payload: list[dict], received_unix_s: float | None = None) -> int:
+        """Add one accepted message's payload (checked by :func:`wearnav.live.push.parse`);
+        returns how many samples of known sensors it held."""
+        now = time.time() if received_unix_s is None else received_unix_s
+        rows: dict[str, list[dict]] = {}
+        for item in payload:
+            sensor = PUSH_NAMES.get(item["name"])
+            if sensor is None:
+                self.ignored[item["name"]] = self.ignored.get(item["name"], 0) + 1
+                continue
+            rows.setdefault(sensor.file, []).append(item)
+        n = 0
+        with self._lock:
+            for fname, items in rows.items():
+                spec = SENSORS[fname]
+                if fname not in self._sensors:
+                    self._sensors[fname] = _Sensor([*spec.cols, *spec.optional], fname in TEXT_COLS)
+                s = self._sensors[fname]
+                t = np.fromiter((it["time"] for it in items), np.int64, len(items))
+                v = np.array([[_num(it["values"].get(c)) for c in s.cols] for it in items], np.float64)
+                s.optional_seen.update(c for c in spec.optional if any(c in it["values"] for it in items))
+                tc = TEXT_COLS.get(fname)
+                text = [it["values"].get(tc) for it in items] if tc else None
+                s.chunks.append((t, v, text))
+                s.last_seen_unix_s = now
+                n += len(items)
+            self.version += 1
+            self.messages += 1
+        return n
+
+    # ---- output -----------------------------------------------------------------------------
+
+    def _snapshot(self) -> tuple[int, dict[str, tuple]]:
+        with self._lock:
+            for s in self._sensors.values():
+                s.consolidate()
+            snap = {f: (s.t, s.vals, [*s.cols[:len(SENSORS[f].cols)],
+                                      *[c for c in SENSORS[f].optional if c in s.optional_seen]],
+                        s.text, s.duplicates) for f, s in self._sensors.items() if s.t.size}
+            version = self.version
+        self.t0_unix_ns = self._t0(snap)
+        return version, snap
+
+    @staticmethod
+    def _t0(snap: dict) -> int | None:
+        motion = [v[0][0] for f, v in snap.items() if SENSORS[f].device is not None]
+        if not motion:
+            return None
+        starts = list(motion)
+        if "Location.csv" in snap:
+            loc = _table("", "Location.csv", snap["Location.csv"], 0)
+            fresh = loc.t_ns[~stale_fixes(loc, int(min(motion)))]
+            if fresh.size:
+                starts.append(fresh[0])
+        return int(min(starts))
+
+    def _tables(self, snap: dict, lo_ns: int | None) -> dict[str, Table]:
+        out = {}
+        for fname, entry in snap.items():
+            i = 0 if lo_ns is None else int(np.searchsorted(entry[0], lo_ns))
+            if entry[0].size - i > 0:
+                out[fname] = _table(self.session_id, fname, entry, i)
+        return out
+
+    def _build(self, tables: dict[str, Table], convention: tuple[str, bool] | None = None, **kw) -> Recording:
+        platform, standardised = convention or (self.platform, self.standardised)
+        with _BUILD_LOCK, warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            rec = build_recording(tables, platform, standardised, Path(f"live:{self.session_id}"),
+                                  self.session_id, f"live session {self.session_id}",
+                                  {"platform_from": self.platform_from}, t0_ns=self.t0_unix_ns, **kw)
+        self.warnings = [str(w.message) for w in caught]
+        return rec
+
+    def recording(self, t_from: float | None = None) -> Recording:
+        """Every device's stream (and the fixes) with t >= t_from (s since t0), sorted by time;
+        meta as the importer sets it. ``t_from`` None: all of it, with the importer's checks."""
+        version, snap = self._snapshot()
+        key = (version, t_from)
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        if self.t0_unix_ns is None:
+            raise FormatError("no motion samples yet", f"live:{self.session_id}")
+        if t_from is None or self._quat_inverted is None:
+            rec = self._full(snap)
+            if t_from is not None:
+                rec = cut(rec, t_from)
+        else:
+            full_loc = snap.get("Location.csv")
+            origin = None
+            if full_loc is not None:
+                loc = _table(self.session_id, "Location.csv", full_loc, 0)
+                motion0 = min(v[0][0] for f, v in snap.items() if SENSORS[f].device is not None)
+                fresh = ~stale_fixes(loc, int(motion0))
+                if fresh.any():
+                    k = int(np.argmax(fresh))
+                    origin = (float(loc.df["latitude"].iloc[k]), float(loc.df["longitude"].iloc[k]))
+            lo = self.t0_unix_ns + int(round((t_from - MARGIN_S) * NS))
+            rec = cut(self._build(self._tables(snap, lo), quat_inverted=self._quat_inverted, origin=origin), t_from)
+        self._cache = (key, rec)
+        return rec
+
+    def _full(self, snap: dict) -> Recording:
+        """The whole session with the importer's checks. Until ``DECIDE_S`` seconds are in, data too
+        short for the checks is read the documented way (quaternions world←device). A session
+        without a given platform (``AUTO``) is read in the first of ``CONVENTIONS`` that passes the
+        checks (the acceleration sign and the wearables' unit decide whether gravity lies along
+        the orientation's up), provisionally until ``DECIDE_S`` seconds, for good after."""
+        tables = self._tables(snap, None)
+        span = self.covered_until()
+        decided = span >= DECIDE_S
+        tried = [(self.platform, self.standardised)] + ([c for c in CONVENTIONS if c != (self.platform, self.standardised)]
+                                                        if self.infer else [])
+        first_error = None
+        for convention in tried:
+            try:
+                rec = self._build(tables, convention)
+            except FormatError as exc:
+                first_error = first_error or exc
+                continue
+            if self.infer:
+                self.platform, self.standardised = convention
+            if decided:
+                if self.infer:
+                    self.infer, self.platform_from = False, "the data (the first reading that passes the importer's checks)"
+                if self._quat_inverted is None:
+                    self._quat_inverted = list(rec.meta.get("quat_inverted", []))
+            return rec
+        if not decided and not self.infer:
+            return self._build(tables, quat_inverted=())
+        if not decided:
+            raise FormatError(f"the phone's platform is decided from the data once {DECIDE_S:g} s are in (the "
+                              "push URL does not say it: ?platform=ios|android&standardisation=true|false)",
+                              first_error.source)
+        raise FormatError(  # the push carries no platform: say where it is set
+            f"{first_error.reason} (this session is read as platform {self.platform}, standardisation "
+            f"{'on' if self.standardised else 'off'}{', none of ' + str(len(tried)) + ' readings fits' if self.infer else ''}: "
+            "the push URL's ?platform=android / &standardisation=true, or wearnav live --platform / "
+            "--standardised, say otherwise)", first_error.source) from None
+
+    def covered_until(self) -> float:
+        """s since t0: min over connected IMU devices of their latest sample time (a device's: the
+        earliest of its sensors' latest, as its stream needs them all). Connected: its latest
+        sample is within ``CONNECTED_S`` of the newest of any device (sample time, so that a replay
+        or a restart sees what the live session saw): earbuds taken out do not stop the path."""
+        _, snap = self._snapshot()
+        last: dict[str, int] = {}
+        for fname, entry in snap.items():
+            dev = SENSORS[fname].device
+            if dev is not None:
+                last[dev] = min(last.get(dev, entry[0][-1]), int(entry[0][-1]))
+        if not last or self.t0_unix_ns is None:
+            return 0.0
+        newest = max(last.values())
+        return (min(t for t in last.values() if t >= newest - CONNECTED_S * NS) - self.t0_unix_ns) / NS
+
+    def devices(self) -> dict[str, dict]:
+        """{"phone": {"rate_hz": 99.8, "last_seen_unix_s": ..., "samples": n}, ...}: each device's
+        fastest sensor's rate over its last 2 s of samples, and when a message last carried it."""
+        _, snap = self._snapshot()
+        with self._lock:
+            seen = {f: s.last_seen_unix_s for f, s in self._sensors.items()}
+        out: dict[str, dict] = {}
+        for fname, (t, *_rest) in snap.items():
+            dev = SENSORS[fname].device
+            if dev is None:
+                continue
+            recent = t[int(np.searchsorted(t, t[-1] - 2 * NS)):]
+            rate = (recent.size - 1) / ((recent[-1] - recent[0]) / NS) if recent.size > 1 and recent[-1] > recent[0] else 0.0
+            d = out.setdefault(dev, {"rate_hz": 0.0, "last_seen_unix_s": 0.0, "samples": 0})
+            if rate >= d["rate_hz"]:
+                d["rate_hz"], d["samples"] = round(float(rate), 1), int(t.size)
+            d["last_seen_unix_s"] = max(d["last_seen_unix_s"], seen[fname])
+        return out
+
+
+def _num(x) -> float:
+    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else np.nan
+
+
+def _table(session_id: str, fname: str, entry: tuple, i: int) -> Table:
+    t, vals, cols, text, dups = entry
+    df = pd.DataFrame(vals[i:, :len(cols)], columns=cols) if len(cols) == vals.shape[1] else \
+        pd.DataFrame(vals[i:], columns=SENSORS[fname].cols + SENSORS[fname].optional)[cols]
+    if text is not None:
+        df[TEXT_COLS[fname]] = text[i:]
+    return Table(Path(f"live:{session_id}/{fname}"), t[i:], df, dups)
+
+
+def cut(rec: Recording, t_from: float) -> Recording:
+    """``rec`` from ``t_from`` (s) on: every stream and the fixes."""
+    devices = {}
+    for dev, s in rec.devices.items():
+        k = s.t >= t_from
+        if k.any():
+            devices[dev] = DeviceStream(t=s.t[k], acc=s.acc[k], gyro=None if s.gyro is None else s.gyro[k],
+                                        quat=None if s.quat is None else s.quat[k], check_units=False)
+    fixes = None
+    if rec.fixes is not None and (k := rec.fixes.t >= t_from).any():
+        fixes = Fixes(t=rec.fixes.t[k], pos=rec.fixes.pos[k], accuracy=rec.fixes.accuracy[k])
+    if not devices:
+        raise FormatError(f"no samples after t = {t_from:g} s yet", rec.meta.get("file"))
+    return Recording(name=rec.name, devices=devices, fixes=fixes, meta=rec.meta)
+
+
+__all__ = ["AUTO", "CONVENTIONS", "DECIDE_S", "SessionBuffer", "cut"]

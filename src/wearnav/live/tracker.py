@@ -1,0 +1,364 @@
+"""The live path and activity of one session as its samples arrive: :class:`LiveTracker`.
+
+Odometry, the way ``track`` runs it (:func:`wearnav.track.odometry`), piece by piece. The session's
+model clock is ``t0 + k / rate`` (``t0`` the devices' common start as :func:`wearnav.preprocess.align`
+finds it, decided once the devices that start together have started) and its windows start at every
+``stride``-th clock sample, as :class:`wearnav.windows.WindowDataset` cuts them offline. An update
+(once ``STEP_S`` more of the session has arrived) aligns only the clock from ``CONTEXT_S`` before the
+first window not yet final up to the data's end (:meth:`SessionBuffer.covered_until`) and predicts the
+windows that end ``LAG_S`` before it (the zero-phase low-pass needs that much data after a window).
+A window is final once the data reaches ``LAG_S`` past it for one device, ``FRAME_LAG_S`` for several
+(the common frame's yaw, :mod:`wearnav.frames`, is a 20-s Gaussian-kernel estimate that needs data on
+both sides); the path grows by the final windows' velocities, integrated on from its last position
+(Suite-IN++ eq. 8, :func:`wearnav.trajectory.integrate_velocity`), and the windows after them are
+predicted again at each update as the path's provisional end. So each window is predicted once (one
+device) or about ``FRAME_LAG_S / (STEP_S)`` times (several), never the whole session again.
+
+With one device the preprocessing is local in time: each window sees the input it sees offline and
+the path is ``track``'s to round-off (the tests: 1e-6 m). With several, a final window's common frame
+comes from ``CONTEXT_S`` before it to ``FRAME_LAG_S`` after it instead of the whole walk, so the path
+differs slightly from ``track``'s (measured in tests/test_live_tracker.py).
+
+Fusion: the final path feeds :class:`wearnav.fuse_live.IncrementalFuser` (``track``'s smoother as a
+fixed-lag smoother; before the first final window the provisional path is smoothed whole by
+:func:`wearnav.fuse.smooth`), solved at most every ``FUSE_EVERY_S``; the path since the last solve is
+placed by a rigid fit (:func:`wearnav.fuse.rigid_fit`) on the last ``PLACE_S`` of the smoothed one.
+Everything is in the east/north frame of the first good fix (:mod:`wearnav.fixcheck`; fixes converted
+by :mod:`wearnav.geo`). Activity: the phone's latest window classified by the shipped activity model
+as ``classify`` runs it (:func:`wearnav.train.classify.window_classes`). Warnings: those the input
+gives (:func:`wearnav.track.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
+the smoother's; the walk-plausibility check of ``track`` needs the whole walk and is left to it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wearnav import fuse, geo, pretrained
+from wearnav.errors import ValidationError
+from wearnav.evaluate import predict_sequence
+from wearnav.fixcheck import check_fixes
+from wearnav.fuse_live import IncrementalFuser
+from wearnav.live.page import page_points
+from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
+from wearnav.recording import DeviceStream, Recording
+from wearnav.track import input_warnings, odometry_preprocess, path_times
+from wearnav.train.classify import window_classes
+from wearnav.train.resolve import resolve_model
+from wearnav.trajectory import integrate_velocity
+
+# Input aligned before the first window not yet final: the common frame's Gaussian kernel (σ 20 s,
+# wearnav.frames) reaches 4 σ = 80 s back. Measured on a 300-s simulated walk (3 devices), the fused
+# live path vs track's: 30 s → 24.6 m max (the frame's estimate goes astray), 60 s → 0.37 m, 90 s → 0.11 m.
+CONTEXT_S = 90.0
+LAG_S = 1.0  # a window is predicted once the data reaches this far past its end (zero-phase filters)
+# Several devices: a window is final once the data reaches this far past it (the common frame's yaw,
+# wearnav.frames, is a 20-s Gaussian kernel estimate: 3 σ); until then it is predicted again at
+# every update, as the provisional end of the path.
+FRAME_LAG_S = 60.0
+STEP_S = 1.0  # an update works once this much more of the session has arrived (each aligns the context)
+FUSE_EVERY_S = 3.0  # the smoother is solved at most this often; the path since is placed rigidly
+PLACE_S = 10.0  # ... on the last this many seconds of the smoothed path (wearnav.fuse.rigid_fit)
+ACTIVITY_EVERY_S = 1.0  # the activity label is refreshed at most this often (s of session time)
+TRUST_AFTER_S = 30.0  # the input's warnings once this much of the session has arrived
+# The model and the clock are chosen once the data reaches this far past align's edge tolerance
+# (a device starting later than that after the first counts as put on mid-walk), for the devices'
+# batches to have arrived.
+START_MARGIN_S = 1.0
+ORIGIN_MIN_FIXES = 3  # the origin is the first good fix once this many fixes are kept
+
+
+@dataclasses.dataclass
+class _Odometry:
+    """The windows predicted so far and the integrated path (grows by appending)."""
+
+    t_c: list = dataclasses.field(default_factory=list)  # window centres, s
+    vel: list = dataclasses.field(default_factory=list)  # (2,) m/s
+    t: list = dataclasses.field(default_factory=list)  # path times (clock samples), s
+    xy: list = dataclasses.field(default_factory=list)  # (2,) m, from (0, 0) at the first
+
+
+class LiveTracker:
+    """One session's live path (see module docstring); :meth:`update` from one thread at a time.
+
+    ``model``: an odometry run, exported file or shipped name; None: the shipped model for the
+    devices the session starts with (as ``track``). ``activity_model``: a classifier (None: no
+    activity). ``context_s``, ``lag_s``, ``frame_lag_s``, ``step_s``: the module's ``CONTEXT_S``,
+    ``LAG_S``, ``FRAME_LAG_S``, ``STEP_S``; ``fuse_lag_s`` / ``fuse_step_s``: the fixed-lag
+    smoother's window and step."""
+
+    def __init__(self, model: str | Path | None = None, activity_model: str | Path | None = "activity",
+                 context_s: float = CONTEXT_S, lag_s: float = LAG_S, frame_lag_s: float = FRAME_LAG_S,
+                 step_s: float = STEP_S, fuse_lag_s: float = 300.0, fuse_step_s: float = 30.0):
+        self._model_arg = model
+        self.context_s, self.lag_s, self.step_s = float(context_s), float(lag_s), float(step_s)
+        self.frame_lag_s = float(frame_lag_s)
+        self._fuse_lag = (float(fuse_lag_s), float(fuse_step_s))
+        self.model = self.cfg = self.model_path = None
+        self.classifier = None
+        if activity_model is not None:
+            path = pretrained.model_path(activity_model, "classify")
+            self.classifier = resolve_model(path, "classify")  # (model, config, classes)
+        self.clock0: float | None = None  # the model clock's t = 0 sample, s since the session's t0
+        self._next = 0  # clock index of the next window's start
+        self.odo = _Odometry()
+        self.fuser: IncrementalFuser | None = None
+        self._fused = None  # the latest FuseResult
+        self.origin: tuple[float, float] | None = None
+        self._fix_t = -np.inf  # the latest fix time taken, s
+        self._pending: list[tuple[float, float, float, float]] = []  # fixes before an origin: t, lat, lon, acc
+        self.fixes: list[tuple[float, float, float, float]] = []  # t, east, north, accuracy
+        self.activity: dict | None = None
+        self._activity_at = -np.inf
+        self.warnings: list[str] = []
+        self._trusted = False
+        self.t_s = 0.0
+        self.timings: list[float] = []  # seconds per update that changed something
+        self._state: dict | None = None
+        self._tail = (np.empty(0), np.empty((0, 2)))  # the provisional path after the final one: t, xy
+        self._seen_s = self._fused_s = -np.inf  # session time of the last update's data, of the last fusion
+
+    # ---- setup -------------------------------------------------------------------------------
+
+    def _start(self, rec) -> bool:
+        """Decide the model and the clock once every device starting with the others has started."""
+        streams = list(rec.devices.values())
+        if not streams:
+            return False
+        first = min(float(s.t[0]) for s in streams)
+        last = max(float(s.t[-1]) for s in streams)
+        tol = (odometry_preprocess(self.cfg) if self.cfg is not None else PreprocessConfig()).edge_tolerance
+        if last - first <= tol + START_MARGIN_S:
+            return False
+        if self.model is None:
+            path = pretrained.model_path(self._model_arg, "odometry", tuple(rec.devices))
+            self.model, self.cfg = resolve_model(path, "odometry")
+            self.model_path = path
+            # a heading prior only for a phone-only walk (the frame's reference is the phone's)
+            fcfg = fuse.config_for(path if Path(path).exists() else None, rec.meta,
+                                   "phone" if set(rec.devices) == {"phone"} else "common")[0]
+            self.fuser = IncrementalFuser(fcfg, *self._fuse_lag)
+        pcfg = odometry_preprocess(self.cfg)
+        if not any(d in rec.devices for d in pcfg.devices):
+            return False
+        self.clock0 = common_span(rec, pcfg.devices, pcfg.edge_tolerance)[0]
+        return True
+
+    # ---- one update --------------------------------------------------------------------------
+
+    def update(self, buf, final: bool = False) -> bool:
+        """Process what is new in ``buf`` (a :class:`wearnav.live.buffer.SessionBuffer`) since the
+        last call, once ``step_s`` more of the session has arrived; ``final``: the session has ended,
+        predict up to its last sample as ``track`` does. True when the path, the fixes or the
+        activity changed."""
+        tic = time.perf_counter()
+        whole = None
+        if self.clock0 is None:
+            whole = buf.recording()  # the session so far (short): the clock's start, and every fix so far
+            if not self._start(whole):
+                return False
+        covered = float(buf.covered_until())
+        if not final and covered - self._seen_s < self.step_s:
+            return False
+        self._seen_s = covered
+        pcfg = odometry_preprocess(self.cfg)
+        rate, L = pcfg.rate, self.cfg.window
+        t_from = self.clock0 + max(0, self._next - int(round(self.context_s * rate))) / rate
+        # a second more than the clock needs: the interpolation's samples before its start
+        rec = whole if whole is not None else buf.recording(t_from - 1.0)
+        changed = self._take_fixes(rec)
+        end = common_span(rec, pcfg.devices, pcfg.edge_tolerance)[1] if final else covered
+        g_end = int(np.floor((end - self.clock0) * rate + 1e-9))  # the clock's last sample (align's clock())
+        g_last = g_end if final else g_end - int(np.ceil(self.lag_s * rate))  # last sample a window may use
+        lag = 0.0 if final else max(self.lag_s, self.frame_lag_s if len(pcfg.devices) > 1 else 0.0)
+        g_final = g_end - int(np.ceil(lag * rate))  # the last sample a final window may use
+        if g_last - self._next + 1 >= L:
+            changed |= self._predict(rec, pcfg, g_end, g_last, g_final)
+        if changed and (final or covered - self._fused_s >= FUSE_EVERY_S):
+            self._fuse()
+            self._fused_s = covered
+        changed |= self._classify(rec, covered)
+        if not self._trusted and covered >= TRUST_AFTER_S:
+            self.warnings += input_warnings(self.model_path, self.cfg, rec)
+            self._trusted, changed = True, True
+        self.t_s = max(self.t_s, covered)
+        if changed or self._state is None:
+            self._state = self._snapshot()  # one assignment: state() may be read from another thread
+            self.timings.append(time.perf_counter() - tic)
+        return changed
+
+    def _predict(self, rec, pcfg, g_end: int, g_last: int, g_final: int) -> bool:
+        """Align the clock from the context to ``g_end`` and predict the windows inside ``g_last``:
+        those inside ``g_final`` for good (the path and the smoother grow by them), the rest as the
+        provisional tail (predicted again at the next update)."""
+        rate, L, S = pcfg.rate, self.cfg.window, self.cfg.stride
+        g_a = max(0, self._next - int(round(self.context_s * rate)))
+        clock = self.clock0 + np.arange(g_a, g_end + 1) / rate  # align's clock(): t0 + k / rate
+        seq = align(rec, pcfg, clock)
+        part = slice(self._next - g_a, g_last - g_a + 1)
+        seq = Aligned(seq.name, seq.t[part], seq.devices, seq.imu[:, part], seq.mask[:, part], None, seq.meta)
+        t_c, vel, _ = predict_sequence(self.model, seq, L, S)
+        if t_c.size == 0:
+            return False
+        n = int(np.clip((g_final - self._next - L + 1) // S + 1, 0, t_c.size))  # windows ending by g_final
+        o = self.odo
+        if n:
+            n_old = len(o.t_c)
+            o.t_c += t_c[:n].tolist()
+            o.vel += vel[:n].tolist()
+            self._next += n * S
+            if len(o.t_c) >= 2:
+                t, xy = _integrate_on(seq.t, np.asarray(o.t_c), np.asarray(o.vel), n_old, o.t, o.xy)
+                for ti, p in zip(t, xy):
+                    self.fuser.add_odometry(float(ti), p)
+                o.t += t.tolist()
+                o.xy += xy.tolist()
+        self._tail = (np.empty(0), np.empty((0, 2)))
+        if n < t_c.size and len(o.t_c) + t_c.size - n >= 2:
+            tc = np.concatenate([o.t_c, t_c[n:]]) if o.t_c else t_c[n:]
+            v = np.concatenate([np.reshape(o.vel, (-1, 2)), vel[n:]])
+            self._tail = _integrate_on(seq.t, tc, v, len(o.t_c), o.t, o.xy)
+        return True
+
+    # ---- fixes and fusion ----------------------------------------------------------------------
+
+    def _take_fixes(self, rec) -> bool:
+        """The fixes newer than the last taken, into the frame of the first good fix (a fix arriving
+        late, older than the latest taken or than ``rec``'s start, is not taken)."""
+        fx = rec.fixes
+        if fx is None or len(fx) == 0:
+            return False
+        new = fx.t > self._fix_t
+        if not new.any():
+            return False
+        self._fix_t = float(fx.t[new][-1])
+        pos, acc, ft = fx.pos[new, :2], fx.accuracy[new], fx.t[new]
+        lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
+        if lat0 is None or lon0 is None:  # metres without a place on Earth: taken as they are
+            for row in zip(ft, pos[:, 0], pos[:, 1], acc):
+                self._add_fix(*row)
+            return True
+        lat, lon = geo.local_to_latlon(pos, float(lat0), float(lon0))
+        self._pending += list(zip(ft.tolist(), lat.tolist(), lon.tolist(), acc.tolist()))
+        if self.origin is None:
+            p = np.asarray(self._pending)
+            check = check_fixes(-np.inf, np.inf, p[:, 0], geo.latlon_to_local(p[:, 1], p[:, 2], p[0, 1], p[0, 2]),
+                                p[:, 3], self.fuser.cfg.wide_m if self.fuser else fuse.FuseConfig().wide_m)
+            if check.kept.sum() < ORIGIN_MIN_FIXES:
+                return False
+            first = int(np.flatnonzero(check.kept)[0])
+            self.origin = (float(p[first, 1]), float(p[first, 2]))
+        p = np.asarray(self._pending)
+        en = geo.latlon_to_local(p[:, 1], p[:, 2], *self.origin)
+        for (t, _, _, a), (e, n) in zip(self._pending, en):
+            self._add_fix(t, e, n, a)
+        self._pending = []
+        return True
+
+    def _add_fix(self, t, e, n, a) -> None:
+        self.fixes.append((float(t), float(e), float(n), float(a)))
+        self.fuser.add_fix(float(t), float(e), float(n), float(a))
+
+    def _fuse(self) -> None:
+        """The smoother's path: the fixed-lag smoother's over the final path, or before there is one
+        (a session's first ``frame_lag_s``) the batch smoother's over the provisional path."""
+        if not self.fixes:
+            self._fused = None
+        elif len(self.odo.t) >= 2:
+            self._fused = self.fuser.result()
+        elif len(self._tail[0]) >= 2:
+            f = np.asarray(self.fixes)
+            self._fused = fuse.smooth(*self._tail, f[:, 0], f[:, 1:3], f[:, 3], self.fuser.cfg)
+
+    # ---- activity ----------------------------------------------------------------------------
+
+    def _classify(self, rec, covered: float) -> bool:
+        """The latest window's activity (at most every ``ACTIVITY_EVERY_S``)."""
+        if self.classifier is None or covered - self._activity_at < ACTIVITY_EVERY_S:
+            return False
+        model, cfg, classes = self.classifier
+        rec = _tail(rec, covered - cfg.window / cfg.rate - 2.0)  # one window and the filters' edges
+        if not all(d in rec.devices for d in cfg.devices):
+            return False
+        try:
+            _, t, cls, _ = window_classes(model, cfg, rec)
+        except ValidationError:  # too little of a device yet (align's span checks)
+            return False
+        if len(cls) == 0:
+            return False
+        self._activity_at = covered
+        label = {"label": classes[int(cls[-1])], "t_s": round(float(t[-1, 1]), 3)}
+        changed = self.activity is None or label["label"] != self.activity["label"]
+        self.activity = label
+        return changed
+
+    # ---- what the page shows -----------------------------------------------------------------
+
+    def path(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+        """Every path sample: times (s), east/north (m; the odometry's own frame where not fused),
+        1-σ (m, NaN unknown) and what placed it."""
+        t = np.concatenate([self.odo.t, self._tail[0]])
+        xy = np.concatenate([np.reshape(self.odo.xy, (-1, 2)), self._tail[1]])
+        res = self._fused
+        if res is None or res.method == "none" or len(res.xy) < 2:
+            return t, xy, np.full(len(t), np.nan), "none"
+        n = len(res.xy)
+        if n == len(t):
+            return t, res.xy, res.sigma_m, res.method
+        # the samples since the last solve: placed by the rigid fit of the last PLACE_S smoothed seconds
+        k = slice(int(np.searchsorted(t[:n], t[n - 1] - PLACE_S)), n)
+        yaw, offset, _ = fuse.rigid_fit(xy[k], res.xy[k], np.ones(k.stop - k.start))
+        c, s_ = np.cos(yaw), np.sin(yaw)
+        tail = xy[n:] @ np.array([[c, s_], [-s_, c]]) + offset
+        return t, np.concatenate([res.xy, tail]), np.concatenate([res.sigma_m, np.full(len(tail), np.nan)]), res.method
+
+    def state(self) -> dict:
+        """The JSON-able state the page renders (the live contract), as of the latest update."""
+        return self._state if self._state is not None else self._snapshot()
+
+    def _snapshot(self) -> dict:
+        t, xy, sig, anchor = self.path()
+        return {"origin": list(self.origin) if self.origin is not None else None,
+                "path": page_points(t, xy, sig, self.cfg.rate if self.cfg is not None else 1.0),
+                "anchor": anchor,
+                # the path after this time is provisional: predicted again as data arrives (FRAME_LAG_S)
+                "final_t_s": round(float(self.odo.t[-1]), 3) if self.odo.t else None,
+                "fixes": [[round(t, 3), round(e, 3), round(n, 3), round(a, 2) if np.isfinite(a) else None]
+                          for t, e, n, a in self.fixes],
+                "activity": self.activity,
+                "warnings": self.warnings + (self._fused.warnings if self._fused is not None else []) + (
+                    [] if self.fixes or self.t_s < TRUST_AFTER_S else
+                    ["no location fixes yet: the path is not placed on a map"]),
+                "t_s": round(float(self.t_s), 3)}
+
+
+def _integrate_on(clock_t: np.ndarray, tc: np.ndarray, v: np.ndarray, n_old: int, t_prev: list, xy_prev: list):
+    """The path at the clock's samples after ``t_prev[-1]`` up to the last window centre of ``tc``
+    (velocities ``v``; the first ``n_old`` already integrated into ``t_prev``, ``xy_prev``), on from
+    the last position (the two centres before it give its velocity), or from (0, 0) at the first
+    sample after the first centre where nothing was integrated yet (:func:`wearnav.track.odometry`)."""
+    if not t_prev:
+        t = path_times(clock_t, tc)
+        return t, integrate_velocity(tc, v, t, np.zeros(2))
+    k = max(0, n_old - 2)
+    t_new = clock_t[(clock_t > t_prev[-1]) & (clock_t <= tc[-1])]
+    xy = integrate_velocity(tc[k:], v[k:], np.concatenate([[t_prev[-1]], t_new]), np.asarray(xy_prev[-1]))
+    return t_new, xy[1:]
+
+
+def _tail(rec: Recording, t_from: float) -> Recording:
+    """``rec``'s device streams from ``t_from`` on (no fixes)."""
+    devices = {}
+    for name, s in rec.devices.items():
+        k = s.t >= t_from
+        if k.sum() >= 2:
+            devices[name] = DeviceStream(*(None if a is None else a[k] for a in (s.t, s.acc, s.gyro, s.quat, s.worn)))
+    return Recording(rec.name, devices, meta=rec.meta) if devices else Recording(rec.name, dict(rec.devices),
+                                                                                    meta=rec.meta)
+
+
+__all__ = ["LiveTracker", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]
