@@ -12,7 +12,7 @@ $(BIN)/python:
 	$(BIN)/pip install -q torch==2.13.0
 
 $(VENV)/.installed: $(BIN)/python pyproject.toml
-	$(BIN)/pip install -q -e .
+	$(BIN)/pip install -q -e ".[live]"
 	touch $@
 
 $(VENV)/.installed-dev: $(BIN)/python pyproject.toml

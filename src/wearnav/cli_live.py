@@ -31,13 +31,21 @@ def _lan_address() -> str:
 
 
 def _tracker_factory(model: Optional[Path]):
-    try:
-        from wearnav.live.tracker import LiveTracker
-    except ImportError:
-        typer.echo("live tracking is not available in this installation (wearnav.live.tracker); "
-                   "storing and serving only", err=True)
-        return None
+    from wearnav.live.tracker import LiveTracker
+
     return lambda: LiveTracker(model=model)
+
+
+def _needs_live_extra() -> None:
+    """One line, not a traceback, where the `[live]` extra (starlette, uvicorn) is not installed."""
+    import importlib.util
+
+    from wearnav.errors import ConfigError
+
+    missing = [m for m in ("starlette", "uvicorn") if importlib.util.find_spec(m) is None]
+    if missing:
+        raise ConfigError(f"`wearnav live` needs {' and '.join(missing)}: pip install 'wearnav[live]' "
+                          "(`make install` includes it)")
 
 
 @live_app.callback()
@@ -73,6 +81,7 @@ def live(
     """
     if ctx.invoked_subcommand is not None:
         return
+    _needs_live_extra()
     import uvicorn
 
     from wearnav.errors import ConfigError
