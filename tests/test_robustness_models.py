@@ -259,7 +259,7 @@ def test_track_never_replaces_a_file_it_did_not_write(pdr_run, small, tmp_path):
         code, _, err = run_cli("track", rec, "--model", pdr_run, "--out", tmp_path / "t")
         assert code == 0, err
     assert sorted(p.name for p in (tmp_path / "t").iterdir()) == ["fixes.csv", "track.json", "trajectory.csv",
-                                                                   "trajectory.png"]
+                                                                   "trajectory.html", "trajectory.png"]
     # a failed track into a new folder leaves none
     _refused(*run_cli("track", tmp_path / "nothing.h5", "--model", pdr_run, "--out", tmp_path / "new" / "t"),
              "user files", "no such file")

@@ -174,19 +174,17 @@ def build_recording(tables: dict[str, Table], platform: str, standardised: bool,
         return _stream("phone", t, s * acc, w, q, base.path, ori.path if ori else None,
                        "phone acceleration is m/s² in every export (UNITS.md)", inverted, quat_inverted)
 
+    def wearable(dev: str, tab) -> DeviceStream:
+        acc = wearable_acceleration(dev, tab.values(xyz_cols("acceleration")), tab.values(xyz_cols("gravity")), s, u)
+        return _stream(dev, sec(tab.t_ns), acc, tab.values(xyz_cols("rotationRate")),
+                       _unit_quats(tab.values(quat_cols()), tab.path), tab.path, tab.path, units, inverted,
+                       quat_inverted)
+
     def watch() -> DeviceStream:
-        acc = wearable_acceleration("watch", wrist.values(xyz_cols("acceleration")),
-                                    wrist.values(xyz_cols("gravity")), s, u)
-        return _stream("watch", sec(wrist.t_ns), acc, wrist.values(xyz_cols("rotationRate")),
-                       _unit_quats(wrist.values(quat_cols()), wrist.path), wrist.path,
-                       wrist.path, units, inverted, quat_inverted)
+        return wearable("watch", wrist)
 
     def earbuds() -> DeviceStream:
-        acc = wearable_acceleration("earbuds", head.values(xyz_cols("acceleration")),
-                                    head.values(xyz_cols("gravity")), s, u)
-        return _stream("earbuds", sec(head.t_ns), acc, head.values(xyz_cols("rotationRate")),
-                       _unit_quats(head.values(quat_cols()), head.path), head.path,
-                       head.path, units, inverted, quat_inverted)
+        return wearable("earbuds", head)
 
     # Each device on its own: a stream that lacks what it needs (Unusable) leaves the others
     # importable (one warning line); only when none is usable does the import fail, with the first
