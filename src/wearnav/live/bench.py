@@ -59,6 +59,13 @@ LATENCY_GOAL_S = 1.0     # issue 23: a push's 200 → the updated path, p95
 KEPT_UP_UPDATE_S = 2.0
 
 
+
+def _step_s() -> float:
+    """The live tracker's update step (s of new data), for the page's text."""
+    from wearnav.live.tracker import STEP_S
+
+    return STEP_S
+
 def _pct(x, q) -> float | None:
     return None if not len(x) else round(float(np.percentile(np.asarray(x) * 1e3, q)), 2)
 
@@ -313,8 +320,8 @@ def page(r: dict) -> str:
         "Each walker is one session (phone, watch, earbuds) pushing in real time; all at once into one server. "
         "CPU: the server process's user + system time over the wall time, as a share of one core. "
         + ("Update: from the oldest 200 whose samples are not yet on the page to the tracker update that put them "
-           "there (an update that changed the path, fixes or activity; the tracker reads the buffer once a second "
-           "of new data). " if tracking else
+           "there (an update that changed the path, fixes or activity; the tracker reads the buffer once "
+           f"{_step_s():g} s of new data have arrived). " if tracking else
            "No live tracker in this installation: storing and serving only. ")
         + "Kept up: every message acknowledged, under 1 s behind schedule at the end"
         + (f", update p95 under {KEPT_UP_UPDATE_S:g} s (the path trails by a bounded time); the issue's goal is a "
@@ -324,8 +331,8 @@ def page(r: dict) -> str:
         f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}."
         + ("" if not tracking or one["update_ms"]["p95"] is None else
            f" Push → path p95 at one walker: {one['update_ms']['p95'] / 1e3:.2f} s, the {LATENCY_GOAL_S:g}-s goal "
-           + ("met." if one["latency_goal_met"] else "not met: the tracker waits for a second of new data before it "
-              "reads the buffer, and a push carries 0.2 s.")), "",
+           + ("met." if one["latency_goal_met"] else f"not met: the tracker waits for {_step_s():g} s of new data "
+              "before it reads the buffer, and a push carries 0.2 s.")), "",
         "## Bad input and faults", "",
         f"Bad input (token required, 64-KiB body limit, 20 messages a second): {bad['catalogue']} bad bodies "
         f"(malformed JSON, not UTF-8, NaN / inf, wrong types, missing columns, values no sensor reports, times a day "
