@@ -12,7 +12,9 @@ from typing import Optional
 
 import typer
 
-from wearnav.cli_common import echo_json, on_interrupt
+from wearnav.cli_common import echo_json, on_interrupt, split_list
+from wearnav.errors import ConfigError
+from wearnav.outputs import check_new_dataset, check_suite_folder
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 
@@ -39,8 +41,6 @@ def _tracker_factory(model: Optional[Path]):
 def _needs_live_extra() -> None:
     """One line, not a traceback, where the `[live]` extra (starlette, uvicorn) is not installed."""
     import importlib.util
-
-    from wearnav.errors import ConfigError
 
     missing = [m for m in ("starlette", "uvicorn") if importlib.util.find_spec(m) is None]
     if missing:
@@ -84,7 +84,6 @@ def live(
     _needs_live_extra()
     import uvicorn
 
-    from wearnav.errors import ConfigError
     from wearnav.importers.sensorlogger_map import PLATFORMS
     from wearnav.live.app import create_app
 
@@ -130,7 +129,6 @@ def live_export(
       wearnav live export replay-3f2a --store runs/live/live.db --out data/my_walk
     """
     from wearnav.live.export import export_session
-    from wearnav.outputs import check_new_dataset
 
     check_new_dataset(out, overwrite, "live export")
     echo_json(export_session(store, session, out).summary())
@@ -153,9 +151,7 @@ def live_bench(
     Example:
       wearnav live bench --out runs/live-bench
     """
-    from wearnav.cli_common import split_list
     from wearnav.live.bench import run_bench
-    from wearnav.outputs import check_suite_folder
 
     try:
         counts = tuple(int(x) for x in split_list(walkers))

@@ -82,9 +82,12 @@ import pandas as pd
 
 from wearnav import fuse, geo, pretrained, trust
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
+from wearnav.evaluate import predict_sequence
 from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.fixcheck import FixCheck
+from wearnav.live.page import activity_intervals, page_points, trajectory_html
+from wearnav.models.pdr import PDR
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import Recording
@@ -246,9 +249,6 @@ def walk_warnings(cfg, seq, vel: np.ndarray, length_m: float) -> list[str]:
     """A result implausible for walking: PDR's step detector on the same windows as the model's
     velocities ``vel`` over the whole walk of ``length_m`` (none where the window is too short for
     PDR)."""
-    from wearnav.evaluate import predict_sequence
-    from wearnav.models.pdr import PDR
-
     try:
         pdr = PDR(n_devices=len(cfg.devices), window=cfg.window, rate=cfg.rate)
     except ConfigError:  # a window too short for PDR's step detector: no walking check
@@ -285,8 +285,6 @@ def odometry(model, cfg, rec: Recording, progress: bool = False):
     times, velocities and device presence (:func:`wearnav.evaluate.predict_sequence`), and the
     path's times and positions, integrated from (0, 0) at the first centre (Suite-IN++ eq. 8,
     :func:`wearnav.trajectory.integrate_velocity`)."""
-    from wearnav.evaluate import predict_sequence
-
     seq = align(rec, odometry_preprocess(cfg))
     t_c, vel, present = predict_sequence(model, seq, cfg.window, cfg.stride, progress=progress)
     if t_c.size < 2:
@@ -418,8 +416,6 @@ def page_html(t: np.ndarray, xy: np.ndarray, rec: Recording, cfg, summary: dict,
     by ``res`` where given, with the ``kept`` fixes; else the odometry's own frame, without fixes),
     self-contained, with a time slider, coloured by the activity ``classify`` finds
     (``summary["activity"]`` says which model, or why not)."""
-    from wearnav.live.page import activity_intervals, page_points, trajectory_html
-
     rows, note = activity_intervals(rec)
     summary["activity"] = note
     origin, fixes = None, []

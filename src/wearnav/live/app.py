@@ -283,7 +283,10 @@ def create_app(store: str | Path | Store, token: str | None = None, max_body: in
         # the tracker runs after the 200 has gone out
         return JSONResponse({"stored": sid is not None}, background=BackgroundTask(rx.poke, sid) if sid else None)
 
-    def session_of(request: Request) -> str | JSONResponse:
+    def session_of(request: Request) -> str | Response:
+        """The session a /state or /events request asks for (default the latest), or its refusal."""
+        if not authorized(request):
+            return refuse(request, 401, "a valid token is required")
         sid = request.query_params.get("session") or rx.latest()
         if sid is None:
             return _error(404, "no session yet: start a recording with HTTP Push on")
@@ -296,16 +299,12 @@ def create_app(store: str | Path | Store, token: str | None = None, max_body: in
         return sid
 
     async def state(request: Request) -> Response:
-        if not authorized(request):
-            return refuse(request, 401, "a valid token is required")
         sid = session_of(request)
         if isinstance(sid, Response):
             return sid
         return JSONResponse(await run_in_threadpool(rx.state, sid))
 
     async def events(request: Request) -> Response:
-        if not authorized(request):
-            return refuse(request, 401, "a valid token is required")
         sid = session_of(request)
         if isinstance(sid, Response):
             return sid

@@ -49,22 +49,17 @@ from wearnav.live import replay
 from wearnav.live.badinputs import body, catalogue, enc
 from wearnav.live.export import export_session
 from wearnav.live.process import LiveServer
+from wearnav.live.tracker import STEP_S
 from wearnav.provenance import provenance
 
 BATCH_S = 0.2
 LATENCY_GOAL_S = 1.0     # issue 23: a push's 200 → the updated path, p95
 # Keeping up with real time: the path trails the pushes by a bounded time, not a growing one. The
-# tracker reads the buffer once per second of new data (live/tracker.py STEP_S), so even an idle
-# server shows ~1 s; twice that means the updates no longer keep pace.
+# tracker reads the buffer once per STEP_S of new data (live/tracker.py), so even an idle server
+# shows about that plus an update; 2 s means the updates no longer keep pace.
 KEPT_UP_UPDATE_S = 2.0
 
 
-
-def _step_s() -> float:
-    """The live tracker's update step (s of new data), for the page's text."""
-    from wearnav.live.tracker import STEP_S
-
-    return STEP_S
 
 def _pct(x, q) -> float | None:
     return None if not len(x) else round(float(np.percentile(np.asarray(x) * 1e3, q)), 2)
@@ -321,7 +316,7 @@ def page(r: dict) -> str:
         "CPU: the server process's user + system time over the wall time, as a share of one core. "
         + ("Update: from the oldest 200 whose samples are not yet on the page to the tracker update that put them "
            "there (an update that changed the path, fixes or activity; the tracker reads the buffer once "
-           f"{_step_s():g} s of new data have arrived). " if tracking else
+           f"{STEP_S:g} s of new data have arrived). " if tracking else
            "No live tracker in this installation: storing and serving only. ")
         + "Kept up: every message acknowledged, under 1 s behind schedule at the end"
         + (f", update p95 under {KEPT_UP_UPDATE_S:g} s (the path trails by a bounded time); the issue's goal is a "
@@ -331,7 +326,7 @@ def page(r: dict) -> str:
         f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}."
         + ("" if not tracking or one["update_ms"]["p95"] is None else
            f" Push → path p95 at one walker: {one['update_ms']['p95'] / 1e3:.2f} s, the {LATENCY_GOAL_S:g}-s goal "
-           + ("met." if one["latency_goal_met"] else f"not met: the tracker waits for {_step_s():g} s of new data "
+           + ("met." if one["latency_goal_met"] else f"not met: the tracker waits for {STEP_S:g} s of new data "
               "before it reads the buffer, and a push carries 0.2 s.")), "",
         "## Bad input and faults", "",
         f"Bad input (token required, 64-KiB body limit, 20 messages a second): {bad['catalogue']} bad bodies "

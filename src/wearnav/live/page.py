@@ -18,6 +18,8 @@ import numpy as np
 
 from wearnav import pretrained
 from wearnav.errors import ConfigError, ValidationError
+from wearnav.train.classify import intervals, window_classes
+from wearnav.train.resolve import resolve_model
 
 STATIC = Path(__file__).parent / "static"
 TRAJECTORY_HTML = "trajectory.html"
@@ -91,9 +93,6 @@ _PAGE = """<!doctype html>
 def activity_intervals(rec, model: str | Path | None = None) -> tuple[list[dict] | None, str]:
     """The recording's activity intervals as ``classify`` finds them (start_s, end_s, label,
     windows, mean_confidence), or None and why not (no shipped activity model, no phone)."""
-    from wearnav.train.classify import intervals, window_classes
-    from wearnav.train.resolve import resolve_model
-
     try:
         path = pretrained.model_path(model, "classify")
         clf, cfg, classes = resolve_model(path, "classify")
