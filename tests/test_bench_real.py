@@ -121,6 +121,15 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
         # whether each learned run beat standing still on validation (PDR is not learned)
         assert table["pdr"]["beats standing still"] == "not learned"
         assert table["suitein++"]["beats standing still"] in ("yes", "NO")
+    # the user protocol, the smoother paired by walk against each other path, and again on the
+    # training walks for the models that never trained on them (PDR, not the learned model here)
+    up = doc["sites"]["main"]["user_protocol"]
+    assert {(r["model"], r["smoother minus"]) for r in up["paired"]} >= {("pdr", "raw phone fixes"), ("suitein++", "raw phone fixes")}
+    assert all(r["walks"] == table["pdr"]["traces"] for r in up["paired"])
+    train_rows = [r["path"] for r in up["train_walks"]["table"]]
+    assert train_rows[0] == "raw phone fixes" and any(p.startswith("pdr ·") for p in train_rows)
+    assert not any(p.startswith("suitein++") for p in train_rows)
+    assert "training walks, for the models that never trained" in text
     # every scored trace is a test-group trace, scored from its first point on
     m = runs.read_metrics(next((out / "runs").glob("pdr-*")) / "eval_main")
     test = set(Dataset.open(out / "data" / "main").split("test").names)

@@ -1,6 +1,7 @@
 """wearnav.bench.user_protocol: the simulator table (per mode) and the path-length ratio."""
 
 import numpy as np
+import pytest
 
 from wearnav.bench.user_protocol import score_path, simulator_rows
 
@@ -86,3 +87,38 @@ def test_site_calibration_uses_walks_the_model_never_trained_on(tmp_path, monkey
     assert calls[-1] == (str(site), "train") and "not trained on" in c["method"]
     user_protocol.site_calibration(run, "test", site, None)
     assert calls[-1] == (str(site), "train") and (run / "fuse_calibration_test.json").is_file()
+
+
+def test_user_protocol_keeps_each_walks_errors_and_pairs_the_smoother_by_walk(monkeypatch):
+    """Per trace: every anchoring's errors and the raw fixes' at the same surveyed points; the
+    concatenated errors are those traces'; the paired rows give the smoother minus each other path."""
+    from wearnav import fuse
+    from wearnav.bench import user_protocol as up
+    from wearnav.simulate.config import WalkConfig
+    from wearnav.simulate.walk import simulate_recording
+
+    recs = [simulate_recording(WalkConfig(name=f"w{k}", mode="STW", placement="HD", duration_s=120.0), seed=k)
+            for k in range(3)]
+
+    def paths(run, data, split):
+        for k, rec in enumerate(recs):
+            t = rec.truth.t[::10]
+            xy = rec.truth.pos[::10, :2] - rec.truth.pos[0, :2]
+            c, s = np.cos(0.3 + 0.1 * k), np.sin(0.3 + 0.1 * k)
+            drift = np.stack([0.02 * (t - t[0]), np.zeros_like(t)], axis=1)
+            yield rec, t, 0.9 * xy @ np.array([[c, -s], [s, c]]).T + drift
+
+    monkeypatch.setattr(up, "_paths", paths)
+    r = up.user_protocol("unused", "unused", cfg=fuse.FuseConfig())
+    names = [rec.name for rec in recs]
+    for a in fuse.ANCHORS:
+        assert list(r[a]["by_trace"]) == names
+        np.testing.assert_allclose(np.concatenate([r[a]["by_trace"][n] for n in names]), r[a]["errors"])
+    np.testing.assert_allclose(r[up.RAW_FIXES]["by_trace"][names[1]], up.fix_point_errors(recs[1]), atol=1e-3)
+    rows = up.paired_rows({"pdr": r})
+    assert [row["smoother minus"] for row in rows] == [up.RAW_FIXES, up.ANCHOR_LABEL["first-fixes"], up.ANCHOR_LABEL["rigid"]]
+    smooth = np.concatenate([r["smooth"]["by_trace"][n] for n in names])
+    rigid = np.concatenate([r["rigid"]["by_trace"][n] for n in names])
+    expect = np.nanpercentile(smooth, 50) - np.nanpercentile(rigid, 50)
+    point, low, high = (float(x.strip("[],")) for x in rows[2]["median (m)"].split())
+    assert point == pytest.approx(expect, abs=0.006) and low <= point <= high and rows[2]["walks"] == 3

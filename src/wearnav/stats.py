@@ -4,7 +4,8 @@ spread over their training seeds?
 :func:`welch_p` tests two samples of per-seed numbers (accuracies, ATEs); :func:`bh_adjust`
 corrects a table's p values for testing several models against one reference
 (Benjamini–Hochberg false discovery rate); a table marks a difference where the adjusted p is
-below :data:`SIGNIFICANCE`.
+below :data:`SIGNIFICANCE`. :func:`walk_bootstrap_difference` asks the same of two paths scored on
+the same walks: is a difference in a quantile of the error larger than the walk-to-walk spread?
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+
+from wearnav.errors import ValidationError
 
 SIGNIFICANCE = 0.05  # the false discovery rate a table's † marks control, per table
 
@@ -42,3 +45,37 @@ def bh_adjust(p: dict[str, float | None]) -> dict[str, float | None]:
     out: dict[str, float | None] = dict.fromkeys(p)
     out.update({k: float(v) for k, v in zip(tested, adj)})
     return out
+
+
+def walk_bootstrap_difference(a: list, b: list, quantiles=(50, 75, 95), confidence: float = 0.9,
+                              n_resamples: int = 2000, seed: int = 0) -> dict:
+    """Quantiles of path ``a``'s errors minus path ``b``'s, with a percentile interval from
+    resampling *walks* (``scipy.stats.bootstrap``, paired: both paths' errors of a drawn walk go
+    in together). ``a``, ``b``: per walk, the errors (m) at its points (NaN: none there), the same
+    walks in the same order. Points of one walk share its fixes and its route, so they are not independent; resampling
+    walks keeps that, and a tail made by one walk gets the wide interval it deserves. Returns
+    ``quantiles``, ``difference``, ``low``, ``high`` (lists, m) and ``walks``."""
+    from scipy.stats import bootstrap
+
+    if len(a) != len(b):
+        raise ValidationError(f"both paths must be scored on the same walks; got {len(a)} and {len(b)}")
+    if len(a) < 2:
+        raise ValidationError(f"a walk bootstrap needs at least 2 walks; got {len(a)}")
+    a = [np.asarray(x, float) for x in a]
+    b = [np.asarray(x, float) for x in b]
+    q = list(quantiles)
+
+    def diff(idx):
+        idx = np.asarray(idx, int)
+        return (np.nanpercentile(np.concatenate([a[i] for i in idx]), q)
+                - np.nanpercentile(np.concatenate([b[i] for i in idx]), q))
+
+    point = diff(np.arange(len(a)))
+    with warnings.catch_warnings():  # identical paths: a degenerate (zero-width) distribution
+        warnings.simplefilter("ignore")
+        ci = bootstrap((np.arange(len(a)),), diff, vectorized=False, paired=True, n_resamples=n_resamples,
+                       confidence_level=confidence, method="percentile", random_state=seed).confidence_interval
+    low, high = (np.where(np.isfinite(v), v, point) for v in (ci.low, ci.high))
+    r = lambda v: [round(float(x), 3) for x in v]
+    return {"quantiles": q, "difference": r(point), "low": r(np.minimum(low, point)), "high": r(np.maximum(high, point)),
+            "walks": len(a), "confidence": confidence}

@@ -53,9 +53,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav import metrics, runs
+from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.bench.user_protocol import score_path, site_calibration, user_table
+from wearnav.bench.user_protocol import (PAIRED_TEXT, fix_point_errors, paired_rows, score_path, site_calibration,
+                                         user_table)
 from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
@@ -234,8 +235,7 @@ def fix_errors(data: Path, split: str = "test") -> dict | None:
         rec = view.load(name)
         if rec.fixes is None or rec.truth is None or len(rec.fixes) == 0:
             continue
-        errs.append(metrics.errors_at_reference(rec.fixes.t, rec.fixes.pos[:, :2], rec.truth.t[1:],
-                                                rec.truth.pos[1:, :2], metrics.FIX_MAX_GAP_S))
+        errs.append(fix_point_errors(rec))
     if not errs:
         return None
     e = np.concatenate(errs)
@@ -514,8 +514,13 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
                 for label, run in folders_with_eval(folders, site).items()}
             rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"],
                                    walk_sigma={k: c["odometry_walk_m_per_sqrt_s"] for k, c in cal.items()})
-            doc["sites"][site]["user_protocol"] = {"table": rows, "runs": raw}
+            paired = paired_rows(raw)
+            doc["sites"][site]["user_protocol"] = {"table": rows, "paired": paired, "runs": raw}
             lines += [USER_PROTOCOL_TEXT, "", pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), ""]
+            if paired:
+                lines += [PAIRED_TEXT, "", pd.DataFrame(paired).to_markdown(index=False), ""]
+            lines += _user_protocol_elsewhere(folders_with_eval(folders, site), s["data"], cal,
+                                              doc["sites"][site]["user_protocol"])
         cdf = plot_cdf(errors, out / f"{site}_error_cdf.png", f"error at surveyed points, {info['source']} test")
         traj = _plot_examples(folders, site, out / f"{site}_trajectories.png", info["source"])
         lines += [f"![{q.stem}]({q.name})" for q in (cdf, traj) if q] + [""]
@@ -530,6 +535,27 @@ USER_PROTOCOL_TEXT = (
     "`track` until now), one rigid fit to all fixes, or the smoother (:mod:`wearnav.fuse`, `track`'s "
     "default). Errors at the same surveyed points; *length ratio*: median over walks of the path's "
     "length through its positions at the surveyed times over the truth's (1 is right).")
+
+
+def _user_protocol_elsewhere(folders: dict[str, Path], data: str, cal: dict, doc: dict) -> list[str]:
+    """The user protocol again on the site's training walks, for the models that never trained on
+    them (PDR, a model from another building): three times the walks of the held-out routes, though
+    not held out from the smoother's settings (chosen on IPIN's training walks) or its calibration
+    (:func:`site_calibration`). Adds ``train_walks`` to ``doc``; returns the page's lines."""
+    others = {k: run for k, run in folders.items() if _trained_on(run) is None
+              or Path(_trained_on(run)).resolve() != Path(data).resolve()}
+    fixes = fix_errors(Path(data), "train") if others else None
+    if not fixes:
+        return []
+    rows, raw = user_table(others, data, fixes, "train",
+                           walk_sigma={k: cal[k]["odometry_walk_m_per_sqrt_s"] for k in others})
+    paired = paired_rows(raw)
+    doc["train_walks"] = {"table": rows, "paired": paired}
+    return [f"The same on the site's {fixes['sequences']} training walks, for the models that never trained "
+            "on them: not held out from the smoother's settings or its calibration, which were chosen and "
+            "measured on such walks, but three times as many walks:", "",
+            pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), "",
+            pd.DataFrame(paired).to_markdown(index=False) if paired else "", ""]
 
 
 def _trained_on(run: Path) -> str | None:

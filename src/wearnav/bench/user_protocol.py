@@ -35,6 +35,7 @@ from wearnav.provenance import provenance
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, align, load_sequences
 from wearnav.simulate.config import MODES, WalkConfig
 from wearnav.simulate.walk import simulate_recording
+from wearnav.stats import walk_bootstrap_difference
 from wearnav.train.odometry import load_model
 from wearnav.train.resolve import resolve_model
 from wearnav.textio import read_json
@@ -57,6 +58,13 @@ def score_path(t: np.ndarray, xy: np.ndarray, truth_t: np.ndarray, truth_xy: np.
     at = np.stack([np.interp(truth_t[k], t, xy[:, j]) for j in range(2)], axis=1)
     true_len = _length(truth_xy[k])
     return err, (_length(at) / true_len if true_len > 0 else float("nan"))
+
+
+def fix_point_errors(rec) -> np.ndarray:
+    """The raw fixes' error (m) at the recording's surveyed points from the second on: the latest
+    fix within :data:`wearnav.metrics.FIX_MAX_GAP_S` (NaN where none is)."""
+    return metrics.errors_at_reference(rec.fixes.t, rec.fixes.pos[:, :2], rec.truth.t[1:], rec.truth.pos[1:, :2],
+                                       metrics.FIX_MAX_GAP_S)
 
 
 def _paths(run, data, split):
@@ -87,13 +95,15 @@ def user_protocol(run: str | Path, data: str | Path, split: str = "test",
     ``cfg``: the smoother's; default the run's own for each recording (:func:`wearnav.fuse.config_for`:
     its calibration, and a heading prior where the recording's frame is north-referenced); ``walk_sigma``
     replaces its calibration's odometry random walk (m/√s; :func:`site_calibration`)."""
-    out: dict = {a: {"errors": [], "length_ratio": []} for a in fuse.ANCHORS}
+    out: dict = {a: {"errors": [], "length_ratio": [], "by_trace": {}} for a in fuse.ANCHORS}
     out["smooth"]["traces"] = {}
+    out[RAW_FIXES] = {"by_trace": {}}
     smooth_s, walk_s = 0.0, 0.0
     for rec, t, xy in _paths(run, data, split):
         if rec.fixes is None or len(rec.fixes) == 0:
             continue
         fx = rec.fixes
+        out[RAW_FIXES]["by_trace"][rec.name] = _rounded(fix_point_errors(rec))
         c = cfg if cfg is not None else fuse.config_for(run, rec.meta, "phone")[0]
         if walk_sigma:
             c = dataclasses.replace(c, odometry_walk_m_per_sqrt_s=float(walk_sigma))
@@ -109,10 +119,11 @@ def user_protocol(run: str | Path, data: str | Path, split: str = "test",
                     **{k: v for k, v in res.info.items() if k not in ("x", "config", "smoother")}}
             err, ratio = score_path(t, res.xy, rec.truth.t, rec.truth.pos[:, :2])
             out[anchor]["errors"].append(err)
+            out[anchor]["by_trace"][rec.name] = _rounded(err)
             out[anchor]["length_ratio"].append(ratio)
     for a in fuse.ANCHORS:
         e = np.concatenate(out[a]["errors"]) if out[a]["errors"] else np.empty(0)
-        out[a]["errors"] = [round(float(x), 3) for x in e]
+        out[a]["errors"] = _rounded(e)
     out["smooth_s_per_hour"] = round(smooth_s / walk_s * 3600.0, 3) if walk_s else None
     out["config"] = dataclasses.asdict(cfg if cfg is not None else fuse.config_for(run)[0])
     out["heading_prior"] = "where the recording's frame is north-referenced (wearnav.fuse.known_heading_deg)"
@@ -163,6 +174,37 @@ def user_table(folders: dict[str, Path], data: str | Path, fixes: dict | None, s
             rows.append({"path": f"{label} · {ANCHOR_LABEL[anchor]}", "traces": len(r[anchor]["length_ratio"]),
                          "points": int(e.size), **_stats(e), "length ratio": _median(r[anchor]["length_ratio"])})
     return rows, raw
+
+
+PAIRED_TEXT = (
+    "The smoother against each other path on the same walks: the difference of its median, p75 and p95 "
+    "error from theirs (m; below 0: the smoother is better), and in brackets a 90 % interval from "
+    "resampling whole walks (:func:`wearnav.stats.walk_bootstrap_difference`). An interval across 0 "
+    "means these walks cannot tell the two apart at that quantile. Against the raw fixes, each side "
+    "keeps its own points (the table's *points*: a surveyed point with no fix near it in time has no "
+    "raw-fix error).")
+
+
+def paired_rows(raw: dict) -> list[dict]:
+    """Per model of :func:`user_table`'s ``raw``: the smoother minus the raw fixes, the first-fix
+    anchoring and the rigid fit, paired by walk (:func:`wearnav.stats.walk_bootstrap_difference`)."""
+    rows = []
+    for label, r in raw.items():
+        names = [n for n in r["smooth"]["by_trace"] if n in r.get(RAW_FIXES, {}).get("by_trace", {})]
+        if len(names) < 2:
+            continue
+        smooth = [r["smooth"]["by_trace"][n] for n in names]
+        for other, name in ((RAW_FIXES, RAW_FIXES), ("first-fixes", ANCHOR_LABEL["first-fixes"]),
+                            ("rigid", ANCHOR_LABEL["rigid"])):
+            d = walk_bootstrap_difference(smooth, [r[other]["by_trace"][n] for n in names])
+            rows.append({"model": label, "smoother minus": name, "walks": d["walks"],
+                         **{f"{'median' if q == 50 else f'p{q}'} (m)": f"{p:+.2f} [{lo:+.2f}, {hi:+.2f}]"
+                            for q, p, lo, hi in zip(d["quantiles"], d["difference"], d["low"], d["high"])}})
+    return rows
+
+
+def _rounded(e) -> list[float]:
+    return [round(float(x), 3) for x in np.asarray(e, float)]
 
 
 ANCHOR_LABEL = {"first-fixes": "first-fix anchoring (`track` before)", "rigid": "rigid fit to all fixes",
@@ -418,4 +460,5 @@ def build_untrained(model: str, tcfg):
     return build(model, n_devices=len(tcfg.devices), window=tcfg.window, rate=tcfg.rate).eval()
 
 
-__all__ = ["ensure_calibration", "site_calibration", "calibrate", "simulator_rows", "fusion_table", "write_fusion_page", "simulated_errors", "user_protocol", "user_table", "score_path", "raw_fix_length_ratio", "RAW_FIXES"]
+__all__ = ["ensure_calibration", "site_calibration", "calibrate", "simulator_rows", "fusion_table", "write_fusion_page", "simulated_errors", "user_protocol", "user_table", "score_path", "raw_fix_length_ratio", "RAW_FIXES",
+           "fix_point_errors", "paired_rows", "PAIRED_TEXT"]
