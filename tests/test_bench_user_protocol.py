@@ -115,6 +115,9 @@ def test_user_protocol_keeps_each_walks_errors_and_pairs_the_smoother_by_walk(mo
         assert list(r[a]["by_trace"]) == names
         np.testing.assert_allclose(np.concatenate([r[a]["by_trace"][n] for n in names]), r[a]["errors"])
     np.testing.assert_allclose(r[up.RAW_FIXES]["by_trace"][names[1]], up.fix_point_errors(recs[1]), atol=1e-3)
+    # whether each point's error is inside the 68 % radius of the smoother's σ, at the scored points
+    inside = r["smooth"]["inside_68"]
+    assert len(inside) == len(r["smooth"]["errors"]) and 0.0 < np.mean(inside) <= 1.0
     rows = up.paired_rows({"pdr": r})
     assert [row["smoother minus"] for row in rows] == [up.RAW_FIXES, up.ANCHOR_LABEL["first-fixes"], up.ANCHOR_LABEL["rigid"]]
     smooth = np.concatenate([r["smooth"]["by_trace"][n] for n in names])

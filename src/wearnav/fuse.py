@@ -126,10 +126,11 @@ class FuseConfig:
 @dataclasses.dataclass
 class FuseResult:
     """The fused path and what the fit found. ``xy`` (N, 2) m east/north at the input times;
-    ``sigma_m`` (N,) its 1-σ per-axis uncertainty (m, NaN unknown) from the fit's covariance of
-    the global unknowns (heading offset, scale, drift, origin) only: the knots' share (heading
-    and odometry walks) is left out, so it understates the error between fixes. ``fixes``: the
-    status, reason and weight of every fix given (:class:`wearnav.fixcheck.FixCheck`)."""
+    ``sigma_m`` (N,) its 1-σ per-axis uncertainty (m, NaN unknown) from the fit's covariance
+    (:func:`node_sigma`): as right as the model of the fixes' and the odometry's errors. On IPIN
+    2023's walks, whose fix errors are more correlated than the model's, it is too small: see
+    :func:`node_sigma`. ``fixes``: the status, reason and weight of every fix given
+    (:class:`wearnav.fixcheck.FixCheck`)."""
 
     xy: np.ndarray
     sigma_m: np.ndarray
@@ -441,7 +442,7 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
     r = np.abs(prob.fix_residual(x))
     weight = 1.0 / (1.0 + (r / cfg.robust_scale) ** 2)  # the Cauchy loss's IRLS weight
     down = int(np.sum(weight < DOWNWEIGHT))
-    # the path at the input times, and its σ from the fit's covariance (globals only)
+    # the path at the input times, and its σ from the fit's covariance
     pnode = prob.path(x)
     out = np.stack([np.interp(t, tn, pnode.real), np.interp(t, tn, pnode.imag)], axis=1)
     sig_node = node_sigma(prob, x, sol.jac, pnode)
@@ -462,20 +463,29 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
     return _with_fixes(FuseResult(out, np.interp(t, tn, sig_node), "smooth", info, []), check, kept, facts, weight)
 
 
-def node_sigma(prob: Problem, x: np.ndarray, jac, pnode: np.ndarray) -> np.ndarray:
-    """Per-axis 1-σ (m) of each node from the covariance of the global unknowns (θ, log s, ω, o)."""
+def node_sigma(prob: Problem, x: np.ndarray, jac, pnode: np.ndarray, every: int = 10) -> np.ndarray:
+    """Per-axis 1-σ (m) of each node from the fit's covariance ((JᵀJ)⁺ of the solver's Jacobian)
+    of every unknown that moves the path: the globals (θ, log s, ω, o), the heading walk and the
+    odometry walk, with their correlations. The globals alone overstate it several-fold where the
+    knots trade off against them (a heading offset and the heading walk), and leave out the drift
+    between fixes. The path's Jacobian is by forward differences, at every ``every``-th node
+    (linear in between)."""
     try:
         j = jac.toarray() if hasattr(jac, "toarray") else np.asarray(jac)
-        cov = np.linalg.pinv(j.T @ j)[:prob.n_global, :prob.n_global]
+        cov = np.linalg.pinv(j.T @ j)
     except (np.linalg.LinAlgError, ValueError):
         return np.full(len(pnode), np.nan)
-    rel = pnode - (x[3] + 1j * x[4])
-    step = np.exp(x[1]) * np.exp(1j * prob.heading(x)) * prob.d
-    d_om = np.concatenate([[0.0], np.cumsum(1j * prob.tau * step)])
-    cols = [1j * rel, rel, d_om, np.ones_like(rel), 1j * np.ones_like(rel)]  # ∂p/∂(θ, log s, ω, ox, oy)
-    jp = np.stack([np.stack([c.real for c in cols], 1), np.stack([c.imag for c in cols], 1)], 1)  # (N, 2, 5)
-    var = np.einsum("nij,jk,nik->n", jp, cov, jp) / 2.0
-    return np.sqrt(np.maximum(var, 0.0))
+    cols = np.r_[np.arange(prob.n_global), np.arange(prob.h0, prob.n_params)]  # not the fix bias
+    at = np.unique(np.r_[np.arange(0, len(pnode), every), len(pnode) - 1])
+    jp = np.empty((2, at.size, cols.size))
+    for c, k in enumerate(cols):
+        h = 1e-6 * max(1.0, abs(float(x[k])))
+        xk = x.copy()
+        xk[k] += h
+        d = (prob.path(xk)[at] - pnode[at]) / h
+        jp[0, :, c], jp[1, :, c] = d.real, d.imag
+    var = np.einsum("anc,cd,and->n", jp, cov[np.ix_(cols, cols)], jp) / 2.0
+    return np.interp(np.arange(len(pnode)), at, np.sqrt(np.maximum(var, 0.0)))
 
 
 def odometry_walk_sigma(walks) -> dict:

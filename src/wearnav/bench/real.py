@@ -534,7 +534,9 @@ USER_PROTOCOL_TEXT = (
     "world frame and placed on the recording's own location fixes by first-fix anchoring (today's "
     "`track` until now), one rigid fit to all fixes, or the smoother (:mod:`wearnav.fuse`, `track`'s "
     "default). Errors at the same surveyed points; *length ratio*: median over walks of the path's "
-    "length through its positions at the surveyed times over the truth's (1 is right).")
+    "length through its positions at the surveyed times over the truth's (1 is right); *inside σ's 68 % "
+    "radius*: the share of the smoother's points whose error is inside 1.515 times the σ `track` "
+    "writes for them (0.68 where that σ is right, less where it is too small).")
 
 
 def _user_protocol_elsewhere(folders: dict[str, Path], data: str, cal: dict, doc: dict) -> list[str]:

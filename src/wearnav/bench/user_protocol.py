@@ -39,6 +39,7 @@ from wearnav.stats import walk_bootstrap_difference
 from wearnav.train.odometry import load_model
 from wearnav.train.resolve import resolve_model
 from wearnav.textio import read_json
+from wearnav.timeseries import interp_onto
 from wearnav.trajectory import integrate_velocity
 
 log = logging.getLogger(__name__)
@@ -114,6 +115,7 @@ def user_protocol(run: str | Path, data: str | Path, split: str = "test",
             if anchor == "smooth":
                 smooth_s += time.perf_counter() - t0
                 walk_s += float(t[-1] - t[0])
+                out["smooth"].setdefault("inside_68", []).extend(_inside_68(t, res, rec.truth))
                 out["smooth"]["traces"][rec.name] = {
                     "method": res.method, "warnings": res.warnings,
                     **{k: v for k, v in res.info.items() if k not in ("x", "config", "smoother")}}
@@ -166,13 +168,15 @@ def user_table(folders: dict[str, Path], data: str | Path, fixes: dict | None, s
     if fixes:
         ratio = raw_fix_length_ratio(data, split)
         rows.append({"path": RAW_FIXES, "traces": fixes["sequences"], "points": fixes["points"],
-                     **_stats(np.asarray(fixes["point_errors"])), "length ratio": _median(ratio)})
+                     **_stats(np.asarray(fixes["point_errors"])), "length ratio": _median(ratio), SIGMA_COLUMN: "—"})
     for label, run in folders.items():
         r = raw[label] = user_protocol(run, data, split, cfg, (walk_sigma or {}).get(label))
         for anchor in fuse.ANCHORS:
             e = np.asarray(r[anchor]["errors"])
+            inside = r[anchor].get("inside_68")
             rows.append({"path": f"{label} · {ANCHOR_LABEL[anchor]}", "traces": len(r[anchor]["length_ratio"]),
-                         "points": int(e.size), **_stats(e), "length ratio": _median(r[anchor]["length_ratio"])})
+                         "points": int(e.size), **_stats(e), "length ratio": _median(r[anchor]["length_ratio"]),
+                         SIGMA_COLUMN: round(float(np.mean(inside)), 2) if inside else "—"})
     return rows, raw
 
 
@@ -203,9 +207,22 @@ def paired_rows(raw: dict) -> list[dict]:
     return rows
 
 
+def _inside_68(t: np.ndarray, res: fuse.FuseResult, truth) -> list[bool]:
+    """Per surveyed point (scored as :func:`score_path` does): is the error inside the 68 % radius
+    of the path's σ there (:data:`wearnav.fuse.RADIUS_68` σ)? Empty where the path has no σ."""
+    if not np.isfinite(res.sigma_m).any():
+        return []
+    est = np.stack([res.xy[:, 0], res.xy[:, 1], res.sigma_m], axis=1)
+    at, keep = interp_onto(truth.t[1:], t, est, max_gap=metrics.FIX_MAX_GAP_S, rule="nearest")
+    err = np.linalg.norm(at[keep, :2] - truth.pos[1:, :2][keep], axis=1)
+    return [bool(v) for v in err < fuse.RADIUS_68 * at[keep, 2]]
+
+
 def _rounded(e) -> list[float]:
     return [round(float(x), 3) for x in np.asarray(e, float)]
 
+
+SIGMA_COLUMN = "inside σ's 68 % radius"  # the share of points whose error is inside it (0.68 if σ is right)
 
 ANCHOR_LABEL = {"first-fixes": "first-fix anchoring (`track` before)", "rigid": "rigid fit to all fixes",
                 "smooth": "smoother (`track` now)"}
