@@ -72,7 +72,7 @@ def test_site_calibration_uses_walks_the_model_never_trained_on(tmp_path, monkey
 
     def fake(run, data, split):
         calls.append((str(data), split))
-        return {"odometry_walk_m_per_sqrt_s": 0.5, "walks": 3}
+        return {"odometry_walk_m_per_sqrt_s": 0.5, "walks": 3, "sigma_scale": 1.2, "sigma_points": 40}
 
     monkeypatch.setattr(user_protocol, "calibrate", fake)
     site, other = tmp_path / "ipin", tmp_path / "mix"

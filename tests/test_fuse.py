@@ -177,6 +177,27 @@ def test_odometry_walk_sigma_recovers_a_known_random_walk_and_is_read_back(tmp_p
     assert cfg.odometry_walk_m_per_sqrt_s == 0.21 and read["odometry_walk_m_per_sqrt_s"] == 0.21
     (tmp_path / fuse.CALIBRATION_JSON).write_text('{"odometry_walk_m_per_sqrt_s": "x"}')
     assert fuse.config_for(tmp_path) == (fuse.FuseConfig(), None)
+    (tmp_path / fuse.CALIBRATION_JSON).write_text('{"odometry_walk_m_per_sqrt_s": 0.21, "sigma_scale": 1.7}')
+    assert fuse.config_for(tmp_path)[0] == fuse.FuseConfig(odometry_walk_m_per_sqrt_s=0.21, sigma_scale=1.7)
+
+
+def test_sigma_scale_makes_the_68_percent_radius_hold_68_percent():
+    """Errors 2 × what σ says (2-D Gaussian): the calibrated scale is 2 within 5 %, and with it the
+    68 % radius holds 68 % of them; it scales the σ a smoothed path reports, not the path."""
+    rng = np.random.default_rng(7)
+    z = np.linalg.norm(rng.normal(0.0, 2.0, (20000, 2)), axis=1)  # error / σ with σ understated 2×
+    cal = fuse.sigma_scale_of(np.r_[z, np.nan])
+    assert cal["sigma_scale"] == pytest.approx(2.0, rel=0.05) and cal["sigma_points"] == z.size
+    assert np.mean(z < fuse.RADIUS_68 * cal["sigma_scale"]) == pytest.approx(0.68, abs=0.02)
+    assert fuse.sigma_scale_of([]) == {"sigma_scale": None, "sigma_points": 0}
+    t, truth = walk(300.0)
+    ft, fz, acc, _ = fixes_of(t, truth, outliers=0.0)
+    one = fuse.smooth(t, odometry_of(truth), ft, fz, acc)
+    two = fuse.smooth(t, odometry_of(truth), ft, fz, acc, fuse.FuseConfig(sigma_scale=2.0))
+    np.testing.assert_array_equal(one.xy, two.xy)
+    np.testing.assert_allclose(two.sigma_m, 2.0 * one.sigma_m)
+    with pytest.raises(ValidationError, match="sigma_scale"):
+        fuse.FuseConfig(sigma_scale=0.0)
 
 
 def test_bias_share_moves_the_fix_error_into_the_bias():

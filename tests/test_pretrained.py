@@ -152,15 +152,17 @@ def test_classify_without_model_writes_a_timeline(stranger, monkeypatch, capsys,
 
 def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch):
     """cross_building_calibration: the shipped run's fuse_calibration.json becomes the largest
-    odometry random walk the leave-one-building-out models show on their held-out buildings."""
+    odometry random walk the leave-one-building-out models show on their held-out buildings, and
+    the largest σ scale of those with fixes."""
     from wearnav import fuse
     from wearnav.pretrained import recipe
     from wearnav.textio import read_json
 
     got = {"lobo-ipin": 0.56, "lobo-ilc2": 0.83}
+    scale = {"lobo-ipin": 1.6, "lobo-ilc2": None}  # a building without fixes has no σ scale
     monkeypatch.setattr(recipe, "site_calibration",
                         lambda run, site, data, trained: {"odometry_walk_m_per_sqrt_s": got[run.parent.parent.name],
-                                                          "walks": 10})
+                                                          "sigma_scale": scale[run.parent.parent.name], "walks": 10})
     monkeypatch.setattr(recipe.runs, "read_config", lambda run: {"config": {"train": {"data": "mix"}}})
     suites = []
     for name in got:
@@ -172,3 +174,4 @@ def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch
     assert cal["odometry_walk_m_per_sqrt_s"] == 0.83 and cal["walks"] == 20
     assert read_json(shipped / fuse.CALIBRATION_JSON)["per_building"] == got
     assert fuse.config_for(shipped)[0].odometry_walk_m_per_sqrt_s == 0.83
+    assert cal["sigma_scale"] == 1.6 and fuse.config_for(shipped)[0].sigma_scale == 1.6

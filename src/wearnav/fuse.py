@@ -92,7 +92,7 @@ DISAGREE_SHARE = 0.5  # more than this share down-weighted: the fixes disagree, 
 # is correlated, falling to 0.83 / 0.57 / 0.32 / 0.08 at lags of 6 / 15 / 25 / 74 s (about 20 s).
 # Opt-in: on those walks it helped Suite-IN++ (median 4.63 → 4.37 m) and not PDR (4.44 → 4.56 m).
 MEASURED_FIX_BIAS = {"bias_share": 0.9, "bias_correlation_s": 20.0, "bias_knot_s": 10.0}
-CALIBRATION_JSON = "fuse_calibration.json"  # in a run folder: the model's odometry_walk_sigma
+CALIBRATION_JSON = "fuse_calibration.json"  # in a run folder: the model's odometry_walk_sigma and sigma_scale_of
 
 
 @dataclasses.dataclass(frozen=True)
@@ -115,12 +115,16 @@ class FuseConfig:
     heading_prior_deg: float | None = None  # the odometry frame's known yaw to east/north (a north-referenced
     # orientation: 0), None: unknown (the fixes alone give the heading offset)
     heading_prior_sigma_deg: float = 15.0  # its 1-σ (magnetic disturbance indoors, declination, the model's bias)
+    sigma_scale: float = 1.0  # each point's σ is the model's times this (calibrated where the model is used:
+    # sigma_scale_of; the fit itself does not change)
     bias_share: float = 0.0  # 0: the bias has σ bias_sigma_m and each fix its full σ. In (0, 1): that share of
     # each fix's error variance is the bias (σ √share · the fixes' median σ), the rest white (module docs)
 
     def __post_init__(self):
         if not 0.0 <= self.bias_share < 1.0:
             raise ValidationError(f"bias_share must be in [0, 1); got {self.bias_share}")
+        if not self.sigma_scale > 0:
+            raise ValidationError(f"sigma_scale must be positive; got {self.sigma_scale}")
 
 
 @dataclasses.dataclass
@@ -485,7 +489,7 @@ def node_sigma(prob: Problem, x: np.ndarray, jac, pnode: np.ndarray, every: int 
         d = (prob.path(xk)[at] - pnode[at]) / h
         jp[0, :, c], jp[1, :, c] = d.real, d.imag
     var = np.einsum("anc,cd,and->n", jp, cov[np.ix_(cols, cols)], jp) / 2.0
-    return np.interp(np.arange(len(pnode)), at, np.sqrt(np.maximum(var, 0.0)))
+    return prob.cfg.sigma_scale * np.interp(np.arange(len(pnode)), at, np.sqrt(np.maximum(var, 0.0)))
 
 
 def odometry_walk_sigma(walks) -> dict:
@@ -514,6 +518,35 @@ def odometry_walk_sigma(walks) -> dict:
     return {"odometry_walk_m_per_sqrt_s": round(sigma, 4), "walks": n}
 
 
+RAYLEIGH_MEDIAN = float(np.sqrt(2 * np.log(2)))  # median length of a 2-D Gaussian with unit σ per axis
+
+
+def sigma_scale_of(error_over_sigma) -> dict:
+    """Calibrate ``sigma_scale`` on walks with truth: ``error_over_sigma`` holds, at their truth
+    points, the smoothed path's error over its σ (run with ``sigma_scale`` 1). Where σ is right
+    their median is :data:`RAYLEIGH_MEDIAN`; the scale is their median over it, so that the 68 %
+    radius (:data:`RADIUS_68` σ) holds about 68 % of the errors."""
+    z = np.asarray(error_over_sigma, np.float64)
+    z = z[np.isfinite(z)]
+    if z.size == 0:
+        return {"sigma_scale": None, "sigma_points": 0}
+    return {"sigma_scale": round(float(np.median(z)) / RAYLEIGH_MEDIAN, 3), "sigma_points": int(z.size)}
+
+
+def calibrated(cfg: FuseConfig, cal: dict | None) -> FuseConfig:
+    """``cfg`` with a calibration's odometry random walk and σ scale (``CALIBRATION_JSON``'s
+    ``odometry_walk_m_per_sqrt_s``, ``sigma_scale``) where they are given and positive."""
+    found = {}
+    for key in ("odometry_walk_m_per_sqrt_s", "sigma_scale"):
+        try:
+            v = float((cal or {}).get(key))
+        except (TypeError, ValueError):
+            continue
+        if np.isfinite(v) and v > 0:
+            found[key] = v
+    return dataclasses.replace(cfg, **found)
+
+
 ANCHORS = {"first-fixes": first_fix_anchor, "rigid": rigid_anchor, "smooth": smooth}
 
 
@@ -538,8 +571,8 @@ def known_heading_deg(meta: dict, reference: str | None = "phone") -> float | No
 
 def config_for(run, meta: dict | None = None, reference: str | None = "phone") -> tuple[FuseConfig, dict | None]:
     """The smoother's config for a model's run folder (or a checkpoint inside it) and a recording's
-    ``meta``: the defaults, with the odometry's random walk from ``CALIBRATION_JSON`` where the run
-    has one, and a prior on the heading offset where the recording's world frame is north-referenced
+    ``meta``: the defaults, with the odometry's random walk and the σ scale from ``CALIBRATION_JSON``
+    where the run has one (:func:`calibrated`), and a prior on the heading offset where the recording's world frame is north-referenced
     (:func:`known_heading_deg`; on IPIN 2023's training walks it cut the p95 error of PDR from 25.8
     to 17.9 m and of a learned model from another building from 21.8 to 19.2 m). Returns the config
     and the calibration read (None: none)."""
@@ -550,10 +583,11 @@ def config_for(run, meta: dict | None = None, reference: str | None = "phone") -
     if f is not None and f.is_file():
         try:
             c = read_json(f)
-            sigma = float(c["odometry_walk_m_per_sqrt_s"])
-            if np.isfinite(sigma) and sigma > 0:
-                cfg, cal = dataclasses.replace(cfg, odometry_walk_m_per_sqrt_s=sigma), c
-        except (FormatError, KeyError, TypeError, ValueError):
+            if calibrated(cfg, c) != cfg:
+                cfg, cal = calibrated(cfg, c), c
+            else:
+                log.warning("%s: no usable calibration in it, the smoother's defaults are used", f)
+        except (FormatError, AttributeError):
             log.warning("%s: unreadable calibration, the smoother's defaults are used", f)
     heading = known_heading_deg(meta or {}, reference)
     if heading is not None:

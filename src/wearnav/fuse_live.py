@@ -174,5 +174,4 @@ class IncrementalFuser:
         self.marginalised += 1
 
 
-__all__ = ["MEASURED_FIX_BIAS", "config_for", "odometry_walk_sigma", "CALIBRATION_JSON", "FuseConfig", "FuseResult", "smooth", "rigid_anchor", "first_fix_anchor", "fuse", "ANCHORS",
-           "IncrementalFuser", "fix_sigma_m", "rigid_fit"]
+__all__ = ["IncrementalFuser"]

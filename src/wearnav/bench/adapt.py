@@ -119,9 +119,9 @@ def fix_label_bias(model: Path, data: Path, splits: tuple[str, ...]) -> dict:
 
 def user(run: Path, data: Path, split: str) -> dict[str, dict]:
     """Protocol 2 on ``split``, per anchoring of :data:`ANCHORS`; the smoother's odometry random walk
-    calibrated on the site's training walks (as `bench real-odometry` does for a model that did not
+    and σ scale calibrated on the site's training walks (as `bench real-odometry` does for a model that did not
     train on them: :func:`wearnav.bench.user_protocol.site_calibration`), not kept in the run."""
-    res = user_protocol(run, data, split, walk_sigma=calibrate(run, data, "train")["odometry_walk_m_per_sqrt_s"])
+    res = user_protocol(run, data, split, calibration=calibrate(run, data, "train"))
     return {a: {"walks": len(res[a]["length_ratio"]), **_stats(np.asarray(res[a]["errors"])),
                 "length ratio": _ratio(res[a]["length_ratio"])} for a in ANCHORS}
 

@@ -513,7 +513,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
                 label: site_calibration(run, site, s["data"], _trained_on(run))
                 for label, run in folders_with_eval(folders, site).items()}
             rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"],
-                                   walk_sigma={k: c["odometry_walk_m_per_sqrt_s"] for k, c in cal.items()})
+                                   calibration=cal)
             paired = paired_rows(raw)
             doc["sites"][site]["user_protocol"] = {"table": rows, "paired": paired, "runs": raw}
             lines += [USER_PROTOCOL_TEXT, "", pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), ""]
@@ -550,7 +550,7 @@ def _user_protocol_elsewhere(folders: dict[str, Path], data: str, cal: dict, doc
     if not fixes:
         return []
     rows, raw = user_table(others, data, fixes, "train",
-                           walk_sigma={k: cal[k]["odometry_walk_m_per_sqrt_s"] for k in others})
+                           calibration={k: cal[k] for k in others})
     paired = paired_rows(raw)
     doc["train_walks"] = {"table": rows, "paired": paired}
     return [f"The same on the site's {fixes['sequences']} training walks, for the models that never trained "

@@ -84,18 +84,28 @@ def _paths(run, data, split):
 
 
 def calibrate(run: str | Path, data: str | Path, split: str = "val") -> dict:
-    """:func:`wearnav.fuse.odometry_walk_sigma` of the run's model on the ``split`` walks of ``data``."""
-    return fuse.odometry_walk_sigma((t, xy, rec.truth.t, rec.truth.pos[:, :2]) for rec, t, xy in _paths(run, data, split))
+    """The smoother's calibration for the run's model on the ``split`` walks of ``data``: the
+    odometry's random walk (:func:`wearnav.fuse.odometry_walk_sigma`), then, smoothing the walks
+    that have fixes with it, the σ scale (:func:`wearnav.fuse.sigma_scale_of`; None without fixes)."""
+    walks = list(_paths(run, data, split))
+    cal = fuse.odometry_walk_sigma((t, xy, rec.truth.t, rec.truth.pos[:, :2]) for rec, t, xy in walks)
+    ratios = []
+    for rec, t, xy in walks:
+        if cal["odometry_walk_m_per_sqrt_s"] and rec.fixes is not None and len(rec.fixes) >= 2:
+            c = fuse.calibrated(fuse.config_for(None, rec.meta, "phone")[0], cal)
+            res = fuse.smooth(t, xy, rec.fixes.t, rec.fixes.pos[:, :2], rec.fixes.accuracy, c)
+            ratios.extend(_error_over_sigma(t, res, rec.truth))
+    return {**cal, **fuse.sigma_scale_of(ratios)}
 
 
 def user_protocol(run: str | Path, data: str | Path, split: str = "test",
-                  cfg: fuse.FuseConfig | None = None, walk_sigma: float | None = None) -> dict:
+                  cfg: fuse.FuseConfig | None = None, calibration: dict | None = None) -> dict:
     """Per anchoring of :data:`wearnav.fuse.ANCHORS`: the errors at the surveyed points of
     ``split`` of ``data`` for the model of ``run`` (a run folder) under the user protocol, the
     path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk.
     ``cfg``: the smoother's; default the run's own for each recording (:func:`wearnav.fuse.config_for`:
-    its calibration, and a heading prior where the recording's frame is north-referenced); ``walk_sigma``
-    replaces its calibration's odometry random walk (m/√s; :func:`site_calibration`)."""
+    its calibration, and a heading prior where the recording's frame is north-referenced); ``calibration``
+    replaces its calibration (:func:`site_calibration`)."""
     out: dict = {a: {"errors": [], "length_ratio": [], "by_trace": {}} for a in fuse.ANCHORS}
     out["smooth"]["traces"] = {}
     out[RAW_FIXES] = {"by_trace": {}}
@@ -105,9 +115,7 @@ def user_protocol(run: str | Path, data: str | Path, split: str = "test",
             continue
         fx = rec.fixes
         out[RAW_FIXES]["by_trace"][rec.name] = _rounded(fix_point_errors(rec))
-        c = cfg if cfg is not None else fuse.config_for(run, rec.meta, "phone")[0]
-        if walk_sigma:
-            c = dataclasses.replace(c, odometry_walk_m_per_sqrt_s=float(walk_sigma))
+        c = fuse.calibrated(cfg if cfg is not None else fuse.config_for(run, rec.meta, "phone")[0], calibration)
         for anchor, fn in fuse.ANCHORS.items():
             t0 = time.perf_counter()
             res = fn(t, xy, fx.t, fx.pos[:, :2], fx.accuracy) if anchor != "smooth" else \
@@ -115,7 +123,8 @@ def user_protocol(run: str | Path, data: str | Path, split: str = "test",
             if anchor == "smooth":
                 smooth_s += time.perf_counter() - t0
                 walk_s += float(t[-1] - t[0])
-                out["smooth"].setdefault("inside_68", []).extend(_inside_68(t, res, rec.truth))
+                out["smooth"].setdefault("inside_68", []).extend(
+                    bool(z < fuse.RADIUS_68) for z in _error_over_sigma(t, res, rec.truth))
                 out["smooth"]["traces"][rec.name] = {
                     "method": res.method, "warnings": res.warnings,
                     **{k: v for k, v in res.info.items() if k not in ("x", "config", "smoother")}}
@@ -136,11 +145,11 @@ def ensure_calibration(run: str | Path, data: str | Path, split: str = "val", na
                        method: str = "wearnav.fuse.odometry_walk_sigma on the model's validation walks") -> dict:
     """The run's smoother calibration (:func:`calibrate` on its ``split`` walks of ``data``), computed
     once and stored in the run folder as ``name`` (`track` reads :data:`wearnav.fuse.CALIBRATION_JSON`);
-    recomputed when the stored one came from other walks."""
+    recomputed when the stored one came from other walks or predates the σ scale."""
     f = Path(run) / name
     if f.is_file():
         cal = read_json(f)
-        if cal.get("data") == str(data) and cal.get("split") == split:
+        if cal.get("data") == str(data) and cal.get("split") == split and "sigma_scale" in cal:
             return cal
     cal = {**calibrate(run, data, split), "data": str(data), "split": split, "method": method}
     runs.write_json(f, cal)
@@ -160,9 +169,9 @@ def site_calibration(run: str | Path, site: str, site_data: str | Path, trained_
 
 
 def user_table(folders: dict[str, Path], data: str | Path, fixes: dict | None, split: str = "test",
-               cfg: fuse.FuseConfig | None = None, walk_sigma: dict[str, float] | None = None) -> tuple[list[dict], dict]:
+               cfg: fuse.FuseConfig | None = None, calibration: dict[str, dict] | None = None) -> tuple[list[dict], dict]:
     """The user-protocol rows (raw fixes, then each model × anchoring) and the raw per-run results;
-    ``cfg`` None: each run's own calibrated config, its odometry walk from ``walk_sigma[label]`` where given."""
+    ``cfg`` None: each run's own calibrated config, or ``calibration[label]`` where given."""
     raw = {}
     rows = []
     if fixes:
@@ -170,7 +179,7 @@ def user_table(folders: dict[str, Path], data: str | Path, fixes: dict | None, s
         rows.append({"path": RAW_FIXES, "traces": fixes["sequences"], "points": fixes["points"],
                      **_stats(np.asarray(fixes["point_errors"])), "length ratio": _median(ratio), SIGMA_COLUMN: "—"})
     for label, run in folders.items():
-        r = raw[label] = user_protocol(run, data, split, cfg, (walk_sigma or {}).get(label))
+        r = raw[label] = user_protocol(run, data, split, cfg, (calibration or {}).get(label))
         for anchor in fuse.ANCHORS:
             e = np.asarray(r[anchor]["errors"])
             inside = r[anchor].get("inside_68")
@@ -207,15 +216,15 @@ def paired_rows(raw: dict) -> list[dict]:
     return rows
 
 
-def _inside_68(t: np.ndarray, res: fuse.FuseResult, truth) -> list[bool]:
-    """Per surveyed point (scored as :func:`score_path` does): is the error inside the 68 % radius
-    of the path's σ there (:data:`wearnav.fuse.RADIUS_68` σ)? Empty where the path has no σ."""
+def _error_over_sigma(t: np.ndarray, res: fuse.FuseResult, truth) -> list[float]:
+    """Per surveyed point (scored as :func:`score_path` does): the path's error over its σ there.
+    Empty where the path has no σ."""
     if not np.isfinite(res.sigma_m).any():
         return []
     est = np.stack([res.xy[:, 0], res.xy[:, 1], res.sigma_m], axis=1)
     at, keep = interp_onto(truth.t[1:], t, est, max_gap=metrics.FIX_MAX_GAP_S, rule="nearest")
     err = np.linalg.norm(at[keep, :2] - truth.pos[1:, :2][keep], axis=1)
-    return [bool(v) for v in err < fuse.RADIUS_68 * at[keep, 2]]
+    return [float(v) for v in err / at[keep, 2]]
 
 
 def _rounded(e) -> list[float]:

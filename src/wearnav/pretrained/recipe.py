@@ -148,19 +148,24 @@ def cross_building_calibration(run: Path, suites: list[Path]) -> dict:
     """Replace a shipped odometry run's smoother calibration (``fuse.CALIBRATION_JSON``, which
     `track` reads) by what the recipe shows where it did not train: each leave-one-building-out
     suite's model on the held-out building's training walks (``fuse_calibration_main.json``), the
-    largest of them. Its validation walks (mostly simulated) say 0.017 m/√s; the held-out buildings
-    0.56 (IPIN) and 0.83 (ILC2), and a smoother that trusts the path 30× too much follows its errors."""
+    largest of them, and the largest σ scale. Its validation walks (mostly simulated) say 0.017 m/√s;
+    the held-out buildings 0.56 (IPIN) and 0.83 (ILC2), and a smoother that trusts the path 30× too
+    much follows its errors."""
     per = {suite.name: site_calibration(lobo, "main", suite / "data" / "main", runs.read_config(lobo)["config"]["train"]["data"])
            for suite in suites for lobo in sorted((suite / "runs").glob(f"{MODEL}-*"))[:1]}
     per = {k: c for k, c in per.items() if c.get("odometry_walk_m_per_sqrt_s")}
     if not per:
         return read_json(run / fuse.CALIBRATION_JSON)
     worst = max(per.values(), key=lambda c: c["odometry_walk_m_per_sqrt_s"])
+    scales = {k: c["sigma_scale"] for k, c in per.items() if c.get("sigma_scale")}  # buildings with fixes
     cal = {"odometry_walk_m_per_sqrt_s": worst["odometry_walk_m_per_sqrt_s"],
+           "sigma_scale": max(scales.values()) if scales else None,
            "walks": sum(int(c.get("walks", 0)) for c in per.values()), "data": "leave-one-building-out suites",
            "split": "train", "per_building": {k: c["odometry_walk_m_per_sqrt_s"] for k, c in per.items()},
-           "method": "the largest wearnav.fuse.odometry_walk_sigma of the recipe trained without a building, "
-                     "on that building's training walks (wearnav.pretrained.recipe.cross_building_calibration)"}
+           "sigma_scale_per_building": scales,
+           "method": "the largest wearnav.fuse.odometry_walk_sigma (and wearnav.fuse.sigma_scale_of, where the "
+                     "building has fixes) of the recipe trained without a building, on that building's training "
+                     "walks (wearnav.pretrained.recipe.cross_building_calibration)"}
     runs.write_json(run / fuse.CALIBRATION_JSON, cal)
     return cal
 
