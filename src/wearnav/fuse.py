@@ -82,6 +82,7 @@ from wearnav.textio import read_json
 log = logging.getLogger(__name__)
 
 RADIUS_68 = 1.515  # 68 % radius of a unit circular Gaussian (accuracy = RADIUS_68 · σ per axis)
+RAYLEIGH_MEDIAN = float(np.sqrt(2 * np.log(2)))  # its median radius
 MIN_SIGMA_M = 0.5  # no fix is trusted to better than this per axis (phones report 1–3 m at best)
 ANCHOR_S = 60.0  # first-fix anchoring: fixes of the first minute (today's `track`)
 MIN_SPREAD_M = 5.0  # below this weighted RMS spread the heading is not observable from fixes
@@ -131,10 +132,10 @@ class FuseConfig:
 class FuseResult:
     """The fused path and what the fit found. ``xy`` (N, 2) m east/north at the input times;
     ``sigma_m`` (N,) its 1-σ per-axis uncertainty (m, NaN unknown) from the fit's covariance
-    (:func:`node_sigma`): as right as the model of the fixes' and the odometry's errors. On IPIN
-    2023's walks, whose fix errors are more correlated than the model's, it is too small: see
-    :func:`node_sigma`. ``fixes``: the status, reason and weight of every fix given
-    (:class:`wearnav.fixcheck.FixCheck`)."""
+    (:func:`node_sigma`) times ``sigma_scale``: the model's alone is right where the fixes' and the
+    odometry's errors follow the model and too small on IPIN 2023's indoor walks (their fix errors
+    are more correlated), so the scale is calibrated where the model is used (:func:`sigma_scale_of`).
+    ``fixes``: the status, reason and weight of every fix given (:class:`wearnav.fixcheck.FixCheck`)."""
 
     xy: np.ndarray
     sigma_m: np.ndarray
@@ -514,11 +515,8 @@ def odometry_walk_sigma(walks) -> dict:
         n += 1
     if n == 0:
         return {"odometry_walk_m_per_sqrt_s": None, "walks": 0}
-    sigma = float(np.median(np.concatenate(rates)) / np.sqrt(2 * np.log(2)))
+    sigma = float(np.median(np.concatenate(rates)) / RAYLEIGH_MEDIAN)
     return {"odometry_walk_m_per_sqrt_s": round(sigma, 4), "walks": n}
-
-
-RAYLEIGH_MEDIAN = float(np.sqrt(2 * np.log(2)))  # median length of a 2-D Gaussian with unit σ per axis
 
 
 def sigma_scale_of(error_over_sigma) -> dict:

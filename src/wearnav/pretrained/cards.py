@@ -68,11 +68,14 @@ def _table(rows: list[dict]) -> str:
 
 def write_card(spec: Shipped, run: Path, recipe, lobo: dict[str, Path]) -> Path:
     """``run``/MODEL_CARD.md for shipped model ``spec``."""
-    cfg = runs.read_config(run)["config"]["train"]
+    record = runs.read_config(run)
+    cfg = record["config"]["train"]
+    trained, now = record.get("provenance", {}), provenance()
     training = read_json(run / "training.json") if (run / "training.json").is_file() else {}
     lines = [f"# Shipped model `{spec.name}`", "", spec.summary + ".", "",
              f"Task: {spec.task}. Devices: {', '.join(spec.devices)}. Model: `{cfg['model']}`. Trained by "
-             f"`wearnav pretrain` (wearnav {provenance()['wearnav']}, commit {provenance()['commit']}); recipe: "
+             f"`wearnav pretrain` (wearnav {trained.get('wearnav', '?')}, commit {trained.get('commit', '?')}; "
+             f"this card written at commit {now['commit']}); recipe: "
              + ", ".join(f"{k} {v}" for k, v in dataclasses.asdict(recipe).items()) + ".", ""]
     if spec.task == "odometry":
         parts = Dataset.open(cfg["data"]).provenance.get("parts", [])
