@@ -175,7 +175,7 @@ class SlowTracker:
         self.busy = threading.Lock()
         self.overlap = False
 
-    def update(self, buf) -> bool:
+    def update(self, buf, final: bool = False) -> bool:
         if not self.busy.acquire(blocking=False):
             self.overlap = True
             return False
@@ -318,7 +318,7 @@ def test_covered_until_leaves_out_a_device_that_stopped(export60):
 class WaitingTracker(SlowTracker):
     """Changes the path only on every third update (as LiveTracker waits for a second of data)."""
 
-    def update(self, buf) -> bool:
+    def update(self, buf, final: bool = False) -> bool:
         self.seen.append(buf.version)
         return len(self.seen) % 3 == 0
 

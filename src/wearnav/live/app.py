@@ -19,7 +19,9 @@ client, bursts of twice that), 400 / 422 (:mod:`wearnav.live.push`). The token i
 uvicorn's access log is off and this module logs paths without their query.
 
 Tracking: one worker thread per session runs ``tracker.update(buffer)`` once a push's 200 has
-been sent; pushes arriving while it runs make it run once more when done (coalesced). The
+been sent; pushes arriving while it runs make it run once more when done (coalesced). A session
+without a push for ``SESSION_END_S`` has ended: its worker runs ``update(buffer, final=True)``
+once, so the path's provisional end becomes final, as ``track`` would give it. The
 tracker comes from ``tracker_factory`` (None: no tracking, ``wearnav live --no-track``).
 
 A session's platform and standardisation (which the app does not push) come from the push URL's
@@ -58,6 +60,7 @@ RATE_LIMIT = 100.0                 # messages per second per client (burst: twic
 MAX_FUTURE_S = 120.0               # sample times this far ahead of the server's clock are refused
 MAX_AGE_S = 7 * 86400.0            # ... and this far behind it
 STOPPED_S = 5.0                    # a device silent this long is shown as stopped
+SESSION_END_S = 30.0               # a session without a push this long has ended: its last windows made final
 EVENT_PERIOD_S = 0.25              # /events sends at most 4 states a second
 KEEPALIVE_S = 15.0
 
@@ -83,9 +86,10 @@ class RateLimiter:
 
 
 class SessionWorker:
-    """One thread running the session's tracker: ``poke`` after each acknowledged push. The
-    tracker is made in that thread (loading a model must not hold up a 200); one that cannot be
-    made, or fails, is a warning on the page, never a failed push."""
+    """One thread running the session's tracker: ``poke`` after each acknowledged push, and a final
+    update once the session has been quiet for ``SESSION_END_S``. The tracker is made in that
+    thread (loading a model must not hold up a 200); one that cannot be made, or fails, is a
+    warning on the page, never a failed push."""
 
     def __init__(self, buf: SessionBuffer, tracker_factory: Callable[[], object]):
         self.buf, self.tracker = buf, None
@@ -111,18 +115,17 @@ class SessionWorker:
             self.error = f"live tracking could not start: {type(exc).__name__}: {exc}"
             log.warning("session %s: %s", self.buf.session_id, self.error)
             return
+        ended = False
         while True:
-            self._event.wait()
+            if not self._event.wait(timeout=None if ended else SESSION_END_S):
+                ended = True   # quiet for SESSION_END_S: make the last windows final, once
+                self._update(final=True)
+                continue
+            ended = False
             self._event.clear()
             with self._lock:
                 since, self._pending_since = self._pending_since, None
-            changed = False
-            try:
-                changed = bool(self.tracker.update(self.buf))
-                self.error = None
-            except Exception as exc:  # shown on the page; the next push tries again
-                self.error = f"live tracking failed: {type(exc).__name__}: {exc}"
-                log.warning("session %s: %s", self.buf.session_id, self.error)
+            changed = self._update()
             if since is None:
                 continue
             if changed:   # the page's path now holds every push acknowledged since ``since``
@@ -131,6 +134,17 @@ class SessionWorker:
             else:         # nothing new on the page yet (the tracker waits for more): still pending
                 with self._lock:
                     self._pending_since = since if self._pending_since is None else min(since, self._pending_since)
+
+    def _update(self, final: bool = False) -> bool:
+        """One tracker update; a failure is shown on the page and the next push tries again."""
+        changed = False
+        try:
+            changed = bool(self.tracker.update(self.buf, final=final))
+            self.error = None
+        except Exception as exc:
+            self.error = f"live tracking failed: {type(exc).__name__}: {exc}"
+            log.warning("session %s: %s", self.buf.session_id, self.error)
+        return changed
 
     def state(self) -> dict:
         st = dict(self.tracker.state()) if self.tracker is not None else untracked_state(self.buf, "starting")
