@@ -31,7 +31,8 @@ def test_simulator_rows_smoother_beats_the_users_odometry_and_the_fixes():
 
 
 def test_bench_fusion_writes_a_page_that_results_stitches(tmp_path, monkeypatch, capsys):
-    """`wearnav bench fusion` on a two-walk simulated dataset: results.md with the per-mode table
+    """`wearnav bench fusion` on a simulated dataset of two test walks and a training walk (the
+    smoother calibrated on it, not scored): results.md with the per-mode table
     and the smoother's seconds per hour, results.json with every path per mode and over all, and
     `wearnav results` takes the page in under its suite marker; --live-min times the fixed-lag
     smoother on a simulated walk."""
@@ -43,8 +44,8 @@ def test_bench_fusion_writes_a_page_that_results_stitches(tmp_path, monkeypatch,
     from wearnav.simulate.config import WalkConfig
     from wearnav.simulate.walk import simulate_recording
 
-    recs = [(simulate_recording(WalkConfig(name=f"{m}_0", mode=m, placement="HD", duration_s=60.0), seed=k), "test")
-            for k, m in enumerate(("STW", "DLW"))]
+    recs = [(simulate_recording(WalkConfig(name=f"{m}_{split}", mode=m, placement="HD", duration_s=60.0), seed=k), split)
+            for k, (m, split) in enumerate((("STW", "test"), ("DLW", "test"), ("STW", "train")))]
     write_dataset(tmp_path / "sim", recs)
     code, out, err = run_cli(monkeypatch, capsys, "bench", "fusion", "--data", tmp_path / "sim", "--out", tmp_path / "fusion",
                              "--live-min", "2")
@@ -56,6 +57,11 @@ def test_bench_fusion_writes_a_page_that_results_stitches(tmp_path, monkeypatch,
         (m, p) for m in ("DLW", "STW", "all") for p in ("odometry alone (oracle rigid fit to truth)",
                                                          "odometry alone (first-fix anchoring)", "fixes alone", "smoother")}
     assert table["smooth_s_per_hour"] > 0 and table["walk_s"] > 100
+    # calibrated on the training walk, which is not scored
+    assert table["calibration"]["walks"] == 1 and table["calibration"]["odometry_walk_m_per_sqrt_s"] > 0
+    assert table["config"]["odometry_walk_m_per_sqrt_s"] == table["calibration"]["odometry_walk_m_per_sqrt_s"]
+    assert {r["walks"] for r in table["rows"] if r["mode"] == "all"} == {2} and table["split"] == "test"
+    assert "calibrated on the dataset's training walks (1)" in page
     live = table["live"]  # a 2-min walk: shorter than the 300-s window, so the batch solve, updated
     assert live["updates"] >= 10 and live["gap_to_batch_median_m"] < 0.5 and "ms per update" in page
     assert all(np.isfinite(r["median (m)"]) and r["walks"] == (2 if r["mode"] == "all" else 1) for r in table["rows"])

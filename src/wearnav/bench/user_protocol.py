@@ -84,11 +84,28 @@ def _paths(run, data, split):
 
 
 def calibrate(run: str | Path, data: str | Path, split: str = "val") -> dict:
-    """The smoother's calibration for the run's model on the ``split`` walks of ``data``: the
-    odometry's random walk (:func:`wearnav.fuse.odometry_walk_sigma`), then, smoothing the walks
-    that have fixes with it, the σ scale (:func:`wearnav.fuse.sigma_scale_of`; None without fixes)."""
-    walks = list(_paths(run, data, split))
-    cal = fuse.odometry_walk_sigma((t, xy, rec.truth.t, rec.truth.pos[:, :2]) for rec, t, xy in walks)
+    """The smoother's calibration for the run's model on the ``split`` walks of ``data``
+    (:func:`calibration_of`)."""
+    return calibration_of(_paths(run, data, split))
+
+
+SIM_POINT_EVERY_S = 5.0  # the simulator's dense truth, thinned to a point this often to calibrate on
+
+
+def calibration_of(walks, every_s: float | None = None) -> dict:
+    """The smoother's calibration from ``walks`` (recording, t, odometry xy from (0, 0)) with truth:
+    the odometry's random walk (:func:`wearnav.fuse.odometry_walk_sigma`, at the truth points, or
+    one every ``every_s`` seconds of a dense truth), then, smoothing the walks that have fixes with
+    it, the σ scale (:func:`wearnav.fuse.sigma_scale_of`; None without fixes)."""
+    walks = list(walks)
+
+    def points(truth):
+        if not every_s:
+            return truth.t, truth.pos[:, :2]
+        k = np.unique(np.searchsorted(truth.t, np.arange(truth.t[0], truth.t[-1], every_s)))
+        return truth.t[k], truth.pos[k, :2]
+
+    cal = fuse.odometry_walk_sigma((t, xy, *points(rec.truth)) for rec, t, xy in walks)
     ratios = []
     for rec, t, xy in walks:
         if cal["odometry_walk_m_per_sqrt_s"] and rec.fixes is not None and len(rec.fixes) >= 2:
@@ -277,6 +294,14 @@ def _untrained(model: str):
     return build_untrained(model, tcfg), tcfg
 
 
+def _odometry(rec, net, tcfg) -> tuple[np.ndarray, np.ndarray]:
+    """``net``'s path of one recording (from (0, 0) in the phone's world frame) at its aligned times."""
+    seq = align(rec, tcfg.preprocess_config())
+    t_c, vel, _ = predict_sequence(net, seq, tcfg.window, tcfg.stride)
+    t = seq.t[(seq.t >= t_c[0]) & (seq.t <= t_c[-1])]
+    return t, integrate_velocity(t_c, vel, t, np.zeros(2))
+
+
 def simulated_errors(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig()) -> tuple[dict, float, float]:
     """For one simulated recording (dense truth and fixes): the errors (m) against truth at 1-s
     samples per path of :data:`SIM_PATHS`, the smoother's seconds and the walk's seconds. The
@@ -285,10 +310,7 @@ def simulated_errors(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig()) -
     user has, so a generous bound for it) and, as a user gets it, first-fix anchoring; the fixes
     alone are linear between fixes."""
 
-    seq = align(rec, tcfg.preprocess_config())
-    t_c, vel, _ = predict_sequence(net, seq, tcfg.window, tcfg.stride)
-    t = seq.t[(seq.t >= t_c[0]) & (seq.t <= t_c[-1])]
-    xy = integrate_velocity(t_c, vel, t, np.zeros(2))
+    t, xy = _odometry(rec, net, tcfg)
     tt = np.arange(t[0], t[-1], 1.0)
     truth = np.stack([np.interp(tt, rec.truth.t, rec.truth.pos[:, j]) for j in range(2)], axis=1)
     fx = rec.fixes
@@ -329,14 +351,25 @@ def simulator_rows(model: str = "pdr", duration_s: float = 300.0, walks_per_mode
 
 
 def fusion_table(data: str | Path, model: str = "pdr", split: str | None = None,
-                 cfg: fuse.FuseConfig = fuse.FuseConfig()) -> dict:
+                 cfg: fuse.FuseConfig | None = None) -> dict:
     """:func:`simulated_errors` over the recordings of a simulated dataset (``split``: one split, or
-    all), per walking mode (the manifest's ``mode``) and over all: rows of median / p75 / p95 / mean
-    error (m) per path, and the smoother's seconds per hour of walk. Recordings without truth or
-    with fewer than two fixes are skipped and counted."""
+    all but the training walks), per walking mode (the manifest's ``mode``) and over all: rows of
+    median / p75 / p95 / mean error (m) per path, and the smoother's seconds per hour of walk.
+    ``cfg`` None: the smoother calibrated where it is used, as on a real site
+    (:func:`calibration_of` on the dataset's training walks, never scored); the defaults where it
+    has none. Recordings without truth or with fewer than two fixes are skipped and counted."""
     ds = Dataset.open(data)
-    view = ds.split(split) if split else ds
     net, tcfg = _untrained(model)
+    splits = sorted(set(ds.manifest["split"]))
+    calibration = None
+    if cfg is None:
+        if "train" in splits and split != "train":
+            train = ds.split("train")
+            calibration = calibration_of(((rec, *_odometry(rec, net, tcfg)) for rec in map(train.load, train.names)
+                                          if rec.truth is not None), SIM_POINT_EVERY_S)
+            splits.remove("train")
+        cfg = fuse.calibrated(fuse.FuseConfig(), calibration)
+    view = ds.split(split) if split else ds.split(*splits)
     per_mode: dict[str, dict[str, list]] = {}
     smooth_s = walk_s = 0.0
     skipped = 0
@@ -359,7 +392,7 @@ def fusion_table(data: str | Path, model: str = "pdr", split: str | None = None,
                          "samples": int(e.size), **{k: round(v, 2) for k, v in _stats(e).items()}})
     prov = ds.provenance
     preset = prov.get("preset")
-    return {"rows": rows, "model": model, "split": split or "all", "skipped": skipped,
+    return {"rows": rows, "model": model, "split": split or ", ".join(splits), "skipped": skipped, "calibration": calibration,
             "simulator": {"preset": preset.get("name") if isinstance(preset, dict) else preset, "seed": prov.get("seed")},
             "walk_s": round(walk_s, 1), "smooth_s": round(smooth_s, 3),
             "smooth_s_per_hour": round(smooth_s / walk_s * 3600.0, 3) if walk_s else None,
@@ -388,10 +421,7 @@ def fixed_lag_run(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig(), lag_
     first window and over the last tenth: equal when the cost does not grow with the walk), and
     the final path's median / p95 distance from the batch smoother's and both errors against truth."""
 
-    seq = align(rec, tcfg.preprocess_config())
-    t_c, vel, _ = predict_sequence(net, seq, tcfg.window, tcfg.stride)
-    t = seq.t[(seq.t >= t_c[0]) & (seq.t <= t_c[-1])]
-    xy = integrate_velocity(t_c, vel, t, np.zeros(2))
+    t, xy = _odometry(rec, net, tcfg)
     fx = rec.fixes
     order = np.argsort(fx.t, kind="stable")
     ft, fp, acc = fx.t[order], fx.pos[order, :2], fx.accuracy[order]
@@ -467,7 +497,12 @@ def write_fusion_page(table: dict, data: str | Path, out: str | Path, live: dict
              "whole walk (an oracle no user has, so a generous bound); "
              f"*{ODO_FIRST}*: placed on the first minute's fixes, as `track --anchor first-fixes`; "
              f"*{FIXES_ALONE}*: the simulated phone fixes (correlated error, multipath jumps), linear between fixes; "
-             f"*{SMOOTHER}*: `wearnav.fuse.smooth`, as `track` gives it (no truth used).", "",
+             f"*{SMOOTHER}*: `wearnav.fuse.smooth`, as `track` gives it (no truth used), "
+             + (f"its odometry random walk ({cal['odometry_walk_m_per_sqrt_s']} m/√s) and σ scale "
+                f"({cal['sigma_scale']}) calibrated on the dataset's training walks ({cal['walks']}), which are "
+                "not scored (`wearnav.bench.user_protocol.calibration_of`)."
+                if (cal := table.get("calibration")) else "with its default settings (no training walks to calibrate on)."),
+             "",
              "## Every walk (m)", "",
              overall.to_markdown(index=False, floatfmt=".2f"), "",
              f"The smoother took {table['smooth_s']:.2f} s for {table['walk_s'] / 60:.1f} min of walk: "
@@ -487,4 +522,4 @@ def build_untrained(model: str, tcfg):
 
 
 __all__ = ["ensure_calibration", "site_calibration", "calibrate", "simulator_rows", "fusion_table", "write_fusion_page", "simulated_errors", "user_protocol", "user_table", "score_path", "raw_fix_length_ratio", "RAW_FIXES",
-           "fix_point_errors", "paired_rows", "PAIRED_TEXT"]
+           "fix_point_errors", "paired_rows", "PAIRED_TEXT", "calibration_of"]
