@@ -62,6 +62,11 @@ def test_bench_fusion_writes_a_page_that_results_stitches(tmp_path, monkeypatch,
     assert table["config"]["odometry_walk_m_per_sqrt_s"] == table["calibration"]["odometry_walk_m_per_sqrt_s"]
     assert {r["walks"] for r in table["rows"] if r["mode"] == "all"} == {2} and table["split"] == "test"
     assert "calibrated on the dataset's training walks (1)" in page
+    # a shipped learned model as the odometry: calibrated on its own (a steadier path than PDR's)
+    from wearnav.bench.user_protocol import fusion_table
+    learned = fusion_table(tmp_path / "sim", "phone")
+    assert learned["model"] == "phone" and {r["walks"] for r in learned["rows"] if r["mode"] == "all"} == {2}
+    assert learned["calibration"]["odometry_walk_m_per_sqrt_s"] != table["calibration"]["odometry_walk_m_per_sqrt_s"]
     live = table["live"]  # a 2-min walk: shorter than the 300-s window, so the batch solve, updated
     assert live["updates"] >= 10 and live["gap_to_batch_median_m"] < 0.5 and "ms per update" in page
     assert all(np.isfinite(r["median (m)"]) and r["walks"] == (2 if r["mode"] == "all" else 1) for r in table["rows"])

@@ -184,7 +184,8 @@ def bench_efficiency(
 def bench_fusion(
     data: Path = typer.Option(..., "--data", help="A simulated dataset (`wearnav simulate`): dense truth and fixes."),
     out: Path = typer.Option(Path("runs/fusion"), "--out", help="Folder for results.md / results.json."),
-    model: str = typer.Option("pdr", help="An untrained odometry baseline (no training)."),
+    model: str = typer.Option("pdr", help="The odometry: an untrained baseline (pdr), a shipped model (phone) "
+                              "or a phone-only run folder."),
     split: Optional[str] = typer.Option(None, help="One split of --data (default: every recording)."),
     live_min: float = typer.Option(0.0, "--live-min", min=0.0, help="Also time the live receiver's fixed-lag "
                                    "smoother on one simulated walk this long (minutes; 0: not)."),

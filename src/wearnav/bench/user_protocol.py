@@ -25,8 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from wearnav import fuse, metrics, runs
+from wearnav import fuse, metrics, pretrained, runs
 from wearnav.dataset import Dataset
+from wearnav.errors import ConfigError
 from wearnav.evaluate import predict_sequence
 from wearnav.fileio import write_text_atomic
 from wearnav.fuse_live import IncrementalFuser
@@ -287,11 +288,25 @@ SIM_PATHS = (ODO_ORACLE, ODO_FIRST, FIXES_ALONE, SMOOTHER)
 
 
 def _untrained(model: str):
-    """An untrained baseline by name (PDR: no training) for phone-only input, and its config."""
+    """The fusion benches' odometry by name, phone only, in the phone's own world frame, and its
+    config: an untrained baseline (PDR), a shipped model (``phone``) or a phone-only run folder."""
+    arg = pretrained.model_path(model, "odometry")
+    net, tcfg = resolve_model(arg, "odometry")  # a learned model by name is refused: shipped or a folder only
+    if not Path(str(arg)).exists():
+        tcfg = dataclasses.replace(tcfg, devices=("phone",))
+        net = build_untrained(model, tcfg)
+    elif tuple(tcfg.devices) != ("phone",):
+        raise ConfigError(f"the fusion bench runs the phone alone; {model} uses {', '.join(tcfg.devices)}")
+    return net, dataclasses.replace(tcfg, frame_align="none", yaw_deg=0.0)
 
-    _, tcfg = resolve_model(model, "odometry")  # refuses a learned model by name: untrained baselines only
-    tcfg = dataclasses.replace(tcfg, devices=("phone",), frame_align="none")
-    return build_untrained(model, tcfg), tcfg
+
+def _odometry_words(model: str) -> str:
+    """How a page names the odometry of :func:`_untrained`."""
+    arg = pretrained.model_path(model, "odometry")
+    if not Path(str(arg)).exists():
+        return f"untrained `{model}`"
+    name = pretrained.shipped_name(arg)
+    return f"the shipped model `{name}`" if name else f"the model of run `{arg}`"
 
 
 def _odometry(rec, net, tcfg) -> tuple[np.ndarray, np.ndarray]:
@@ -491,7 +506,7 @@ def write_fusion_page(table: dict, data: str | Path, out: str | Path, live: dict
              + (f"; simulator preset `{sim['preset']}`, seed {sim['seed']}" if (sim := table["simulator"])["seed"] is not None else "")
              + "); "
              f"{cpu}, {os.cpu_count()} CPUs, one process. "
-             f"Odometry: untrained `{table['model']}`, phone only, integrated from (0, 0) in the phone's world frame. "
+             f"Odometry: {_odometry_words(table['model'])}, phone only, integrated from (0, 0) in the phone's world frame. "
              "Errors are against the simulator's dense truth at 1-s samples. "
              f"*{ODO_ORACLE}*: the odometry given its best rotation + translation onto the truth over the "
              "whole walk (an oracle no user has, so a generous bound); "
