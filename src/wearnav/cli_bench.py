@@ -186,7 +186,8 @@ def bench_fusion(
     out: Path = typer.Option(Path("runs/fusion"), "--out", help="Folder for results.md / results.json."),
     model: str = typer.Option("pdr", help="The odometry: an untrained baseline (pdr), a shipped model (phone) "
                               "or a phone-only run folder."),
-    split: Optional[str] = typer.Option(None, help="One split of --data (default: every recording)."),
+    split: Optional[str] = typer.Option(None, help="One split of --data (default: every recording but the "
+                                        "training walks, which calibrate the smoother)."),
     live_min: float = typer.Option(0.0, "--live-min", min=0.0, help="Also time the live receiver's fixed-lag "
                                    "smoother on one simulated walk this long (minutes; 0: not)."),
 ):
