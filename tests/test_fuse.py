@@ -4,7 +4,8 @@ outliers, and says what it did on degenerate inputs."""
 import numpy as np
 import pytest
 
-from wearnav import fuse, fuse_live
+from wearnav import fuse
+from wearnav.fuse import live as fuse_live
 from wearnav.errors import ValidationError
 from wearnav.recording import ANDROID_ENU_FRAME
 

@@ -30,7 +30,7 @@ from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError
 from wearnav.evaluate import predict_sequence
 from wearnav.fileio import write_text_atomic
-from wearnav.fuse_live import IncrementalFuser
+from wearnav.fuse.live import IncrementalFuser
 from wearnav.models.registry import build
 from wearnav.provenance import provenance
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, align, load_sequences
@@ -417,7 +417,7 @@ def fusion_table(data: str | Path, model: str = "pdr", split: str | None = None,
 def _live_lines(live: dict) -> list[str]:
     return ["## The live receiver's smoother (fixed lag)", "",
             f"One simulated standard walk of {live['walk_min']} min (odometry at {live['odometry_hz']} Hz, "
-            f"{live['fixes']} fixes), fed to `wearnav.fuse_live.IncrementalFuser` ({live['lag_s']:g}-s window) in time "
+            f"{live['fixes']} fixes), fed to `wearnav.fuse.live.IncrementalFuser` ({live['lag_s']:g}-s window) in time "
             f"order and solved every {live['every_s']:g} s: {live['updates']} updates, "
             f"**{live['ms_per_update_median']} ms per update** (median; p95 {live['ms_per_update_p95']} ms; "
             f"{live['ms_first_tenth_median']} ms in the walk's first tenth after the first window, "
@@ -430,7 +430,7 @@ def _live_lines(live: dict) -> list[str]:
 
 def fixed_lag_run(rec, net, tcfg, cfg: fuse.FuseConfig = fuse.FuseConfig(), lag_s: float = 300.0,
                   every_s: float = 10.0) -> dict:
-    """The live receiver's smoother (:class:`wearnav.fuse_live.IncrementalFuser`) on one simulated
+    """The live receiver's smoother (:class:`wearnav.fuse.live.IncrementalFuser`) on one simulated
     recording: odometry and fixes fed in time order, the path asked for every ``every_s`` seconds.
     Returns the seconds per update (median, p95, and the medians over the first tenth after the
     first window and over the last tenth: equal when the cost does not grow with the walk), and

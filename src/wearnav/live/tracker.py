@@ -19,7 +19,7 @@ the path is ``track``'s to round-off (the tests: 1e-6 m). With several, a final 
 comes from ``CONTEXT_S`` before it to ``FRAME_LAG_S`` after it instead of the whole walk, so the path
 differs slightly from ``track``'s (measured in tests/test_live_tracker.py).
 
-Fusion: the final path feeds :class:`wearnav.fuse_live.IncrementalFuser` (``track``'s smoother as a
+Fusion: the final path feeds :class:`wearnav.fuse.live.IncrementalFuser` (``track``'s smoother as a
 fixed-lag smoother; before the first final window the provisional path is smoothed whole by
 :func:`wearnav.fuse.smooth`), solved at most every ``FUSE_EVERY_S``; the path since the last solve is
 placed by a rigid fit (:func:`wearnav.fuse.rigid_fit`) on the last ``PLACE_S`` of the smoothed one.
@@ -42,7 +42,7 @@ from wearnav import fuse, geo, pretrained
 from wearnav.errors import ValidationError
 from wearnav.evaluate import predict_sequence
 from wearnav.fixcheck import check_fixes
-from wearnav.fuse_live import IncrementalFuser
+from wearnav.fuse.live import IncrementalFuser
 from wearnav.live.page import page_points
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.recording import DeviceStream, Recording

@@ -9,8 +9,8 @@ import numpy as np
 
 from wearnav.errors import ValidationError
 from wearnav.fixcheck import repeated_fixes
-from wearnav.fuse import (DOWNWEIGHT, FuseConfig, FuseResult, Prior, Problem, build_problem, fix_sigma_m,
-                          node_sigma, smooth, solve)
+from wearnav.fuse.config import DOWNWEIGHT, FuseConfig, FuseResult, fix_sigma_m
+from wearnav.fuse.smoother import Prior, Problem, build_problem, node_sigma, smooth, solve
 
 
 def _init_from(prob: Problem, old: Problem, x_old: np.ndarray) -> np.ndarray:
