@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from wearnav import runs
-from wearnav.bench.real import RealBench, estimate_site_yaw, prepare_data, run_benchmark, split_of
+from wearnav.bench.real import RealBench, run_benchmark
+from wearnav.bench.real_sites import estimate_site_yaw, prepare_data, split_of
 from wearnav.dataset import Dataset, write_dataset
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.frames import rotate_stacked

@@ -328,7 +328,7 @@ def test_real_part_trains_on_fixes_and_scores_at_sparse_points(tmp_path):
 
 def test_ipin_held_out_routes_are_real_odometrys_test_trials():
     from wearnav.bench.easytrack import IPIN_TEST_ROUTES
-    from wearnav.bench.real import SITE_DEFAULTS
+    from wearnav.bench.real_sites import SITE_DEFAULTS
 
     names = [f"IPIN2023_T3_TrainingTrial{t:02d}_repetition{r:02d}" for t in (1, 2, 3, 4, 5, 21, 22, 23, 24, 25, 51, 52)
              for r in (1, 2)]

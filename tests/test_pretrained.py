@@ -12,7 +12,8 @@ import pytest
 import torch
 
 from wearnav import pretrained
-from wearnav.bench.real import RealBench, _train_config, estimate_site_yaw
+from wearnav.bench.real import RealBench, _train_config
+from wearnav.bench.real_sites import estimate_site_yaw
 from wearnav.dataset import Dataset, write_dataset
 from wearnav.errors import ConfigError
 from wearnav.importers.sensorlogger_export import write_export

@@ -2,11 +2,11 @@
 
 A base model never trained on IPIN is adapted (:mod:`wearnav.adapt`) on the training trials'
 GNSS fixes only (no POSI point is read) and scored at the held-out trials' POSI points
-(:data:`wearnav.bench.real.IPIN_TEST_TRIALS`), beside the un-adapted model, PDR and the raw GNSS,
+(:data:`wearnav.bench.real_sites.IPIN_TEST_TRIALS`), beside the un-adapted model, PDR and the raw GNSS,
 in two protocols:
 
 1. **known start + site yaw**, as `bench real-odometry` scores (:func:`wearnav.evaluate.evaluate_run`;
-   the site yaw from PDR on the training trials, :func:`wearnav.bench.real.estimate_site_yaw`);
+   the site yaw from PDR on the training trials, :func:`wearnav.bench.real_sites.estimate_site_yaw`);
 2. **the user protocol** (:func:`wearnav.bench.user_protocol.user_protocol`): no truth at all,
    the path placed on the walk's own fixes by the smoother or one rigid fit.
 
@@ -34,7 +34,7 @@ import pandas as pd
 from wearnav import runs
 from wearnav.adapt import METHODS, AdaptConfig, adapt
 from wearnav.adapt.segments import walk_segments
-from wearnav.bench.real import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
+from wearnav.bench.real_sites import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
 from wearnav.bench.user_protocol import calibrate, raw_fix_length_ratio, score_path, user_protocol
 from wearnav.dataset import Dataset
 from wearnav.evaluate import evaluate_run

@@ -34,7 +34,7 @@ import pandas as pd
 from wearnav import metrics, runs
 from wearnav.bench.easytrack_page import write_page
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.bench.real import IPIN_TEST_TRIALS
+from wearnav.bench.real_sites import IPIN_TEST_TRIALS
 from wearnav.errors import ConfigError, ValidationError, check_names
 from wearnav.dataset import Dataset
 from wearnav.evaluate import SPARSE_MAX_GAP, predict_sequence

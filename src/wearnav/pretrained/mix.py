@@ -10,7 +10,7 @@ models train in that frame (``frame_align="common"``, the frame `wearnav track` 
                 2023: meta ``placement`` "handheld"): one yaw for all its recordings (the phone's
                 rotation vector refers to magnetic north, the survey to a floor plan), the angle
                 of the phone's +y axis against the surveyed direction of walking
-                (:func:`wearnav.bench.real.device_axis_yaw`). The yaw that `bench real-odometry`
+                (:func:`wearnav.bench.real_sites.device_axis_yaw`). The yaw that `bench real-odometry`
                 fits for PDR carries PDR's own heading bias, which differs by building (ILC2: PDR
                 −20.0°, the axis −1.0°; IPIN: PDR +3.3°, the axis +6.6°), and a model trained on
                 the simulator alone found −11.3° and +12.1°: either would teach a mixed model a
@@ -91,7 +91,7 @@ def recording_yaw(rec: Recording, devices: tuple[str, ...], rate: float = 25.0) 
 def axis_yaw(data: str | Path, rate: float = 25.0) -> dict:
     """The ``axis`` yaw of every recording of ``data`` (all are training): the phone's +y axis
     against the surveyed walking direction, and PDR's fit beside it for the record."""
-    from wearnav.bench.real import estimate_site_yaw  # bench.real imports the trainer: keep it lazy
+    from wearnav.bench.real_sites import estimate_site_yaw  # it imports the trainer: keep it lazy
 
     found = estimate_site_yaw(Path(data), split=None, rate=rate)
     if found.get("phone_axis_yaw_deg") is None:

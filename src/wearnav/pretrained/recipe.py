@@ -28,7 +28,8 @@ import torch
 from wearnav import fuse, runs
 from wearnav.bench import har
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.bench.real import TRUTH_MAX_GAP_S, RealBench, plan_benchmark
+from wearnav.bench.real import RealBench, plan_benchmark
+from wearnav.bench.real_sites import TRUTH_MAX_GAP_S
 from wearnav.bench.user_protocol import ensure_calibration, site_calibration
 from wearnav.errors import MissingFileError
 from wearnav.fileio import atomic_path

@@ -1,0 +1,248 @@
+"""The page of `wearnav bench real-odometry` (:mod:`wearnav.bench.real`): results.md and results.json
+from the suite's run folders, the known-start table per site, the user protocol where the site has
+fixes (:mod:`wearnav.bench.user_protocol`), the error CDF and example paths."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import platform
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from wearnav import runs
+from wearnav.bench.odometry import BEATS_STILL, beats_text
+from wearnav.bench.real_sites import fix_errors
+from wearnav.bench.user_protocol import PAIRED_TEXT, paired_rows, score_path, site_calibration, user_table
+from wearnav.dataset import Dataset
+from wearnav.fileio import shown_path, write_text_atomic
+from wearnav.models.registry import get
+from wearnav.pretrained.mix import is_mix
+from wearnav.textio import read_json
+
+if TYPE_CHECKING:
+    from wearnav.bench.real import RealBench
+
+def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
+    """Every run folder of the suite by its row label: the model's name when it was trained on
+    the building's own training groups (or is not learned), "model · simulator `<data>`" when it
+    was trained on another dataset (sim-to-real runs share the suite, so one table holds both)."""
+    labelled = []
+    for run in sorted(Path(out, "runs").glob("*/")):
+        if not (run / runs.CONFIG).is_file():
+            continue
+        train = runs.read_config(run)["config"]["train"]
+        label = train["model"]
+        if get(train["model"]).learned and Path(train["data"]).resolve() != Path(main_data).resolve():
+            prov = Dataset.open(train["data"]).provenance
+            made = (f"simulator `{Path(train['data']).name}` (commit {prov.get('commit', '?')})"
+                    if prov.get("generator") == "wearnav.simulate" else
+                    f"{' + '.join(q['part'] for q in prov['parts'])} (`{Path(train['data']).name}`)"
+                    if is_mix(train["data"]) else f"`{Path(train['data']).name}`")
+            label = f"{label} · {made}"
+        labelled.append((not get(train["model"]).learned, "·" in label, label, run))
+    return {label: run for *_, label, run in sorted(labelled, key=lambda x: x[:3])}
+
+
+def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.DataFrame, dict]:
+    """One row per model (and the raw fixes): errors at the surveyed points of the test traces."""
+    rows, errors = [], {}
+    for label, run in folders.items():
+        m = runs.read_metrics(run / f"eval_{site}") if runs.is_complete(run / f"eval_{site}") else None
+        if not m:
+            continue
+        res = m["splits"]["test"]
+        # the pooled per-point statistics are evaluate's summary; the errors themselves feed the CDF
+        errors[label] = np.concatenate([np.asarray(r.get("point_errors", []), float) for r in res["sequences"]]
+                                       or [np.empty(0)])
+        summary = res["summary"]
+        tr = m.get("training", {})
+        own = run / f"site_yaw_eval_{site}.json"
+        yaw = read_json(own)["yaw_deg"] if own.is_file() else sites[site]["yaw"]["yaw_deg"]
+        rows.append({"method": label, "site yaw (°)": yaw, "traces": summary["sequences"], "points": summary.get("points", 0),
+                     **{k: summary.get(k, float("nan")) for k in ("error_mean", "error_p50", "error_p75", "error_p95")},
+                     "length ratio": length_ratio(run / f"eval_{site}", sites[site]["data"]),
+                     "epochs": tr.get("epochs_run", "—"), "train min": round(tr["wall_s"] / 60, 1) if tr.get("wall_s") else "—",
+                     BEATS_STILL: beats_text(tr)})
+    fx = sites[site].get("fixes")
+    if fx:
+        errors["raw phone fixes"] = np.asarray(fx["point_errors"])
+        rows.append({"method": "raw phone fixes", "site yaw (°)": "—", "traces": fx["sequences"], "points": fx["points"],
+                     **{k: v for k, v in fx.items() if k.startswith("error_")}, "length ratio": float("nan"), "epochs": "—", "train min": "—",
+                     BEATS_STILL: "—"})
+    df = pd.DataFrame(rows)
+    if not df.empty:
+        df = df.rename(columns={"error_mean": "mean (m)", "error_p50": "median (m)", "error_p75": "p75 (m)",
+                                "error_p95": "p95 (m)"})
+    return df, errors
+
+
+def length_ratio(eval_dir: Path, data: str) -> float:
+    """Median over the test traces of the path's length through its positions at the surveyed
+    times over the truth's (:func:`wearnav.bench.user_protocol.score_path`; 1 is right, below 1 the
+    path is short), from the trajectories an evaluation wrote."""
+    ds, ratios = Dataset.open(data), []
+    for f in sorted((eval_dir / "trajectories" / "test").glob("*.csv")):
+        df = pd.read_csv(f)
+        if f.stem in ds.names and len(df) > 1:
+            truth = ds.load(f.stem).truth
+            ratios.append(score_path(df["t"].to_numpy(), df[["x", "y"]].to_numpy(), truth.t, truth.pos[:, :2])[1])
+    return round(float(np.nanmedian(ratios)), 3) if np.isfinite(ratios).any() else float("nan")
+
+
+def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBench, wall_s: float) -> Path:
+    import torch
+
+    from wearnav.provenance import provenance
+    from wearnav.report.odometry import plot_cdf
+
+    p = provenance()
+    src = sites['main']['split']['source']
+    title = (f"Odometry in real buildings: trained on {src}" if not bench.train_data else
+             f"Odometry in real buildings: trained on `{Path(bench.train_data).name}`, tested on {src}")
+    lines = [f"# {title}", "",
+             f"Generated by `wearnav bench real-odometry` ({p['created']}, wearnav {p['wearnav']} {p['commit']}); "
+             f"this invocation {wall_s / 60:.1f} min of wall time (each run's own training minutes are in its row) on "
+             f"{platform.machine()}, {os.cpu_count()} CPUs, "
+             f"torch {torch.__version__}, CPU only, shared with other work while it ran.", "",
+             "Errors in metres at the surveyed points of the held-out test traces: every trace starts at its "
+             "first point and is scored at each later one (no reset). Training targets join the surveyed "
+             "points by straight lines (the competitions' assumption between waypoints); nothing is "
+             "tuned on the test groups. Phone only, 25 Hz, world frame rotated by the site's yaw "
+             "(estimated by PDR from training traces only).", "",
+             f"Training: at most {bench.epochs} epochs, early stopping on validation velocity MSE (patience "
+             f"{bench.patience})" + (f", at most {bench.max_minutes:g} min per model" if bench.max_minutes else "")
+             + (f", Adam lr {bench.lr:g}" if bench.lr else ", each model's paper learning rate")
+             + f", seed {bench.seed}, one run per row (the epochs and minutes each got are in its row).", "",
+             "Sim-to-real: a row named `model · simulator ...` is that model trained on the simulated "
+             "dataset only (phone only, the simulator's own truth frame, dense truth) and scored here "
+             "like the others; beside it the same model trained on the building's training groups, "
+             "and PDR (not learned).", ""]
+    doc = {"bench": dataclasses.asdict(bench), "wall_s": round(wall_s, 1), "sites": {}}
+    for site, s in sites.items():
+        info = s["split"]
+        test = [g for g, c in info["groups"].items() if "test" in c]
+        train = [g for g, c in info["groups"].items() if "test" not in c]
+        n = {k: sum(c.get(k, 0) for c in info["groups"].values()) for k in ("train", "val", "test")}
+        head = ("Another building, never trained on" if site != "main" else "Held-out groups of the training building"
+                if not bench.train_data else "Held-out groups (a learned row trained elsewhere says where)")
+        lines += [f"## {head}: `{info['source']}`", "",
+                  f"Source `{shown_path(info['src'])}`, grouped by `{info['group_by']}`: test {', '.join(sorted(test))} "
+                  f"({n['test']} traces); " + (f"training groups {', '.join(sorted(train))} ({n['train']} train, "
+                  f"{n['val']} validation traces)." if site == "main" else
+                  f"its other groups ({n['train'] + n['val']} traces) serve only to estimate its yaw."),
+                  f"Site yaw {s['yaw']['yaw_deg']:+.1f}° from {s['yaw']['segments']} segments of "
+                  f"{s['yaw']['traces']} training traces (median |deviation| {s['yaw']['median_abs_dev_deg']}°)"
+                  + (f"; cross-check, valid only for a phone held flat and pointing ahead: its +y axis gives "
+                     f"{s['yaw']['phone_axis_yaw_deg']:+.1f}° (the difference is PDR's own heading bias, "
+                     "which a learned model absorbs)." if s["yaw"].get("phone_axis_yaw_deg") is not None else "."), ""]
+        table, errors = results_table(sites, folders, site)
+        doc["sites"][site] = {"split": info, "yaw": s["yaw"], "table": table.to_dict(orient="records")}
+        if table.empty:
+            lines += ["(no complete runs yet)", ""]
+            continue
+        lines += ["Known-start protocol (each trace starts at its true first point, input turned by the site "
+                  "yaw: a floor, not available to a user). A learned row scored where it did not train under "
+                  "PDR's yaw uses its own estimate from the same training traces (*site yaw* column):", "", table.to_markdown(index=False, floatfmt=".2f"), ""]
+        if s.get("fixes"):
+            # each model's smoother is calibrated where it is used (user_protocol.site_calibration)
+            cal = doc["sites"][site]["calibration"] = {
+                label: site_calibration(run, site, s["data"], _trained_on(run))
+                for label, run in folders_with_eval(folders, site).items()}
+            rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"],
+                                   calibration=cal)
+            paired = paired_rows(raw)
+            doc["sites"][site]["user_protocol"] = {"table": rows, "paired": paired, "runs": raw}
+            lines += [USER_PROTOCOL_TEXT, "", pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), ""]
+            if paired:
+                lines += [PAIRED_TEXT, "", pd.DataFrame(paired).to_markdown(index=False), ""]
+            lines += _user_protocol_elsewhere(folders_with_eval(folders, site), s["data"], cal,
+                                              doc["sites"][site]["user_protocol"])
+        cdf = plot_cdf(errors, out / f"{site}_error_cdf.png", f"error at surveyed points, {info['source']} test")
+        traj = _plot_examples(folders, site, out / f"{site}_trajectories.png", info["source"])
+        lines += [f"![{q.stem}]({q.name})" for q in (cdf, traj) if q] + [""]
+    runs.write_json(out / "results.json", doc)
+    return write_text_atomic("\n".join(lines), out / "results.md")
+
+
+USER_PROTOCOL_TEXT = (
+    "User protocol (issue 25: no truth at all, neither the start point nor the site yaw; "
+    ":mod:`wearnav.bench.user_protocol`): each model's path integrated from (0, 0) in the phone's own "
+    "world frame and placed on the recording's own location fixes by first-fix anchoring (today's "
+    "`track` until now), one rigid fit to all fixes, or the smoother (:mod:`wearnav.fuse`, `track`'s "
+    "default). Errors at the same surveyed points; *length ratio*: median over walks of the path's "
+    "length through its positions at the surveyed times over the truth's (1 is right); *inside σ's 68 % "
+    "radius*: the share of the smoother's points whose error is inside 1.515 times the σ `track` "
+    "writes for them (0.68 where that σ is right, less where it is too small).")
+
+
+def _user_protocol_elsewhere(folders: dict[str, Path], data: str, cal: dict, doc: dict) -> list[str]:
+    """The user protocol again on the site's training walks, for the models that never trained on
+    them (PDR, a model from another building): three times the walks of the held-out routes, though
+    not held out from the smoother's settings (chosen on IPIN's training walks) or its calibration
+    (:func:`site_calibration`). Adds ``train_walks`` to ``doc``; returns the page's lines."""
+    others = {k: run for k, run in folders.items() if _trained_on(run) is None
+              or Path(_trained_on(run)).resolve() != Path(data).resolve()}
+    fixes = fix_errors(Path(data), "train") if others else None
+    if not fixes:
+        return []
+    rows, raw = user_table(others, data, fixes, "train",
+                           calibration={k: cal[k] for k in others})
+    paired = paired_rows(raw)
+    doc["train_walks"] = {"table": rows, "paired": paired}
+    return [f"The same on the site's {fixes['sequences']} training walks, for the models that never trained "
+            "on them: not held out from the smoother's settings or its calibration, which were chosen and "
+            "measured on such walks, but three times as many walks:", "",
+            pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), "",
+            pd.DataFrame(paired).to_markdown(index=False) if paired else "", ""]
+
+
+def _trained_on(run: Path) -> str | None:
+    """The data a learned run trained on; None for a model that is not learned."""
+    train = runs.read_config(run)["config"]["train"]
+    return train["data"] if get(train["model"]).learned and train.get("data") else None
+
+
+def folders_with_eval(folders: dict[str, Path], site: str) -> dict[str, Path]:
+    """The runs of ``folders`` scored on ``site`` (complete evaluation)."""
+    return {label: run for label, run in folders.items() if runs.is_complete(run / f"eval_{site}")}
+
+
+def _plot_examples(folders: dict[str, Path], site: str, path: Path, source: str, k: int = 4) -> Path | None:
+    """Estimated paths of every model on the first ``k`` test traces, waypoints as dots."""
+    from matplotlib.figure import Figure
+
+    from wearnav.report.plots import save
+
+    names = None
+    for run in folders.values():
+        d = run / f"eval_{site}" / "trajectories" / "test"
+        if d.is_dir():
+            names = sorted(p.stem for p in d.glob("*.csv"))[:k]
+            break
+    if not names:
+        return None
+    fig = Figure(figsize=(3.8 * len(names), 4.0), layout="constrained")
+    for i, name in enumerate(names):
+        ax = fig.add_subplot(1, len(names), i + 1)
+        drawn = False
+        for model, run in folders.items():
+            f = run / f"eval_{site}" / "trajectories" / "test" / f"{name}.csv"
+            if not f.is_file():
+                continue
+            tr = pd.read_csv(f)
+            if not drawn:
+                ax.plot(tr.x_true, tr.y_true, color="black", lw=1.0, ls=":", label="waypoints, straight")
+                drawn = True
+            ax.plot(tr.x, tr.y, lw=1.0, label=model)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=7)
+        ax.set_title(name[-28:], fontsize=8)
+        if i == 0:
+            ax.legend(fontsize=7)
+    fig.suptitle(f"{source}: held-out test traces (metres)", fontsize=11)
+    return save(fig, path)
