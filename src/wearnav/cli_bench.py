@@ -198,7 +198,7 @@ def bench_fusion(
     Example:
       wearnav bench fusion --data data/sim --out runs/fusion --live-min 60
     """
-    from wearnav.bench.user_protocol import fusion_table, live_walk, write_fusion_page
+    from wearnav.bench.fusion import fusion_table, live_walk, write_fusion_page
     from wearnav.outputs import check_suite_folder
 
     check_suite_folder(out, "bench fusion")  # its page is written at the end: nothing kept before

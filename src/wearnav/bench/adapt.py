@@ -35,7 +35,7 @@ from wearnav import runs
 from wearnav.adapt import METHODS, AdaptConfig, adapt
 from wearnav.adapt.segments import walk_segments
 from wearnav.bench.real_sites import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
-from wearnav.bench.user_protocol import calibrate, raw_fix_length_ratio, score_path, user_protocol
+from wearnav.bench.user_protocol import calibrate, median_ratio, raw_fix_length_ratio, score_path, user_protocol
 from wearnav.dataset import Dataset
 from wearnav.evaluate import evaluate_run
 from wearnav.fileio import shown_path, write_text_atomic
@@ -69,11 +69,6 @@ def _stats(e: np.ndarray) -> dict:
             "p75 (m)": round(float(np.percentile(e, 75)), 2), "p95 (m)": round(float(np.percentile(e, 95)), 2)}
 
 
-def _ratio(x) -> float:
-    x = np.asarray(x, float)
-    return round(float(np.nanmedian(x)), 3) if np.isfinite(x).any() else float("nan")
-
-
 def scored(run: Path, data: Path, splits: tuple[str, ...], yaw_deg: float, out_dir: Path) -> dict[str, tuple]:
     """Protocol 1 per split of ``splits``: (errors at the POSI points, each walk's length ratio)."""
     pre = {"frame_align": "none", "truth_max_gap": TRUTH_MAX_GAP_S, "yaw_deg": yaw_deg}
@@ -95,7 +90,7 @@ def scored(run: Path, data: Path, splits: tuple[str, ...], yaw_deg: float, out_d
 def pooled(parts: list[tuple]) -> dict:
     """Walks, POSI-point statistics and the median length ratio over :func:`scored`'s parts."""
     ratios = [x for _, r in parts for x in r]
-    return {"walks": len(ratios), **_stats(np.concatenate([e for e, _ in parts])), "length ratio": _ratio(ratios)}
+    return {"walks": len(ratios), **_stats(np.concatenate([e for e, _ in parts])), "length ratio": median_ratio(ratios)}
 
 
 def fix_label_bias(model: Path, data: Path, splits: tuple[str, ...]) -> dict:
@@ -123,7 +118,7 @@ def user(run: Path, data: Path, split: str) -> dict[str, dict]:
     train on them: :func:`wearnav.bench.user_protocol.site_calibration`), not kept in the run."""
     res = user_protocol(run, data, split, calibration=calibrate(run, data, "train"))
     return {a: {"walks": len(res[a]["length_ratio"]), **_stats(np.asarray(res[a]["errors"])),
-                "length ratio": _ratio(res[a]["length_ratio"])} for a in ANCHORS}
+                "length ratio": median_ratio(res[a]["length_ratio"])} for a in ANCHORS}
 
 
 def _adapted(model: Path, data: Path, splits: tuple[str, ...], run: Path, cfg: AdaptConfig) -> dict:
@@ -192,7 +187,7 @@ def adapt_table(model: str | Path, data: str | Path, out: str | Path, fmt: str |
         users[label] = user(run, data_dir, "test")
     fx = fix_errors(data_dir, "test")
     raw = {"walks": fx["sequences"], **_stats(np.asarray(fx["point_errors"])),
-           "length ratio": _ratio(raw_fix_length_ratio(data_dir, "test"))} if fx else None
+           "length ratio": median_ratio(raw_fix_length_ratio(data_dir, "test"))} if fx else None
     doc.update(known_start=known, user=users, raw_gnss=raw)
     doc["seconds"]["table"] = round(time.perf_counter() - t0, 1)
     doc["seconds"]["total"] = round(time.perf_counter() - t_start, 1)
