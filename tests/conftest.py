@@ -12,6 +12,17 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("WEARNAV_DATA") or ROOT / ".." / "shared" / "data").resolve()
 
 
+def pytest_configure(config):
+    """Under pytest-xdist (`make test`: two workers on two cores) each worker, and every process it
+    starts, runs torch on one thread: two workers' thread pools otherwise spin-wait against each
+    other (4–8× slower), and the tests that time the live tracker flake."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        import torch
+
+        torch.set_num_threads(1)
+        os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """The public recordings beside the project (CI has them there too)."""
