@@ -13,14 +13,14 @@ SHARED_DATA = Path(os.environ.get("WEARNAV_DATA") or ROOT / ".." / "shared" / "d
 
 
 def pytest_configure(config):
-    """Under pytest-xdist (`make test`: two workers on two cores) each worker, and every process it
-    starts, runs torch on one thread: two workers' thread pools otherwise spin-wait against each
-    other (4–8× slower), and the tests that time the live tracker flake."""
+    """Under pytest-xdist (`make test`: two workers on two cores) each worker runs torch on one
+    thread: two workers' thread pools otherwise spin-wait against each other (4–8× slower), and the
+    tests that time the live tracker flake. Processes a test starts keep their own setting (the
+    executor's test checks that it sets one thread itself)."""
     if os.environ.get("PYTEST_XDIST_WORKER"):
         import torch
 
         torch.set_num_threads(1)
-        os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 
 @pytest.fixture(scope="session")
