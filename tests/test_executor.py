@@ -75,9 +75,16 @@ def test_longest_first_and_marks(tmp_path):
 
 
 def test_local_processes_one_thread_each_same_folders(tmp_path):
+    import torch
+
     jobs = _jobs(tmp_path, n=4, sleep_s=0.3)
     lines = []
-    run_jobs(jobs, Execution(jobs=2), echo=lines.append)
+    old = torch.get_num_threads()
+    torch.set_num_threads(2)  # forked workers inherit this: one thread each must be the executor's doing
+    try:
+        run_jobs(jobs, Execution(jobs=2), echo=lines.append)
+    finally:
+        torch.set_num_threads(old)
     ms = [runs.read_metrics(j.folder) for j in jobs]
     assert [m["x"] for m in ms] == [0, 1, 2, 3]
     assert {m["threads"] for m in ms} == {1}
