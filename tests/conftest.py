@@ -36,7 +36,8 @@ def make_stream(n=200, rate=100.0, t0=0.0, seed=0, gyro=True, quat=True, worn=Fa
     t = t0 + np.arange(n) / rate
     acc = np.tile([0.0, 0.0, 9.81], (n, 1)) + 0.1 * rng.standard_normal((n, 3))
     return DeviceStream(
-        t=t, acc=acc,
+        t=t,
+        acc=acc,
         gyro=0.05 * rng.standard_normal((n, 3)) if gyro else None,
         quat=np.tile([1.0, 0, 0, 0], (n, 1)) if quat else None,
         worn=np.ones(n, bool) if worn else None,

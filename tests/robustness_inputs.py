@@ -30,8 +30,13 @@ SIDE_FILES = {
     "uci-hapt": ["RawData/labels.txt", "RawData/gyro_exp01_user01.txt", "activity_labels.txt"],
     "motionsense": ["data_subjects_info.csv"],
     "uji-phone-watch": ["DATA/s01/s01_01_sw.csv", "DATA/subjects_info.csv", "DATA/executions_info.csv"],
-    "sensorlogger": ["export/Metadata.csv", "export/Gyroscope.csv", "export/Orientation.csv",
-                     "export/Location.csv", "export/WristMotion.csv"],
+    "sensorlogger": [
+        "export/Metadata.csv",
+        "export/Gyroscope.csv",
+        "export/Orientation.csv",
+        "export/Location.csv",
+        "export/WristMotion.csv",
+    ],
 }
 FORMATS = list(TARGETS)
 # A dataset folder's manifest is malformed the same way (the "format" of ``wearnav info``).
@@ -56,21 +61,28 @@ def _head(path: Path, n: int) -> str:
 def build_seed(fmt: str, data: Path | None) -> dict[str, str]:
     """The seed files of ``fmt`` (``data`` is shared/data; unused for sensorlogger)."""
     if fmt == "sensorlogger":
-        from wearnav.importers.sensorlogger_export import write_export
-        from synthetic import synthetic_recording
         import tempfile
 
+        from synthetic import synthetic_recording
+        from wearnav.importers.sensorlogger_export import write_export
+
         with tempfile.TemporaryDirectory() as tmp:
-            folder = write_export(synthetic_recording(duration=8.0, seed=1), Path(tmp) / "export",
-                                  platform="android", total_acceleration=True)
+            folder = write_export(
+                synthetic_recording(duration=8.0, seed=1),
+                Path(tmp) / "export",
+                platform="android",
+                total_acceleration=True,
+            )
             return {f"export/{p.name}": p.read_text(encoding="utf-8") for p in sorted(folder.iterdir())}
     assert data is not None
     if fmt == "ilc2":
         trace = sorted((data / "ilc2_indoor_location/site1/F4/path_data_files").glob("*.txt.gz"))[0]
         lines = _text(trace).splitlines()
         rows = [ln for ln in lines[:400]] + [lines[-1]]  # header, ~4 s of data, the endTime footer
-        return {TARGETS[fmt][0]: "\n".join(rows) + "\n",
-                "site1/F4/floor_info.json": _text(trace.parent.parent / "floor_info.json")}
+        return {
+            TARGETS[fmt][0]: "\n".join(rows) + "\n",
+            "site1/F4/floor_info.json": _text(trace.parent.parent / "floor_info.json"),
+        }
     if fmt == "ipin2023":
         log = next((data / "ipin2023_track3").rglob("IPIN2023_T3_TrainingTrial01_repetition01.txt.xz"))
         keep = []
@@ -84,24 +96,32 @@ def build_seed(fmt: str, data: Path | None) -> dict[str, str]:
         return {TARGETS[fmt][0]: "\n".join(keep) + "\n"}
     if fmt == "motionsense":
         root = data / "motionsense"
-        return {TARGETS[fmt][0]: _head(root / "A_DeviceMotion_data/wlk_7/sub_1.csv.xz", 201),
-                "data_subjects_info.csv": _text(root / "data_subjects_info.csv")}
+        return {
+            TARGETS[fmt][0]: _head(root / "A_DeviceMotion_data/wlk_7/sub_1.csv.xz", 201),
+            "data_subjects_info.csv": _text(root / "data_subjects_info.csv"),
+        }
     if fmt == "uci-hapt":
         root = data / "uci_hapt"
-        labels = [ln for ln in _text(root / "RawData/labels.txt.xz").splitlines()
-                  if ln.split()[:2] == ["1", "1"] and int(ln.split()[4]) <= 1400]
-        return {TARGETS[fmt][0]: _head(root / "RawData/acc_exp01_user01.txt.xz", 1400),
-                "RawData/gyro_exp01_user01.txt": _head(root / "RawData/gyro_exp01_user01.txt.xz", 1400),
-                "RawData/labels.txt": "\n".join(labels) + "\n",
-                "activity_labels.txt": _text(root / "activity_labels.txt")}
+        labels = [
+            ln
+            for ln in _text(root / "RawData/labels.txt.xz").splitlines()
+            if ln.split()[:2] == ["1", "1"] and int(ln.split()[4]) <= 1400
+        ]
+        return {
+            TARGETS[fmt][0]: _head(root / "RawData/acc_exp01_user01.txt.xz", 1400),
+            "RawData/gyro_exp01_user01.txt": _head(root / "RawData/gyro_exp01_user01.txt.xz", 1400),
+            "RawData/labels.txt": "\n".join(labels) + "\n",
+            "activity_labels.txt": _text(root / "activity_labels.txt"),
+        }
     if fmt == "uji-phone-watch":
         root = data / "uji_phone_watch_har/DATA"
-        return {TARGETS[fmt][0]: _head(root / "s01/s01_01_sp.csv.xz", 301),
-                "DATA/s01/s01_01_sw.csv": _head(root / "s01/s01_01_sw.csv.xz", 301),
-                # s01 recorded one execution in this slice (the table declares how many exist).
-                "DATA/subjects_info.csv": re.sub(r"(?m)^(s01,.*,)\d+$", r"\g<1>1",
-                                                 _text(_one(root, "subjects_info.csv"))),
-                "DATA/executions_info.csv": _text(_one(root, "executions_info.csv"))}
+        return {
+            TARGETS[fmt][0]: _head(root / "s01/s01_01_sp.csv.xz", 301),
+            "DATA/s01/s01_01_sw.csv": _head(root / "s01/s01_01_sw.csv.xz", 301),
+            # s01 recorded one execution in this slice (the table declares how many exist).
+            "DATA/subjects_info.csv": re.sub(r"(?m)^(s01,.*,)\d+$", r"\g<1>1", _text(_one(root, "subjects_info.csv"))),
+            "DATA/executions_info.csv": _text(_one(root, "executions_info.csv")),
+        }
     if fmt == "oxford-steps":
         src = data / "oxford_step_counter/validation/user1_armband_1506423438471.csv.xz"
         return {TARGETS[fmt][0]: _head(src, 600)}
@@ -125,17 +145,29 @@ def materialise(seed: dict[str, str], root: Path) -> None:
 # ---- malformations -----------------------------------------------------------------------------
 
 BAD_VALUES = ["1e30", "-1e30", "nan", "inf", "", "abc", "0", "-0.5", "1e-30", "999999999999999999999"]
-KINDS = ["truncate", "truncate_gz", "rename", "corrupt_cell", "corrupt_5pct", "duplicate_row",
-         "duplicate_all", "reverse", "swap_rows", "drop_file", "empty_file", "crlf"]
+KINDS = [
+    "truncate",
+    "truncate_gz",
+    "rename",
+    "corrupt_cell",
+    "corrupt_5pct",
+    "duplicate_row",
+    "duplicate_all",
+    "reverse",
+    "swap_rows",
+    "drop_file",
+    "empty_file",
+    "crlf",
+]
 
 
 @dataclass(frozen=True)
 class Mutation:
     kind: str
-    side: float       # < 0.7 targets the main file, else a side file (where the format has any)
-    where: float      # position in [0, 1): byte, row or field, by kind
-    column: float     # field position in [0, 1)
-    value: str        # replacement text for corruptions and renames
+    side: float  # < 0.7 targets the main file, else a side file (where the format has any)
+    where: float  # position in [0, 1): byte, row or field, by kind
+    column: float  # field position in [0, 1)
+    value: str  # replacement text for corruptions and renames
 
     def describe(self) -> str:
         return f"{self.kind}(side={self.side:.2f}, where={self.where:.3f}, col={self.column:.2f}, value={self.value!r})"
@@ -164,6 +196,7 @@ def apply(mutation: Mutation, fmt: str, root: Path) -> Path:
     data_idx = [i for i, ln in enumerate(lines) if ln and ln[0] not in "#%"]
     if rel.endswith(".csv") and data_idx and data_idx[0] == 0:
         data_idx = data_idx[1:]  # the header line
+
     def pick(frac: float, among: list[int]) -> int:
         return among[min(int(frac * len(among)), len(among) - 1)]
 
@@ -195,8 +228,11 @@ def apply(mutation: Mutation, fmt: str, root: Path) -> Path:
             fields[j] = mutation.value or fields[j].upper() + "_X"
             lines[i] = _join(fields, sep)
         elif k in ("corrupt_cell", "corrupt_5pct"):
-            rows = [pick(mutation.where, data_idx)] if k == "corrupt_cell" else \
-                data_idx[int(mutation.where * 20) % 20::20]
+            rows = (
+                [pick(mutation.where, data_idx)]
+                if k == "corrupt_cell"
+                else data_idx[int(mutation.where * 20) % 20 :: 20]
+            )
             for i in rows:
                 fields = _split(lines[i], sep) or [""]
                 lo = min(2 if fmt == "ilc2" else 1 if fmt == "ipin2023" else 0, len(fields) - 1)

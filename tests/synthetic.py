@@ -13,8 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from wearnav.recording import STANDARD_GRAVITY
-from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
+from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Fixes, Recording, Trajectory
 
 G = STANDARD_GRAVITY
 RATES = {"phone": 100.0, "watch": 50.0, "earbuds": 25.0}
@@ -53,7 +52,7 @@ def _acc_world(t, duration):
     step = 2 * np.pi * 1.8
     ax = ds * np.cos(psi) - s * dpsi * np.sin(psi)
     ay = ds * np.sin(psi) + s * dpsi * np.cos(psi)
-    az = -0.04 * step ** 2 * np.sin(step * t)  # vertical bounce of the gait
+    az = -0.04 * step**2 * np.sin(step * t)  # vertical bounce of the gait
     return np.stack([ax, ay, az], 1)
 
 
@@ -82,9 +81,16 @@ def _rotation(dev: str, t, duration) -> Rotation:
     return r
 
 
-def synthetic_recording(name: str = "synthetic", duration: float = 40.0, seed: int = 0,
-                        devices=("phone", "watch", "earbuds"), fixes: bool = True,
-                        truth: bool = True, labels: bool = True, gyro: bool = True) -> Recording:
+def synthetic_recording(
+    name: str = "synthetic",
+    duration: float = 40.0,
+    seed: int = 0,
+    devices=("phone", "watch", "earbuds"),
+    fixes: bool = True,
+    truth: bool = True,
+    labels: bool = True,
+    gyro: bool = True,
+) -> Recording:
     rng = np.random.default_rng(seed)
     streams = {}
     for dev in devices:
@@ -103,9 +109,11 @@ def synthetic_recording(name: str = "synthetic", duration: float = 40.0, seed: i
         acc = r.inv().apply(a_world + [0, 0, G]) + 0.05 * rng.standard_normal((len(t), 3))
         q = r.as_quat()[:, [3, 0, 1, 2]]
         streams[dev] = DeviceStream(
-            t=t, acc=acc,
+            t=t,
+            acc=acc,
             gyro=omega + 0.005 * rng.standard_normal((len(t), 3)) if gyro else None,
-            quat=q, worn=worn if dev == "earbuds" else None,
+            quat=q,
+            worn=worn if dev == "earbuds" else None,
         )
     tt = np.arange(0, duration, 0.1)
     tr = Trajectory(tt, _position(tt, duration)) if truth else None
@@ -120,7 +128,16 @@ def synthetic_recording(name: str = "synthetic", duration: float = 40.0, seed: i
         mid = duration / 2
         rows = [(0.0, mid, "activity", "walk_slow"), (mid, duration, "activity", "walk_fast")]
         if "earbuds" in devices and duration > OFF_EARS[1]:
-            rows += [(0.0, OFF_EARS[0], "earbuds", "in_ears"), (*OFF_EARS, "earbuds", "on_table"),
-                     (OFF_EARS[1], duration, "earbuds", "in_ears")]
-    return Recording(name=name, devices=streams, truth=tr, fixes=fx, labels=rows,
-                     meta={"subject": "s1", "mode": "walk", "placement": "hand", "source": "synthetic"})
+            rows += [
+                (0.0, OFF_EARS[0], "earbuds", "in_ears"),
+                (*OFF_EARS, "earbuds", "on_table"),
+                (OFF_EARS[1], duration, "earbuds", "in_ears"),
+            ]
+    return Recording(
+        name=name,
+        devices=streams,
+        truth=tr,
+        fixes=fx,
+        labels=rows,
+        meta={"subject": "s1", "mode": "walk", "placement": "hand", "source": "synthetic"},
+    )

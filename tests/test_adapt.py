@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import torch
 
+from conftest import error_line, run_cli
 from wearnav import cli_models
 from wearnav.adapt import DEFAULT_METHOD, METHODS, AdaptConfig, adapt
 from wearnav.adapt.finetune import FinetuneConfig
@@ -30,7 +31,6 @@ from wearnav.simulate import WalkConfig, simulate_recording
 from wearnav.track import track
 from wearnav.train.odometry import ADAPTATION, TrainConfig, fit, load_model, prepare_run
 from wearnav.trajectory import integrate_velocity
-from conftest import error_line, run_cli
 
 WRONG = 0.7  # the wrong model's speed over the true speed (made right on all four walks' truth)
 # The factor fitted from the fixes of the three training walks (86 segments of 10 s) against the
@@ -44,9 +44,12 @@ SCALE_TOLERANCE = 0.05
 @pytest.fixture(scope="module")
 def walks(tmp_path_factory):
     root = tmp_path_factory.mktemp("adapt")
-    recs = [simulate_recording(WalkConfig(name=f"w{k}", mode=m, placement=p, duration_s=300, noise_level=nl), seed=k)
-            for k, (m, p, nl) in enumerate([("STW", "HD", "L1"), ("PVW", "MP", "L2"), ("STW", "HD", "L3"),
-                                            ("MVW", "MP", "L2")])]
+    recs = [
+        simulate_recording(WalkConfig(name=f"w{k}", mode=m, placement=p, duration_s=300, noise_level=nl), seed=k)
+        for k, (m, p, nl) in enumerate(
+            [("STW", "HD", "L1"), ("PVW", "MP", "L2"), ("STW", "HD", "L3"), ("MVW", "MP", "L2")]
+        )
+    ]
     with DatasetWriter(root / "ds", {"made_by": "test_adapt"}) as w:
         for rec in recs:
             w.add(rec, split="train")
@@ -64,7 +67,7 @@ def _truth_factor(model, tcfg, recs) -> float:
         w = walk_segments(rec, tcfg)
         d = odometry_displacements(model, w, tcfg.window, tcfg.stride)
         tt = interpolate_position(rec.truth.t, rec.truth.pos[:, :2], np.concatenate([w.t0, w.t1]))
-        f.append(compare(d, tt[len(w):] - tt[:len(w)], 0.5 * (w.t0 + w.t1))["factor"])
+        f.append(compare(d, tt[len(w) :] - tt[: len(w)], 0.5 * (w.t0 + w.t1))["factor"])
     return float(np.nanmedian(np.concatenate(f)))
 
 
@@ -135,7 +138,12 @@ def test_adapt_reads_no_truth_and_holds_out_the_end_of_a_single_walk(walks, wron
     _, recs, _ = walks
     wrong, _ = wrong_run
     with_truth = adapt(recs[:1], wrong, tmp_path / "a", AdaptConfig(method="scale", min_segments=10))
-    without = adapt([dataclasses.replace(recs[0], truth=None, meta={})], wrong, tmp_path / "b", AdaptConfig(method="scale", min_segments=10))
+    without = adapt(
+        [dataclasses.replace(recs[0], truth=None, meta={})],
+        wrong,
+        tmp_path / "b",
+        AdaptConfig(method="scale", min_segments=10),
+    )
     assert with_truth["velocity_scale"] == without["velocity_scale"]
     assert with_truth["held_out_after"] == without["held_out_after"]
     assert without["held_out_by"] == "time"
@@ -164,8 +172,22 @@ def test_cli_adapts_a_learned_run_by_finetune_and_track_takes_it(walks, tmp_path
     cfg = TrainConfig(model="suitein", data=str(root / "ds"), devices=("phone",), epochs=1, stride=50, seed=0)
     run = prepare_run(cfg, tmp_path / "suitein")
     fit(cfg, run, progress=False)
-    code, out, err = run_cli(monkeypatch, capsys, "adapt", root / "ds", "--split", "train", "--model", run,
-                             "--out", tmp_path / "mine", "--method", "finetune", "--epochs", "1")
+    code, out, err = run_cli(
+        monkeypatch,
+        capsys,
+        "adapt",
+        root / "ds",
+        "--split",
+        "train",
+        "--model",
+        run,
+        "--out",
+        tmp_path / "mine",
+        "--method",
+        "finetune",
+        "--epochs",
+        "1",
+    )
     assert code == 0, err
     shown = json.loads(out)
     assert shown["method"] == "finetune" and shown["recordings"] == 4 and shown["velocity_scale"] == 1.0
@@ -185,11 +207,22 @@ def test_cli_bad_input_is_one_line(walks, wrong_run, tmp_path, monkeypatch, caps
     wrong, _ = wrong_run
     (tmp_path / "nofix").mkdir()
     dataclasses.replace(recs[0], fixes=None).save(tmp_path / "nofix" / "w.h5")
-    code, out, err = run_cli(monkeypatch, capsys, "adapt", tmp_path / "nofix" / "w.h5", "--model", wrong,
-                             "--out", tmp_path / "o", "--method", "scale")
+    code, out, err = run_cli(
+        monkeypatch,
+        capsys,
+        "adapt",
+        tmp_path / "nofix" / "w.h5",
+        "--model",
+        wrong,
+        "--out",
+        tmp_path / "o",
+        "--method",
+        "scale",
+    )
     assert code == 2 and out == "" and err.count("\n") == 1 and "has location fixes" in err
-    code, _, err = run_cli(monkeypatch, capsys, "adapt", root / "ds", "--model", walks[2], "--out", tmp_path / "p",
-                           "--method", "finetune")
+    code, _, err = run_cli(
+        monkeypatch, capsys, "adapt", root / "ds", "--model", walks[2], "--out", tmp_path / "p", "--method", "finetune"
+    )
     assert code == 2 and err.count("\n") == 1 and "no weights to fine-tune" in err
 
 
@@ -215,15 +248,26 @@ def test_bench_adapt_writes_a_page_results_can_stitch(tmp_path):
         for k, trial in enumerate((3, 5, 6, 7, 4, 24, 52)):
             rec = simulate_recording(WalkConfig(name=f"T{trial}", duration_s=150, noise_level="L1"), seed=10 + k)
             keep = np.arange(0, len(rec.truth.t), 1000)  # 100-Hz truth → a point every 10 s
-            rec = dataclasses.replace(rec, truth=Trajectory(rec.truth.t[keep], rec.truth.pos[keep]),
-                                      meta={**rec.meta, "source": "ipin2023", "trial": trial})
+            rec = dataclasses.replace(
+                rec,
+                truth=Trajectory(rec.truth.t[keep], rec.truth.pos[keep]),
+                meta={**rec.meta, "source": "ipin2023", "trial": trial},
+            )
             w.add(rec, split="train")
-    cfg = TrainConfig(model="suitein", data=str(tmp_path / "site"), devices=("phone",), epochs=1, stride=50,
-                      truth_max_gap=30.0, frame_align="none")
+    cfg = TrainConfig(
+        model="suitein",
+        data=str(tmp_path / "site"),
+        devices=("phone",),
+        epochs=1,
+        stride=50,
+        truth_max_gap=30.0,
+        frame_align="none",
+    )
     base = prepare_run(cfg, tmp_path / "base")
     fit(cfg, base, progress=False)
-    doc = adapt_table(base, tmp_path / "site", tmp_path / "suite",
-                      cfg=AdaptConfig(min_segments=5, finetune=FinetuneConfig(epochs=1)))
+    doc = adapt_table(
+        base, tmp_path / "site", tmp_path / "suite", cfg=AdaptConfig(min_segments=5, finetune=FinetuneConfig(epochs=1))
+    )
     assert doc["choice"]["best"] in METHODS
     assert set(doc["known_start"]) == {"un-adapted", "adapted (scale)", "adapted (finetune)", "PDR"}
     assert all(r["walks"] == 3 and r["points"] > 20 for r in doc["known_start"].values())

@@ -36,8 +36,7 @@ def test_one_angle_per_sample_for_every_device_and_target():
     out = augment.rotate_yaw(bt, torch.Generator().manual_seed(3))
 
     def angle(v_new, v_old):  # signed angle from old to new, per vector
-        return torch.atan2(v_old[..., 0] * v_new[..., 1] - v_old[..., 1] * v_new[..., 0],
-                           (v_old * v_new).sum(-1))
+        return torch.atan2(v_old[..., 0] * v_new[..., 1] - v_old[..., 1] * v_new[..., 0], (v_old * v_new).sum(-1))
 
     a = angle(out["vel"], bt["vel"])
     for key in ("disp",):

@@ -12,8 +12,12 @@ def test_simulator_rows_smoother_beats_the_users_odometry_and_the_fixes():
     smoother wins on 2 of seeds 0-3 alone, and over the four by a thin margin (2.16 vs 2.20 m)."""
     rows = simulator_rows("pdr", duration_s=240.0, walks_per_mode=4, modes=("STW",))
     med = {r["path"]: r["median (m)"] for r in rows}
-    assert set(med) == {"odometry alone (oracle rigid fit to truth)", "odometry alone (first-fix anchoring)",
-                        "fixes alone", "smoother"}
+    assert set(med) == {
+        "odometry alone (oracle rigid fit to truth)",
+        "odometry alone (first-fix anchoring)",
+        "fixes alone",
+        "smoother",
+    }
     print(med)
     assert med["smoother"] < med["fixes alone"]
     assert med["smoother"] < med["odometry alone (first-fix anchoring)"]
@@ -33,18 +37,37 @@ def test_bench_fusion_writes_a_page_that_results_stitches(tmp_path, monkeypatch,
     from wearnav.simulate.config import WalkConfig
     from wearnav.simulate.walk import simulate_recording
 
-    recs = [(simulate_recording(WalkConfig(name=f"{m}_{split}", mode=m, placement="HD", duration_s=60.0), seed=k), split)
-            for k, (m, split) in enumerate((("STW", "test"), ("DLW", "test"), ("STW", "train")))]
+    recs = [
+        (simulate_recording(WalkConfig(name=f"{m}_{split}", mode=m, placement="HD", duration_s=60.0), seed=k), split)
+        for k, (m, split) in enumerate((("STW", "test"), ("DLW", "test"), ("STW", "train")))
+    ]
     write_dataset(tmp_path / "sim", recs)
-    code, out, err = run_cli(monkeypatch, capsys, "bench", "fusion", "--data", tmp_path / "sim", "--out", tmp_path / "fusion",
-                             "--live-min", "2")
+    code, out, err = run_cli(
+        monkeypatch,
+        capsys,
+        "bench",
+        "fusion",
+        "--data",
+        tmp_path / "sim",
+        "--out",
+        tmp_path / "fusion",
+        "--live-min",
+        "2",
+    )
     assert code == 0, err
     page = (tmp_path / "fusion" / "results.md").read_text()
     table = json.loads((tmp_path / "fusion" / "results.json").read_text())
     assert "| STW " in page and "| DLW " in page and "s per hour of walk" in page
     assert {(r["mode"], r["path"]) for r in table["rows"]} == {
-        (m, p) for m in ("DLW", "STW", "all") for p in ("odometry alone (oracle rigid fit to truth)",
-                                                         "odometry alone (first-fix anchoring)", "fixes alone", "smoother")}
+        (m, p)
+        for m in ("DLW", "STW", "all")
+        for p in (
+            "odometry alone (oracle rigid fit to truth)",
+            "odometry alone (first-fix anchoring)",
+            "fixes alone",
+            "smoother",
+        )
+    }
     assert table["smooth_s_per_hour"] > 0 and table["walk_s"] > 100
     # calibrated on the training walk, which is not scored
     assert table["calibration"]["walks"] == 1 and table["calibration"]["odometry_walk_m_per_sqrt_s"] > 0
@@ -53,6 +76,7 @@ def test_bench_fusion_writes_a_page_that_results_stitches(tmp_path, monkeypatch,
     assert "calibrated on the dataset's training walks (1)" in page
     # a shipped learned model as the odometry: calibrated on its own (a steadier path than PDR's)
     from wearnav.bench.fusion import fusion_table
+
     learned = fusion_table(tmp_path / "sim", "phone")
     assert learned["model"] == "phone" and {r["walks"] for r in learned["rows"] if r["mode"] == "all"} == {2}
     assert learned["calibration"]["odometry_walk_m_per_sqrt_s"] != table["calibration"]["odometry_walk_m_per_sqrt_s"]

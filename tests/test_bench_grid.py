@@ -6,7 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from wearnav.bench import odometry, odometry_tables as tables
+from wearnav.bench import odometry
+from wearnav.bench import odometry_tables as tables
 from wearnav.errors import ConfigError
 
 # per-seed test ATE: ronin well separated from suitein++, pdr overlapping it
@@ -16,8 +17,16 @@ ATE = {"suitein++": [1.0, 1.1, 0.9], "ronin": [3.0, 3.1, 2.9], "pdr": [1.05, 1.3
 def fake_run(root, model, seed, ate, model_args=None, modes=("DRW", "DLW")):
     """A complete run folder as a grid run leaves it: config.yaml, metrics.json, trajectories."""
     folder = root / f"{model}-{seed}-{len(model_args or {})}"
-    train = {"model": model, "seed": seed, "model_args": model_args or {}, "epochs": 30, "patience": 10,
-             "frame_align": "truth", "eval_frame_align": "initial", "window": 100}
+    train = {
+        "model": model,
+        "seed": seed,
+        "model_args": model_args or {},
+        "epochs": 30,
+        "patience": 10,
+        "frame_align": "truth",
+        "eval_frame_align": "initial",
+        "window": 100,
+    }
     (folder / "trajectories" / "test").mkdir(parents=True)
     (folder / "trajectories" / "test_unseen").mkdir(parents=True)
     (folder / "config.yaml").write_text(json.dumps({"config": {"train": train}}))
@@ -29,17 +38,33 @@ def fake_run(root, model, seed, ate, model_args=None, modes=("DRW", "DLW")):
             name = f"{split}-{mode}-{place}"
             true = np.stack([1.2 * t, 0 * t], 1)
             est = np.stack([(1.2 + 0.05 * ate) * t, 0 * t], 1)
-            pd.DataFrame({"t": t, "x": est[:, 0], "y": est[:, 1], "x_true": true[:, 0], "y_true": true[:, 1],
-                          "error": np.linalg.norm(est - true, axis=1)}).to_csv(
-                folder / "trajectories" / split / f"{name}.csv", index=False)
+            pd.DataFrame(
+                {
+                    "t": t,
+                    "x": est[:, 0],
+                    "y": est[:, 1],
+                    "x_true": true[:, 0],
+                    "y_true": true[:, 1],
+                    "error": np.linalg.norm(est - true, axis=1),
+                }
+            ).to_csv(folder / "trajectories" / split / f"{name}.csv", index=False)
             rows.append({"name": name, "mode": mode, "placement": place, "ate": ate, "rte": ate / 2})
         s = {"sequences": len(rows), "ate_mean": ate, "rte_mean": ate / 2}
-        splits[split] = {"summary": s, "by_mode": {m: s for m in modes},
-                         "by_placement": {p: {**s, "ate_mean": ate + (0.5 if p == "BG" else 0)} for p in places},
-                         "sequences": rows}
-    (folder / "metrics.json").write_text(json.dumps(
-        {"model": model, "splits": splits, "training": {"epochs_run": 30, "stopped_by": "epochs", "wall_s": 60,
-                                                        "beats_trivial": True}}))
+        splits[split] = {
+            "summary": s,
+            "by_mode": {m: s for m in modes},
+            "by_placement": {p: {**s, "ate_mean": ate + (0.5 if p == "BG" else 0)} for p in places},
+            "sequences": rows,
+        }
+    (folder / "metrics.json").write_text(
+        json.dumps(
+            {
+                "model": model,
+                "splits": splits,
+                "training": {"epochs_run": 30, "stopped_by": "epochs", "wall_s": 60, "beats_trivial": True},
+            }
+        )
+    )
     return folder
 
 
@@ -59,7 +84,14 @@ def test_row_labels_and_seeded_configs(tmp_path):
     data = tmp_path / "d"
     simulate_dataset("tiny", data, seed=1)
     cfgs = odometry.suite_configs(data, ["pdr", ("ronin", {})], seeds=[0, 1, 2], epochs=2)
-    assert [(c.model, c.seed) for c in cfgs] == [("pdr", 0), ("pdr", 1), ("pdr", 2), ("ronin", 0), ("ronin", 1), ("ronin", 2)]
+    assert [(c.model, c.seed) for c in cfgs] == [
+        ("pdr", 0),
+        ("pdr", 1),
+        ("pdr", 2),
+        ("ronin", 0),
+        ("ronin", 1),
+        ("ronin", 2),
+    ]
     assert len({odometry.run_folder(tmp_path, c) for c in cfgs}) == 6  # one folder per model × seed
     assert [c.seed for c in odometry.suite_configs(data, ["pdr"], seed=4)] == [4]  # the one-seed call as before
     with pytest.raises(ConfigError):
@@ -77,7 +109,12 @@ def test_cells_and_markers_from_known_numbers(grid_runs):
     assert cell["ronin"] == "3.00 ± 0.10 †"  # well separated seeds
     assert cell["pdr"] == "1.02 ± 0.30"  # overlapping seeds: no marker
     assert cell["suitein"] == "2.00"  # one seed: no spread, no test
-    assert dict(zip(table["model"], table["seeds"])) == {"suitein++": "3", "ronin": "3", "pdr": "3", "suitein": "1 of 3"}
+    assert dict(zip(table["model"], table["seeds"])) == {
+        "suitein++": "3",
+        "ronin": "3",
+        "pdr": "3",
+        "suitein": "1 of 3",
+    }
     assert stats["ATE"]["ronin"]["p_bh"] < 0.05 < stats["ATE"]["pdr"]["p_bh"]
     assert stats["ATE"]["suitein"]["p"] is None
     assert cell == dict(zip(table["model"], table["DRW ATE"]))
@@ -93,7 +130,7 @@ def test_placement_summary_and_page(grid_runs, tmp_path):
     out = tmp_path / "suite"
     page = tables.write_grid_report(grid_runs, out, expected_seeds=3).read_text()
     assert "## Table III: split `test`" in page and "## Table III: split `test_unseen`" in page
-    t4 = page[page.index("## Table IV"):page.index("## Table VI")]
+    t4 = page[page.index("## Table IV") : page.index("## Table VI")]
     assert "BG ATE" in t4 and "3.50 ± 0.10 †" in t4 and "suitein " not in t4  # phone-only rows + Suite-IN++
     assert "`initial`: one constant yaw" in page and "epochs 30, patience 10" in page
     assert "## Table V:" not in page  # no ablation ran
@@ -107,13 +144,16 @@ def test_table_v_marks_and_table_vi_columns(tmp_path):
     from wearnav.bench.efficiency import macs_per_window
     from wearnav.models.registry import build, n_parameters
 
-    folders = [fake_run(tmp_path, m, s, a) for m, v in {"suitein++": [1.0, 1.1], "suitein++-abl1": [2.0, 2.2]}.items()
-               for s, a in enumerate(v)]
+    folders = [
+        fake_run(tmp_path, m, s, a)
+        for m, v in {"suitein++": [1.0, 1.1], "suitein++-abl1": [2.0, 2.2]}.items()
+        for s, a in enumerate(v)
+    ]
     page = tables.write_grid_report(folders, tmp_path / "page", expected_seeds=2).read_text()
-    assert "| suitein++-abl1 |" not in page[page.index("## Table III"):page.index("## Table V:")]  # Table V only
-    t5 = page[page.index("| variant"):page.index("## Table VI")]
+    assert "| suitein++-abl1 |" not in page[page.index("## Table III") : page.index("## Table V:")]  # Table V only
+    t5 = page[page.index("| variant") : page.index("## Table VI")]
     assert "| (1)       |" in t5 and t5.count("✓") == 3  # (1): no module; (6): all three
-    t6 = page[page.index("## Table VI"):]
+    t6 = page[page.index("## Table VI") :]
     for col in ("params", "MMACs per window", "windows/s b1", "windows/s b256"):
         assert col in t6
     row = json.loads((tmp_path / "page" / "results.json").read_text())["tables"]["VI"][0]
@@ -130,13 +170,20 @@ def test_speed_from_positions():
     assert v == pytest.approx(1.5)  # the ends too
 
 
-@pytest.mark.parametrize("args, says", [(("--seeds", "0,x"), "--seeds takes comma-separated integers"),
-                                        (("--seeds", "0,0"), "seeds must be distinct"),
-                                        (("--grid", "paper", "--models", "pdr"), "not both")])
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (("--seeds", "0,x"), "--seeds takes comma-separated integers"),
+        (("--seeds", "0,0"), "seeds must be distinct"),
+        (("--grid", "paper", "--models", "pdr"), "not both"),
+    ],
+)
 def test_bad_grid_options_are_one_line(tmp_path, monkeypatch, capsys, args, says):
     from conftest import run_cli
 
-    code, _, err = run_cli(monkeypatch, capsys, "bench", "odometry", "--data", tmp_path / "d", "--out", tmp_path / "s", *args)
+    code, _, err = run_cli(
+        monkeypatch, capsys, "bench", "odometry", "--data", tmp_path / "d", "--out", tmp_path / "s", *args
+    )
     assert code == 2 and says in err and err.count("\n") == 1
 
 

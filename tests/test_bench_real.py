@@ -9,6 +9,7 @@ import json
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from wearnav import runs
 from wearnav.bench.real import RealBench, run_benchmark
@@ -20,7 +21,6 @@ from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import Trajectory
 from wearnav.rotations import from_wxyz, to_wxyz
 from wearnav.simulate import simulate_dataset
-from scipy.spatial.transform import Rotation
 
 POINT_EVERY_S = 5.0
 
@@ -66,8 +66,9 @@ def test_prepare_data_refuses_unknown_groups_and_missing_grouping(building, tmp_
         prepare_data(building / "building", tmp_path / "a", group_by="floor_name", test_groups=("F7",), progress=False)
     with pytest.raises(ConfigError, match="group-by"):
         prepare_data(building / "building", tmp_path / "b", progress=False)
-    out, info = prepare_data(building / "building", tmp_path / "c", group_by="floor_name", test_groups=("F9",),
-                             progress=False)
+    out, info = prepare_data(
+        building / "building", tmp_path / "c", group_by="floor_name", test_groups=("F9",), progress=False
+    )
     m = Dataset.open(out).manifest
     floors = {n: Dataset.open(out).load(n).meta["floor_name"] for n in m.name}
     assert all((floors[n] == "F9") == (s == "test") for n, s in zip(m.name, m.split))
@@ -93,9 +94,21 @@ def test_site_yaw_follows_a_turn_of_the_input_frame(building, tmp_path):
     further 30° give a yaw 30° larger (the sign convention of wearnav.frames)."""
     ds = Dataset.open(building / "building")
     base = estimate_site_yaw(building / "building", split="")
-    recs = [(dataclasses.replace(r, devices={"phone": dataclasses.replace(
-        r.devices["phone"], quat=to_wxyz(Rotation.from_euler("z", 30, degrees=True) * from_wxyz(r.devices["phone"].quat)))}), "")
-        for r in (ds.load(n) for n in ds.names)]
+    recs = [
+        (
+            dataclasses.replace(
+                r,
+                devices={
+                    "phone": dataclasses.replace(
+                        r.devices["phone"],
+                        quat=to_wxyz(Rotation.from_euler("z", 30, degrees=True) * from_wxyz(r.devices["phone"].quat)),
+                    )
+                },
+            ),
+            "",
+        )
+        for r in (ds.load(n) for n in ds.names)
+    ]
     write_dataset(tmp_path / "turned", recs)
     turned = estimate_site_yaw(tmp_path / "turned", split="")
     assert base["segments"] == turned["segments"] > 20
@@ -107,8 +120,14 @@ def test_site_yaw_follows_a_turn_of_the_input_frame(building, tmp_path):
 def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_path):
     out = tmp_path / "bench"
     bench = RealBench(models=("pdr", "suitein++"), epochs=1, stride=25)
-    kw = dict(group_by="floor_name", test_groups=("F9",), test_group_by="floor_name", test_test_groups=("F9",),
-              bench=bench, progress=False)
+    kw = dict(
+        group_by="floor_name",
+        test_groups=("F9",),
+        test_group_by="floor_name",
+        test_test_groups=("F9",),
+        bench=bench,
+        progress=False,
+    )
     msgs = []
     page = run_benchmark(building / "building", out, building / "other", echo=msgs.append, **kw)
     text = page.read_text()
@@ -125,7 +144,10 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
     # the user protocol, the smoother paired by walk against each other path, and again on the
     # training walks for the models that never trained on them (PDR, not the learned model here)
     up = doc["sites"]["main"]["user_protocol"]
-    assert {(r["model"], r["smoother minus"]) for r in up["paired"]} >= {("pdr", "raw phone fixes"), ("suitein++", "raw phone fixes")}
+    assert {(r["model"], r["smoother minus"]) for r in up["paired"]} >= {
+        ("pdr", "raw phone fixes"),
+        ("suitein++", "raw phone fixes"),
+    }
     assert all(r["walks"] == table["pdr"]["traces"] for r in up["paired"])
     train_rows = [r["path"] for r in up["train_walks"]["table"]]
     assert train_rows[0] == "raw phone fixes" and any(p.startswith("pdr ·") for p in train_rows)
@@ -156,9 +178,22 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
 def test_cli_real_odometry_bad_group_is_one_line(building, tmp_path, monkeypatch, capsys):
     from conftest import run_cli
 
-    code, out, err = run_cli(monkeypatch, capsys, "bench", "real-odometry", "--data", building / "building",
-                             "--out", tmp_path / "o", "--group-by", "floor_name", "--test-groups", "F77",
-                             "--models", "pdr")
+    code, out, err = run_cli(
+        monkeypatch,
+        capsys,
+        "bench",
+        "real-odometry",
+        "--data",
+        building / "building",
+        "--out",
+        tmp_path / "o",
+        "--group-by",
+        "floor_name",
+        "--test-groups",
+        "F77",
+        "--models",
+        "pdr",
+    )
     assert code == 2 and err.count("\n") == 1 and "F77" in err
 
 
@@ -171,11 +206,35 @@ def test_cli_real_odometry_reports_progress_without_a_terminal(building, tmp_pat
     import sys
     from pathlib import Path
 
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"), OMP_NUM_THREADS="1",
-               WEARNAV_PROGRESS_INTERVAL_S="0")
-    res = subprocess.run([sys.executable, "-m", "wearnav", "bench", "real-odometry", "--data", str(building / "building"),
-                          "--out", str(tmp_path / "o"), "--group-by", "floor_name", "--test-groups", "F9",
-                          "--models", "pdr"], env=env, capture_output=True, text=True, timeout=300)
+    env = dict(
+        os.environ,
+        PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"),
+        OMP_NUM_THREADS="1",
+        WEARNAV_PROGRESS_INTERVAL_S="0",
+    )
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "wearnav",
+            "bench",
+            "real-odometry",
+            "--data",
+            str(building / "building"),
+            "--out",
+            str(tmp_path / "o"),
+            "--group-by",
+            "floor_name",
+            "--test-groups",
+            "F9",
+            "--models",
+            "pdr",
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert res.returncode == 0, res.stderr
     lines = res.stderr.splitlines()
     assert any(re.fullmatch(r"prepare building: \d+ rec, \d+ s elapsed", l) for l in lines), lines

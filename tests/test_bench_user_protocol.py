@@ -51,8 +51,10 @@ def test_user_protocol_keeps_each_walks_errors_and_pairs_the_smoother_by_walk(mo
     from wearnav.simulate.config import WalkConfig
     from wearnav.simulate.walk import simulate_recording
 
-    recs = [simulate_recording(WalkConfig(name=f"w{k}", mode="STW", placement="HD", duration_s=120.0), seed=k)
-            for k in range(3)]
+    recs = [
+        simulate_recording(WalkConfig(name=f"w{k}", mode="STW", placement="HD", duration_s=120.0), seed=k)
+        for k in range(3)
+    ]
 
     def paths(run, data, split):
         for k, rec in enumerate(recs):
@@ -73,7 +75,11 @@ def test_user_protocol_keeps_each_walks_errors_and_pairs_the_smoother_by_walk(mo
     inside = r["smooth"]["inside_68"]
     assert len(inside) == len(r["smooth"]["errors"]) and 0.0 < np.mean(inside) <= 1.0
     rows = up.paired_rows({"pdr": r})
-    assert [row["smoother minus"] for row in rows] == [up.RAW_FIXES, up.ANCHOR_LABEL["first-fixes"], up.ANCHOR_LABEL["rigid"]]
+    assert [row["smoother minus"] for row in rows] == [
+        up.RAW_FIXES,
+        up.ANCHOR_LABEL["first-fixes"],
+        up.ANCHOR_LABEL["rigid"],
+    ]
     smooth = np.concatenate([r["smooth"]["by_trace"][n] for n in names])
     rigid = np.concatenate([r["rigid"]["by_trace"][n] for n in names])
     expect = np.nanpercentile(smooth, 50) - np.nanpercentile(rigid, 50)

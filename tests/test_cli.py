@@ -7,7 +7,6 @@ import pytest
 
 from conftest import run_cli
 
-
 run = run_cli
 
 
@@ -32,11 +31,14 @@ def test_simulate_info_plot(tmp_path, monkeypatch, capsys):
     assert code == 0 and mpimg.imread(tmp_path / "p.png").shape[0] > 300
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["info", "missing.h5"], "missing.h5: no such file"),
-    (["simulate", "--preset", "huge", "--out", "x"], "'huge' is not one of 'tiny', 'small', 'default'"),
-    (["import", "nonsense", ".", "--out", "x"], "'nonsense' is not one of 'ilc2', 'ipin2023'"),
-])
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["info", "missing.h5"], "missing.h5: no such file"),
+        (["simulate", "--preset", "huge", "--out", "x"], "'huge' is not one of 'tiny', 'small', 'default'"),
+        (["import", "nonsense", ".", "--out", "x"], "'nonsense' is not one of 'ilc2', 'ipin2023'"),
+    ],
+)
 def test_bad_input_is_one_line_exit_2(tmp_path, monkeypatch, capsys, args, needle):
     monkeypatch.chdir(tmp_path)
     code, out, err = run(monkeypatch, capsys, *args)
@@ -45,16 +47,24 @@ def test_bad_input_is_one_line_exit_2(tmp_path, monkeypatch, capsys, args, needl
     assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0]
 
 
-@pytest.mark.parametrize("args, option, choices", [
-    (["bench", "efficiency", "--clock", "sun"], "'--clock'", "'wall', 'cpu'"),
-    (["import", "sensorlogger", ".", "--out", "x", "--platform", "symbian"], "'--platform'",
-     "'ios', 'watchos', 'android'"),
-    (["track", "x.h5", "--model", "m", "--out", "o", "--platform", "symbian"], "'--platform'",
-     "'ios', 'watchos', 'android'"),
-    (["bench", "real-odometry", "--data", ".", "--format", "gpx"], "'--format'", "'ilc2', 'ipin2023'"),
-])
-def test_fixed_choice_options_reject_other_values_before_running(tmp_path, monkeypatch, capsys, args, option,
-                                                                  choices):
+@pytest.mark.parametrize(
+    "args, option, choices",
+    [
+        (["bench", "efficiency", "--clock", "sun"], "'--clock'", "'wall', 'cpu'"),
+        (
+            ["import", "sensorlogger", ".", "--out", "x", "--platform", "symbian"],
+            "'--platform'",
+            "'ios', 'watchos', 'android'",
+        ),
+        (
+            ["track", "x.h5", "--model", "m", "--out", "o", "--platform", "symbian"],
+            "'--platform'",
+            "'ios', 'watchos', 'android'",
+        ),
+        (["bench", "real-odometry", "--data", ".", "--format", "gpx"], "'--format'", "'ilc2', 'ipin2023'"),
+    ],
+)
+def test_fixed_choice_options_reject_other_values_before_running(tmp_path, monkeypatch, capsys, args, option, choices):
     """An option with a fixed set of values is a typer Enum: another value exits 2 with typer's
     one-line message naming the option and the choices, before the command runs."""
     monkeypatch.chdir(tmp_path)
@@ -63,12 +73,15 @@ def test_fixed_choice_options_reject_other_values_before_running(tmp_path, monke
     assert err.count("\n") == 1 and f"Invalid value for {option}" in err and f"is not one of {choices}" in err
 
 
-@pytest.mark.parametrize("command, listed", [
-    (["simulate"], "tiny|small|default"),
-    (["import"], "ilc2|ipin2023|motionsense|uci-hapt|uji-phone-watch|oxford-steps|sensorlogger"),
-    (["track"], "ios|watchos|android"),
-    (["bench", "efficiency"], "wall|cpu"),
-])
+@pytest.mark.parametrize(
+    "command, listed",
+    [
+        (["simulate"], "tiny|small|default"),
+        (["import"], "ilc2|ipin2023|motionsense|uci-hapt|uji-phone-watch|oxford-steps|sensorlogger"),
+        (["track"], "ios|watchos|android"),
+        (["bench", "efficiency"], "wall|cpu"),
+    ],
+)
 def test_help_lists_the_choices(monkeypatch, capsys, command, listed):
     monkeypatch.setenv("COLUMNS", "300")  # one line per option, so the choices are not wrapped
     code, out, _ = run(monkeypatch, capsys, *command, "--help")
@@ -85,8 +98,14 @@ def test_cli_choices_are_the_librarys():
     from wearnav.importers.sensorlogger import PLATFORMS
     from wearnav.simulate.presets import PRESETS
 
-    for enum, names in ((cli.ImportFormat, FORMATS), (cli.Platform, PLATFORMS), (cli.Preset, PRESETS),
-                        (cli_bench.Clock, CLOCKS), (cli_bench.Grid, GRIDS), (cli_models.ExportFormat, EXPORT_FORMATS)):
+    for enum, names in (
+        (cli.ImportFormat, FORMATS),
+        (cli.Platform, PLATFORMS),
+        (cli.Preset, PRESETS),
+        (cli_bench.Clock, CLOCKS),
+        (cli_bench.Grid, GRIDS),
+        (cli_models.ExportFormat, EXPORT_FORMATS),
+    ):
         assert [e.value for e in enum] == list(names), enum
 
 

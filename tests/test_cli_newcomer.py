@@ -30,8 +30,14 @@ def _env(**extra) -> dict:
 
 def wearnav(*args, cwd: Path, timeout: float = 120, **env) -> subprocess.CompletedProcess:
     """``wearnav ARGS`` in ``cwd`` with stdout and stderr pipes (not a terminal)."""
-    return subprocess.run([sys.executable, "-m", "wearnav", *map(str, args)], cwd=cwd, env=_env(**env),
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "wearnav", *map(str, args)],
+        cwd=cwd,
+        env=_env(**env),
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -45,21 +51,23 @@ def sim(tmp_path_factory) -> Path:
 
 # ---- §3 nothing of the user's lost ------------------------------------------------------------
 
+
 def test_simulate_refuses_an_existing_dataset_without_overwrite(sim):
     before = sorted(p.name for p in sim.iterdir())
     res = wearnav("simulate", "--preset", "tiny", "--out", sim, "--seed", "1", cwd=sim.parent)
     assert res.returncode == 2
-    assert res.stderr.strip() == (f"error: {sim}: already holds a wearnav dataset (32 recordings); add --overwrite "
-                                  "to replace it, or choose another --out for `wearnav simulate`")
+    assert res.stderr.strip() == (
+        f"error: {sim}: already holds a wearnav dataset (32 recordings); add --overwrite "
+        "to replace it, or choose another --out for `wearnav simulate`"
+    )
     assert sorted(p.name for p in sim.iterdir()) == before
 
 
 @pytest.fixture(scope="module")
 def export(sim, tmp_path_factory) -> Path:
     """A Sensor Logger export (no dense truth) of the first simulated walk."""
-    from wearnav.importers.sensorlogger_export import write_export
-
     from wearnav.dataset import Dataset
+    from wearnav.importers.sensorlogger_export import write_export
 
     ds = Dataset.open(sim)
     return write_export(ds.load(ds.names[0]), tmp_path_factory.mktemp("export") / "walk", platform="android")
@@ -78,10 +86,27 @@ def test_import_refuses_an_existing_dataset_and_overwrite_replaces_it(tmp_path, 
 
 
 def _start_demo(work: Path, out: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "wearnav", "demo", "--out", out, "--preset", "tiny",
-                             "--models", "ronin", "--minutes", "1"], cwd=work,
-                            env=_env(WEARNAV_PROGRESS_INTERVAL_S="0.2"), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "wearnav",
+            "demo",
+            "--out",
+            out,
+            "--preset",
+            "tiny",
+            "--models",
+            "ronin",
+            "--minutes",
+            "1",
+        ],
+        cwd=work,
+        env=_env(WEARNAV_PROGRESS_INTERVAL_S="0.2"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _wait_for_training(proc: subprocess.Popen, epochs: float = 0.0, timeout_s: float = 120) -> list[str]:
@@ -99,8 +124,9 @@ def _wait_for_training(proc: subprocess.Popen, epochs: float = 0.0, timeout_s: f
     raise AssertionError(f"no training progress line: {lines}")
 
 
-@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"),
-                                             (signal.SIGTERM, 143, "terminated (SIGTERM)")])
+@pytest.mark.parametrize(
+    "sig, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated (SIGTERM)")]
+)
 def test_demo_interrupted_says_what_was_kept_and_resumes(tmp_path, sig, code, word):
     proc = _start_demo(tmp_path, "demo")
     _wait_for_training(proc, epochs=1.1 if sig == signal.SIGINT else 0.0)  # SIGINT: a checkpoint to resume from
@@ -111,8 +137,9 @@ def test_demo_interrupted_says_what_was_kept_and_resumes(tmp_path, sig, code, wo
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == code, err
-    assert err.strip().splitlines()[-1] == (f"error: {word}; finished runs are kept in demo; "
-                                            "run the same command again to resume")
+    assert err.strip().splitlines()[-1] == (
+        f"error: {word}; finished runs are kept in demo; run the same command again to resume"
+    )
     if sig == signal.SIGINT:  # the same command again resumes, and says so
         proc = _start_demo(tmp_path, "demo")
         lines = _wait_for_training(proc)
@@ -122,6 +149,7 @@ def test_demo_interrupted_says_what_was_kept_and_resumes(tmp_path, sig, code, wo
 
 
 # ---- §3 no silence ------------------------------------------------------------------------------
+
 
 def test_progress_without_a_terminal_is_log_lines_with_an_estimate(tmp_path):
     res = wearnav("simulate", "--preset", "tiny", "--out", "d", cwd=tmp_path, WEARNAV_PROGRESS_INTERVAL_S="0.05")
@@ -150,6 +178,7 @@ def test_progress_helper_interval(monkeypatch, caplog):
 
 
 # ---- §4 words a newcomer reads ------------------------------------------------------------------
+
 
 def _commands(group, prefix=()) -> list[tuple]:
     found = []
@@ -193,7 +222,7 @@ def test_every_command_has_an_example_that_parses():
     assert len(COMMANDS) >= 18
     for path, cmd in COMMANDS:
         args = _example(path)
-        cmd.make_context(" ".join(("wearnav",) + path), args[len(path):])  # raises on a bad option or value
+        cmd.make_context(" ".join(("wearnav",) + path), args[len(path) :])  # raises on a bad option or value
 
 
 def test_the_cheap_examples_run(tmp_path, shared_data):
@@ -221,8 +250,9 @@ def test_flags_read_as_flags_and_seed_is_documented():
 def test_plot_and_info_list_the_recordings(sim):
     res = wearnav("plot", sim, "--name", "nope", "--out", sim.parent / "x.png", cwd=sim.parent)
     assert res.returncode == 2
-    assert re.fullmatch(rf"error: {sim}: no recording named 'nope'; it holds u1_\w+, .*, \.\.\. \(32 recordings\)\n",
-                        res.stderr)
+    assert re.fullmatch(
+        rf"error: {sim}: no recording named 'nope'; it holds u1_\w+, .*, \.\.\. \(32 recordings\)\n", res.stderr
+    )
     res = wearnav("info", sim / "nope.h5", cwd=sim.parent)
     assert res.returncode == 2 and "no such recording" in res.stderr and "(32 recordings)" in res.stderr
     info = json.loads(wearnav("info", sim, cwd=sim.parent).stdout)
@@ -234,8 +264,10 @@ def test_label_from_fixes_without_truth_says_why_there_is_no_figure(tmp_path, ex
     res = wearnav("label-from-fixes", tmp_path / "ds", "--out", tmp_path / "labels", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     assert "None cm" not in res.stdout
-    assert res.stdout.splitlines()[-1].endswith("label noise not measured: the recordings have no dense truth to "
-                                                "compare the labels with (so no label_noise_cdf.png)")
+    assert res.stdout.splitlines()[-1].endswith(
+        "label noise not measured: the recordings have no dense truth to "
+        "compare the labels with (so no label_noise_cdf.png)"
+    )
     assert not (tmp_path / "labels" / "label_noise_cdf.png").exists()
 
 

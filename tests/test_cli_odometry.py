@@ -5,11 +5,9 @@ from dataclasses import replace
 
 import pytest
 
-from wearnav.dataset import Dataset, DatasetWriter
-
-from test_train_odometry import TinyGait  # noqa: F401  (registers "test-mlp")
 from conftest import run_cli
-
+from test_train_odometry import TinyGait  # noqa: F401  (registers "test-mlp")
+from wearnav.dataset import Dataset, DatasetWriter
 
 run = run_cli
 
@@ -24,8 +22,20 @@ def tiny(tmp_path_factory):
 
 
 def test_train_then_eval(tiny, tmp_path, monkeypatch, capsys):
-    code, out, err = run(monkeypatch, capsys, "train", "test-mlp", "--data", tiny, "--out", tmp_path / "run",
-                         "--epochs", "2", "--batch", "64")
+    code, out, err = run(
+        monkeypatch,
+        capsys,
+        "train",
+        "test-mlp",
+        "--data",
+        tiny,
+        "--out",
+        tmp_path / "run",
+        "--epochs",
+        "2",
+        "--batch",
+        "64",
+    )
     assert code == 0, err
     assert (tmp_path / "run" / "metrics.json").is_file()
     code, out, err = run(monkeypatch, capsys, "eval", tmp_path / "run", "--split", "test,cross_subject")
@@ -34,14 +44,38 @@ def test_train_then_eval(tiny, tmp_path, monkeypatch, capsys):
     assert summary["test"]["sequences"] == 5 and summary["cross_subject"]["sequences"] == 5
     assert summary["test"]["ate_mean"] > 0
     # the same command again resumes nothing and keeps the run's config
-    code, _, err = run(monkeypatch, capsys, "train", "test-mlp", "--data", tiny, "--out", tmp_path / "run",
-                       "--epochs", "3", "--batch", "64")
+    code, _, err = run(
+        monkeypatch,
+        capsys,
+        "train",
+        "test-mlp",
+        "--data",
+        tiny,
+        "--out",
+        tmp_path / "run",
+        "--epochs",
+        "3",
+        "--batch",
+        "64",
+    )
     assert code == 2 and "another configuration" in err and err.count("\n") == 1
 
 
 def test_bench_suite_resumes_and_results_page(tiny, tmp_path, monkeypatch, capsys):
-    args = ("bench", "odometry", "--data", tiny, "--out", tmp_path / "suite", "--models", "test-mlp", "--epochs", "1",
-            "--seeds", "0,1")
+    args = (
+        "bench",
+        "odometry",
+        "--data",
+        tiny,
+        "--out",
+        tmp_path / "suite",
+        "--models",
+        "test-mlp",
+        "--epochs",
+        "1",
+        "--seeds",
+        "0,1",
+    )
     code, out, err = run(monkeypatch, capsys, *args)
     assert code == 0, err
     assert out.count(": done in ") == 2 and "skipped" not in out  # one run per seed
@@ -79,7 +113,9 @@ def test_one_line_errors(tiny, tmp_path, monkeypatch, capsys):
         for name in ds.names[:8]:
             rec = ds.load(name)
             w.add(replace(rec, truth=None), split=ds.manifest.set_index("name").loc[name, "split"])
-    code, _, err = run(monkeypatch, capsys, "train", "test-mlp", "--data", tmp_path / "notruth", "--out", tmp_path / "b")
+    code, _, err = run(
+        monkeypatch, capsys, "train", "test-mlp", "--data", tmp_path / "notruth", "--out", tmp_path / "b"
+    )
     assert code == 2 and "no training data" in err and err.count("\n") == 1
     assert not (tmp_path / "b").exists()
     code, _, err = run(monkeypatch, capsys, "eval", tmp_path / "nowhere")

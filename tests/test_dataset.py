@@ -3,16 +3,18 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from conftest import make_stream
 from wearnav.dataset import Dataset, DatasetWriter
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.recording import Recording
 
-from conftest import make_stream
-
 
 def _rec(name, subject, mode, devices=("phone", "watch")):
-    return Recording(name, {d: make_stream(seed=i) for i, d in enumerate(devices)},
-                     meta={"subject": subject, "mode": mode, "placement": "HD"})
+    return Recording(
+        name,
+        {d: make_stream(seed=i) for i, d in enumerate(devices)},
+        meta={"subject": subject, "mode": mode, "placement": "HD"},
+    )
 
 
 @pytest.fixture
@@ -102,8 +104,9 @@ def test_a_written_dataset_is_on_disk_before_it_is_renamed_into_place(tmp_path, 
     real_replace = os.replace
     monkeypatch.setattr(dataset_mod, "fsync_file", lambda p: events.append(("file", Path(p).name)))
     monkeypatch.setattr(dataset_mod, "fsync_dir", lambda p: events.append(("dir", Path(p))))
-    monkeypatch.setattr(dataset_mod.os, "replace", lambda a, b: (events.append(("rename", Path(b))),
-                                                                 real_replace(a, b))[1])
+    monkeypatch.setattr(
+        dataset_mod.os, "replace", lambda a, b: (events.append(("rename", Path(b))), real_replace(a, b))[1]
+    )
     with DatasetWriter(tmp_path / "d") as w:
         w.add(_rec("a", "u1", "STW"), split="train")
         w.add(_rec("b", "u2", "STW"), split="test")

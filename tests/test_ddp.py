@@ -22,7 +22,7 @@ import pandas as pd
 import pytest
 import torch
 
-SCRIPT = textwrap.dedent('''
+SCRIPT = textwrap.dedent("""
     import json, sys
     import torch
     from torch import nn
@@ -45,7 +45,7 @@ SCRIPT = textwrap.dedent('''
     torch.set_num_threads(1)
     cfg = TrainConfig(model="ddp-test", data=data, epochs=3, patience=5, batch=64, lr=1e-2, augment=())
     print(json.dumps(fit(cfg, run, progress=False, devices=devices, strategy=strategy)))
-''')
+""")
 
 
 @pytest.fixture(scope="module")
@@ -61,11 +61,20 @@ def _train(tmp_path: Path, data: Path, name: str, devices: int, strategy: str) -
     script = tmp_path / "train_ddp.py"
     script.write_text(SCRIPT)
     run = tmp_path / name
-    env = {**os.environ, "OMP_NUM_THREADS": "1",
-           "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1] / "src"),
-                                          os.environ.get("PYTHONPATH", "")])}
-    p = subprocess.run([sys.executable, str(script), str(data), str(run), str(devices), strategy],
-                       capture_output=True, text=True, env=env, timeout=300)
+    env = {
+        **os.environ,
+        "OMP_NUM_THREADS": "1",
+        "PYTHONPATH": os.pathsep.join(
+            [str(Path(__file__).resolve().parents[1] / "src"), os.environ.get("PYTHONPATH", "")]
+        ),
+    }
+    p = subprocess.run(
+        [sys.executable, str(script), str(data), str(run), str(devices), strategy],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert p.returncode == 0, p.stderr[-3000:]
     record = json.loads(p.stdout.strip().splitlines()[-1])
     log = pd.read_csv(run / "logs" / "version_0" / "metrics.csv")
@@ -127,13 +136,39 @@ def test_wearnav_train_num_devices_2_ddp_from_the_command_line(tiny, tmp_path):
     from wearnav import runs
     from wearnav.train.odometry import TrainConfig, run_record
 
-    env = {**os.environ, "OMP_NUM_THREADS": "1",
-           "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1] / "src"),
-                                          os.environ.get("PYTHONPATH", "")])}
+    env = {
+        **os.environ,
+        "OMP_NUM_THREADS": "1",
+        "PYTHONPATH": os.pathsep.join(
+            [str(Path(__file__).resolve().parents[1] / "src"), os.environ.get("PYTHONPATH", "")]
+        ),
+    }
     run = tmp_path / "run"
-    p = subprocess.run([sys.executable, "-m", "wearnav", "train", "ronin", "--data", str(tiny), "--out", str(run),
-                        "--epochs", "1", "--batch", "64", "--num-devices", "2", "--strategy", "ddp"],
-                       capture_output=True, text=True, env=env, timeout=300)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "wearnav",
+            "train",
+            "ronin",
+            "--data",
+            str(tiny),
+            "--out",
+            str(run),
+            "--epochs",
+            "1",
+            "--batch",
+            "64",
+            "--num-devices",
+            "2",
+            "--strategy",
+            "ddp",
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert p.returncode == 0, p.stderr[-3000:]
     assert p.stdout.count('"training"') == 1 and p.stdout.count('"test"') == 1
     assert json.loads((run / "training.json").read_text())["processes"] == 2 and runs.is_complete(run)

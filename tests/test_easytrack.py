@@ -7,18 +7,34 @@ import re
 import numpy as np
 import pytest
 import torch
-
 from tests.conftest import run_cli
+
 from wearnav import metrics
 from wearnav.errors import ConfigError
-from wearnav.fixlabels import LabelConfig, Segments, fix_frame_yaw, label_recording, neighbour_correlation, \
-    segments_from_truth
+from wearnav.fixlabels import (
+    LabelConfig,
+    Segments,
+    fix_frame_yaw,
+    label_recording,
+    neighbour_correlation,
+    segments_from_truth,
+)
 from wearnav.train import noisy
-from wearnav.train.noisy import (NoisyConfig, cnal_labels, cnal_loss, coadapt_losses, fit_noisy, instance_mse,
-                                 r_delta_update, r_select, r_tau, select_small_loss)
-
+from wearnav.train.noisy import (
+    NoisyConfig,
+    cnal_labels,
+    cnal_loss,
+    coadapt_losses,
+    fit_noisy,
+    instance_mse,
+    r_delta_update,
+    r_select,
+    r_tau,
+    select_small_loss,
+)
 
 # ---- schedules (eqs. 14–16) ------------------------------------------------------------------------
+
 
 def test_r_tau_follows_eq_15():
     assert r_tau(1, 10) == pytest.approx(1.0)  # g(η, 1) = log 1 / … = 0
@@ -93,6 +109,7 @@ def test_coadapt_each_model_learns_on_its_peers_selection():
 
 # ---- CNAL (eqs. 12–13) --------------------------------------------------------------------------
 
+
 def test_cnal_corrections_telescope_along_a_trajectory():
     rng = np.random.default_rng(0)
     p_true = np.cumsum(rng.normal(size=(7, 2)), axis=0)
@@ -128,12 +145,16 @@ def _chain_with_known_noise(n=2000, seed=0):
     e = np.zeros((n + 1, 2))
     e[0] = rng.normal(scale=sigma, size=2)
     for i in range(1, n + 1):
-        e[i] = rho * e[i - 1] + rng.normal(scale=sigma * math.sqrt(1 - rho ** 2), size=2)
+        e[i] = rho * e[i - 1] + rng.normal(scale=sigma * math.sqrt(1 - rho**2), size=2)
     heading = np.cumsum(rng.normal(scale=0.2, size=n))
     d = 1.2 * np.c_[np.cos(heading), np.sin(heading)]
     label = d + e[1:] - e[:-1]
-    return (torch.tensor(label, dtype=torch.float32), torch.tensor(d, dtype=torch.float32),
-            torch.arange(n), torch.arange(1, n + 1))
+    return (
+        torch.tensor(label, dtype=torch.float32),
+        torch.tensor(d, dtype=torch.float32),
+        torch.arange(n),
+        torch.arange(1, n + 1),
+    )
 
 
 def _fit_cnal(label, truth, node0, node1, gamma, steps=3000):
@@ -179,13 +200,15 @@ def test_aux_corrections_move_to_the_regularised_optimum():
 
 # ---- phone labels (eq. 4) and their noise (eqs. 5–7) ----------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def walk():
     from wearnav.simulate.config import WalkConfig
     from wearnav.simulate.walk import simulate_walk
 
-    cfg = WalkConfig(name="w", mode="STW", placement="HD", scene="large", duration_s=90, noise_level="L2",
-                     devices=("phone",))
+    cfg = WalkConfig(
+        name="w", mode="STW", placement="HD", scene="large", duration_s=90, noise_level="L2", devices=("phone",)
+    )
     return simulate_walk(cfg, 3).recording
 
 
@@ -217,10 +240,20 @@ def test_white_fix_errors_give_minus_half_neighbour_correlation():
     n = 4000
     pe = rng.normal(size=(n + 1, 2))
     truth = np.zeros((n, 2))
-    seg = Segments(x=np.zeros((n, 2, 6), np.float32), label=truth - (pe[1:] - pe[:-1]), truth=truth,
-                   traj=np.zeros(n, int), node0=np.arange(n), node1=np.arange(1, n + 1), t0=np.arange(n) * 1.0,
-                   t1=np.arange(1, n + 1) * 1.0, node_pos=pe, node_traj=np.zeros(n + 1, int),
-                   node_t=np.arange(n + 1) * 1.0, names=["a"])
+    seg = Segments(
+        x=np.zeros((n, 2, 6), np.float32),
+        label=truth - (pe[1:] - pe[:-1]),
+        truth=truth,
+        traj=np.zeros(n, int),
+        node0=np.arange(n),
+        node1=np.arange(1, n + 1),
+        t0=np.arange(n) * 1.0,
+        t1=np.arange(1, n + 1) * 1.0,
+        node_pos=pe,
+        node_traj=np.zeros(n + 1, int),
+        node_t=np.arange(n + 1) * 1.0,
+        names=["a"],
+    )
     nc = neighbour_correlation(seg)
     assert nc["x"] == pytest.approx(-0.5, abs=0.05) and nc["y"] == pytest.approx(-0.5, abs=0.05)
 
@@ -244,6 +277,7 @@ def test_truth_segments_integrate_the_trajectory(walk):
 
 
 # ---- training ---------------------------------------------------------------------------------------
+
 
 def test_dual_training_resumes_to_the_same_weights(walk, tmp_path):
     seg = label_recording(walk, LabelConfig())
@@ -286,8 +320,9 @@ def test_quick_bench_end_to_end_and_label_cli(monkeypatch, capsys, tmp_path):
     code, so, se = run_cli(monkeypatch, capsys, "bench", "easytrack", "--out", str(out), "--quick")
     assert code == 0 and "simulating" not in so  # data and runs are reused
     ds = next(p for p in (out / "data").iterdir() if p.is_dir() and "test" not in p.name)
-    code, so, se = run_cli(monkeypatch, capsys, "label-from-fixes", str(ds), "--out", str(tmp_path / "lab"),
-                           "--segment", "1")
+    code, so, se = run_cli(
+        monkeypatch, capsys, "label-from-fixes", str(ds), "--out", str(tmp_path / "lab"), "--segment", "1"
+    )
     assert code == 0, se
     assert (tmp_path / "lab" / "segments.npz").is_file() and "median label noise" in so
 
@@ -330,8 +365,11 @@ def test_ipin_held_out_routes_are_real_odometrys_test_trials():
     from wearnav.bench.easytrack import IPIN_TEST_ROUTES
     from wearnav.bench.real_sites import SITE_DEFAULTS
 
-    names = [f"IPIN2023_T3_TrainingTrial{t:02d}_repetition{r:02d}" for t in (1, 2, 3, 4, 5, 21, 22, 23, 24, 25, 51, 52)
-             for r in (1, 2)]
+    names = [
+        f"IPIN2023_T3_TrainingTrial{t:02d}_repetition{r:02d}"
+        for t in (1, 2, 3, 4, 5, 21, 22, 23, 24, 25, 51, 52)
+        for r in (1, 2)
+    ]
     held = sorted({int(n[25:27]) for n in names if re.search(IPIN_TEST_ROUTES, n)})
     assert held == [int(t) for t in SITE_DEFAULTS["ipin2023"][1]] == [4, 24, 52]
 
@@ -378,7 +416,9 @@ def test_overlapping_segments_start_every_stride_on_interpolated_fixes(walk):
     assert not np.allclose(over.x[k], over.x[k - 1])
     # truth between the same two times, so the label noise statistics stay meaningful
     assert np.isfinite(over.truth).all()
-    assert abs(np.median(np.linalg.norm(over.noise(), axis=1)) - np.median(np.linalg.norm(plain.noise(), axis=1))) < 0.08
+    assert (
+        abs(np.median(np.linalg.norm(over.noise(), axis=1)) - np.median(np.linalg.norm(plain.noise(), axis=1))) < 0.08
+    )
     with pytest.raises(ConfigError):
         LabelConfig(stride_s=0.3)
 
@@ -392,10 +432,20 @@ def test_base_study_splits_a_walks_error_into_speed_and_heading():
     truth = rng.normal(0, 1, (40, 2)) + np.array([1.0, 0.0])
     a = np.radians(10.0)
     pred = 0.5 * truth @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
-    seg = Segments(x=np.zeros((40, 25, 6), np.float32), label=truth, truth=truth, traj=np.repeat([0, 1], 20),
-                   node0=np.arange(40), node1=np.arange(1, 41), t0=np.arange(40.0), t1=np.arange(1.0, 41.0),
-                   node_pos=np.zeros((41, 2)), node_traj=np.zeros(41, np.int64), node_t=np.arange(41.0),
-                   names=["a", "b"])
+    seg = Segments(
+        x=np.zeros((40, 25, 6), np.float32),
+        label=truth,
+        truth=truth,
+        traj=np.repeat([0, 1], 20),
+        node0=np.arange(40),
+        node1=np.arange(1, 41),
+        t0=np.arange(40.0),
+        t1=np.arange(1.0, 41.0),
+        node_pos=np.zeros((41, 2)),
+        node_traj=np.zeros(41, np.int64),
+        node_t=np.arange(41.0),
+        names=["a", "b"],
+    )
     pw = per_walk(pred, seg)
     np.testing.assert_allclose(pw["speed ratio"], 0.5)
     np.testing.assert_allclose(pw["heading error (°, median)"], 10.0, atol=1e-9)
@@ -404,11 +454,17 @@ def test_base_study_splits_a_walks_error_into_speed_and_heading():
 
 @pytest.mark.slow
 def test_bench_easytrack_base_writes_one_row_per_variant(tmp_path, monkeypatch, capsys):
-    code, out, err = run_cli(monkeypatch, capsys, "bench", "easytrack-base", "--out", tmp_path / "b", "--km", "0.3",
-                             "--joint-epochs", "1")
+    code, out, err = run_cli(
+        monkeypatch, capsys, "bench", "easytrack-base", "--out", tmp_path / "b", "--km", "0.3", "--joint-epochs", "1"
+    )
     assert code == 0, err
     page = (tmp_path / "b" / "results.md").read_text()
-    for name in ("paper input, 30 % of the walking", "| paper input ", "+ yaw augmentation", "+ overlapping segments (0.2 s)",
-                 "diagnostic: truth frame"):
+    for name in (
+        "paper input, 30 % of the walking",
+        "| paper input ",
+        "+ yaw augmentation",
+        "+ overlapping segments (0.2 s)",
+        "diagnostic: truth frame",
+    ):
         assert name in page
     assert "Per held-out walk" in page and "speed ratio" in page

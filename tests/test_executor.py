@@ -129,13 +129,37 @@ def test_cli_executor_options_one_line_errors(tmp_path, monkeypatch, capsys):
     simulate_dataset("tiny", data, seed=0, progress=False)
     capsys.readouterr()
     monkeypatch.setitem(sys.modules, "ray", None)
-    code, _, err = run_cli(monkeypatch, capsys, "bench", "odometry", "--data", data, "--out", tmp_path / "suite",
-                           "--models", "pdr", "--executor", "ray")
+    code, _, err = run_cli(
+        monkeypatch,
+        capsys,
+        "bench",
+        "odometry",
+        "--data",
+        data,
+        "--out",
+        tmp_path / "suite",
+        "--models",
+        "pdr",
+        "--executor",
+        "ray",
+    )
     assert code == 2 and "install wearnav[cluster]" in err and err.count("\n") == 1
     assert not list((tmp_path / "suite").glob("*/metrics.json"))
     # the same suite locally in two processes: the folder Ray would have written
-    code, out, err = run_cli(monkeypatch, capsys, "bench", "odometry", "--data", data, "--out", tmp_path / "suite",
-                             "--models", "pdr", "--jobs", "2")
+    code, out, err = run_cli(
+        monkeypatch,
+        capsys,
+        "bench",
+        "odometry",
+        "--data",
+        data,
+        "--out",
+        tmp_path / "suite",
+        "--models",
+        "pdr",
+        "--jobs",
+        "2",
+    )
     assert code == 0, err
     cfg = odometry_config(data)
     assert runs.is_complete(runs.run_dir(tmp_path / "suite", "pdr", cfg)) and ": done in " in out
@@ -154,9 +178,17 @@ def local_ray():
     src = str(Path(__file__).resolve().parents[1] / "src")
     tests = str(Path(__file__).resolve().parent)
     # workers import wearnav and this file's job function by module name
-    ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING",
-             runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join([src, tests, os.environ.get("PYTHONPATH", "")]),
-                                       "OMP_NUM_THREADS": "1"}})
+    ray.init(
+        num_cpus=2,
+        include_dashboard=False,
+        logging_level="WARNING",
+        runtime_env={
+            "env_vars": {
+                "PYTHONPATH": os.pathsep.join([src, tests, os.environ.get("PYTHONPATH", "")]),
+                "OMP_NUM_THREADS": "1",
+            }
+        },
+    )
     yield ray
     ray.shutdown()
 
@@ -179,8 +211,14 @@ def test_ray_runs_jobs_and_a_real_suite_then_resumes(local_ray, tmp_path):
     data = tmp_path / "tiny"
     simulate_dataset("tiny", data, seed=0)
     cfgs = odometry.suite_configs(data, ("pdr",))
-    folders = odometry.run_suite(cfgs, tmp_path / "suite", splits=("test",), progress=False, echo=lines.append,
-                                 execution=Execution(backend="ray"))
+    folders = odometry.run_suite(
+        cfgs,
+        tmp_path / "suite",
+        splits=("test",),
+        progress=False,
+        echo=lines.append,
+        execution=Execution(backend="ray"),
+    )
     assert runs.is_complete(folders[0]) and json.loads((folders[0] / "metrics.json").read_text())["model"] == "pdr"
     assert folders == [runs.run_dir(tmp_path / "suite", "pdr", odometry.run_key(cfgs[0]))]
     lines.clear()

@@ -33,8 +33,11 @@ from wearnav.train.common import CHECKPOINTS, LAST
 from wearnav.train.resolve import resolve_model
 
 # Small versions of the models (export and parity do not depend on the widths).
-SMALL = {"suitein++": {"widths": (8, 8, 8, 8, 8, 8), "gru_hidden": 8, "loc_dim": 8, "loc_hidden": 8},
-         "ronin": {"blocks": (1, 1, 1, 1)}, "ronin*": {"blocks": (1, 1, 1, 1)}}
+SMALL = {
+    "suitein++": {"widths": (8, 8, 8, 8, 8, 8), "gru_hidden": 8, "loc_dim": 8, "loc_hidden": 8},
+    "ronin": {"blocks": (1, 1, 1, 1)},
+    "ronin*": {"blocks": (1, 1, 1, 1)},
+}
 DEVICES = ("phone", "watch", "earbuds")
 # masks of the parity batch: phone only, all, one device missing (each), watch only
 MASKS = [[1, 0, 0], [1, 1, 1], [0, 1, 1], [1, 0, 1], [1, 1, 0], [0, 1, 0]]
@@ -142,8 +145,10 @@ def test_track_runs_the_onnx_export_like_the_run(walk, run_of, exported, tmp_pat
     ta, tb = (pd.read_csv(tmp_path / d / "trajectory.csv") for d in "ab")
     assert len(ta) == len(tb) > 100 and a["length_m"] > 1.0
     diff = np.abs(ta[["x", "y"]].to_numpy() - tb[["x", "y"]].to_numpy())
-    print(f"track: path {a['length_m']} m, max |Δxy| {diff.max():.2e} m, share of coordinates differing "
-          f"{np.mean(diff > 0):.3f}")
+    print(
+        f"track: path {a['length_m']} m, max |Δxy| {diff.max():.2e} m, share of coordinates differing "
+        f"{np.mean(diff > 0):.3f}"
+    )
     assert diff.max() <= 1e-4 + 1e-9 and np.mean(diff > 0) < 0.01
     assert b["model"] == "suitein++" and b["window"] == a["window"] and b["stride"] == a["stride"]
     assert (a["runtime"], b["runtime"]) == ("pytorch", "onnxruntime")
@@ -174,8 +179,10 @@ def test_without_onnxruntime_one_line_names_the_extra(run_of, exported, monkeypa
     run = run_of("ronin")
     out, _ = exported("ronin", "onnx")
     monkeypatch.setitem(sys.modules, "onnxruntime", None)  # `import onnxruntime` now raises ImportError
-    for args in (("track", "x.zip", "--model", out, "--out", tmp_path / "t"),
-                 ("export", run, "--format", "onnx", "--out", tmp_path / "s.onnx")):
+    for args in (
+        ("track", "x.zip", "--model", out, "--out", tmp_path / "t"),
+        ("export", run, "--format", "onnx", "--out", tmp_path / "s.onnx"),
+    ):
         code, _, err = run_cli(monkeypatch, capsys, *args)
         assert code == 2 and len(err.strip().splitlines()) == 1, err
         assert "wearnav[onnx]" in err
@@ -215,8 +222,9 @@ def test_classifier_export_gives_the_runs_logits_and_labels(walk, tmp_path, monk
         print(f"har-cnn-bilstm {fmt}: max |Δlogit| {diff:.2e}")
         assert diff < PARITY_TOL and cfg_x == cfg and classes_x == classes
     for model_arg, out in ((run, "a"), (tmp_path / "h.onnx", "b")):
-        code, _, err = run_cli(monkeypatch, capsys, "classify", root / "ds", "--model", model_arg,
-                               "--out", tmp_path / out)
+        code, _, err = run_cli(
+            monkeypatch, capsys, "classify", root / "ds", "--model", model_arg, "--out", tmp_path / out
+        )
         assert code == 0, err
     a, b = (pd.read_csv(tmp_path / d / "walk_intervals.csv") for d in "ab")
     cols = ["start_s", "end_s", "label", "windows"]
@@ -234,7 +242,8 @@ def test_export_speed_times_every_runtime():
 
     rows = export_speed("ronin", batches=(1, 4), min_run_time_s=0.01, blocks=(1, 1, 1, 1))
     assert [(r["runtime"], r["batch"]) for r in rows] == [
-        (rt, b) for b in (1, 4) for rt in ("pytorch", "pytorch-traced-graph", "onnxruntime", "torchscript")]
+        (rt, b) for b in (1, 4) for rt in ("pytorch", "pytorch-traced-graph", "onnxruntime", "torchscript")
+    ]
     assert all(r["win_per_s"] > 0 and r["max_abs_diff"] < PARITY_TOL and r["threads"] == 1 for r in rows)
     assert "batch 4 (windows/s)" in speed_table(rows)
 

@@ -51,8 +51,9 @@ def test_temporary_names_carry_host_and_pid(tmp_path):
 def test_durable_fsyncs_the_file_before_the_rename_and_the_folder_after(tmp_path, monkeypatch):
     events = []
     real_fsync, real_replace = os.fsync, os.replace
-    monkeypatch.setattr(fileio.os, "fsync", lambda fd: (events.append(("fsync", os.readlink(f"/proc/self/fd/{fd}"))),
-                                                        real_fsync(fd))[1])
+    monkeypatch.setattr(
+        fileio.os, "fsync", lambda fd: (events.append(("fsync", os.readlink(f"/proc/self/fd/{fd}"))), real_fsync(fd))[1]
+    )
     monkeypatch.setattr(fileio.os, "replace", lambda a, b: (events.append(("replace", str(b))), real_replace(a, b))[1])
     target = tmp_path / "metrics.json"
     write_text_atomic("{}", target)
@@ -114,8 +115,12 @@ def test_a_writer_killed_at_random_moments_leaves_the_old_or_the_new_file(tmp_pa
     target = tmp_path / "metrics.json"
     rng = random.Random(0)
     in_flight = 0
-    server = subprocess.Popen([sys.executable, "-c", FORK_SERVER.format(src=str(SRC)), str(target)],
-                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    server = subprocess.Popen(
+        [sys.executable, "-c", FORK_SERVER.format(src=str(SRC)), str(target)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         for k in range(20):
             server.stdin.write("go\n")

@@ -13,20 +13,26 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import run_cli
 from wearnav import runs
 from wearnav.dataset import Dataset, DatasetWriter, train_val_views
 from wearnav.importers.sensorlogger_export import SIMULATED_DEVICE_NAME
 from wearnav.recording import Trajectory
 from wearnav.simulate import WalkConfig, simulate_recording
-from conftest import run_cli
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 
 def wearnav(*args, cwd: Path | None = None) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-m", "wearnav", *map(str, args)], env=env, cwd=cwd,
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "wearnav", *map(str, args)],
+        env=env,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +44,15 @@ def real_like(tmp_path_factory) -> Path:
         for i in range(5):
             rec = simulate_recording(WalkConfig(mode="PVW", placement="MP", duration_s=40), seed=i)
             keep = np.searchsorted(rec.truth.t, np.arange(rec.truth.t[0], rec.truth.t[-1], 10.0))
-            w.add(dataclasses.replace(rec, name=f"walk{i}", devices={"phone": rec.devices["phone"]},
-                                      truth=Trajectory(rec.truth.t[keep], rec.truth.pos[keep])), split="train")
+            w.add(
+                dataclasses.replace(
+                    rec,
+                    name=f"walk{i}",
+                    devices={"phone": rec.devices["phone"]},
+                    truth=Trajectory(rec.truth.t[keep], rec.truth.pos[keep]),
+                ),
+                split="train",
+            )
     return root
 
 
@@ -62,16 +75,29 @@ def test_simulated_sensorlogger_export_imports_and_tracks_with_pdr_by_name(tmp_p
 def test_model_names_that_are_not_untrained_baselines_are_refused_with_what_works(tmp_path):
     p = wearnav("track", "x.h5", "--model", "ronin", "--out", tmp_path / "t")
     assert p.returncode == 2
-    assert p.stderr == ("error: ronin: is a model that must be trained first (wearnav train ronin --data DATA "
-                        "--out RUN, then --model RUN); untrained baselines usable by name: pdr\n")
+    assert p.stderr == (
+        "error: ronin: is a model that must be trained first (wearnav train ronin --data DATA "
+        "--out RUN, then --model RUN); untrained baselines usable by name: pdr\n"
+    )
     p = wearnav("track", "x.h5", "--model", "pdx", "--out", tmp_path / "t")
     assert p.returncode == 2 and "nor a model name (untrained baselines usable by name: pdr)" in p.stderr
 
 
-@pytest.mark.parametrize("command, model, words", [
-    ("track", "har-cnn-bilstm", "is an activity classifier (har-cnn-bilstm), not an odometry model; use wearnav classify"),
-    ("classify", "ronin", "is an odometry model (ronin), not an activity classifier; use wearnav track (or wearnav eval)"),
-])
+@pytest.mark.parametrize(
+    "command, model, words",
+    [
+        (
+            "track",
+            "har-cnn-bilstm",
+            "is an activity classifier (har-cnn-bilstm), not an odometry model; use wearnav classify",
+        ),
+        (
+            "classify",
+            "ronin",
+            "is an odometry model (ronin), not an activity classifier; use wearnav track (or wearnav eval)",
+        ),
+    ],
+)
 def test_a_run_of_the_wrong_kind_says_what_it_is_and_which_command_takes_it(tmp_path, command, model, words):
     run = tmp_path / "run"
     run.mkdir()
@@ -86,9 +112,11 @@ def test_training_on_a_dataset_without_val_or_test_uses_its_defaults_and_says_so
     assert p.returncode == 0, p.stderr
     train, val, note = train_val_views(Dataset.open(real_like), "train", "val")
     lines = p.stderr.splitlines()
-    assert lines[:2] == ["devices: phone (those the dataset's recordings have)",
-                         "truth: surveyed points (0.10 per second), joined by straight lines across gaps up to 60 s "
-                         "into training targets"]
+    assert lines[:2] == [
+        "devices: phone (those the dataset's recordings have)",
+        "truth: surveyed points (0.10 per second), joined by straight lines across gaps up to 60 s "
+        "into training targets",
+    ]
     assert note in lines and note.startswith(f"no 'val' split in the dataset: validating on {len(val)} of its 5")
     assert any(n.startswith("the dataset has no 'test' split (its splits: train): not evaluated") for n in lines)
     training = json.loads((tmp_path / "run" / "training.json").read_text())
@@ -96,12 +124,15 @@ def test_training_on_a_dataset_without_val_or_test_uses_its_defaults_and_says_so
     assert sorted(train.names + val.names) == [f"walk{i}" for i in range(5)] and len(val) >= 1
 
 
-@pytest.mark.parametrize("args, words", [
-    (("train", "pdr", "--devices", "phone,watc"), "unknown device(s) ['watc']; valid: phone"),
-    (("bench", "odometry", "--models", "ronin,ronn"), "unknown odometry model(s) ['ronn']; valid: "),
-    (("bench", "real-odometry", "--models", "ronn"), "unknown odometry model(s) ['ronn']; valid: "),
-    (("bench", "har", "--techniques", "baselin", "--quick"), "unknown technique(s) ['baselin']; valid: baseline,"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (("train", "pdr", "--devices", "phone,watc"), "unknown device(s) ['watc']; valid: phone"),
+        (("bench", "odometry", "--models", "ronin,ronn"), "unknown odometry model(s) ['ronn']; valid: "),
+        (("bench", "real-odometry", "--models", "ronn"), "unknown odometry model(s) ['ronn']; valid: "),
+        (("bench", "har", "--techniques", "baselin", "--quick"), "unknown technique(s) ['baselin']; valid: baseline,"),
+    ],
+)
 def test_names_are_checked_before_any_work_with_the_valid_ones(real_like, tmp_path, args, words):
     data = () if args[1] == "har" else ("--data", real_like)
     p = wearnav(*args, *data, "--out", tmp_path / "o")
@@ -110,11 +141,17 @@ def test_names_are_checked_before_any_work_with_the_valid_ones(real_like, tmp_pa
     assert not (tmp_path / "o").exists()  # refused before anything was written
 
 
-@pytest.mark.parametrize("args, words", [  # the same check, in-process (the subprocess costs seconds)
-    (("bench", "efficiency", "--models", "pdr,ronn"), "unknown model(s) ['ronn']; valid: "),
-    (("demo", "--models", "ronn"), "unknown odometry model(s) ['ronn']; valid: "),
-    (("bench", "easytrack", "--quick", "--methods", "easytrak"), "unknown method(s) ['easytrak']; valid: easytrack,"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [  # the same check, in-process (the subprocess costs seconds)
+        (("bench", "efficiency", "--models", "pdr,ronn"), "unknown model(s) ['ronn']; valid: "),
+        (("demo", "--models", "ronn"), "unknown odometry model(s) ['ronn']; valid: "),
+        (
+            ("bench", "easytrack", "--quick", "--methods", "easytrak"),
+            "unknown method(s) ['easytrak']; valid: easytrack,",
+        ),
+    ],
+)
 def test_more_names_are_checked_first(monkeypatch, capsys, tmp_path, args, words):
     code, out, err = run_cli(monkeypatch, capsys, *args, "--out", tmp_path / "o")
     assert code == 2 and words in err and out == ""

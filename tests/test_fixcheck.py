@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from wearnav import fixcheck
-from wearnav.fixcheck import DROPPED, JUMP, OUTSIDE, REPEAT, WIDE, NO_POSITION, check_fixes, jumps
+from wearnav.fixcheck import DROPPED, JUMP, NO_POSITION, OUTSIDE, REPEAT, WIDE, check_fixes, jumps
 
 
 def walk_fixes(duration_s=600.0, sigma_m=3.0, bias_m=0.0, seed=0):
@@ -20,7 +20,7 @@ def walk_fixes(duration_s=600.0, sigma_m=3.0, bias_m=0.0, seed=0):
     a = np.exp(-1.0 / 120.0)
     bias = np.zeros((ft.size, 2))
     for k in range(1, ft.size):
-        bias[k] = a * bias[k - 1] + np.sqrt(1 - a ** 2) * bias_m * rng.standard_normal(2)
+        bias[k] = a * bias[k - 1] + np.sqrt(1 - a**2) * bias_m * rng.standard_normal(2)
     z = truth + bias + rng.normal(0, sigma_m, (ft.size, 2))
     return ft, z, np.full(ft.size, 1.515 * sigma_m), truth
 
@@ -90,8 +90,10 @@ def test_a_cached_run_of_fixes_is_judged_against_the_later_fixes():
 
 def test_two_fixes_that_disagree_trust_the_later():
     """Two fixes 400 m apart a second apart: the earlier is the cached one."""
-    assert jumps(np.array([0.0, 1.0]), np.array([[400.0, 0.0], [0.0, 0.0]]), np.array([5.0, 5.0])).tolist() == \
-        [True, False]
+    assert jumps(np.array([0.0, 1.0]), np.array([[400.0, 0.0], [0.0, 0.0]]), np.array([5.0, 5.0])).tolist() == [
+        True,
+        False,
+    ]
 
 
 def test_fixes_that_jump_everywhere_drop_none_and_warn():

@@ -113,7 +113,8 @@ def test_one_two_three_devices_and_reference_choice():
         assert set(rec["devices"]) == {DEVICES[d] for d in present if d != ref}
         for d in present:
             assert rec["devices"].get(DEVICES[d], {"yaw_deg": 0.0})["yaw_deg"] == pytest.approx(
-                np.rad2deg(frames.wrap(yaws[d] - yaws[ref])), abs=0.01)
+                np.rad2deg(frames.wrap(yaws[d] - yaws[ref])), abs=0.01
+            )
             np.testing.assert_allclose(out[d, inner(t), :2], full[ref, inner(t), :2], atol=2e-3)
         absent = [d for d in range(3) if d not in present]
         assert np.all(out[absent] == 0)
@@ -173,6 +174,7 @@ def test_preprocess_frame_align_modes_and_sign():
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
     from wearnav.simulate import simulate_dataset
+
     return simulate_dataset("tiny", tmp_path_factory.mktemp("tiny"), seed=0, progress=False)
 
 
@@ -203,10 +205,10 @@ def test_alignment_accuracy_on_the_tiny_preset(tiny):
             # the reconstruction agrees with the drawn offset at the stream's start
             drawn.append(err_deg(psi[dev][0], np.deg2rad(rec.meta["devices"][dev]["quat_yaw_offset_deg"])))
             e_abs = err_deg(cf.yaw[d] + tr.yaw, psi[dev])[m]
-            absolute.append(np.sqrt(np.mean(e_abs ** 2)))
+            absolute.append(np.sqrt(np.mean(e_abs**2)))
             if dev != "phone":
                 e = err_deg(cf.yaw[d], psi[dev] - psi["phone"])[m]
-                rel[dev].append(np.sqrt(np.mean(e ** 2)))
+                rel[dev].append(np.sqrt(np.mean(e**2)))
     assert max(drawn) < 1.0
     for dev, v in rel.items():
         v = np.array(v)
@@ -228,7 +230,7 @@ def test_initial_mode_is_one_constant_yaw_from_the_first_seconds_only():
     # Truth after the first 10 s turned by 60° and shifted: the "initial" input is unchanged,
     # the "truth" input follows it.
     late = rec.truth.t > rec.truth.t[0] + 12.0
-    z = (rec.truth.pos[:, 0] + 1j * rec.truth.pos[:, 1])
+    z = rec.truth.pos[:, 0] + 1j * rec.truth.pos[:, 1]
     z = np.where(late, (z - z[late][0]) * np.exp(1j * np.deg2rad(60.0)) + z[late][0] + 5.0, z)
     bent = Recording(rec.name, rec.devices, truth=Trajectory(rec.truth.t, np.stack([z.real, z.imag], 1)))
     np.testing.assert_array_equal(align(bent, PreprocessConfig(frame_align="initial")).imu, a.imu)

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from wearnav import fuse
-from wearnav.fuse import live as fuse_live
 from wearnav.errors import ValidationError
+from wearnav.fuse import live as fuse_live
 from wearnav.recording import ANDROID_ENU_FRAME
 
 
@@ -60,8 +60,7 @@ def test_smooth_beats_rigid_and_first_fixes_on_a_short_path():
     t, truth = walk()
     xy = odometry_of(truth)
     ft, z, acc, _ = fixes_of(t, truth)
-    errs = {a: np.median(np.linalg.norm(fuse.fuse(t, xy, ft, z, acc, a).xy - truth, axis=1))
-            for a in fuse.ANCHORS}
+    errs = {a: np.median(np.linalg.norm(fuse.fuse(t, xy, ft, z, acc, a).xy - truth, axis=1)) for a in fuse.ANCHORS}
     assert errs["smooth"] < errs["rigid"] < errs["first-fixes"] + 1e-9
 
 
@@ -218,7 +217,9 @@ def test_bias_share_moves_the_fix_error_into_the_bias():
         assert res.method == "smooth", res.warnings
         assert res.info["fix_bias_sigma_m"] == pytest.approx(np.sqrt(0.9) * acc / fuse.RADIUS_68)
         if acc < 10:  # fixes reported 10× too wide say little about the scale
-            assert res.info["scale"] == pytest.approx(1.25, rel=0.05)  # correlated fixes tell less: the ±5 % prior pulls
+            assert res.info["scale"] == pytest.approx(
+                1.25, rel=0.05
+            )  # correlated fixes tell less: the ±5 % prior pulls
     assert fuse.smooth(t, xy, ft, z, np.full(ft.size, 4.5)).info["fix_bias_sigma_m"] == fuse.FuseConfig().bias_sigma_m
     with pytest.raises(ValidationError):
         fuse.FuseConfig(bias_share=1.0)
@@ -314,7 +315,7 @@ def test_heading_prior_holds_the_heading_where_the_fixes_turn_the_path():
     assert abs(free.info["heading_offset_deg"]) > 25.0
     assert abs(loose.info["heading_offset_deg"]) < abs(free.info["heading_offset_deg"]) - 1.0
     assert abs(tight.info["heading_offset_deg"]) < 15.0  # the drift and heading walk still turn the rest
-    err = lambda res: np.median(np.linalg.norm(res.xy - truth, axis=1))  # noqa: E731
+    err = lambda res: np.median(np.linalg.norm(res.xy - truth, axis=1))
     assert err(tight) < err(loose) < err(free)
 
 

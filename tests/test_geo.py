@@ -21,8 +21,7 @@ E2 = F * (2 - F)
 def ecef(lat_deg, lon_deg):
     lat, lon = np.radians(lat_deg), np.radians(lon_deg)
     n = A_M / np.sqrt(1 - E2 * np.sin(lat) ** 2)
-    return np.stack([n * np.cos(lat) * np.cos(lon), n * np.cos(lat) * np.sin(lon),
-                     n * (1 - E2) * np.sin(lat)], axis=-1)
+    return np.stack([n * np.cos(lat) * np.cos(lon), n * np.cos(lat) * np.sin(lon), n * (1 - E2) * np.sin(lat)], axis=-1)
 
 
 def reference_enu(lat_deg, lon_deg, lat0_deg, lon0_deg) -> np.ndarray:
@@ -100,6 +99,7 @@ def test_scalar_and_list_inputs():
 
 
 # ---- needs re-import ----------------------------------------------------------------------------
+
 
 def test_needs_reimport():
     old = {"source": "ipin2023", "origin_lat": 49.45, "origin_lon": 11.1}

@@ -13,18 +13,18 @@ import pandas as pd
 import pytest
 import torch
 
+from conftest import ROOT, make_stream
 from wearnav import augment
 from wearnav.models.har import HARNet
 from wearnav.preprocess import Aligned
-from wearnav.train.classify import TEST_SUBJECTS, split_of, split_view
+from wearnav.train.classify import split_of, split_view
 from wearnav.windows import WindowConfig, WindowDataset
-
-from conftest import ROOT, make_stream
 
 C, S = math.cos(math.pi / 6), math.sin(math.pi / 6)
 
 
 # ---- rotation (eqs. 8–11) ----------------------------------------------------------------------
+
 
 def test_rotation_matrices_are_eqs_9_to_11_and_orthonormal():
     expected = {
@@ -70,7 +70,7 @@ def test_expansion_adds_fixed_copies_of_the_training_set():
     got = ex[list(range(4 * n))]["x"]
     torch.testing.assert_close(got[:n], orig)
     for c, axis in enumerate("xyz", 1):
-        torch.testing.assert_close(got[c * n:(c + 1) * n], augment.rotate_imu(orig, augment.axis_rotation(axis)))
+        torch.testing.assert_close(got[c * n : (c + 1) * n], augment.rotate_imu(orig, augment.axis_rotation(axis)))
 
 
 def test_noise_copy_statistics_and_is_the_same_every_epoch():
@@ -104,6 +104,7 @@ def test_add_noise_statistics():
 
 # ---- moving average (eq. 13) --------------------------------------------------------------------
 
+
 def test_moving_average_is_eq_13():
     rng = np.random.default_rng(2)
     x = rng.standard_normal((3, 60, 6))
@@ -118,6 +119,7 @@ def test_moving_average_is_eq_13():
 
 
 # ---- random rotation on the fly -----------------------------------------------------------------
+
 
 def test_rotate_random_keeps_norms_and_differs_per_device():
     rng = np.random.default_rng(3)
@@ -134,11 +136,15 @@ def test_rotate_random_keeps_norms_and_differs_per_device():
 
 # ---- models: Head2 / Head3 routing --------------------------------------------------------------
 
-@pytest.mark.parametrize("heads,expected", [
-    (1, [[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]]),
-    (2, [[0, 1, 2, 6, 7, 8], [3, 4, 5, 9, 10, 11]]),  # acc head, gyro head (both devices)
-    (3, [[0, 3, 6, 9], [1, 4, 7, 10], [2, 5, 8, 11]]),  # x, y, z: that axis' acc + gyro
-])
+
+@pytest.mark.parametrize(
+    "heads,expected",
+    [
+        (1, [[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]]),
+        (2, [[0, 1, 2, 6, 7, 8], [3, 4, 5, 9, 10, 11]]),  # acc head, gyro head (both devices)
+        (3, [[0, 3, 6, 9], [1, 4, 7, 10], [2, 5, 8, 11]]),  # x, y, z: that axis' acc + gyro
+    ],
+)
 def test_head_channel_routing(heads, expected):
     m = HARNet(n_devices=2, window=32, n_classes=4, heads=heads)
     assert m.head_channels == expected
@@ -203,8 +209,14 @@ def test_split_view_has_no_subject_on_both_sides(tmp_path):
     with DatasetWriter(tmp_path / "ds") as w:
         for user in (1, 2, 3, 4):
             for exp in range(2):
-                w.add(Recording(name=f"e{user}{exp}", devices={"phone": make_stream(100, 50.0)},
-                                labels=[(0.0, 2.0, "activity", "WALKING")], meta={"subject": f"user{user:02d}"}))
+                w.add(
+                    Recording(
+                        name=f"e{user}{exp}",
+                        devices={"phone": make_stream(100, 50.0)},
+                        labels=[(0.0, 2.0, "activity", "WALKING")],
+                        meta={"subject": f"user{user:02d}"},
+                    )
+                )
     ds = Dataset.open(tmp_path / "ds")
     tr, te = split_view(ds, "uci-hapt", "train"), split_view(ds, "uci-hapt", "test")
     assert set(tr.manifest["subject"]) == {"user01", "user03"}
@@ -213,6 +225,7 @@ def test_split_view_has_no_subject_on_both_sides(tmp_path):
 
 
 # ---- end to end on real data --------------------------------------------------------------------
+
 
 def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
     import json
@@ -225,8 +238,20 @@ def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
     out = tmp_path / "har"
     # a subset of the techniques keeps the test short; each kind (heads, expansion, noise,
     # moving average, batch augmentation) is represented
-    cmd = [sys.executable, "-m", "wearnav", "bench", "har", "--quick", "--out", str(out), "--data", str(shared_data),
-           "--techniques", "baseline,head2,head3,rot_all,noise,ma50,rot_random"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "wearnav",
+        "bench",
+        "har",
+        "--quick",
+        "--out",
+        str(out),
+        "--data",
+        str(shared_data),
+        "--techniques",
+        "baseline,head2,head3,rot_all,noise,ma50,rot_random",
+    ]
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert r.returncode == 0, r.stderr
     page = (out / "results.md").read_text()
@@ -272,11 +297,29 @@ def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
     keep = s.t < s.t[0] + 30.0
     from dataclasses import replace
 
-    small = Recording(name="tiny", devices={"phone": replace(s, t=s.t[keep], acc=s.acc[keep], gyro=s.gyro[keep])},
-                      meta={"subject": "x"})
+    small = Recording(
+        name="tiny",
+        devices={"phone": replace(s, t=s.t[keep], acc=s.acc[keep], gyro=s.gyro[keep])},
+        meta={"subject": "x"},
+    )
     h5 = small.save(tmp_path / "tiny.h5")
-    r3 = subprocess.run([sys.executable, "-m", "wearnav", "classify", str(h5), "--model", str(base_run),
-                         "--out", str(tmp_path / "lab")], capture_output=True, text=True, env=env, timeout=120)
+    r3 = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "wearnav",
+            "classify",
+            str(h5),
+            "--model",
+            str(base_run),
+            "--out",
+            str(tmp_path / "lab"),
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
     assert r3.returncode == 0, r3.stderr
     assert f"labels the model knows: {', '.join(m['classes'])}" in r3.stdout
     assert isinstance(m["beats_trivial"], bool) and 0 < m["trivial_accuracy"] < 1
@@ -303,10 +346,20 @@ def test_significance_is_welchs_t_test_over_seeds():
 
 def _summary(acc_per_seed):
     acc = np.array(acc_per_seed)
-    return {"accuracy_mean": acc.mean(), "accuracy_std": acc.std(ddof=1), "f1_mean": acc.mean(),
-            "f1_std": acc.std(ddof=1), "seeds": acc.size, "accuracy_per_seed": list(acc_per_seed),
-            "classes": ["a", "b"], "confusion": [[5, 1], [2, 4]], "train_wall_s": 1.0, "epochs": 1,
-            "train_windows": 10, "test_windows": 12}
+    return {
+        "accuracy_mean": acc.mean(),
+        "accuracy_std": acc.std(ddof=1),
+        "f1_mean": acc.mean(),
+        "f1_std": acc.std(ddof=1),
+        "seeds": acc.size,
+        "accuracy_per_seed": list(acc_per_seed),
+        "classes": ["a", "b"],
+        "confusion": [[5, 1], [2, 4]],
+        "train_wall_s": 1.0,
+        "epochs": 1,
+        "train_windows": 10,
+        "test_windows": 12,
+    }
 
 
 def _first_table(page: str) -> list[list[str]]:
@@ -327,8 +380,12 @@ def test_significance_marks_follow_benjamini_hochberg_over_a_datasets_techniques
     from wearnav.stats import bh_adjust
 
     base = [0.80, 0.81, 0.82]
-    seeds = {"rot_x": [0.83, 0.84, 0.86], "rot_y": [0.79, 0.81, 0.83], "rot_z": [0.80, 0.82, 0.81],
-             "noise": [0.90, 0.91, 0.92]}
+    seeds = {
+        "rot_x": [0.83, 0.84, 0.86],
+        "rot_y": [0.79, 0.81, 0.83],
+        "rot_z": [0.80, 0.82, 0.81],
+        "noise": [0.90, 0.91, 0.92],
+    }
     raw = {k: ttest_ind(v, base, equal_var=False).pvalue for k, v in seeds.items()}
     assert 0.04 < raw["rot_x"] < 0.05
     want = dict(zip(raw, false_discovery_control(list(raw.values()), method="bh")))

@@ -14,6 +14,7 @@ import pytest
 import torch
 import yaml
 
+from conftest import run_cli
 from wearnav import runs
 from wearnav.bench import har
 from wearnav.bench.executor import Execution
@@ -21,8 +22,6 @@ from wearnav.dataset import Dataset
 from wearnav.simulate.config import PHONE_HOLDS
 from wearnav.simulate.presets import SINGLE_HOLDS, plan_placement_dataset
 from wearnav.train.classify import split_view
-
-from conftest import run_cli
 
 SIM = har.DATASETS["sim-placement"]
 
@@ -92,7 +91,10 @@ def _results(root: Path) -> dict:
         for k in ("wall_s", "s_per_epoch"):
             t.pop(k)
         out[(run.name.rsplit("-", 1)[0], train["seed"])] = {
-            "train": {k: v for k, v in train.items() if k != "data"}, "metrics": m, "training": t}
+            "train": {k: v for k, v in train.items() if k != "data"},
+            "metrics": m,
+            "training": t,
+        }
     return out
 
 
@@ -129,8 +131,9 @@ def test_steps_budget_sets_each_datasets_epochs(sim_quick, tmp_path):
     from wearnav.errors import ConfigError
     from wearnav.train.classify import ClassifyConfig, _windows, sequences
 
-    cfg = ClassifyConfig(model=har.BASELINE, data=str(sim_quick), scheme=SIM.scheme, label_kind=SIM.label_kind,
-                         classes=SIM.classes)
+    cfg = ClassifyConfig(
+        model=har.BASELINE, data=str(sim_quick), scheme=SIM.scheme, label_kind=SIM.label_kind, classes=SIM.classes
+    )
     n = len(_windows(sequences(split_view(Dataset.open(sim_quick), SIM.scheme, "train"), cfg), cfg, SIM.classes))
     batches = -(-n // 64)
     assert batches > 1
@@ -144,20 +147,29 @@ def test_steps_budget_sets_each_datasets_epochs(sim_quick, tmp_path):
 def test_classify_a_sensor_logger_export_end_to_end(sim_quick, tmp_path, monkeypatch, capsys):
     """Train a tiny placement classifier on the simulated walkers, write a new simulated
     multi-placement walk as a Sensor Logger export (iOS, g units, split gravity), and label it."""
-    from wearnav.importers.sensorlogger_export import write_export
     from wearnav.importers import sensorlogger
+    from wearnav.importers.sensorlogger_export import write_export
     from wearnav.simulate.config import WalkConfig, sample_subject
     from wearnav.simulate.walk import simulate_walk
     from wearnav.train.classify import ClassifyConfig, fit, prepare_run
 
-    cfg = ClassifyConfig(model=har.BASELINE, data=str(sim_quick), scheme=SIM.scheme, label_kind="placement",
-                         classes=SIM.classes, epochs=1, max_train_windows=256, model_args={"hidden": 16})
+    cfg = ClassifyConfig(
+        model=har.BASELINE,
+        data=str(sim_quick),
+        scheme=SIM.scheme,
+        label_kind="placement",
+        classes=SIM.classes,
+        epochs=1,
+        max_train_windows=256,
+        model_args={"hidden": 16},
+    )
     run = prepare_run(cfg, tmp_path / "run")
     fit(cfg, run, progress=False)
 
     walker = sample_subject(np.random.default_rng(11), "me")
-    rec = simulate_walk(WalkConfig(name="mine", subject=walker, mode="PVW", placement="MP", duration_s=40.0,
-                                   devices=("phone",)), seed=5).recording
+    rec = simulate_walk(
+        WalkConfig(name="mine", subject=walker, mode="PVW", placement="MP", duration_s=40.0, devices=("phone",)), seed=5
+    ).recording
     export = write_export(rec, tmp_path / "Mine-2024-05-01_10-00-00", platform="ios")
     imported = next(sensorlogger.read(export))
     code, out, err = run_cli(monkeypatch, capsys, "classify", export, "--model", run, "--out", tmp_path / "lab")

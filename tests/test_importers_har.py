@@ -57,6 +57,7 @@ def assert_error(exc_type, fn, *must_contain):
 
 # ---- MotionSense ------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def ms_root(shared_data) -> Path:
     return shared_data / "motionsense"
@@ -114,7 +115,7 @@ def test_motionsense_quaternion_is_rz_rx_ry_of_the_attitude(ms_root):
     for k, (roll, pitch, yaw) in enumerate(raw[["attitude.roll", "attitude.pitch", "attitude.yaw"]].to_numpy()):
         R = rz(yaw) @ rx(pitch) @ ry(roll)
         for axis in np.eye(3):  # columns of R = device axes in the world frame
-            np.testing.assert_allclose(rotate(q[k:k + 1], axis[None]), (R @ axis)[None], atol=1e-6)
+            np.testing.assert_allclose(rotate(q[k : k + 1], axis[None]), (R @ axis)[None], atol=1e-6)
 
 
 def test_motionsense_vigorous_jogging_trial_is_kept(ms_root):
@@ -142,11 +143,12 @@ def test_motionsense_plain_copy_reads(ms_copy):
 def test_motionsense_errors(ms_copy, tmp_path):
     f = ms_copy / "A_DeviceMotion_data" / "dws_1" / "sub_1.csv"
     lines = f.read_text().splitlines()
-    read = lambda: list(motionsense.read(ms_copy))  # noqa: E731
+    read = lambda: list(motionsense.read(ms_copy))
 
     (tmp_path / "empty_dir").mkdir()
-    assert_error(FormatError, lambda: list(motionsense.read(tmp_path / "empty_dir")), "empty_dir",
-                 "no MotionSense trial folders")
+    assert_error(
+        FormatError, lambda: list(motionsense.read(tmp_path / "empty_dir")), "empty_dir", "no MotionSense trial folders"
+    )
     assert_error(MissingFileError, lambda: list(motionsense.read(tmp_path / "nope")), "nope")
 
     write_lines(f, [lines[0].replace("userAcceleration.z", "userAccel.z")] + lines[1:])
@@ -166,8 +168,9 @@ def test_motionsense_errors(ms_copy, tmp_path):
     assert_error(FormatError, read, "sub_1.csv", "row index")
 
     # A copy already converted to m/s² (gravity no longer a unit vector) is refused.
-    ms2 = [",".join(c[:4] + [str(float(v) * 9.80665) for v in c[4:7]] + c[7:])
-           for c in (x.split(",") for x in lines[1:])]
+    ms2 = [
+        ",".join(c[:4] + [str(float(v) * 9.80665) for v in c[4:7]] + c[7:]) for c in (x.split(",") for x in lines[1:])
+    ]
     write_lines(f, lines[:1] + ms2)
     assert_error(FormatError, read, "sub_1.csv", "median |gravity|")
 
@@ -183,6 +186,7 @@ def test_motionsense_errors(ms_copy, tmp_path):
 
 
 # ---- UCI HAPT ---------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def hapt_root(shared_data) -> Path:
@@ -231,8 +235,9 @@ def hapt_copy(hapt_root, tmp_path) -> Path:
     root = tmp_path / "hapt"
     raw = root / "RawData"
     for kind in ("acc", "gyro"):
-        write_lines(raw / f"{kind}_exp01_user01.txt",
-                    raw_lines(hapt_root / "RawData" / f"{kind}_exp01_user01.txt.xz")[:400])
+        write_lines(
+            raw / f"{kind}_exp01_user01.txt", raw_lines(hapt_root / "RawData" / f"{kind}_exp01_user01.txt.xz")[:400]
+        )
     write_lines(raw / "labels.txt", ["1 1 5 250 300", "1 1 7 301 400"])
     shutil.copy(hapt_root / "activity_labels.txt", root / "activity_labels.txt")
     return root
@@ -252,7 +257,7 @@ def test_uci_hapt_errors(hapt_copy, tmp_path):
     raw = hapt_copy / "RawData"
     acc, gyro, labels = raw / "acc_exp01_user01.txt", raw / "gyro_exp01_user01.txt", raw / "labels.txt"
     acc_lines, gyro_lines = acc.read_text().splitlines(), gyro.read_text().splitlines()
-    read = lambda: list(uci_hapt.read(hapt_copy))  # noqa: E731
+    read = lambda: list(uci_hapt.read(hapt_copy))
 
     (tmp_path / "other").mkdir()
     assert_error(FormatError, lambda: list(uci_hapt.read(tmp_path / "other")), "other", "no UCI HAPT")
@@ -280,6 +285,7 @@ def test_uci_hapt_errors(hapt_copy, tmp_path):
 
 
 # ---- UJI phone + watch ------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def uji_root(shared_data) -> Path:
@@ -337,8 +343,10 @@ def uji_copy(uji_root, tmp_path) -> Path:
     shutil.copy(uji_root / "DATA" / "executions_info.csv", data / "executions_info.csv")
     # The copy holds one execution of s01: say so, as the table declares how many there are.
     subjects = (uji_root / "DATA" / "subjects_info.csv").read_text().splitlines()
-    write_lines(data / "subjects_info.csv",
-                [",".join(ln.split(",")[:-1] + ["1"]) if ln.startswith("s01,") else ln for ln in subjects])
+    write_lines(
+        data / "subjects_info.csv",
+        [",".join(ln.split(",")[:-1] + ["1"]) if ln.startswith("s01,") else ln for ln in subjects],
+    )
     return tmp_path / "uji"
 
 
@@ -350,7 +358,7 @@ def test_uji_copy_reads_from_subject_folder(uji_copy):
 def test_uji_errors(uji_copy, tmp_path):
     f = uji_copy / "DATA" / "s01" / "s01_01_sp.csv"
     lines = f.read_text().splitlines()
-    read = lambda: list(uji_phone_watch.read(uji_copy))  # noqa: E731
+    read = lambda: list(uji_phone_watch.read(uji_copy))
 
     (tmp_path / "x").mkdir()
     assert_error(FormatError, lambda: list(uji_phone_watch.read(tmp_path / "x")), "no UJI")
@@ -361,12 +369,14 @@ def test_uji_errors(uji_copy, tmp_path):
     def with_ts(i, new):
         cells = lines[i].split(",")
         cells[6] = str(new)
-        return lines[:i] + [",".join(cells)] + lines[i + 1:]
+        return lines[:i] + [",".join(cells)] + lines[i + 1 :]
 
     write_lines(f, with_ts(100, int(lines[99].split(",")[6]) - 5))
     assert_error(FormatError, read, "s01_01_sp.csv", "backwards")
-    shifted = lines[:1] + [",".join(c[:6] + [str(int(c[6]) + (2000 if i > 150 else 0))] + c[7:])
-                           for i, c in enumerate((x.split(",") for x in lines[1:]), 1)]
+    shifted = lines[:1] + [
+        ",".join(c[:6] + [str(int(c[6]) + (2000 if i > 150 else 0))] + c[7:])
+        for i, c in enumerate((x.split(",") for x in lines[1:]), 1)
+    ]
     write_lines(f, shifted)
     assert_error(FormatError, read, "s01_01_sp.csv", "constant sampling rate")
 
@@ -382,6 +392,7 @@ def test_uji_errors(uji_copy, tmp_path):
 
 
 # ---- Oxford step counter ----------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def ox_dir(shared_data) -> Path:
@@ -425,7 +436,7 @@ def test_oxford_folder_limit(ox_dir):
 def test_oxford_errors(ox_dir, tmp_path):
     lines = raw_lines(ox_dir / "user2_hand_1506421987098.csv.xz")[:300]
     f = tmp_path / "validation" / "user2_hand_1506421987098.csv"
-    read = lambda: list(oxford_steps.read(tmp_path))  # noqa: E731
+    read = lambda: list(oxford_steps.read(tmp_path))
     write_lines(f, lines)
     (rec,) = read()
     assert len(rec.devices["phone"]) == 300
@@ -437,13 +448,12 @@ def test_oxford_errors(ox_dir, tmp_path):
     def set_cell(i, col, value):
         cells = lines[i].split(",")
         cells[col] = value
-        return lines[:i] + [",".join(cells)] + lines[i + 1:]
+        return lines[:i] + [",".join(cells)] + lines[i + 1 :]
 
     write_lines(f, set_cell(50, 0, lines[49].split(",")[0]))  # same time, other values
     (rec,) = read()  # the one duplicate policy: the first row is kept, the repeat counted
     assert len(rec.devices["phone"]) == 299 and rec.meta["dropped_duplicates"] == {"timestamp": 1}
-    np.testing.assert_allclose(rec.devices["phone"].acc[49], [float(x) for x in lines[49].split(",")[1:4]],
-                               rtol=1e-6)
+    np.testing.assert_allclose(rec.devices["phone"].acc[49], [float(x) for x in lines[49].split(",")[1:4]], rtol=1e-6)
     write_lines(f, set_cell(50, 0, str(int(lines[49].split(",")[0]) - 1000)))
     assert_error(ValidationError, read, f.name, "backwards")
     write_lines(f, set_cell(50, 2, "nan"))
@@ -465,26 +475,31 @@ def test_oxford_step_count_going_down_is_refused(ox_dir, tmp_path):
     i = next(k for k in range(1, len(counts)) if counts[k] > counts[k - 1])
     cells = lines[i + 1].split(",")
     cells[5] = str(counts[i] - 1)
-    f = write_lines(tmp_path / "user2_hand_1506421987098.csv",
-                    lines[: i + 1] + [",".join(cells)] + lines[i + 2:])
+    f = write_lines(tmp_path / "user2_hand_1506421987098.csv", lines[: i + 1] + [",".join(cells)] + lines[i + 2 :])
     assert_error(FormatError, lambda: list(oxford_steps.read(f)), f.name, "goes down")
 
 
 # ---- all four: registry, validation errors name the file, command line -----------------------
 
+
 @pytest.mark.parametrize("fmt", ["motionsense", "uci-hapt", "uji-phone-watch", "oxford-steps"])
 def test_registry_and_limit_zero(fmt, shared_data):
     module = get_importer(fmt)
-    folder = {"motionsense": "motionsense", "uci-hapt": "uci_hapt",
-              "uji-phone-watch": "uji_phone_watch_har", "oxford-steps": "oxford_step_counter"}[fmt]
+    folder = {
+        "motionsense": "motionsense",
+        "uci-hapt": "uci_hapt",
+        "uji-phone-watch": "uji_phone_watch_har",
+        "oxford-steps": "oxford_step_counter",
+    }[fmt]
     assert list(module.read(shared_data / folder, limit=0)) == []
 
 
 def test_units_error_names_the_file(ox_dir, tmp_path):
     # acc logged in g instead of m/s²: the Recording's unit check fires, attributed to the file.
     lines = raw_lines(ox_dir / "user2_hand_1506421987098.csv.xz")[:300]
-    scaled = [",".join([c[0]] + [f"{float(v) / 9.81:.6f}" for v in c[1:4]] + c[4:])
-              for c in (x.split(",") for x in lines)]
+    scaled = [
+        ",".join([c[0]] + [f"{float(v) / 9.81:.6f}" for v in c[1:4]] + c[4:]) for c in (x.split(",") for x in lines)
+    ]
     f = write_lines(tmp_path / "user2_hand_1506421987098.csv", scaled)
     msg = assert_error(ValidationError, lambda: list(oxford_steps.read(f)), f.name, "median |acc|")
     assert "9.80665" in msg
@@ -492,13 +507,21 @@ def test_units_error_names_the_file(ox_dir, tmp_path):
 
 def test_cli_import_and_one_line_error(ox_dir, tmp_path):
     exe = Path(sys.executable).with_name("wearnav")
-    ok = subprocess.run([str(exe), "import", "oxford-steps", str(ox_dir), "--out", str(tmp_path / "ds"),
-                         "--limit", "1"], capture_output=True, text=True, timeout=60)
+    ok = subprocess.run(
+        [str(exe), "import", "oxford-steps", str(ox_dir), "--out", str(tmp_path / "ds"), "--limit", "1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert ok.returncode == 0, ok.stderr
     assert '"recordings": 1' in ok.stdout
     (tmp_path / "empty").mkdir()
-    bad = subprocess.run([str(exe), "import", "uci-hapt", str(tmp_path / "empty"), "--out",
-                          str(tmp_path / "ds2")], capture_output=True, text=True, timeout=60)
+    bad = subprocess.run(
+        [str(exe), "import", "uci-hapt", str(tmp_path / "empty"), "--out", str(tmp_path / "ds2")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert bad.returncode == 2
     # Besides tqdm's progress bar (import_dataset's), exactly one line: the error.
     err = [x for x in bad.stderr.strip().splitlines() if not x.startswith("import uci-hapt:")]

@@ -10,11 +10,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from conftest import error_line
 from wearnav.dataset import Dataset
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.importers import ilc2, import_dataset
-
-from conftest import error_line
 
 F4_TRACE = "site1/F4/path_data_files/5ddb653fc5b77e0006b17906.txt.gz"
 B1_FLOOR = "site1/B1"
@@ -52,6 +51,7 @@ def write_trace(path, lines):
 
 
 # ---- real data -------------------------------------------------------------------------------
+
 
 def test_trace_streams_match_the_file(rec, trace_lines):
     acc_rows = rows_of(trace_lines, "TYPE_ACCELEROMETER")
@@ -128,6 +128,7 @@ def test_find_traces_prefers_the_plain_copy(tmp_path, trace_path):
 
 # ---- deliberate handling of timestamps --------------------------------------------------------
 
+
 def test_duplicated_timestamp_is_dropped_and_counted(tmp_path, trace_lines):
     lines = list(trace_lines)
     i = next(k for k, ln in enumerate(lines) if "\tTYPE_ACCELEROMETER\t" in ln)
@@ -143,8 +144,12 @@ def test_duplicated_timestamp_is_dropped_and_counted(tmp_path, trace_lines):
 def synthetic_trace(n=300, gyro_shift_ms=0, with_w=False):
     """A small trace: phone flat, turning slowly about z; optional gyro clock shift and w column."""
     t0 = 1_600_000_000_000
-    lines = ["#\tstartTime:%d" % t0, "#\tSiteID:s\tSiteName:x\tFloorId:f\tFloorName:B2",
-             "#\tBrand:Acme\tModel:P1", f"{t0}\tTYPE_WAYPOINT\t1.0\t2.0"]
+    lines = [
+        "#\tstartTime:%d" % t0,
+        "#\tSiteID:s\tSiteName:x\tFloorId:f\tFloorName:B2",
+        "#\tBrand:Acme\tModel:P1",
+        f"{t0}\tTYPE_WAYPOINT\t1.0\t2.0",
+    ]
     for k in range(n):
         ts = t0 + 20 + 20 * k
         yaw = 0.002 * k
@@ -173,6 +178,7 @@ def test_synthetic_trace_with_w_and_shifted_gyro(tmp_path):
 
 
 # ---- one-line errors --------------------------------------------------------------------------
+
 
 def test_missing_path(tmp_path):
     with pytest.raises(MissingFileError) as e:
@@ -215,8 +221,10 @@ def test_nan_row(tmp_path, trace_lines):
 
 
 def test_non_numeric_value(tmp_path, trace_lines):
-    lines = [ln.replace("\tTYPE_ACCELEROMETER\t", "\tTYPE_ACCELEROMETER\tx", 1) if k == 20 else ln
-             for k, ln in enumerate(trace_lines)]
+    lines = [
+        ln.replace("\tTYPE_ACCELEROMETER\t", "\tTYPE_ACCELEROMETER\tx", 1) if k == 20 else ln
+        for k, ln in enumerate(trace_lines)
+    ]
     with pytest.raises(FormatError) as e:
         list(ilc2.read(write_trace(tmp_path / "txt.txt", lines)))
     error_line(e.value)
@@ -236,7 +244,7 @@ def test_too_many_duplicates_is_broken(tmp_path):
     acc = [k for k, ln in enumerate(lines) if "\tTYPE_ACCELEROMETER\t" in ln]
     for k in acc[1::2]:  # every other accelerometer row takes its predecessor's time
         prev = lines[acc[acc.index(k) - 1]].split("\t")[0]
-        lines[k] = prev + lines[k][lines[k].index("\t"):]
+        lines[k] = prev + lines[k][lines[k].index("\t") :]
     with pytest.raises(ValidationError, match="duplicated"):
         list(ilc2.read(write_trace(tmp_path / "dups.txt", lines)))
 
@@ -251,8 +259,9 @@ def test_wrong_format_file(tmp_path, shared_data):
 
 
 def test_not_a_rotation_vector(tmp_path):
-    lines = [ln.replace("TYPE_ROTATION_VECTOR\t0.000000000", "TYPE_ROTATION_VECTOR\t3.000000000")
-             for ln in synthetic_trace()]
+    lines = [
+        ln.replace("TYPE_ROTATION_VECTOR\t0.000000000", "TYPE_ROTATION_VECTOR\t3.000000000") for ln in synthetic_trace()
+    ]
     assert sum("VECTOR\t3.0" in ln for ln in lines) == 300
     with pytest.raises(FormatError, match="not a rotation vector"):
         list(ilc2.read(write_trace(tmp_path / "rv.txt", lines)))
@@ -262,8 +271,9 @@ def test_cli_prints_one_line_and_exits_2(tmp_path, monkeypatch, capsys):
     from wearnav import cli
 
     (tmp_path / "e.txt").write_text("")
-    monkeypatch.setattr(sys, "argv", ["wearnav", "import", "ilc2", str(tmp_path / "e.txt"),
-                                      "--out", str(tmp_path / "out")])
+    monkeypatch.setattr(
+        sys, "argv", ["wearnav", "import", "ilc2", str(tmp_path / "e.txt"), "--out", str(tmp_path / "out")]
+    )
     with pytest.raises(SystemExit) as e:
         cli.main()
     assert e.value.code == 2

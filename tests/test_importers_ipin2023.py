@@ -10,11 +10,10 @@ import pytest
 import scipy.io
 from scipy.spatial.transform import Rotation
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.importers import ipin2023
-from wearnav.geo import PROJECTION, latlon_to_local
-
 from conftest import error_line
+from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.geo import PROJECTION, latlon_to_local
+from wearnav.importers import ipin2023
 
 LOGS = "01 Logfiles/01 IPIN2023_T3_TrainingTrials (training)"
 TRA = "02 Supplementary Materials/03 - Files for Matlab Tools/Trajectories"
@@ -66,6 +65,7 @@ def short_log(lines, n_data=3000):
 
 
 # ---- real text log ---------------------------------------------------------------------------
+
 
 def test_imu_stream(rec, log_lines):
     s = rec.devices["phone"]
@@ -127,8 +127,10 @@ def test_gnss_fixes(rec, log_lines):
     # Same origin as the truth, and the fixes near the surveyed points at the same moments.
     lat0, lon0 = m["origin_lat"], m["origin_lon"]
     g = np.array([[float(r[3]), float(r[4])] for r in gnss])
-    assert np.all(np.min(np.linalg.norm(
-        f.pos[:, None, :] - latlon_to_local(g[:, 0], g[:, 1], lat0, lon0)[None], axis=2), axis=1) < 1e-6)
+    assert np.all(
+        np.min(np.linalg.norm(f.pos[:, None, :] - latlon_to_local(g[:, 0], g[:, 1], lat0, lon0)[None], axis=2), axis=1)
+        < 1e-6
+    )
     errs = []
     for t, p in zip(rec.truth.t, rec.truth.pos):
         k = int(np.argmin(np.abs(f.t - t)))
@@ -150,6 +152,7 @@ def test_meta(rec):
 
 # ---- the organisers' .mat and our own .mat round trips ----------------------------------------
 
+
 def test_real_mat_conversion(ipin_root):
     (r,) = list(ipin2023.read(ipin_root / LOGS / f"{MAT_LOG}.mat"))
     s = r.devices["phone"]
@@ -166,8 +169,13 @@ def test_real_mat_conversion(ipin_root):
 
 def mat_arrays(log_path):
     data, _ = ipin2023.read_txt(log_path)
-    return {"Acce": data["ACCE"], "Gyro": data["GYRO"], "Ahrs": data["AHRS"],
-            "Gnss": data["GNSS"], "Posi": data["POSI"][:, :4]}
+    return {
+        "Acce": data["ACCE"],
+        "Gyro": data["GYRO"],
+        "Ahrs": data["AHRS"],
+        "Gnss": data["GNSS"],
+        "Posi": data["POSI"][:, :4],
+    }
 
 
 def write_mat_v73(path, arrays):
@@ -197,6 +205,7 @@ def test_mat_matches_text_log(tmp_path, log_path, rec, version):
 
 
 # ---- folders -----------------------------------------------------------------------------------
+
 
 def test_folder_import_skips_docs_and_honours_limit(ipin_root):
     logs = ipin2023.find_logs(ipin_root)
@@ -229,6 +238,7 @@ def test_stale_fix_is_dropped(tmp_path, log_lines):
 
 
 # ---- one-line errors ---------------------------------------------------------------------------
+
 
 def test_missing_path(tmp_path):
     with pytest.raises(MissingFileError) as e:

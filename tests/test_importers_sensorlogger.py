@@ -14,14 +14,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from wearnav.importers.sensorlogger_export import T0_NS, time_origin, write_export, zip_export
 from synthetic import synthetic_recording
-from wearnav.simulate import WalkConfig, simulate_recording
 from wearnav.errors import FormatError, MissingFileError, WearnavError
-from wearnav.importers import import_dataset
 from wearnav.geo import PROJECTION
+from wearnav.importers import import_dataset
 from wearnav.importers.sensorlogger import read
+from wearnav.importers.sensorlogger_export import T0_NS, time_origin, write_export, zip_export
 from wearnav.recording import Recording
+from wearnav.simulate import WalkConfig, simulate_recording
 
 EXPORT = "2023-11-14_22-13-20"
 
@@ -73,12 +73,17 @@ def assert_round_trip(out: Recording, rec: Recording) -> None:
 
 # ---- round trips ------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("kw", [
-    dict(platform="ios", standardised=False),
-    dict(platform="ios", standardised=True),
-    dict(platform="android", standardised=False),
-    dict(platform="android", standardised=False, total_acceleration=True),
-], ids=["ios", "ios-standardised", "android", "android-total"])
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        dict(platform="ios", standardised=False),
+        dict(platform="ios", standardised=True),
+        dict(platform="android", standardised=False),
+        dict(platform="android", standardised=False, total_acceleration=True),
+    ],
+    ids=["ios", "ios-standardised", "android", "android-total"],
+)
 def test_round_trip_folder(rec, tmp_path, kw):
     folder = write_export(rec, tmp_path / EXPORT, **kw)
     out = _import_one(folder)
@@ -192,6 +197,7 @@ def test_duplicate_rows_are_dropped(rec, tmp_path):
 
 # ---- bad exports --------------------------------------------------------------------------
 
+
 def _edit_csv(path, fn):
     df = pd.read_csv(path)
     fn(df).to_csv(path, index=False)
@@ -222,25 +228,45 @@ def _drop_metadata_platform(path):
 
 
 CASES = {
-    "renamed-column": ("Accelerometer.csv", lambda p: _edit_csv(p, lambda d: d.rename(columns={"x": "X"})),
-                       ["Accelerometer.csv", "missing columns", "'x'"]),
-    "renamed-watch-column": ("WristMotion.csv",
-                             lambda p: _edit_csv(p, lambda d: d.rename(columns={"gravityX": "gravX"})),
-                             ["WristMotion.csv", "missing columns", "gravityX"]),
+    "renamed-column": (
+        "Accelerometer.csv",
+        lambda p: _edit_csv(p, lambda d: d.rename(columns={"x": "X"})),
+        ["Accelerometer.csv", "missing columns", "'x'"],
+    ),
+    "renamed-watch-column": (
+        "WristMotion.csv",
+        lambda p: _edit_csv(p, lambda d: d.rename(columns={"gravityX": "gravX"})),
+        ["WristMotion.csv", "missing columns", "gravityX"],
+    ),
     "empty-file": ("Gyroscope.csv", lambda p: p.write_text(""), ["Gyroscope.csv", "empty file"]),
-    "header-only": ("Gravity.csv", lambda p: p.write_text("time,seconds_elapsed,z,y,x\n"),
-                    ["Gravity.csv", "no data rows"]),
+    "header-only": (
+        "Gravity.csv",
+        lambda p: p.write_text("time,seconds_elapsed,z,y,x\n"),
+        ["Gravity.csv", "no data rows"],
+    ),
     "truncated": ("Accelerometer.csv", _truncate, ["Accelerometer.csv", "truncated"]),
     "nan": ("Gyroscope.csv", lambda p: _edit_csv(p, _nan), ["Gyroscope.csv", "NaN"]),
-    "time-backwards": ("Orientation.csv", lambda p: _edit_csv(p, _backwards),
-                       ["Orientation.csv", "time", "backwards at row 100"]),
-    "broken-clock": ("Accelerometer.csv", lambda p: _edit_csv(p, _broken_clock),
-                     ["Accelerometer.csv", "timestamps are duplicated"]),
+    "time-backwards": (
+        "Orientation.csv",
+        lambda p: _edit_csv(p, _backwards),
+        ["Orientation.csv", "time", "backwards at row 100"],
+    ),
+    "broken-clock": (
+        "Accelerometer.csv",
+        lambda p: _edit_csv(p, _broken_clock),
+        ["Accelerometer.csv", "timestamps are duplicated"],
+    ),
     "no-metadata": ("Metadata.csv", lambda p: p.unlink(), ["Metadata.csv is missing", EXPORT]),
-    "metadata-without-platform": ("Metadata.csv", _drop_metadata_platform,
-                                  ["Metadata.csv", "missing columns", "platform"]),
-    "bad-location": ("Location.csv", lambda p: _edit_csv(p, lambda d: d.assign(latitude=d["latitude"] + 100)),
-                     ["Location.csv", "out of range"]),
+    "metadata-without-platform": (
+        "Metadata.csv",
+        _drop_metadata_platform,
+        ["Metadata.csv", "missing columns", "platform"],
+    ),
+    "bad-location": (
+        "Location.csv",
+        lambda p: _edit_csv(p, lambda d: d.assign(latitude=d["latitude"] + 100)),
+        ["Location.csv", "out of range"],
+    ),
 }
 
 
@@ -331,8 +357,10 @@ def test_gzipped_csvs_are_read(rec, tmp_path):
 
 def test_negative_accuracy_means_unknown(rec, tmp_path):
     folder = write_export(rec, tmp_path / EXPORT)
-    _edit_csv(folder / "Location.csv", lambda d: d.assign(horizontalAccuracy=d["horizontalAccuracy"].where(
-        d.index % 3 != 0, -1.0)))
+    _edit_csv(
+        folder / "Location.csv",
+        lambda d: d.assign(horizontalAccuracy=d["horizontalAccuracy"].where(d.index % 3 != 0, -1.0)),
+    )
     acc = _import_one(folder).fixes.accuracy
     assert np.all(np.isnan(acc[::3]))
     np.testing.assert_allclose(acc[1::3], rec.fixes.accuracy[1::3])
@@ -341,8 +369,14 @@ def test_negative_accuracy_means_unknown(rec, tmp_path):
 def test_partial_exports(rec, tmp_path):
     """A watch-only export; a phone without Orientation.csv or Location.csv."""
     folder = write_export(rec, tmp_path / "watch" / EXPORT)
-    for name in ("Accelerometer.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv",
-                 "Headphone.csv", "Location.csv"):
+    for name in (
+        "Accelerometer.csv",
+        "Gravity.csv",
+        "Gyroscope.csv",
+        "Orientation.csv",
+        "Headphone.csv",
+        "Location.csv",
+    ):
         (folder / name).unlink()
     out = _import_one(folder)
     assert list(out.devices) == ["watch"] and out.fixes is None
@@ -361,7 +395,9 @@ def test_gravity_counted_twice_is_caught(rec, tmp_path):
     """Headphone acceleration that already holds gravity: |acc| ≈ 19.6 passes the generic units
     band, the world-frame vertical mean does not."""
     folder = write_export(rec, tmp_path / "android" / EXPORT, platform="android", standardised=True)
-    _edit_csv(folder / "Headphone.csv", lambda d: d.assign(
-        **{f"acceleration{a}": d[f"acceleration{a}"] + d[f"gravity{a}"] for a in "XYZ"}))
+    _edit_csv(
+        folder / "Headphone.csv",
+        lambda d: d.assign(**{f"acceleration{a}": d[f"acceleration{a}"] + d[f"gravity{a}"] for a in "XYZ"}),
+    )
     with pytest.raises(FormatError, match=r"Headphone\.csv: mean vertical specific force .* 19\.\d m/s²"):
         list(read(folder))

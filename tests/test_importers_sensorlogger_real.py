@@ -15,12 +15,12 @@ import pandas as pd
 import pytest
 
 from sensorlogger_fixture import cut_gap, edit_csv, glitch_quaternion, prepend_stale_fix, resample_rows
-from wearnav.importers.sensorlogger_export import T0_NS, write_export
 from test_importers_sensorlogger import EXPORT, _import_one, assert_round_trip, source_recording
 from wearnav import cli
 from wearnav.dataset import Dataset
 from wearnav.errors import FormatError, WearnavWarning
 from wearnav.importers.sensorlogger import read
+from wearnav.importers.sensorlogger_export import T0_NS, write_export
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import Recording
 
@@ -41,8 +41,7 @@ def test_one_glitched_quaternion_does_not_fail_the_direction_check(rec, tmp_path
     """A ~1 rad jump in one sample of Orientation.csv and of Headphone.csv (as in a real Android
     phone's and AirPods' files): the import succeeds, in both quaternion conventions."""
     for inverted in (False, True):
-        folder = write_export(rec, tmp_path / str(inverted) / EXPORT, platform="android",
-                              quat_inverted=inverted)
+        folder = write_export(rec, tmp_path / str(inverted) / EXPORT, platform="android", quat_inverted=inverted)
         glitch_quaternion(folder / "Orientation.csv", row=3)
         glitch_quaternion(folder / "Headphone.csv", row=3)
         out, _ = _quiet(folder)
@@ -63,8 +62,7 @@ def test_gyro_disagreement_does_not_blame_platform_when_gravity_agrees(rec, tmp_
 def test_watch_only_export(rec, tmp_path):
     """Recorded on the Apple Watch alone: platform watchos, layout version 4, extra watch files."""
     watch = Recording(name="w", devices={"watch": rec.devices["watch"]})
-    folder = write_export(watch, tmp_path / EXPORT, platform="watchos", layout_version=4,
-                          watch_extras=True)
+    folder = write_export(watch, tmp_path / EXPORT, platform="watchos", layout_version=4, watch_extras=True)
     assert (folder / "HeartRate.csv").is_file() and (folder / "WatchCompass.csv").is_file()
     out, caught = _quiet(folder)
     assert not caught
@@ -150,13 +148,15 @@ def test_missing_metadata_says_what_to_do_and_platform_option(rec, tmp_path, mon
     assert out.meta["platform"] == "ios" and "--platform" in out.meta["platform_from"]
     assert_round_trip(out, rec)
     # the command line: one error line without the option, an import with it
-    monkeypatch.setattr(sys, "argv", ["wearnav", "import", "sensorlogger", str(folder), "--out",
-                                      str(tmp_path / "ds")])
+    monkeypatch.setattr(sys, "argv", ["wearnav", "import", "sensorlogger", str(folder), "--out", str(tmp_path / "ds")])
     with pytest.raises(SystemExit) as exit_:
         cli.main()
     assert exit_.value.code == 2 and "--platform" in capsys.readouterr().err
-    monkeypatch.setattr(sys, "argv", ["wearnav", "import", "sensorlogger", str(folder), "--out",
-                                      str(tmp_path / "ds"), "--platform", "ios"])
+    monkeypatch.setattr(
+        sys,
+        "argv",
+        ["wearnav", "import", "sensorlogger", str(folder), "--out", str(tmp_path / "ds"), "--platform", "ios"],
+    )
     cli.main()
     ds = Dataset.open(tmp_path / "ds")
     assert ds.names == [EXPORT]

@@ -24,7 +24,7 @@ def test_live_bench_writes_a_page_results_stitches(tmp_path):
         assert w["kept_up"] and w["messages"] == 15 * w["walkers"]
         assert w["cpu_share_of_one_core"] is None or 0 < w["cpu_share_of_one_core"] < 2
     bad, faults = r["bad_inputs"], r["faults"]
-    assert bad["catalogue_wrong"] == [] and bad["catalogue"] == len(catalogue()) + 1   # + one over the size limit
+    assert bad["catalogue_wrong"] == [] and bad["catalogue"] == len(catalogue()) + 1  # + one over the size limit
     assert bad["fuzz_answers"]["other"] == 0 and bad["rows_after_bad"] == bad["fuzz_answers"]["stored"]
     assert bad["no_token_401"] == 5 and bad["flood_429"] > 0 and bad["flood_stored"] == bad["flood_200"]
     assert faults["acknowledged_missing"] == 0 and faults["export_equal"] and faults["retries"] > 0

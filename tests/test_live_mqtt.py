@@ -27,8 +27,9 @@ def broker(tmp_path, request):
     scheme = request.param
     port = free_port()
     conf = tmp_path / "mosquitto.conf"
-    conf.write_text(f"listener {port} 127.0.0.1\n" + ("protocol websockets\n" if scheme == "ws" else "")
-                    + "allow_anonymous true\n")
+    conf.write_text(
+        f"listener {port} 127.0.0.1\n" + ("protocol websockets\n" if scheme == "ws" else "") + "allow_anonymous true\n"
+    )
     log = tmp_path / "mosquitto.log"
     with open(log, "wb") as f:
         proc = subprocess.Popen([MOSQUITTO, "-c", str(conf), "-v"], stdout=f, stderr=subprocess.STDOUT)
@@ -36,8 +37,10 @@ def broker(tmp_path, request):
         deadline = time.monotonic() + 10
         while "running" not in log.read_text(errors="replace"):
             if proc.poll() is not None:
-                pytest.skip(f"this mosquitto cannot open a {scheme} listener on 127.0.0.1 (built without "
-                            f"websockets?): {log.read_text(errors='replace').strip().splitlines()[-1]}")
+                pytest.skip(
+                    f"this mosquitto cannot open a {scheme} listener on 127.0.0.1 (built without "
+                    f"websockets?): {log.read_text(errors='replace').strip().splitlines()[-1]}"
+                )
             if time.monotonic() > deadline:
                 pytest.fail("mosquitto did not start")
             time.sleep(0.05)
@@ -68,8 +71,9 @@ def test_mqtt_messages_are_received_and_stored(tmp_path, broker):
             for k in range(5):
                 pub.publish("sensor-logger", enc(body(sessionId="mq", messageId=k)), qos=0).wait_for_publish(5)
             pub.publish("sensor-logger", enc(body(sessionId="mq", messageId=2)), qos=0).wait_for_publish(5)  # repeat
-            pub.publish("sensor-logger", enc(body(sessionId="mq", messageId=9)).replace(b"0.1", b"NaN"),
-                        qos=0).wait_for_publish(5)  # refused
+            pub.publish(
+                "sensor-logger", enc(body(sessionId="mq", messageId=9)).replace(b"0.1", b"NaN"), qos=0
+            ).wait_for_publish(5)  # refused
         finally:
             pub.loop_stop()
             pub.disconnect()
@@ -82,4 +86,6 @@ def test_mqtt_messages_are_received_and_stored(tmp_path, broker):
         assert (r["accepted"], r["repeats"]) == (5, 1)
         assert "message refused (400)" in srv.output()
     with sqlite3.connect(db) as c:
-        assert sorted(m for (m,) in c.execute("SELECT message_id FROM messages WHERE session_id='mq'")) == list(range(5))
+        assert sorted(m for (m,) in c.execute("SELECT message_id FROM messages WHERE session_id='mq'")) == list(
+            range(5)
+        )

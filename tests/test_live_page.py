@@ -24,8 +24,14 @@ from wearnav.live.process import SRC, LiveServer
 from wearnav.track import track
 
 CHROMIUM = Path("/usr/bin/chromium")
-ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-        "--no-first-run", "--disable-sync"]
+ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--no-first-run",
+    "--disable-sync",
+]
 WALK_S = 60.0
 # saturated pixels (path colours, fix centres): max − min channel above this; the grid and the
 # background are grey, accuracy circles faint
@@ -80,8 +86,10 @@ def test_trajectory_html_opens_offline_draws_and_slides(browser, walk, tmp_path)
     assert page.text_content("#time") == f"{page.evaluate('window.wearnavState.path[10][0]'):.1f}"
     part = page.evaluate(SATURATED)
     page.screenshot(path=str(tmp_path / "trajectory_slider.png"))
-    print(f"\nscreenshots: {tmp_path / 'trajectory.png'}, {tmp_path / 'trajectory_slider.png'}; "
-          f"saturated pixels {full} (whole path), {part} (10 s)")
+    print(
+        f"\nscreenshots: {tmp_path / 'trajectory.png'}, {tmp_path / 'trajectory_slider.png'}; "
+        f"saturated pixels {full} (whole path), {part} (10 s)"
+    )
     assert full > part + 500 and part > 0 and not errors
 
 
@@ -96,10 +104,27 @@ def test_live_page_follows_a_replayed_walk(browser, walk, tmp_path):
     token, session = "page-test-token", "pagetest"
     srv = LiveServer(tmp_path / "live.db", "--token", token, token=token).start(timeout_s=60)
     try:
-        out = subprocess.run([sys.executable, "-m", "wearnav", "replay", str(walk / "export"), "--url",
-                              f"{srv.url}/push", "--speed", "10", "--token", token, "--session", session],
-                             capture_output=True, text=True, timeout=120,
-                             env={**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"})
+        out = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "wearnav",
+                "replay",
+                str(walk / "export"),
+                "--url",
+                f"{srv.url}/push",
+                "--speed",
+                "10",
+                "--token",
+                token,
+                "--session",
+                session,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            env={**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"},
+        )
         assert out.returncode == 0, out.stderr
         sent = json.loads(out.stdout)
         assert sent["acknowledged"] == sent["messages"]
@@ -116,8 +141,10 @@ def test_live_page_follows_a_replayed_walk(browser, walk, tmp_path):
         st = page.evaluate("window.wearnavState")
         n = int(np.sum(table["t"].to_numpy() <= st["path"][-1][0] + 1e-3))
         expected = len(range(0, n, 25)) + (1 if (n - 1) % 25 else 0)
-        print(f"\nlive page: {len(st['path'])} points (expected {expected}), activity {st['activity']}, "
-              f"devices {sorted(st['devices'])}, path to {st['path'][-1][0]:.1f} s of {table['t'].iloc[-1]:.1f} s")
+        print(
+            f"\nlive page: {len(st['path'])} points (expected {expected}), activity {st['activity']}, "
+            f"devices {sorted(st['devices'])}, path to {st['path'][-1][0]:.1f} s of {table['t'].iloc[-1]:.1f} s"
+        )
         assert st["path"][0][0] == pytest.approx(table["t"].iloc[0], abs=2e-3)
         assert len(st["path"]) == expected and page.text_content("#points") == str(expected)
         assert st["activity"] and page.text_content("#activity") == st["activity"]["label"]

@@ -48,28 +48,40 @@ def test_bad_body_is_refused_with_its_status(case):
 
 def test_good_body_and_unknown_sensors_pass():
     doc = body()
-    doc["payload"] += [{"name": "magnetometer", "time": time.time_ns(), "values": {"x": 1, "y": 2, "z": 3}},
-                       {"name": "battery", "time": time.time_ns(), "values": {"batteryLevel": 0.5, "state": "full",
-                                                                              "lowPower": False, "x": None}},
-                       {"name": "future sensor", "time": time.time_ns(), "values": {"list": [1, {"a": "b"}]}},
-                       {"name": "camera", "time": time.time_ns(), "values": "aGVsbG8="}]
+    doc["payload"] += [
+        {"name": "magnetometer", "time": time.time_ns(), "values": {"x": 1, "y": 2, "z": 3}},
+        {
+            "name": "battery",
+            "time": time.time_ns(),
+            "values": {"batteryLevel": 0.5, "state": "full", "lowPower": False, "x": None},
+        },
+        {"name": "future sensor", "time": time.time_ns(), "values": {"list": [1, {"a": "b"}]}},
+        {"name": "camera", "time": time.time_ns(), "values": "aGVsbG8="},
+    ]
     push = check(enc(doc))
     assert (push.session_id, push.device_id, push.message_id, len(push.payload)) == ("s-1", "phone.A:1", 3, 6)
     buf = SessionBuffer("s-1")
-    assert buf.add(push.payload) == 2          # accelerometer + location read, the others ignored
+    assert buf.add(push.payload) == 2  # accelerometer + location read, the others ignored
     assert buf.ignored == {"magnetometer": 1, "battery": 1, "future sensor": 1, "camera": 1}
-    with pytest.raises(BadPush):               # still finite
+    with pytest.raises(BadPush):  # still finite
         check(enc(doc).replace(b'[1, {"a"', b'[1e999, {"a"'))
 
 
-json_leaf = st.none() | st.booleans() | st.integers(-10 ** 400, 10 ** 400) | st.floats(allow_nan=True) | st.text(max_size=8)
-json_value = st.recursive(json_leaf, lambda kids: st.lists(kids, max_size=4) | st.dictionaries(st.text(max_size=6), kids, max_size=4),
-                          max_leaves=12)
+json_leaf = (
+    st.none() | st.booleans() | st.integers(-(10**400), 10**400) | st.floats(allow_nan=True) | st.text(max_size=8)
+)
+json_value = st.recursive(
+    json_leaf,
+    lambda kids: st.lists(kids, max_size=4) | st.dictionaries(st.text(max_size=6), kids, max_size=4),
+    max_leaves=12,
+)
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(key=st.sampled_from(["messageId", "sessionId", "deviceId", "payload", "name", "time", "values", "x"]),
-       value=json_value)
+@given(
+    key=st.sampled_from(["messageId", "sessionId", "deviceId", "payload", "name", "time", "values", "x"]),
+    value=json_value,
+)
 def test_fuzz_one_field_replaced(key, value):
     """Any value in any field: accepted as a valid push, or refused with a 4xx BadPush; never
     another exception, and nothing non-finite gets through."""
@@ -103,12 +115,12 @@ def test_fuzz_bytes(raw):
 def test_store_repeat_is_a_no_op(tmp_path):
     store = Store(tmp_path / "live.db")
     assert store.add("s", "d", 0, '{"payload": []}', "ios", False) is True
-    assert store.add("s", "d", 0, '{"payload": [1]}', "android", True) is False   # same key: ignored
+    assert store.add("s", "d", 0, '{"payload": [1]}', "android", True) is False  # same key: ignored
     assert store.add("s", "d", 1, '{"payload": []}', "android", True) is True
-    assert store.add("s", "e", 0, '{"payload": []}', "ios", False) is True      # another device
+    assert store.add("s", "e", 0, '{"payload": []}', "ios", False) is True  # another device
     assert store.count() == 3
     assert [(d, m, b) for d, m, _t, b in store.messages("s")][0] == ("d", 0, '{"payload": []}')
-    assert store.sessions()["s"]["platform"] == "ios"   # the first message's settings
+    assert store.sessions()["s"]["platform"] == "ios"  # the first message's settings
     store.close()
     db = sqlite3.connect(tmp_path / "live.db")
     assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
@@ -143,7 +155,10 @@ def test_buffer_in_any_order_equals_the_importer(export60):
     ref = next(sensorlogger.read(export60))
     rp = replay.build(export60, batch_s=0.5)
     msgs = [json.loads(json.dumps({k: v for k, v in m.items() if not k.startswith("_")})) for m in rp.messages]
-    in_order, shuffled = SessionBuffer("a", rp.platform, rp.standardised), SessionBuffer("b", rp.platform, rp.standardised)
+    in_order, shuffled = (
+        SessionBuffer("a", rp.platform, rp.standardised),
+        SessionBuffer("b", rp.platform, rp.standardised),
+    )
     for m in msgs:
         in_order.add(m["payload"])
     order = list(range(len(msgs)))
@@ -187,8 +202,15 @@ class SlowTracker:
         return True
 
     def state(self) -> dict:
-        return {"origin": None, "path": [[0.0, 0.0, 0.0, None]], "anchor": "none", "fixes": [], "activity": None,
-                "warnings": [], "t_s": 0.0}
+        return {
+            "origin": None,
+            "path": [[0.0, 0.0, 0.0, None]],
+            "anchor": "none",
+            "fixes": [],
+            "activity": None,
+            "warnings": [],
+            "t_s": 0.0,
+        }
 
 
 def test_tracker_runs_after_acks_one_thread_per_session_coalesced(tmp_path):
@@ -206,6 +228,7 @@ def test_tracker_runs_after_acks_one_thread_per_session_coalesced(tmp_path):
         time.sleep(0.01)
     rx.accept(enc(body(sessionId="other")), "ios", False)
     deadline = time.monotonic() + 5
+
     def done():  # the last update saw all ten messages and has finished
         t = rx.workers["s-1"].tracker
         return t is not None and t.seen and t.seen[-1] == 10 and len(rx.workers["s-1"].latency_s) == len(t.seen)
@@ -214,7 +237,7 @@ def test_tracker_runs_after_acks_one_thread_per_session_coalesced(tmp_path):
         time.sleep(0.05)
     t = rx.workers["s-1"].tracker
     assert len(trackers) == 2 and rx.workers["other"].tracker is not None and not t.overlap
-    assert t.seen[-1] == 10 and len(t.seen) <= 3       # coalesced: the last update saw every message
+    assert t.seen[-1] == 10 and len(t.seen) <= 3  # coalesced: the last update saw every message
     st = rx.state("s-1")
     assert st["session"] == "s-1" and st["messages"] == 10 and st["path"] == [[0.0, 0.0, 0.0, None]]
     assert set(st["devices"]["phone"]) == {"rate_hz", "last_seen_unix_s", "samples", "stopped"}
@@ -272,13 +295,13 @@ def test_sensor_rows_sorted_first_arrival_kept_snapshots_unchanged():
     buf.add([acc(10, 1.0), acc(20, 2.0)])
     version, snap = buf._snapshot()
     t_before = snap["Accelerometer.csv"][0].copy()
-    buf.add([acc(20, 99.0), acc(5, 0.5), acc(30, 3.0)])   # a repeat of t=20 (kept: the first) and an earlier one
+    buf.add([acc(20, 99.0), acc(5, 0.5), acc(30, 3.0)])  # a repeat of t=20 (kept: the first) and an earlier one
     buf.add([acc(30, 98.0)])
     _, snap2 = buf._snapshot()
     t, vals = snap2["Accelerometer.csv"][:2]
     assert (t - now).tolist() == [5, 10, 20, 30] and vals[:, 0].tolist() == [0.5, 1.0, 2.0, 3.0]
-    assert snap2["Accelerometer.csv"][4] == 2                    # duplicates counted
-    np.testing.assert_array_equal(snap["Accelerometer.csv"][0], t_before)   # the old snapshot as it was
+    assert snap2["Accelerometer.csv"][4] == 2  # duplicates counted
+    np.testing.assert_array_equal(snap["Accelerometer.csv"][0], t_before)  # the old snapshot as it was
 
 
 @pytest.mark.parametrize("platform,standardised", [("ios", False), ("ios", True), ("android", False)])
@@ -287,16 +310,18 @@ def test_platform_not_given_is_decided_from_the_data(tmp_path, platform, standar
     convention that passes the importer's checks, and gives the importer's Recording of the export
     read with its Metadata.csv."""
     walk = simulate_recording(WalkConfig(mode="PVW", placement="MP", duration_s=20.0), seed=2)
-    folder = write_export(walk, tmp_path / "x", platform=platform, standardised=standardised,
-                          total_acceleration=platform == "android")
+    folder = write_export(
+        walk, tmp_path / "x", platform=platform, standardised=standardised, total_acceleration=platform == "android"
+    )
     ref = next(sensorlogger.read(folder))
     rp = replay.build(folder, batch_s=1.0)
     buf = SessionBuffer("auto", AUTO)
     for m in rp.messages:
         buf.add(json.loads(json.dumps(m["payload"])))
     got = buf.recording()
-    assert not buf.infer and got.meta["platform"] in ((platform,) if platform == "ios" and not standardised
-                                                       else ("ios", "android"))
+    assert not buf.infer and got.meta["platform"] in (
+        (platform,) if platform == "ios" and not standardised else ("ios", "android")
+    )
     assert_same(ref, got)
 
 
@@ -333,4 +358,4 @@ def test_update_latency_runs_from_the_oldest_ack_to_the_update_that_changed_the_
             time.sleep(0.01)
         time.sleep(0.1)
     lat = rx.workers["s-1"].latency_s
-    assert len(lat) == 1 and lat[0] >= 0.2 and lat[0] <= time.perf_counter() - t0   # from the first push's ack
+    assert len(lat) == 1 and lat[0] >= 0.2 and lat[0] <= time.perf_counter() - t0  # from the first push's ack

@@ -20,8 +20,7 @@ from hypothesis import strategies as st
 
 from test_live_push import BAD, assert_same
 from wearnav.dataset import Dataset
-from wearnav.importers import import_dataset
-from wearnav.importers import sensorlogger
+from wearnav.importers import import_dataset, sensorlogger
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import replay
 from wearnav.live.badinputs import body, enc
@@ -111,10 +110,10 @@ def test_token_required_and_never_logged(tmp_path):
         assert c.post("/push?token=" + TOKEN, content=enc(body(messageId=4))).status_code == 200
         assert c.get("/state?token=" + TOKEN).json()["messages"] == 2
         assert c.get("/events").status_code == 401
-        with c.stream("GET", "/events?session=s-1&token=" + TOKEN, timeout=10) as r:   # server-sent events
+        with c.stream("GET", "/events?session=s-1&token=" + TOKEN, timeout=10) as r:  # server-sent events
             assert r.headers["content-type"].startswith("text/event-stream")
             first = next(line for line in r.iter_lines() if line.startswith("data: "))
-        event = json.loads(first[len("data: "):])
+        event = json.loads(first[len("data: ") :])
         assert event["session"] == "s-1" and event["messages"] == 2 and "path" in event
         assert set(event["devices"]) == {"phone"} and event["devices"]["phone"]["stopped"] is False
         page = c.get("/?token=" + TOKEN)
@@ -128,7 +127,7 @@ def test_token_required_and_never_logged(tmp_path):
         made = srv2.output().split("?token=")[1].split()[0]
         assert httpx.post(f"{srv2.url}/push", content=enc(body())).status_code == 401
         assert httpx.post(f"{srv2.url}/push?token={made}", content=enc(body())).status_code == 200
-        assert srv2.output().count(made) == 2   # push URL and page URL lines, nothing after
+        assert srv2.output().count(made) == 2  # push URL and page URL lines, nothing after
 
 
 def test_load_10x_no_sample_lost_or_duplicated(tmp_path, export60, imported):
@@ -143,17 +142,37 @@ def test_load_10x_no_sample_lost_or_duplicated(tmp_path, export60, imported):
     assert state["messages"] == len(rp.messages)
     assert state["devices"]["phone"]["samples"] == len(imported.devices["phone"])
     lat = np.array(res.ack_latency_s)
-    print(f"\nload: {len(rp.messages)} messages, {rp.samples} samples in {res.wall_s:.1f} s; ack latency ms "
-          f"p50 {1e3 * np.percentile(lat, 50):.1f} p95 {1e3 * np.percentile(lat, 95):.1f} "
-          f"p99 {1e3 * np.percentile(lat, 99):.1f}; behind schedule at the end {res.late_s:.2f} s")
-    assert res.wall_s < 6.0 * 1.5   # kept up with 10× (schedule 6 s)
+    print(
+        f"\nload: {len(rp.messages)} messages, {rp.samples} samples in {res.wall_s:.1f} s; ack latency ms "
+        f"p50 {1e3 * np.percentile(lat, 50):.1f} p95 {1e3 * np.percentile(lat, 95):.1f} "
+        f"p99 {1e3 * np.percentile(lat, 99):.1f}; behind schedule at the end {res.late_s:.2f} s"
+    )
+    assert res.wall_s < 6.0 * 1.5  # kept up with 10× (schedule 6 s)
     # `wearnav live export` writes what `wearnav import sensorlogger` writes, with the same samples
     env = {**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"}
-    run = subprocess.run([sys.executable, "-m", "wearnav", "live", "export", "load", "--store", str(db), "--out",
-                          str(tmp_path / "live-ds")], env=env, capture_output=True, text=True, timeout=120)
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "wearnav",
+            "live",
+            "export",
+            "load",
+            "--store",
+            str(db),
+            "--out",
+            str(tmp_path / "live-ds"),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert run.returncode == 0, run.stderr
-    live, direct = Dataset.open(tmp_path / "live-ds"), import_dataset("sensorlogger", export60, tmp_path / "direct",
-                                                                        progress=False)
+    live, direct = (
+        Dataset.open(tmp_path / "live-ds"),
+        import_dataset("sensorlogger", export60, tmp_path / "direct", progress=False),
+    )
     assert live.names == ["load"] and len(direct) == 1
     cols = ["duration", "devices", "source", "fixes"]
     assert live.manifest[cols].to_dict("records") == direct.manifest[cols].to_dict("records")
@@ -165,12 +184,15 @@ def test_sigkill_mid_replay_loses_nothing(tmp_path, export60, imported):
     acknowledged before the kill is in the store, the replay's retries fill in the rest, the
     restarted server resumed the session, and the export equals an uninterrupted one's."""
     db = tmp_path / "live.db"
-    rp = replay.build(export60, batch_s=0.2, session_id="kill")   # sent without ?platform=: decided from the data
+    rp = replay.build(export60, batch_s=0.2, session_id="kill")  # sent without ?platform=: decided from the data
     acked: list[int] = []
     srv = LiveServer(db, "--no-track").start()
     out: dict = {}
-    sender = threading.Thread(target=lambda: out.update(res=replay.send(
-        rp, f"{srv.url}/push", speed=10.0, retry_for_s=60.0, on_ack=acked.append, platform=False)))
+    sender = threading.Thread(
+        target=lambda: out.update(
+            res=replay.send(rp, f"{srv.url}/push", speed=10.0, retry_for_s=60.0, on_ack=acked.append, platform=False)
+        )
+    )
     sender.start()
     try:
         while len(acked) < 60:
@@ -187,7 +209,7 @@ def test_sigkill_mid_replay_loses_nothing(tmp_path, export60, imported):
     finally:
         srv.stop()
     res = out["res"]
-    assert res.retries > 0                       # it did go down
+    assert res.retries > 0  # it did go down
     assert res.acknowledged == list(range(len(rp.messages)))
     assert state["messages"] == len(rp.messages)  # the restarted buffer holds the whole session
     assert stored_rows(db) == len(rp.messages)

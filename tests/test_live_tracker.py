@@ -120,13 +120,15 @@ def test_three_devices_live_against_track_and_truth(export):
     err_live, err_off = (np.linalg.norm(p - truth, axis=1) for p in (fused, table[["east", "north"]].to_numpy()))
     walk_s = float(t[-1] - t[0])
     busy = np.asarray(tr.timings) * 1e3
-    print(f"\n3 devices, live vs track odometry (un-fused): max {odo.max():.2f} m, p95 {np.percentile(odo, 95):.2f} m"
-          f"\n3 devices, fused live vs track: max {dev.max():.2f} m, p95 {np.percentile(dev, 95):.2f} m ({anchor})"
-          f"\nerror vs truth, fused: live p50 {np.median(err_live):.2f} / p95 {np.percentile(err_live, 95):.2f} m, "
-          f"track p50 {np.median(err_off):.2f} / p95 {np.percentile(err_off, 95):.2f} m"
-          f"\nupdates that worked: {busy.size}, p50 {np.median(busy):.0f} ms, p95 {np.percentile(busy, 95):.0f} ms; "
-          f"every update (one per 0.2-s message) p95 {np.percentile(run['walls'], 95) * 1e3:.0f} ms; "
-          f"CPU {run['cpu_s'] / walk_s:.3f} s per s of walk (buffer included)")
+    print(
+        f"\n3 devices, live vs track odometry (un-fused): max {odo.max():.2f} m, p95 {np.percentile(odo, 95):.2f} m"
+        f"\n3 devices, fused live vs track: max {dev.max():.2f} m, p95 {np.percentile(dev, 95):.2f} m ({anchor})"
+        f"\nerror vs truth, fused: live p50 {np.median(err_live):.2f} / p95 {np.percentile(err_live, 95):.2f} m, "
+        f"track p50 {np.median(err_off):.2f} / p95 {np.percentile(err_off, 95):.2f} m"
+        f"\nupdates that worked: {busy.size}, p50 {np.median(busy):.0f} ms, p95 {np.percentile(busy, 95):.0f} ms; "
+        f"every update (one per 0.2-s message) p95 {np.percentile(run['walls'], 95) * 1e3:.0f} ms; "
+        f"CPU {run['cpu_s'] / walk_s:.3f} s per s of walk (buffer included)"
+    )
     assert anchor == "smooth-fixed-lag" and dev.max() < 0.5  # the tolerance, at every path sample
     assert np.percentile(err_live, 95) < np.percentile(err_off, 95) + 1.0
     assert np.percentile(busy, 95) < 1000 and run["cpu_s"] / walk_s < 0.5
@@ -135,5 +137,6 @@ def test_three_devices_live_against_track_and_truth(export):
     assert len(state["fixes"]) == len(run["buf"].recording().fixes)
     assert state["final_t_s"] == pytest.approx(t[-1], abs=1e-3)  # after the final update nothing is provisional
     step = int(round(tr.cfg.rate))
-    assert [p[0] for p in state["path"]] == pytest.approx(np.append(t[::step], t[-1]) if (len(t) - 1) % step
-                                                          else t[::step], abs=6e-4)
+    assert [p[0] for p in state["path"]] == pytest.approx(
+        np.append(t[::step], t[-1]) if (len(t) - 1) % step else t[::step], abs=6e-4
+    )

@@ -54,8 +54,12 @@ def test_ate_matches_evo_ape(seed):
 def test_rte_matches_evo_rpe_all_pairs(seed):
     rate, delta = 5.0, 12.0
     t, est, true = _random_walks(seed, rate=rate)
-    rpe = evo_metrics.RPE(evo_metrics.PoseRelation.translation_part, delta=int(delta * rate),
-                          delta_unit=evo_metrics.Unit.frames, all_pairs=True)
+    rpe = evo_metrics.RPE(
+        evo_metrics.PoseRelation.translation_part,
+        delta=int(delta * rate),
+        delta_unit=evo_metrics.Unit.frames,
+        all_pairs=True,
+    )
     rpe.process_data((_evo_traj(t, true), _evo_traj(t, est)))
     ref = rpe.get_statistic(evo_metrics.StatisticsType.rmse)
     assert rte(t, est, true, delta=delta) == pytest.approx(ref, rel=1e-9)

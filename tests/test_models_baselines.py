@@ -30,8 +30,10 @@ def batch(B=4, D=3, L=100, seed=0):
 
 # ---- registry and shapes ----------------------------------------------------------------------
 
-@pytest.mark.parametrize("name,layout,learned", [("ronin", "single", True), ("ronin*", "concat", True),
-                                                  ("pdr", "single", False)])
+
+@pytest.mark.parametrize(
+    "name,layout,learned", [("ronin", "single", True), ("ronin*", "concat", True), ("pdr", "single", False)]
+)
 def test_registered(name, layout, learned):
     spec = get(name)
     assert (spec.task, spec.layout, spec.learned) == ("odometry", layout, learned)
@@ -57,6 +59,7 @@ def test_window_too_short_is_a_config_error():
 
 
 # ---- device layouts ---------------------------------------------------------------------------
+
 
 def test_ronin_uses_only_the_first_present_device():
     torch.manual_seed(0)
@@ -97,6 +100,7 @@ def test_ronin_star_concatenates_in_layout_order_with_zeros_for_absent_devices()
 
 
 # ---- size and cost ----------------------------------------------------------------------------
+
 
 def test_ronin_parameter_count_matches_suitein_table_vi():
     # Suite-IN++ Table VI: RoNIN 4438.2 K, RoNIN* 4443.7 K parameters, 0.021 G (multiply-adds)
@@ -151,6 +155,7 @@ def test_ronin_learns_a_synthetic_velocity(name, one_thread):
 
 
 # ---- PDR on a synthetic walk --------------------------------------------------------------------
+
 
 def synthetic_walk(L=100, cadence=1.8, heading_deg=40.0, lead_deg=90.0, amp=2.5, seed=0, standing=False):
     """World-frame IMU of a walk along ``heading_deg``: vertical acc at the step frequency, fore-aft
@@ -215,6 +220,7 @@ def test_pdr_is_vectorised_and_fast():
 
 # ---- PDR on the simulator ---------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def tiny_phone(tmp_path_factory):
     from wearnav.simulate import simulate_dataset
@@ -266,8 +272,9 @@ def test_pdr_signed_heading_on_the_simulator(tiny_phone):
     # on real phones): PDR's default phase rule recovers the signed direction. Measured: median
     # 9.4°, 90 % of windows within 90° (ILC2's real hand-held phone: 89 %).
     pred, true, _ = _stw(tiny_phone, lead_deg=90.0)
-    ang = np.rad2deg(np.abs(np.angle(np.exp(1j * (np.arctan2(pred[:, 1], pred[:, 0])
-                                                  - np.arctan2(true[:, 1], true[:, 0]))))))
+    ang = np.rad2deg(
+        np.abs(np.angle(np.exp(1j * (np.arctan2(pred[:, 1], pred[:, 0]) - np.arctan2(true[:, 1], true[:, 0])))))
+    )
     assert np.median(ang) < 15.0 and np.mean(ang < 90) > 0.8
 
 
@@ -298,7 +305,7 @@ def test_pdr_walks_forward_on_real_phone_data(shared_data):
         b = default_collate([wd[k] for k in range(len(wd))])
         vel = model(b["x"], b["mask"]).numpy()
         idx = wd.index[:, 1]
-        f = np.stack([fwd[s0:s0 + 100].mean(0) for s0 in idx])
+        f = np.stack([fwd[s0 : s0 + 100].mean(0) for s0 in idx])
         moving = np.linalg.norm(vel, axis=1) > 0.5
         agree.append(np.sum(vel[moving] * f[moving], axis=1) > 0)
     agree = np.concatenate(agree)

@@ -5,18 +5,28 @@ from __future__ import annotations
 
 import pytest
 import torch
-from torch.nn import functional as F
 
 from wearnav.errors import ConfigError
 from wearnav.models import build, get
 from wearnav.models.deepit import masked_softmax
 
-NEW = {"ionet*": "concat", "imunet": "single", "imunet*": "concat", "deepit*": "multi",
-       "rewf": "multi", "deepsense*": "concat"}
+NEW = {
+    "ionet*": "concat",
+    "imunet": "single",
+    "imunet*": "concat",
+    "deepit*": "multi",
+    "rewf": "multi",
+    "deepsense*": "concat",
+}
 # Small widths of the same architectures, so the tests take seconds.
-SMALL = {"ionet*": {"hidden": 16}, "imunet": {"widths": (8, 16, 16, 16)}, "imunet*": {"widths": (8, 16, 16, 16)},
-         "deepit*": {"hidden": 8, "embed": 16}, "rewf": {"lstm_hidden": 8, "fc_dim": 32},
-         "deepsense*": {"local": 8, "global_": 8, "gru_hidden": 16}}
+SMALL = {
+    "ionet*": {"hidden": 16},
+    "imunet": {"widths": (8, 16, 16, 16)},
+    "imunet*": {"widths": (8, 16, 16, 16)},
+    "deepit*": {"hidden": 8, "embed": 16},
+    "rewf": {"lstm_hidden": 8, "fc_dim": 32},
+    "deepsense*": {"local": 8, "global_": 8, "gru_hidden": 16},
+}
 
 
 def batch(B=6, D=3, L=100, seed=0):
@@ -24,9 +34,9 @@ def batch(B=6, D=3, L=100, seed=0):
     x = torch.randn(B, D, L, 6, generator=g)
     x[..., 2] += 9.81
     mask = torch.ones(B, D)
-    mask[1, 0] = 0                     # no phone
+    mask[1, 0] = 0  # no phone
     mask[2] = torch.tensor([0.0, 0.0, 1.0])
-    mask[3, 1] = 0                     # no watch
+    mask[3, 1] = 0  # no watch
     return x, mask
 
 
@@ -71,7 +81,7 @@ def test_one_optimizer_step_reduces_the_loss(name):
     opt = torch.optim.Adam(m.parameters(), lr=1e-3)
 
     def loss():
-        torch.manual_seed(4)            # the same Gumbel draws for ReWF
+        torch.manual_seed(4)  # the same Gumbel draws for ReWF
         return m.loss(b)[0]
 
     m.train()
@@ -85,8 +95,10 @@ def test_one_optimizer_step_reduces_the_loss(name):
 
 
 def test_fusion_weights_are_zero_for_absent_devices():
-    w = masked_softmax(torch.tensor([[5.0, 1.0, -2.0], [0.0, 0.0, 0.0], [1.0, 2.0, 3.0]]),
-                       torch.tensor([[0.0, 1.0, 1.0], [1.0, 1.0, 1.0], [0.0, 0.0, 0.0]]))
+    w = masked_softmax(
+        torch.tensor([[5.0, 1.0, -2.0], [0.0, 0.0, 0.0], [1.0, 2.0, 3.0]]),
+        torch.tensor([[0.0, 1.0, 1.0], [1.0, 1.0, 1.0], [0.0, 0.0, 0.0]]),
+    )
     assert w[0, 0] == 0 and torch.allclose(w[0, 1:], torch.softmax(torch.tensor([1.0, -2.0]), 0))
     assert torch.allclose(w[1], torch.full((3,), 1 / 3)) and torch.equal(w[2], torch.zeros(3))
     for name in ("deepit*", "rewf"):

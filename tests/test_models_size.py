@@ -19,7 +19,7 @@ from wearnav.models.registry import n_parameters
 # Table VI ("Model Efficiency and Complexity of various methods", paper 000 lines 432–444):
 # registered name, build kwargs, parameters (K), FLOPs (G) = MACs, line of the paper.
 TABLE_VI = [
-    ("ionet", {"bidirectional": False}, 114.6, 0.004, 434),   # IONet (ours defaults to Bi-LSTM)
+    ("ionet", {"bidirectional": False}, 114.6, 0.004, 434),  # IONet (ours defaults to Bi-LSTM)
     ("ionet*", {}, 119.2, 0.004, 435),
     ("ronin", {}, 4438.2, 0.021, 436),
     ("ronin*", {}, 4443.7, 0.021, 437),
@@ -70,6 +70,7 @@ def test_suitein_extractor_readings_and_ablations_share_the_widths():
 
 
 # --- the MAC counter --------------------------------------------------------------------------
+
 
 class _Wrap(OdometryModel):
     """(B, D, L, 6) → module over time (B, L, D·6) → last step → (B, 2)."""

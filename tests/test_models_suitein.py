@@ -11,8 +11,14 @@ from torch.nn import functional as F
 from wearnav.errors import ConfigError
 from wearnav.models import registry
 from wearnav.models.base import OdometryModel
-from wearnav.models.suitein import (ABLATIONS, MaskedBatchNorm, _MaskedBatchNormFn, contrastive_loss,
-                                    fusion_weights, orthogonality_loss)
+from wearnav.models.suitein import (
+    ABLATIONS,
+    MaskedBatchNorm,
+    _MaskedBatchNormFn,
+    contrastive_loss,
+    fusion_weights,
+    orthogonality_loss,
+)
 
 # Small widths keep the tests fast; the paper-sized model is built where its size matters.
 TINY = dict(widths=(8, 8, 8, 12, 12, 12), gru_hidden=16, loc_dim=16, loc_hidden=16)
@@ -44,12 +50,16 @@ def tiny(name="suitein++", **kw):
 def batch(B=6, seed=1, mask=None):
     g = torch.Generator().manual_seed(seed)
     x = torch.randn(B, 3, 100, 6, generator=g)
-    m = torch.tensor(mask, dtype=torch.float32).expand(B, 3).clone() if mask is not None else \
-        torch.tensor([MASKS[k] for k in MASKS] * B, dtype=torch.float32)[:B]
+    m = (
+        torch.tensor(mask, dtype=torch.float32).expand(B, 3).clone()
+        if mask is not None
+        else torch.tensor([MASKS[k] for k in MASKS] * B, dtype=torch.float32)[:B]
+    )
     return {"x": x * m[:, :, None, None], "mask": m, "vel": torch.randn(B, 2, generator=g)}
 
 
 # --- registry, shapes, budget -----------------------------------------------------------------
+
 
 def test_registered_with_paper_defaults():
     names = {s.name for s in registry.available("odometry")}
@@ -95,6 +105,7 @@ def test_other_device_counts_and_window():
 
 # --- flexible device number --------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("name", ["suitein++", "suitein"])
 @pytest.mark.parametrize("which", list(MASKS))
 def test_absent_device_input_changes_nothing(name, which):
@@ -102,7 +113,7 @@ def test_absent_device_input_changes_nothing(name, which):
     in training (batch statistics) and in inference."""
     m = tiny(name, dropout=0.0)
     b = batch(mask=MASKS[which])
-    b["mask"][0] = 1.0                       # one full sample beside the others
+    b["mask"][0] = 1.0  # one full sample beside the others
     b2 = {**b, "x": b["x"] + 5.0 * (1 - b["mask"])[:, :, None, None] * torch.randn_like(b["x"])}
     for train in (True, False):
         m.train(train)
@@ -111,7 +122,7 @@ def test_absent_device_input_changes_nothing(name, which):
         m.zero_grad()
         out1[0].backward()
         g1 = [p.grad.clone() for p in m.parameters() if p.grad is not None]
-        m.load_state_dict(state)             # undo the running-statistics update
+        m.load_state_dict(state)  # undo the running-statistics update
         out2 = m.loss(b2)
         m.zero_grad()
         out2[0].backward()
@@ -157,12 +168,13 @@ def test_fusion_weights_of_a_sample_without_devices_are_zero():
 
 # --- each loss part by hand --------------------------------------------------------------------
 
+
 def _cos(a, b):
     return sum(x * y for x, y in zip(a, b)) / math.sqrt(sum(x * x for x in a) * sum(y * y for y in b))
 
 
-G2 = [[1.0, 0.0], [1.0, 1.0]]          # global features of devices 1, 2
-L2 = [[0.0, 1.0], [-1.0, 2.0]]         # local features
+G2 = [[1.0, 0.0], [1.0, 1.0]]  # global features of devices 1, 2
+L2 = [[0.0, 1.0], [-1.0, 2.0]]  # local features
 
 
 def test_infonce_two_devices_by_hand():
@@ -170,8 +182,9 @@ def test_infonce_two_devices_by_hand():
     negatives = Σ_j exp(⟨g_j, l_j⟩/τ) + Σ_{i≠j} exp(⟨l_i, l_j⟩/τ) (two ordered pairs)."""
     tau = 0.5
     pos = math.exp(_cos(G2[0], G2[1]) / tau)
-    neg = (math.exp(_cos(G2[0], L2[0]) / tau) + math.exp(_cos(G2[1], L2[1]) / tau)
-           + 2 * math.exp(_cos(L2[0], L2[1]) / tau))
+    neg = (
+        math.exp(_cos(G2[0], L2[0]) / tau) + math.exp(_cos(G2[1], L2[1]) / tau) + 2 * math.exp(_cos(L2[0], L2[1]) / tau)
+    )
     expected = -2 * math.log(pos / (pos + neg))
     got = contrastive_loss(torch.tensor([G2]), torch.tensor([L2]), torch.ones(1, 2), tau)
     assert got.item() == pytest.approx(expected, rel=1e-5)
@@ -187,9 +200,14 @@ def test_infonce_three_devices_by_hand():
     g = [[1.0, 0.2, 0.0], [0.5, 1.0, 0.1], [0.0, 0.3, 1.0]]
     l = [[0.0, 1.0, 1.0], [1.0, -1.0, 0.0], [0.3, 0.3, -1.0]]
     neg = sum(math.exp(_cos(g[j], l[j]) / tau) for j in range(3)) + sum(
-        math.exp(_cos(l[i], l[j]) / tau) for i in range(3) for j in range(3) if i != j)
-    expected = -sum(math.log(math.exp(_cos(g[i], g[j]) / tau) / (math.exp(_cos(g[i], g[j]) / tau) + neg))
-                    for i in range(3) for j in range(3) if i != j)
+        math.exp(_cos(l[i], l[j]) / tau) for i in range(3) for j in range(3) if i != j
+    )
+    expected = -sum(
+        math.log(math.exp(_cos(g[i], g[j]) / tau) / (math.exp(_cos(g[i], g[j]) / tau) + neg))
+        for i in range(3)
+        for j in range(3)
+        if i != j
+    )
     got = contrastive_loss(torch.tensor([g]), torch.tensor([l]), torch.ones(1, 3), tau)
     assert got.item() == pytest.approx(expected, rel=1e-5)
 
@@ -224,10 +242,10 @@ def test_quality_score_is_eq_10():
     m = tiny().eval()
     b = batch(mask=[1, 1, 0])
     with torch.no_grad():
-        h_glb, _ = m.features(b["x"], b["mask"])                  # (B, T', D, C)
+        h_glb, _ = m.features(b["x"], b["mask"])  # (B, T', D, C)
         Bn, T, D, C = h_glb.shape
         p, steps = m.cfg.glb_pool, T // m.cfg.glb_pool
-        u = h_glb[:, :steps * p].reshape(Bn, steps, p, D, C).mean(2).permute(0, 2, 1, 3).reshape(Bn, D, -1)
+        u = h_glb[:, : steps * p].reshape(Bn, steps, p, D, C).mean(2).permute(0, 2, 1, 3).reshape(Bn, D, -1)
         e = (u @ m.fusion.quality.weight[0] + m.fusion.quality.bias) / u.shape[-1]
         tilde = 9 * torch.sigmoid(e / 0.01) + 10
         expected = tilde * b["mask"] / (tilde * b["mask"]).sum(1, keepdim=True)
@@ -245,20 +263,21 @@ def test_velocity_losses_by_hand():
     assert parts["vel_glb"].item() == pytest.approx(((p["v_glb"] - b["vel"]) ** 2).mean().item(), rel=1e-5)
     res = b["vel"] - p["v_glb"]
     assert parts["vel_loc"].item() == pytest.approx(((p["v_loc"] - res) ** 2).mean().item(), rel=1e-5)
-    expected = (parts["vel"] + 0.1 * parts["vel_glb"] + parts["vel_loc"] + 0.2 * parts["con"]
-                + 0.05 * parts["orth"])
+    expected = parts["vel"] + 0.1 * parts["vel_glb"] + parts["vel_loc"] + 0.2 * parts["con"] + 0.05 * parts["orth"]
     assert total.item() == pytest.approx(expected.item(), rel=1e-6)
     # the trainer's aux_scale weighs the contrastive and orthogonality terms only
     m.aux_scale = 0.25
     ramped, parts = m.loss(b)
-    expected = (parts["vel"] + 0.1 * parts["vel_glb"] + parts["vel_loc"]
-                + 0.25 * (0.2 * parts["con"] + 0.05 * parts["orth"]))
+    expected = (
+        parts["vel"] + 0.1 * parts["vel_glb"] + parts["vel_loc"] + 0.25 * (0.2 * parts["con"] + 0.05 * parts["orth"])
+    )
     assert ramped.item() == pytest.approx(expected.item(), rel=1e-6) and ramped.item() < total.item()
     # Eq. 21 starts as v_glb + v_loc.
     assert torch.allclose(p["v"], p["v_glb"] + p["v_loc"], atol=1e-6)
 
 
 # --- implementation equivalences ---------------------------------------------------------------
+
 
 def test_masked_batch_norm_uses_present_samples_only():
     torch.manual_seed(0)
@@ -269,10 +288,10 @@ def test_masked_batch_norm_uses_present_samples_only():
     for g in range(2):
         keep = gm[:, g].bool()
         ref_mean, ref_var = torch.zeros(3), torch.ones(3)
-        ref = F.batch_norm(y[keep, 3 * g:3 * g + 3, 0], ref_mean, ref_var, training=True, momentum=0.1)
-        assert torch.allclose(out[keep, 3 * g:3 * g + 3, 0], ref, atol=1e-5)
-        assert torch.allclose(bn.running_mean[3 * g:3 * g + 3], ref_mean, atol=1e-6)
-        assert torch.allclose(bn.running_var[3 * g:3 * g + 3], ref_var, atol=1e-5)
+        ref = F.batch_norm(y[keep, 3 * g : 3 * g + 3, 0], ref_mean, ref_var, training=True, momentum=0.1)
+        assert torch.allclose(out[keep, 3 * g : 3 * g + 3, 0], ref, atol=1e-5)
+        assert torch.allclose(bn.running_mean[3 * g : 3 * g + 3], ref_mean, atol=1e-6)
+        assert torch.allclose(bn.running_var[3 * g : 3 * g + 3], ref_var, atol=1e-5)
     # Everyone present: the same as PyTorch's batch norm, running statistics included.
     bn2, ref_mean, ref_var = MaskedBatchNorm(groups=2, channels=3).train(), torch.zeros(6), torch.ones(6)
     out = bn2(y, torch.ones(5, 2))
@@ -295,15 +314,18 @@ def test_masked_batch_norm_gradient():
     assert torch.autograd.gradcheck(lambda y, w, b: _MaskedBatchNormFn.apply(y, m, w, b, 1e-5)[0], (y, w, b))
 
 
-@pytest.mark.parametrize("kw", [{"extractor": "paper"}, {}, {"extractor": "paper", "sensor_pools": (1, 2, 3, 1, 1, 1)}],
-                         ids=["paper", "mixed", "paper-row-pooling"])
+@pytest.mark.parametrize(
+    "kw",
+    [{"extractor": "paper"}, {}, {"extractor": "paper", "sensor_pools": (1, 2, 3, 1, 1, 1)}],
+    ids=["paper", "mixed", "paper-row-pooling"],
+)
 def test_grouped_inference_equals_separate_extractors(kw):
     """The fused inference path (one grouped convolution, BN folded, ReLU fused, strided max)
     computes what one Conv2d/BN/ReLU/MaxPool2d stack per extractor computes, for both extractor
     readings and with max-pool along the sensor rows."""
     m = registry.build("suitein++", **kw)
     g = torch.Generator().manual_seed(3)
-    for n in m.extractors.norms:        # non-trivial statistics, so folding matters
+    for n in m.extractors.norms:  # non-trivial statistics, so folding matters
         n.running_mean.copy_(torch.rand(n.running_mean.shape, generator=g) - 0.5)
         n.running_var.copy_(torch.rand(n.running_var.shape, generator=g) + 0.5)
         n.weight.data.copy_(torch.rand(n.weight.shape, generator=g) + 0.5)
@@ -339,10 +361,11 @@ def test_extractor_readings():
     with pytest.raises(ConfigError):
         tiny(extractor="rows")
     with pytest.raises(ConfigError):
-        tiny(extractor="paper", sensor_pools=(2, 2, 2, 1, 1, 1))        # 6 → 3 → 1 → 0 rows
+        tiny(extractor="paper", sensor_pools=(2, 2, 2, 1, 1, 1))  # 6 → 3 → 1 → 0 rows
 
 
 # --- ablation switches -------------------------------------------------------------------------
+
 
 def test_ablation_mapping():
     """Table V: (1) none, (2) W, (3) C+A, (4) W+A, (5) C+W, (6) all; Suite-IN = C only."""
@@ -367,8 +390,11 @@ def test_ablation_switches_change_the_computation(number):
     m = tiny("suitein++" if number == 6 else f"suitein++-abl{number}").eval()
     b = batch(mask=[1, 1, 1])
     total, parts = m.loss(b)
-    expected_parts = {"vel"} | ({"vel_glb", "vel_loc"} if sw["attentive"] else set()) \
+    expected_parts = (
+        {"vel"}
+        | ({"vel_glb", "vel_loc"} if sw["attentive"] else set())
         | ({"con", "orth"} if sw["contrast"] else set())
+    )
     assert set(parts) == expected_parts
     # Local extractors exist only where a module uses them.
     assert m.extractors.branches == (2 if sw["contrast"] or sw["attentive"] else 1)
@@ -383,11 +409,14 @@ def test_ablation_switches_change_the_computation(number):
         assert torch.allclose(p["alpha"], torch.full_like(p["alpha"], 1 / 3))
     if not sw["attentive"]:
         assert torch.equal(p["v"], p["v_glb"])
-        assert total.item() == pytest.approx(parts["vel"].item() + (
-            0.2 * parts["con"].item() + 0.05 * parts["orth"].item() if sw["contrast"] else 0.0), rel=1e-6)
+        assert total.item() == pytest.approx(
+            parts["vel"].item() + (0.2 * parts["con"].item() + 0.05 * parts["orth"].item() if sw["contrast"] else 0.0),
+            rel=1e-6,
+        )
 
 
 # --- learning ----------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", ["suitein++", "suitein"])
 def test_fits_a_linear_function_of_the_mean_acceleration(name):
@@ -399,9 +428,9 @@ def test_fits_a_linear_function_of_the_mean_acceleration(name):
     g = torch.Generator().manual_seed(7)
     x = torch.randn(32, 3, 100, 6, generator=g)
     mask = torch.ones(32, 3)
-    mask[:8, 0] = 0                              # some windows without the phone
+    mask[:8, 0] = 0  # some windows without the phone
     x = x * mask[:, :, None, None]
-    mean_acc = (x[..., :2].sum((1, 2)) / (mask.sum(1, keepdim=True) * 100))
+    mean_acc = x[..., :2].sum((1, 2)) / (mask.sum(1, keepdim=True) * 100)
     vel = mean_acc @ torch.tensor([[1.0, -0.5], [0.3, 1.2]]) / mean_acc.std()
     b = {"x": x, "mask": mask, "vel": vel}
     m = registry.build(name, **TINY, dropout=0.0)
@@ -425,6 +454,7 @@ def test_fits_a_linear_function_of_the_mean_acceleration(name):
 
 # --- efficiency measurement --------------------------------------------------------------------
 
+
 class _Linear(OdometryModel):
     def __init__(self):
         super().__init__()
@@ -438,16 +468,17 @@ def test_efficiency_row():
     from wearnav.bench import efficiency
 
     lin = _Linear()
-    assert efficiency.flops_per_window(lin) == 2 * 1800 * 2     # a multiply-add is 2 FLOPs
+    assert efficiency.flops_per_window(lin) == 2 * 1800 * 2  # a multiply-add is 2 FLOPs
     row = efficiency.measure(lin, name="linear", batches=(1, 8), min_run_time_s=0.02)
     assert row["params"] == 1800 * 2 + 2 and row["mflops_per_window"] == pytest.approx(0.0072)
     assert row["dense_gflops"] > 0.1 and row["win_per_s_b8"] > 0 and row["train_step_s_b128"] > 0
     assert row["win_per_s_b8_iqr"] >= 0 and row["train_step_s_b128_iqr"] >= 0
     before = lin.fc.weight.clone()
     assert efficiency.train_step_seconds(lin, batch=4, min_run_time_s=0.01).median_s > 0
-    assert torch.equal(lin.fc.weight, before)       # timed on a copy
+    assert torch.equal(lin.fc.weight, before)  # timed on a copy
     assert row["fraction_b8"] == pytest.approx(
-        row["mflops_per_window"] * 1e6 * row["win_per_s_b8"] / (row["dense_gflops"] * 1e9))
+        row["mflops_per_window"] * 1e6 * row["win_per_s_b8"] / (row["dense_gflops"] * 1e9)
+    )
     with pytest.raises(ConfigError):
         efficiency.measure("no-such-model")
 
@@ -461,23 +492,28 @@ def test_time_call_is_blocked_autorange_median_and_iqr(monkeypatch):
 
     state = {"now": 0.0}
     monkeypatch.setitem(efficiency.CLOCKS, "cpu", lambda: state["now"])
-    t = efficiency.time_call(lambda: state.__setitem__("now", state["now"] + 1e-3), min_run_time_s=0.05,
-                             clock="cpu")
+    t = efficiency.time_call(lambda: state.__setitem__("now", state["now"] + 1e-3), min_run_time_s=0.05, clock="cpu")
     assert t.calls_per_block >= 1 and t.blocks >= 2
     assert t.median_s == pytest.approx(1e-3) and t.iqr_s == pytest.approx(0.0, abs=1e-9)
     assert t.rate(8) == (pytest.approx(8000.0), pytest.approx(0.0, abs=1e-3))
     slow = efficiency.Timing(median_s=2.0, q25_s=1.0, q75_s=4.0, blocks=4, calls_per_block=1)
     assert slow.iqr_s == 3.0 and slow.rate(8) == (4.0, 8 / 1.0 - 8 / 4.0)
     seen = []
-    monkeypatch.setattr(efficiency.benchmark.Timer, "blocked_autorange",
-                        lambda self, min_run_time: seen.append((self._task_spec.num_threads, min_run_time))
-                        or type("M", (), {"times": [1.0, 2.0, 3.0], "number_per_run": 5})())
+    monkeypatch.setattr(
+        efficiency.benchmark.Timer,
+        "blocked_autorange",
+        lambda self, min_run_time: (
+            seen.append((self._task_spec.num_threads, min_run_time))
+            or type("M", (), {"times": [1.0, 2.0, 3.0], "number_per_run": 5})()
+        ),
+    )
     with efficiency.torch_threads(2):
         t = efficiency.time_call(lambda: None, 0.3)
     assert seen == [(2, 0.3)] and (t.q25_s, t.median_s, t.q75_s, t.calls_per_block) == (1.5, 2.0, 2.5, 5)
 
 
 # --- the data contract -------------------------------------------------------------------------
+
 
 def test_trains_on_window_dataset_batches():
     """Batches of :class:`wearnav.windows.WindowDataset` (default collate) go straight into
@@ -490,7 +526,7 @@ def test_trains_on_window_dataset_batches():
     rec = synthetic_recording(duration=40.0)
     ds = WindowDataset.from_recordings([rec], wcfg=WindowConfig(window=100, stride=20))
     masks = torch.stack([ds[i]["mask"] for i in range(len(ds))])
-    assert (masks[:, 2] == 0).any() and (masks[:, 2] == 1).any()     # earbuds out for a while
+    assert (masks[:, 2] == 0).any() and (masks[:, 2] == 1).any()  # earbuds out for a while
     m = tiny()
     opt = torch.optim.Adam(m.parameters(), lr=1e-3)
     for b in DataLoader(ds, batch_size=16, shuffle=True, generator=torch.Generator().manual_seed(0)):

@@ -15,8 +15,13 @@ def rotating_device(rate, t0=0.0, t1=20.0, worn=None):
     rot = Rotation.from_euler("z", (0.5 * t)[:, None]) * Rotation.from_euler("x", 0.3)
     acc_world = np.stack([0.5 * np.sin(2 * np.pi * 0.2 * t), 0.2 * np.ones_like(t), np.full_like(t, GRAVITY)], 1)
     gyro_world = np.tile([0.0, 0.0, 0.5], (t.size, 1))
-    return DeviceStream(t=t, acc=rot.inv().apply(acc_world), gyro=rot.inv().apply(gyro_world),
-                        quat=rot.as_quat(scalar_first=True), worn=worn), acc_world
+    return DeviceStream(
+        t=t,
+        acc=rot.inv().apply(acc_world),
+        gyro=rot.inv().apply(gyro_world),
+        quat=rot.as_quat(scalar_first=True),
+        worn=worn,
+    ), acc_world
 
 
 def walk(devices, duration=20.0):
@@ -57,7 +62,7 @@ def test_device_removed_midwalk_is_masked_and_does_not_cut_the_clock():
     watch, _ = rotating_device(100.0, t1=8.0)  # stream stops at 8 s
     n = int(20 * 25)
     worn = np.ones(n, bool)
-    worn[n // 2:] = False  # earbuds taken off and left lying there at 10 s
+    worn[n // 2 :] = False  # earbuds taken off and left lying there at 10 s
     ear, _ = rotating_device(25.0, worn=worn)
     a = align(walk({"phone": phone, "watch": watch, "earbuds": ear}))
     assert a.t[-1] > 19.0
@@ -123,15 +128,19 @@ def test_batched_fetch_equals_single_items(small_recording):
     from wearnav.preprocess import PreprocessConfig
     from wearnav.windows import WindowConfig, WindowDataset
 
-    wds = WindowDataset.from_recordings([small_recording], PreprocessConfig(frame="device", devices=("phone", "earbuds")),
-                                        WindowConfig(window=10, stride=3))
+    wds = WindowDataset.from_recordings(
+        [small_recording],
+        PreprocessConfig(frame="device", devices=("phone", "earbuds")),
+        WindowConfig(window=10, stride=3),
+    )
     assert len(wds) > 3
     batch = wds[[2, 0, 1]]
     for j, k in enumerate([2, 0, 1]):
         item = wds[k]
         for key in item:
             assert torch.equal(batch[key][j], item[key]) or (
-                torch.isnan(item[key]).all() and torch.isnan(batch[key][j]).all())
+                torch.isnan(item[key]).all() and torch.isnan(batch[key][j]).all()
+            )
     seen = [k for b in wds.loader(2, shuffle_seed=0) for k in b["t"][:, 0].tolist()]
     assert sorted(seen) == sorted(wds[list(range(len(wds)))]["t"][:, 0].tolist())
 
@@ -141,8 +150,9 @@ def test_gap_rules_of_streams_and_truth():
     keep = (phone.t < 5.0) | (phone.t >= 5.03) & ((phone.t < 10.0) | (phone.t >= 10.05))
     holes = DeviceStream(t=phone.t[keep], acc=phone.acc[keep], gyro=phone.gyro[keep], quat=phone.quat[keep])
     rec = walk({"phone": holes})
-    rec.truth = Trajectory(np.r_[np.arange(0, 12, 0.1), 14.0, 20.0],
-                           np.zeros((122, 2)))  # dense to 12 s, then waypoints 2 and 6 s apart
+    rec.truth = Trajectory(
+        np.r_[np.arange(0, 12, 0.1), 14.0, 20.0], np.zeros((122, 2))
+    )  # dense to 12 s, then waypoints 2 and 6 s apart
     a = align(rec, PreprocessConfig(devices=("phone",)))
     # 3 dropped samples (a 0.04 s interval, 4 periods) is a hole; 2 (0.03 s, 3 periods) is not
     assert a.mask[0, (a.t > 5.0) & (a.t < 5.03)].all()

@@ -11,6 +11,8 @@ import pandas as pd
 import pytest
 import torch
 
+from conftest import run_cli
+from test_bench_real import _building
 from wearnav import pretrained
 from wearnav.bench.real import RealBench, _train_config
 from wearnav.bench.real_sites import estimate_site_yaw
@@ -21,8 +23,6 @@ from wearnav.pretrained.mix import MIX_FRAME, Part, recording_yaw, write_mix
 from wearnav.pretrained.recipe import install_run
 from wearnav.simulate import WalkConfig, simulate_dataset, simulate_recording
 from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
-from conftest import run_cli
-from test_bench_real import _building
 
 
 @pytest.fixture(scope="module")
@@ -41,8 +41,11 @@ def _wrapped(deg: float) -> float:
 
 
 def test_mix_turns_every_source_into_its_own_input_frame(sources, tmp_path):
-    out = write_mix([Part(str(sources / "building"), "bldg"), Part(str(sources / "sim"), "sim", yaw="recording")],
-                    tmp_path / "mix", progress=False)
+    out = write_mix(
+        [Part(str(sources / "building"), "bldg"), Part(str(sources / "sim"), "sim", yaw="recording")],
+        tmp_path / "mix",
+        progress=False,
+    )
     ds = Dataset.open(out)
     parts = {p["part"]: p for p in ds.provenance["parts"]}
     assert parts["bldg"]["recordings"] == len(Dataset.open(sources / "building"))
@@ -62,8 +65,11 @@ def test_mix_turns_every_source_into_its_own_input_frame(sources, tmp_path):
         assert abs(_wrapped(turned.meta["truth_turned_deg"] - before)) < 1e-3 and abs(before) > 1.0
         assert abs(np.degrees(recording_yaw(turned, ("phone",)))) < 0.1
         np.testing.assert_array_equal(turned.devices["phone"].acc, original.devices["phone"].acc)
-        np.testing.assert_allclose(np.linalg.norm(np.diff(turned.truth.pos[:, :2], axis=0), axis=1),
-                                   np.linalg.norm(np.diff(original.truth.pos[:, :2], axis=0), axis=1), atol=1e-9)
+        np.testing.assert_allclose(
+            np.linalg.norm(np.diff(turned.truth.pos[:, :2], axis=0), axis=1),
+            np.linalg.norm(np.diff(original.truth.pos[:, :2], axis=0), axis=1),
+            atol=1e-9,
+        )
     # a model trained elsewhere on a mix trains in the mix's frame, from joined surveyed points
     cfg = _train_config("suitein++", str(out), 12.0, RealBench(train_data=str(out)), elsewhere=True)
     assert (cfg.frame_align, cfg.yaw_deg) == (MIX_FRAME, 0.0) and cfg.truth_max_gap > 1.0
@@ -95,8 +101,10 @@ def test_a_missing_shipped_model_is_one_clear_line(monkeypatch, tmp_path):
 
 # ---- the shipped models themselves (issue 18, "done when") ------------------------------------
 
-needs_shipped = pytest.mark.skipif(len(pretrained.installed()) < len(pretrained.SHIPPED),
-                                   reason="the shipped models are not installed (wearnav pretrain --install)")
+needs_shipped = pytest.mark.skipif(
+    len(pretrained.installed()) < len(pretrained.SHIPPED),
+    reason="the shipped models are not installed (wearnav pretrain --install)",
+)
 
 
 @needs_shipped
@@ -161,9 +169,15 @@ def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch
 
     got = {"lobo-ipin": 0.56, "lobo-ilc2": 0.83}
     scale = {"lobo-ipin": 1.6, "lobo-ilc2": None}  # a building without fixes has no σ scale
-    monkeypatch.setattr(recipe, "site_calibration",
-                        lambda run, site, data, trained: {"odometry_walk_m_per_sqrt_s": got[run.parent.parent.name],
-                                                          "sigma_scale": scale[run.parent.parent.name], "walks": 10})
+    monkeypatch.setattr(
+        recipe,
+        "site_calibration",
+        lambda run, site, data, trained: {
+            "odometry_walk_m_per_sqrt_s": got[run.parent.parent.name],
+            "sigma_scale": scale[run.parent.parent.name],
+            "walks": 10,
+        },
+    )
     monkeypatch.setattr(recipe.runs, "read_config", lambda run: {"config": {"train": {"data": "mix"}}})
     suites = []
     for name in got:

@@ -10,8 +10,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wearnav.realism import (CLAIMED, GROUPS, RATE_HZ, SourceResult, detect_walking, labelled_walking,
-                             recording_segments, resample, segment_stats, segments, simulate_realism_walks)
+from wearnav.realism import (
+    CLAIMED,
+    GROUPS,
+    RATE_HZ,
+    SourceResult,
+    detect_walking,
+    labelled_walking,
+    recording_segments,
+    resample,
+    segment_stats,
+    segments,
+    simulate_realism_walks,
+)
 from wearnav.recording import DeviceStream, Recording
 from wearnav.simulate import FixNoise, simulate_fixes
 from wearnav.simulate.imu import IMU_SPECS, antialiased, true_imu
@@ -58,7 +69,7 @@ def test_step_period_variability_is_measured():
     phase = (t - edges[k]) / periods[k]
     acc = np.zeros((t.size, 3))
     acc[:, 2] = G + amps[k] * 0.5 * (1 - np.cos(2 * np.pi * phase))  # one smooth bump per step
-    cvs = [segment_stats(acc[i:i + 250]) for i in range(0, t.size - 250, 250)]
+    cvs = [segment_stats(acc[i : i + 250]) for i in range(0, t.size - 250, 250)]
     step_cv = np.median([c["step_cv"] for c in cvs])
     amp_cv = np.median([c["amp_cv"] for c in cvs])
     assert 0.06 < step_cv < 0.14
@@ -77,12 +88,18 @@ def test_resample_keeps_gait_band_and_removes_aliases():
 
 
 def test_labelled_walking_merges_turns_and_segments_trim():
-    labels = [(0.0, 2.0, "activity", "SEATED"), (2.0, 6.0, "activity", "WALKING"),
-              (6.0, 7.5, "activity", "TURNING"), (7.5, 12.0, "activity", "WALKING"),
-              (12.0, 14.0, "activity", "SITTING_DOWN"), (0.0, 14.0, "activity_watch", "WALKING")]
+    labels = [
+        (0.0, 2.0, "activity", "SEATED"),
+        (2.0, 6.0, "activity", "WALKING"),
+        (6.0, 7.5, "activity", "TURNING"),
+        (7.5, 12.0, "activity", "WALKING"),
+        (12.0, 14.0, "activity", "SITTING_DOWN"),
+        (0.0, 14.0, "activity_watch", "WALKING"),
+    ]
     t, acc = _tone(1.8, 2.0, dur=14.0, rate=50.0)
-    rec = Recording("u", {"phone": DeviceStream(t, acc, np.zeros_like(acc))}, labels=labels,
-                    meta={"source": "uji-phone-watch"})
+    rec = Recording(
+        "u", {"phone": DeviceStream(t, acc, np.zeros_like(acc))}, labels=labels, meta={"source": "uji-phone-watch"}
+    )
     assert labelled_walking(rec, "phone") == [(2.0, 12.0)]
     assert segments([(2.0, 12.0)]) == [(3.0, 11.0)]  # trimmed by 1 s each end, one 8-s segment
     assert segments([(0.0, 27.0)]) == [(1.0, 11.0), (11.0, 21.0), (21.0, 26.0)]
@@ -113,6 +130,7 @@ def test_earbud_antialias_filter_attenuates_above_the_gait_band():
             pos = np.zeros((t.size, 3))
             pos[:, 2] = 0.001 * np.sin(2 * np.pi * f_hz * t)
             return pos, np.broadcast_to(np.eye(3), (t.size, 3, 3)).copy()
+
         return p
 
     t = np.arange(1.0, 5.0, 1.0 / spec.rate_hz)
@@ -161,11 +179,17 @@ def test_report_end_to_end_on_a_small_slice(shared_data, tmp_path):
     Markdown table, the PNG and a JSON holding the numbers behind the figure."""
     from wearnav.realism import Group, RealSource, realism_report
 
-    group = Group("phone_hand", "phone held in the hand", "phone", "texting", (
-        RealSource("Oxford hand", "oxford-steps", "oxford_step_counter", "phone", r"_hand_"),))
+    group = Group(
+        "phone_hand",
+        "phone held in the hand",
+        "phone",
+        "texting",
+        (RealSource("Oxford hand", "oxford-steps", "oxford_step_counter", "phone", r"_hand_"),),
+    )
     out = tmp_path / "docs" / "realism.md"
-    res = realism_report(shared_data, out, tmp_path / "work", n_sim=2, limit=1, sim_duration_s=30.0,
-                         groups=(group,), fix_source=None)
+    res = realism_report(
+        shared_data, out, tmp_path / "work", n_sim=2, limit=1, sim_duration_s=30.0, groups=(group,), fix_source=None
+    )
     text = out.read_text()
     assert "|cadence (steps/s)|" in re.sub(r" *\| *", "|", text) and "Oxford hand" in text  # a table row
     png = out.parent / "img" / "realism_phone_hand.png"

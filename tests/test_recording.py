@@ -2,10 +2,9 @@ import h5py
 import numpy as np
 import pytest
 
+from conftest import make_stream
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.recording import DeviceStream, Recording
-
-from conftest import make_stream
 
 
 def test_roundtrip_preserves_everything(tmp_path, small_recording):
@@ -40,11 +39,14 @@ def test_rate_and_duration():
     assert s.duration == pytest.approx(4.0)
 
 
-@pytest.mark.parametrize("t, msg", [
-    ([0.0, 0.2, 0.1], "unsorted"),
-    ([0.0, 0.1, 0.1], "duplicated"),
-    ([0.0, np.nan, 0.2], "non-finite"),
-])
+@pytest.mark.parametrize(
+    "t, msg",
+    [
+        ([0.0, 0.2, 0.1], "unsorted"),
+        ([0.0, 0.1, 0.1], "duplicated"),
+        ([0.0, np.nan, 0.2], "non-finite"),
+    ],
+)
 def test_bad_time_rejected(t, msg):
     with pytest.raises(ValidationError, match=msg):
         DeviceStream(t=t, acc=np.tile([0, 0, 9.8], (3, 1)))

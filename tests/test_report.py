@@ -7,15 +7,15 @@ import re
 import stat
 
 import matplotlib.colors as mcolors
-from matplotlib import colormaps
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
+from matplotlib import colormaps
 
-from wearnav.importers.sensorlogger_export import write_export
 from synthetic import synthetic_recording
 from wearnav.dataset import Dataset, write_dataset
 from wearnav.errors import ValidationError, WearnavError
+from wearnav.importers.sensorlogger_export import write_export
 from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
 from wearnav.report import (
     ACC_COLOR,
@@ -64,10 +64,10 @@ def test_plot_recording_with_everything(full, tmp_path):
     img = _png(out)
     h, w, _ = img.shape
     assert w == 1760 and 900 < h < 1300  # 16 in at 110 dpi; three devices and label lanes
-    assert _pixels(img, ACC_COLOR) > 10_000       # three |acc| lines
-    assert _pixels(img, GYRO_COLOR) > 10_000      # three |gyro| lines
-    assert _pixels(img, FIX_COLOR) > 100          # fixes and their accuracy circles
-    assert _pixels(img, "tab:green") > 30         # start marker
+    assert _pixels(img, ACC_COLOR) > 10_000  # three |acc| lines
+    assert _pixels(img, GYRO_COLOR) > 10_000  # three |gyro| lines
+    assert _pixels(img, FIX_COLOR) > 100  # fixes and their accuracy circles
+    assert _pixels(img, "tab:green") > 30  # start marker
     # label lanes: one colour per value (4 values in 2 kinds), none of them a signal colour
     dark2 = colormaps["Dark2"].colors
     assert all(_pixels(img, c) > 500 for c in dark2[:4])
@@ -108,9 +108,13 @@ def test_plot_recording_partial(full, tmp_path, monkeypatch, what):
     monkeypatch.setattr("wearnav.report.plots.TRUTH_COLOR", TRUTH_SEEN)
     t = np.arange(0.0, 40.0, 10.0)
     rec = Recording(
-        what, dict(full.devices),
-        truth={"truth_only": full.truth, "fixes_only": None,
-               "sparse_waypoints": Trajectory(t, np.stack([t, t ** 1.2], 1), floor=[0, 0, 1, 1])}[what],
+        what,
+        dict(full.devices),
+        truth={
+            "truth_only": full.truth,
+            "fixes_only": None,
+            "sparse_waypoints": Trajectory(t, np.stack([t, t**1.2], 1), floor=[0, 0, 1, 1]),
+        }[what],
         fixes=full.fixes if what == "fixes_only" else None,
         meta={"subject": "u1"},
     )
@@ -154,8 +158,9 @@ def test_plot_ecdf_draws_the_metrics_ecdf_as_steps_from_0_to_1():
 
 
 def _dataset(tmp_path, n):
-    recs = [(synthetic_recording(name=f"r{i}", seed=i, duration=20.0 + 5 * i, devices=("phone",)), "")
-            for i in range(n)]
+    recs = [
+        (synthetic_recording(name=f"r{i}", seed=i, duration=20.0 + 5 * i, devices=("phone",)), "") for i in range(n)
+    ]
     recs.append((Recording("no_truth", {"phone": recs[0][0].devices["phone"]}), ""))
     return write_dataset(tmp_path / "ds", recs)
 
@@ -163,7 +168,7 @@ def _dataset(tmp_path, n):
 def test_plot_trajectories_grid(tmp_path, monkeypatch):
     monkeypatch.setattr("wearnav.report.plots.TRUTH_COLOR", TRUTH_SEEN)
     ds = _dataset(tmp_path, 6)
-    img = _png(plot_trajectories(ds, tmp_path / "grid.png"))            # 7 maps: 4 x 2
+    img = _png(plot_trajectories(ds, tmp_path / "grid.png"))  # 7 maps: 4 x 2
     few = _png(plot_trajectories(ds, tmp_path / "few.png", max_recordings=3))  # 3 x 1
     assert img.shape[1] > few.shape[1] and img.shape[0] > 1.7 * few.shape[0]
     assert _pixels(img, "tab:green") > 6 * _pixels(few, "tab:green") / 3 * 0.8
@@ -175,11 +180,15 @@ def test_plot_trajectories_grid(tmp_path, monkeypatch):
 
 # ---- dataset statistics ---------------------------------------------------------------------
 
+
 def _stream(t, quat=False, gyro=True):
     n = len(t)
-    return DeviceStream(t=t, acc=np.tile([0.0, 0.0, 9.81], (n, 1)),
-                        gyro=np.zeros((n, 3)) if gyro else None,
-                        quat=np.tile([1.0, 0, 0, 0], (n, 1)) if quat else None)
+    return DeviceStream(
+        t=t,
+        acc=np.tile([0.0, 0.0, 9.81], (n, 1)),
+        gyro=np.zeros((n, 3)) if gyro else None,
+        quat=np.tile([1.0, 0, 0, 0], (n, 1)) if quat else None,
+    )
 
 
 @pytest.fixture
@@ -194,11 +203,19 @@ def stats_ds(tmp_path):
         p_truth = np.stack([t_truth, 2 * t_truth], 1)
         t_fix = np.arange(0.0, 5.0, 0.5)
         fixes = Fixes(t_fix, np.stack([t_fix, 2 * t_fix], 1) + [3.0, 4.0], np.full(len(t_fix), 5.0))
-        recs.append((Recording(
-            f"rec{i}", {"phone": _stream(t_phone, quat=(i == 0)), "watch": _stream(t_watch, gyro=False)},
-            truth=Trajectory(t_truth, p_truth), fixes=fixes,
-            labels=[(0, 4, "activity", "walk"), (4, 9, "activity", "sit"), (2, 2, "step", "step")],
-            meta={"subject": "u7"}), ""))
+        recs.append(
+            (
+                Recording(
+                    f"rec{i}",
+                    {"phone": _stream(t_phone, quat=(i == 0)), "watch": _stream(t_watch, gyro=False)},
+                    truth=Trajectory(t_truth, p_truth),
+                    fixes=fixes,
+                    labels=[(0, 4, "activity", "walk"), (4, 9, "activity", "sit"), (2, 2, "step", "step")],
+                    meta={"subject": "u7"},
+                ),
+                "",
+            )
+        )
     return write_dataset(tmp_path / "stats", recs)
 
 
@@ -270,7 +287,9 @@ def test_walk_table_distance_and_label_noise(tmp_path):
     table = walk_tables(Dataset.open(tmp_path / "d"), ("mode",))["mode"].set_index("mode")
     assert table.loc["STW", "distance_km"] == pytest.approx(0.01)
     assert table.loc["STW", "fix_label_noise_median_cm"] == pytest.approx(30.0)
-    assert table.loc["DLW", "fix_label_noise_median_cm"] is None or np.isnan(table.loc["DLW", "fix_label_noise_median_cm"])
+    assert table.loc["DLW", "fix_label_noise_median_cm"] is None or np.isnan(
+        table.loc["DLW", "fix_label_noise_median_cm"]
+    )
 
 
 def test_results_keep_updates_suite_by_suite(tmp_path):
@@ -289,7 +308,10 @@ def test_results_keep_updates_suite_by_suite(tmp_path):
     collect([suite("b", "Beta", "b2"), suite("c", "Gamma", "c1")], out, keep=True)
     text = out.read_text()
     assert [l for l in text.splitlines() if "<!-- suite:" in l] == [
-        "## Alpha <!-- suite: a -->", "## Beta <!-- suite: b -->", "## Gamma <!-- suite: c -->"]
+        "## Alpha <!-- suite: a -->",
+        "## Beta <!-- suite: b -->",
+        "## Gamma <!-- suite: c -->",
+    ]
     assert "a1" in text and "b2" in text and "b1" not in text and "c1" in text and text.count("### Detail") == 3
     collect([suite("c", "Gamma", "c2")], out)  # without keep the page holds only what is given
     assert [l for l in out.read_text().splitlines() if "<!-- suite:" in l] == ["## Gamma <!-- suite: c -->"]
@@ -313,22 +335,35 @@ def test_results_page_starts_with_a_headline_and_a_glossary_and_shows_no_absolut
         "(2026-11-25T10:00:00+00:00, wearnav 0.1.0 abc1234).\n\nData: `/work/main/runs/data/default` "
         "(seed 0). Machine: x86_64, 2 CPUs, torch 2.13.0+cpu.\n\n## Split `test`\n\n"
         "| model | ATE | RTE | sequences |\n|:--|--:|--:|--:|\n| suitein++ | 3.87 | 3.03 | 10 |\n"
-        "| pdr | 5.82 | 5.85 | 10 |\n")
+        "| pdr | 5.82 | 5.85 | 10 |\n"
+    )
     out = tmp_path / "docs" / "results.md"
     env = {"PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src"), "PATH": "/usr/bin:/bin"}
-    res = subprocess.run([sys.executable, "-m", "wearnav", "results", str(suite), "--out", str(out)],
-                         capture_output=True, text=True, env=env, cwd=tmp_path)
+    res = subprocess.run(
+        [sys.executable, "-m", "wearnav", "results", str(suite), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+    )
     assert res.returncode == 0, res.stderr
     text = out.read_text()
     heads = [l for l in text.splitlines() if l.startswith("## ")]
     assert heads[:2] == ["## At a glance", "## Glossary"]
-    assert ("| Odometry comparison | suitein++ 3.87, pdr 5.82 (ATE) | not on its page | seed 0 | "
-            "`wearnav bench odometry` | abc1234 | 2026-11-25 | x86_64, 2 CPUs, torch 2.13.0+cpu |") in text
+    assert (
+        "| Odometry comparison | suitein++ 3.87, pdr 5.82 (ATE) | not on its page | seed 0 | "
+        "`wearnav bench odometry` | abc1234 | 2026-11-25 | x86_64, 2 CPUs, torch 2.13.0+cpu |"
+    ) in text
     assert "- **ATE** (m): absolute trajectory error" in text and "- **RTE** (m):" in text
     assert "macro-F1" not in text.split("## Odometry")[0]  # only the metrics the page shows
     assert "/work/" not in text and "`runs/data/default`" not in text and "`data/default`" in text
-    res = subprocess.run([sys.executable, "-m", "wearnav", "results", "--keep", "--out", str(out)],
-                         capture_output=True, text=True, env=env, cwd=tmp_path)
+    res = subprocess.run(
+        [sys.executable, "-m", "wearnav", "results", "--keep", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+    )
     assert res.returncode == 0, res.stderr
     again = out.read_text()
     assert again.count("## At a glance") == 1 and again.count("## Glossary") == 1
@@ -349,7 +384,9 @@ def test_results_drop_removes_a_superseded_suite_and_missing_figures_are_refused
     collect([suite("a", "a1"), suite("b", "b1")], out)
     collect([suite("c", "c1")], out, keep=True, drop=("a",))
     assert [l for l in out.read_text().splitlines() if "<!-- suite:" in l] == [
-        "## B <!-- suite: b -->", "## C <!-- suite: c -->"]
+        "## B <!-- suite: b -->",
+        "## C <!-- suite: c -->",
+    ]
     with pytest.raises(MissingFileError, match="summary.png"):
         collect([suite("d", "![summary](summary.png)")], out, keep=True)
     assert "suite: d" not in out.read_text()  # nothing written

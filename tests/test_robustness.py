@@ -35,6 +35,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from conftest import SHARED_DATA, make_stream
+from robustness_inputs import BAD_VALUES, FORMATS, KINDS, Mutation, apply, build_seed, materialise, source_arg
 from wearnav import cli
 from wearnav.dataset import Dataset, DatasetWriter, write_dataset
 from wearnav.errors import Terminated, ValidationError, WearnavWarning
@@ -44,13 +46,14 @@ from wearnav.live.push import BadPush
 from wearnav.live.store import Store
 from wearnav.recording import Recording
 
-from conftest import SHARED_DATA, make_stream
-from robustness_inputs import (BAD_VALUES, FORMATS, KINDS, Mutation, apply, build_seed, materialise,
-                               source_arg)
-
 EXAMPLES = int(os.environ.get("WEARNAV_ROBUSTNESS_EXAMPLES", "30"))
-PROPERTY = settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
-                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+PROPERTY = settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 OUTCOMES: collections.Counter = collections.Counter()  # (class of input, outcome) -> count
 
 
@@ -65,7 +68,9 @@ def report_outcomes(request):
     total = collections.Counter()
     for (_, outcome), n in OUTCOMES.items():
         total[outcome] += n
-    lines = [f"malformed inputs tried: {sum(total.values())} -> " + ", ".join(f"{k} {v}" for k, v in sorted(total.items()))]
+    lines = [
+        f"malformed inputs tried: {sum(total.values())} -> " + ", ".join(f"{k} {v}" for k, v in sorted(total.items()))
+    ]
     lines += [f"  {cls}: " + ", ".join(f"{k} {v}" for k, v in sorted(o.items())) for cls, o in table.items()]
     reporter = request.config.pluginmanager.get_plugin("terminalreporter")
     capture = request.config.pluginmanager.get_plugin("capturemanager")
@@ -76,10 +81,12 @@ def report_outcomes(request):
                 reporter.write_line(ln)
     if os.environ.get("WEARNAV_ROBUSTNESS_COUNTS"):
         Path(os.environ["WEARNAV_ROBUSTNESS_COUNTS"]).write_text(
-            json.dumps({"total": dict(total), "by_class": table}, indent=2))
+            json.dumps({"total": dict(total), "by_class": table}, indent=2)
+        )
 
 
 # ---- helpers -------------------------------------------------------------------------------------
+
 
 def run_cli(*args, cwd: Path | None = None) -> tuple[int, str, str]:
     """``wearnav ARGS`` in-process: (exit code, stdout, stderr)."""
@@ -118,7 +125,7 @@ def snapshot(root: Path, exclude: Path | None = None) -> dict[str, tuple]:
 
 
 def outcome(code: int, stdout: str, stderr: str, out: Path, out_existed: bool) -> str:
-    """"valid", "error" or "other" (anything the promise does not allow)."""
+    """ "valid", "error" or "other" (anything the promise does not allow)."""
     if [p.name for p in out.parent.iterdir() if p.name.startswith(f".{out.name}.")]:
         return "other"  # a work folder was left behind
     lines = stderr.splitlines()
@@ -166,6 +173,7 @@ mutations = st.builds(
 
 # ---- every importer, malformed ------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_seed_imports_cleanly(fmt, tmp_path):
     """The unmutated slices are valid: the property below would be empty without this."""
@@ -204,12 +212,21 @@ def _corrupt_acc(fmt: str, root: Path, value: str) -> None:
     rel, sep = TARGETS[fmt]
     path = root / rel
     lines = path.read_text().splitlines()
-    acc_field = {"ilc2": ("TYPE_ACCELEROMETER", 2), "ipin2023": ("ACCE", 3), "motionsense": (None, 10),
-                 "uci-hapt": (None, 0), "uji-phone-watch": (None, 0), "oxford-steps": (None, 1),
-                 "sensorlogger": (None, 2)}[fmt]
+    acc_field = {
+        "ilc2": ("TYPE_ACCELEROMETER", 2),
+        "ipin2023": ("ACCE", 3),
+        "motionsense": (None, 10),
+        "uci-hapt": (None, 0),
+        "uji-phone-watch": (None, 0),
+        "oxford-steps": (None, 1),
+        "sensorlogger": (None, 2),
+    }[fmt]
     tag, j = acc_field
-    rows = [i for i, ln in enumerate(lines) if ln and ln[0] not in "#%"
-            and (tag is None or ln.split(sep)[0 if fmt == "ipin2023" else 1] == tag)]
+    rows = [
+        i
+        for i, ln in enumerate(lines)
+        if ln and ln[0] not in "#%" and (tag is None or ln.split(sep)[0 if fmt == "ipin2023" else 1] == tag)
+    ]
     if rel.endswith(".csv"):
         rows = rows[1:]
     for i in rows[::20]:
@@ -248,9 +265,12 @@ def _push_seed() -> tuple[list[bytes], str, bool]:
 
 
 @PROPERTY
-@given(kind=st.sampled_from(["corrupt_value", "truncate", "duplicate", "reverse", "drop"]),
-       msg=st.floats(0, 1, exclude_max=True), where=st.floats(0, 1, exclude_max=True),
-       value=st.sampled_from(PUSH_VALUES))
+@given(
+    kind=st.sampled_from(["corrupt_value", "truncate", "duplicate", "reverse", "drop"]),
+    msg=st.floats(0, 1, exclude_max=True),
+    where=st.floats(0, 1, exclude_max=True),
+    value=st.sampled_from(PUSH_VALUES),
+)
 def test_malformed_push_is_stored_or_refused_and_never_poisons_the_session(kind, msg, where, value):
     """A push with a corrupt value (the importer cases' values and JSON's other types), cut short,
     repeated, out of order or missing: accepted, or refused with a 4xx and nothing stored; the
@@ -261,9 +281,9 @@ def test_malformed_push_is_stored_or_refused_and_never_poisons_the_session(kind,
     if kind == "corrupt_value":
         spots = list(_NUMBER_LITERAL.finditer(bodies[i]))
         m = spots[int(where * len(spots))]
-        bodies[i] = bodies[i][:m.start()] + value.encode() + bodies[i][m.end():]
+        bodies[i] = bodies[i][: m.start()] + value.encode() + bodies[i][m.end() :]
     elif kind == "truncate":
-        bodies[i] = bodies[i][:int(where * len(bodies[i]))]
+        bodies[i] = bodies[i][: int(where * len(bodies[i]))]
     elif kind == "duplicate":
         bodies.insert(i, bodies[i])
     elif kind == "reverse":
@@ -271,7 +291,9 @@ def test_malformed_push_is_stored_or_refused_and_never_poisons_the_session(kind,
     else:
         del bodies[i]
     with tempfile.TemporaryDirectory() as tmp:
-        rx = Receiver(Store(Path(tmp) / "live.db"), None, 1 << 22, 1e6, None, platform, standardised, 120.0, 7 * 86400.0)
+        rx = Receiver(
+            Store(Path(tmp) / "live.db"), None, 1 << 22, 1e6, None, platform, standardised, 120.0, 7 * 86400.0
+        )
         new = 0
         for j, b in enumerate(bodies):
             try:
@@ -281,7 +303,7 @@ def test_malformed_push_is_stored_or_refused_and_never_poisons_the_session(kind,
             except BadPush as exc:
                 assert 400 <= exc.status < 500, exc.message
                 result = f"refused {exc.status}"
-            if j == i or kind in ("reverse", "drop"):   # the message changed, or every one of the sequence
+            if j == i or kind in ("reverse", "drop"):  # the message changed, or every one of the sequence
                 OUTCOMES[(f"push {kind}", result)] += 1
         assert rx.store.count() == new
         rec = rx.buffers["seed"].recording()
@@ -290,6 +312,7 @@ def test_malformed_push_is_stored_or_refused_and_never_poisons_the_session(kind,
 
 
 # ---- damaged dataset folders and recording files -----------------------------------------------
+
 
 def _small_dataset_files() -> dict[str, str]:
     with tempfile.TemporaryDirectory() as tmp:
@@ -338,18 +361,24 @@ def _h5_paths(path: Path) -> list[str]:
     return sorted(names)
 
 
-H5_EDITS = ["delete", "as_text", "as_scalar", "as_2d", "attr_meta", "attr_name", "attr_format",
-            "truncate", "flip_byte"]
+H5_EDITS = ["delete", "as_text", "as_scalar", "as_2d", "attr_meta", "attr_name", "attr_format", "truncate", "flip_byte"]
 
 
 @PROPERTY
-@given(edit=st.sampled_from(H5_EDITS), which=st.floats(0, 1, exclude_max=True),
-       value=st.sampled_from([b"\xff\xfe", "{}", "[]", "null", 3, np.arange(3), "not json", ""]))
+@given(
+    edit=st.sampled_from(H5_EDITS),
+    which=st.floats(0, 1, exclude_max=True),
+    value=st.sampled_from([b"\xff\xfe", "{}", "[]", "null", 3, np.arange(3), "not json", ""]),
+)
 def test_damaged_recording_file_is_loaded_or_one_line(edit, which, value):
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "r.h5"
-        rec = Recording("r", {"phone": make_stream(n=30), "watch": make_stream(n=20, gyro=False)},
-                        labels=[(0.0, 0.1, "activity", "walk")], meta={"subject": "u1"})
+        rec = Recording(
+            "r",
+            {"phone": make_stream(n=30), "watch": make_stream(n=20, gyro=False)},
+            labels=[(0.0, 0.1, "activity", "walk")],
+            meta={"subject": "u1"},
+        )
         rec.save(path)
         objects = _h5_paths(path)
         target = objects[int(which * len(objects))]
@@ -367,10 +396,13 @@ def test_damaged_recording_file_is_loaded_or_one_line(edit, which, value):
                     del f[target]
                 elif edit in ("as_text", "as_scalar", "as_2d"):
                     del f[target]
-                    f[target] = {"as_text": np.array(["x", "y"], dtype=object).astype("S"),
-                                 "as_scalar": np.float64(1.0), "as_2d": np.ones((2, 2))}[edit]
+                    f[target] = {
+                        "as_text": np.array(["x", "y"], dtype=object).astype("S"),
+                        "as_scalar": np.float64(1.0),
+                        "as_2d": np.ones((2, 2)),
+                    }[edit]
                 else:
-                    f.attrs[edit[len("attr_"):]] = value
+                    f.attrs[edit[len("attr_") :]] = value
         code, out, err = run_cli("info", path)
         result = _info_outcome(code, out, err)
         OUTCOMES[("info on a damaged recording file", result)] += 1
@@ -380,8 +412,31 @@ def test_damaged_recording_file_is_loaded_or_one_line(edit, which, value):
 # ---- Recording / Dataset round trip ---------------------------------------------------------------
 
 NAMES = st.one_of(
-    st.sampled_from(["001", "0", "null", "NaN", "None", "True", "1e3", "", ".", "..", "a/b", "a\x00b",
-                     " x", "x ", "a,b", 'a"b', "a\nb", "a\rb", "é#;", "\ud800", "x" * 250]),
+    st.sampled_from(
+        [
+            "001",
+            "0",
+            "null",
+            "NaN",
+            "None",
+            "True",
+            "1e3",
+            "",
+            ".",
+            "..",
+            "a/b",
+            "a\x00b",
+            " x",
+            "x ",
+            "a,b",
+            'a"b',
+            "a\nb",
+            "a\rb",
+            "é#;",
+            "\ud800",
+            "x" * 250,
+        ]
+    ),
     st.text(max_size=12),
 )
 
@@ -424,8 +479,13 @@ CHANGES = {
     "empty device name": lambda r: r.devices.update({"": r.devices.pop("phone")}),
     "recording name with /": lambda r: setattr(r, "name", "x/y"),
     "no devices": lambda r: r.devices.clear(),
-    "overlapping labels": lambda r: setattr(r, "labels", pd.DataFrame(
-        [(0.0, 1.0, "activity", "a"), (0.5, 1.5, "activity", "b")], columns=["start", "end", "kind", "value"])),
+    "overlapping labels": lambda r: setattr(
+        r,
+        "labels",
+        pd.DataFrame(
+            [(0.0, 1.0, "activity", "a"), (0.5, 1.5, "activity", "b")], columns=["start", "end", "kind", "value"]
+        ),
+    ),
     "meta not json": lambda r: r.meta.update({"x": object()}),
 }
 
@@ -442,6 +502,7 @@ def test_save_refuses_what_construction_would(change, tmp_path):
 
 
 # ---- --out: never lose data ----------------------------------------------------------------------
+
 
 def _dataset(path: Path, names=("a",)) -> Path:
     write_dataset(path, [(Recording(n, {"phone": make_stream(n=20)}), "") for n in names])
@@ -481,9 +542,20 @@ def _prepare_out(case: str, tmp: Path) -> Path:
     return tmp / "out"
 
 
-OUT_CASES = ["existing file", "under a file", "folder with a manifest.csv", "dataset plus a user file",
-             "dataset with a sub-folder", "the working folder", "the folder above", "named pipe",
-             "unwritable place", "name too long", "empty folder", "earlier wearnav dataset"]
+OUT_CASES = [
+    "existing file",
+    "under a file",
+    "folder with a manifest.csv",
+    "dataset plus a user file",
+    "dataset with a sub-folder",
+    "the working folder",
+    "the folder above",
+    "named pipe",
+    "unwritable place",
+    "name too long",
+    "empty folder",
+    "earlier wearnav dataset",
+]
 
 
 @pytest.mark.parametrize("case", OUT_CASES)
@@ -506,8 +578,9 @@ def test_bad_out_paths(case, tmp_path):
     if case == "earlier wearnav dataset":  # replaced only when asked (issue 22)
         assert code == 2 and "already holds a wearnav dataset" in error_of(err) and "--overwrite" in err
         assert snapshot(tmp_path) == before
-        code, stdout, err = run_cli("import", "sensorlogger", work / "src" / "export", "--out", out,
-                                    "--overwrite", cwd=work)
+        code, stdout, err = run_cli(
+            "import", "sensorlogger", work / "src" / "export", "--out", out, "--overwrite", cwd=work
+        )
     if case in ("empty folder", "earlier wearnav dataset"):
         assert code == 0, err
         assert Dataset.open(resolved).names == ["export"]
@@ -539,6 +612,7 @@ def test_simulate_refuses_a_foreign_folder(tmp_path):
 
 # ---- SIGTERM and stale work folders -------------------------------------------------------------
 
+
 def test_sigterm_inside_the_writer_removes_the_partial_folder(tmp_path):
     with pytest.raises(Terminated):
         with DatasetWriter(tmp_path / "d") as w:
@@ -551,16 +625,32 @@ def test_sigterm_inside_the_writer_removes_the_partial_folder(tmp_path):
 
 def test_sigterm_during_simulate_leaves_nothing(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(Path(cli.__file__).parents[1])}
-    proc = subprocess.Popen([sys.executable, "-c", "from wearnav.cli import main; main()", "simulate",
-                             "--preset", "tiny", "--out", str(tmp_path / "sim")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "from wearnav.cli import main; main()",
+            "simulate",
+            "--preset",
+            "tiny",
+            "--out",
+            str(tmp_path / "sim"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     deadline = time.time() + 60
     while time.time() < deadline and not list(tmp_path.glob(".sim.*.partial/*.h5")):
         time.sleep(0.05)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err
-    assert error_of(err) == f"error: terminated (SIGTERM); nothing was written to {tmp_path / 'sim'}; run the same command again"
+    assert (
+        error_of(err)
+        == f"error: terminated (SIGTERM); nothing was written to {tmp_path / 'sim'}; run the same command again"
+    )
     assert list(tmp_path.iterdir()) == []
 
 
@@ -600,13 +690,17 @@ def test_a_replacement_cut_between_its_renames_is_rolled_back(tmp_path):
 
 # ---- Dataset.open checks the folder -------------------------------------------------------------
 
-@pytest.mark.parametrize("edit, needle", [
-    (lambda m: m.assign(duration="ten"), "duration"),
-    (lambda m: pd.concat([m, m]), "more than once"),
-    (lambda m: m.assign(file="missing.h5"), "not in the folder"),
-    (lambda m: m.assign(file="../x.h5"), "file name"),
-    (lambda m: m.assign(truth_points="-1"), "truth_points"),
-])
+
+@pytest.mark.parametrize(
+    "edit, needle",
+    [
+        (lambda m: m.assign(duration="ten"), "duration"),
+        (lambda m: pd.concat([m, m]), "more than once"),
+        (lambda m: m.assign(file="missing.h5"), "not in the folder"),
+        (lambda m: m.assign(file="../x.h5"), "file name"),
+        (lambda m: m.assign(truth_points="-1"), "truth_points"),
+    ],
+)
 def test_manifest_is_checked(edit, needle, tmp_path):
     root = _dataset(tmp_path / "d")
     m = pd.read_csv(root / "manifest.csv", dtype=str, keep_default_na=False)
@@ -635,6 +729,7 @@ def test_names_like_numbers_survive_the_manifest(tmp_path):
 
 # ---- one line, always ---------------------------------------------------------------------------
 
+
 def _h5_variant(tmp_path, edit) -> Path:
     path = tmp_path / "r.h5"
     Recording("r", {"phone": make_stream(n=20)}).save(path)
@@ -648,13 +743,16 @@ def _devices_dataset(f):
     f["devices"] = np.zeros(3)
 
 
-@pytest.mark.parametrize("edit, needle", [
-    (lambda f: f.attrs.__setitem__("meta", "{not json"), "corrupt recording"),
-    (lambda f: f.attrs.__setitem__("meta", "[1, 2]"), "meta"),
-    (_devices_dataset, "not a group"),
-    (lambda f: f.attrs.__setitem__("version", 7), "newer wearnav"),
-    (lambda f: f["devices/phone/acc"].__setitem__((0, 0), np.nan), "non-finite"),
-])
+@pytest.mark.parametrize(
+    "edit, needle",
+    [
+        (lambda f: f.attrs.__setitem__("meta", "{not json"), "corrupt recording"),
+        (lambda f: f.attrs.__setitem__("meta", "[1, 2]"), "meta"),
+        (_devices_dataset, "not a group"),
+        (lambda f: f.attrs.__setitem__("version", 7), "newer wearnav"),
+        (lambda f: f["devices/phone/acc"].__setitem__((0, 0), np.nan), "non-finite"),
+    ],
+)
 def test_bad_h5_is_one_line(edit, needle, tmp_path):
     code, _, err = run_cli("info", _h5_variant(tmp_path, edit))
     assert code == 2 and needle in error_of(err, "bad recording file") and "r.h5" in err
@@ -718,6 +816,7 @@ def test_no_progress_fragments_on_a_pipe(tmp_path):
 
 
 # ---- never accept absurd data silently ----------------------------------------------------------
+
 
 def test_ipin_posi_latitude_out_of_range_is_refused(tmp_path):
     data = dict(seed("ipin2023"))
@@ -797,13 +896,19 @@ def test_ctrl_c_while_writing_is_one_line_and_leaves_nothing(tmp_path, monkeypat
 
     monkeypatch.setattr(Recording, "save", interrupted_save)
     code, _, err = run_cli("simulate", "--preset", "tiny", "--out", tmp_path / "sim")
-    assert code == 130 and error_of(err) == f"error: interrupted; nothing was written to {tmp_path / 'sim'}; run the same command again"
+    assert (
+        code == 130
+        and error_of(err)
+        == f"error: interrupted; nothing was written to {tmp_path / 'sim'}; run the same command again"
+    )
     assert list(tmp_path.iterdir()) == []
 
 
 def test_uji_executions_missing_from_the_declared_count_are_flagged(tmp_path):
     data = dict(seed("uji-phone-watch"))
-    data["DATA/subjects_info.csv"] = data["DATA/subjects_info.csv"].replace("s01,54,M,190,83,R,1", "s01,54,M,190,83,R,6")
+    data["DATA/subjects_info.csv"] = data["DATA/subjects_info.csv"].replace(
+        "s01,54,M,190,83,R,1", "s01,54,M,190,83,R,6"
+    )
     materialise(data, tmp_path / "src")
     code, _, err = run_cli("import", "uji-phone-watch", tmp_path / "src", "--out", tmp_path / "o")
     assert code == 0

@@ -29,13 +29,12 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
-from wearnav.dataset import Dataset, write_dataset
-from wearnav.errors import FormatError, ValidationError, WearnavWarning
-from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
-
 from conftest import make_stream
 from test_robustness import OUTCOMES, PROPERTY, error_of, report_outcomes, run_cli, snapshot  # noqa: F401
 from test_train_odometry import TinyGait  # noqa: F401  (registers "test-mlp")
+from wearnav.dataset import Dataset, write_dataset
+from wearnav.errors import FormatError, ValidationError
+from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
 
 # Examples per property: 20 (a few seconds each); WEARNAV_MODEL_EXAMPLES sets another count.
 EXAMPLES = int(os.environ.get("WEARNAV_MODEL_EXAMPLES", "20"))
@@ -43,6 +42,7 @@ MODEL_PROPERTY = PROPERTY.__class__(PROPERTY, max_examples=EXAMPLES)
 
 
 # ---- fixtures: a small dataset, a PDR run, a tiny learned run, a classifier run ------------------
+
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory) -> Path:
@@ -79,8 +79,16 @@ def pdr_run(small, tmp_path_factory) -> Path:
 def clf_run(small, tmp_path_factory) -> Path:
     from wearnav.train.classify import ClassifyConfig, fit, prepare_run
 
-    cfg = ClassifyConfig(model="har-cnn-bilstm", data=str(small), label_kind="mode", rate=25.0, window=50,
-                         stride=25, epochs=1, max_train_windows=32)
+    cfg = ClassifyConfig(
+        model="har-cnn-bilstm",
+        data=str(small),
+        label_kind="mode",
+        rate=25.0,
+        window=50,
+        stride=25,
+        epochs=1,
+        max_train_windows=32,
+    )
     run = prepare_run(cfg, tmp_path_factory.mktemp("runs") / "clf")
     fit(cfg, run, progress=False)
     return run
@@ -96,10 +104,12 @@ def _refused(code: int, out: str, err: str, cls: str, needle: str = "") -> str:
 
 # ---- signals during `train` ----------------------------------------------------------------------
 
-@pytest.mark.parametrize("signum, code, line", [(signal.SIGTERM, 143, "error: terminated (SIGTERM)"),
-                                                (signal.SIGINT, 130, "error: interrupted")])
-def test_signal_during_train_is_its_exit_code_and_the_run_resumes(signum, code, line, tiny, tmp_path,
-                                                                    monkeypatch):
+
+@pytest.mark.parametrize(
+    "signum, code, line",
+    [(signal.SIGTERM, 143, "error: terminated (SIGTERM)"), (signal.SIGINT, 130, "error: interrupted")],
+)
+def test_signal_during_train_is_its_exit_code_and_the_run_resumes(signum, code, line, tiny, tmp_path, monkeypatch):
     from wearnav.train.common import SeededModule
 
     step = SeededModule.training_step
@@ -113,8 +123,19 @@ def test_signal_during_train_is_its_exit_code_and_the_run_resumes(signum, code, 
 
     monkeypatch.setattr(SeededModule, "training_step", signalled_step)
     sigint = signal.getsignal(signal.SIGINT)
-    args = ("train", "test-mlp", "--data", tiny, "--out", tmp_path / "run", "--epochs", "3", "--batch", "64",
-            "--no-evaluate")
+    args = (
+        "train",
+        "test-mlp",
+        "--data",
+        tiny,
+        "--out",
+        tmp_path / "run",
+        "--epochs",
+        "3",
+        "--batch",
+        "64",
+        "--no-evaluate",
+    )
     got, out, err = run_cli(*args)
     kept = f"; {tmp_path / 'run'} keeps the last finished epoch; run the same command again to resume"
     assert sent and (got, error_of(err, "signal during train")) == (code, line + kept)
@@ -135,25 +156,47 @@ def test_sigterm_to_a_training_process_is_143(small, tmp_path):
     """The real thing: Lightning's own SIGTERM handling in a process of its own."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).parents[1] / "src"), "OMP_NUM_THREADS": "1"}
     out = tmp_path / "run"
-    proc = subprocess.Popen([sys.executable, "-m", "wearnav", "train", "ionet", "--data", str(small), "--out",
-                             str(out), "--epochs", "1000", "--no-evaluate"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "wearnav",
+            "train",
+            "ionet",
+            "--data",
+            str(small),
+            "--out",
+            str(out),
+            "--epochs",
+            "1000",
+            "--no-evaluate",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     deadline = time.time() + 120
     while time.time() < deadline and not (out / "checkpoints" / "last.ckpt").is_file() and proc.poll() is None:
         time.sleep(0.1)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 143, err
-    assert error_of(err, "signal during train") == (f"error: terminated (SIGTERM); {out} keeps the last finished "
-                                                    "epoch; run the same command again to resume")
+    assert error_of(err, "signal during train") == (
+        f"error: terminated (SIGTERM); {out} keeps the last finished epoch; run the same command again to resume"
+    )
     assert (out / "checkpoints" / "last.ckpt").is_file() and not (out / "training.json").exists()
 
 
 # ---- internal errors that are bad input ----------------------------------------------------------
 
+
 def test_train_refuses_a_classifier_model_and_writes_nothing(small, tmp_path):
-    _refused(*run_cli("train", "har-cnn-bilstm", "--data", small, "--out", tmp_path / "run"),
-             "internal errors", "is a classify model")
+    _refused(
+        *run_cli("train", "har-cnn-bilstm", "--data", small, "--out", tmp_path / "run"),
+        "internal errors",
+        "is a classify model",
+    )
     assert list(tmp_path.iterdir()) == []
 
 
@@ -168,8 +211,11 @@ def test_non_text_config_yaml_is_one_line(pdr_run, tmp_path):
 def test_non_text_results_md_is_one_line(tmp_path):
     (tmp_path / "suite").mkdir()
     (tmp_path / "suite" / "results.md").write_bytes(b"\x81\xff# not text")
-    _refused(*run_cli("results", tmp_path / "suite", "--out", tmp_path / "docs" / "results.md"),
-             "internal errors", "results.md: not a UTF-8 text file")
+    _refused(
+        *run_cli("results", tmp_path / "suite", "--out", tmp_path / "docs" / "results.md"),
+        "internal errors",
+        "results.md: not a UTF-8 text file",
+    )
     assert not (tmp_path / "docs").exists()
 
 
@@ -177,18 +223,25 @@ def test_corrupt_results_json_of_a_suite_is_one_line(tmp_path):
     (tmp_path / "har").mkdir()
     (tmp_path / "har" / "results.json").write_text('{"invocations": [')
     before = snapshot(tmp_path)
-    _refused(*run_cli("bench", "har", "--out", tmp_path / "har", "--data", tmp_path, "--datasets", "uci-hapt"),
-             "internal errors", "results.json: unreadable JSON")
+    _refused(
+        *run_cli("bench", "har", "--out", tmp_path / "har", "--data", tmp_path, "--datasets", "uci-hapt"),
+        "internal errors",
+        "results.json: unreadable JSON",
+    )
     assert snapshot(tmp_path) == before
 
 
 def test_malformed_test_routes_is_one_line(small, tmp_path):
-    _refused(*run_cli("bench", "easytrack", "--out", tmp_path / "et", "--data", small, "--test-routes", "(u1"),
-             "internal errors", "--test-routes '(u1' is not a regular expression")
+    _refused(
+        *run_cli("bench", "easytrack", "--out", tmp_path / "et", "--data", small, "--test-routes", "(u1"),
+        "internal errors",
+        "--test-routes '(u1' is not a regular expression",
+    )
     assert list(tmp_path.iterdir()) == []
 
 
 # ---- a failed call writes nothing ----------------------------------------------------------------
+
 
 def test_eval_checks_every_split_before_writing(pdr_run, tmp_path):
     run = shutil.copytree(pdr_run, tmp_path / "run")
@@ -217,18 +270,30 @@ def test_results_touches_no_image_when_it_fails(tmp_path):
     (tmp_path / "docs" / "img").mkdir(parents=True)
     (tmp_path / "docs" / "img" / "s1_a.png").write_bytes(b"old")
     before = snapshot(tmp_path / "docs")
-    _refused(*run_cli("results", suite, "--out", tmp_path / "docs" / "results.md"), "failed call writes first",
-             "links missing.png")
+    _refused(
+        *run_cli("results", suite, "--out", tmp_path / "docs" / "results.md"),
+        "failed call writes first",
+        "links missing.png",
+    )
     assert snapshot(tmp_path / "docs") == before
 
 
 def test_classify_and_bench_har_leave_no_folder_when_they_fail(clf_run, tmp_path):
-    _refused(*run_cli("classify", tmp_path / "missing.zip", "--model", clf_run, "--out", tmp_path / "lab"),
-             "failed call writes first", "no such file")
-    _refused(*run_cli("bench", "har", "--out", tmp_path / "har", "--data", tmp_path / "nowhere",
-                      "--datasets", "uci-hapt"), "failed call writes first", "no uci-hapt source")
-    _refused(*run_cli("bench", "har", "--out", tmp_path / "har", "--techniques", "nonsense", "--quick"),
-             "failed call writes first", "unknown technique(s)")
+    _refused(
+        *run_cli("classify", tmp_path / "missing.zip", "--model", clf_run, "--out", tmp_path / "lab"),
+        "failed call writes first",
+        "no such file",
+    )
+    _refused(
+        *run_cli("bench", "har", "--out", tmp_path / "har", "--data", tmp_path / "nowhere", "--datasets", "uci-hapt"),
+        "failed call writes first",
+        "no uci-hapt source",
+    )
+    _refused(
+        *run_cli("bench", "har", "--out", tmp_path / "har", "--techniques", "nonsense", "--quick"),
+        "failed call writes first",
+        "unknown technique(s)",
+    )
     assert list(tmp_path.iterdir()) == []
 
 
@@ -240,37 +305,54 @@ def test_classify_writes_and_adds_with_its_marker(clf_run, small, tmp_path):
     code, out, err = run_cli("classify", h5[1], "--model", clf_run, "--out", tmp_path / "lab")
     assert code == 0, err
     names = sorted(p.name for p in (tmp_path / "lab").iterdir())
-    assert names == sorted(["classify.json"] + [f"{n}_{k}" for n in ds.names[:2]
-                                                for k in ("intervals.csv", "timeline.png")])
+    assert names == sorted(
+        ["classify.json"] + [f"{n}_{k}" for n in ds.names[:2] for k in ("intervals.csv", "timeline.png")]
+    )
 
 
 # ---- files the user owns -------------------------------------------------------------------------
+
 
 def test_track_never_replaces_a_file_it_did_not_write(pdr_run, small, tmp_path):
     rec = Dataset.open(small).path(Dataset.open(small).names[0])
     out = tmp_path / "mine"
     out.mkdir()
     (out / "trajectory.csv").write_text("my own\n")
-    _refused(*run_cli("track", rec, "--model", pdr_run, "--out", out), "user files",
-             "holds trajectory.csv, which `wearnav track` did not write")
+    _refused(
+        *run_cli("track", rec, "--model", pdr_run, "--out", out),
+        "user files",
+        "holds trajectory.csv, which `wearnav track` did not write",
+    )
     assert (out / "trajectory.csv").read_text() == "my own\n" and len(list(out.iterdir())) == 1
     # its own folder is replaced as a whole, again and again
     for _ in range(2):
         code, _, err = run_cli("track", rec, "--model", pdr_run, "--out", tmp_path / "t")
         assert code == 0, err
-    assert sorted(p.name for p in (tmp_path / "t").iterdir()) == ["fixes.csv", "track.json", "trajectory.csv",
-                                                                   "trajectory.html", "trajectory.png"]
+    assert sorted(p.name for p in (tmp_path / "t").iterdir()) == [
+        "fixes.csv",
+        "track.json",
+        "trajectory.csv",
+        "trajectory.html",
+        "trajectory.png",
+    ]
     # a failed track into a new folder leaves none
-    _refused(*run_cli("track", tmp_path / "nothing.h5", "--model", pdr_run, "--out", tmp_path / "new" / "t"),
-             "user files", "no such file")
+    _refused(
+        *run_cli("track", tmp_path / "nothing.h5", "--model", pdr_run, "--out", tmp_path / "new" / "t"),
+        "user files",
+        "no such file",
+    )
     assert not (tmp_path / "new").exists()
 
 
 # ---- nothing silent ------------------------------------------------------------------------------
 
+
 def test_devices_no_recording_has_are_refused(small, tmp_path):
-    _refused(*run_cli("train", "pdr", "--data", small, "--out", tmp_path / "run", "--devices", "phone,wach"),
-             "silent", "unknown device(s) ['wach']")
+    _refused(
+        *run_cli("train", "pdr", "--data", small, "--out", tmp_path / "run", "--devices", "phone,wach"),
+        "silent",
+        "unknown device(s) ['wach']",
+    )
     assert list(tmp_path.iterdir()) == []
 
 
@@ -282,8 +364,11 @@ def _without(path: Path, src: Path, change) -> Path:
 
 def test_bench_odometry_without_truth_writes_no_page(small, tmp_path):
     data = _without(tmp_path / "notruth", small, lambda r: dataclasses.replace(r, truth=None))
-    _refused(*run_cli("bench", "odometry", "--data", data, "--out", tmp_path / "suite", "--models", "pdr"),
-             "silent", "no recording of split 'test' has truth positions")
+    _refused(
+        *run_cli("bench", "odometry", "--data", data, "--out", tmp_path / "suite", "--models", "pdr"),
+        "silent",
+        "no recording of split 'test' has truth positions",
+    )
     assert not (tmp_path / "suite").exists()
 
 
@@ -300,6 +385,7 @@ def test_label_from_fixes_at_one_point_is_not_silent(small, tmp_path):
 
 
 # ---- data-layer leftovers ------------------------------------------------------------------------
+
 
 def test_manifest_devices_must_match_the_recording(small, tmp_path):
     d = shutil.copytree(small, tmp_path / "d")
@@ -353,6 +439,7 @@ def test_labels_replaced_after_construction_are_refused_on_save(labels, tmp_path
 
 # ---- properties: whatever the damage, exit 0 or one line and exit 2, nothing written on failure --
 
+
 def _outcome(code: int, out: str, err: str, cls: str, before: dict, root: Path) -> str:
     lines = err.splitlines()
     if code == 0:
@@ -367,14 +454,50 @@ def _outcome(code: int, out: str, err: str, cls: str, before: dict, root: Path) 
 
 
 TEXT = st.one_of(st.text(max_size=60), st.binary(max_size=60).map(lambda b: b.decode("latin-1")))
-YAML_VALUES = st.one_of(st.none(), st.booleans(), st.integers(-3, 300), st.floats(allow_nan=True),
-                        st.text(max_size=8), st.lists(st.text(max_size=4), max_size=3),
-                        st.dictionaries(st.text(max_size=4), st.integers(), max_size=2))
-TRAIN_KEYS = ["model", "data", "devices", "model_args", "train_split", "val_split", "rate", "window", "stride",
-              "epochs", "patience", "lr", "batch", "augment", "seed", "frame_align", "truth_max_gap", "yaw_deg",
-              "no_such_key"]
-CLASSIFY_KEYS = ["model", "devices", "frame", "rate", "window", "stride", "label_kind", "classes", "denoise",
-                 "expand", "model_args", "no_such_key"]
+YAML_VALUES = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-3, 300),
+    st.floats(allow_nan=True),
+    st.text(max_size=8),
+    st.lists(st.text(max_size=4), max_size=3),
+    st.dictionaries(st.text(max_size=4), st.integers(), max_size=2),
+)
+TRAIN_KEYS = [
+    "model",
+    "data",
+    "devices",
+    "model_args",
+    "train_split",
+    "val_split",
+    "rate",
+    "window",
+    "stride",
+    "epochs",
+    "patience",
+    "lr",
+    "batch",
+    "augment",
+    "seed",
+    "frame_align",
+    "truth_max_gap",
+    "yaw_deg",
+    "no_such_key",
+]
+CLASSIFY_KEYS = [
+    "model",
+    "devices",
+    "frame",
+    "rate",
+    "window",
+    "stride",
+    "label_kind",
+    "classes",
+    "denoise",
+    "expand",
+    "model_args",
+    "no_such_key",
+]
 
 
 def _damage(run: Path, how: str, which: float, data, raw: bytes, keys=TRAIN_KEYS) -> None:
@@ -397,8 +520,12 @@ def _damage(run: Path, how: str, which: float, data, raw: bytes, keys=TRAIN_KEYS
 
 def test_damaged_run_folders_are_evaluated_or_one_line(pdr_run, small):
     @MODEL_PROPERTY
-    @given(how=st.sampled_from(["delete", "truncate", "garbage", "config field", "config field", "config text"]),
-           which=st.floats(0, 1, exclude_max=True), raw=st.binary(max_size=40), data=st.data())
+    @given(
+        how=st.sampled_from(["delete", "truncate", "garbage", "config field", "config field", "config text"]),
+        which=st.floats(0, 1, exclude_max=True),
+        raw=st.binary(max_size=40),
+        data=st.data(),
+    )
     def prop(how, which, raw, data):
         with tempfile.TemporaryDirectory() as tmp:
             run = shutil.copytree(pdr_run, Path(tmp) / "run")
@@ -408,8 +535,13 @@ def test_damaged_run_folders_are_evaluated_or_one_line(pdr_run, small):
             before = snapshot(Path(tmp))
             _outcome(*run_cli("eval", run), f"damaged run folder ({how})", before, Path(tmp))
             before = snapshot(Path(tmp))
-            _outcome(*run_cli("track", rec, "--model", run, "--out", Path(tmp) / "track"),
-                     f"track with a damaged run ({how})", before, Path(tmp))
+            _outcome(
+                *run_cli("track", rec, "--model", run, "--out", Path(tmp) / "track"),
+                f"track with a damaged run ({how})",
+                before,
+                Path(tmp),
+            )
+
     rec = Dataset.open(small).path(Dataset.open(small).names[0])
     prop()
 
@@ -418,15 +550,24 @@ def test_damaged_classifier_runs_classify_or_one_line(clf_run, small):
     rec = Dataset.open(small).path(Dataset.open(small).names[0])
 
     @MODEL_PROPERTY
-    @given(how=st.sampled_from(["delete", "truncate", "garbage", "config field", "config field", "config text"]),
-           which=st.floats(0, 1, exclude_max=True), raw=st.binary(max_size=40), data=st.data())
+    @given(
+        how=st.sampled_from(["delete", "truncate", "garbage", "config field", "config field", "config text"]),
+        which=st.floats(0, 1, exclude_max=True),
+        raw=st.binary(max_size=40),
+        data=st.data(),
+    )
     def prop(how, which, raw, data):
         with tempfile.TemporaryDirectory() as tmp:
             run = shutil.copytree(clf_run, Path(tmp) / "run")
             _damage(run, how, which, data, raw, CLASSIFY_KEYS)
             before = snapshot(Path(tmp))
-            _outcome(*run_cli("classify", rec, "--model", run, "--out", Path(tmp) / "lab"),
-                     f"classify with a damaged run ({how})", before, Path(tmp))
+            _outcome(
+                *run_cli("classify", rec, "--model", run, "--out", Path(tmp) / "lab"),
+                f"classify with a damaged run ({how})",
+                before,
+                Path(tmp),
+            )
+
     prop()
 
 
@@ -440,14 +581,17 @@ def test_split_lists_are_evaluated_or_one_line(pdr_run):
             run = shutil.copytree(pdr_run, Path(tmp) / "run")
             before = snapshot(Path(tmp))
             _outcome(*run_cli("eval", run, "--split", ",".join(splits)), "--split lists", before, Path(tmp))
+
     prop()
 
 
 def test_results_pages_and_suite_json_are_used_or_one_line(tmp_path):
     @MODEL_PROPERTY
-    @given(page=st.one_of(TEXT, st.just("## A\n![x](a.png)\n"), st.just("## A\n![x](../a.png)\n")),
-           raw=st.one_of(st.none(), st.binary(max_size=40)), results_json=st.one_of(
-               TEXT, st.just('{"invocations": 3}'), st.just('[1, 2]'), st.just('{"invocations": [1]}')))
+    @given(
+        page=st.one_of(TEXT, st.just("## A\n![x](a.png)\n"), st.just("## A\n![x](../a.png)\n")),
+        raw=st.one_of(st.none(), st.binary(max_size=40)),
+        results_json=st.one_of(TEXT, st.just('{"invocations": 3}'), st.just("[1, 2]"), st.just('{"invocations": [1]}')),
+    )
     def prop(page, raw, results_json):
         with tempfile.TemporaryDirectory() as tmp:
             root = Path(tmp)
@@ -466,6 +610,7 @@ def test_results_pages_and_suite_json_are_used_or_one_line(tmp_path):
             # results.json is read first: garbage is one line; a readable one meets the unknown dataset
             code, out, err = run_cli("bench", "har", "--out", suite, "--data", root, "--datasets", "nope")
             assert _outcome(code, out, err, "suite results.json", before, root) == "error"
+
     prop()
 
 
@@ -479,7 +624,9 @@ def test_test_routes_patterns_are_one_line(small, tmp_path_factory):
     def prop(pattern):
         with tempfile.TemporaryDirectory() as tmp:
             before = snapshot(Path(tmp))
-            code, out, err = run_cli("bench", "easytrack", "--out", Path(tmp) / "et", "--data", one,
-                                     "--test-routes", pattern, "--quick")
+            code, out, err = run_cli(
+                "bench", "easytrack", "--out", Path(tmp) / "et", "--data", one, "--test-routes", pattern, "--quick"
+            )
             assert _outcome(code, out, err, "--test-routes", before, Path(tmp)) == "error"
+
     prop()

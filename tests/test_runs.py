@@ -9,10 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from conftest import error_line
 from wearnav import runs
 from wearnav.errors import BusyError
-
-from conftest import error_line
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 # Who holds a lock is read from Linux's /proc/locks; elsewhere the error line names no pid.
@@ -31,8 +30,9 @@ with locked(sys.argv[1]):
 
 def hold(run: Path) -> subprocess.Popen:
     """Another process holding ``run``'s lock (until killed)."""
-    p = subprocess.Popen([sys.executable, "-c", HOLDER.format(src=str(SRC)), str(run)],
-                         stdout=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [sys.executable, "-c", HOLDER.format(src=str(SRC)), str(run)], stdout=subprocess.PIPE, text=True
+    )
     assert p.stdout.readline().strip() == "held"
     return p
 
@@ -84,8 +84,11 @@ def test_fit_takes_the_lock(tmp_path, monkeypatch):
     run = tmp_path / "R"
     p = hold(run)
     try:
-        for fit, args in ((odometry.fit, (None, run)), (classify.fit, (None, run)),
-                          (noisy.fit_noisy, (None, None, run))):
+        for fit, args in (
+            (odometry.fit, (None, run)),
+            (classify.fit, (None, run)),
+            (noisy.fit_noisy, (None, None, run)),
+        ):
             with pytest.raises(BusyError, match="another wearnav process"):
                 fit(*args)
     finally:
@@ -103,8 +106,24 @@ def test_two_train_commands_on_one_folder(tmp_path):
     data = tmp_path / "tiny"
     simulate_dataset("tiny", data, seed=0)
     run = tmp_path / "R"
-    cmd = [sys.executable, "-m", "wearnav", "train", "ionet", "--data", str(data), "--out", str(run),
-           "--epochs", "1000", "--patience", "1000", "--max-time", "2", "--no-evaluate"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "wearnav",
+        "train",
+        "ionet",
+        "--data",
+        str(data),
+        "--out",
+        str(run),
+        "--epochs",
+        "1000",
+        "--patience",
+        "1000",
+        "--max-time",
+        "2",
+        "--no-evaluate",
+    ]
     env = {**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"}
     first = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:

@@ -9,13 +9,24 @@ from scipy.integrate import cumulative_trapezoid
 
 from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError
-from wearnav.recording import ACC_NORM_MEDIAN_RANGE, Recording
-from wearnav.simulate import (SubjectParams, LABEL_NOISE_MEDIAN_M, MODES, SCENES, FixNoise, WalkConfig,
-                              plan_dataset, sample_subject, simulate_dataset,
-                              simulate_fixes, simulate_recording, simulate_walk)
 from wearnav.fixlabels import LabelConfig, plausible_labels
 from wearnav.metrics import label_noise, label_noise_correlation
+from wearnav.recording import ACC_NORM_MEDIAN_RANGE, Recording
 from wearnav.rotations import as_matrix as matrix_from_wxyz
+from wearnav.simulate import (
+    LABEL_NOISE_MEDIAN_M,
+    MODES,
+    SCENES,
+    FixNoise,
+    SubjectParams,
+    WalkConfig,
+    plan_dataset,
+    sample_subject,
+    simulate_dataset,
+    simulate_fixes,
+    simulate_recording,
+    simulate_walk,
+)
 from wearnav.simulate.geometry import angle_between, apply, exp_so3
 from wearnav.simulate.imu import G_WORLD, IMU_SPECS
 from wearnav.simulate.path import plan_route
@@ -23,9 +34,15 @@ from wearnav.simulate.path import plan_route
 G = np.array([0.0, 0.0, -9.81])
 # (mode, placement, fine phone placement) covering every phone placement and mode
 WALKS = [
-    ("STW", "HD", "texting"), ("STW", "HD", "swinging"), ("STW", "PK", "front_pocket"),
-    ("STW", "PK", "back_pocket"), ("STW", "BG", "bag"), ("PVW", "MP", None), ("MVW", "MP", None),
-    ("DRW", "HD", None), ("DLW", "HD", None),
+    ("STW", "HD", "texting"),
+    ("STW", "HD", "swinging"),
+    ("STW", "PK", "front_pocket"),
+    ("STW", "PK", "back_pocket"),
+    ("STW", "BG", "bag"),
+    ("PVW", "MP", None),
+    ("MVW", "MP", None),
+    ("DRW", "HD", None),
+    ("DLW", "HD", None),
 ]
 
 
@@ -54,6 +71,7 @@ def _windows(n: int, length: int, stride: int):
 
 
 # ---- physics ---------------------------------------------------------------------------------
+
 
 def test_world_specific_force_integrates_to_true_velocity_change(clean_walks):
     """Noise-free IMU: ∫ (R f + g) dt over 3 s equals the device's true velocity change."""
@@ -101,8 +119,7 @@ def test_noisy_imu_integration_drifts_realistically(noisy_walks, clean_walks):
             errs = []
             for k0, k1 in _windows(len(s.t), int(2 * s.rate), int(s.rate)):
                 dv, dv_true = v[k1] - v[k0], tru.vel[k1] - tru.vel[k0]
-                errs.append(max(abs(dv[2] - dv_true[2]),
-                                abs(np.linalg.norm(dv[:2]) - np.linalg.norm(dv_true[:2]))))
+                errs.append(max(abs(dv[2] - dv_true[2]), abs(np.linalg.norm(dv[:2]) - np.linalg.norm(dv_true[:2]))))
             assert max(errs) < bound[dev], (key, dev, max(errs))
             assert np.median(errs) > 1e-3, (key, dev)  # the errors are really there
 
@@ -116,8 +133,10 @@ def test_sensor_noise_matches_spec_and_earbuds_are_noisiest(noisy_walks):
             s, spec = w.recording.devices[dev], IMU_SPECS[dev]
             still = s.t < w.scenario.bouts[0][0] - 0.2
             assert still.sum() >= 10
-            for kind, meas, true, sigma in (("acc", s.acc, tru.specific_force, spec.acc_noise),
-                                            ("gyro", s.gyro, tru.omega, spec.gyro_noise)):
+            for kind, meas, true, sigma in (
+                ("acc", s.acc, tru.specific_force, spec.acc_noise),
+                ("gyro", s.gyro, tru.omega, spec.gyro_noise),
+            ):
                 r = meas[still].astype(np.float64) - true[still]
                 std = (r - r.mean(0)).std(0).mean()
                 assert std == pytest.approx(sigma, rel=0.35), (key, dev, std, sigma)
@@ -156,7 +175,7 @@ def test_gyro_integrates_to_orientation_change(clean_walks, noisy_walks):
                     cases = [(g, 0.5 + drift_deg + bias_deg, 0.05), (g - bias, 0.5 + drift_deg, 0.05)]
                 for gyro, tol_deg, rel in cases:
                     for k0, k1 in _windows(len(s.t), int(3 * s.rate), int(2 * s.rate)):
-                        R1 = _integrate_gyro(tru.R[k0], gyro[k0:k1 + 1], s.t[k0:k1 + 1])
+                        R1 = _integrate_gyro(tru.R[k0], gyro[k0 : k1 + 1], s.t[k0 : k1 + 1])
                         err = float(np.rad2deg(angle_between(R1, tru.R[k1])))
                         turned = float(np.rad2deg(angle_between(tru.R[k0], tru.R[k1])))
                         assert err < tol_deg + rel * turned, (key, dev, noisy, err, tol_deg, turned)
@@ -196,6 +215,7 @@ def test_wrist_shake_and_head_tilt_disturb_watch_and_earbuds():
 
 
 # ---- streams ---------------------------------------------------------------------------------
+
 
 def test_rates_and_clocks(tiny):
     rec = tiny.load(tiny.filter(mode="STW").names[0])
@@ -267,6 +287,7 @@ def test_game_rotation_vector_is_gravity_aligned_with_yaw_offset(noisy_walks):
 
 
 # ---- walking modes ---------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("removal", ["watch:table", "earbuds:stop", "earbuds:table", "watch:stop"])
 def test_removed_device_is_flagged(removal):
@@ -372,7 +393,7 @@ def test_subjects_and_gait_ranges():
     z = tr.pos[m, 2]
     # vertical bounce of a few cm (peak-to-peak per step, after removing slow trends)
     k = int(round(100 / w.cadence_hz))
-    ptp = np.median([np.ptp(z[i:i + k]) for i in range(0, len(z) - k, k)])
+    ptp = np.median([np.ptp(z[i : i + k]) for i in range(0, len(z) - k, k)])
     assert 0.015 < ptp < 0.07
 
 
@@ -400,8 +421,15 @@ def test_walker_speed_is_observable_from_the_phone_imu():
     rng = np.random.default_rng(7)
     feats, speed = [], []
     for i in range(40):
-        cfg = WalkConfig(name="g", subject=sample_subject(rng, f"g{i}"), mode="STW", placement="HD",
-                         phone_hold="texting", duration_s=20.0, devices=("phone",))
+        cfg = WalkConfig(
+            name="g",
+            subject=sample_subject(rng, f"g{i}"),
+            mode="STW",
+            placement="HD",
+            phone_hold="texting",
+            duration_s=20.0,
+            devices=("phone",),
+        )
         w = simulate_walk(cfg, seed=100 + i)
         feats.append(_weinberg_and_step_rate(w))
         speed.append(w.recording.meta["speed_mps"])
@@ -413,6 +441,7 @@ def test_walker_speed_is_observable_from_the_phone_imu():
 
 
 # ---- location fixes --------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("level", ["L1", "L2", "L3"])
 def test_label_noise_median_matches_easytrack(level):
@@ -444,6 +473,7 @@ def test_recording_fixes_have_the_configured_label_noise():
 
 # ---- determinism, presets, splits --------------------------------------------------------------
 
+
 def _same(r1: Recording, r2: Recording) -> bool:
     if set(r1.devices) != set(r2.devices):
         return False
@@ -456,8 +486,11 @@ def _same(r1: Recording, r2: Recording) -> bool:
             equal = np.allclose(a, b, rtol=0, atol=1e-6) if k == "quat" else np.array_equal(a, b)
             if a is not None and not equal:
                 return False
-    return (np.array_equal(r1.truth.pos, r2.truth.pos) and np.array_equal(r1.fixes.pos, r2.fixes.pos)
-            and r1.labels.equals(r2.labels))
+    return (
+        np.array_equal(r1.truth.pos, r2.truth.pos)
+        and np.array_equal(r1.fixes.pos, r2.fixes.pos)
+        and r1.labels.equals(r2.labels)
+    )
 
 
 def test_deterministic_per_seed():
@@ -509,8 +542,11 @@ def test_splits_follow_the_paper(tiny):
     # the benchmark preset: exactly 6:2:2 per mode for u1, four other subjects
     plan = plan_dataset("default", seed=0)
     for mode in MODES:
-        splits = [p.split for p in plan if p.config.subject.name == "u1" and p.config.mode == mode
-                  and p.config.placement not in ("PK", "BG")]
+        splits = [
+            p.split
+            for p in plan
+            if p.config.subject.name == "u1" and p.config.mode == mode and p.config.placement not in ("PK", "BG")
+        ]
         assert sorted(splits).count("train") == 6 and splits.count("val") == 2 and splits.count("test") == 2
     assert len({p.config.subject.name for p in plan}) == 5
     hours = sum(p.config.duration_s for p in plan) / 3600
@@ -531,6 +567,7 @@ def test_bad_configuration_is_rejected(tmp_path):
 
 
 # ---- phone-like label noise: correlated neighbours, a heavy tail, Table I medians (issue #17 §3) ----
+
 
 def _label_chain(level: str, seed: int, n: int = 6000):
     """Phone labels of an n-segment 1-s fix chain of a walker at 1.3 m/s (turning slowly), passed

@@ -7,8 +7,7 @@ import pytest
 
 from wearnav import rotations
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.timeseries import (covered, drop_duplicate_times, interp_onto, period, periods, rate,
-                                sampling)
+from wearnav.timeseries import covered, drop_duplicate_times, interp_onto, period, periods, rate, sampling
 
 T_SRC = np.array([0.0, 0.1, 0.2, 1.2, 1.3])  # a 1-s hole between 0.2 and 1.2
 
@@ -30,7 +29,7 @@ def test_nearest_rule_keeps_points_near_a_sample_without_extrapolating():
     vals = np.column_stack([T_SRC, -T_SRC])
     out, mask = interp_onto(t, T_SRC, vals, max_gap=0.5, rule="nearest")
     np.testing.assert_array_equal(mask, ok)
-    np.testing.assert_allclose(out[0], [0.0, 0.0])   # held at the first sample, not extrapolated
+    np.testing.assert_allclose(out[0], [0.0, 0.0])  # held at the first sample, not extrapolated
     np.testing.assert_allclose(out[4], [1.3, -1.3])  # held at the last sample
     np.testing.assert_allclose(out[1], [0.5, -0.5])  # linear across the hole
 

@@ -16,21 +16,21 @@ import pandas as pd
 import pymap3d
 import pytest
 
-from wearnav.importers.sensorlogger_export import ORIGIN, time_origin, write_export, zip_export
+from conftest import run_cli
+from test_importers_ipin2023 import LOGS, rows_of
 from wearnav import metrics
 from wearnav.dataset import DatasetWriter
+from wearnav.errors import ConfigError, WearnavWarning
 from wearnav.evaluate import evaluate_sequence
+from wearnav.fuse import first_fix_anchor
 from wearnav.geo import PROJECTION, latlon_to_local
 from wearnav.importers import ipin2023
+from wearnav.importers.sensorlogger_export import ORIGIN, time_origin, write_export, zip_export
 from wearnav.preprocess import align
 from wearnav.recording import Recording
 from wearnav.simulate import WalkConfig, simulate_recording
-from wearnav.errors import ConfigError, WearnavWarning
-from wearnav.fuse import first_fix_anchor
 from wearnav.track import track
 from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
-from conftest import run_cli
-from test_importers_ipin2023 import LOGS, rows_of
 
 EXPORT = "2023-11-14_22-13-20"
 IPIN_LOG = "IPIN2023_T3_TrainingTrial02_repetition04"  # fixes up to 70 m from the venue's origin
@@ -105,8 +105,11 @@ def test_track_with_a_learned_checkpoint_matches_its_eval(setup, learned_run, tm
     seq_eval = align(rec, cfg.preprocess_config())
     row, _ = evaluate_sequence(model, seq_eval, cfg.window, cfg.stride)
     psi = np.degrees(np.radians(seq_eval.meta["frame"]["truth"]["yaw_deg"]))
-    summary = track(write_export(rec, tmp_path / EXPORT, platform="android"),
-                    learned_run / "checkpoints" / "best.ckpt", tmp_path / "out")
+    summary = track(
+        write_export(rec, tmp_path / EXPORT, platform="android"),
+        learned_run / "checkpoints" / "best.ckpt",
+        tmp_path / "out",
+    )
     traj = pd.read_csv(tmp_path / "out" / "trajectory.csv")
     t = traj["t"].to_numpy() + time_origin(rec)
     true = np.stack([np.interp(t, rec.truth.t, rec.truth.pos[:, k]) for k in range(2)], axis=1)
@@ -144,12 +147,17 @@ def test_geojson_lies_on_the_fixes(setup, tmp_path):
     inside = (t_fix >= traj.t.iloc[0]) & (t_fix <= traj.t.iloc[-1])
     at_fix = np.stack([np.interp(t_fix[inside], traj.t, path[:, k]) for k in range(2)], axis=1)
     dist = np.linalg.norm(at_fix - fixes[inside], axis=1)
-    fix_noise = np.linalg.norm(rec.fixes.pos[:, :2] - np.stack(
-        [np.interp(rec.fixes.t, rec.truth.t, rec.truth.pos[:, k]) for k in range(2)], axis=1), axis=1)
+    fix_noise = np.linalg.norm(
+        rec.fixes.pos[:, :2]
+        - np.stack([np.interp(rec.fixes.t, rec.truth.t, rec.truth.pos[:, k]) for k in range(2)], axis=1),
+        axis=1,
+    )
     raw = traj[["x", "y"]].to_numpy()
     raw_at_fix = np.stack([np.interp(t_fix[inside], traj.t, raw[:, k]) for k in range(2)], axis=1)
-    print(f"median path-fix distance {np.median(dist):.2f} m (fix noise median {np.median(fix_noise):.2f} m, "
-          f"unanchored {np.median(np.linalg.norm(raw_at_fix - fixes[inside], axis=1)):.2f} m); {summary['anchoring']}")
+    print(
+        f"median path-fix distance {np.median(dist):.2f} m (fix noise median {np.median(fix_noise):.2f} m, "
+        f"unanchored {np.median(np.linalg.norm(raw_at_fix - fixes[inside], axis=1)):.2f} m); {summary['anchoring']}"
+    )
     assert np.median(dist) < 5.0
     assert np.median(np.linalg.norm(raw_at_fix - fixes[inside], axis=1)) > 2 * np.median(dist)
     assert summary["anchoring"]["fixes_used"] >= 10
@@ -219,8 +227,7 @@ def test_geojson_and_csv_agree_with_pymap3d_on_a_real_ipin_log(setup, shared_dat
     path = traj[["east", "north"]].to_numpy()
     assert len(lat) == len(path) and np.ptp(path, axis=0).max() > 20
     assert np.max(np.linalg.norm(enu(lat, lon) - path, axis=1)) <= 0.01
-    flon, flat = np.array([f["geometry"]["coordinates"] for f in gj["features"]
-                           if f["geometry"]["type"] == "Point"]).T
+    flon, flat = np.array([f["geometry"]["coordinates"] for f in gj["features"] if f["geometry"]["type"] == "Point"]).T
     assert np.max(np.linalg.norm(enu(flat, flon) - rec.fixes.pos[:, :2], axis=1)) <= 0.01
 
 
@@ -230,8 +237,9 @@ def test_old_projection_needs_reimport_in_info_and_track(setup, tmp_path, monkey
     one line that it needs re-import and how; track.json lists it under ``warnings``. The same
     recording with the current projection: no such line."""
     root, rec, run_dir = setup
-    old = dataclasses.replace(rec, name="old", meta={**rec.meta, "source": "ipin2023",
-                                                     "origin_lat": ORIGIN[0], "origin_lon": ORIGIN[1]})
+    old = dataclasses.replace(
+        rec, name="old", meta={**rec.meta, "source": "ipin2023", "origin_lat": ORIGIN[0], "origin_lon": ORIGIN[1]}
+    )
     new = dataclasses.replace(old, name="new", meta={**old.meta, "projection": PROJECTION})
     old.save(tmp_path / "old.h5")
     new.save(tmp_path / "new.h5")
@@ -251,15 +259,17 @@ def test_old_projection_needs_reimport_in_info_and_track(setup, tmp_path, monkey
     code, out, err = run_cli(monkeypatch, capsys, "info", tmp_path / "new.h5")
     assert code == 0 and reimport_lines(err) == []
 
-    code, out, err = run_cli(monkeypatch, capsys, "track", tmp_path / "old.h5", "--model", run_dir,
-                             "--out", tmp_path / "o_old")
+    code, out, err = run_cli(
+        monkeypatch, capsys, "track", tmp_path / "old.h5", "--model", run_dir, "--out", tmp_path / "o_old"
+    )
     assert code == 0, err
     (ln,) = reimport_lines(err)
     assert "wearnav import ipin2023" in ln
     warned = json.loads((tmp_path / "o_old" / "track.json").read_text())["warnings"]
     assert len(warned) == 1 and warned[0].startswith("old: needs re-import")
-    code, out, err = run_cli(monkeypatch, capsys, "track", tmp_path / "new.h5", "--model", run_dir,
-                             "--out", tmp_path / "o_new")
+    code, out, err = run_cli(
+        monkeypatch, capsys, "track", tmp_path / "new.h5", "--model", run_dir, "--out", tmp_path / "o_new"
+    )
     assert code == 0 and reimport_lines(err) == []
     assert json.loads((tmp_path / "o_new" / "track.json").read_text())["warnings"] == []
 
@@ -274,31 +284,54 @@ def test_track_command_subsets_and_one_line_errors(setup, tmp_path, monkeypatch,
     write_export(sub, tmp_path / "sub" / EXPORT, platform="ios")
     code, out, err = run(monkeypatch, capsys, "import", "sensorlogger", tmp_path / "sub", "--out", tmp_path / "ds")
     assert code == 0, err
-    code, out, err = run(monkeypatch, capsys, "track", tmp_path / "ds", "--name", EXPORT,
-                         "--model", run_dir / "checkpoints" / "best.ckpt", "--out", tmp_path / "o1")
+    code, out, err = run(
+        monkeypatch,
+        capsys,
+        "track",
+        tmp_path / "ds",
+        "--name",
+        EXPORT,
+        "--model",
+        run_dir / "checkpoints" / "best.ckpt",
+        "--out",
+        tmp_path / "o1",
+    )
     assert code == 2 and "no such run folder or checkpoint" in err  # pdr has no checkpoint file
-    code, out, err = run(monkeypatch, capsys, "track", tmp_path / "ds", "--name", EXPORT,
-                         "--model", run_dir, "--out", tmp_path / "o1")
+    code, out, err = run(
+        monkeypatch, capsys, "track", tmp_path / "ds", "--name", EXPORT, "--model", run_dir, "--out", tmp_path / "o1"
+    )
     assert code == 0, err
     assert "used watch, earbuds" in out and "frame: common, reference watch" in out
     traj = pd.read_csv(tmp_path / "o1" / "trajectory.csv")
     assert (traj["phone"] == 0).all() and (traj["watch"] == 1).all()
     assert not (tmp_path / "o1" / "trajectory.geojson").exists()
     # one-line errors: unknown name, no usable stream, corrupt checkpoint
-    code, _, err = run(monkeypatch, capsys, "track", tmp_path / "ds", "--name", "nope",
-                       "--model", run_dir, "--out", tmp_path / "o2")
+    code, _, err = run(
+        monkeypatch, capsys, "track", tmp_path / "ds", "--name", "nope", "--model", run_dir, "--out", tmp_path / "o2"
+    )
     assert code == 2 and "no recording named 'nope'" in err and err.count("\n") == 1
     only_phone = TrainConfig(model="pdr", data=str(root / "ds"), devices=("phone",))
     phone_run = prepare_run(only_phone, tmp_path / "phone_run")
-    code, _, err = run(monkeypatch, capsys, "track", tmp_path / "ds", "--name", EXPORT,
-                       "--model", phone_run, "--out", tmp_path / "o3")
+    code, _, err = run(
+        monkeypatch, capsys, "track", tmp_path / "ds", "--name", EXPORT, "--model", phone_run, "--out", tmp_path / "o3"
+    )
     assert code == 2 and "no IMU stream the model can use" in err and err.count("\n") == 1
     ronin = TrainConfig(model="ronin", data=str(root / "ds"), devices=("watch",))
     ronin_run = prepare_run(ronin, tmp_path / "ronin_run")
     (ronin_run / "checkpoints").mkdir()
     (ronin_run / "checkpoints" / "best.ckpt").write_bytes(b"not a checkpoint")
-    code, _, err = run(monkeypatch, capsys, "track", tmp_path / "ds", "--name", EXPORT,
-                       "--model", ronin_run / "checkpoints" / "best.ckpt", "--out", tmp_path / "o4")
+    code, _, err = run(
+        monkeypatch,
+        capsys,
+        "track",
+        tmp_path / "ds",
+        "--name",
+        EXPORT,
+        "--model",
+        ronin_run / "checkpoints" / "best.ckpt",
+        "--out",
+        tmp_path / "o4",
+    )
     assert code == 2 and "corrupt or incompatible checkpoint" in err and err.count("\n") == 1
 
 
@@ -346,4 +379,4 @@ def page_data(html_file) -> dict:
     """The data a trajectory.html draws (its inline JSON)."""
     text, marker = html_file.read_text(), '<script id="wearnav-data" type="application/json">'
     start = text.index(marker) + len(marker)
-    return json.loads(text[start:text.index("</script>", start)].replace("<\\/", "</"))
+    return json.loads(text[start : text.index("</script>", start)].replace("<\\/", "</"))

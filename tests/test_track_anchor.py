@@ -54,8 +54,10 @@ def exports(tmp_path_factory):
     pos[1, :2] += WIDE_M
     acc[:2] = [5.0, 1500.0]
     bad = Fixes(fx.t[k], pos, acc)
-    folders = {name: write_export(dataclasses.replace(rec, fixes=f), root / name / "2023-11-14_22-13-20")
-               for name, f in (("clean", clean), ("bad", bad))}
+    folders = {
+        name: write_export(dataclasses.replace(rec, fixes=f), root / name / "2023-11-14_22-13-20")
+        for name, f in (("clean", clean), ("bad", bad))
+    }
     return rec, run, folders, clean, root
 
 
@@ -93,9 +95,11 @@ def test_a_cached_and_a_wide_first_fix_do_not_pull_the_path(exports, tmp_path, a
     d = {name: _median_distance_to(tmp_path / name, t_clean, clean.pos[:, :2]) for name in folders}
     (t, p_bad), (_, p_clean) = _path(tmp_path / "bad"), _path(tmp_path / "clean")
     apart = np.linalg.norm(p_bad - p_clean, axis=1)
-    print(f"{anchor}: median distance to the good fixes {d['bad']:.4f} m with the bad first fixes, "
-          f"{d['clean']:.4f} m without; the two paths {np.median(apart):.4f} m apart (median), "
-          f"{np.max(apart):.4f} m at most")
+    print(
+        f"{anchor}: median distance to the good fixes {d['bad']:.4f} m with the bad first fixes, "
+        f"{d['clean']:.4f} m without; the two paths {np.median(apart):.4f} m apart (median), "
+        f"{np.max(apart):.4f} m at most"
+    )
     assert d["clean"] < 5.0  # it lies on its fixes at all
     assert abs(d["bad"] - d["clean"]) <= TOLERANCE_M
     assert np.max(apart) <= TOLERANCE_M
@@ -143,8 +147,9 @@ def test_geojson_is_an_rfc7946_feature_collection_in_the_walks_bbox(exports, tmp
     assert p["length_m"] == pytest.approx(np.sum(np.linalg.norm(np.diff(en, axis=0), axis=1)), abs=0.05)
     assert 0 < p["median_sigma_m"] < 50
     start, end = datetime.fromisoformat(p["start_time"]), datetime.fromisoformat(p["end_time"])
-    assert p["start_time"].endswith("Z") and (end - start).total_seconds() == pytest.approx(summary["duration_s"],
-                                                                                              abs=0.01)
+    assert p["start_time"].endswith("Z") and (end - start).total_seconds() == pytest.approx(
+        summary["duration_s"], abs=0.01
+    )
     assert start.timestamp() == pytest.approx(1_700_000_000.123 + p["t_start_s"], abs=1e-3)
     assert p["fix_status"] == summary["anchoring"]["fix_status"]
     for f in points:

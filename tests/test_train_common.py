@@ -52,4 +52,8 @@ def test_schedule_warm_up_then_cosine_to_its_floor():
     assert ramp.aux(0) == 0.0 and ramp.aux(10) == pytest.approx(0.25) and ramp.aux(40) == ramp.aux(99) == 1.0
     assert Schedule().aux(0) == 1.0  # no ramp: the auxiliary losses count from the start
     held = Schedule(warmup_steps=10, total_steps=110, decay_from=60)
-    assert held(30) == held(60) == 1.0 and held(85) == pytest.approx(0.01 + 0.99 * 0.5) and held(110) == pytest.approx(0.01)
+    assert (
+        held(30) == held(60) == 1.0
+        and held(85) == pytest.approx(0.01 + 0.99 * 0.5)
+        and held(110) == pytest.approx(0.01)
+    )

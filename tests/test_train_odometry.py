@@ -92,7 +92,7 @@ def test_learning_beats_a_zero_velocity_guess(tiny, tmp_path):
     with torch.no_grad():
         p = model(b["x"], b["mask"])
     v = b["vel"]
-    assert ((p - v) ** 2).sum(1).mean() < 0.8 * (v ** 2).sum(1).mean()
+    assert ((p - v) ** 2).sum(1).mean() < 0.8 * (v**2).sum(1).mean()
     ang = torch.atan2(p[:, 1], p[:, 0]) - torch.atan2(v[:, 1], v[:, 0])
     ang = torch.rad2deg(torch.remainder(ang + np.pi, 2 * np.pi) - np.pi).abs()
     assert ang.median() < 35.0
@@ -182,17 +182,28 @@ def test_sparse_truth_is_scored_at_its_points_only():
     """Waypoint truth (real indoor data): the estimate starts at the trace's first waypoint (the
     first window's velocity holds before its centre) and is scored at the later waypoints only;
     dense metrics are not claimed."""
+    from conftest import make_stream
     from wearnav.evaluate import evaluate_sequence
     from wearnav.preprocess import Aligned
     from wearnav.recording import Recording, Trajectory
-    from conftest import make_stream
 
     t = np.arange(0, 60.0, 1 / 25)
     wp_t = np.arange(0.0, 61.0, 10.0)
-    rec = Recording(name="wp", devices={"phone": make_stream(6000, 100.0)},
-                    truth=Trajectory(wp_t, np.stack([wp_t * 1.0, np.zeros_like(wp_t)], 1)))
-    seq = Aligned("wp", t, ("phone",), np.zeros((1, t.size, 6), np.float32), np.ones((1, t.size), bool),
-                  np.full((t.size, 2), np.nan), {"mode": "STW"}, rec)
+    rec = Recording(
+        name="wp",
+        devices={"phone": make_stream(6000, 100.0)},
+        truth=Trajectory(wp_t, np.stack([wp_t * 1.0, np.zeros_like(wp_t)], 1)),
+    )
+    seq = Aligned(
+        "wp",
+        t,
+        ("phone",),
+        np.zeros((1, t.size, 6), np.float32),
+        np.ones((1, t.size), bool),
+        np.full((t.size, 2), np.nan),
+        {"mode": "STW"},
+        rec,
+    )
     row, traj = evaluate_sequence(_Constant([1.0, 0.0]), seq, window=100, stride=10)
     assert row["truth"] == "sparse" and "ate" not in row
     assert row["points"] >= 4 and row["mean_error"] == pytest.approx(0.0, abs=1e-6)
@@ -212,7 +223,7 @@ def test_sequence_cache_is_bounded_and_drops_the_least_recently_used(tiny, monke
     import importlib
 
     from wearnav.dataset import Dataset
-    from wearnav.preprocess import BoundedCache, MAX_CACHED_SEQUENCES, load_sequences
+    from wearnav.preprocess import MAX_CACHED_SEQUENCES, BoundedCache, load_sequences
 
     module = importlib.import_module(load_sequences.__module__)
     assert module._CACHE.maxsize == MAX_CACHED_SEQUENCES

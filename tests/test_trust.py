@@ -26,8 +26,9 @@ G = 9.80665
 
 def _wearnav(*args) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-m", "wearnav", *map(str, args)], capture_output=True, text=True,
-                          env=env, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "wearnav", *map(str, args)], capture_output=True, text=True, env=env, timeout=300
+    )
 
 
 def _warnings(err: str) -> list[str]:
@@ -35,6 +36,7 @@ def _warnings(err: str) -> list[str]:
 
 
 # ---- the pure checks ---------------------------------------------------------------------------
+
 
 def test_window_gravity_is_the_unit_mean_per_window():
     acc = np.tile([0.0, 0.0, G], (250, 1)) + np.random.default_rng(0).normal(0, 1.0, (250, 3))
@@ -56,7 +58,8 @@ def test_missing_devices_names_what_the_recording_lacks():
 def test_rate_outside_allows_the_tolerance():
     assert trust.rate_outside("phone", 100.0 * 1.09, [100.0, 100.0, 100.0]) is None
     assert trust.rate_outside("phone", 50.0, [100.0, 100.0, 100.0]) == (
-        "phone is sampled at 50 Hz; the model's training data at 100 Hz")
+        "phone is sampled at 50 Hz; the model's training data at 100 Hz"
+    )
     assert "at 25–50 Hz" in trust.rate_outside("watch", 100.0, [25.0, 40.0, 50.0])
 
 
@@ -65,7 +68,8 @@ def test_placement_outside_maps_the_simulators_codes():
     assert trust.placement_outside("pocket", ["MP"]) is None  # MP changes between hand and pocket
     assert trust.placement_outside("", ["HD"]) is None and trust.placement_outside("waist", []) is None
     assert trust.placement_outside("handheld", ["waist"]) == (
-        "the recording's placement is 'handheld'; the model's training data had waist")
+        "the recording's placement is 'handheld'; the model's training data had waist"
+    )
 
 
 def test_gravity_outside_needs_most_windows_unseen():
@@ -74,7 +78,8 @@ def test_gravity_outside_needs_most_windows_unseen():
     assert trust.gravity_outside("phone", tilt, z) is None  # 20° < GRAVITY_MATCH_DEG
     x = np.tile([1.0, 0.0, 0.0], (10, 1))
     assert trust.gravity_outside("phone", x, z).startswith(
-        "phone is held or worn differently from the model's training data: in 100% of the recording")
+        "phone is held or worn differently from the model's training data: in 100% of the recording"
+    )
     assert trust.gravity_outside("phone", np.concatenate([x[:4], z[:6]]), z) is None  # 40 % unseen
 
 
@@ -86,10 +91,11 @@ def test_domain_findings_of_an_unknown_training_set():
 def test_implausible_walk():
     walking = np.full(20, 1.8)  # steps/s
     assert trust.implausible_walk(np.full(20, 1.3), walking, 26.0, 36.0) == []  # 26 m ≈ 36 × 0.67 m
-    slow, = trust.implausible_walk(np.full(20, 0.2), walking, 17.0, 36.0)
-    assert slow == ("implausible for walking: the median speed is 0.20 m/s while steps are detected "
-                    "(walking is 0.5–2.5 m/s)")
-    short, = trust.implausible_walk(np.full(20, 1.3), walking, 5.0, 36.0)
+    (slow,) = trust.implausible_walk(np.full(20, 0.2), walking, 17.0, 36.0)
+    assert slow == (
+        "implausible for walking: the median speed is 0.20 m/s while steps are detected (walking is 0.5–2.5 m/s)"
+    )
+    (short,) = trust.implausible_walk(np.full(20, 1.3), walking, 5.0, 36.0)
     assert short.startswith("implausible for walking: the path is 5.0 m long, but 36 steps were detected")
     assert trust.implausible_walk(np.full(20, 0.0), np.zeros(20), 0.0, 0.0) == []  # standing: no steps
 
@@ -100,7 +106,8 @@ def test_baselines_and_did_not_learn():
     assert trust.odometry_baseline(0.1, 0.4)["beats_trivial"] is True
     assert trust.odometry_baseline(None, 0.4)["beats_trivial"] is False
     assert trust.did_not_learn({**r, "best_val_vel_mse": 0.5}).startswith(
-        "the model did not learn: its best validation velocity MSE (0.5 (m/s)²) is no better than standing still")
+        "the model did not learn: its best validation velocity MSE (0.5 (m/s)²) is no better than standing still"
+    )
     c = trust.classify_baseline(0.5, np.array([0, 0, 0, 1]), 0, ["walk", "sit"])
     assert c == {"beats_trivial": False, "trivial": "always walk (majority class)", "trivial_accuracy": 0.75}
     assert "no better than always walk (majority class) (0.75)" in trust.did_not_learn({**c, "accuracy": 0.5})
@@ -113,18 +120,25 @@ def test_data_facts_of_simulated_walks():
     assert f["recordings"] == 2 and f["placements"] == ["HD"]
     assert f["devices"]["phone"]["rate_hz"] == [pytest.approx(rec.devices["phone"].rate, abs=0.01)] * 3
     g = np.array(f["devices"]["phone"]["gravity_directions"])
-    assert g.shape == (2 * (len(rec.devices["phone"]) // 400), 3) and np.allclose(np.linalg.norm(g, axis=1), 1.0, atol=2e-3)
+    assert g.shape == (2 * (len(rec.devices["phone"]) // 400), 3) and np.allclose(
+        np.linalg.norm(g, axis=1), 1.0, atol=2e-3
+    )
     json.dumps(f)  # what training.json keeps
 
 
 # ---- the commands ------------------------------------------------------------------------------
 
+
 def _rotate_device(s: DeviceStream, every: int = 1) -> DeviceStream:
     """The stream held another way: device axes permuted (x→z): gravity lies along another axis."""
     perm = [2, 0, 1]
-    return DeviceStream(t=s.t[::every], acc=s.acc[::every][:, perm],
-                        gyro=None if s.gyro is None else s.gyro[::every][:, perm],
-                        quat=None if s.quat is None else s.quat[::every], worn=None if s.worn is None else s.worn[::every])
+    return DeviceStream(
+        t=s.t[::every],
+        acc=s.acc[::every][:, perm],
+        gyro=None if s.gyro is None else s.gyro[::every][:, perm],
+        quat=None if s.quat is None else s.quat[::every],
+        worn=None if s.worn is None else s.worn[::every],
+    )
 
 
 @pytest.fixture(scope="module")
@@ -169,8 +183,11 @@ def test_track_warns_when_the_model_is_out_of_its_depth(odometry_run, tmp_path):
         "use a model trained on recordings like this one, or `--model pdr`",
     ]
     assert lines[:4] == expect
-    assert any(ln.startswith("warning: mine: the model did not learn: its best validation velocity MSE") and
-               ln.endswith("train it longer (more --epochs / --max-time) or use `--model pdr`") for ln in lines)
+    assert any(
+        ln.startswith("warning: mine: the model did not learn: its best validation velocity MSE")
+        and ln.endswith("train it longer (more --epochs / --max-time) or use `--model pdr`")
+        for ln in lines
+    )
     assert any(ln.startswith("warning: mine: implausible for walking: the median speed is") for ln in lines)
     saved = json.loads((tmp_path / "out" / "track.json").read_text())["warnings"]
     assert ["warning: " + w for w in saved] == lines
@@ -221,8 +238,9 @@ def classifier_run(odometry_run):
         w.add(dataclasses.replace(rec, name="a"), split="train")
         w.add(dataclasses.replace(other, name="b"), split="train")
         w.add(dataclasses.replace(other, name="c"), split="test")
-    cfg = ClassifyConfig(model=BASELINE, data=str(root / "har"), label_kind="placement", epochs=1, lr=1e-9,
-                         model_args={"hidden": 8})
+    cfg = ClassifyConfig(
+        model=BASELINE, data=str(root / "har"), label_kind="placement", epochs=1, lr=1e-9, model_args={"hidden": 8}
+    )
     run = prepare_run(cfg, root / "clf")
     metrics = evaluate_run(run, training=fit(cfg, run, progress=False))
     return run, metrics
@@ -235,8 +253,9 @@ def test_classify_warns_outside_its_domain_and_shows_its_labels(classifier_run, 
     assert metrics["beats_trivial"] is False and metrics["accuracy"] <= metrics["trivial_accuracy"]
     assert metrics["trivial"].endswith("(majority class)")
     classes = metrics["classes"]
-    mine = Recording(name="mine", devices={"phone": _rotate_device(rec.devices["phone"], every=4)},
-                     meta={"placement": "waist"})
+    mine = Recording(
+        name="mine", devices={"phone": _rotate_device(rec.devices["phone"], every=4)}, meta={"placement": "waist"}
+    )
     mine.save(tmp_path / "mine.h5")
     r = _wearnav("classify", tmp_path / "mine.h5", "--model", run, "--out", tmp_path / "lab")
     assert r.returncode == 0, r.stderr
@@ -247,7 +266,8 @@ def test_classify_warns_outside_its_domain_and_shows_its_labels(classifier_run, 
         f"warning: mine: the recording's placement is 'waist'; the model's training data had HD and MP: {advice}",
         f"warning: mine: phone is sampled at 25 Hz; the model's training data at 100 Hz: {advice}",
         "warning: mine: phone is held or worn differently from the model's training data: in 100% of the "
-        f"recording its gravity direction is more than 30° from any training window's: {advice}"]
+        f"recording its gravity direction is more than 30° from any training window's: {advice}",
+    ]
     (learned,) = [ln for ln in lines if "did not learn" in ln]
     assert learned.startswith("warning: mine: the model did not learn: its test accuracy (")
     assert learned.endswith("its labels are no better than a constant guess: train it longer (more epochs)")
@@ -263,8 +283,23 @@ def test_train_and_the_report_say_when_a_model_did_not_learn(odometry_run, tmp_p
     root, _, run, _ = odometry_run
     evaluate_run(run, splits=("val",), progress=False)
     assert comparison_table([run], "val")[BEATS_STILL].tolist() == ["NO"]
-    code, out, err = run_cli(monkeypatch, capsys, "train", "ronin", "--data", root / "ds", "--out", tmp_path / "r",
-                             "--devices", "phone", "--epochs", "1", "--lr", "1e-9", "--no-evaluate")
+    code, out, err = run_cli(
+        monkeypatch,
+        capsys,
+        "train",
+        "ronin",
+        "--data",
+        root / "ds",
+        "--out",
+        tmp_path / "r",
+        "--devices",
+        "phone",
+        "--epochs",
+        "1",
+        "--lr",
+        "1e-9",
+        "--no-evaluate",
+    )
     assert code == 0, err
     assert '"beats_trivial": false' in out and "training_data" not in out  # the facts stay in training.json
     (line,) = _warnings(err)

@@ -5,5 +5,4 @@ from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory, make_l
 
 __version__ = "0.1.0"
 
-__all__ = ["Dataset", "DatasetWriter", "DeviceStream", "Fixes", "Recording", "Trajectory",
-           "make_labels", "__version__"]
+__all__ = ["Dataset", "DatasetWriter", "DeviceStream", "Fixes", "Recording", "Trajectory", "make_labels", "__version__"]

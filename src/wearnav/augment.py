@@ -37,6 +37,7 @@ def register(name: str) -> Callable[[Augmentation], Augmentation]:
             raise ConfigError(f"augmentation {name!r} is registered twice")
         AUGMENTATIONS[name] = fn
         return fn
+
     return deco
 
 
@@ -200,8 +201,13 @@ class ExpandedWindows(torch.utils.data.Dataset):
 
         from wearnav.windows import BatchSampler
 
-        return DataLoader(self, batch_size=None, sampler=BatchSampler(len(self), batch, shuffle_seed),
-                          num_workers=0, generator=torch.Generator())
+        return DataLoader(
+            self,
+            batch_size=None,
+            sampler=BatchSampler(len(self), batch, shuffle_seed),
+            num_workers=0,
+            generator=torch.Generator(),
+        )
 
 
 def moving_average(x: np.ndarray, n: int, axis: int = 0) -> np.ndarray:
@@ -228,11 +234,20 @@ def random_rotation_matrices(n: int, generator: torch.Generator) -> torch.Tensor
     q = torch.randn(n, 4, generator=generator, dtype=torch.float64)
     q = q / q.norm(dim=1, keepdim=True)
     w, x, y, z = q.unbind(1)
-    return torch.stack([
-        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-    ], dim=1).reshape(n, 3, 3)
+    return torch.stack(
+        [
+            1 - 2 * (y * y + z * z),
+            2 * (x * y - w * z),
+            2 * (x * z + w * y),
+            2 * (x * y + w * z),
+            1 - 2 * (x * x + z * z),
+            2 * (y * z - w * x),
+            2 * (x * z - w * y),
+            2 * (y * z + w * x),
+            1 - 2 * (x * x + y * y),
+        ],
+        dim=1,
+    ).reshape(n, 3, 3)
 
 
 @register("rotate_random")

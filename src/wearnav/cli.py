@@ -15,15 +15,25 @@ import threading
 import warnings
 from enum import Enum
 from pathlib import Path
-from typing import Optional
 
 import typer
 
 from wearnav.cli_bench import bench_app
+from wearnav.cli_common import (
+    KEPT,
+    NOTHING_KEPT,
+    RECIPE_HELP,
+    ImportFormat,
+    Recipe,
+    choice_value,
+    echo_json,
+    on_interrupt,
+    progress_enabled,
+    split_list,
+    suite_folder,
+)
 from wearnav.cli_live import register as register_live_commands
 from wearnav.cli_models import register as register_model_commands
-from wearnav.cli_common import (KEPT, NOTHING_KEPT, RECIPE_HELP, ImportFormat, Recipe, choice_value, echo_json,
-                                 on_interrupt, progress_enabled, split_list, suite_folder)
 from wearnav.errors import ConfigError, Terminated, ValidationError, WearnavError, WearnavWarning, one_line
 
 app = typer.Typer(
@@ -70,9 +80,13 @@ def simulate(
     out: Path = typer.Option(..., "--out", help="Dataset folder to write."),
     preset: Preset = typer.Option(Preset.small, help="Simulator preset."),
     seed: int = typer.Option(0, min=0, help="Random seed (the dataset is a pure function of preset+seed)."),
-    format_: SimFormat = typer.Option(SimFormat.dataset, "--format", help="sensorlogger: one walk (phone, watch, "
-                                      "earbuds, GPS fixes) as an iPhone's Sensor Logger export, to try `wearnav "
-                                      "track` or `wearnav import sensorlogger` on (--preset is not used)."),
+    format_: SimFormat = typer.Option(
+        SimFormat.dataset,
+        "--format",
+        help="sensorlogger: one walk (phone, watch, "
+        "earbuds, GPS fixes) as an iPhone's Sensor Logger export, to try `wearnav "
+        "track` or `wearnav import sensorlogger` on (--preset is not used).",
+    ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace the dataset that --out already holds."),
 ):
     """Simulate a flexiwear-bodynet dataset (phone, watch, earbuds) with truth and location fixes.
@@ -110,8 +124,9 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
 
     if not path.is_dir():
         if not path.exists() and (path.parent / "manifest.csv").is_file():  # a name the dataset lacks
-            raise ValidationError(f"no such recording; {path.parent} holds "
-                                  f"{Dataset.open(path.parent).names_line()}", path)
+            raise ValidationError(
+                f"no such recording; {path.parent} holds {Dataset.open(path.parent).names_line()}", path
+            )
         rec = Recording.load(path)
         if (stale := needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
             warnings.warn(WearnavWarning(f"{path}: {stale}"))
@@ -122,8 +137,12 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
     summary["names"] = ds.names_line()  # what `wearnav info DATASET/<name>.h5` and `plot --name` can show
     stats = dataset_stats(ds, progress=progress_enabled())
     summary["device_rates"] = {
-        dev: {"rate_hz": round(d["rate_hz"], 2), "jitter_iqr_ms": round(d["jitter_iqr_ms"], 3),
-              "gyro_share": round(d["gyro_share"], 3), "orientation_share": round(d["orientation_share"], 3)}
+        dev: {
+            "rate_hz": round(d["rate_hz"], 2),
+            "jitter_iqr_ms": round(d["jitter_iqr_ms"], 3),
+            "gyro_share": round(d["gyro_share"], 3),
+            "orientation_share": round(d["orientation_share"], 3),
+        }
         for dev, d in stats["devices"].items()
     }
     labels: dict = {}
@@ -133,8 +152,9 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
     summary["truth_points"] = stats["truth_points"]
     summary["fixes"] = stats["fixes"]
     if stats["fix_error_m"]:
-        summary["fix_error_at_truth_m"] = {k: round(v, 3) if isinstance(v, float) else v
-                                           for k, v in stats["fix_error_m"].items()}
+        summary["fix_error_at_truth_m"] = {
+            k: round(v, 3) if isinstance(v, float) else v for k, v in stats["fix_error_m"].items()
+        }
     if stats["needs_reimport"]:
         warnings.warn(WearnavWarning(f"{path}: {stats['needs_reimport']}"))
     echo_json(summary)
@@ -145,9 +165,10 @@ def import_(
     fmt: ImportFormat = typer.Argument(..., metavar="FORMAT", help="The dataset's format (importer)."),
     src: Path = typer.Argument(..., help="The dataset's folder (or file / zip) in its original layout."),
     out: Path = typer.Option(..., "--out", help="Dataset folder to write."),
-    limit: Optional[int] = typer.Option(None, min=0, help="Import at most this many recordings."),
-    platform: Optional[Platform] = typer.Option(None, help="sensorlogger only: for exports without Metadata.csv "
-                                                "(overrides its platform)."),
+    limit: int | None = typer.Option(None, min=0, help="Import at most this many recordings."),
+    platform: Platform | None = typer.Option(
+        None, help="sensorlogger only: for exports without Metadata.csv (overrides its platform)."
+    ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace the dataset that --out already holds."),
 ):
     """Import real recordings into a wearnav dataset folder.
@@ -173,7 +194,7 @@ def import_(
 def plot(
     path: Path = typer.Argument(..., help="A recording (.h5) or a dataset folder (with --name)."),
     out: Path = typer.Option(..., "--out", help="PNG file to write."),
-    name: Optional[str] = typer.Option(None, help="Recording name inside a dataset folder (default: the first)."),
+    name: str | None = typer.Option(None, help="Recording name inside a dataset folder (default: the first)."),
 ):
     """Plot a recording: device acc/gyro norms, label bands, and a map of truth and fixes.
 
@@ -199,18 +220,28 @@ def plot(
 
 @app.command()
 def track(
-    src: Path = typer.Argument(..., metavar="INPUT",
-                               help="A Sensor Logger export (folder or .zip), a recording (.h5), or a dataset folder."),
-    model: Optional[Path] = typer.Option(None, "--model", help="A run folder of `wearnav train`, one of its "
-                                         "checkpoints, a file of `wearnav export` (.onnx, .pt), a shipped model or "
-                                         "an untrained baseline by name (pdr); default: the shipped phone model, or "
-                                         "phone-watch-earbuds where the recording has a watch or earbuds (`wearnav models`)."),
+    src: Path = typer.Argument(
+        ..., metavar="INPUT", help="A Sensor Logger export (folder or .zip), a recording (.h5), or a dataset folder."
+    ),
+    model: Path | None = typer.Option(
+        None,
+        "--model",
+        help="A run folder of `wearnav train`, one of its "
+        "checkpoints, a file of `wearnav export` (.onnx, .pt), a shipped model or "
+        "an untrained baseline by name (pdr); default: the shipped phone model, or "
+        "phone-watch-earbuds where the recording has a watch or earbuds (`wearnav models`).",
+    ),
     out: Path = typer.Option(..., "--out", help="Folder for trajectory.csv / .png / .geojson and track.json."),
-    name: Optional[str] = typer.Option(None, help="Which recording of a dataset folder (or export of a folder of exports)."),
-    platform: Optional[Platform] = typer.Option(None, help="For an export without Metadata.csv."),
-    anchor: Anchor = typer.Option(Anchor.smooth, help="How the path is placed on the recording's location "
-                                  "fixes: smooth (a robust smoother over every fix), rigid (one rotation + "
-                                  "translation over every fix), first-fixes (over the first minute's)."),
+    name: str | None = typer.Option(
+        None, help="Which recording of a dataset folder (or export of a folder of exports)."
+    ),
+    platform: Platform | None = typer.Option(None, help="For an export without Metadata.csv."),
+    anchor: Anchor = typer.Option(
+        Anchor.smooth,
+        help="How the path is placed on the recording's location "
+        "fixes: smooth (a robust smoother over every fix), rigid (one rotation + "
+        "translation over every fix), first-fixes (over the first minute's).",
+    ),
 ):
     """The walking path of one recording: predict, integrate from (0, 0), place it on the location fixes.
 
@@ -221,14 +252,25 @@ def track(
     """
     from wearnav.track import track as track_
 
-    summary = track_(src, model, out, name=name, platform=choice_value(platform), progress=progress_enabled(),
-                     anchor=choice_value(anchor))
+    summary = track_(
+        src,
+        model,
+        out,
+        name=name,
+        platform=choice_value(platform),
+        progress=progress_enabled(),
+        anchor=choice_value(anchor),
+    )
     shipped = f" (shipped model {summary['shipped_model']})" if summary.get("shipped_model") else ""
-    typer.echo(f"model input: {summary['model']}{shipped} on {', '.join(summary['model_devices'])}; used "
-               f"{', '.join(summary['devices_used'])} (frame: {summary['frame']}, reference "
-               f"{summary['frame_reference']})")
-    echo_json({k: summary[k] for k in ("recording", "duration_s", "length_m", "end_xy_m", "files")
-                if k in summary} | {"anchoring": summary.get("anchoring", "no location fixes")})
+    typer.echo(
+        f"model input: {summary['model']}{shipped} on {', '.join(summary['model_devices'])}; used "
+        f"{', '.join(summary['devices_used'])} (frame: {summary['frame']}, reference "
+        f"{summary['frame_reference']})"
+    )
+    echo_json(
+        {k: summary[k] for k in ("recording", "duration_s", "length_m", "end_xy_m", "files") if k in summary}
+        | {"anchoring": summary.get("anchoring", "no location fixes")}
+    )
 
 
 @app.command("datasets-report")
@@ -269,20 +311,33 @@ def train(
     model: str = typer.Argument(..., help="A registered model (see `wearnav models`)."),
     data: Path = typer.Option(..., "--data", help="Dataset folder with truth (e.g. from `wearnav simulate`)."),
     out: Path = typer.Option(..., "--out", help="Run folder to write (resumed if it holds this run)."),
-    devices: Optional[str] = typer.Option(None, help="Device layout, comma-separated (default: the dataset's "
-                                          "devices, phone, watch, earbuds first)."),
+    devices: str | None = typer.Option(
+        None, help="Device layout, comma-separated (default: the dataset's devices, phone, watch, earbuds first)."
+    ),
     epochs: int = typer.Option(100, help="Maximum epochs (early stopping may end sooner)."),
-    seed: int = typer.Option(0, help="Random seed: initial weights, batch order, augmentation (the run's hash includes it)."),
+    seed: int = typer.Option(
+        0, help="Random seed: initial weights, batch order, augmentation (the run's hash includes it)."
+    ),
     recipe: Recipe = typer.Option(Recipe.fast, help=RECIPE_HELP),
-    lr: Optional[float] = typer.Option(None, help="Learning rate (default: the recipe's)."),
-    batch: Optional[int] = typer.Option(None, help="Batch size (default: the model's paper value)."),
+    lr: float | None = typer.Option(None, help="Learning rate (default: the recipe's)."),
+    batch: int | None = typer.Option(None, help="Batch size (default: the model's paper value)."),
     patience: int = typer.Option(10, help="Early-stopping patience in epochs."),
-    max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes of the run (over resumes too)."),
+    max_time: float | None = typer.Option(
+        None, "--max-time", help="Total training minutes of the run (over resumes too)."
+    ),
     evaluate: bool = typer.Option(True, help="Evaluate on the test split afterwards."),
-    num_devices: int = typer.Option(1, "--num-devices", min=1, help="GPUs (or, without one, CPU processes) that "
-                                    "train at once, each on its share of every batch (not the sensor --devices)."),
-    strategy: Strategy = typer.Option(Strategy.auto, help="ddp: one process per device (Lightning re-runs this "
-                                      "command in each). The run and its folder are the same on any number."),
+    num_devices: int = typer.Option(
+        1,
+        "--num-devices",
+        min=1,
+        help="GPUs (or, without one, CPU processes) that "
+        "train at once, each on its share of every batch (not the sensor --devices).",
+    ),
+    strategy: Strategy = typer.Option(
+        Strategy.auto,
+        help="ddp: one process per device (Lightning re-runs this "
+        "command in each). The run and its folder are the same on any number.",
+    ),
 ):
     """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json).
 
@@ -295,9 +350,19 @@ def train(
     from wearnav.train.odometry import configure, fit, prepare_run
     from wearnav.trust import LEARN_ADVICE, did_not_learn
 
-    cfg, eval_splits, notes = configure(model, data, split_list(devices) if devices is not None else None,
-                                        ("test",) if evaluate else (), epochs=epochs, seed=seed, lr=lr, recipe=recipe.value,
-                                        batch=batch, patience=patience, max_minutes=max_time)
+    cfg, eval_splits, notes = configure(
+        model,
+        data,
+        split_list(devices) if devices is not None else None,
+        ("test",) if evaluate else (),
+        epochs=epochs,
+        seed=seed,
+        lr=lr,
+        recipe=recipe.value,
+        batch=batch,
+        patience=patience,
+        max_minutes=max_time,
+    )
     run = prepare_run(cfg, out, eval_splits=eval_splits)
     for note in notes:  # what the data decided (devices, truth gaps, validation, no test split)
         typer.echo(note, err=True)
@@ -316,13 +381,18 @@ def train(
 @app.command("eval")
 def eval_(
     run: Path = typer.Argument(..., help="A run folder written by `wearnav train`."),
-    data: Optional[Path] = typer.Option(None, "--data", help="Dataset to evaluate on (default: the training data)."),
+    data: Path | None = typer.Option(None, "--data", help="Dataset to evaluate on (default: the training data)."),
     split: str = typer.Option("test", help="Split(s) to evaluate, comma-separated."),
-    test_frame: Optional[TestFrame] = typer.Option(None, "--test-frame", help="initial (default, the run's "
-                                                   "own): one constant yaw from the first 10 s of truth; truth: "
-                                                   "the truth's yaw over time, a diagnostic (needs --out)."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Write metrics.json, trajectories/ and plots/ here "
-                                       "instead of the run folder."),
+    test_frame: TestFrame | None = typer.Option(
+        None,
+        "--test-frame",
+        help="initial (default, the run's "
+        "own): one constant yaw from the first 10 s of truth; truth: "
+        "the truth's yaw over time, a diagnostic (needs --out).",
+    ),
+    out: Path | None = typer.Option(
+        None, "--out", help="Write metrics.json, trajectories/ and plots/ here instead of the run folder."
+    ),
 ):
     """Evaluate a run: metrics.json, trajectories/*.csv and plots (trajectories, error CDF, ATE box).
 
@@ -333,8 +403,10 @@ def eval_(
     from wearnav.evaluate import evaluate_run
 
     if test_frame == TestFrame.truth and out is None:
-        raise ConfigError("--test-frame truth is a diagnostic (ground truth inside the test input); "
-                          "give --out so that the run's own metrics stay honest")
+        raise ConfigError(
+            "--test-frame truth is a diagnostic (ground truth inside the test input); "
+            "give --out so that the run's own metrics stay honest"
+        )
     dest = out if out is not None else run
     on_interrupt(f"{dest / 'metrics.json'} is written only when every split is scored; run the same command again")
     pre = {"eval_frame_align": test_frame.value} if test_frame is not None else None
@@ -343,12 +415,18 @@ def eval_(
     typer.echo(f"wrote {dest / 'metrics.json'} and {dest / 'plots'}")
 
 
-@app.command("label-from-fixes", short_help="Label IMU segments by the phone's location fixes (EasyTrack); "
-                                             "their noise where truth is known.")
+@app.command(
+    "label-from-fixes",
+    short_help="Label IMU segments by the phone's location fixes (EasyTrack); their noise where truth is known.",
+)
 def label_from_fixes(
     dataset: Path = typer.Argument(..., help="A dataset folder whose recordings have phone IMU and location fixes."),
-    out: Path = typer.Option(..., "--out", help="Folder for segments.npz, label_noise.json and, where the recordings "
-                             "have dense truth, label_noise_cdf.png."),
+    out: Path = typer.Option(
+        ...,
+        "--out",
+        help="Folder for segments.npz, label_noise.json and, where the recordings "
+        "have dense truth, label_noise_cdf.png.",
+    ),
     segment: float = typer.Option(1.0, "--segment", help="Segment length, seconds (between fix times)."),
     rate: float = typer.Option(25.0, help="IMU rate of the segments, Hz."),
 ):
@@ -373,19 +451,27 @@ def label_from_fixes(
     for name in ("segments.npz", "label_noise.json") + (("label_noise_cdf.png",) if png else ()):
         typer.echo(str(out / name))
     median = summary["label_noise_median_cm"]
-    noise = (f"median label noise {median} cm" if median is not None else
-             "label noise not measured: the recordings have no dense truth to compare the labels with "
-             "(so no label_noise_cdf.png)")
+    noise = (
+        f"median label noise {median} cm"
+        if median is not None
+        else "label noise not measured: the recordings have no dense truth to compare the labels with "
+        "(so no label_noise_cdf.png)"
+    )
     typer.echo(f"{summary['segments']} segments, {summary['length_km']} km; {noise}")
 
 
 @app.command("classify")
 def classify_(
-    input_: Path = typer.Argument(..., metavar="INPUT",
-                                  help="A recording (.h5), a dataset folder, or a Sensor Logger export (folder or zip)."),
-    model: Optional[Path] = typer.Option(None, "--model", help="A classifier run folder (from `wearnav bench har`) "
-                                         "or its file of `wearnav export` (.onnx, .pt); default: the shipped activity "
-                                         "model (`wearnav models`)."),
+    input_: Path = typer.Argument(
+        ..., metavar="INPUT", help="A recording (.h5), a dataset folder, or a Sensor Logger export (folder or zip)."
+    ),
+    model: Path | None = typer.Option(
+        None,
+        "--model",
+        help="A classifier run folder (from `wearnav bench har`) "
+        "or its file of `wearnav export` (.onnx, .pt); default: the shipped activity "
+        "model (`wearnav models`).",
+    ),
     out: Path = typer.Option(..., "--out", help="Folder for <name>_intervals.csv and <name>_timeline.png."),
 ):
     """Label a recording's activity (or placement) per window: intervals CSV + timeline PNG over |acc|.
@@ -395,9 +481,9 @@ def classify_(
       wearnav classify my_walk.zip --out activity
       wearnav classify data/sim --model runs/har/runs/uci-hapt/baseline --out activity
     """
+    from wearnav.pretrained import model_path
     from wearnav.recording import Recording
     from wearnav.train.classify import label_recordings
-    from wearnav.pretrained import model_path
     from wearnav.train.resolve import resolve_model
 
     model = model_path(model, "classify")  # a shipped model's folder where none is given or one is named
@@ -420,12 +506,19 @@ def classify_(
 
 @app.command("results")
 def results_(
-    suites: Optional[list[Path]] = typer.Argument(None, help="Suite folders, each holding a generated results.md "
-                                                  "(none with --keep: the page's sections rebuilt as they are)."),
+    suites: list[Path] | None = typer.Argument(
+        None,
+        help="Suite folders, each holding a generated results.md "
+        "(none with --keep: the page's sections rebuilt as they are).",
+    ),
     out: Path = typer.Option(Path("docs/results.md"), "--out", help="The page to write."),
     keep: bool = typer.Option(False, "--keep", help="Keep the page's other suites' sections (update suite by suite)."),
-    drop: Optional[list[str]] = typer.Option(None, "--drop", help="With --keep: remove this suite's kept sections "
-                                             "(a suite folder name, or an unmarked section's heading; repeatable)."),
+    drop: list[str] | None = typer.Option(
+        None,
+        "--drop",
+        help="With --keep: remove this suite's kept sections "
+        "(a suite folder name, or an unmarked section's heading; repeatable).",
+    ),
 ):
     """Stitch the suites' generated pages into one results page (figures copied to its img/).
 
@@ -446,9 +539,9 @@ def realism(
     out: Path = typer.Option(Path("docs/realism.md"), help="Markdown file to write (PNGs go to its img/)."),
     work: Path = typer.Option(Path("runs/realism"), help="Where the real calibration subsets are imported."),
     n_sim: int = typer.Option(12, help="Simulated walks (walkers) per placement."),
-    limit: Optional[int] = typer.Option(None, help="At most this many recordings per real source."),
-    before: Optional[Path] = typer.Option(None, help="An earlier realism JSON to show beside this one."),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="JSON to write (default: OUT with .json)."),
+    limit: int | None = typer.Option(None, help="At most this many recordings per real source."),
+    before: Path | None = typer.Option(None, help="An earlier realism JSON to show beside this one."),
+    json_out: Path | None = typer.Option(None, "--json", help="JSON to write (default: OUT with .json)."),
     seed: int = typer.Option(0, help="Random seed of the simulated walks."),
 ):
     """Compare simulated walking with real recordings, device by device and placement by placement.
@@ -460,8 +553,9 @@ def realism(
     from wearnav.realism import realism_report
 
     on_interrupt(f"subsets imported so far are kept in {work}; run the same command again")
-    realism_report(data, out, work, n_sim=n_sim, limit=limit, seed=seed, before=before,
-                   json_out=json_out, progress=True)
+    realism_report(
+        data, out, work, n_sim=n_sim, limit=limit, seed=seed, before=before, json_out=json_out, progress=True
+    )
     typer.echo(str(out))
 
 
@@ -477,10 +571,16 @@ def demo(
     out: Path = typer.Option(Path("runs/demo"), "--out", help="Folder for the demo's outputs."),
     seed: int = typer.Option(0, min=0, help="Random seed: the simulated data and every model's training."),
     models: str = typer.Option("suitein++,ronin,pdr", help="Models to compare, comma-separated."),
-    epochs: int = typer.Option(DEMO_EPOCHS, min=1, help="Training epochs per learned model (a fixed count, so "
-                               "the figures are the same on a fast or a busy machine)."),
-    minutes: Optional[float] = typer.Option(None, help="Also stop a model's training after this many minutes "
-                                            "(its figures then depend on the machine's speed)."),
+    epochs: int = typer.Option(
+        DEMO_EPOCHS,
+        min=1,
+        help="Training epochs per learned model (a fixed count, so "
+        "the figures are the same on a fast or a busy machine).",
+    ),
+    minutes: float | None = typer.Option(
+        None,
+        help="Also stop a model's training after this many minutes (its figures then depend on the machine's speed).",
+    ),
     preset: Preset = typer.Option(Preset.small, hidden=True, help="Simulator preset (tests: tiny)."),
 ):
     """The main job on built-in data: simulate the small preset, train and compare odometry models,
@@ -496,8 +596,16 @@ def demo(
     models_ = split_list(models)
     check_models(models_, "odometry")  # before anything is written
     suite_folder(out, "demo")
-    page, tables = run_demo(out, models_, epochs, seed=seed, minutes=minutes, preset=preset.value,
-                            progress=progress_enabled(), echo=typer.echo)
+    page, tables = run_demo(
+        out,
+        models_,
+        epochs,
+        seed=seed,
+        minutes=minutes,
+        preset=preset.value,
+        progress=progress_enabled(),
+        echo=typer.echo,
+    )
     for split, table in tables.items():
         typer.echo(f"\n{split} (metres):")
         typer.echo(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
@@ -585,12 +693,17 @@ def _main() -> None:
         except OSError as exc:
             _fail(_os_error_line(exc), 2)
         except (Terminated, KeyboardInterrupt) as exc:
-            _fail(("interrupted" if isinstance(exc, KeyboardInterrupt) else "terminated (SIGTERM)")
-                  + f"; {KEPT['line']}", 130 if isinstance(exc, KeyboardInterrupt) else 143)
+            _fail(
+                ("interrupted" if isinstance(exc, KeyboardInterrupt) else "terminated (SIGTERM)") + f"; {KEPT['line']}",
+                130 if isinstance(exc, KeyboardInterrupt) else 143,
+            )
         except Exception as exc:
             if os.environ.get("WEARNAV_DEBUG"):
                 raise
-            _fail(f"internal error ({exc.__class__.__name__}: {exc}); this is a bug in wearnav, "
-                  "please report it with the command you ran (WEARNAV_DEBUG=1 shows the traceback)", 1)
+            _fail(
+                f"internal error ({exc.__class__.__name__}: {exc}); this is a bug in wearnav, "
+                "please report it with the command you ran (WEARNAV_DEBUG=1 shows the traceback)",
+                1,
+            )
         if isinstance(code, int) and code:  # typer turns Ctrl-C into exit code 130
             _fail(f"interrupted; {KEPT['line']}" if code == 130 else f"exit code {code}", code)

@@ -6,13 +6,19 @@ from __future__ import annotations
 import os
 from enum import Enum
 from pathlib import Path
-from typing import Optional
 
 import typer
 
 from wearnav.bench.executor import Backend
-from wearnav.cli_common import (RECIPE_HELP, ImportFormat, Recipe, choice_value, progress_enabled, split_list,
-                                suite_folder)
+from wearnav.cli_common import (
+    RECIPE_HELP,
+    ImportFormat,
+    Recipe,
+    choice_value,
+    progress_enabled,
+    split_list,
+    suite_folder,
+)
 
 
 class Clock(str, Enum):  # wearnav.bench.efficiency.CLOCKS
@@ -26,11 +32,13 @@ bench_app = typer.Typer(help="The papers' experiments as resumable suites of run
 JOBS_HELP = "Runs at once in local processes (1: one after another in this process)."
 EXECUTOR_HELP = "local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav[cluster]')."
 SEED_HELP = "Random seed of every run (its weights, batch order and augmentation; part of the run's hash)."
-ADDRESS_HELP = ("With --executor ray: the cluster to join (host:port, or 'auto': the one `ray start` joined here); "
-                "default: $RAY_ADDRESS or that cluster if there is one, else a new Ray on this machine.")
+ADDRESS_HELP = (
+    "With --executor ray: the cluster to join (host:port, or 'auto': the one `ray start` joined here); "
+    "default: $RAY_ADDRESS or that cluster if there is one, else a new Ray on this machine."
+)
 
 
-def _execution(jobs: int, executor: Backend, address: Optional[str], threads: Optional[int] = None):
+def _execution(jobs: int, executor: Backend, address: str | None, threads: int | None = None):
     from wearnav.bench.executor import Execution
 
     return Execution(jobs=jobs, backend=executor, address=address, threads=threads)
@@ -45,21 +53,32 @@ class Grid(str, Enum):  # wearnav.bench.odometry.GRIDS
 def bench_odometry(
     data: Path = typer.Option(..., "--data", help="Simulated dataset (e.g. `wearnav simulate --preset default`)."),
     out: Path = typer.Option(Path("runs/odometry"), "--out", help="Suite folder (run folders + results.md)."),
-    grid: Optional[Grid] = typer.Option(None, help="Named model grid: default (suitein++, suitein, ronin, ronin*, pdr; "
-                                        "the default) or paper (every model of Tables III–V; wearnav.bench.odometry.GRIDS)."),
-    models: Optional[str] = typer.Option(None, help="Models, comma-separated, instead of --grid."),
-    seeds: str = typer.Option("0", help="Training seeds, comma-separated (e.g. 0,1,2): one run per model and seed; "
-                                        "each is part of its run's hash."),
+    grid: Grid | None = typer.Option(
+        None,
+        help="Named model grid: default (suitein++, suitein, ronin, ronin*, pdr; "
+        "the default) or paper (every model of Tables III–V; wearnav.bench.odometry.GRIDS).",
+    ),
+    models: str | None = typer.Option(None, help="Models, comma-separated, instead of --grid."),
+    seeds: str = typer.Option(
+        "0",
+        help="Training seeds, comma-separated (e.g. 0,1,2): one run per model and seed; "
+        "each is part of its run's hash.",
+    ),
     epochs: int = typer.Option(100, help="Maximum epochs per model (the same budget for every model)."),
     patience: int = typer.Option(10, min=1, help="Early stopping: epochs without a better validation loss."),
-    max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
+    max_time: float | None = typer.Option(
+        None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."
+    ),
     recipe: Recipe = typer.Option(Recipe.fast, help=RECIPE_HELP),
-    lr: Optional[float] = typer.Option(None, help="Learning rate for every model (default: the recipe's)."),
+    lr: float | None = typer.Option(None, help="Learning rate for every model (default: the recipe's)."),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
-    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
-    report_only: bool = typer.Option(False, "--report-only", help="Train nothing: write the page from the runs "
-                                     "already complete (\"n of N seeds\" where a row is unfinished)."),
+    address: str | None = typer.Option(None, help=ADDRESS_HELP),
+    report_only: bool = typer.Option(
+        False,
+        "--report-only",
+        help='Train nothing: write the page from the runs already complete ("n of N seeds" where a row is unfinished).',
+    ),
 ):
     """Train and evaluate the odometry comparison, every model × seed; complete runs are skipped
     (the suite resumes). The page: Suite-IN++ Tables III–VI (mean ± std over seeds) and Figs. 7, 11.
@@ -82,55 +101,90 @@ def bench_odometry(
         raise ConfigError("give --models or --grid, not both")
     grid = grid or Grid.default
     entries = list(split_list(models)) if models else GRIDS[grid.value]
-    configs = suite_configs(data, entries, seeds=seed_list, epochs=epochs, patience=patience,
-                            max_minutes=max_time, lr=lr, recipe=recipe.value)
+    configs = suite_configs(
+        data,
+        entries,
+        seeds=seed_list,
+        epochs=epochs,
+        patience=patience,
+        max_minutes=max_time,
+        lr=lr,
+        recipe=recipe.value,
+    )
     suite_folder(out, "bench odometry")
     if report_only:
         folders = [run_folder(out, c) for c in configs]
     else:
-        folders = run_suite(configs, out, progress=progress_enabled(), echo=typer.echo,
-                            execution=_execution(jobs, executor, address))
+        folders = run_suite(
+            configs, out, progress=progress_enabled(), echo=typer.echo, execution=_execution(jobs, executor, address)
+        )
     from wearnav.dataset import Dataset
 
     prov = Dataset.open(data).provenance
-    made = (f"simulator preset `{prov['preset']['name'] if isinstance(prov.get('preset'), dict) else prov.get('preset')}`, "
-            f"seed {prov.get('seed')}, wearnav commit {prov.get('commit')}" if prov.get("generator") == "wearnav.simulate"
-            else f"imported by {prov.get('importer', prov.get('generator', '?'))}")
+    made = (
+        f"simulator preset `{prov['preset']['name'] if isinstance(prov.get('preset'), dict) else prov.get('preset')}`, "
+        f"seed {prov.get('seed')}, wearnav commit {prov.get('commit')}"
+        if prov.get("generator") == "wearnav.simulate"
+        else f"imported by {prov.get('importer', prov.get('generator', '?'))}"
+    )
     import platform
 
     from wearnav.fileio import shown_path
 
-    note = (f"Data: `{shown_path(data)}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
-            f"{__import__('torch').__version__}, shared with other work while it ran. Grid: "
-            + (f"--models {models}" if models else f"`{grid.value}`") + f", seeds {seeds}; at most {epochs} epochs "
-            f"per run, patience {patience}"
-            + (f", {max_time:g} min of training per run (a run given more time resumes from its last "
-               "checkpoint: attempts > 1)" if max_time else "")
-            + f", recipe `{recipe.value}`" + (f", Adam lr {lr:g} for every model" if lr else "") + ".")
+    note = (
+        f"Data: `{shown_path(data)}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
+        f"{__import__('torch').__version__}, shared with other work while it ran. Grid: "
+        + (f"--models {models}" if models else f"`{grid.value}`")
+        + f", seeds {seeds}; at most {epochs} epochs "
+        f"per run, patience {patience}"
+        + (
+            f", {max_time:g} min of training per run (a run given more time resumes from its last "
+            "checkpoint: attempts > 1)"
+            if max_time
+            else ""
+        )
+        + f", recipe `{recipe.value}`"
+        + (f", Adam lr {lr:g} for every model" if lr else "")
+        + "."
+    )
     page = write_grid_report(folders, out, expected_seeds=len(seed_list), note=note)
     typer.echo(f"wrote {page}")
 
 
 @bench_app.command("real-odometry")
 def bench_real_odometry(
-    data: Path = typer.Option(..., "--data", help="A real building: an imported dataset folder, or its original files with --format."),
+    data: Path = typer.Option(
+        ..., "--data", help="A real building: an imported dataset folder, or its original files with --format."
+    ),
     out: Path = typer.Option(Path("runs/real"), "--out", help="Suite folder (split data, run folders, results.md)."),
-    format_: Optional[ImportFormat] = typer.Option(None, "--format", help="Importer for --data when it is not imported yet."),
-    test_data: Optional[Path] = typer.Option(None, "--test-data", help="Another building to test on (never trained on)."),
-    test_format: Optional[ImportFormat] = typer.Option(None, "--test-format", help="Importer for --test-data."),
-    group_by: Optional[str] = typer.Option(None, help="Meta key that groups recordings by place (default per source: ilc2 floor_name, ipin2023 trial)."),
-    test_groups: Optional[str] = typer.Option(None, help="Held-out groups, comma-separated (default per source: ilc2 F2,F4; ipin2023 4,24,52)."),
-    test_group_by: Optional[str] = typer.Option(None, help="--group-by for --test-data."),
-    test_test_groups: Optional[str] = typer.Option(None, help="--test-groups for --test-data."),
-    train_data: Optional[Path] = typer.Option(None, "--train-data", help="Train the learned models on this dataset instead: the simulator (sim-to-real) or a mix of sources (wearnav.pretrained.mix)."),
+    format_: ImportFormat | None = typer.Option(
+        None, "--format", help="Importer for --data when it is not imported yet."
+    ),
+    test_data: Path | None = typer.Option(None, "--test-data", help="Another building to test on (never trained on)."),
+    test_format: ImportFormat | None = typer.Option(None, "--test-format", help="Importer for --test-data."),
+    group_by: str | None = typer.Option(
+        None, help="Meta key that groups recordings by place (default per source: ilc2 floor_name, ipin2023 trial)."
+    ),
+    test_groups: str | None = typer.Option(
+        None, help="Held-out groups, comma-separated (default per source: ilc2 F2,F4; ipin2023 4,24,52)."
+    ),
+    test_group_by: str | None = typer.Option(None, help="--group-by for --test-data."),
+    test_test_groups: str | None = typer.Option(None, help="--test-groups for --test-data."),
+    train_data: Path | None = typer.Option(
+        None,
+        "--train-data",
+        help="Train the learned models on this dataset instead: the simulator (sim-to-real) or a mix of sources (wearnav.pretrained.mix).",
+    ),
     models: str = typer.Option("ronin,suitein++,pdr", help="Models, comma-separated (phone only)."),
     epochs: int = typer.Option(100, min=1, help="Maximum epochs per model."),
-    max_time: Optional[float] = typer.Option(None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."),
+    max_time: float | None = typer.Option(
+        None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."
+    ),
     lr: float = typer.Option(1e-3, help="Adam learning rate for every learned model."),
     seed: int = typer.Option(0, min=0, help=SEED_HELP),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
-    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
+    address: str | None = typer.Option(None, help=ADDRESS_HELP),
 ):
     """Phone-only odometry trained on some floors/routes of a real building, scored at the surveyed
     points of held-out ones (and of another building); PDR and the raw phone fixes beside them.
@@ -142,12 +196,29 @@ def bench_real_odometry(
     from wearnav.bench.real import RealBench, run_benchmark
 
     suite_folder(out, "bench real-odometry")
-    bench = RealBench(models=split_list(models), epochs=epochs, max_minutes=max_time, seed=seed, lr=lr,
-                      train_data=str(train_data) if train_data else None)
-    page = run_benchmark(data, out, test_data, choice_value(format_), choice_value(test_format), group_by,
-                         split_list(test_groups) if test_groups else None, test_group_by,
-                         split_list(test_test_groups) if test_test_groups else None, bench,
-                         progress=progress_enabled(), echo=typer.echo, execution=_execution(jobs, executor, address))
+    bench = RealBench(
+        models=split_list(models),
+        epochs=epochs,
+        max_minutes=max_time,
+        seed=seed,
+        lr=lr,
+        train_data=str(train_data) if train_data else None,
+    )
+    page = run_benchmark(
+        data,
+        out,
+        test_data,
+        choice_value(format_),
+        choice_value(test_format),
+        group_by,
+        split_list(test_groups) if test_groups else None,
+        test_group_by,
+        split_list(test_test_groups) if test_test_groups else None,
+        bench,
+        progress=progress_enabled(),
+        echo=typer.echo,
+        execution=_execution(jobs, executor, address),
+    )
     typer.echo(f"wrote {page}")
 
 
@@ -155,11 +226,12 @@ def bench_real_odometry(
 def bench_efficiency(
     out: Path = typer.Option(Path("runs/efficiency"), "--out", help="Folder for results.md / results.json."),
     models: str = typer.Option("suitein++,suitein,ronin,ronin*,pdr", help="Models, comma-separated."),
-    threads: Optional[int] = typer.Option(None, min=1, help="Intra-op threads (default: torch's)."),
-    clock: Clock = typer.Option(Clock.wall, help="cpu: the process's CPU time (steadier on a shared machine "
-                                "with 1 thread)."),
+    threads: int | None = typer.Option(None, min=1, help="Intra-op threads (default: torch's)."),
+    clock: Clock = typer.Option(
+        Clock.wall, help="cpu: the process's CPU time (steadier on a shared machine with 1 thread)."
+    ),
     min_run_time: float = typer.Option(0.2, min=0.001, help="Seconds each timing runs (torch's blocked_autorange)."),
-    odometry_suite: Optional[Path] = typer.Option(None, help="Odometry suite folder: adds its training s/epoch."),
+    odometry_suite: Path | None = typer.Option(None, help="Odometry suite folder: adds its training s/epoch."),
 ):
     """Parameters, FLOPs per window, inference windows/s at batch 1 and 256, fraction of the FLOP-bound limit.
 
@@ -169,7 +241,6 @@ def bench_efficiency(
     """
     from wearnav.bench.efficiency import measure, write_report
     from wearnav.models.registry import check_models
-
     from wearnav.outputs import check_suite_folder
 
     check_suite_folder(out, "bench efficiency")  # its page is written at the end: nothing kept before
@@ -184,12 +255,19 @@ def bench_efficiency(
 def bench_fusion(
     data: Path = typer.Option(..., "--data", help="A simulated dataset (`wearnav simulate`): dense truth and fixes."),
     out: Path = typer.Option(Path("runs/fusion"), "--out", help="Folder for results.md / results.json."),
-    model: str = typer.Option("pdr", help="The odometry: an untrained baseline (pdr), a shipped model (phone) "
-                              "or a phone-only run folder."),
-    split: Optional[str] = typer.Option(None, help="One split of --data (default: every recording but the "
-                                        "training walks, which calibrate the smoother)."),
-    live_min: float = typer.Option(0.0, "--live-min", min=0.0, help="Also time the live receiver's fixed-lag "
-                                   "smoother on one simulated walk this long (minutes; 0: not)."),
+    model: str = typer.Option(
+        "pdr", help="The odometry: an untrained baseline (pdr), a shipped model (phone) or a phone-only run folder."
+    ),
+    split: str | None = typer.Option(
+        None,
+        help="One split of --data (default: every recording but the training walks, which calibrate the smoother).",
+    ),
+    live_min: float = typer.Option(
+        0.0,
+        "--live-min",
+        min=0.0,
+        help="Also time the live receiver's fixed-lag smoother on one simulated walk this long (minutes; 0: not).",
+    ),
 ):
     """Odometry alone, fixes alone and the smoother against the simulator's truth, per walking mode,
     the smoother's seconds per hour of walk, and (--live-min) the fixed-lag smoother's time per update.
@@ -208,20 +286,25 @@ def bench_fusion(
 
 # ---- activity / placement recognition (issue 9, paper 002) ------------------------------------
 
+
 @bench_app.command("har")
 def bench_har(
     out: Path = typer.Option(Path("runs/har"), "--out", help="Suite folder (imported data, run folders, results.md)."),
     data: Path = typer.Option(Path("../shared/data"), "--data", help="Folder holding the public datasets."),
-    datasets: Optional[str] = typer.Option(None, help="Datasets, comma-separated (default: all; --quick: uci-hapt)."),
-    seeds: Optional[int] = typer.Option(None, min=1, help="Seeds per technique (default 3; --quick 1)."),
+    datasets: str | None = typer.Option(None, help="Datasets, comma-separated (default: all; --quick: uci-hapt)."),
+    seeds: int | None = typer.Option(None, min=1, help="Seeds per technique (default 3; --quick 1)."),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
-    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
-    epochs: Optional[int] = typer.Option(None, min=1, help="Epochs per run (default 30; --quick 1)."),
-    steps: Optional[int] = typer.Option(None, min=1, help="Instead of --epochs: each dataset's epochs give the "
-                                        "baseline about this many gradient steps (expanded sets the same epochs)."),
-    techniques: Optional[str] = typer.Option(None, help="Techniques, comma-separated (default: all applicable)."),
-    max_time: Optional[float] = typer.Option(None, "--max-time", help="Minutes of training per run (not hashed)."),
+    address: str | None = typer.Option(None, help=ADDRESS_HELP),
+    epochs: int | None = typer.Option(None, min=1, help="Epochs per run (default 30; --quick 1)."),
+    steps: int | None = typer.Option(
+        None,
+        min=1,
+        help="Instead of --epochs: each dataset's epochs give the "
+        "baseline about this many gradient steps (expanded sets the same epochs).",
+    ),
+    techniques: str | None = typer.Option(None, help="Techniques, comma-separated (default: all applicable)."),
+    max_time: float | None = typer.Option(None, "--max-time", help="Minutes of training per run (not hashed)."),
     quick: bool = typer.Option(False, "--quick", help="A tiny subset and 1 epoch: checks the pipeline only."),
     threads: int = typer.Option(1, min=1, help="Torch intra-op threads per run (1 is fastest for this small model)."),
 ):
@@ -234,9 +317,19 @@ def bench_har(
     from wearnav.bench.har import run_benchmark
 
     suite_folder(out, "bench har")
-    page = run_benchmark(data, out, split_list(datasets) if datasets else None, seeds or (1 if quick else 3),
-                         _execution(jobs, executor, address, threads), quick, epochs,
-                         split_list(techniques) if techniques else None, max_time, echo=typer.echo, steps=steps)
+    page = run_benchmark(
+        data,
+        out,
+        split_list(datasets) if datasets else None,
+        seeds or (1 if quick else 3),
+        _execution(jobs, executor, address, threads),
+        quick,
+        epochs,
+        split_list(techniques) if techniques else None,
+        max_time,
+        echo=typer.echo,
+        steps=steps,
+    )
     typer.echo(f"wrote {page}")
 
 
@@ -247,22 +340,32 @@ def bench_easytrack(
     seeds: int = typer.Option(1, min=1, help="Seeds per method and level."),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
-    address: Optional[str] = typer.Option(None, help=ADDRESS_HELP),
-    data: Optional[Path] = typer.Option(None, "--data", help="Real dataset (wearnav folder: phone IMU, fixes, sparse "
-                                        "truth), e.g. an `wearnav import ipin2023` output."),
-    test_routes: Optional[str] = typer.Option(None, "--test-routes",
-                                              help="Regex: recordings of --data held out for testing, the rest "
-                                              "train (default: the dataset's `test` split, else IPIN's "
-                                              "Trial(04|24|52)_, the real-odometry test trials)."),
-    km: Optional[float] = typer.Option(None, help="Simulated walking per noise level, km (default 3; --quick 0.25)."),
-    joint_epochs: Optional[int] = typer.Option(None, "--joint-epochs", help="Joint epochs (paper 190; default 30)."),
-    ae_epochs: Optional[int] = typer.Option(None, "--ae-epochs", help="Auto-encoder pre-training epochs (paper 5)."),
-    pre_epochs: Optional[int] = typer.Option(None, "--pre-epochs", help="Per-model pre-training epochs (paper 5)."),
-    stride: Optional[float] = typer.Option(None, "--stride", help="Start a 1-s segment every STRIDE s (0.2: ~5 "
-                                           "overlapping segments per second, as the paper's Table I counts; "
-                                           "default: back to back)."),
-    levels: Optional[str] = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),
-    methods: Optional[str] = typer.Option(None, help="Methods, comma-separated (default: all)."),
+    address: str | None = typer.Option(None, help=ADDRESS_HELP),
+    data: Path | None = typer.Option(
+        None,
+        "--data",
+        help="Real dataset (wearnav folder: phone IMU, fixes, sparse truth), e.g. an `wearnav import ipin2023` output.",
+    ),
+    test_routes: str | None = typer.Option(
+        None,
+        "--test-routes",
+        help="Regex: recordings of --data held out for testing, the rest "
+        "train (default: the dataset's `test` split, else IPIN's "
+        "Trial(04|24|52)_, the real-odometry test trials).",
+    ),
+    km: float | None = typer.Option(None, help="Simulated walking per noise level, km (default 3; --quick 0.25)."),
+    joint_epochs: int | None = typer.Option(None, "--joint-epochs", help="Joint epochs (paper 190; default 30)."),
+    ae_epochs: int | None = typer.Option(None, "--ae-epochs", help="Auto-encoder pre-training epochs (paper 5)."),
+    pre_epochs: int | None = typer.Option(None, "--pre-epochs", help="Per-model pre-training epochs (paper 5)."),
+    stride: float | None = typer.Option(
+        None,
+        "--stride",
+        help="Start a 1-s segment every STRIDE s (0.2: ~5 "
+        "overlapping segments per second, as the paper's Table I counts; "
+        "default: back to back).",
+    ),
+    levels: str | None = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),
+    methods: str | None = typer.Option(None, help="Methods, comma-separated (default: all)."),
 ):
     """EasyTrack (paper 004): methods × noise levels on simulated phone labels, and a real GNSS test.
 
@@ -279,22 +382,36 @@ def bench_easytrack(
     changes = {}
     if km is not None:
         changes["km"] = km
-    for key, value in (("joint_epochs", joint_epochs), ("ae_epochs", ae_epochs), ("pre_epochs", pre_epochs),
-                       ("stride_s", stride)):
+    for key, value in (
+        ("joint_epochs", joint_epochs),
+        ("ae_epochs", ae_epochs),
+        ("pre_epochs", pre_epochs),
+        ("stride_s", stride),
+    ):
         if value is not None:
             changes[key] = value
     if levels:
         changes["levels"] = tuple(split_list(levels))
     if methods:
         changes["methods"] = tuple(split_list(methods))
-    page = run_benchmark(out, quick, seeds, _execution(jobs, executor, address), data, test_routes,
-                         _dc.replace(bc, **changes), echo=typer.echo)
+    page = run_benchmark(
+        out,
+        quick,
+        seeds,
+        _execution(jobs, executor, address),
+        data,
+        test_routes,
+        _dc.replace(bc, **changes),
+        echo=typer.echo,
+    )
     typer.echo(f"wrote {page}")
 
 
 @bench_app.command("easytrack-base")
 def bench_easytrack_base(
-    out: Path = typer.Option(Path("runs/easytrack-base"), "--out", help="Suite folder (data, run folders, results.md)."),
+    out: Path = typer.Option(
+        Path("runs/easytrack-base"), "--out", help="Suite folder (data, run folders, results.md)."
+    ),
     km: float = typer.Option(8.5, help="Simulated L1 walking, km."),
     joint_epochs: int = typer.Option(40, "--joint-epochs", help="Joint epochs (after 5 AE + 5 pre-training)."),
     seeds: int = typer.Option(1, min=1, help="Seeds per variant."),
@@ -310,17 +427,24 @@ def bench_easytrack_base(
     from wearnav.bench.easytrack_base import run_study
 
     suite_folder(out, "bench easytrack-base")
-    page = run_study(out, BenchConfig(km=km, joint_epochs=joint_epochs), seeds, _execution(jobs, Backend.local, None),
-                     echo=typer.echo)
+    page = run_study(
+        out,
+        BenchConfig(km=km, joint_epochs=joint_epochs),
+        seeds,
+        _execution(jobs, Backend.local, None),
+        echo=typer.echo,
+    )
     typer.echo(f"wrote {page}")
 
 
 @bench_app.command("adapt")
 def bench_adapt(
     model: Path = typer.Option(..., "--model", help="The base run folder (a model never trained on --data)."),
-    data: Path = typer.Option(..., "--data", help="IPIN 2023: the imported dataset folder, or its original files with --format."),
+    data: Path = typer.Option(
+        ..., "--data", help="IPIN 2023: the imported dataset folder, or its original files with --format."
+    ),
     out: Path = typer.Option(Path("runs/adapt"), "--out", help="Suite folder (split data, adapted runs, results.md)."),
-    format_: Optional[ImportFormat] = typer.Option(None, "--format", help="Importer for original-format --data."),
+    format_: ImportFormat | None = typer.Option(None, "--format", help="Importer for original-format --data."),
 ):
     """The adaptation table (issue 18 §3): adapt on the training trials' GNSS, score at the held-out POSI points.
 
@@ -333,4 +457,6 @@ def bench_adapt(
     suite_folder(out, "bench adapt")
     doc = adapt_table(model, data, out, choice_value(format_), progress=progress_enabled())
     typer.echo(str(out / "results.md"))
-    typer.echo(f"default method by the training trials: {doc['choice']['best']}; {doc['seconds']['total'] / 60:.1f} min")
+    typer.echo(
+        f"default method by the training trials: {doc['choice']['best']}; {doc['seconds']['total'] / 60:.1f} min"
+    )

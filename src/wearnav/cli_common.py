@@ -22,8 +22,10 @@ class Recipe(str, Enum):
     paper = "paper"
 
 
-RECIPE_HELP = ("fast: Adam lr 1e-3, 1-epoch warm-up, cosine decay over --epochs (learns in a short run); "
-               "paper: the model's published schedule (Suite-IN++: lr 1e-4 constant; needs ~100 epochs).")
+RECIPE_HELP = (
+    "fast: Adam lr 1e-3, 1-epoch warm-up, cosine decay over --epochs (learns in a short run); "
+    "paper: the model's published schedule (Suite-IN++: lr 1e-4 constant; needs ~100 epochs)."
+)
 
 
 # What an interrupted command keeps and how to resume, said on the one line that ends it (exit

@@ -8,7 +8,6 @@ from __future__ import annotations
 import secrets
 import socket
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -32,7 +31,7 @@ def _lan_address() -> str:
         return "<this machine's address>"
 
 
-def _tracker_factory(model: Optional[Path]):
+def _tracker_factory(model: Path | None):
     from wearnav.live.tracker import LiveTracker
 
     return lambda: LiveTracker(model=model)
@@ -44,33 +43,47 @@ def _needs_live_extra() -> None:
 
     missing = [m for m in ("starlette", "uvicorn") if importlib.util.find_spec(m) is None]
     if missing:
-        raise ConfigError(f"`wearnav live` needs {' and '.join(missing)}: pip install 'wearnav[live]' "
-                          "(`make install` includes it)")
+        raise ConfigError(
+            f"`wearnav live` needs {' and '.join(missing)}: pip install 'wearnav[live]' (`make install` includes it)"
+        )
 
 
 @live_app.callback()
 def live(
     ctx: typer.Context,
-    host: str = typer.Option("127.0.0.1", help="Address to listen on (0.0.0.0: the phone on the same Wi-Fi; "
-                             "then a token is required)."),
+    host: str = typer.Option(
+        "127.0.0.1", help="Address to listen on (0.0.0.0: the phone on the same Wi-Fi; then a token is required)."
+    ),
     port: int = typer.Option(8000, min=1, max=65535, help="TCP port."),
-    store: Path = typer.Option(Path("runs/live/live.db"), "--store", help="SQLite session store (created; "
-                               "sessions in it are resumed)."),
-    token: Optional[str] = typer.Option(None, "--token", help="Token the phone sends (made and printed when "
-                                        "listening beyond this machine and none is given)."),
+    store: Path = typer.Option(
+        Path("runs/live/live.db"), "--store", help="SQLite session store (created; sessions in it are resumed)."
+    ),
+    token: str | None = typer.Option(
+        None,
+        "--token",
+        help="Token the phone sends (made and printed when listening beyond this machine and none is given).",
+    ),
     require_token: bool = typer.Option(False, "--require-token", help="Want a token on 127.0.0.1 too."),
     max_body: int = typer.Option(4 * 1024 * 1024, "--max-body", min=1024, help="Largest push body, bytes (413 above)."),
-    rate_limit: float = typer.Option(100.0, "--rate-limit", min=0.1, help="Messages a second per client (429 above; "
-                                     "bursts of twice that)."),
-    platform: Optional[str] = typer.Option(None, help="The phone's platform (ios, watchos, android) when the push "
-                                           "URL does not say (?platform=...): it decides the acceleration sign. "
-                                           "Default: decided from each session's data."),
-    standardised: bool = typer.Option(False, "--standardised", help="\"Standardise Units & Frames\" is on in the "
-                                      "app, when the push URL does not say (?standardisation=true)."),
-    model: Optional[Path] = typer.Option(None, "--model", help="Odometry model (as for `wearnav track`)."),
+    rate_limit: float = typer.Option(
+        100.0, "--rate-limit", min=0.1, help="Messages a second per client (429 above; bursts of twice that)."
+    ),
+    platform: str | None = typer.Option(
+        None,
+        help="The phone's platform (ios, watchos, android) when the push "
+        "URL does not say (?platform=...): it decides the acceleration sign. "
+        "Default: decided from each session's data.",
+    ),
+    standardised: bool = typer.Option(
+        False,
+        "--standardised",
+        help='"Standardise Units & Frames" is on in the app, when the push URL does not say (?standardisation=true).',
+    ),
+    model: Path | None = typer.Option(None, "--model", help="Odometry model (as for `wearnav track`)."),
     no_track: bool = typer.Option(False, "--no-track", help="Store and serve only; no live path."),
-    mqtt: Optional[str] = typer.Option(None, "--mqtt", help="Also subscribe to ws://broker:port/topic "
-                                       "(Sensor Logger's MQTT publishing)."),
+    mqtt: str | None = typer.Option(
+        None, "--mqtt", help="Also subscribe to ws://broker:port/topic (Sensor Logger's MQTT publishing)."
+    ),
 ):
     """Receive Sensor Logger's HTTP Push: every message stored before its 200, a live path on a page.
 
@@ -97,10 +110,18 @@ def live(
     if token is None and (require_token or host not in LOCAL_HOSTS):
         token, made = secrets.token_urlsafe(18), True
     factory = None if no_track else _tracker_factory(model)
-    app = create_app(store, token=token, max_body=max_body, rate_limit=rate_limit, tracker_factory=factory,
-                     platform=platform, standardised=standardised)
+    app = create_app(
+        store,
+        token=token,
+        max_body=max_body,
+        rate_limit=rate_limit,
+        tracker_factory=factory,
+        platform=platform,
+        standardised=standardised,
+    )
     if mqtt:
         from wearnav.live.mqtt import subscribe
+
         subscribe(mqtt, app.state.receiver)
     shown = _lan_address() if host in ("0.0.0.0", "::") else host
     query = "" if token is None else (f"?token={token}" if made else "?token=<your token>")
@@ -141,8 +162,9 @@ def live_bench(
     speed: float = typer.Option(10.0, min=1.0, help="Replay speed of the load phase (× real time)."),
     cpu_s: float = typer.Option(30.0, "--cpu-s", min=2.0, help="Seconds of each real-time walkers phase."),
     walkers: str = typer.Option("1,2,4,8", help="Walkers (sessions at once, real time) to try, comma-separated."),
-    track: bool = typer.Option(True, "--track/--no-track", help="Run the live tracker in the CPU phase "
-                               "(where this installation has one)."),
+    track: bool = typer.Option(
+        True, "--track/--no-track", help="Run the live tracker in the CPU phase (where this installation has one)."
+    ),
 ):
     """Load the receiver (3 devices × 100 Hz at SPEED× for DURATION s) and measure ack latency,
     lost / duplicated samples, then walkers at once at real time: CPU share, update latency, capacity.
@@ -166,10 +188,14 @@ def replay(
     url: str = typer.Option("http://127.0.0.1:8000/push", "--url", help="The receiver's push URL."),
     speed: float = typer.Option(1.0, min=0.01, help="× real time."),
     batch_s: float = typer.Option(0.2, "--batch-s", min=0.01, help="Batch period (s), as set in the app."),
-    token: Optional[str] = typer.Option(None, "--token", help="The receiver's token."),
-    session: Optional[str] = typer.Option(None, "--session", help="Session id (default: a new one)."),
-    no_platform: bool = typer.Option(False, "--no-platform", help="Leave the export's platform out of the URL "
-                                     "(as the app's own push URL does; the receiver decides it from the data)."),
+    token: str | None = typer.Option(None, "--token", help="The receiver's token."),
+    session: str | None = typer.Option(None, "--session", help="Session id (default: a new one)."),
+    no_platform: bool = typer.Option(
+        False,
+        "--no-platform",
+        help="Leave the export's platform out of the URL "
+        "(as the app's own push URL does; the receiver decides it from the data).",
+    ),
 ):
     """Send a Sensor Logger export to a receiver as the app pushes while recording.
 
@@ -183,9 +209,16 @@ def replay(
     typer.echo(f"session {rp.session_id}: {len(rp.messages)} messages, {rp.samples} samples", err=True)
     res = send(rp, url, speed=speed, token=token, platform=not no_platform)
     lat = sorted(res.ack_latency_s)
-    echo_json({"session": rp.session_id, "messages": len(rp.messages), "acknowledged": len(res.acknowledged),
-               "retries": res.retries, "wall_s": round(res.wall_s, 2),
-               "ack_latency_p50_ms": round(1e3 * lat[len(lat) // 2], 2) if lat else None})
+    echo_json(
+        {
+            "session": rp.session_id,
+            "messages": len(rp.messages),
+            "acknowledged": len(res.acknowledged),
+            "retries": res.retries,
+            "wall_s": round(res.wall_s, 2),
+            "ack_latency_p50_ms": round(1e3 * lat[len(lat) // 2], 2) if lat else None,
+        }
+    )
 
 
 def register(app: typer.Typer) -> None:

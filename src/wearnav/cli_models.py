@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from enum import Enum
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -43,20 +42,33 @@ def models_():
         typer.echo(f"{spec.name:15s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
     typer.echo("\nshipped (pretrained; `wearnav track`/`classify` use them without --model, card: MODEL_CARD.md):")
     for s in pretrained.SHIPPED.values():
-        where = f"{s.size_bytes() / 1e6:.1f} MB  {s.path / pretrained.CARD}" if s.installed else \
-            "not installed (wearnav pretrain --install)"
+        where = (
+            f"{s.size_bytes() / 1e6:.1f} MB  {s.path / pretrained.CARD}"
+            if s.installed
+            else "not installed (wearnav pretrain --install)"
+        )
         typer.echo(f"{s.name:20s} {s.task:9s} {','.join(s.devices):22s} {where}")
         typer.echo(f"{'':20s} {s.summary}")
 
 
 def pretrain(
-    data: Path = typer.Option(Path("../shared/data"), "--data", help="Folder holding the public datasets (ILC2, IPIN 2023, MotionSense)."),
-    out: Path = typer.Option(Path("runs/pretrained"), "--out", help="Suite folder: run folders, leave-one-building-out suites, results.md."),
-    work: Optional[Path] = typer.Option(None, "--work", help="Where imported, simulated and mixed data go (default OUT/data)."),
+    data: Path = typer.Option(
+        Path("../shared/data"), "--data", help="Folder holding the public datasets (ILC2, IPIN 2023, MotionSense)."
+    ),
+    out: Path = typer.Option(
+        Path("runs/pretrained"), "--out", help="Suite folder: run folders, leave-one-building-out suites, results.md."
+    ),
+    work: Path | None = typer.Option(
+        None, "--work", help="Where imported, simulated and mixed data go (default OUT/data)."
+    ),
     epochs: int = typer.Option(8, min=1, help="Epochs of every odometry model (the schedule is set by them)."),
-    max_time: Optional[float] = typer.Option(45.0, "--max-time", help="Cap on each odometry run's minutes (slow machines)."),
+    max_time: float | None = typer.Option(
+        45.0, "--max-time", help="Cap on each odometry run's minutes (slow machines)."
+    ),
     jobs: int = typer.Option(1, min=1, help="Runs at once in local processes (1: one after another in this process)."),
-    install: bool = typer.Option(False, "--install", help="Copy the trained models into the package (wearnav/pretrained/models)."),
+    install: bool = typer.Option(
+        False, "--install", help="Copy the trained models into the package (wearnav/pretrained/models)."
+    ),
 ):
     """Train the shipped models (phone, phone+watch+earbuds odometry on ILC2 + IPIN + the simulator;
     activity on MotionSense), measure leave-one-building-out, write model cards; resumes.
@@ -66,20 +78,34 @@ def pretrain(
       wearnav pretrain --data ../shared/data --out runs/pretrained --jobs 2 --install
     """
     from wearnav.bench.executor import Execution
-    from wearnav.pretrained.recipe import Recipe, pretrain as pretrain_
+    from wearnav.pretrained.recipe import Recipe
+    from wearnav.pretrained.recipe import pretrain as pretrain_
 
     suite_folder(out, "pretrain")
-    page = pretrain_(data, out, work, Recipe(epochs=epochs, max_minutes=max_time), Execution(jobs=jobs),
-                     install=install, progress=progress_enabled(), echo=typer.echo)
+    page = pretrain_(
+        data,
+        out,
+        work,
+        Recipe(epochs=epochs, max_minutes=max_time),
+        Execution(jobs=jobs),
+        install=install,
+        progress=progress_enabled(),
+        echo=typer.echo,
+    )
     typer.echo(f"wrote {page}")
 
 
 def export_(
     run: Path = typer.Argument(..., metavar="RUN", help="A run folder of `wearnav train` (or a classifier's)."),
-    format_: ExportFormat = typer.Option(..., "--format", help="onnx (ONNX Runtime; needs wearnav[onnx]) or "
-                                         "torchscript (torch.jit)."),
-    out: Path = typer.Option(..., "--out", help="The file to write: .onnx or .pt. It carries the model's window, "
-                             "rate, stride, devices and config (see README, Export)."),
+    format_: ExportFormat = typer.Option(
+        ..., "--format", help="onnx (ONNX Runtime; needs wearnav[onnx]) or torchscript (torch.jit)."
+    ),
+    out: Path = typer.Option(
+        ...,
+        "--out",
+        help="The file to write: .onnx or .pt. It carries the model's window, "
+        "rate, stride, devices and config (see README, Export).",
+    ),
 ):
     """Export a run's network to one ONNX or TorchScript file, checked against PyTorch before it is kept.
 
@@ -94,14 +120,21 @@ def export_(
 
 
 def adapt(
-    recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS...", help="The user's own walks with location "
-                                            "fixes: Sensor Logger exports (folder or .zip), recordings (.h5), dataset folders."),
+    recordings: list[Path] = typer.Argument(
+        ...,
+        metavar="RECORDINGS...",
+        help="The user's own walks with location "
+        "fixes: Sensor Logger exports (folder or .zip), recordings (.h5), dataset folders.",
+    ),
     model: Path = typer.Option(..., "--model", help="The run folder of `wearnav train` to adapt."),
     out: Path = typer.Option(..., "--out", help="New run folder for the adapted model (`wearnav track --model OUT`)."),
-    method: AdaptMethod = typer.Option(AdaptMethod.finetune, help="finetune: a few epochs on the fix-labelled "
-                                       "segments (the default, as measured: docs/design.md); scale: one factor on the "
-                                       "model's speed (also for pdr, which has no weights)."),
-    split: Optional[str] = typer.Option(None, help="Of a dataset folder, only this split's recordings."),
+    method: AdaptMethod = typer.Option(
+        AdaptMethod.finetune,
+        help="finetune: a few epochs on the fix-labelled "
+        "segments (the default, as measured: docs/design.md); scale: one factor on the "
+        "model's speed (also for pdr, which has no weights).",
+    ),
+    split: str | None = typer.Option(None, help="Of a dataset folder, only this split's recordings."),
     segment_s: float = typer.Option(10.0, "--segment-s", help="Seconds between the two fixes of a segment."),
     max_accuracy: float = typer.Option(20.0, "--max-accuracy", help="Leave out fixes reporting a wider accuracy (m)."),
     epochs: int = typer.Option(5, min=1, help="finetune: maximum epochs (early stopping on held-out segments)."),
@@ -114,15 +147,35 @@ def adapt(
       wearnav adapt my_walks/*.zip --model runs/sipp --out runs/sipp-mine
       wearnav track walk.zip --model runs/sipp-mine --out walk
     """
-    from wearnav.adapt import AdaptConfig, adapt as adapt_, read_recordings
+    from wearnav.adapt import AdaptConfig, read_recordings
+    from wearnav.adapt import adapt as adapt_
     from wearnav.adapt.finetune import FinetuneConfig
     from wearnav.adapt.segments import SegmentConfig
 
-    cfg = AdaptConfig(method=method.value, segments=SegmentConfig(segment_s=segment_s, max_accuracy_m=max_accuracy),
-                      finetune=FinetuneConfig(epochs=epochs, lr=lr))
+    cfg = AdaptConfig(
+        method=method.value,
+        segments=SegmentConfig(segment_s=segment_s, max_accuracy_m=max_accuracy),
+        finetune=FinetuneConfig(epochs=epochs, lr=lr),
+    )
     record = adapt_(read_recordings(recordings, split), model, out, cfg)
-    echo_json({"run": str(out), **{k: record[k] for k in ("method", "velocity_scale", "recordings", "fixes_used",
-                                                          "segments", "held_out_before", "held_out_after", "wall_s")}})
+    echo_json(
+        {
+            "run": str(out),
+            **{
+                k: record[k]
+                for k in (
+                    "method",
+                    "velocity_scale",
+                    "recordings",
+                    "fixes_used",
+                    "segments",
+                    "held_out_before",
+                    "held_out_after",
+                    "wall_s",
+                )
+            },
+        }
+    )
 
 
 def register(app: typer.Typer) -> None:

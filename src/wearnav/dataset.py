@@ -42,8 +42,19 @@ VAL_EVERY = 5
 VALIDATION_SPLITS = ("val", "validation")  # the names a dataset's own validation split goes by
 FORMAT_VERSION = 1  # of the folder layout (manifest columns, dataset.yaml); 0 = before it was written
 MANIFEST_COLUMNS = [
-    "name", "file", "duration", "devices", "mode", "subject", "placement", "scene", "source",
-    "split", "noise_level", "truth_points", "fixes",
+    "name",
+    "file",
+    "duration",
+    "devices",
+    "mode",
+    "subject",
+    "placement",
+    "scene",
+    "source",
+    "split",
+    "noise_level",
+    "truth_points",
+    "fixes",
 ]
 
 
@@ -114,10 +125,10 @@ def replaceable_reason(root: Path) -> str | None:
         return None
     made_by = _read_yaml(root / PROVENANCE) if (root / PROVENANCE).is_file() else None
     if not _written_by_wearnav(made_by):
-        return ("exists and is not a wearnav dataset (no dataset.yaml saying wearnav wrote it); "
-                "not overwriting it")
-    foreign = sorted(e.name for e in entries
-                     if not (e.name in (MANIFEST, PROVENANCE) or (e.suffix == ".h5" and e.is_file())))
+        return "exists and is not a wearnav dataset (no dataset.yaml saying wearnav wrote it); not overwriting it"
+    foreign = sorted(
+        e.name for e in entries if not (e.name in (MANIFEST, PROVENANCE) or (e.suffix == ".h5" and e.is_file()))
+    )
     if foreign:
         return f"holds files wearnav did not write ({', '.join(foreign[:3])}); not overwriting it"
     return None
@@ -163,8 +174,7 @@ class DatasetWriter:
         for parent in self.root.parents:
             if parent.exists():
                 if not parent.is_dir():
-                    raise ValidationError("is a file, so the dataset folder cannot be made inside it",
-                                          parent)
+                    raise ValidationError("is a file, so the dataset folder cannot be made inside it", parent)
                 break
         self.root.parent.mkdir(parents=True, exist_ok=True)
         clean_stale_work_dirs(self.root)
@@ -195,8 +205,13 @@ class DatasetWriter:
         # Every cell quoted: a bare carriage return in a name or a meta value would otherwise
         # end the row when the manifest is read back.
         df[MANIFEST_COLUMNS].to_csv(self.tmp / MANIFEST, index=False, quoting=csv.QUOTE_ALL)
-        info = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, **self.provenance,
-                **provenance(), "recordings": len(self.rows)}
+        info = {
+            "format": FORMAT_NAME,
+            "format_version": FORMAT_VERSION,
+            **self.provenance,
+            **provenance(),
+            "recordings": len(self.rows),
+        }
         (self.tmp / PROVENANCE).write_text(yaml.safe_dump(info, sort_keys=False), encoding="utf-8")
         # On disk before the folder is renamed into place, so that a power cut leaves the old
         # dataset or the whole new one (manifest and recordings), never a manifest naming empty files.
@@ -239,7 +254,7 @@ class DatasetWriter:
             return
         raise Terminated("terminated (SIGTERM); the partial dataset was removed")
 
-    def __enter__(self) -> "DatasetWriter":
+    def __enter__(self) -> DatasetWriter:
         if threading.current_thread() is threading.main_thread():
             self._old_handler = signal.signal(signal.SIGTERM, self._on_sigterm)
         return self
@@ -268,7 +283,7 @@ class Dataset:
         self.manifest = manifest.reset_index(drop=True)
 
     @classmethod
-    def open(cls, root: str | Path) -> "Dataset":
+    def open(cls, root: str | Path) -> Dataset:
         """Open a dataset folder, checking the manifest against the folder.
 
         Every manifest cell is read as text (names like ``001``, ``0`` or ``null`` stay names);
@@ -318,11 +333,10 @@ class Dataset:
     def names(self) -> list[str]:
         return self.manifest["name"].tolist()
 
-    def _view(self, mask) -> "Dataset":
+    def _view(self, mask) -> Dataset:
         return Dataset(self.root, self.manifest[mask])
 
-    def filter(self, mode=None, subject=None, placement=None, devices=None, source=None,
-               noise_level=None) -> "Dataset":
+    def filter(self, mode=None, subject=None, placement=None, devices=None, source=None, noise_level=None) -> Dataset:
         """Keep recordings matching every given criterion.
 
         Each of ``mode``, ``subject``, ``placement``, ``source``, ``noise_level`` is a value or a
@@ -331,8 +345,13 @@ class Dataset:
         """
         m = self.manifest
         mask = pd.Series(True, index=m.index)
-        for col, want in (("mode", mode), ("subject", subject), ("placement", placement),
-                          ("source", source), ("noise_level", noise_level)):
+        for col, want in (
+            ("mode", mode),
+            ("subject", subject),
+            ("placement", placement),
+            ("source", source),
+            ("noise_level", noise_level),
+        ):
             if want is not None:
                 want = [want] if isinstance(want, str | int) else list(want)
                 mask &= m[col].isin([str(w) for w in want])
@@ -341,7 +360,7 @@ class Dataset:
             mask &= m["devices"].map(lambda s: need <= set(s.split(";")))
         return self._view(mask)
 
-    def split(self, *names: str) -> "Dataset":
+    def split(self, *names: str) -> Dataset:
         """Recordings whose ``split`` is one of ``names`` (e.g. ``split("test", "test_unseen")``)."""
         check_names(names, sorted(set(self.manifest["split"])), "split", self.root, ValidationError)
         return self._view(self.manifest["split"].isin(names))
@@ -367,8 +386,11 @@ class Dataset:
         listed = self.manifest.loc[self.manifest["name"] == name, "devices"].iloc[0]
         listed = sorted(d for d in str(listed).split(";") if d) if isinstance(listed, str) else []
         if listed != sorted(rec.devices):
-            raise FormatError(f"holds devices {sorted(rec.devices)}, but the manifest lists {listed} "
-                              f"(filters and training layouts read the manifest)", path)
+            raise FormatError(
+                f"holds devices {sorted(rec.devices)}, but the manifest lists {listed} "
+                f"(filters and training layouts read the manifest)",
+                path,
+            )
         return rec
 
     def __iter__(self) -> Iterator[Recording]:
@@ -378,8 +400,10 @@ class Dataset:
     def summary(self) -> dict:
         """Counts and totals for ``wearnav info``."""
         m = self.manifest
+
         def counts(col: str) -> dict:
             return {k: int(v) for k, v in m[col].value_counts().sort_index().items() if k != ""}
+
         devs: dict[str, int] = {}
         for s in m["devices"]:
             for d in s.split(";"):
@@ -406,8 +430,11 @@ def _check_format(info, path: Path) -> None:
         raise FormatError(f"format {info['format']!r} is not {FORMAT_NAME!r}", path)
     version = info.get("format_version", 1 if "format" in info else 0)
     if not isinstance(version, int) or isinstance(version, bool) or not 0 <= version <= FORMAT_VERSION:
-        raise FormatError(f"format_version {version!r} is not one this wearnav reads "
-                          f"(0..{FORMAT_VERSION}); written by a newer wearnav?", path)
+        raise FormatError(
+            f"format_version {version!r} is not one this wearnav reads "
+            f"(0..{FORMAT_VERSION}); written by a newer wearnav?",
+            path,
+        )
 
 
 def _check_manifest(df: pd.DataFrame, root: Path, path: Path) -> None:
@@ -425,12 +452,12 @@ def _check_manifest(df: pd.DataFrame, root: Path, path: Path) -> None:
     present = {p.name for p in root.glob("*.h5")}
     absent = sorted(set(df["file"]) - present)
     if absent:
-        raise FormatError(f"lists {len(absent)} file(s) that are not in the folder ({', '.join(absent[:3])})",
-                          path)
+        raise FormatError(f"lists {len(absent)} file(s) that are not in the folder ({', '.join(absent[:3])})", path)
     unlisted = sorted(present - set(df["file"]))
     if unlisted:
-        raise FormatError(f"{len(unlisted)} recording file(s) in the folder are not listed "
-                          f"({', '.join(unlisted[:3])})", path)
+        raise FormatError(
+            f"{len(unlisted)} recording file(s) in the folder are not listed ({', '.join(unlisted[:3])})", path
+        )
 
 
 def _numbers(df: pd.DataFrame, col: str, kind: type, path: Path) -> pd.Series:
@@ -443,13 +470,17 @@ def _numbers(df: pd.DataFrame, col: str, kind: type, path: Path) -> pd.Series:
         bad |= values.astype(float) % 1 != 0
     if bad.any():
         i = int(np.argmax(bad.to_numpy()))
-        raise FormatError(f"line {i + 2}: {col} {df[col].iloc[i]!r} is not a "
-                          f"{'non-negative integer' if kind is int else 'non-negative number'}", path)
+        raise FormatError(
+            f"line {i + 2}: {col} {df[col].iloc[i]!r} is not a "
+            f"{'non-negative integer' if kind is int else 'non-negative number'}",
+            path,
+        )
     return values.astype(kind)
 
 
-def write_dataset(root: str | Path, recordings: Iterable[tuple[Recording, str]],
-                  provenance: dict | None = None) -> Dataset:
+def write_dataset(
+    root: str | Path, recordings: Iterable[tuple[Recording, str]], provenance: dict | None = None
+) -> Dataset:
     """Write (recording, split) pairs to ``root`` and open the result."""
     with DatasetWriter(root, provenance) as w:
         for rec, split in recordings:
@@ -462,10 +493,13 @@ def scorable_split(ds, split: str):
     to score against (metrics over 0 sequences would be a page of blanks)."""
     view = ds.split(split)
     if len(view) == 0:
-        raise ValidationError(f"split {split!r} is empty (splits here: "
-                              f"{sorted(set(ds.manifest['split'].astype(str)))})", ds.root)
-    if "truth_points" in view.manifest and (pd.to_numeric(view.manifest["truth_points"], errors="coerce")
-                                            .fillna(0) < 2).all():
+        raise ValidationError(
+            f"split {split!r} is empty (splits here: {sorted(set(ds.manifest['split'].astype(str)))})", ds.root
+        )
+    if (
+        "truth_points" in view.manifest
+        and (pd.to_numeric(view.manifest["truth_points"], errors="coerce").fillna(0) < 2).all()
+    ):
         raise ValidationError(f"no recording of split {split!r} has truth positions to score against", ds.root)
     return view
 
@@ -497,11 +531,17 @@ def train_val_views(ds: Dataset, train_split: str, val_split: str) -> tuple[Data
         if not mask.any() and len(train) >= 2:
             mask = names == min(names, key=lambda n: zlib.crc32(n.encode()))
         if len(train) < 2:
-            raise ValidationError(f"the dataset has no validation split and only {len(train)} {train_split!r} "
-                                  f"recording(s) to set one aside from (splits here: {sorted(known)})", ds.root)
+            raise ValidationError(
+                f"the dataset has no validation split and only {len(train)} {train_split!r} "
+                f"recording(s) to set one aside from (splits here: {sorted(known)})",
+                ds.root,
+            )
         val = train._view(mask.to_numpy())
-        return (train._view(~mask.to_numpy()), val,
-                f"no {val_split!r} split in the dataset: validating on {len(val)} of its {len(train)} "
-                f"{train_split!r} recordings (1 in {VAL_EVERY} by a CRC-32 of the name: "
-                f"{', '.join(val.names[:3])}{', ...' if len(val) > 3 else ''})")
+        return (
+            train._view(~mask.to_numpy()),
+            val,
+            f"no {val_split!r} split in the dataset: validating on {len(val)} of its {len(train)} "
+            f"{train_split!r} recordings (1 in {VAL_EVERY} by a CRC-32 of the name: "
+            f"{', '.join(val.names[:3])}{', ...' if len(val) > 3 else ''})",
+        )
     return ds.split(train_split), ds.split(val_split), None

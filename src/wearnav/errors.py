@@ -21,7 +21,7 @@ class WearnavError(Exception):
     def __str__(self) -> str:
         return f"{self.source}: {self.reason}" if self.source else self.reason
 
-    def with_source(self, source: str | Path) -> "WearnavError":
+    def with_source(self, source: str | Path) -> WearnavError:
         """The same error attributed to ``source`` (kept if one is already set)."""
         if self.source is None:
             self.source = str(source)
@@ -66,8 +66,9 @@ class Terminated(BaseException):
     """
 
 
-def check_names(given, valid, what: str, where: str | Path | None = None,
-                error: type[WearnavError] = ConfigError) -> tuple[str, ...]:
+def check_names(
+    given, valid, what: str, where: str | Path | None = None, error: type[WearnavError] = ConfigError
+) -> tuple[str, ...]:
     """``given`` as a tuple when every name is one of ``valid``; else a :class:`ConfigError` naming
     the unknown ones and every valid one, e.g. "unknown device(s) ['watc']; valid: phone, watch".
     The one check for names a user types (devices, splits, techniques, models, methods), made

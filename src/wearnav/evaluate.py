@@ -39,8 +39,9 @@ PERCENTILES = (50, 75, 90, 95)
 
 
 @torch.no_grad()
-def predict_sequence(model, seq: Aligned, window: int, stride: int, batch: int = 512,
-                     progress: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def predict_sequence(
+    model, seq: Aligned, window: int, stride: int, batch: int = 512, progress: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Window centre times (N,), predicted velocities (N, 2) and device presence (N, D)."""
     wds = WindowDataset([seq], WindowConfig(window=window, stride=stride, target=None))
     if len(wds) == 0:
@@ -58,15 +59,19 @@ def _is_dense(rec) -> bool:
     return rec.truth is not None and len(rec.truth) > 1 and float(np.median(np.diff(rec.truth.t))) <= DENSE_TRUTH_MAX_DT
 
 
-def evaluate_sequence(model, seq: Aligned, window: int, stride: int, rte_delta: float = 60.0
-                      ) -> tuple[dict, pd.DataFrame]:
+def evaluate_sequence(
+    model, seq: Aligned, window: int, stride: int, rte_delta: float = 60.0
+) -> tuple[dict, pd.DataFrame]:
     """Metrics of one sequence and its trajectory table (t, estimate x/y, truth x/y)."""
     t_c, vel, present = predict_sequence(model, seq, window, stride)
     rec = seq.recording
-    row = {"name": seq.name, "mode": str(seq.meta.get("mode", "")),
-           "placement": str(seq.meta.get("placement", "")),  # the phone's (HD MP PK BG; Table IV)
-           "subject": str(seq.meta.get("subject", "")),
-           "devices_present": float(present.sum(axis=1).mean()) if len(present) else 0.0}
+    row = {
+        "name": seq.name,
+        "mode": str(seq.meta.get("mode", "")),
+        "placement": str(seq.meta.get("placement", "")),  # the phone's (HD MP PK BG; Table IV)
+        "subject": str(seq.meta.get("subject", "")),
+        "devices_present": float(present.sum(axis=1).mean()) if len(present) else 0.0,
+    }
     if t_c.size < 2 or rec is None or rec.truth is None:
         row["skipped"] = "too short for two windows or no truth"
         return row, pd.DataFrame()
@@ -85,12 +90,18 @@ def evaluate_sequence(model, seq: Aligned, window: int, stride: int, rte_delta: 
         true = seq.pos[idx]
         est = integrate_velocity(t_c, vel, t, true[0])
         err = metrics.position_errors(t, est, true)
-        row.update(truth="dense", duration=float(t[-1] - t[0]),
-                   length_m=float(np.sum(np.linalg.norm(np.diff(true, axis=0), axis=1))),
-                   ate=metrics.ate(t, est, true), rte=metrics.rte(t, est, true, rte_delta),
-                   rte_delta=rte_delta, final_error=float(err[-1]))
-        traj = pd.DataFrame({"t": t, "x": est[:, 0], "y": est[:, 1], "x_true": true[:, 0],
-                             "y_true": true[:, 1], "error": err})
+        row.update(
+            truth="dense",
+            duration=float(t[-1] - t[0]),
+            length_m=float(np.sum(np.linalg.norm(np.diff(true, axis=0), axis=1))),
+            ate=metrics.ate(t, est, true),
+            rte=metrics.rte(t, est, true, rte_delta),
+            rte_delta=rte_delta,
+            final_error=float(err[-1]),
+        )
+        traj = pd.DataFrame(
+            {"t": t, "x": est[:, 0], "y": est[:, 1], "x_true": true[:, 0], "y_true": true[:, 1], "error": err}
+        )
         return row, traj
     # sparse truth: start at the first truth point on the clock (before the first window centre
     # the first window's velocity holds), score at the later truth points
@@ -103,11 +114,15 @@ def evaluate_sequence(model, seq: Aligned, window: int, stride: int, rte_delta: 
     est = integrate_velocity(t_c, vel, t, tp[first[0]])
     keep = first[1:]
     err = metrics.errors_at_reference(t, est, tt[keep], tp[keep], SPARSE_MAX_GAP)
-    row.update(truth="sparse", duration=float(t[-1] - t[0]), points=int(err.size),
-               length_m=float(np.sum(np.linalg.norm(np.diff(tp[first], axis=0), axis=1))),
-               mean_error=float(err.mean()) if err.size else float("nan"),
-               median_error=float(np.median(err)) if err.size else float("nan"),
-               point_errors=[round(float(e), 4) for e in err])
+    row.update(
+        truth="sparse",
+        duration=float(t[-1] - t[0]),
+        points=int(err.size),
+        length_m=float(np.sum(np.linalg.norm(np.diff(tp[first], axis=0), axis=1))),
+        mean_error=float(err.mean()) if err.size else float("nan"),
+        median_error=float(np.median(err)) if err.size else float("nan"),
+        point_errors=[round(float(e), 4) for e in err],
+    )
     # the waypoints joined by straight lines, for plots only (errors are taken at the points)
     line = np.stack([np.interp(t, tt[first], tp[first, k]) for k in range(2)], axis=1)
     traj = pd.DataFrame({"t": t, "x": est[:, 0], "y": est[:, 1], "x_true": line[:, 0], "y_true": line[:, 1]})
@@ -121,14 +136,23 @@ def summarise(rows: list[dict], errors: np.ndarray) -> dict:
     out: dict = {"sequences": int(len(df)), "skipped": int(len(rows) - len(df))}
     if len(df) and "ate" in df:
         d = df.dropna(subset=["ate"])
-        out.update(ate_mean=float(d.ate.mean()), ate_median=float(d.ate.median()),
-                   rte_mean=float(d.rte.mean()), rte_median=float(d.rte.median()),
-                   rte_delta=float(d.rte_delta.iloc[0]) if len(d) else None,
-                   hours=float(d.duration.sum() / 3600), km=float(d.length_m.sum() / 1000))
+        out.update(
+            ate_mean=float(d.ate.mean()),
+            ate_median=float(d.ate.median()),
+            rte_mean=float(d.rte.mean()),
+            rte_median=float(d.rte.median()),
+            rte_delta=float(d.rte_delta.iloc[0]) if len(d) else None,
+            hours=float(d.duration.sum() / 3600),
+            km=float(d.length_m.sum() / 1000),
+        )
     if len(df) and "mean_error" in df:
         d = df.dropna(subset=["mean_error"])
-        out.update(points=int(d.points.sum()), truth="sparse: errors at truth points only",
-                   hours=float(d.duration.sum() / 3600), km=float(d.length_m.sum() / 1000))
+        out.update(
+            points=int(d.points.sum()),
+            truth="sparse: errors at truth points only",
+            hours=float(d.duration.sum() / 3600),
+            km=float(d.length_m.sum() / 1000),
+        )
         if errors.size:
             out.update(error_mean=float(errors.mean()))
     if errors.size:
@@ -136,8 +160,9 @@ def summarise(rows: list[dict], errors: np.ndarray) -> dict:
     return out
 
 
-def evaluate_sequences(model, seqs: list[Aligned], window: int, stride: int, rte_delta: float = 60.0,
-                       progress: bool = False) -> tuple[dict, dict[str, pd.DataFrame]]:
+def evaluate_sequences(
+    model, seqs: list[Aligned], window: int, stride: int, rte_delta: float = 60.0, progress: bool = False
+) -> tuple[dict, dict[str, pd.DataFrame]]:
     """Per-sequence rows, the overall, per-walking-mode and per-phone-placement summaries, and the
     trajectories."""
     rows, trajs = [], {}
@@ -153,23 +178,36 @@ def evaluate_sequences(model, seqs: list[Aligned], window: int, stride: int, rte
         e = [trajs[n]["error"].to_numpy() for n in names if n in trajs and "error" in trajs[n]]
         e += [np.asarray(by_name[n]["point_errors"]) for n in names if "point_errors" in by_name[n]]
         return np.concatenate(e) if e else np.empty(0)
+
     modes = sorted({r["mode"] for r in rows if r["mode"]})
     result = {
         "summary": summarise(rows, errs([r["name"] for r in rows])),
-        "by_mode": {m: summarise([r for r in rows if r["mode"] == m],
-                                 errs([r["name"] for r in rows if r["mode"] == m])) for m in modes},
-        "by_placement": {p: summarise([r for r in rows if r["placement"] == p],
-                                      errs([r["name"] for r in rows if r["placement"] == p]))
-                         for p in sorted({r["placement"] for r in rows if r["placement"]})},
+        "by_mode": {
+            m: summarise([r for r in rows if r["mode"] == m], errs([r["name"] for r in rows if r["mode"] == m]))
+            for m in modes
+        },
+        "by_placement": {
+            p: summarise(
+                [r for r in rows if r["placement"] == p], errs([r["name"] for r in rows if r["placement"] == p])
+            )
+            for p in sorted({r["placement"] for r in rows if r["placement"]})
+        },
         "sequences": rows,
     }
     return result, trajs
 
 
-def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[str, ...] = ("test",),
-                 stride: int | None = None, rte_delta: float = 60.0, progress: bool = True,
-                 training: dict | None = None, preprocess: dict | None = None,
-                 out_dir: str | Path | None = None) -> dict:
+def evaluate_run(
+    run: str | Path,
+    data: str | Path | None = None,
+    splits: tuple[str, ...] = ("test",),
+    stride: int | None = None,
+    rte_delta: float = 60.0,
+    progress: bool = True,
+    training: dict | None = None,
+    preprocess: dict | None = None,
+    out_dir: str | Path | None = None,
+) -> dict:
     """Evaluate a run folder's best model on ``splits`` of ``data`` (default: the training data);
     write metrics.json, trajectories/<split>/<name>.csv and plots/ into ``out_dir`` (default: the
     run folder). ``preprocess`` replaces preprocessing fields of the run's config for this data
@@ -188,15 +226,21 @@ def evaluate_run(run: str | Path, data: str | Path | None = None, splits: tuple[
         raise FormatError("'splits' is not a mapping of split names to results", dest / runs.METRICS)
     if training is None and (run / TRAINING).is_file():
         training = read_json(run / TRAINING)
-    out = {"model": cfg.model, "run": run.name, "data": str(data or cfg.data),
-           "parameters": n_parameters(model), "window": cfg.window,
-           "eval_stride": stride or cfg.stride, "preprocess": dict(preprocess or {}),
-           # the test recordings' frame (wearnav.frames): "initial" = one constant yaw from the
-           # truth's first 10 s; "truth" = the truth's yaw over time (a diagnostic)
-           "test_frame": cfg.eval_config().frame_align,
-           "training": training if training is not None else old.get("training", {}),
-           # splits evaluated earlier on the same data are kept beside the new ones
-           "splits": dict(old.get("splits", {})) if data is None or str(data) == old.get("data") else {}}
+    out = {
+        "model": cfg.model,
+        "run": run.name,
+        "data": str(data or cfg.data),
+        "parameters": n_parameters(model),
+        "window": cfg.window,
+        "eval_stride": stride or cfg.stride,
+        "preprocess": dict(preprocess or {}),
+        # the test recordings' frame (wearnav.frames): "initial" = one constant yaw from the
+        # truth's first 10 s; "truth" = the truth's yaw over time (a diagnostic)
+        "test_frame": cfg.eval_config().frame_align,
+        "training": training if training is not None else old.get("training", {}),
+        # splits evaluated earlier on the same data are kept beside the new ones
+        "splits": dict(old.get("splits", {})) if data is None or str(data) == old.get("data") else {},
+    }
     if not splits:
         raise ValidationError("no split named to evaluate (e.g. --split test)")
     views = {split: scorable_split(ds, split) for split in splits}  # all checked before any write

@@ -66,13 +66,19 @@ class FixCheck:
 
     def dropped(self) -> dict[str, list[int]]:
         """The dropped fixes' indices, by reason."""
-        return {r: np.flatnonzero((self.status == DROPPED) & (self.reason == r)).tolist()
-                for r in (NO_POSITION, OUTSIDE, WIDE, REPEAT, JUMP) if np.any(self.reason == r)}
+        return {
+            r: np.flatnonzero((self.status == DROPPED) & (self.reason == r)).tolist()
+            for r in (NO_POSITION, OUTSIDE, WIDE, REPEAT, JUMP)
+            if np.any(self.reason == r)
+        }
 
     def info(self) -> dict:
         """The compact record for :class:`wearnav.fuse.FuseResult` ``info``."""
-        return {"fix_status": self.counts(), "fixes_dropped": {r: len(i) for r, i in self.dropped().items()},
-                "fixes_dropped_index": self.dropped()}
+        return {
+            "fix_status": self.counts(),
+            "fixes_dropped": {r: len(i) for r, i in self.dropped().items()},
+            "fixes_dropped_index": self.dropped(),
+        }
 
 
 def filled_accuracy(accuracy: np.ndarray) -> np.ndarray:
@@ -84,8 +90,9 @@ def filled_accuracy(accuracy: np.ndarray) -> np.ndarray:
 
 def repeated_fixes(fix_pos: np.ndarray) -> np.ndarray:
     """True for a fix at exactly the previous fix's position (a stale fix re-reported)."""
-    return np.concatenate([[False], np.all(np.diff(fix_pos, axis=0) == 0, axis=1)]) if len(fix_pos) else \
-        np.zeros(0, bool)
+    return (
+        np.concatenate([[False], np.all(np.diff(fix_pos, axis=0) == 0, axis=1)]) if len(fix_pos) else np.zeros(0, bool)
+    )
 
 
 def _consistent(t, z, margin, i, j, max_speed_m_s: float) -> np.ndarray:
@@ -110,7 +117,7 @@ def jumps(t: np.ndarray, z: np.ndarray, accuracy: np.ndarray, max_speed_m_s: flo
     ends = np.append(starts[1:], n)
     k = len(starts) - 1 - int(np.argmax((ends - starts)[::-1]))  # the largest, the latest of equals
     keep = np.zeros(n, bool)
-    keep[starts[k]:ends[k]] = True
+    keep[starts[k] : ends[k]] = True
     last = ends[k] - 1
     for j in range(ends[k], n):
         if _consistent(t, z, acc, last, j, max_speed_m_s):
@@ -131,9 +138,11 @@ def check_fixes(t0: float, t1: float, fix_t, fix_pos, fix_accuracy, wide_m: floa
     acc = np.asarray(fix_accuracy, np.float64)
     m = len(ft)
     check = FixCheck(np.full(m, USED, dtype=object), np.full(m, "", dtype=object), np.ones(m), [])
-    reasons = [(NO_POSITION, ~np.all(np.isfinite(fp), axis=1)),
-               (OUTSIDE, ~(np.isfinite(ft) & (ft >= t0) & (ft <= t1))),
-               (WIDE, np.isfinite(acc) & (acc > wide_m))]
+    reasons = [
+        (NO_POSITION, ~np.all(np.isfinite(fp), axis=1)),
+        (OUTSIDE, ~(np.isfinite(ft) & (ft >= t0) & (ft <= t1))),
+        (WIDE, np.isfinite(acc) & (acc > wide_m)),
+    ]
     for reason, bad in reasons:
         check.mark(check.kept & bad, DROPPED, reason)
     kept = np.flatnonzero(check.kept)
@@ -142,16 +151,34 @@ def check_fixes(t0: float, t1: float, fix_t, fix_pos, fix_accuracy, wide_m: floa
     order = kept[np.argsort(ft[kept], kind="stable")]
     jump = jumps(ft[order], fp[order], acc[order])
     if jump.sum() > JUMP_SHARE * len(order):
-        check.warnings.append(f"{int(jump.sum())} of {len(order)} location fixes jump faster than "
-                              f"{MAX_SPEED_M_S:g} m/s from the others: they disagree with each other, so none "
-                              "was dropped for it")
+        check.warnings.append(
+            f"{int(jump.sum())} of {len(order)} location fixes jump faster than "
+            f"{MAX_SPEED_M_S:g} m/s from the others: they disagree with each other, so none "
+            "was dropped for it"
+        )
     else:
         check.mark(order[jump], DROPPED, JUMP)
     if m and not check.kept.any() and (check.reason == WIDE).any():
-        check.warnings.append(f"every usable location fix is wider than {wide_m:g} m (approximate "
-                              "location?): none was used")
+        check.warnings.append(
+            f"every usable location fix is wider than {wide_m:g} m (approximate location?): none was used"
+        )
     return check
 
 
-__all__ = ["FixCheck", "check_fixes", "jumps", "repeated_fixes", "filled_accuracy", "MAX_SPEED_M_S",
-           "USED", "DOWN_WEIGHTED", "UNUSED", "DROPPED", "NO_POSITION", "OUTSIDE", "WIDE", "REPEAT", "JUMP"]
+__all__ = [
+    "FixCheck",
+    "check_fixes",
+    "jumps",
+    "repeated_fixes",
+    "filled_accuracy",
+    "MAX_SPEED_M_S",
+    "USED",
+    "DOWN_WEIGHTED",
+    "UNUSED",
+    "DROPPED",
+    "NO_POSITION",
+    "OUTSIDE",
+    "WIDE",
+    "REPEAT",
+    "JUMP",
+]

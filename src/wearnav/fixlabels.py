@@ -74,10 +74,16 @@ class LabelConfig:
 
     def __post_init__(self):
         if not self.segment_s > 0 or not self.rate > 0 or not 0 <= self.tolerance < 1:
-            raise ConfigError(f"segment_s and rate must be positive and tolerance in [0, 1), got "
-                              f"{self.segment_s}, {self.rate}, {self.tolerance}")
-        if self.stride_s is not None and not (self.stride_s > 0 and abs(self.segment_s / self.stride_s - self.steps) < 1e-6):
-            raise ConfigError(f"stride_s must divide segment_s ({self.segment_s} s) into whole steps, got {self.stride_s}")
+            raise ConfigError(
+                f"segment_s and rate must be positive and tolerance in [0, 1), got "
+                f"{self.segment_s}, {self.rate}, {self.tolerance}"
+            )
+        if self.stride_s is not None and not (
+            self.stride_s > 0 and abs(self.segment_s / self.stride_s - self.steps) < 1e-6
+        ):
+            raise ConfigError(
+                f"stride_s must divide segment_s ({self.segment_s} s) into whole steps, got {self.stride_s}"
+            )
 
     @property
     def steps(self) -> int:
@@ -125,25 +131,54 @@ class Segments:
     def n_nodes(self) -> int:
         return int(self.node_pos.shape[0])
 
-    def subset(self, idx) -> "Segments":
+    def subset(self, idx) -> Segments:
         """Segments ``idx`` (nodes and names kept, so node indices stay valid)."""
         idx = np.asarray(idx)
-        return Segments(self.x[idx], self.label[idx], self.truth[idx], self.traj[idx], self.node0[idx],
-                        self.node1[idx], self.t0[idx], self.t1[idx], self.node_pos, self.node_traj,
-                        self.node_t, list(self.names), self.start_pos, self.dropped)
+        return Segments(
+            self.x[idx],
+            self.label[idx],
+            self.truth[idx],
+            self.traj[idx],
+            self.node0[idx],
+            self.node1[idx],
+            self.t0[idx],
+            self.t1[idx],
+            self.node_pos,
+            self.node_traj,
+            self.node_t,
+            list(self.names),
+            self.start_pos,
+            self.dropped,
+        )
 
     def noise(self) -> np.ndarray:
         """Label noise vectors d_e = d − d̃ (eq. 5), NaN where the truth is unknown."""
         return self.truth - self.label
 
     @staticmethod
-    def concat(parts: list["Segments"]) -> "Segments":
+    def concat(parts: list[Segments]) -> Segments:
         parts = [p for p in parts if p is not None]
         if not parts:
             raise ValidationError("no segments to concatenate")
         n_off, t_off = 0, 0
-        cols = {k: [] for k in ("x", "label", "truth", "traj", "node0", "node1", "t0", "t1", "node_pos",
-                                "node_traj", "node_t", "start_pos", "dropped")}
+        cols = {
+            k: []
+            for k in (
+                "x",
+                "label",
+                "truth",
+                "traj",
+                "node0",
+                "node1",
+                "t0",
+                "t1",
+                "node_pos",
+                "node_traj",
+                "node_t",
+                "start_pos",
+                "dropped",
+            )
+        }
         names: list[str] = []
         for p in parts:
             for k in ("x", "label", "truth", "t0", "t1", "node_pos", "node_t"):
@@ -164,12 +199,17 @@ class Segments:
         """Write the segments as ``.npz`` at ``path``, atomically and durably."""
         d = {k: v for k, v in asdict(self).items() if k not in ("names", "start_pos", "dropped")}
         dropped = self.dropped if self.dropped is not None else np.zeros(len(self.names), np.int64)
-        return savez_atomic(path, durable=True, names=np.asarray(self.names, dtype=str), dropped=dropped,
-                            start_pos=self.start_pos if self.start_pos is not None
-                            else np.full((len(self.names), 2), np.nan), **d)
+        return savez_atomic(
+            path,
+            durable=True,
+            names=np.asarray(self.names, dtype=str),
+            dropped=dropped,
+            start_pos=self.start_pos if self.start_pos is not None else np.full((len(self.names), 2), np.nan),
+            **d,
+        )
 
     @classmethod
-    def load(cls, path: str | Path) -> "Segments":
+    def load(cls, path: str | Path) -> Segments:
         with np.load(path) as z:
             d = {k: z[k] for k in z.files}
         names = [str(s) for s in d.pop("names")]
@@ -204,8 +244,15 @@ def _fix_chain(t_fix: np.ndarray, cfg: LabelConfig, t_lo: float, t_hi: float) ->
     return pairs
 
 
-def fix_frame_yaw(imu: np.ndarray, t: np.ndarray, rate: float, t_fix: np.ndarray, p_fix: np.ndarray,
-                  window_s: float = 4.0, kernel_s: float = 60.0) -> tuple[np.ndarray, dict]:
+def fix_frame_yaw(
+    imu: np.ndarray,
+    t: np.ndarray,
+    rate: float,
+    t_fix: np.ndarray,
+    p_fix: np.ndarray,
+    window_s: float = 4.0,
+    kernel_s: float = 60.0,
+) -> tuple[np.ndarray, dict]:
     """Yaw δ(t) (rad, per clock sample) that turns a phone's world-frame IMU (T, 6) onto the fixes'
     east/north frame: rotate with ``rotate_stacked(imu, δ)``.
 
@@ -226,7 +273,7 @@ def fix_frame_yaw(imu: np.ndarray, t: np.ndarray, rate: float, t_fix: np.ndarray
         return np.zeros(t.size), info
     starts = np.arange(0, t.size - W, int(round(rate)))
     pdr = PDR(n_devices=1, window=W, rate=rate)
-    acc = np.stack([imu[s:s + W, :3] for s in starts]).astype(np.float64)
+    acc = np.stack([imu[s : s + W, :3] for s in starts]).astype(np.float64)
     h = pdr.heading(pdr.bandpass(acc))
     p0, ok0 = interp_onto(t[starts], t_fix, p_fix, max_gap=FIX_MAX_GAP_S)
     p1, ok1 = interp_onto(t[starts + W - 1], t_fix, p_fix, max_gap=FIX_MAX_GAP_S)
@@ -241,16 +288,18 @@ def fix_frame_yaw(imu: np.ndarray, t: np.ndarray, rate: float, t_fix: np.ndarray
     mean = np.angle(np.sum(w * z))
     w = w * (np.abs(np.angle(z * np.exp(-1j * mean))) < np.deg2rad(60.0))
     tc = t[starts] + 0.5 * window_s
-    kern = np.exp(-0.5 * ((t[:, None] - tc[None, :]) / kernel_s) ** 2) * w[None, :] if t.size * tc.size < 5e7 \
-        else None
+    kern = np.exp(-0.5 * ((t[:, None] - tc[None, :]) / kernel_s) ** 2) * w[None, :] if t.size * tc.size < 5e7 else None
     overall = np.sum(w * z)
     if kern is None:
         yaw = np.full(t.size, np.angle(overall))
     else:
         acc_z = kern @ z + 1e-6 * overall  # where no window is near, hold the overall mean
         yaw = np.angle(acc_z)
-    info = {"windows": int(w.sum()), "yaw_deg": round(float(np.rad2deg(np.angle(overall))), 2),
-            "span_deg": round(float(np.rad2deg(np.ptp(np.unwrap(yaw)))), 2)}
+    info = {
+        "windows": int(w.sum()),
+        "yaw_deg": round(float(np.rad2deg(np.angle(overall))), 2),
+        "span_deg": round(float(np.rad2deg(np.ptp(np.unwrap(yaw)))), 2),
+    }
     return yaw, info
 
 
@@ -281,8 +330,12 @@ def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig(), warn_drops
         return None
     spread = float(np.max(np.ptp(rec.fixes.pos[:, :2], axis=0)))
     if spread < FIX_SPREAD_MIN_M:
-        warnings.warn(f"{rec.name}: all {len(rec.fixes)} location fixes lie at one point (spread "
-                      f"{spread:.3g} m): its labels would all be 0 m, so it is left out", WearnavWarning, stacklevel=2)
+        warnings.warn(
+            f"{rec.name}: all {len(rec.fixes)} location fixes lie at one point (spread "
+            f"{spread:.3g} m): its labels would all be 0 m, so it is left out",
+            WearnavWarning,
+            stacklevel=2,
+        )
         return None
     seq = aligned_phone(rec, cfg)
     N = cfg.samples
@@ -292,7 +345,7 @@ def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig(), warn_drops
     for a, b in span:
         for k in range(a, b - cfg.steps + 1):
             s = int(np.searchsorted(seq.t, t_pt[k] - 0.5 / cfg.rate))
-            if s + N <= seq.t.size and seq.mask[0, s:s + N].all():
+            if s + N <= seq.t.size and seq.mask[0, s : s + N].all():
                 keep.append((k, k + cfg.steps, s))
     n_drop = 0
     if keep:
@@ -300,14 +353,17 @@ def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig(), warn_drops
         ok = plausible_labels(p_pt[ij[:, 1]] - p_pt[ij[:, 0]], t_pt[ij[:, 1]] - t_pt[ij[:, 0]], cfg.max_speed)
         n_drop = int((~ok).sum())
         if n_drop and warn_drops:
-            warnings.warn(f"{rec.name}: the jump filter (max_speed {cfg.max_speed} m/s) dropped {n_drop} of "
-                          f"{len(keep)} labels", WearnavWarning, stacklevel=2)
+            warnings.warn(
+                f"{rec.name}: the jump filter (max_speed {cfg.max_speed} m/s) dropped {n_drop} of {len(keep)} labels",
+                WearnavWarning,
+                stacklevel=2,
+            )
         keep = [k for k, good in zip(keep, ok) if good]
     if not keep:
         return None
     nodes = np.array(sorted({k for i, j, _ in keep for k in (i, j)}))
     node_of = {k: n for n, k in enumerate(nodes)}
-    x = np.stack([seq.imu[0, s:s + N] for _, _, s in keep]).astype(np.float32)
+    x = np.stack([seq.imu[0, s : s + N] for _, _, s in keep]).astype(np.float32)
     i_idx = np.array([i for i, _, _ in keep])
     j_idx = np.array([j for _, j, _ in keep])
     label = p_pt[j_idx] - p_pt[i_idx]
@@ -317,15 +373,27 @@ def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig(), warn_drops
         tt = interpolate_position(rec.truth.t, rec.truth.pos, t_pt[nodes])
         truth = tt[[node_of[j] for j in j_idx]] - tt[[node_of[i] for i in i_idx]]
         start = tt[:1]
-    return Segments(x=x, label=label, truth=truth, traj=np.zeros(len(keep), np.int64),
-                    node0=np.array([node_of[i] for i in i_idx]), node1=np.array([node_of[j] for j in j_idx]),
-                    t0=t_pt[i_idx], t1=t_pt[j_idx], node_pos=p_pt[nodes],
-                    node_traj=np.zeros(len(nodes), np.int64), node_t=t_pt[nodes],
-                    names=[rec.name], start_pos=start, dropped=np.array([n_drop]))
+    return Segments(
+        x=x,
+        label=label,
+        truth=truth,
+        traj=np.zeros(len(keep), np.int64),
+        node0=np.array([node_of[i] for i in i_idx]),
+        node1=np.array([node_of[j] for j in j_idx]),
+        t0=t_pt[i_idx],
+        t1=t_pt[j_idx],
+        node_pos=p_pt[nodes],
+        node_traj=np.zeros(len(nodes), np.int64),
+        node_t=t_pt[nodes],
+        names=[rec.name],
+        start_pos=start,
+        dropped=np.array([n_drop]),
+    )
 
 
-def _chain_points(pairs: list[tuple[int, int]], t_fix: np.ndarray, p_fix: np.ndarray, steps: int
-                  ) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
+def _chain_points(
+    pairs: list[tuple[int, int]], t_fix: np.ndarray, p_fix: np.ndarray, steps: int
+) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
     """The points segments start and end on: every fix of the chain of ``pairs`` and, with
     ``steps`` > 1, ``steps`` − 1 points evenly between each pair, positions linearly interpolated
     between the two fixes. Returns times, positions and each unbroken chain's [first, last] point
@@ -358,8 +426,17 @@ def segments_from_truth(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Seg
     pos = interpolate_position(rec.truth.t, rec.truth.pos, seq.t)
     N = cfg.samples
     starts = np.arange(0, seq.t.size - N, N)
-    ok = np.array([seq.mask[0, s:s + N].all() and np.isfinite(pos[s]).all() and np.isfinite(pos[s + N]).all()
-                   for s in starts], bool) if starts.size else np.zeros(0, bool)
+    ok = (
+        np.array(
+            [
+                seq.mask[0, s : s + N].all() and np.isfinite(pos[s]).all() and np.isfinite(pos[s + N]).all()
+                for s in starts
+            ],
+            bool,
+        )
+        if starts.size
+        else np.zeros(0, bool)
+    )
     # keep the longest contiguous stretch so the displacements integrate one trajectory
     if not ok.any():
         return None
@@ -372,30 +449,49 @@ def segments_from_truth(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Seg
     node_idx = np.concatenate([best, [best[-1] + N]])
     label = pos[best + N] - pos[best]
     n = best.size
-    return Segments(x=np.stack([seq.imu[0, s:s + N] for s in best]).astype(np.float32), label=label,
-                    truth=label.copy(), traj=np.zeros(n, np.int64), node0=np.arange(n), node1=np.arange(1, n + 1),
-                    t0=seq.t[best], t1=seq.t[best + N], node_pos=pos[node_idx], node_traj=np.zeros(n + 1, np.int64),
-                    node_t=seq.t[node_idx], names=[rec.name], start_pos=pos[best[:1]])
+    return Segments(
+        x=np.stack([seq.imu[0, s : s + N] for s in best]).astype(np.float32),
+        label=label,
+        truth=label.copy(),
+        traj=np.zeros(n, np.int64),
+        node0=np.arange(n),
+        node1=np.arange(1, n + 1),
+        t0=seq.t[best],
+        t1=seq.t[best + N],
+        node_pos=pos[node_idx],
+        node_traj=np.zeros(n + 1, np.int64),
+        node_t=seq.t[node_idx],
+        names=[rec.name],
+        start_pos=pos[best[:1]],
+    )
 
 
-def label_dataset(view, cfg: LabelConfig = LabelConfig(), from_truth: bool = False,
-                  progress: bool = False) -> Segments:
+def label_dataset(view, cfg: LabelConfig = LabelConfig(), from_truth: bool = False, progress: bool = False) -> Segments:
     """All recordings of a dataset view, phone-labelled (or truth-labelled with ``from_truth``)."""
     recs = report_progress(view, total=len(view), desc="label", unit="rec", enabled=progress)
-    parts = [segments_from_truth(rec, cfg) if from_truth else label_recording(rec, cfg, warn_drops=False) for rec in recs]
+    parts = [
+        segments_from_truth(rec, cfg) if from_truth else label_recording(rec, cfg, warn_drops=False) for rec in recs
+    ]
     parts = [p for p in parts if p is not None and len(p)]
     dropped = sum(int(p.dropped.sum()) for p in parts if p.dropped is not None)
     if dropped:
         hit = sum(int((p.dropped > 0).sum()) for p in parts if p.dropped is not None)
-        warnings.warn(f"the jump filter (max_speed {cfg.max_speed} m/s) dropped {dropped} of "
-                      f"{dropped + sum(len(p) for p in parts)} labels in {hit} recording(s)", WearnavWarning, stacklevel=2)
+        warnings.warn(
+            f"the jump filter (max_speed {cfg.max_speed} m/s) dropped {dropped} of "
+            f"{dropped + sum(len(p) for p in parts)} labels in {hit} recording(s)",
+            WearnavWarning,
+            stacklevel=2,
+        )
     if not parts:
-        raise ValidationError("no recording gave a labelled segment (need phone IMU and fixes that move"
-                              + (" and dense truth)" if from_truth else ")"))
+        raise ValidationError(
+            "no recording gave a labelled segment (need phone IMU and fixes that move"
+            + (" and dense truth)" if from_truth else ")")
+        )
     return Segments.concat(parts)
 
 
 # ---- label-noise statistics (eqs. 5–7) -----------------------------------------------------------
+
 
 def neighbour_correlation(seg: Segments) -> dict:
     """:func:`wearnav.metrics.label_noise_correlation` over pairs of consecutive segments
@@ -416,16 +512,27 @@ def noise_summary(seg: Segments) -> dict:
     the jump filter dropped (count, share of all labels) and the neighbour correlation."""
     e = seg.noise()
     mag = np.linalg.norm(e[np.isfinite(e).all(1)], axis=1)
-    dist = float(np.nansum(np.linalg.norm(seg.truth, axis=1))) if np.isfinite(seg.truth).any() else \
-        float(np.sum(np.linalg.norm(seg.label, axis=1)))
-    out = {"segments": len(seg), "trajectories": len(seg.names), "length_km": round(dist / 1000, 3),
-           "label_noise_median_cm": None, "label_noise_mean_cm": None, "label_noise_p90_cm": None}
+    dist = (
+        float(np.nansum(np.linalg.norm(seg.truth, axis=1)))
+        if np.isfinite(seg.truth).any()
+        else float(np.sum(np.linalg.norm(seg.label, axis=1)))
+    )
+    out = {
+        "segments": len(seg),
+        "trajectories": len(seg.names),
+        "length_km": round(dist / 1000, 3),
+        "label_noise_median_cm": None,
+        "label_noise_mean_cm": None,
+        "label_noise_p90_cm": None,
+    }
     if mag.size:
-        out.update(label_noise_median_cm=round(100 * float(np.median(mag)), 2),
-                   label_noise_mean_cm=round(100 * float(np.mean(mag)), 2),
-                   label_noise_p90_cm=round(100 * float(np.percentile(mag, 90)), 2),
-                   label_noise_over_1m=round(float(np.mean(mag > 1.0)), 5),
-                   label_noise_over_2m=round(float(np.mean(mag > 2.0)), 5))
+        out.update(
+            label_noise_median_cm=round(100 * float(np.median(mag)), 2),
+            label_noise_mean_cm=round(100 * float(np.mean(mag)), 2),
+            label_noise_p90_cm=round(100 * float(np.percentile(mag, 90)), 2),
+            label_noise_over_1m=round(float(np.mean(mag > 1.0)), 5),
+            label_noise_over_2m=round(float(np.mean(mag > 2.0)), 5),
+        )
     dropped = int(seg.dropped.sum()) if seg.dropped is not None else 0
     out.update(dropped_labels=dropped, dropped_share=round(dropped / max(dropped + len(seg), 1), 5))
     out["neighbour_correlation"] = neighbour_correlation(seg)
@@ -445,6 +552,8 @@ def plot_noise_cdf(seg: Segments, out: str | Path):
     fig = Figure(figsize=(5, 3.4), layout="constrained")
     ax = fig.subplots()
     plot_ecdf(ax, e)
-    ax.set(xlabel="phone-label noise |d_e| (cm)", ylabel="CDF", title=f"median {np.median(e):.1f} cm, {e.size} segments")
+    ax.set(
+        xlabel="phone-label noise |d_e| (cm)", ylabel="CDF", title=f"median {np.median(e):.1f} cm, {e.size} segments"
+    )
     ax.grid(alpha=0.3)
     return save(fig, Path(out))

@@ -191,7 +191,7 @@ def lever_regressor(yaw_rate: np.ndarray, rate: float, cutoff_hz: float = 0.5) -
     sos = signal.butter(4, cutoff_hz, fs=rate, output="sos")
     omega = signal.sosfiltfilt(sos, yaw_rate) if yaw_rate.size > 30 else yaw_rate
     theta = np.cumsum(omega) / rate
-    return (1j * np.gradient(omega) * rate - omega ** 2) * np.exp(1j * theta)
+    return (1j * np.gradient(omega) * rate - omega**2) * np.exp(1j * theta)
 
 
 def heading_regressor(yaw_rate: np.ndarray, rate: float) -> np.ndarray:
@@ -228,7 +228,7 @@ def _fit(y, X, w, n, smooth):
     for m, (i, j) in enumerate(iu):
         S[..., i, j] = P[..., m]
         S[..., j, i] = np.conj(P[..., m])
-    r = P[..., len(iu):len(iu) + K]
+    r = P[..., len(iu) : len(iu) + K]
     syy, sw = P[..., -2].real, P[..., -1].real
     s11 = S[..., 0, 0].real
     # a tiny ridge keeps regressors that are all zero (no gyro) from making S singular
@@ -253,8 +253,14 @@ def _fit(y, X, w, n, smooth):
     return np.angle(A), info, gamma
 
 
-def relative_yaw(z_a: np.ndarray, z_b: np.ndarray, weight: np.ndarray, rate: float,
-                 cfg: FrameConfig = FrameConfig(), nuisance: list[np.ndarray] = ()) -> YawTrack:
+def relative_yaw(
+    z_a: np.ndarray,
+    z_b: np.ndarray,
+    weight: np.ndarray,
+    rate: float,
+    cfg: FrameConfig = FrameConfig(),
+    nuisance: list[np.ndarray] = (),
+) -> YawTrack:
     """Yaw of a's frame relative to b's (z_a ≈ e^{iψ} z_b) over time, from horizontal world
     accelerations ``z_a``, ``z_b`` (complex, T) and a per-sample ``weight`` (0 where either is
     absent; see :func:`usable`). ``nuisance`` regressors (:func:`lever_regressor`,
@@ -273,8 +279,9 @@ def relative_yaw(z_a: np.ndarray, z_b: np.ndarray, weight: np.ndarray, rate: flo
         n_glob = 2.0 * bandwidth * w.sum() / rate
         loc, info, _ = _fit(za, X, w, n_loc, lambda x: _smooth(x, sigma))
         glob, glob_info, gamma = _fit(za, X, w, n_glob, lambda x: x.sum(axis=-1, keepdims=True))
-        per_band.append(dict(loc=loc, info=info, glob=float(glob[0]), gamma=float(gamma[0]),
-                             glob_info=float(glob_info[0])))
+        per_band.append(
+            dict(loc=loc, info=info, glob=float(glob[0]), gamma=float(gamma[0]), glob_info=float(glob_info[0]))
+        )
     anchor = per_band[0]
     used = [0]
     for k, b in enumerate(per_band[1:], start=1):
@@ -318,8 +325,14 @@ class CommonFrame:
     pairs: dict[tuple[int, int], YawTrack] = field(default_factory=dict)
 
 
-def common_frame(imu: np.ndarray, mask: np.ndarray, devices: tuple[str, ...], rate: float,
-                 cfg: FrameConfig = FrameConfig(), iterations: int = 10) -> CommonFrame:
+def common_frame(
+    imu: np.ndarray,
+    mask: np.ndarray,
+    devices: tuple[str, ...],
+    rate: float,
+    cfg: FrameConfig = FrameConfig(),
+    iterations: int = 10,
+) -> CommonFrame:
     """Yaw of every present device relative to the reference device, from the IMU alone.
 
     ``imu`` (D, T, ≥2) world-frame acceleration first, ``mask`` (D, T). Pairwise tracks between
@@ -336,7 +349,7 @@ def common_frame(imu: np.ndarray, mask: np.ndarray, devices: tuple[str, ...], ra
     present = [d for d in range(D) if mask[d].any()]
     pairs: dict[tuple[int, int], YawTrack] = {}
     for i, a in enumerate(present):
-        for b in present[i + 1:]:
+        for b in present[i + 1 :]:
             w = (ok[a] & ok[b]).astype(np.float64)
             if w.sum() == 0:
                 continue
@@ -392,8 +405,9 @@ def truth_acceleration(pos: np.ndarray, rate: float) -> tuple[np.ndarray, np.nda
     return acc, ok
 
 
-def truth_yaw(imu_common: np.ndarray, mask: np.ndarray, pos: np.ndarray, rate: float,
-              cfg: FrameConfig = FrameConfig()) -> YawTrack:
+def truth_yaw(
+    imu_common: np.ndarray, mask: np.ndarray, pos: np.ndarray, rate: float, cfg: FrameConfig = FrameConfig()
+) -> YawTrack:
     """Yaw of the common frame relative to the truth frame over time, from devices already in the
     common frame (``imu_common`` (D, T, ≥2), ``mask`` (D, T)) and truth positions ``pos``
     (T × 2, NaN where missing): each device's track against the truth's acceleration, fused by
@@ -436,13 +450,19 @@ def initial_truth(pos: np.ndarray, rate: float, seconds: float) -> np.ndarray:
     out = np.zeros(finite.size, bool)
     if finite.any():
         first = int(np.argmax(finite))
-        out[first:first + int(round(seconds * rate)) + 1] = True
+        out[first : first + int(round(seconds * rate)) + 1] = True
     return out & finite
 
 
-def align_frames(imu: np.ndarray, mask: np.ndarray, devices: tuple[str, ...], rate: float,
-                 pos: np.ndarray | None, mode: str = "truth",
-                 cfg: FrameConfig = FrameConfig()) -> tuple[np.ndarray, dict]:
+def align_frames(
+    imu: np.ndarray,
+    mask: np.ndarray,
+    devices: tuple[str, ...],
+    rate: float,
+    pos: np.ndarray | None,
+    mode: str = "truth",
+    cfg: FrameConfig = FrameConfig(),
+) -> tuple[np.ndarray, dict]:
     """Rotate world-frame ``imu`` (D, T, 6) of an aligned recording into one frame.
 
     ``mode`` "common": every device into the reference device's frame; "truth": then the common
@@ -465,8 +485,9 @@ def align_frames(imu: np.ndarray, mask: np.ndarray, devices: tuple[str, ...], ra
     for d, name in enumerate(devices):
         if d != cf.reference and mask[d].any():
             pair = cf.pairs.get((d, cf.reference)) or cf.pairs.get((cf.reference, d))
-            record["devices"][name] = YawTrack(cf.yaw[d], cf.info[d], pair.bands if pair else (),
-                                               pair.coherence if pair else 0.0).summary()
+            record["devices"][name] = YawTrack(
+                cf.yaw[d], cf.info[d], pair.bands if pair else (), pair.coherence if pair else 0.0
+            ).summary()
     if mode in ("truth", "initial") and pos is not None:
         common = np.stack([rotate_stacked(imu[d], -cf.yaw[d]) for d in range(len(devices))])
         if mode == "initial":
@@ -476,8 +497,11 @@ def align_frames(imu: np.ndarray, mask: np.ndarray, devices: tuple[str, ...], ra
                 yaw0 = _circular_mean(tr.yaw, tr.info * initial)
                 total = total + yaw0
                 record["frame"] = "initial"
-                record["truth"] = {"yaw_deg": round(float(np.rad2deg(yaw0)), 3), "from_s": cfg.initial_s,
-                                   "std_deg": round(float(np.rad2deg(1 / np.sqrt(np.sum(tr.info * initial)))), 3)}
+                record["truth"] = {
+                    "yaw_deg": round(float(np.rad2deg(yaw0)), 3),
+                    "from_s": cfg.initial_s,
+                    "std_deg": round(float(np.rad2deg(1 / np.sqrt(np.sum(tr.info * initial)))), 3),
+                }
         else:
             tr = truth_yaw(common, mask, pos, rate, cfg)
             if tr.info.any():

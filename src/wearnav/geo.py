@@ -48,8 +48,7 @@ def local_to_latlon(pos_m, lat0_deg: float, lon0_deg: float) -> tuple[np.ndarray
     pos = np.asarray(pos_m, dtype=np.float64).reshape(-1, 2)
     up = np.zeros(len(pos))
     for _ in range(_INVERSE_STEPS):
-        lat, lon, h = pymap3d.enu2geodetic(pos[:, 0], pos[:, 1], up, float(lat0_deg), float(lon0_deg), 0.0,
-                                           ell=WGS84)
+        lat, lon, h = pymap3d.enu2geodetic(pos[:, 0], pos[:, 1], up, float(lat0_deg), float(lon0_deg), 0.0, ell=WGS84)
         up = up - np.asarray(h, np.float64)
     return np.asarray(lat, np.float64).reshape(-1), np.asarray(lon, np.float64).reshape(-1)
 
@@ -71,8 +70,10 @@ def needs_reimport(meta: dict, has_fixes: bool = False) -> str | None:
         return None
     how = f"projection {used!r}" if used else "the old equirectangular projection (off by up to 7 m per km)"
     fmt = source if source in PROJECTING_SOURCES else "<format>"
-    return (f"needs re-import: its positions were projected from lat/lon with {how}, not {PROJECTION}; "
-            f"run wearnav import {fmt} <original files> --out <dataset>")
+    return (
+        f"needs re-import: its positions were projected from lat/lon with {how}, not {PROJECTION}; "
+        f"run wearnav import {fmt} <original files> --out <dataset>"
+    )
 
 
 __all__ = ["PROJECTION", "latlon_to_local", "local_to_latlon", "needs_reimport"]

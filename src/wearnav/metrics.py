@@ -17,8 +17,9 @@ def _track(t, pos, name: str) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(t, dtype=np.float64)
     pos = np.asarray(pos, dtype=np.float64)
     if t.ndim != 1 or pos.ndim != 2 or pos.shape[0] != t.size or pos.shape[1] < 2:
-        raise ValidationError(f"{name}: times {t.shape} and positions {pos.shape} do not match "
-                              "(expected (N,) and (N, 2 or 3))")
+        raise ValidationError(
+            f"{name}: times {t.shape} and positions {pos.shape} do not match (expected (N,) and (N, 2 or 3))"
+        )
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(pos[:, :2]))):
         raise ValidationError(f"{name}: non-finite times or positions")
     if t.size > 1 and np.any(np.diff(t) <= 0):
@@ -119,7 +120,7 @@ def ate(t, pos_est, pos_true) -> float:
     """Absolute trajectory error: RMS of the 2-D position error at common timestamps, with no
     alignment (the estimate starts at the true start; DESIGN.md "Metric definitions")."""
     e = position_errors(t, pos_est, pos_true)
-    return float(np.sqrt(np.mean(e ** 2)))
+    return float(np.sqrt(np.mean(e**2)))
 
 
 def rte(t, pos_est, pos_true, delta: float = 60.0) -> float:
@@ -144,7 +145,7 @@ def rte(t, pos_est, pos_true, delta: float = 60.0) -> float:
     i = np.flatnonzero(j < t.size)
     j = j[i]
     e = (est[j] - est[i]) - (true[j] - true[i])
-    return float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))
+    return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
 
 
 def ecdf(values) -> tuple[np.ndarray, np.ndarray]:
@@ -174,6 +175,7 @@ def ade(disp_est, disp_true) -> float:
 
 # ---- classification (activity / placement recognition, paper 002 Sec. III) -------------------
 
+
 def _labels(y_true, y_pred, n_classes: int) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(y_true, dtype=np.int64).ravel()
     p = np.asarray(y_pred, dtype=np.int64).ravel()
@@ -187,7 +189,7 @@ def _labels(y_true, y_pred, n_classes: int) -> tuple[np.ndarray, np.ndarray]:
 def confusion_matrix(y_true, y_pred, n_classes: int) -> np.ndarray:
     """Counts C[i, j] of windows of true class i predicted as class j."""
     t, p = _labels(y_true, y_pred, n_classes)
-    return np.bincount(t * n_classes + p, minlength=n_classes ** 2).reshape(n_classes, n_classes)
+    return np.bincount(t * n_classes + p, minlength=n_classes**2).reshape(n_classes, n_classes)
 
 
 def accuracy(y_true, y_pred, n_classes: int) -> float:

@@ -39,8 +39,10 @@ def check_out_folder(out: str | Path, names: Iterable[str], marker: str, command
         return
     for name in names:
         if (out / name).exists() or (out / name).is_symlink():
-            raise ConfigError(f"holds {name}, which `wearnav {command}` did not write (no {marker} beside "
-                              "it); choose another --out", out)
+            raise ConfigError(
+                f"holds {name}, which `wearnav {command}` did not write (no {marker} beside it); choose another --out",
+                out,
+            )
 
 
 def check_new_dataset(out: str | Path, overwrite: bool, command: str) -> None:
@@ -57,8 +59,11 @@ def check_new_dataset(out: str | Path, overwrite: bool, command: str) -> None:
         return
     if replaceable_reason(out) is None:  # a non-empty folder wearnav may replace: a dataset it wrote
         n = sum(1 for _ in out.glob("*.h5"))
-        raise ConfigError(f"already holds a wearnav dataset ({n} recordings); add --overwrite to replace it, "
-                          f"or choose another --out for `wearnav {command}`", out)
+        raise ConfigError(
+            f"already holds a wearnav dataset ({n} recordings); add --overwrite to replace it, "
+            f"or choose another --out for `wearnav {command}`",
+            out,
+        )
 
 
 def check_suite_folder(out: str | Path, command: str) -> None:
@@ -83,8 +88,11 @@ def _previous_files(out: Path, marker: str) -> list[str]:
         files = read_json(out / marker).get("files", [])
     except Exception:  # an unreadable marker of ours: nothing to tidy, it is replaced below
         return []
-    return [f for f in files if isinstance(f, str) and "/" not in f and f not in ("", ".", "..")] \
-        if isinstance(files, list) else []
+    return (
+        [f for f in files if isinstance(f, str) and "/" not in f and f not in ("", ".", "..")]
+        if isinstance(files, list)
+        else []
+    )
 
 
 @contextmanager

@@ -118,8 +118,9 @@ def common_span(rec: Recording, devices: tuple[str, ...], tol: float) -> tuple[f
     off mid-walk) does not shorten the clock."""
     present = [rec.devices[d] for d in devices if d in rec.devices]
     if not present:
-        raise ValidationError(f"{rec.name}: none of the devices {list(devices)} is in the recording "
-                              f"(it has {list(rec.devices)})")
+        raise ValidationError(
+            f"{rec.name}: none of the devices {list(devices)} is in the recording (it has {list(rec.devices)})"
+        )
     starts = np.array([s.t[0] for s in present])
     ends = np.array([s.t[-1] for s in present])
     t0 = float(starts[starts <= starts.min() + tol].max())
@@ -153,8 +154,9 @@ def _lowpass(x: np.ndarray, fs: float, target_rate: float) -> np.ndarray:
     return signal.sosfiltfilt(sos, x, axis=0)
 
 
-def stream_to_clock(s: DeviceStream, t: np.ndarray, cfg: PreprocessConfig,
-                    name: str = "") -> tuple[np.ndarray, np.ndarray]:
+def stream_to_clock(
+    s: DeviceStream, t: np.ndarray, cfg: PreprocessConfig, name: str = ""
+) -> tuple[np.ndarray, np.ndarray]:
     """One device's (T × 6) IMU on clock ``t`` and its (T,) mask."""
     acc = s.acc.astype(np.float64)
     gyro = s.gyro.astype(np.float64) if s.gyro is not None else np.zeros_like(acc)
@@ -185,12 +187,12 @@ def stream_to_clock(s: DeviceStream, t: np.ndarray, cfg: PreprocessConfig,
     return out.astype(np.float32), mask
 
 
-def interpolate_position(truth_t: np.ndarray, truth_pos: np.ndarray, t: np.ndarray,
-                         max_gap: float = TRUTH_MAX_GAP_S) -> np.ndarray:
+def interpolate_position(
+    truth_t: np.ndarray, truth_pos: np.ndarray, t: np.ndarray, max_gap: float = TRUTH_MAX_GAP_S
+) -> np.ndarray:
     """Horizontal truth at ``t`` by linear interpolation; NaN outside the truth or across gaps
     longer than ``max_gap`` s (sparse waypoints are not interpolated into dense truth)."""
-    pos, _ = interp_onto(t, truth_t, np.asarray(truth_pos, dtype=np.float64)[:, :2], max_gap=max_gap,
-                         fill=np.nan)
+    pos, _ = interp_onto(t, truth_t, np.asarray(truth_pos, dtype=np.float64)[:, :2], max_gap=max_gap, fill=np.nan)
     return np.array(pos, dtype=np.float64)
 
 
@@ -203,8 +205,9 @@ def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig(), t: np.ndar
         t = clock(t0, t1, cfg.rate)
     if t.size < 2:
         span = float(t[-1] - t[0]) if t.size else 0.0
-        raise ValidationError(f"{rec.name}: the devices' common span ({span:.3g} s) is shorter than one "
-                              f"sample period at {cfg.rate:g} Hz")
+        raise ValidationError(
+            f"{rec.name}: the devices' common span ({span:.3g} s) is shorter than one sample period at {cfg.rate:g} Hz"
+        )
     imu = np.zeros((len(cfg.devices), t.size, 6), np.float32)
     mask = np.zeros((len(cfg.devices), t.size), bool)
     for i, dev in enumerate(cfg.devices):

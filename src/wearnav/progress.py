@@ -38,8 +38,9 @@ def on_terminal() -> bool:
     return sys.stderr.isatty()
 
 
-def eta_line(desc: str, done: float, total: float | None, elapsed_s: float, unit: str = "",
-             done_here: float | None = None) -> str:
+def eta_line(
+    desc: str, done: float, total: float | None, elapsed_s: float, unit: str = "", done_here: float | None = None
+) -> str:
     """``desc: 3/10 rec, 12 s elapsed, about 28 s left`` (no estimate without a total or before
     the first item is done). ``done_here``: how many of ``done`` this call did in ``elapsed_s``
     (a resumed loop starts at more than 0); default ``done``.
@@ -61,9 +62,17 @@ class Progress:
     ``enabled=False`` reports nothing. ``leave``: keep the finished bar on the terminal.
     """
 
-    def __init__(self, iterable: Iterable | None = None, total: float | None = None, desc: str = "",
-                 unit: str = "it", enabled: bool = True, leave: bool = True, initial: float = 0,
-                 interval: float | None = None):
+    def __init__(
+        self,
+        iterable: Iterable | None = None,
+        total: float | None = None,
+        desc: str = "",
+        unit: str = "it",
+        enabled: bool = True,
+        leave: bool = True,
+        initial: float = 0,
+        interval: float | None = None,
+    ):
         if total is None and iterable is not None and hasattr(iterable, "__len__"):
             total = len(iterable)  # type: ignore[arg-type]
         self.iterable, self.total, self.desc, self.unit = iterable, total, desc, unit
@@ -98,8 +107,14 @@ class Progress:
             self.bar.close()
 
 
-def progress(iterable: Iterable, total: float | None = None, desc: str = "", unit: str = "it",
-             enabled: bool = True, leave: bool = True) -> Iterator:
+def progress(
+    iterable: Iterable,
+    total: float | None = None,
+    desc: str = "",
+    unit: str = "it",
+    enabled: bool = True,
+    leave: bool = True,
+) -> Iterator:
     """Iterate over ``iterable`` reporting progress (a bar on a terminal, else log lines)."""
     p = Progress(iterable, total, desc, unit, enabled, leave)
     try:

@@ -23,7 +23,7 @@ import h5py
 import numpy as np
 import pandas as pd
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.errors import FormatError, ValidationError
 from wearnav.fileio import atomic_path, require_regular_file
 from wearnav.timeseries import rate
 
@@ -101,9 +101,14 @@ def _as_flags(x, name: str) -> np.ndarray:
     a = np.asarray(x)
     if a.dtype != bool:
         if a.dtype.kind not in "iuf" or not np.all((a == 0) | (a == 1)):
-            raise ValidationError(f"{name}: not booleans (True/False or 0/1), got dtype {a.dtype.name}"
-                                  + (f" with value {a.flat[int(np.argmax(~((a == 0) | (a == 1))))].item()!r}"
-                                     if a.dtype.kind in "iuf" and a.size else ""))
+            raise ValidationError(
+                f"{name}: not booleans (True/False or 0/1), got dtype {a.dtype.name}"
+                + (
+                    f" with value {a.flat[int(np.argmax(~((a == 0) | (a == 1))))].item()!r}"
+                    if a.dtype.kind in "iuf" and a.size
+                    else ""
+                )
+            )
     return np.ascontiguousarray(a, dtype=bool)
 
 
@@ -131,14 +136,17 @@ def _check_range(a: np.ndarray | None, limit: float, unit: str, name: str) -> No
         raise ValidationError(
             f"{name}: {n_bad} of {len(a)} samples beyond ±{limit:.4g} {unit} per axis (first at "
             f"sample {i}: {float(a[i][over[i]][0]):.4g}), the full-scale range of a consumer IMU: "
-            "corrupt values or wrong unit?")
+            "corrupt values or wrong unit?"
+        )
 
 
 def _check_position(pos: np.ndarray, name: str) -> None:
     if pos.size and np.any(np.abs(pos) > POS_ABS_MAX):
         i = int(np.argmax(np.any(np.abs(pos) > POS_ABS_MAX, axis=1)))
-        raise ValidationError(f"{name}: coordinate {float(np.max(np.abs(pos[i]))):.4g} m at point {i} "
-                              f"is farther than anything on Earth ({POS_ABS_MAX:.0e} m)")
+        raise ValidationError(
+            f"{name}: coordinate {float(np.max(np.abs(pos[i]))):.4g} m at point {i} "
+            f"is farther than anything on Earth ({POS_ABS_MAX:.0e} m)"
+        )
 
 
 def _check_rows(a: np.ndarray | None, n: int, width: tuple[int, ...] | int, name: str) -> None:
@@ -261,8 +269,10 @@ class Trajectory:
         if self.floor is not None and self.floor.shape != self.t.shape:
             raise ValidationError(f"truth.floor: shape {self.floor.shape}, expected {self.t.shape}")
         if self.floor is not None and not np.all(np.isfinite(self.floor)):
-            raise ValidationError(f"truth.floor: non-finite values (first at point "
-                                  f"{int(np.argmax(~np.isfinite(self.floor)))}); truth knows its floor")
+            raise ValidationError(
+                f"truth.floor: non-finite values (first at point "
+                f"{int(np.argmax(~np.isfinite(self.floor)))}); truth knows its floor"
+            )
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -298,8 +308,10 @@ class Fixes:
         bad = ~np.isnan(self.accuracy) & ~((self.accuracy >= 0) & (self.accuracy <= POS_ABS_MAX))
         if np.any(bad):
             i = int(np.argmax(bad))
-            raise ValidationError(f"fixes.accuracy: {self.accuracy[i]:.4g} m at fix {i} is not a radius "
-                                  f"in 0..{POS_ABS_MAX:.0e} m (NaN where unknown)")
+            raise ValidationError(
+                f"fixes.accuracy: {self.accuracy[i]:.4g} m at fix {i} is not a radius "
+                f"in 0..{POS_ABS_MAX:.0e} m (NaN where unknown)"
+            )
         if self.floor is not None and self.floor.shape != self.t.shape:
             raise ValidationError(f"fixes.floor: shape {self.floor.shape}, expected {self.t.shape}")
 
@@ -310,8 +322,10 @@ class Fixes:
 def make_labels(rows=None) -> pd.DataFrame:
     """A labels table (columns start, end, kind, value) from rows or records; validated."""
     if isinstance(rows, pd.DataFrame) and set(LABEL_COLUMNS) - set(rows.columns):
-        raise ValidationError(f"labels: missing columns {sorted(set(LABEL_COLUMNS) - set(rows.columns))} "
-                              f"(a labels table has {', '.join(LABEL_COLUMNS)})")
+        raise ValidationError(
+            f"labels: missing columns {sorted(set(LABEL_COLUMNS) - set(rows.columns))} "
+            f"(a labels table has {', '.join(LABEL_COLUMNS)})"
+        )
     try:
         df = pd.DataFrame(rows if rows is not None else [], columns=LABEL_COLUMNS)
     except (TypeError, ValueError) as exc:
@@ -346,7 +360,8 @@ def _check_overlaps(df: pd.DataFrame) -> None:
             raise ValidationError(
                 f"labels: {kind!r} intervals overlap ([{start[i - 1]:g}, {end[i - 1]:g}) "
                 f"{g['value'].iloc[i - 1]!r} and [{start[i]:g}, {end[i]:g}) {g['value'].iloc[i]!r}); "
-                "repeated label rows?")
+                "repeated label rows?"
+            )
 
 
 @dataclass
@@ -381,7 +396,8 @@ class Recording:
                 if part.t[0] < lo or part.t[-1] > hi:
                     raise ValidationError(
                         f"{what}.t spans {part.t[0]:.6g}..{part.t[-1]:.6g} s, far outside the devices' "
-                        f"{self.t_start:.6g}..{self.t_end:.6g} s (another clock or a corrupt timestamp?)")
+                        f"{self.t_start:.6g}..{self.t_end:.6g} s (another clock or a corrupt timestamp?)"
+                    )
         self.labels = make_labels(self.labels)
         if not isinstance(self.meta, dict):
             raise ValidationError("meta is not a dict")
@@ -436,7 +452,9 @@ class Recording:
         f.attrs["version"] = FORMAT_VERSION
         f.attrs["name"] = self.name
         f.attrs["meta"] = json.dumps(self.meta)
-        f.attrs["units"] = "t: s; acc: m/s^2 incl. gravity, device frame; gyro: rad/s; pos: m; quat: w,x,y,z world<-device"
+        f.attrs["units"] = (
+            "t: s; acc: m/s^2 incl. gravity, device frame; gyro: rad/s; pos: m; quat: w,x,y,z world<-device"
+        )
         g = f.create_group("devices")
         for dev, s in self.devices.items():
             d = g.create_group(dev)
@@ -468,7 +486,7 @@ class Recording:
         lab.create_dataset("value", data=self.labels["value"].to_numpy(object), dtype=str_t)
 
     @classmethod
-    def load(cls, path: str | Path) -> "Recording":
+    def load(cls, path: str | Path) -> Recording:
         """Read a file written by :meth:`save`; any problem raises a WearnavError naming it."""
         path = Path(path)
         require_regular_file(path)
@@ -478,8 +496,11 @@ class Recording:
                     raise FormatError("not a wearnav recording (missing 'format' attribute)", path)
                 version = f.attrs.get("version")
                 if not isinstance(version, (int, np.integer)) or not 1 <= version <= FORMAT_VERSION:
-                    raise FormatError(f"recording format version {version!r} is not one this wearnav "
-                                      f"reads (1..{FORMAT_VERSION}); written by a newer wearnav?", path)
+                    raise FormatError(
+                        f"recording format version {version!r} is not one this wearnav "
+                        f"reads (1..{FORMAT_VERSION}); written by a newer wearnav?",
+                        path,
+                    )
                 return cls._read(f)
         except (FormatError, ValidationError) as exc:
             raise exc.with_source(path) from None
@@ -493,7 +514,7 @@ class Recording:
             raise FormatError(f"corrupt recording ({exc.__class__.__name__}: {exc})", path) from None
 
     @classmethod
-    def _read(cls, f: h5py.File) -> "Recording":
+    def _read(cls, f: h5py.File) -> Recording:
         def opt(g, key):
             return g[key][()] if key in g else None
 
@@ -513,8 +534,12 @@ class Recording:
             try:
                 # Units were checked when the recording was made; don't refuse to open it.
                 devices[dev] = DeviceStream(
-                    t=d["t"][()], acc=d["acc"][()], gyro=opt(d, "gyro"), quat=opt(d, "quat"),
-                    worn=opt(d, "worn"), check_units=False,
+                    t=d["t"][()],
+                    acc=d["acc"][()],
+                    gyro=opt(d, "gyro"),
+                    quat=opt(d, "quat"),
+                    worn=opt(d, "worn"),
+                    check_units=False,
                 )
             except ValidationError as exc:
                 raise ValidationError(f"device {dev!r}: {exc.reason}") from None
@@ -527,15 +552,21 @@ class Recording:
             g = group(f, "fixes")
             fixes = Fixes(g["t"][()], g["pos"][()], g["accuracy"][()], opt(g, "floor"))
         lab = group(f, "labels")
-        labels = pd.DataFrame({
-            "start": lab["start"][()],
-            "end": lab["end"][()],
-            "kind": [v.decode() if isinstance(v, bytes) else v for v in lab["kind"][()]],
-            "value": [v.decode() if isinstance(v, bytes) else v for v in lab["value"][()]],
-        })
+        labels = pd.DataFrame(
+            {
+                "start": lab["start"][()],
+                "end": lab["end"][()],
+                "kind": [v.decode() if isinstance(v, bytes) else v for v in lab["kind"][()]],
+                "value": [v.decode() if isinstance(v, bytes) else v for v in lab["value"][()]],
+            }
+        )
         return cls(
-            name=str(f.attrs["name"]), devices=devices, truth=truth, fixes=fixes,
-            labels=labels, meta=meta,
+            name=str(f.attrs["name"]),
+            devices=devices,
+            truth=truth,
+            fixes=fixes,
+            labels=labels,
+            meta=meta,
         )
 
     def summary(self) -> dict[str, Any]:

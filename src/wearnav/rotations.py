@@ -41,6 +41,7 @@ class NotUnitQuaternion(ValidationError):
 
 # ---- quaternions (w, x, y, z) <-> Rotation ------------------------------------------------
 
+
 def from_wxyz(q) -> Rotation:
     """Rotation(s) from (…, 4) quaternions w, x, y, z (normalised by scipy)."""
     q = np.asarray(q, dtype=np.float64)
@@ -100,6 +101,7 @@ def matrix_to_wxyz(R) -> np.ndarray:
 
 # ---- the sources' conventions -------------------------------------------------------------
 
+
 def from_android_rotation_vector(v) -> np.ndarray:
     """Android rotation-vector values (N, 3) x, y, z or (N, ≥4) x, y, z, w → (N, 4) w, x, y, z,
     not normalised (so that the caller can check the norm with :func:`normalize_wxyz`).
@@ -125,6 +127,7 @@ def from_euler(seq: str, angles) -> Rotation:
 
 
 # ---- applying rotations and the vertical axis ---------------------------------------------
+
 
 def apply(q, v, inverse: bool = False) -> np.ndarray:
     """Rotate (N, 3) vectors by (N, 4) quaternions w, x, y, z: device → world

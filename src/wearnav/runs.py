@@ -44,6 +44,7 @@ LOCK = ".wearnav.lock"
 
 def to_dict(cfg: Any) -> dict:
     """A (nested) dataclass as plain YAML-safe data (tuples become lists)."""
+
     def plain(v):
         if dataclasses.is_dataclass(v):
             return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
@@ -54,6 +55,7 @@ def to_dict(cfg: Any) -> dict:
         if isinstance(v, Path):
             return str(v)
         return v
+
     return plain(cfg)
 
 
@@ -109,8 +111,9 @@ def locked(run: str | Path) -> Iterator[Path]:
             lock.acquire(timeout=0)
         except Timeout:
             pid = lock_holder(run)
-            raise BusyError("another wearnav process is using this run folder"
-                            + (f" (pid {pid})" if pid else ""), run) from None
+            raise BusyError(
+                "another wearnav process is using this run folder" + (f" (pid {pid})" if pid else ""), run
+            ) from None
         _held[key] = lock
     try:
         yield run
@@ -146,8 +149,7 @@ def lock_holder(run: str | Path) -> int | None:
 
 def write_config(run: str | Path, cfg: dict, extra: dict | None = None) -> Path:
     doc = {"config": cfg, "provenance": provenance(), **(extra or {})}
-    return write_text_atomic(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), Path(run) / CONFIG,
-                             durable=True)
+    return write_text_atomic(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), Path(run) / CONFIG, durable=True)
 
 
 def read_config(run: str | Path) -> dict:

@@ -47,8 +47,9 @@ def bh_adjust(p: dict[str, float | None]) -> dict[str, float | None]:
     return out
 
 
-def walk_bootstrap_difference(a: list, b: list, quantiles=(50, 75, 95), confidence: float = 0.9,
-                              n_resamples: int = 2000, seed: int = 0) -> dict:
+def walk_bootstrap_difference(
+    a: list, b: list, quantiles=(50, 75, 95), confidence: float = 0.9, n_resamples: int = 2000, seed: int = 0
+) -> dict:
     """Quantiles of path ``a``'s errors minus path ``b``'s, with a percentile interval from
     resampling *walks* (``scipy.stats.bootstrap``, paired: both paths' errors of a drawn walk go
     in together). ``a``, ``b``: per walk, the errors (m) at its points (NaN: none there), the same
@@ -67,15 +68,30 @@ def walk_bootstrap_difference(a: list, b: list, quantiles=(50, 75, 95), confiden
 
     def diff(idx):
         idx = np.asarray(idx, int)
-        return (np.nanpercentile(np.concatenate([a[i] for i in idx]), q)
-                - np.nanpercentile(np.concatenate([b[i] for i in idx]), q))
+        return np.nanpercentile(np.concatenate([a[i] for i in idx]), q) - np.nanpercentile(
+            np.concatenate([b[i] for i in idx]), q
+        )
 
     point = diff(np.arange(len(a)))
     with warnings.catch_warnings():  # identical paths: a degenerate (zero-width) distribution
         warnings.simplefilter("ignore")
-        ci = bootstrap((np.arange(len(a)),), diff, vectorized=False, paired=True, n_resamples=n_resamples,
-                       confidence_level=confidence, method="percentile", random_state=seed).confidence_interval
+        ci = bootstrap(
+            (np.arange(len(a)),),
+            diff,
+            vectorized=False,
+            paired=True,
+            n_resamples=n_resamples,
+            confidence_level=confidence,
+            method="percentile",
+            random_state=seed,
+        ).confidence_interval
     low, high = (np.where(np.isfinite(v), v, point) for v in (ci.low, ci.high))
     r = lambda v: [round(float(x), 3) for x in v]
-    return {"quantiles": q, "difference": r(point), "low": r(np.minimum(low, point)), "high": r(np.maximum(high, point)),
-            "walks": len(a), "confidence": confidence}
+    return {
+        "quantiles": q,
+        "difference": r(point),
+        "low": r(np.minimum(low, point)),
+        "high": r(np.maximum(high, point)),
+        "walks": len(a),
+        "confidence": confidence,
+    }

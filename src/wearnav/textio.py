@@ -46,8 +46,9 @@ def read_yaml(path: str | Path, kind: type | None = dict) -> Any:
     try:
         value = yaml.safe_load(text)
     except (yaml.YAMLError, RecursionError) as exc:
-        raise FormatError(f"unreadable YAML ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
-                          path) from None
+        raise FormatError(
+            f"unreadable YAML ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})", path
+        ) from None
     return _require(value, kind, "YAML", path)
 
 

@@ -55,6 +55,7 @@ MAX_DUPLICATE_SHARE = 0.05
 
 # ---- rate --------------------------------------------------------------------------------
 
+
 def rate(t) -> float:
     """Sampling rate in Hz: 1 / median interval (0 for fewer than two samples)."""
     t = np.asarray(t, dtype=np.float64)
@@ -79,10 +80,10 @@ def periods(k: float, rate_hz: float) -> float:
 class Sampling:
     """How regularly a stream is sampled (from its intervals between consecutive samples)."""
 
-    rate_hz: float             # 1 / median interval
+    rate_hz: float  # 1 / median interval
     interval_median_s: float
-    jitter_iqr_s: float        # interquartile range (75th − 25th percentile) of the intervals
-    gap_share: float           # share of intervals longer than twice the median
+    jitter_iqr_s: float  # interquartile range (75th − 25th percentile) of the intervals
+    gap_share: float  # share of intervals longer than twice the median
 
 
 def sampling(dt) -> Sampling:
@@ -101,6 +102,7 @@ def sampling(dt) -> Sampling:
 
 
 # ---- one clock onto another ----------------------------------------------------------------
+
 
 def covered(t_dst, t_src, max_gap: float, rule: str = "hole") -> np.ndarray:
     """(len(t_dst),) bool: where values interpolated from samples at ``t_src`` are trustworthy
@@ -128,9 +130,9 @@ def covered(t_dst, t_src, max_gap: float, rule: str = "hole") -> np.ndarray:
     return inside & (ok | (after == t_dst))
 
 
-def interp_onto(t_dst, t_src, values, max_gap: float, rule: str = "hole",
-                quaternion: bool = False, fill: float | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
+def interp_onto(
+    t_dst, t_src, values, max_gap: float, rule: str = "hole", quaternion: bool = False, fill: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """``values`` (N, C) sampled at ``t_src`` evaluated at ``t_dst``, and the (M,) mask of
     :func:`covered` (gap rule ``max_gap`` / ``rule``; see the module docstring).
 
@@ -160,8 +162,10 @@ def interp_onto(t_dst, t_src, values, max_gap: float, rule: str = "hole",
 
 # ---- repeated timestamps -------------------------------------------------------------------
 
-def drop_duplicate_times(t, what: str, path: str | Path | None = None,
-                         max_share: float = MAX_DUPLICATE_SHARE) -> tuple[np.ndarray, int]:
+
+def drop_duplicate_times(
+    t, what: str, path: str | Path | None = None, max_share: float = MAX_DUPLICATE_SHARE
+) -> tuple[np.ndarray, int]:
     """The one policy for repeated timestamps: indices keeping the **first** sample of each run
     of equal timestamps, and how many were dropped (importers report the count in
     ``meta["dropped_duplicates"]``).
@@ -178,10 +182,10 @@ def drop_duplicate_times(t, what: str, path: str | Path | None = None,
     if np.any(dt < 0):
         i = int(np.argmax(dt < 0)) + 1
         raise ValidationError(
-            f"{what}: timestamps go backwards at row {i} of that type ({t[i - 1]!r} then {t[i]!r})", path)
+            f"{what}: timestamps go backwards at row {i} of that type ({t[i - 1]!r} then {t[i]!r})", path
+        )
     keep = np.concatenate([[True], dt > 0])
     n_dup = int(t.size - keep.sum())
     if n_dup > max(1.0, max_share * t.size):
-        raise ValidationError(
-            f"{what}: {n_dup} of {t.size} timestamps are duplicated (clock broken?)", path)
+        raise ValidationError(f"{what}: {n_dup} of {t.size} timestamps are duplicated (clock broken?)", path)
     return np.flatnonzero(keep), n_dup

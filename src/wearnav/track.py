@@ -101,21 +101,21 @@ from wearnav.trajectory import integrate_velocity
 ANCHOR_S = fuse.ANCHOR_S
 ANCHOR_TEXT = {
     "smooth": "robust smoother over every fix (wearnav.fuse): heading offset, scale (prior), heading drift, "
-              "slowly varying fix bias; fixes weighted by their reported accuracy",
+    "slowly varying fix bias; fixes weighted by their reported accuracy",
     "rigid": "weighted (1/σ²) least-squares rotation + translation over every kept fix of the walk",
     "first-fixes": f"weighted (1/σ²) least-squares rotation + translation over the kept fixes of the first "
-                   f"{fuse.ANCHOR_S:g} s",
+    f"{fuse.ANCHOR_S:g} s",
     "none": "not placed on the fixes",
 }
 TRAJ_FORMAT = "%.4f"
 TRACK_JSON = "track.json"  # the marker: a folder holding it was written by `wearnav track`
-TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.html", "trajectory.geojson", "fixes.csv",
-               TRACK_JSON)
+TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.html", "trajectory.geojson", "fixes.csv", TRACK_JSON)
 COORD_DIGITS = 7  # GeoJSON and fixes.csv lat/lon decimals: 1e-7° is 1.1 cm
 INDEX_LIST_MAX = 10  # track.json lists at most this many dropped fixes' indices per reason
 
 
 # ---- input -------------------------------------------------------------------------------------
+
 
 def load_input(src: str | Path, name: str | None = None, platform: str | None = None) -> Recording:
     """The recording to track: a ``.h5`` recording, a dataset folder (``name`` picks one; the only
@@ -132,8 +132,10 @@ def load_input(src: str | Path, name: str | None = None, platform: str | None = 
         ds = Dataset.open(src)
         if name is None:
             if len(ds) != 1:
-                raise ConfigError(f"the dataset holds {len(ds)} recordings; pick one with --name "
-                                  f"(e.g. {', '.join(ds.names[:3])})", src)
+                raise ConfigError(
+                    f"the dataset holds {len(ds)} recordings; pick one with --name (e.g. {', '.join(ds.names[:3])})",
+                    src,
+                )
             name = ds.names[0]
         return ds.load(name)
     # A Sensor Logger export: zips are extracted into a temporary folder that the importer removes.
@@ -143,12 +145,15 @@ def load_input(src: str | Path, name: str | None = None, platform: str | None = 
         if not recs:
             raise ValidationError(f"no export named {name!r} here", src)
     if len(recs) != 1:
-        raise ConfigError(f"holds {len(recs)} Sensor Logger exports; pick one with --name "
-                          f"({', '.join(r.name for r in recs[:5])})", src)
+        raise ConfigError(
+            f"holds {len(recs)} Sensor Logger exports; pick one with --name ({', '.join(r.name for r in recs[:5])})",
+            src,
+        )
     return recs[0]
 
 
 # ---- anchoring ---------------------------------------------------------------------------------
+
 
 def iso_utc(unix_s: float | None) -> str | None:
     """ISO 8601 UTC with milliseconds ("2023-11-14T22:13:20.123Z"); None without a Unix time."""
@@ -161,13 +166,22 @@ def _num(v: float, digits: int) -> float | None:
     return round(float(v), digits) if np.isfinite(v) else None
 
 
-def geojson(path_ll: tuple[np.ndarray, np.ndarray], t: np.ndarray, fixes_ll: tuple[np.ndarray, np.ndarray],
-            fix_t: np.ndarray, fix_accuracy: np.ndarray, fixes: FixCheck, props: dict,
-            sigma_m: np.ndarray | None = None, t0_unix_s: float | None = None) -> dict:
+def geojson(
+    path_ll: tuple[np.ndarray, np.ndarray],
+    t: np.ndarray,
+    fixes_ll: tuple[np.ndarray, np.ndarray],
+    fix_t: np.ndarray,
+    fix_accuracy: np.ndarray,
+    fixes: FixCheck,
+    props: dict,
+    sigma_m: np.ndarray | None = None,
+    t0_unix_s: float | None = None,
+) -> dict:
     """The RFC 7946 FeatureCollection of the module docstring: the anchored path (lat, lon arrays
     at times ``t`` s, 1-σ ``sigma_m`` m where known) as one LineString with ``props`` and the
     derived properties, each fix (``fixes_ll`` lat, lon; ``fix_t`` s; ``fix_accuracy`` m; its
     status in ``fixes``) as a Point. ``t0_unix_s``: the Unix time of t = 0, where known."""
+
     def coords(lat, lon):
         return [[round(float(a), COORD_DIGITS), round(float(b), COORD_DIGITS)] for a, b in zip(lon, lat)]
 
@@ -176,21 +190,40 @@ def geojson(path_ll: tuple[np.ndarray, np.ndarray], t: np.ndarray, fixes_ll: tup
 
     lat, lon = path_ll
     known = sigma_m is not None and bool(np.isfinite(sigma_m).any())
-    line = {"kind": "path", **props, "start_time": when(t[0]), "end_time": when(t[-1]),
-            "t_start_s": round(float(t[0]), 3), "t_end_s": round(float(t[-1]), 3),
-            "duration_s": round(float(t[-1] - t[0]), 3),
-            "median_sigma_m": _num(np.nanmedian(sigma_m), 2) if known else None,
-            "fix_status": fixes.counts()}
+    line = {
+        "kind": "path",
+        **props,
+        "start_time": when(t[0]),
+        "end_time": when(t[-1]),
+        "t_start_s": round(float(t[0]), 3),
+        "t_end_s": round(float(t[-1]), 3),
+        "duration_s": round(float(t[-1] - t[0]), 3),
+        "median_sigma_m": _num(np.nanmedian(sigma_m), 2) if known else None,
+        "fix_status": fixes.counts(),
+    }
     if known:
         line["sigma_m"] = [_num(v, 2) for v in sigma_m]
         line["t"] = [round(float(v), 3) for v in t]
-    feats = [{"type": "Feature", "geometry": {"type": "LineString", "coordinates": coords(lat, lon)},
-              "properties": line}]
+    feats = [
+        {"type": "Feature", "geometry": {"type": "LineString", "coordinates": coords(lat, lon)}, "properties": line}
+    ]
     for k, ((x, y), ft, a) in enumerate(zip(coords(*fixes_ll), fix_t, fix_accuracy)):
-        feats.append({"type": "Feature", "geometry": {"type": "Point", "coordinates": [x, y]},
-                      "properties": {"kind": "fix", "index": k, "time": when(ft), "t": _num(ft, 3),
-                                     "accuracy_m": _num(a, 2), "status": str(fixes.status[k]),
-                                     "reason": str(fixes.reason[k]), "weight": round(float(fixes.weight[k]), 3)}})
+        feats.append(
+            {
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": [x, y]},
+                "properties": {
+                    "kind": "fix",
+                    "index": k,
+                    "time": when(ft),
+                    "t": _num(ft, 3),
+                    "accuracy_m": _num(a, 2),
+                    "status": str(fixes.status[k]),
+                    "reason": str(fixes.reason[k]),
+                    "weight": round(float(fixes.weight[k]), 3),
+                },
+            }
+        )
     return {"type": "FeatureCollection", "features": feats}
 
 
@@ -208,6 +241,7 @@ def fix_table(fx, fixes: FixCheck, t0_unix_s: float | None, latlon: tuple | None
 
 
 # ---- can the path be trusted? (wearnav.trust) --------------------------------------------------
+
 
 def run_training_record(model_path: str | Path) -> dict:
     """The run's ``training.json`` for a run folder or its checkpoint, or the copy an exported model
@@ -263,14 +297,16 @@ def walk_warnings(cfg, seq, vel: np.ndarray, length_m: float) -> list[str]:
     return [f"{f}: {trust.TRACK_RESULT_ADVICE}" for f in findings]
 
 
-def trust_warnings(model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: np.ndarray,
-                   length_m: float) -> list[str]:
+def trust_warnings(
+    model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: np.ndarray, length_m: float
+) -> list[str]:
     """One line per reason not to trust the path, each with what to do: :func:`input_warnings`
     (devices, domain, did the model learn) and :func:`walk_warnings` (implausible for walking)."""
     return input_warnings(model_path, cfg, rec) + walk_warnings(cfg, seq, vel, length_m)
 
 
 # ---- one way to window and run the odometry model (track and the live receiver) ----------------
+
 
 def odometry_preprocess(cfg) -> PreprocessConfig:
     """The run's preprocessing for a user's recording: its devices in one common frame (mode
@@ -298,8 +334,16 @@ def odometry(model, cfg, rec: Recording, progress: bool = False):
 
 # ---- the command -------------------------------------------------------------------------------
 
-def track(src: str | Path, model_path: str | Path | None, out: str | Path, name: str | None = None,
-          platform: str | None = None, progress: bool = False, anchor: str = "smooth") -> dict:
+
+def track(
+    src: str | Path,
+    model_path: str | Path | None,
+    out: str | Path,
+    name: str | None = None,
+    platform: str | None = None,
+    progress: bool = False,
+    anchor: str = "smooth",
+) -> dict:
     """Track one recording (see module docstring); ``anchor`` places the path on the fixes
     (:data:`wearnav.fuse.ANCHORS`); returns what ``track.json`` holds."""
     out = Path(out)
@@ -315,13 +359,18 @@ def track(src: str | Path, model_path: str | Path | None, out: str | Path, name:
         model, cfg = resolve_model(model_path, "odometry")
     usable = [d for d in cfg.devices if d in rec.devices]
     if not usable:
-        raise ValidationError(f"no IMU stream the model can use: it was trained on "
-                              f"{', '.join(cfg.devices)}; the recording has {', '.join(rec.devices) or 'none'}",
-                              src)
+        raise ValidationError(
+            f"no IMU stream the model can use: it was trained on "
+            f"{', '.join(cfg.devices)}; the recording has {', '.join(rec.devices) or 'none'}",
+            src,
+        )
     seq, t_c, vel, present, t, xy = odometry(model, cfg, rec, progress)
     if t_c.size < 2:
-        raise ValidationError(f"too short to track: {seq.t[-1] - seq.t[0]:.1f} s of common data, the "
-                              f"model needs windows of {cfg.window / cfg.rate:g} s", src)
+        raise ValidationError(
+            f"too short to track: {seq.t[-1] - seq.t[0]:.1f} s of common data, the "
+            f"model needs windows of {cfg.window / cfg.rate:g} s",
+            src,
+        )
     nearest = np.clip(np.searchsorted(t_c, t), 0, len(t_c) - 1)
     prev = np.clip(nearest - 1, 0, len(t_c) - 1)
     nearest = np.where(np.abs(t_c[prev] - t) < np.abs(t_c[nearest] - t), prev, nearest)
@@ -333,13 +382,21 @@ def track(src: str | Path, model_path: str | Path | None, out: str | Path, name:
     share = {dev: round(float((present[:, k] > 0).mean()), 3) for k, dev in enumerate(seq.devices)}
     frame = seq.meta.get("frame", {})
     summary: dict = {
-        "recording": rec.name, "source": str(src), "model": cfg.model, "run": str(model_path),
+        "recording": rec.name,
+        "source": str(src),
+        "model": cfg.model,
+        "run": str(model_path),
         "shipped_model": pretrained.shipped_name(model_path),
         "runtime": getattr(model, "runtime", "pytorch"),  # onnxruntime / torchscript: a `wearnav export` file
-        "model_devices": list(cfg.devices), "devices_in_recording": list(rec.devices),
-        "devices_used": usable, "device_share_of_windows": share,
-        "rate_hz": cfg.rate, "window": cfg.window, "stride": cfg.stride,
-        "frame": frame.get("frame", "none"), "frame_reference": frame.get("reference"),
+        "model_devices": list(cfg.devices),
+        "devices_in_recording": list(rec.devices),
+        "devices_used": usable,
+        "device_share_of_windows": share,
+        "rate_hz": cfg.rate,
+        "window": cfg.window,
+        "stride": cfg.stride,
+        "frame": frame.get("frame", "none"),
+        "frame_reference": frame.get("reference"),
         "duration_s": round(float(t[-1] - t[0]), 2),
         "length_m": round(float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1))), 2),
         "end_xy_m": [round(float(v), 3) for v in xy[-1]],
@@ -347,8 +404,9 @@ def track(src: str | Path, model_path: str | Path | None, out: str | Path, name:
     }
     if (stale := geo.needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
         summary["warnings"].append(f"{rec.name}: {stale}")
-    summary["warnings"] += [f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel,
-                                                                        summary["length_m"])]
+    summary["warnings"] += [
+        f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel, summary["length_m"])
+    ]
     for w in summary["warnings"]:
         warnings.warn(WearnavWarning(w))
     with staged_output(out, TRACK_JSON, "track") as stage:
@@ -356,29 +414,47 @@ def track(src: str | Path, model_path: str | Path | None, out: str | Path, name:
     return summary
 
 
-def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy: np.ndarray, rec: Recording,
-                 cfg, seq, summary: dict, anchor: str = "smooth") -> None:
+def _write_track(
+    stage: Path,
+    out: Path,
+    table: pd.DataFrame,
+    t: np.ndarray,
+    xy: np.ndarray,
+    rec: Recording,
+    cfg,
+    seq,
+    summary: dict,
+    anchor: str = "smooth",
+) -> None:
     """Place the path on the fixes by ``anchor`` (:mod:`wearnav.fuse`) and write the files into
     ``stage`` (moved to ``out`` afterwards)."""
     anchored, res = None, None
     fx = rec.fixes
     if fx is None or len(fx) == 0:
-        summary["anchoring"] = {"method": "none", "requested": anchor,
-                                "note": "the recording has no location fixes: the path starts at (0, 0) "
-                                        "in the odometry's own frame"}
+        summary["anchoring"] = {
+            "method": "none",
+            "requested": anchor,
+            "note": "the recording has no location fixes: the path starts at (0, 0) in the odometry's own frame",
+        }
         summary["warnings"].append(f"{rec.name}: no location fixes: the path is not placed on a map")
         warnings.warn(WearnavWarning(summary["warnings"][-1]))
     else:
-        fcfg, cal = fuse.config_for(summary["run"] if Path(summary["run"]).exists() else None, rec.meta,
-                                    seq.meta.get("frame", {}).get("reference"))
+        fcfg, cal = fuse.config_for(
+            summary["run"] if Path(summary["run"]).exists() else None,
+            rec.meta,
+            seq.meta.get("frame", {}).get("reference"),
+        )
         res = fuse.fuse(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, anchor, fcfg)
-        summary["anchoring"] = {"requested": anchor, "method": res.method, "description": ANCHOR_TEXT[res.method],
-                                "odometry_calibration": cal or "none in the run: the smoother's defaults",
-                                **{k: _rounded(v) for k, v in res.info.items() if k not in ("x", "smoother")},
-                                "fixes_dropped_index": {r: i[:INDEX_LIST_MAX] for r, i in
-                                                        res.info["fixes_dropped_index"].items()},
-                                "fixes_dropped_at_import": int(rec.meta.get("dropped_stale_fixes", 0)),
-                                "per_fix": "fixes.csv" + (" and trajectory.geojson" if res.method != "none" else "")}
+        summary["anchoring"] = {
+            "requested": anchor,
+            "method": res.method,
+            "description": ANCHOR_TEXT[res.method],
+            "odometry_calibration": cal or "none in the run: the smoother's defaults",
+            **{k: _rounded(v) for k, v in res.info.items() if k not in ("x", "smoother")},
+            "fixes_dropped_index": {r: i[:INDEX_LIST_MAX] for r, i in res.info["fixes_dropped_index"].items()},
+            "fixes_dropped_at_import": int(rec.meta.get("dropped_stale_fixes", 0)),
+            "per_fix": "fixes.csv" + (" and trajectory.geojson" if res.method != "none" else ""),
+        }
         summary["warnings"] += [f"{rec.name}: {w}" for w in res.warnings]
         for w in res.warnings:
             warnings.warn(WearnavWarning(f"{rec.name}: {w}"))
@@ -395,9 +471,17 @@ def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy:
                 table["sigma_m"] = res.sigma_m
             if has_origin:
                 length = float(np.sum(np.linalg.norm(np.diff(anchored, axis=0), axis=1)))
-                gj = geojson(geo.local_to_latlon(anchored, float(lat0), float(lon0)), t, fix_ll, fx.t, fx.accuracy,
-                             res.fixes, {"recording": rec.name, "model": cfg.model, "anchor": res.method,
-                                         "length_m": round(length, 2)}, sigma_m=res.sigma_m, t0_unix_s=t0_unix)
+                gj = geojson(
+                    geo.local_to_latlon(anchored, float(lat0), float(lon0)),
+                    t,
+                    fix_ll,
+                    fx.t,
+                    fx.accuracy,
+                    res.fixes,
+                    {"recording": rec.name, "model": cfg.model, "anchor": res.method, "length_m": round(length, 2)},
+                    sigma_m=res.sigma_m,
+                    t0_unix_s=t0_unix,
+                )
                 write_text_atomic(json.dumps(gj, allow_nan=False), stage / "trajectory.geojson")
                 summary["geojson"] = str(out / "trajectory.geojson")
             else:
@@ -406,15 +490,18 @@ def _write_track(stage: Path, out: Path, table: pd.DataFrame, t: np.ndarray, xy:
         table.to_csv(tmp, index=False, float_format=TRAJ_FORMAT)
     kept = res.fixes.kept if fx is not None and len(fx) and res.fixes is not None else None
     plot_track(table, seq.devices, anchored, fx, summary, stage / "trajectory.png", kept)
-    write_text_atomic(page_html(t, xy, rec, cfg, summary, res if anchored is not None else None, kept),
-                      stage / "trajectory.html")
+    write_text_atomic(
+        page_html(t, xy, rec, cfg, summary, res if anchored is not None else None, kept), stage / "trajectory.html"
+    )
     summary["files"] = ["trajectory.csv", "trajectory.png", "trajectory.html", TRACK_JSON] + [
-        f for f in ("trajectory.geojson", "fixes.csv") if (stage / f).is_file()]
+        f for f in ("trajectory.geojson", "fixes.csv") if (stage / f).is_file()
+    ]
     write_text_atomic(json.dumps(summary, indent=2, default=str), stage / TRACK_JSON)
 
 
-def page_html(t: np.ndarray, xy: np.ndarray, rec: Recording, cfg, summary: dict, res=None,
-              kept: np.ndarray | None = None) -> str:
+def page_html(
+    t: np.ndarray, xy: np.ndarray, rec: Recording, cfg, summary: dict, res=None, kept: np.ndarray | None = None
+) -> str:
     """``trajectory.html`` (:mod:`wearnav.live.page`): the live page's drawing of the path (anchored
     by ``res`` where given, with the ``kept`` fixes; else the odometry's own frame, without fixes),
     self-contained, with a time slider, coloured by the activity ``classify`` finds
@@ -425,19 +512,33 @@ def page_html(t: np.ndarray, xy: np.ndarray, rec: Recording, cfg, summary: dict,
     if res is not None:
         fx = rec.fixes
         k = np.ones(len(fx.t), bool) if kept is None else kept
-        fixes = [[round(float(a), 3), round(float(e), 3), round(float(n), 3), _num(acc, 2)]
-                 for a, (e, n), acc in zip(fx.t[k], fx.pos[k, :2], fx.accuracy[k])]
+        fixes = [
+            [round(float(a), 3), round(float(e), 3), round(float(n), 3), _num(acc, 2)]
+            for a, (e, n), acc in zip(fx.t[k], fx.pos[k, :2], fx.accuracy[k])
+        ]
         if rec.meta.get("origin_lat") is not None and rec.meta.get("origin_lon") is not None:
             origin = [float(rec.meta["origin_lat"]), float(rec.meta["origin_lon"])]
-    state = {"origin": origin, "path": page_points(t, res.xy if res is not None else xy,
-                                                   res.sigma_m if res is not None else None, cfg.rate),
-             "anchor": res.method if res is not None else "none", "fixes": fixes, "activity": rows,
-             "warnings": summary["warnings"], "t_s": round(float(t[-1]), 3)}
-    where = (f"placed on the location fixes ({summary['anchoring']['method']})" if res is not None else
-             "the odometry's own frame from (0, 0): not placed on the fixes")
-    return trajectory_html(state, f"{rec.name}: wearnav track",
-                           f"{summary['length_m']:.0f} m in {summary['duration_s']:.0f} s; model {cfg.model}",
-                           note, f"{summary['length_m']:.0f} m, {where}; {len(state['path'])} points (1 per s)")
+    state = {
+        "origin": origin,
+        "path": page_points(t, res.xy if res is not None else xy, res.sigma_m if res is not None else None, cfg.rate),
+        "anchor": res.method if res is not None else "none",
+        "fixes": fixes,
+        "activity": rows,
+        "warnings": summary["warnings"],
+        "t_s": round(float(t[-1]), 3),
+    }
+    where = (
+        f"placed on the location fixes ({summary['anchoring']['method']})"
+        if res is not None
+        else "the odometry's own frame from (0, 0): not placed on the fixes"
+    )
+    return trajectory_html(
+        state,
+        f"{rec.name}: wearnav track",
+        f"{summary['length_m']:.0f} m in {summary['duration_s']:.0f} s; model {cfg.model}",
+        note,
+        f"{summary['length_m']:.0f} m, {where}; {len(state['path'])} points (1 per s)",
+    )
 
 
 def _rounded(v):
@@ -450,8 +551,15 @@ def _rounded(v):
     return v
 
 
-def plot_track(table: pd.DataFrame, devices: tuple[str, ...], anchored, fixes, summary: dict,
-               out: Path, kept: np.ndarray | None = None) -> Path:
+def plot_track(
+    table: pd.DataFrame,
+    devices: tuple[str, ...],
+    anchored,
+    fixes,
+    summary: dict,
+    out: Path,
+    kept: np.ndarray | None = None,
+) -> Path:
     """The path (anchored on the fixes where there are some) with start and end, and per-device
     presence over time; of the fixes only the ``kept`` ones (all if None) are drawn, so that a
     cached fix far away does not shrink the map."""
@@ -464,16 +572,25 @@ def plot_track(table: pd.DataFrame, devices: tuple[str, ...], anchored, fixes, s
     xy = anchored if anchored is not None else table[["x", "y"]].to_numpy()
     if anchored is not None:
         k = np.ones(len(fixes.t), bool) if kept is None else kept
-        ax.scatter(fixes.pos[k, 0], fixes.pos[k, 1], s=8, c="tab:red", alpha=0.6,
-                   label="location fixes" + (f" ({int(np.sum(~k))} dropped, not drawn)" if (~k).any() else ""))
+        ax.scatter(
+            fixes.pos[k, 0],
+            fixes.pos[k, 1],
+            s=8,
+            c="tab:red",
+            alpha=0.6,
+            label="location fixes" + (f" ({int(np.sum(~k))} dropped, not drawn)" if (~k).any() else ""),
+        )
     ax.plot(xy[:, 0], xy[:, 1], color="tab:blue", lw=1.2, label=f"path ({summary['model']})")
     ax.plot(*xy[0], "o", color="tab:green", ms=8, label="start")
     ax.plot(*xy[-1], "s", color="black", ms=7, label="end")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("east (m)" if anchored is not None else "x (m, common frame)")
     ax.set_ylabel("north (m)" if anchored is not None else "y (m, common frame)")
-    ax.set_title(f"{summary['recording']}: {summary['length_m']:.0f} m in {summary['duration_s']:.0f} s; "
-                 f"devices used: {', '.join(summary['devices_used'])}", fontsize=9)
+    ax.set_title(
+        f"{summary['recording']}: {summary['length_m']:.0f} m in {summary['duration_s']:.0f} s; "
+        f"devices used: {', '.join(summary['devices_used'])}",
+        fontsize=9,
+    )
     ax.legend(fontsize=8, loc="best")
     ax.grid(alpha=0.3)
     t = table["t"].to_numpy()
@@ -487,5 +604,13 @@ def plot_track(table: pd.DataFrame, devices: tuple[str, ...], anchored, fixes, s
     return save(fig, out)
 
 
-__all__ = ["track", "load_input", "odometry", "odometry_preprocess", "path_times", "input_warnings",
-           "walk_warnings", "ANCHOR_S"]
+__all__ = [
+    "track",
+    "load_input",
+    "odometry",
+    "odometry_preprocess",
+    "path_times",
+    "input_warnings",
+    "walk_warnings",
+    "ANCHOR_S",
+]

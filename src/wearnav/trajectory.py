@@ -8,8 +8,7 @@ from scipy.integrate import cumulative_trapezoid
 from wearnav.errors import ValidationError
 
 
-def integrate_velocity(t_vel: np.ndarray, vel: np.ndarray, t_out: np.ndarray,
-                       p0: np.ndarray) -> np.ndarray:
+def integrate_velocity(t_vel: np.ndarray, vel: np.ndarray, t_out: np.ndarray, p0: np.ndarray) -> np.ndarray:
     """Positions at ``t_out`` from window velocities, starting at the true start ``p0``.
 
     Suite-IN++ eq. (8): y_t = y_{t0} + ∫ v̂ dt, where each sampling moment takes its velocity from
@@ -25,8 +24,9 @@ def integrate_velocity(t_vel: np.ndarray, vel: np.ndarray, t_out: np.ndarray,
     if np.any(np.diff(t_vel) <= 0) or np.any(np.diff(t_out) <= 0):
         raise ValidationError("integration times must be strictly increasing")
     if not (np.all(np.isfinite(vel)) and np.all(np.isfinite(t_vel)) and np.all(np.isfinite(t_out))):
-        raise ValidationError("velocities or times are not finite (NaN or inf); a path cannot be integrated "
-                              "through them")
+        raise ValidationError(
+            "velocities or times are not finite (NaN or inf); a path cannot be integrated through them"
+        )
     v = np.stack([np.interp(t_out, t_vel, vel[:, k]) for k in range(vel.shape[1])], axis=1)
     return np.asarray(p0, np.float64)[None, :] + cumulative_trapezoid(v, t_out, axis=0, initial=0.0)
 

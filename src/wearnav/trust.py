@@ -50,13 +50,20 @@ MIN_WALKING_SHARE = 0.25
 # Placement names of the importers and the simulator, mapped onto shared words (the simulator's
 # recording-level codes are Suite-IN++ Table IV's; "MP" changes between hand and pocket).
 PLACEMENT_WORDS: dict[str, tuple[str, ...]] = {
-    "HD": ("handheld",), "texting": ("handheld",), "swinging": ("handheld",), "call": ("handheld",),
-    "PK": ("pocket",), "front_pocket": ("pocket",), "back_pocket": ("pocket",),
-    "BG": ("bag",), "MP": ("handheld", "pocket"),
+    "HD": ("handheld",),
+    "texting": ("handheld",),
+    "swinging": ("handheld",),
+    "call": ("handheld",),
+    "PK": ("pocket",),
+    "front_pocket": ("pocket",),
+    "back_pocket": ("pocket",),
+    "BG": ("bag",),
+    "MP": ("handheld", "pocket"),
 }
 
 
 # ---- facts ------------------------------------------------------------------------------------
+
 
 def window_gravity(acc: np.ndarray, n_per_window: int) -> np.ndarray:
     """Gravity direction per non-overlapping window: the unit mean of ``acc`` ((N, 3) m/s², device
@@ -113,14 +120,16 @@ def data_facts(recordings, devices, window_s: float) -> dict:
             continue
         g = _spaced(np.concatenate(dirs[dev]), MAX_DIRECTIONS)
         r = np.asarray(rates[dev])
-        per_device[dev] = {"recordings": len(r),
-                           "rate_hz": [round(float(v), 2) for v in (r.min(), np.median(r), r.max())],
-                           "gravity_directions": np.round(g, 3).tolist()}
-    return {"recordings": n, "placements": sorted(placements), "devices": per_device,
-            "window_s": window_s}
+        per_device[dev] = {
+            "recordings": len(r),
+            "rate_hz": [round(float(v), 2) for v in (r.min(), np.median(r), r.max())],
+            "gravity_directions": np.round(g, 3).tolist(),
+        }
+    return {"recordings": n, "placements": sorted(placements), "devices": per_device, "window_s": window_s}
 
 
 # ---- checks: the input against the training data -----------------------------------------------
+
 
 def _names(xs) -> str:
     xs = list(xs)
@@ -132,8 +141,10 @@ def missing_devices(model_devices, recording_devices) -> str | None:
     lacks = [d for d in model_devices if d not in set(recording_devices)]
     if not lacks:
         return None
-    return (f"the model was trained on {_names(model_devices)}; this recording has no {_names(lacks)} "
-            f"(its input there is zeros the model never saw in training)")
+    return (
+        f"the model was trained on {_names(model_devices)}; this recording has no {_names(lacks)} "
+        f"(its input there is zeros the model never saw in training)"
+    )
 
 
 def rate_outside(device: str, rate_hz: float, training_rate_hz) -> str | None:
@@ -175,17 +186,21 @@ def gravity_outside(device: str, directions: np.ndarray, training_directions) ->
     share = float(np.mean(angles_deg(d, train).min(axis=1) > GRAVITY_MATCH_DEG))
     if share < GRAVITY_OUTSIDE_SHARE:
         return None
-    return (f"{device} is held or worn differently from the model's training data: in {share:.0%} of the "
-            f"recording its gravity direction is more than {GRAVITY_MATCH_DEG:g}° from any training window's")
+    return (
+        f"{device} is held or worn differently from the model's training data: in {share:.0%} of the "
+        f"recording its gravity direction is more than {GRAVITY_MATCH_DEG:g}° from any training window's"
+    )
 
 
 def domain_findings(facts: dict, training: dict | None) -> list[str]:
     """Rate, placement and gravity findings of a recording's ``facts`` (:func:`recording_facts`)
     against the ``training`` facts (:func:`data_facts`); None: the training data is unknown."""
     if not training:
-        return ["training data unknown: the model's run does not record its training data's rates, "
-                "placements and gravity directions (trained before wearnav kept them), so they cannot be "
-                "compared with this recording"]
+        return [
+            "training data unknown: the model's run does not record its training data's rates, "
+            "placements and gravity directions (trained before wearnav kept them), so they cannot be "
+            "compared with this recording"
+        ]
     out = []
     if (p := placement_outside(facts.get("placement", ""), training.get("placements", ()))) is not None:
         out.append(p)
@@ -202,6 +217,7 @@ def domain_findings(facts: dict, training: dict | None) -> list[str]:
 
 # ---- checks: the result ------------------------------------------------------------------------
 
+
 def implausible_walk(speed_m_s: np.ndarray, step_rate_hz: np.ndarray, length_m: float, steps: float) -> list[str]:
     """Findings on a tracked path: per window the model's speed (m/s) and PDR's step rate
     (steps/s); the path's length (m) and the steps counted over it. Applies only where at least
@@ -214,31 +230,42 @@ def implausible_walk(speed_m_s: np.ndarray, step_rate_hz: np.ndarray, length_m: 
     med = float(np.median(speed[walking]))
     lo, hi = WALK_SPEED_RANGE_M_S
     if not lo <= med <= hi:
-        out.append(f"implausible for walking: the median speed is {med:.2f} m/s while steps are detected "
-                   f"(walking is {lo:g}–{hi:g} m/s)")
+        out.append(
+            f"implausible for walking: the median speed is {med:.2f} m/s while steps are detected "
+            f"(walking is {lo:g}–{hi:g} m/s)"
+        )
     expected = steps * STEP_LENGTH_M
     if expected > 0 and not PATH_TO_STEPS_RANGE[0] <= length_m / expected <= PATH_TO_STEPS_RANGE[1]:
-        out.append(f"implausible for walking: the path is {length_m:.1f} m long, but {steps:.0f} steps were "
-                   f"detected (≈ {expected:.0f} m at {STEP_LENGTH_M:g} m per step)")
+        out.append(
+            f"implausible for walking: the path is {length_m:.1f} m long, but {steps:.0f} steps were "
+            f"detected (≈ {expected:.0f} m at {STEP_LENGTH_M:g} m per step)"
+        )
     return out
 
 
 # ---- did the model learn? ---------------------------------------------------------------------
 
+
 def odometry_baseline(best_val_mse: float | None, zero_val_mse: float) -> dict:
     """``beats_trivial`` of an odometry run: its best validation velocity MSE ((m/s)²) against
     standing still's (predicting zero velocity) on the same windows."""
     beats = best_val_mse is not None and bool(np.isfinite(best_val_mse)) and best_val_mse < zero_val_mse
-    return {"beats_trivial": bool(beats), "trivial": "standing still (zero velocity)",
-            "trivial_val_vel_mse": round(float(zero_val_mse), 6)}
+    return {
+        "beats_trivial": bool(beats),
+        "trivial": "standing still (zero velocity)",
+        "trivial_val_vel_mse": round(float(zero_val_mse), 6),
+    }
 
 
 def classify_baseline(accuracy: float, true: np.ndarray, majority: int, classes) -> dict:
     """``beats_trivial`` of a classifier: its accuracy against always answering the training
     windows' majority class ``majority`` (an index of ``classes``) on the same windows ``true``."""
     trivial = float(np.mean(np.asarray(true) == majority)) if len(true) else 0.0
-    return {"beats_trivial": bool(accuracy > trivial), "trivial": f"always {classes[majority]} (majority class)",
-            "trivial_accuracy": round(trivial, 4)}
+    return {
+        "beats_trivial": bool(accuracy > trivial),
+        "trivial": f"always {classes[majority]} (majority class)",
+        "trivial_accuracy": round(trivial, 4),
+    }
 
 
 def did_not_learn(record: dict | None) -> str | None:
@@ -246,15 +273,20 @@ def did_not_learn(record: dict | None) -> str | None:
     did not beat its trivial baseline; None when it did or when that is not recorded."""
     if not record or record.get("beats_trivial", True) is not False:
         return None
+
     def num(v) -> str:
         return f"{v:.4g}" if isinstance(v, (int, float)) else str(v)
 
     if "trivial_val_vel_mse" in record:
-        return (f"the model did not learn: its best validation velocity MSE "
-                f"({num(record.get('best_val_vel_mse'))} (m/s)²) is no better than {record['trivial']} "
-                f"({num(record['trivial_val_vel_mse'])} (m/s)²)")
-    return (f"the model did not learn: its test accuracy ({num(record.get('accuracy'))}) is no better than "
-            f"{record['trivial']} ({num(record.get('trivial_accuracy'))})")
+        return (
+            f"the model did not learn: its best validation velocity MSE "
+            f"({num(record.get('best_val_vel_mse'))} (m/s)²) is no better than {record['trivial']} "
+            f"({num(record['trivial_val_vel_mse'])} (m/s)²)"
+        )
+    return (
+        f"the model did not learn: its test accuracy ({num(record.get('accuracy'))}) is no better than "
+        f"{record['trivial']} ({num(record.get('trivial_accuracy'))})"
+    )
 
 
 QUICK_NOTE = "pipeline check, not accuracy"
@@ -262,8 +294,10 @@ QUICK_NOTE = "pipeline check, not accuracy"
 
 # ---- what to do -------------------------------------------------------------------------------
 
-TRACK_DEVICES_ADVICE = ("track it with a model trained on the devices it has (e.g. `wearnav train ronin "
-                        "--devices phone`) or with `--model pdr`")
+TRACK_DEVICES_ADVICE = (
+    "track it with a model trained on the devices it has (e.g. `wearnav train ronin "
+    "--devices phone`) or with `--model pdr`"
+)
 TRACK_DOMAIN_ADVICE = "the path may be wrong: use a model trained on recordings like this one, or `--model pdr`"
 TRACK_RESULT_ADVICE = "do not trust this path: compare it with `--model pdr`"
 LEARN_ADVICE = "train it longer (more --epochs / --max-time) or use `--model pdr`"
@@ -271,6 +305,18 @@ CLASSIFY_DOMAIN_ADVICE = "the labels may be wrong: use a classifier trained on r
 CLASSIFY_LEARN_ADVICE = "its labels are no better than a constant guess: train it longer (more epochs)"
 
 
-__all__ = ["recording_facts", "data_facts", "window_gravity", "missing_devices", "rate_outside",
-           "placement_outside", "gravity_outside", "domain_findings", "implausible_walk",
-           "odometry_baseline", "classify_baseline", "did_not_learn", "QUICK_NOTE"]
+__all__ = [
+    "recording_facts",
+    "data_facts",
+    "window_gravity",
+    "missing_devices",
+    "rate_outside",
+    "placement_outside",
+    "gravity_outside",
+    "domain_findings",
+    "implausible_walk",
+    "odometry_baseline",
+    "classify_baseline",
+    "did_not_learn",
+    "QUICK_NOTE",
+]

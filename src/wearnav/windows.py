@@ -44,7 +44,7 @@ class WindowConfig:
             raise ConfigError("target 'class' needs label_kind (e.g. 'activity')")
 
     @classmethod
-    def from_seconds(cls, window_s: float, stride_s: float, rate: float, **kw) -> "WindowConfig":
+    def from_seconds(cls, window_s: float, stride_s: float, rate: float, **kw) -> WindowConfig:
         return cls(window=int(round(window_s * rate)), stride=max(1, int(round(stride_s * rate))), **kw)
 
 
@@ -62,8 +62,9 @@ class WindowDataset(TorchDataset):
     sequence), ``t`` (window start and end times).
     """
 
-    def __init__(self, sequences: Sequence[Aligned], cfg: WindowConfig = WindowConfig(),
-                 classes: Sequence[str] | None = None):
+    def __init__(
+        self, sequences: Sequence[Aligned], cfg: WindowConfig = WindowConfig(), classes: Sequence[str] | None = None
+    ):
         self.sequences = list(sequences)
         self.cfg = cfg
         self.classes = list(classes) if classes is not None else self._collect_classes()
@@ -98,7 +99,7 @@ class WindowDataset(TorchDataset):
                 ok = np.isfinite(seq.pos[starts, 0]) & np.isfinite(seq.pos[starts + L - 1, 0])
                 starts = starts[ok]
             elif self.cfg.target == "class":
-                starts = np.array([s for s in starts if _majority(self._labels[i][s:s + L]) >= 0], np.int64)
+                starts = np.array([s for s in starts if _majority(self._labels[i][s : s + L]) >= 0], np.int64)
             rows.extend((i, int(s)) for s in starts)
         return np.array(rows, np.int64).reshape(-1, 2)
 
@@ -123,14 +124,14 @@ class WindowDataset(TorchDataset):
         label = np.empty(len(idx), np.int64)
         for j, (i, s) in enumerate(idx):
             seq, e = self.sequences[i], s + L - 1
-            present[j] = seq.mask[:, s:s + L].mean(axis=1) >= self.cfg.min_present
-            x[j] = seq.imu[:, s:s + L]
+            present[j] = seq.mask[:, s : s + L].mean(axis=1) >= self.cfg.min_present
+            x[j] = seq.imu[:, s : s + L]
             x[j, ~present[j]] = 0.0
             if seq.pos is not None:
                 disp[j] = seq.pos[e] - seq.pos[s]
             t[j] = seq.t[s], seq.t[e]
             dt[j] = seq.t[e] - seq.t[s]
-            label[j] = _majority(self._labels[i][s:s + L])
+            label[j] = _majority(self._labels[i][s : s + L])
         return {
             "x": torch.from_numpy(x),
             "mask": torch.from_numpy(present.astype(np.float32)),
@@ -141,7 +142,7 @@ class WindowDataset(TorchDataset):
             "t": torch.from_numpy(t),
         }
 
-    def loader(self, batch: int, shuffle_seed: int | None = None, shard: bool = False) -> "torch.utils.data.DataLoader":
+    def loader(self, batch: int, shuffle_seed: int | None = None, shard: bool = False) -> torch.utils.data.DataLoader:
         """A DataLoader that fetches whole batches (shuffled per epoch from ``shuffle_seed``, or in
         order when None). ``shard``: under distributed training each process takes its share of
         every batch (:class:`BatchSampler`), so ``batch`` is the global batch."""
@@ -150,12 +151,18 @@ class WindowDataset(TorchDataset):
         # batch_size=None: each "index" the sampler yields is a list, fetched in one call. Its own
         # generator: creating an iterator otherwise draws from the global RNG, at moments Lightning
         # orders differently on a resumed epoch, which would shift dropout's draws.
-        return DataLoader(self, batch_size=None, sampler=BatchSampler(len(self), batch, shuffle_seed, shard),
-                          num_workers=0, generator=torch.Generator())
+        return DataLoader(
+            self,
+            batch_size=None,
+            sampler=BatchSampler(len(self), batch, shuffle_seed, shard),
+            num_workers=0,
+            generator=torch.Generator(),
+        )
 
     @classmethod
-    def from_recordings(cls, recordings, pcfg: PreprocessConfig = PreprocessConfig(),
-                        wcfg: WindowConfig = WindowConfig(), classes=None) -> "WindowDataset":
+    def from_recordings(
+        cls, recordings, pcfg: PreprocessConfig = PreprocessConfig(), wcfg: WindowConfig = WindowConfig(), classes=None
+    ) -> WindowDataset:
         """Align each recording (a Dataset view or any iterable of Recordings) and window them."""
         return cls([align(r, pcfg) for r in recordings], wcfg, classes)
 
@@ -198,7 +205,7 @@ class BatchSampler(torch.utils.data.Sampler):
             order = torch.randperm(self.n, generator=g).numpy()
         rank, world = self._rank_world()
         for i in range(0, self.n, self.batch):
-            idx = order[i:i + self.batch]
+            idx = order[i : i + self.batch]
             if world > 1:
                 if idx.size < world:
                     break

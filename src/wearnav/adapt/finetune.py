@@ -39,8 +39,14 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
-from wearnav.adapt.segments import (WalkSegments, integration_weights, odometry_displacements, rotate,
-                                    segment_yaw, window_centres)
+from wearnav.adapt.segments import (
+    WalkSegments,
+    integration_weights,
+    odometry_displacements,
+    rotate,
+    segment_yaw,
+    window_centres,
+)
 from wearnav.augment import rotate_batch
 from wearnav.errors import ConfigError
 from wearnav.windows import WindowConfig, WindowDataset
@@ -93,13 +99,16 @@ def _prepare(model, seg: WalkSegments, window: int, stride: int, loss: str) -> _
         label = rotate(seg.d_fix, -segment_yaw(d_odo, seg.d_fix, 0.5 * (seg.t0 + seg.t1)))
     else:
         length = np.linalg.norm(d_odo, axis=1, keepdims=True)
-        label = np.where(length > 1e-6, d_odo / np.maximum(length, 1e-6), 0.0) * np.linalg.norm(seg.d_fix, axis=1, keepdims=True)
-    f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
+        label = np.where(length > 1e-6, d_odo / np.maximum(length, 1e-6), 0.0) * np.linalg.norm(
+            seg.d_fix, axis=1, keepdims=True
+        )
+    f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)
     return _Walk(b["x"], b["mask"], f32(integration_weights(c, seg.t0, seg.t1)), f32(label), f32(seg.t1 - seg.t0))
 
 
-def _loss(model, walks: list[_Walk], batch: list[tuple[int, np.ndarray]], delta: float,
-          gen: torch.Generator | None) -> torch.Tensor:
+def _loss(
+    model, walks: list[_Walk], batch: list[tuple[int, np.ndarray]], delta: float, gen: torch.Generator | None
+) -> torch.Tensor:
     """Mean Huber loss over the segments ``batch`` ((walk, segment indices) pairs); ``gen``: draw
     one random yaw per walk (training), None: no rotation."""
     xs, masks, parts = [], [], []
@@ -119,7 +128,7 @@ def _loss(model, walks: list[_Walk], batch: list[tuple[int, np.ndarray]], delta:
     vel = model(torch.cat(xs), torch.cat(masks))
     pred, target, k = [], [], 0
     for A, label, T, n in parts:
-        pred.append((A @ vel[k:k + n]) / T[:, None])
+        pred.append((A @ vel[k : k + n]) / T[:, None])
         target.append(label / T[:, None])
         k += n
     return F.huber_loss(torch.cat(pred), torch.cat(target), delta=delta)
@@ -131,7 +140,7 @@ def _batches(walks: list[_Walk], size: int, rng: np.random.Generator | None) -> 
         pairs = pairs[rng.permutation(len(pairs))]
     out = []
     for s in range(0, len(pairs), size):
-        chunk = pairs[s:s + size]
+        chunk = pairs[s : s + size]
         out.append([(int(w), chunk[chunk[:, 0] == w, 1]) for w in np.unique(chunk[:, 0])])
     return out
 
@@ -147,8 +156,14 @@ def held_out_loss(model, walks: list[_Walk], cfg: FinetuneConfig) -> float:
     return total / max(n, 1)
 
 
-def finetune(model: torch.nn.Module, train: list[WalkSegments], held: list[WalkSegments], window: int, rate: float,
-             cfg: FinetuneConfig = FinetuneConfig()) -> tuple[torch.nn.Module, list[dict]]:
+def finetune(
+    model: torch.nn.Module,
+    train: list[WalkSegments],
+    held: list[WalkSegments],
+    window: int,
+    rate: float,
+    cfg: FinetuneConfig = FinetuneConfig(),
+) -> tuple[torch.nn.Module, list[dict]]:
     """A fine-tuned copy of ``model`` (module docstring) and one record per epoch (epoch 0: before)."""
     model = copy.deepcopy(model).eval()
     stride = max(1, int(round(cfg.stride_s * rate)))
@@ -170,8 +185,9 @@ def finetune(model: torch.nn.Module, train: list[WalkSegments], held: list[WalkS
             opt.step()
             losses.append(float(loss.detach()))
         held_loss = held_out_loss(model, held_walks, cfg)
-        history.append({"epoch": epoch, "train_loss": round(float(np.mean(losses)), 6),
-                        "held_out_loss": round(held_loss, 6)})
+        history.append(
+            {"epoch": epoch, "train_loss": round(float(np.mean(losses)), 6), "held_out_loss": round(held_loss, 6)}
+        )
         log.info("fine-tune epoch %d: train %.4f, held-out %.4f", epoch, history[-1]["train_loss"], held_loss)
         if held_loss < best:
             best, best_state, best_epoch = held_loss, copy.deepcopy(model.state_dict()), epoch

@@ -67,7 +67,9 @@ class AdaptConfig:
         if self.method not in METHODS:
             raise ConfigError(f"unknown adaptation method {self.method!r}; one of {', '.join(METHODS)}")
         if not 0 < self.holdout < 1 or self.min_segments < 2:
-            raise ConfigError(f"holdout must be in (0, 1) and min_segments ≥ 2, got {self.holdout}, {self.min_segments}")
+            raise ConfigError(
+                f"holdout must be in (0, 1) and min_segments ≥ 2, got {self.holdout}, {self.min_segments}"
+            )
 
 
 def read_recordings(sources: Iterable[str | Path], split: str | None = None) -> Iterator[Recording]:
@@ -113,8 +115,9 @@ def agreement(model, walks: list[WalkSegments], window: int, stride: int) -> tup
     return summary(parts), parts
 
 
-def adapt(recordings: Iterable[Recording], model_run: str | Path, out: str | Path,
-          cfg: AdaptConfig = AdaptConfig()) -> dict:
+def adapt(
+    recordings: Iterable[Recording], model_run: str | Path, out: str | Path, cfg: AdaptConfig = AdaptConfig()
+) -> dict:
     """Adapt the model of run folder ``model_run`` to ``recordings`` (module docstring) into the new
     run folder ``out``; returns what ``adaptation.json`` holds."""
     t_start = time.perf_counter()
@@ -133,14 +136,18 @@ def adapt(recordings: Iterable[Recording], model_run: str | Path, out: str | Pat
         if w is not None:
             walks.append(w)
     if n_fix_rec == 0:
-        raise ValidationError(f"none of the {n_rec} recording(s) has location fixes: adaptation labels the IMU "
-                              "with the phone's own fixes (record with location on)")
+        raise ValidationError(
+            f"none of the {n_rec} recording(s) has location fixes: adaptation labels the IMU "
+            "with the phone's own fixes (record with location on)"
+        )
     n_seg = sum(len(w) for w in walks)
     s = cfg.segments
     if n_seg < cfg.min_segments:
-        raise ValidationError(f"only {n_seg} segment(s) between good fixes ({s.segment_s:g} s apart, accuracy ≤ "
-                              f"{s.max_accuracy_m:g} m, moved ≥ {s.min_length_m:g} m) in {n_rec} recording(s); "
-                              f"adaptation needs at least {cfg.min_segments}: walk longer with location on")
+        raise ValidationError(
+            f"only {n_seg} segment(s) between good fixes ({s.segment_s:g} s apart, accuracy ≤ "
+            f"{s.max_accuracy_m:g} m, moved ≥ {s.min_length_m:g} m) in {n_rec} recording(s); "
+            f"adaptation needs at least {cfg.min_segments}: walk longer with location on"
+        )
     train, held, held_by = split_walks(walks, cfg.holdout)
     window, stride = tcfg.window, tcfg.stride
     before, _ = agreement(model, held, window, stride)
@@ -151,10 +158,15 @@ def adapt(recordings: Iterable[Recording], model_run: str | Path, out: str | Pat
         factor = factor[np.isfinite(factor)]
         scale = float(np.median(factor))
         if not (np.isfinite(scale) and scale > 0):
-            raise ValidationError(f"the fixes give no usable speed factor (median {scale:.3g}): does the model move at all?")
+            raise ValidationError(
+                f"the fixes give no usable speed factor (median {scale:.3g}): does the model move at all?"
+            )
         adapted = ScaledVelocity(model.inner if isinstance(model, ScaledVelocity) else model, base_scale * scale)
-        record["scale_fit"] = {"factor": round(scale, 4), "segments": int(factor.size),
-                               "iqr": [round(float(q), 4) for q in np.percentile(factor, [25, 75])]}
+        record["scale_fit"] = {
+            "factor": round(scale, 4),
+            "segments": int(factor.size),
+            "iqr": [round(float(q), 4) for q in np.percentile(factor, [25, 75])],
+        }
         velocity_scale, state = base_scale * scale, None
     else:
         adapted, history = finetune(model, train, held, window, tcfg.rate, cfg.finetune)
@@ -164,20 +176,34 @@ def adapt(recordings: Iterable[Recording], model_run: str | Path, out: str | Pat
     after, _ = agreement(adapted, held, window, stride)
     improved = after["segment_error_median_m"] < before["segment_error_median_m"]
     if not improved:
-        warnings.warn(WearnavWarning(
-            f"the held-out walks agree less with their own fixes after adapting ({cfg.method}: median segment error "
-            f"{before['segment_error_median_m']:.2f} → {after['segment_error_median_m']:.2f} m, length ratio "
-            f"{before['length_ratio_median']:.2f} → {after['length_ratio_median']:.2f}): the adaptation may not help; "
-            f"compare both runs with `wearnav track`"))
-    record.update({"held_out_improved": bool(improved),
-        "velocity_scale": round(velocity_scale, 6), "base_run": str(model_run.resolve()),
-        "base_velocity_scale": base_scale, "recordings": n_rec, "recordings_with_fixes": n_fix_rec,
-        "recordings_with_segments": len(walks), "fixes_used": int(sum(w.fixes for w in walks)),
-        "segments": {"train": int(sum(len(w) for w in train)), "held_out": int(sum(len(w) for w in held))},
-        "held_out_by": held_by, "held_out_recordings": [w.name for w in held],
-        "held_out_before": before, "held_out_after": after, "train_before": train_before,
-        "config": dataclasses.asdict(cfg), "wall_s": round(time.perf_counter() - t_start, 2),
-    })
+        warnings.warn(
+            WearnavWarning(
+                f"the held-out walks agree less with their own fixes after adapting ({cfg.method}: median segment error "
+                f"{before['segment_error_median_m']:.2f} → {after['segment_error_median_m']:.2f} m, length ratio "
+                f"{before['length_ratio_median']:.2f} → {after['length_ratio_median']:.2f}): the adaptation may not help; "
+                f"compare both runs with `wearnav track`"
+            )
+        )
+    record.update(
+        {
+            "held_out_improved": bool(improved),
+            "velocity_scale": round(velocity_scale, 6),
+            "base_run": str(model_run.resolve()),
+            "base_velocity_scale": base_scale,
+            "recordings": n_rec,
+            "recordings_with_fixes": n_fix_rec,
+            "recordings_with_segments": len(walks),
+            "fixes_used": int(sum(w.fixes for w in walks)),
+            "segments": {"train": int(sum(len(w) for w in train)), "held_out": int(sum(len(w) for w in held))},
+            "held_out_by": held_by,
+            "held_out_recordings": [w.name for w in held],
+            "held_out_before": before,
+            "held_out_after": after,
+            "train_before": train_before,
+            "config": dataclasses.asdict(cfg),
+            "wall_s": round(time.perf_counter() - t_start, 2),
+        }
+    )
     _write_run(model_run, out, record, state)
     return record
 
@@ -187,13 +213,16 @@ def _write_run(base: Path, out: Path, record: dict, state: dict | None) -> None:
     doc = runs.read_config(base)
     with staged_output(out, ADAPTATION, "adapt") as stage:
         extra = {k: v for k, v in doc.items() if k not in ("config", "provenance")}
-        runs.write_config(stage, doc["config"], {**extra, "adapted_from": {"run": str(base.resolve()),
-                                                                           "method": record["method"]}})
+        runs.write_config(
+            stage, doc["config"], {**extra, "adapted_from": {"run": str(base.resolve()), "method": record["method"]}}
+        )
         ckpt = base / CHECKPOINTS / BEST
         (stage / CHECKPOINTS).mkdir()
         if state is not None:
-            torch.save({"state_dict": {f"model.{k}": v for k, v in state.items()}, "adapted": record["method"]},
-                       stage / CHECKPOINTS / BEST)
+            torch.save(
+                {"state_dict": {f"model.{k}": v for k, v in state.items()}, "adapted": record["method"]},
+                stage / CHECKPOINTS / BEST,
+            )
         elif ckpt.is_file():
             shutil.copyfile(ckpt, stage / CHECKPOINTS / BEST)
         for name in (TRAINING, fuse.CALIBRATION_JSON):

@@ -72,18 +72,25 @@ class WalkSegments:
     def __len__(self) -> int:
         return int(self.t0.size)
 
-    def subset(self, idx) -> "WalkSegments":
+    def subset(self, idx) -> WalkSegments:
         idx = np.asarray(idx)
-        return WalkSegments(self.name, self.seq, self.t0[idx], self.t1[idx], self.d_fix[idx],
-                            int(np.unique(np.concatenate([self.t0[idx], self.t1[idx]])).size))
+        return WalkSegments(
+            self.name,
+            self.seq,
+            self.t0[idx],
+            self.t1[idx],
+            self.d_fix[idx],
+            int(np.unique(np.concatenate([self.t0[idx], self.t1[idx]])).size),
+        )
 
 
 def walk_segments(rec: Recording, tcfg, cfg: SegmentConfig = SegmentConfig()) -> WalkSegments | None:
     """The segments of ``rec`` for a model of training config ``tcfg`` (None: no usable fix pair)."""
     if rec.fixes is None or len(rec.fixes) < 2:
         return None
-    lcfg = LabelConfig(segment_s=cfg.segment_s, rate=tcfg.rate, tolerance=cfg.tolerance, align_to_fixes=False,
-                       max_speed=cfg.max_speed)
+    lcfg = LabelConfig(
+        segment_s=cfg.segment_s, rate=tcfg.rate, tolerance=cfg.tolerance, align_to_fixes=False, max_speed=cfg.max_speed
+    )
     lab = label_recording(rec, lcfg, warn_drops=False)
     if lab is None:
         return None
@@ -96,8 +103,14 @@ def walk_segments(rec: Recording, tcfg, cfg: SegmentConfig = SegmentConfig()) ->
     if not good.any():
         return None
     seq = align(rec, dataclasses.replace(tcfg.preprocess_config(), frame_align="common"))
-    return WalkSegments(rec.name, seq, lab.t0[good], lab.t1[good], lab.label[good],
-                        int(np.unique(np.concatenate([i0[good], i1[good]])).size))
+    return WalkSegments(
+        rec.name,
+        seq,
+        lab.t0[good],
+        lab.t1[good],
+        lab.label[good],
+        int(np.unique(np.concatenate([i0[good], i1[good]])).size),
+    )
 
 
 def integration_weights(c: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
@@ -122,7 +135,7 @@ def _cumulative(c: np.ndarray, tau: np.ndarray) -> np.ndarray:
             W[r, 0] = tr - c[0]
             continue
         W[r, :jr] += 0.5 * h[:jr]
-        W[r, 1:jr + 1] += 0.5 * h[:jr]
+        W[r, 1 : jr + 1] += 0.5 * h[:jr]
         u = tr - c[jr]
         if jr == K - 1:
             W[r, jr] += u
@@ -173,8 +186,11 @@ def compare(d_odo: np.ndarray, d_fix: np.ndarray, t_mid: np.ndarray) -> dict:
     perfect odometry) the fixes' length is 0.90 of the truth's (median, 220 segments) and their
     projection 0.82; on simulated walks the length ratio reads 1–4 % long (fix noise adds length)."""
     ok = np.isfinite(d_odo).all(axis=1) & (np.linalg.norm(d_odo, axis=1) > 1e-6)
-    out = {"ratio": np.full(len(d_fix), np.nan), "factor": np.full(len(d_fix), np.nan),
-           "error_m": np.full(len(d_fix), np.nan)}
+    out = {
+        "ratio": np.full(len(d_fix), np.nan),
+        "factor": np.full(len(d_fix), np.nan),
+        "error_m": np.full(len(d_fix), np.nan),
+    }
     if not ok.any():
         return out
     yaw = segment_yaw(d_odo[ok], d_fix[ok], t_mid[ok])
@@ -188,17 +204,33 @@ def compare(d_odo: np.ndarray, d_fix: np.ndarray, t_mid: np.ndarray) -> dict:
 
 def summary(parts: list[dict]) -> dict:
     """Medians (and p75 of the error) of :func:`compare`'s values pooled over walks."""
+
     def pooled(key):
         v = np.concatenate([p[key] for p in parts]) if parts else np.empty(0)
         return v[np.isfinite(v)]
+
     ratio, factor, err = pooled("ratio"), pooled("factor"), pooled("error_m")
-    r = lambda x: round(float(x), 4)  # noqa: E731
-    return {"segments": int(err.size),
-            "length_ratio_median": r(np.median(ratio)) if ratio.size else None,
-            "speed_factor_median": r(np.median(factor)) if factor.size else None,
-            "segment_error_median_m": r(np.median(err)) if err.size else None,
-            "segment_error_p75_m": r(np.percentile(err, 75)) if err.size else None}
+    r = lambda x: round(float(x), 4)
+    return {
+        "segments": int(err.size),
+        "length_ratio_median": r(np.median(ratio)) if ratio.size else None,
+        "speed_factor_median": r(np.median(factor)) if factor.size else None,
+        "segment_error_median_m": r(np.median(err)) if err.size else None,
+        "segment_error_p75_m": r(np.percentile(err, 75)) if err.size else None,
+    }
 
 
-__all__ = ["SegmentConfig", "WalkSegments", "walk_segments", "integration_weights", "window_centres",
-           "odometry_displacements", "segment_yaw", "rotate", "compare", "summary", "MAX_ACCURACY_M", "YAW_KERNEL_S"]
+__all__ = [
+    "SegmentConfig",
+    "WalkSegments",
+    "walk_segments",
+    "integration_weights",
+    "window_centres",
+    "odometry_displacements",
+    "segment_yaw",
+    "rotate",
+    "compare",
+    "summary",
+    "MAX_ACCURACY_M",
+    "YAW_KERNEL_S",
+]

@@ -20,10 +20,10 @@ held-out trials play no part in the choice.
 from __future__ import annotations
 
 import dataclasses
-import shutil
 import os
 import platform
 import re
+import shutil
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -65,8 +65,12 @@ def _stats(e: np.ndarray) -> dict:
     e = np.asarray(e, float)
     if e.size == 0:
         return {"points": 0, "median (m)": float("nan"), "p75 (m)": float("nan"), "p95 (m)": float("nan")}
-    return {"points": int(e.size), "median (m)": round(float(np.median(e)), 2),
-            "p75 (m)": round(float(np.percentile(e, 75)), 2), "p95 (m)": round(float(np.percentile(e, 95)), 2)}
+    return {
+        "points": int(e.size),
+        "median (m)": round(float(np.median(e)), 2),
+        "p75 (m)": round(float(np.percentile(e, 75)), 2),
+        "p95 (m)": round(float(np.percentile(e, 95)), 2),
+    }
 
 
 def scored(run: Path, data: Path, splits: tuple[str, ...], yaw_deg: float, out_dir: Path) -> dict[str, tuple]:
@@ -104,12 +108,15 @@ def fix_label_bias(model: Path, data: Path, splits: tuple[str, ...]) -> dict:
         if w is None or rec.truth is None:
             continue
         p = interpolate_position(rec.truth.t, rec.truth.pos[:, :2], np.concatenate([w.t0, w.t1]), max_gap=np.inf)
-        d = np.linalg.norm(p[len(w):] - p[:len(w)], axis=1)
+        d = np.linalg.norm(p[len(w) :] - p[: len(w)], axis=1)
         ok = np.isfinite(d) & (d > 1.0)
         ratio.append(np.linalg.norm(w.d_fix[ok], axis=1) / d[ok])
     r = np.concatenate(ratio) if ratio else np.empty(0)
-    return {"segments": int(r.size), "median": round(float(np.median(r)), 3) if r.size else None,
-            "iqr": [round(float(q), 3) for q in np.percentile(r, [25, 75])] if r.size else None}
+    return {
+        "segments": int(r.size),
+        "median": round(float(np.median(r)), 3) if r.size else None,
+        "iqr": [round(float(q), 3) for q in np.percentile(r, [25, 75])] if r.size else None,
+    }
 
 
 def user(run: Path, data: Path, split: str) -> dict[str, dict]:
@@ -117,8 +124,14 @@ def user(run: Path, data: Path, split: str) -> dict[str, dict]:
     and σ scale calibrated on the site's training walks (as `bench real-odometry` does for a model that did not
     train on them: :func:`wearnav.bench.user_protocol.site_calibration`), not kept in the run."""
     res = user_protocol(run, data, split, calibration=calibrate(run, data, "train"))
-    return {a: {"walks": len(res[a]["length_ratio"]), **_stats(np.asarray(res[a]["errors"])),
-                "length ratio": median_ratio(res[a]["length_ratio"])} for a in ANCHORS}
+    return {
+        a: {
+            "walks": len(res[a]["length_ratio"]),
+            **_stats(np.asarray(res[a]["errors"])),
+            "length ratio": median_ratio(res[a]["length_ratio"]),
+        }
+        for a in ANCHORS
+    }
 
 
 def _adapted(model: Path, data: Path, splits: tuple[str, ...], run: Path, cfg: AdaptConfig) -> dict:
@@ -132,8 +145,14 @@ def _adapted(model: Path, data: Path, splits: tuple[str, ...], run: Path, cfg: A
     return adapt(_recordings(data, splits), model, run, cfg)
 
 
-def adapt_table(model: str | Path, data: str | Path, out: str | Path, fmt: str | None = None,
-                cfg: AdaptConfig = AdaptConfig(), progress: bool = False) -> dict:
+def adapt_table(
+    model: str | Path,
+    data: str | Path,
+    out: str | Path,
+    fmt: str | None = None,
+    cfg: AdaptConfig = AdaptConfig(),
+    progress: bool = False,
+) -> dict:
     """The adaptation table (module docstring) into ``out`` (results.md, results.json, the split
     data, the adapted runs and their evaluations); returns what results.json holds."""
     t_start = time.perf_counter()
@@ -144,8 +163,14 @@ def adapt_table(model: str | Path, data: str | Path, out: str | Path, fmt: str |
         runs.write_json(yaw_file, estimate_site_yaw(data_dir, "train"))
     yaw = read_json(yaw_file)
     yaw_deg = float(yaw["yaw_deg"])
-    doc: dict = {"model": str(model), "data": str(data), "split": info, "site_yaw": yaw,
-                 "config": dataclasses.asdict(cfg), "seconds": {}}
+    doc: dict = {
+        "model": str(model),
+        "data": str(data),
+        "split": info,
+        "site_yaw": yaw,
+        "config": dataclasses.asdict(cfg),
+        "seconds": {},
+    }
 
     # the default's choice: adapt on the training trials' train split, score at the POSI points of
     # every training trial (train: the walks adapted on, as a user tracks them; val: walks not)
@@ -160,15 +185,25 @@ def adapt_table(model: str | Path, data: str | Path, out: str | Path, fmt: str |
         for part, splits in (("all", ("train", "val")), ("train", ("train",)), ("val", ("val",))):
             choice[part][label] = pooled([parts[k] for k in splits])
     best = min(METHODS, key=lambda m: choice["all"][_label(m)]["median (m)"])
-    doc["choice"] = {"scores": choice, "adaptations": records, "best": best,
-                     "rule": "the lower median error (known start) at the POSI points of every training trial"}
+    doc["choice"] = {
+        "scores": choice,
+        "adaptations": records,
+        "best": best,
+        "rule": "the lower median error (known start) at the POSI points of every training trial",
+    }
     doc["fix_label_bias"] = fix_label_bias(model, data_dir, ("train", "val"))
     doc["seconds"]["choice"] = round(time.perf_counter() - t0, 1)
 
     # the table: adapt on every training trial, score at the held-out trials
     t0 = time.perf_counter()
-    pdr_cfg = TrainConfig(model="pdr", data=str(data_dir), devices=("phone",), frame_align="none",
-                          truth_max_gap=TRUTH_MAX_GAP_S, yaw_deg=yaw_deg)
+    pdr_cfg = TrainConfig(
+        model="pdr",
+        data=str(data_dir),
+        devices=("phone",),
+        frame_align="none",
+        truth_max_gap=TRUTH_MAX_GAP_S,
+        yaw_deg=yaw_deg,
+    )
     pdr = prepare_run(pdr_cfg, out / "runs" / "pdr")
     fit(pdr_cfg, pdr, progress=False)
     folders = {UNADAPTED: model}
@@ -182,12 +217,22 @@ def adapt_table(model: str | Path, data: str | Path, out: str | Path, fmt: str |
     doc["seconds"]["adapt"] = {m: adaptations[m]["wall_s"] for m in METHODS}
     known, users = {}, {}
     for label, run in folders.items():
-        known[label] = pooled(list(scored(run, data_dir, ("test",), yaw_deg,
-                                          out / "eval" / re.sub(r"[^A-Za-z0-9]+", "_", label)).values()))
+        known[label] = pooled(
+            list(
+                scored(run, data_dir, ("test",), yaw_deg, out / "eval" / re.sub(r"[^A-Za-z0-9]+", "_", label)).values()
+            )
+        )
         users[label] = user(run, data_dir, "test")
     fx = fix_errors(data_dir, "test")
-    raw = {"walks": fx["sequences"], **_stats(np.asarray(fx["point_errors"])),
-           "length ratio": median_ratio(raw_fix_length_ratio(data_dir, "test"))} if fx else None
+    raw = (
+        {
+            "walks": fx["sequences"],
+            **_stats(np.asarray(fx["point_errors"])),
+            "length ratio": median_ratio(raw_fix_length_ratio(data_dir, "test")),
+        }
+        if fx
+        else None
+    )
     doc.update(known_start=known, user=users, raw_gnss=raw)
     doc["seconds"]["table"] = round(time.perf_counter() - t0, 1)
     doc["seconds"]["total"] = round(time.perf_counter() - t_start, 1)
@@ -209,49 +254,73 @@ def write_page(doc: dict, path: Path) -> Path:
     p = provenance()
     info, s = doc["split"], doc["seconds"]
     test = sorted(g for g, c in info["groups"].items() if "test" in c)
-    user_rows = {f"{label} · {'smoother' if a == 'smooth' else 'rigid fit'}": r[a]
-                 for label, r in doc["user"].items() for a in ANCHORS}
+    user_rows = {
+        f"{label} · {'smoother' if a == 'smooth' else 'rigid fit'}": r[a]
+        for label, r in doc["user"].items()
+        for a in ANCHORS
+    }
     ad = doc["adaptations"]
-    lines = [f"# Adaptation from the user's own fixes: IPIN 2023", "",
-             f"Generated by `wearnav bench adapt` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) on "
-             f"{platform.machine()}, {os.cpu_count()} CPUs, torch {torch.__version__}, CPU only, one thread, shared "
-             f"with other work; {s['total'] / 60:.1f} min in all. Base model `{shown_path(doc['model'])}` (never "
-             f"trained on IPIN), adapted by `wearnav adapt` on the GNSS fixes of IPIN's training trials "
-             f"({ad[METHODS[0]]['recordings']} walks, {ad[METHODS[0]]['fixes_used']} fixes used; no POSI point read), "
-             f"scored at the POSI points of the held-out trials {', '.join(test)}. Seed 0.", "",
-             "## Known start + site yaw (m)", "",
-             "Each walk starts at its true first point, its input turned by the site yaw "
-             f"({doc['site_yaw']['yaw_deg']:+.1f}°, PDR on the training trials), as `bench real-odometry` scores; "
-             "errors at every later POSI point; *length ratio*: median over walks of the path's length through "
-             "its positions at the POSI times over the truth's (1 is right).", "",
-             _table(doc["known_start"], doc["raw_gnss"]), "",
-             "## User protocol: no truth (m)", "",
-             "Each path integrated from (0, 0) in the phone's own frame and placed on the walk's own fixes by the "
-             "smoother (`track`'s default) or one rigid fit (`wearnav.bench.user_protocol`).", "",
-             _table(user_rows, doc["raw_gnss"], "path"), "",
-             "## What the adaptations did", "",
-             _adaptation_table(ad), "",
-             "*held-out*: the walks `wearnav adapt` held out of the training trials' fixes; *length ratio* "
-             "(odometry over fixes, per 10-s segment) and *segment error* (after each walk's yaw fit) against "
-             "the fixes, before → after.", "",
-             "## The default method, chosen on the training trials only", "",
-             f"Each method adapted on the fixes of the training trials' train split and scored (known start) at "
-             f"the POSI points of the training trials (*train*: the walks it adapted on, as a user tracks their "
-             f"own walks; *val*: training-trial walks it did not see); rule: {doc['choice']['rule']}. Chosen: "
-             f"**{doc['choice']['best']}**.", "",
-             _table({f"{k} · {part}": v for part in ("all", "train", "val")
-                     for k, v in doc["choice"]["scores"][part].items()}, None), "",
-             _bias_line(doc["fix_label_bias"]), ""]
+    lines = [
+        "# Adaptation from the user's own fixes: IPIN 2023",
+        "",
+        f"Generated by `wearnav bench adapt` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) on "
+        f"{platform.machine()}, {os.cpu_count()} CPUs, torch {torch.__version__}, CPU only, one thread, shared "
+        f"with other work; {s['total'] / 60:.1f} min in all. Base model `{shown_path(doc['model'])}` (never "
+        f"trained on IPIN), adapted by `wearnav adapt` on the GNSS fixes of IPIN's training trials "
+        f"({ad[METHODS[0]]['recordings']} walks, {ad[METHODS[0]]['fixes_used']} fixes used; no POSI point read), "
+        f"scored at the POSI points of the held-out trials {', '.join(test)}. Seed 0.",
+        "",
+        "## Known start + site yaw (m)",
+        "",
+        "Each walk starts at its true first point, its input turned by the site yaw "
+        f"({doc['site_yaw']['yaw_deg']:+.1f}°, PDR on the training trials), as `bench real-odometry` scores; "
+        "errors at every later POSI point; *length ratio*: median over walks of the path's length through "
+        "its positions at the POSI times over the truth's (1 is right).",
+        "",
+        _table(doc["known_start"], doc["raw_gnss"]),
+        "",
+        "## User protocol: no truth (m)",
+        "",
+        "Each path integrated from (0, 0) in the phone's own frame and placed on the walk's own fixes by the "
+        "smoother (`track`'s default) or one rigid fit (`wearnav.bench.user_protocol`).",
+        "",
+        _table(user_rows, doc["raw_gnss"], "path"),
+        "",
+        "## What the adaptations did",
+        "",
+        _adaptation_table(ad),
+        "",
+        "*held-out*: the walks `wearnav adapt` held out of the training trials' fixes; *length ratio* "
+        "(odometry over fixes, per 10-s segment) and *segment error* (after each walk's yaw fit) against "
+        "the fixes, before → after.",
+        "",
+        "## The default method, chosen on the training trials only",
+        "",
+        f"Each method adapted on the fixes of the training trials' train split and scored (known start) at "
+        f"the POSI points of the training trials (*train*: the walks it adapted on, as a user tracks their "
+        f"own walks; *val*: training-trial walks it did not see); rule: {doc['choice']['rule']}. Chosen: "
+        f"**{doc['choice']['best']}**.",
+        "",
+        _table(
+            {f"{k} · {part}": v for part in ("all", "train", "val") for k, v in doc["choice"]["scores"][part].items()},
+            None,
+        ),
+        "",
+        _bias_line(doc["fix_label_bias"]),
+        "",
+    ]
     return write_text_atomic("\n".join(lines), path)
 
 
 def _bias_line(b: dict) -> str:
     if not b.get("segments"):
         return ""
-    return (f"The labels themselves (a diagnostic, not used to adapt): over the {b['segments']} segments `wearnav "
-            f"adapt` takes from the training trials, the fixes' displacement is {b['median']:.2f} of the truth's in "
-            f"length (median; IQR {b['iqr'][0]:.2f}–{b['iqr'][1]:.2f}; truth: the POSI points joined by straight "
-            "lines), so a model calibrated to them is calibrated to that.")
+    return (
+        f"The labels themselves (a diagnostic, not used to adapt): over the {b['segments']} segments `wearnav "
+        f"adapt` takes from the training trials, the fixes' displacement is {b['median']:.2f} of the truth's in "
+        f"length (median; IQR {b['iqr'][0]:.2f}–{b['iqr'][1]:.2f}; truth: the POSI points joined by straight "
+        "lines), so a model calibrated to them is calibrated to that."
+    )
 
 
 def _adaptation_table(ad: dict) -> str:
@@ -259,11 +328,17 @@ def _adaptation_table(ad: dict) -> str:
     for m, r in ad.items():
         b, a = r["held_out_before"], r["held_out_after"]
         best = next((h["best_epoch"] for h in r.get("finetune", []) if "best_epoch" in h), None)
-        rows.append({"method": m, "velocity scale": r["velocity_scale"], "best epoch": best if best is not None else "—",
-                     "segments train / held-out": f"{r['segments']['train']} / {r['segments']['held_out']}",
-                     "held-out length ratio": f"{b['length_ratio_median']} → {a['length_ratio_median']}",
-                     "held-out segment error (m)": f"{b['segment_error_median_m']} → {a['segment_error_median_m']}",
-                     "seconds": r["wall_s"]})
+        rows.append(
+            {
+                "method": m,
+                "velocity scale": r["velocity_scale"],
+                "best epoch": best if best is not None else "—",
+                "segments train / held-out": f"{r['segments']['train']} / {r['segments']['held_out']}",
+                "held-out length ratio": f"{b['length_ratio_median']} → {a['length_ratio_median']}",
+                "held-out segment error (m)": f"{b['segment_error_median_m']} → {a['segment_error_median_m']}",
+                "seconds": r["wall_s"],
+            }
+        )
     return pd.DataFrame(rows).to_markdown(index=False)
 
 

@@ -12,8 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from wearnav.bench.odometry import (METRICS_EXPLAINED, comparison_table, run_suite, suite_configs,
-                                    write_suite_report)
+from wearnav.bench.odometry import METRICS_EXPLAINED, comparison_table, run_suite, suite_configs, write_suite_report
 from wearnav.dataset import Dataset
 from wearnav.report.plots import plot_trajectories
 from wearnav.simulate import simulate_dataset
@@ -24,9 +23,16 @@ TITLE = "wearnav demo: odometry on simulated walking"
 CONSOLE_COLUMNS = ("model", "ATE", "RTE", "STW ATE", "DRW ATE", "epochs", "train s/epoch", "beats standing still")
 
 
-def run_demo(out: Path, models: tuple[str, ...], epochs: int, seed: int = 0,
-             minutes: float | None = None, preset: str = "small", progress: bool = True,
-             echo: Callable[[str], None] = print) -> tuple[Path, dict[str, pd.DataFrame]]:
+def run_demo(
+    out: Path,
+    models: tuple[str, ...],
+    epochs: int,
+    seed: int = 0,
+    minutes: float | None = None,
+    preset: str = "small",
+    progress: bool = True,
+    echo: Callable[[str], None] = print,
+) -> tuple[Path, dict[str, pd.DataFrame]]:
     """Simulate ``preset`` into ``out/data`` (or reuse it), train and evaluate ``models`` (at most
     ``epochs`` each; ``minutes``: an optional time cap) into ``out/runs`` and write ``out/results.md``. Returns the page and, per split, the comparison
     table's console columns."""
@@ -44,14 +50,15 @@ def run_demo(out: Path, models: tuple[str, ...], epochs: int, seed: int = 0,
     configs = suite_configs(data_dir, models, epochs=epochs, max_minutes=minutes, seed=seed, patience=5)
     folders = run_suite(configs, out / "runs", splits=SPLITS, progress=progress, echo=echo)
     budget = f"{epochs} epochs" + (f" or {minutes:g} min, whichever ends first," if minutes else "")
-    note = (f"Built-in data: simulator preset `{preset}` (seed {seed}). Demo budget: at most {budget} of "
-            "training per learned model (early stopping after 5 epochs without improvement) with the `fast` recipe "
-            "(Adam lr 1e-3, one epoch of warm-up, cosine decay over the second half; the papers train ~100 epochs "
-            "at 1e-4), far below the papers' training. Test walks are scored in the honest frame: one constant "
-            "yaw from the first 10 s of truth, the heading drift after that left in; see `wearnav bench odometry` for "
-            "the full comparison. The budget is counted in epochs, not minutes, so the same seed gives the same "
-            "figures on a fast or a busy machine (up to floating-point differences between CPUs).\n\n"
-            + METRICS_EXPLAINED)
+    note = (
+        f"Built-in data: simulator preset `{preset}` (seed {seed}). Demo budget: at most {budget} of "
+        "training per learned model (early stopping after 5 epochs without improvement) with the `fast` recipe "
+        "(Adam lr 1e-3, one epoch of warm-up, cosine decay over the second half; the papers train ~100 epochs "
+        "at 1e-4), far below the papers' training. Test walks are scored in the honest frame: one constant "
+        "yaw from the first 10 s of truth, the heading drift after that left in; see `wearnav bench odometry` for "
+        "the full comparison. The budget is counted in epochs, not minutes, so the same seed gives the same "
+        "figures on a fast or a busy machine (up to floating-point differences between CPUs).\n\n" + METRICS_EXPLAINED
+    )
     page = write_suite_report(folders, out, TITLE, splits=SPLITS, note=note, command=f"wearnav demo --out {out}")
     tables = {}
     for split in SPLITS:

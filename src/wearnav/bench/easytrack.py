@@ -29,21 +29,19 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from wearnav import metrics, runs
 from wearnav.bench.easytrack_page import write_page
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.bench.real_sites import IPIN_TEST_TRIALS
-from wearnav.errors import ConfigError, ValidationError, check_names
 from wearnav.dataset import Dataset
+from wearnav.errors import ConfigError, ValidationError, check_names
 from wearnav.evaluate import SPARSE_MAX_GAP, predict_sequence
 from wearnav.fixlabels import LabelConfig, Segments, aligned_phone, label_dataset
 from wearnav.models.registry import build
-from wearnav.provenance import provenance
 from wearnav.simulate.presets import plan_phone_only, simulate_plan
-from wearnav.train.noisy import METHODS, NoisyConfig, fit_noisy, load_predictor, write_history
 from wearnav.timeseries import interp_onto
+from wearnav.train.noisy import METHODS, NoisyConfig, fit_noisy, load_predictor, write_history
 from wearnav.trajectory import integrate_velocity
 from wearnav.trust import QUICK_NOTE
 
@@ -77,12 +75,22 @@ class BenchConfig:
         check_names(self.methods, METHODS, "method")
 
     @classmethod
-    def quick(cls) -> "BenchConfig":
-        return cls(km=0.25, test_walks=1, test_duration_s=(40.0, 50.0), ae_epochs=1, pre_epochs=1, joint_epochs=2,
-                   levels=("L1",), methods=("easytrack", "basemodel", "coteaching", "aux", "basemodel-gt"), l1_only=())
+    def quick(cls) -> BenchConfig:
+        return cls(
+            km=0.25,
+            test_walks=1,
+            test_duration_s=(40.0, 50.0),
+            ae_epochs=1,
+            pre_epochs=1,
+            joint_epochs=2,
+            levels=("L1",),
+            methods=("easytrack", "basemodel", "coteaching", "aux", "basemodel-gt"),
+            l1_only=(),
+        )
 
 
 # ---- data -----------------------------------------------------------------------------------------
+
 
 def _dataset(path: Path, plan, echo) -> Dataset:
 
@@ -106,7 +114,9 @@ def sim_segment_files(out: Path, bc: BenchConfig, lc: LabelConfig, echo=print) -
     caches, test_cache = _caches(out, bc, lc)
     for level, cache in caches.items():
         if not cache.is_file():
-            ds = _dataset(data / f"sim_{level}_km{bc.km:g}_s{bc.sim_seed}", plan_phone_only(level, bc.km, bc.sim_seed), echo)
+            ds = _dataset(
+                data / f"sim_{level}_km{bc.km:g}_s{bc.sim_seed}", plan_phone_only(level, bc.km, bc.sim_seed), echo
+            )
             label_dataset(ds, lc).save(cache)
     if not test_cache.is_file():
         plan = plan_phone_only("L1", 0.0, bc.sim_seed, bc.test_duration_s, test=True, n=bc.test_walks)
@@ -123,6 +133,7 @@ def sim_segments(out: Path, bc: BenchConfig, lc: LabelConfig, echo=print) -> tup
 
 # ---- runs -----------------------------------------------------------------------------------------
 
+
 def _ate_rows(predict, test: Segments) -> list[dict]:
     rows = []
     for k, name in enumerate(test.names):
@@ -133,8 +144,13 @@ def _ate_rows(predict, test: Segments) -> list[dict]:
         nodes = np.concatenate([test.node0[idx[:1]], test.node1[idx]])
         true = test.node_pos[nodes]
         est = np.vstack([true[:1], true[:1] + np.cumsum(d, axis=0)])
-        rows.append({"name": name, "ate": metrics.ate(test.node_t[nodes], est, true),
-                     "length_m": float(np.sum(np.linalg.norm(np.diff(true, axis=0), axis=1)))})
+        rows.append(
+            {
+                "name": name,
+                "ate": metrics.ate(test.node_t[nodes], est, true),
+                "length_m": float(np.sum(np.linalg.norm(np.diff(true, axis=0), axis=1))),
+            }
+        )
     return rows
 
 
@@ -147,14 +163,23 @@ def run_one(cfg: NoisyConfig, train: Segments, test: Segments | None, folder: Pa
     t0 = time.perf_counter()
     monitor = None
     if test is not None and len(test):
+
         def monitor(predict):
-            return {"test_ade_m": metrics.ade(np.concatenate([predict(test.x[i:i + 2048])
-                                                              for i in range(0, len(test), 2048)]), test.truth)}
+            return {
+                "test_ade_m": metrics.ade(
+                    np.concatenate([predict(test.x[i : i + 2048]) for i in range(0, len(test), 2048)]), test.truth
+                )
+            }
+
     tr = fit_noisy(cfg, train, folder, monitor=monitor)
     write_history(folder, tr)
     predict = load_predictor(cfg, folder, train.x.shape[1])
-    m = {"method": cfg.method, "seed": cfg.seed, **{k: v for k, v in record.items() if k != "noisy"},
-         "training": {k: v for k, v in tr.items() if k != "history"}}
+    m = {
+        "method": cfg.method,
+        "seed": cfg.seed,
+        **{k: v for k, v in record.items() if k != "noisy"},
+        "training": {k: v for k, v in tr.items() if k != "history"},
+    }
     if test is not None and len(test):
         m["ade_m"] = metrics.ade(predict(test.x), test.truth)
         m["ate"] = _ate_rows(predict, test)
@@ -186,10 +211,14 @@ def run_job(job: EasyJob, folder: Path) -> Path:
 
 # ---- real data (IPIN 2023 or any dataset with fixes and sparse truth) -----------------------------
 
+
 def _scores(err: np.ndarray) -> dict:
-    return {"points": int(err.size), "median_m": float(np.median(err)) if err.size else None,
-            "p75_m": float(np.percentile(err, 75)) if err.size else None,
-            "mean_m": float(np.mean(err)) if err.size else None}
+    return {
+        "points": int(err.size),
+        "median_m": float(np.median(err)) if err.size else None,
+        "p75_m": float(np.percentile(err, 75)) if err.size else None,
+        "mean_m": float(np.mean(err)) if err.size else None,
+    }
 
 
 def route_pattern(text: str) -> re.Pattern:
@@ -212,8 +241,16 @@ class RealPlan:
     jobs: list[Job]
 
 
-def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_routes: str | None, seeds: int,
-              echo=print, execution: Execution = Execution()) -> dict:
+def real_part(
+    data: Path,
+    out: Path,
+    bc: BenchConfig,
+    lc: LabelConfig,
+    test_routes: str | None,
+    seeds: int,
+    echo=print,
+    execution: Execution = Execution(),
+) -> dict:
     """Train on the training routes' GNSS labels, score at the surveyed points of the test routes.
 
     ``test_routes``: a regex on recording names; None: the dataset's ``test`` split where it has
@@ -223,8 +260,9 @@ def real_part(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_rout
     return real_scores(plan, out, lc)
 
 
-def real_plan(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_routes: str | None, seeds: int,
-              echo=print) -> RealPlan:
+def real_plan(
+    data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_routes: str | None, seeds: int, echo=print
+) -> RealPlan:
     """The real part's training labels (cached) and one job per method × seed."""
 
     ds = Dataset.open(data)
@@ -238,22 +276,35 @@ def real_plan(data: Path, out: Path, bc: BenchConfig, lc: LabelConfig, test_rout
         test_names = [n for n in names if pat.search(n)]
     train_names = [n for n in names if n not in set(test_names)]
     if not test_names or not train_names:
-        raise ValidationError(f"--test-routes {test_routes!r} must match some recordings and leave some for training", data)
+        raise ValidationError(
+            f"--test-routes {test_routes!r} must match some recordings and leave some for training", data
+        )
     rdir = out / "real"
-    cache = rdir / f"train_{runs.config_hash({'d': str(Path(data).resolve()), 'r': test_routes, 'l': dataclasses.asdict(lc)})}.npz"
+    cache = (
+        rdir
+        / f"train_{runs.config_hash({'d': str(Path(data).resolve()), 'r': test_routes, 'l': dataclasses.asdict(lc)})}.npz"
+    )
     if not cache.is_file():
         view = ds._view(ds.manifest["name"].isin(train_names))
         label_dataset(view, lc).save(cache)
     train = Segments.load(cache)
-    echo(f"real: {len(train)} GNSS-labelled segments from {len(train.names)} training routes; "
-         f"{len(test_names)} test routes")
+    echo(
+        f"real: {len(train)} GNSS-labelled segments from {len(train.names)} training routes; "
+        f"{len(test_names)} test routes"
+    )
     jobs = []
     for method in IPIN_METHODS:
         for seed in range(seeds):
-            cfg = NoisyConfig(method=method, seed=seed, ae_epochs=bc.ae_epochs, pre_epochs=bc.pre_epochs,
-                              joint_epochs=bc.joint_epochs)
-            record = {"noisy": dataclasses.asdict(cfg), "data": str(Path(data).resolve()), "test_routes": test_routes,
-                      "labels": dataclasses.asdict(lc), "part": "real"}
+            cfg = NoisyConfig(
+                method=method, seed=seed, ae_epochs=bc.ae_epochs, pre_epochs=bc.pre_epochs, joint_epochs=bc.joint_epochs
+            )
+            record = {
+                "noisy": dataclasses.asdict(cfg),
+                "data": str(Path(data).resolve()),
+                "test_routes": test_routes,
+                "labels": dataclasses.asdict(lc),
+                "part": "real",
+            }
             folder = runs.run_dir(rdir / "runs", f"{method}-s{seed}", record)
             jobs.append(Job(run_job, EasyJob(cfg, cache, None, record), folder))
     return RealPlan(Path(data), test_routes, train_names, test_names, train, jobs)
@@ -281,7 +332,7 @@ def real_scores(plan: RealPlan, out: Path, lc: LabelConfig) -> dict:
             continue
         s0 = int(np.searchsorted(seq.t, tt[inside[0]]))
         starts = np.arange(s0, seq.t.size - N, N)
-        x = np.stack([seq.imu[0, s:s + N] for s in starts]).astype(np.float32)
+        x = np.stack([seq.imu[0, s : s + N] for s in starts]).astype(np.float32)
         t_nodes = np.concatenate([seq.t[starts], [seq.t[starts[-1] + N]]])
         ref_t, ref_p = tt[inside[1:]], tp[inside[1:]]
         if rec.fixes is None or len(rec.fixes) < 2:
@@ -295,14 +346,16 @@ def real_scores(plan: RealPlan, out: Path, lc: LabelConfig) -> dict:
                 for proto, p0 in starts_at.items():
                     est = np.vstack([p0, p0 + np.cumsum(d, axis=0)])
                     errs.setdefault((proto, method, k), []).append(
-                        metrics.errors_at_reference(t_nodes, est, ref_t, ref_p, SPARSE_MAX_GAP))
+                        metrics.errors_at_reference(t_nodes, est, ref_t, ref_p, SPARSE_MAX_GAP)
+                    )
             row[method] = float(np.median(np.concatenate([errs[("user", method, k)][-1] for k in range(len(fns))])))
         t_c, vel, _ = predict_sequence(pdr, dataclasses.replace(seq, pos=None), pdr.window, int(round(lc.rate)))
         t_int = seq.t[seq.t >= tt[inside[0]]]
         for proto, p0 in starts_at.items():
             est = integrate_velocity(t_c, vel, t_int, p0)
-            errs.setdefault((proto, "pdr", 0), []).append(metrics.errors_at_reference(t_int, est, ref_t, ref_p,
-                                                                                        SPARSE_MAX_GAP))
+            errs.setdefault((proto, "pdr", 0), []).append(
+                metrics.errors_at_reference(t_int, est, ref_t, ref_p, SPARSE_MAX_GAP)
+            )
         row["pdr"] = float(np.median(errs[("user", "pdr", 0)][-1]))
         e = metrics.errors_at_reference(rec.fixes.t, rec.fixes.pos, ref_t, ref_p, metrics.FIX_MAX_GAP_S)
         for proto in starts_at:
@@ -314,18 +367,33 @@ def real_scores(plan: RealPlan, out: Path, lc: LabelConfig) -> dict:
         for method in (*IPIN_METHODS, "pdr", "gnss"):
             per_seed = [np.concatenate(v) for (p, m, _), v in sorted(errs.items()) if p == proto and m == method and v]
             if per_seed:
-                summary[proto][method] = {**_scores(np.concatenate(per_seed)), "seed_medians_m":
-                                          [float(np.median(e)) for e in per_seed if e.size]}
-    doc = {"methods": list(IPIN_METHODS), "train_routes": train_names, "test_routes": test_names, "segments": len(train),
-           "train_label_km": round(float(np.sum(np.linalg.norm(train.label, axis=1))) / 1000, 2),
-           "summary": summary, "per_route": per_route}
+                summary[proto][method] = {
+                    **_scores(np.concatenate(per_seed)),
+                    "seed_medians_m": [float(np.median(e)) for e in per_seed if e.size],
+                }
+    doc = {
+        "methods": list(IPIN_METHODS),
+        "train_routes": train_names,
+        "test_routes": test_names,
+        "segments": len(train),
+        "train_label_km": round(float(np.sum(np.linalg.norm(train.label, axis=1))) / 1000, 2),
+        "summary": summary,
+        "per_route": per_route,
+    }
     runs.write_json(out / "real" / "real.json", doc)
     return doc
 
 
-def run_benchmark(out: str | Path, quick: bool = False, seeds: int = 1, execution: Execution = Execution(),
-                  data: str | Path | None = None, test_routes: str | None = None, bc: BenchConfig | None = None,
-                  echo=print) -> Path:
+def run_benchmark(
+    out: str | Path,
+    quick: bool = False,
+    seeds: int = 1,
+    execution: Execution = Execution(),
+    data: str | Path | None = None,
+    test_routes: str | None = None,
+    bc: BenchConfig | None = None,
+    echo=print,
+) -> Path:
     out = Path(out)
     bc = bc or (BenchConfig.quick() if quick else BenchConfig())
     if quick:
@@ -334,7 +402,9 @@ def run_benchmark(out: str | Path, quick: bool = False, seeds: int = 1, executio
     plan = real_plan(Path(data), out, bc, lc, test_routes, seeds, echo) if data else None
     caches, test_cache = sim_segment_files(out, bc, lc, echo)
     todo = _todo(out, bc, seeds, lc)
-    jobs = [Job(run_job, EasyJob(cfg, caches[level], test_cache, record), folder) for cfg, level, folder, record in todo]
+    jobs = [
+        Job(run_job, EasyJob(cfg, caches[level], test_cache, record), folder) for cfg, level, folder, record in todo
+    ]
     run_jobs((plan.jobs if plan else []) + jobs, execution, echo)  # one pool: real and simulator runs side by side
     real = real_scores(plan, out, lc) if plan else None
     sim = [{**runs.read_metrics(job.folder), "folder": str(job.folder)} for job in jobs]
@@ -351,9 +421,21 @@ def _todo(out: Path, bc: BenchConfig, seeds: int, lc: LabelConfig) -> list[tuple
             for method in bc.methods:
                 if level != "L1" and method in bc.l1_only:
                     continue
-                cfg = NoisyConfig(method=method, seed=seed, ae_epochs=bc.ae_epochs, pre_epochs=bc.pre_epochs,
-                                  joint_epochs=bc.joint_epochs)
-                record = {"noisy": dataclasses.asdict(cfg), "level": level, "km": bc.km, "sim_seed": bc.sim_seed,
-                          "test_walks": bc.test_walks, "labels": dataclasses.asdict(lc), "part": "sim"}
+                cfg = NoisyConfig(
+                    method=method,
+                    seed=seed,
+                    ae_epochs=bc.ae_epochs,
+                    pre_epochs=bc.pre_epochs,
+                    joint_epochs=bc.joint_epochs,
+                )
+                record = {
+                    "noisy": dataclasses.asdict(cfg),
+                    "level": level,
+                    "km": bc.km,
+                    "sim_seed": bc.sim_seed,
+                    "test_walks": bc.test_walks,
+                    "labels": dataclasses.asdict(lc),
+                    "part": "sim",
+                }
                 res.append((cfg, level, runs.run_dir(out / "runs", f"{level}-{method}-s{seed}", record), record))
     return res

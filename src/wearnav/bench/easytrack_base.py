@@ -58,10 +58,13 @@ class Variant:
     km_share: float = 1.0  # share of the study's simulated walking
 
 
-VARIANTS = (Variant("less-data", "paper input, 30 % of the walking", yaw_augment=False, km_share=0.3),
-            Variant("paper-input", "paper input", yaw_augment=False), Variant("yaw", "+ yaw augmentation"),
-            Variant("overlap", "+ overlapping segments (0.2 s)", stride_s=0.2),
-            Variant("truth-frame", "diagnostic: truth frame", truth_frame=True))
+VARIANTS = (
+    Variant("less-data", "paper input, 30 % of the walking", yaw_augment=False, km_share=0.3),
+    Variant("paper-input", "paper input", yaw_augment=False),
+    Variant("yaw", "+ yaw augmentation"),
+    Variant("overlap", "+ overlapping segments (0.2 s)", stride_s=0.2),
+    Variant("truth-frame", "diagnostic: truth frame", truth_frame=True),
+)
 
 
 def _segments(out: Path, bc: BenchConfig, v: Variant) -> tuple[Path, Path]:
@@ -74,8 +77,9 @@ def _segments(out: Path, bc: BenchConfig, v: Variant) -> tuple[Path, Path]:
         sim_segment_files(out, bc, LabelConfig(), echo=lambda s: None)  # simulates the walks
         lc = TruthFrameLabels(align_to_fixes=False)
         label_dataset(Dataset.open(out / "data" / f"sim_L1_km{bc.km:g}_s{bc.sim_seed}"), lc).save(train)
-        label_dataset(Dataset.open(out / "data" / f"sim_test_n{bc.test_walks}_s{bc.sim_seed}"), lc,
-                      from_truth=True).save(test)
+        label_dataset(
+            Dataset.open(out / "data" / f"sim_test_n{bc.test_walks}_s{bc.sim_seed}"), lc, from_truth=True
+        ).save(test)
     return train, test
 
 
@@ -87,9 +91,14 @@ def per_walk(pred: np.ndarray, test: Segments) -> pd.DataFrame:
         d, p = test.truth[i], pred[i]
         moving = np.linalg.norm(d, axis=1) > 0.2  # a heading needs a displacement
         ang = np.angle((p[moving, 0] + 1j * p[moving, 1]) / (d[moving, 0] + 1j * d[moving, 1]))
-        rows.append({"walk": name, "ADE (cm)": 100 * metrics.ade(p, d),
-                     "speed ratio": float(np.linalg.norm(p, axis=1).sum() / np.linalg.norm(d, axis=1).sum()),
-                     "heading error (°, median)": float(np.degrees(np.median(np.abs(ang)))) if ang.size else np.nan})
+        rows.append(
+            {
+                "walk": name,
+                "ADE (cm)": 100 * metrics.ade(p, d),
+                "speed ratio": float(np.linalg.norm(p, axis=1).sum() / np.linalg.norm(d, axis=1).sum()),
+                "heading error (°, median)": float(np.degrees(np.median(np.abs(ang)))) if ang.size else np.nan,
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -102,14 +111,26 @@ def run_study(out: str | Path, bc: BenchConfig, seeds: int = 1, execution: Execu
     for seed in range(seeds):
         for v in VARIANTS:
             steps = 5 if v.stride_s else 1  # overlapping segments: ~5× the segments, a fifth of the epochs
-            cfg = NoisyConfig(method="basemodel-gt", seed=seed, yaw_augment=v.yaw_augment,
-                              ae_epochs=max(1, bc.ae_epochs // steps), pre_epochs=max(1, bc.pre_epochs // steps),
-                              joint_epochs=max(1, bc.joint_epochs // steps))
+            cfg = NoisyConfig(
+                method="basemodel-gt",
+                seed=seed,
+                yaw_augment=v.yaw_augment,
+                ae_epochs=max(1, bc.ae_epochs // steps),
+                pre_epochs=max(1, bc.pre_epochs // steps),
+                joint_epochs=max(1, bc.joint_epochs // steps),
+            )
             km, (train, test) = kms[v], segment_files[v]
-            record = {"noisy": dataclasses.asdict(cfg), "variant": dataclasses.asdict(v), "km": km,
-                      "sim_seed": bc.sim_seed, "test_walks": bc.test_walks, "part": "base-study"}
-            jobs.append(Job(run_job, EasyJob(cfg, train, test, record), runs.run_dir(out / "runs", f"{v.key}-s{seed}",
-                                                                                  record)))
+            record = {
+                "noisy": dataclasses.asdict(cfg),
+                "variant": dataclasses.asdict(v),
+                "km": km,
+                "sim_seed": bc.sim_seed,
+                "test_walks": bc.test_walks,
+                "part": "base-study",
+            }
+            jobs.append(
+                Job(run_job, EasyJob(cfg, train, test, record), runs.run_dir(out / "runs", f"{v.key}-s{seed}", record))
+            )
             files.append((v, cfg, km))
     run_jobs(jobs, execution, echo)
     per, walks, devices = [], [], set()
@@ -121,31 +142,56 @@ def run_study(out: str | Path, bc: BenchConfig, seeds: int = 1, execution: Execu
         m = runs.read_metrics(job.folder)
         ade = m["ade_m"]
         devices.add(m["training"].get("device", "cpu"))
-        per.append({"variant": v.name, "km": km, "segments": sizes[v], "epochs": cfg.ae_epochs
-                    + cfg.pre_epochs + cfg.joint_epochs, "seed": cfg.seed, "ade": 100 * ade,
-                    "rel": ade / float(np.mean(np.linalg.norm(te.truth, axis=1))),
-                    "speed": f"{pw['speed ratio'].min():.2f}–{pw['speed ratio'].max():.2f}",
-                    "heading": float(pw["heading error (°, median)"].median())})
+        per.append(
+            {
+                "variant": v.name,
+                "km": km,
+                "segments": sizes[v],
+                "epochs": cfg.ae_epochs + cfg.pre_epochs + cfg.joint_epochs,
+                "seed": cfg.seed,
+                "ade": 100 * ade,
+                "rel": ade / float(np.mean(np.linalg.norm(te.truth, axis=1))),
+                "speed": f"{pw['speed ratio'].min():.2f}–{pw['speed ratio'].max():.2f}",
+                "heading": float(pw["heading error (°, median)"].median()),
+            }
+        )
         walks.append(pw.assign(variant=v.name, seed=cfg.seed))
     df = pd.DataFrame(per)
     rows = []
     for name, g in df.groupby("variant", sort=False):
-        rows.append({"variant": name, "km": g["km"].iloc[0], "segments": g["segments"].iloc[0],
-                     "epochs": g["epochs"].iloc[0], "ADE (cm)": f"{g['ade'].mean():.1f} ± {g['ade'].std():.1f}"
-                     if len(g) > 1 else f"{g['ade'].mean():.1f}", "ADE / mean ‖d‖": round(g["rel"].mean(), 2),
-                     "speed ratio per walk, seed 0 (min–max)": g["speed"].iloc[0],
-                     "heading error (°, median of walks)": round(g["heading"].mean(), 1)})
+        rows.append(
+            {
+                "variant": name,
+                "km": g["km"].iloc[0],
+                "segments": g["segments"].iloc[0],
+                "epochs": g["epochs"].iloc[0],
+                "ADE (cm)": f"{g['ade'].mean():.1f} ± {g['ade'].std():.1f}" if len(g) > 1 else f"{g['ade'].mean():.1f}",
+                "ADE / mean ‖d‖": round(g["rel"].mean(), 2),
+                "speed ratio per walk, seed 0 (min–max)": g["speed"].iloc[0],
+                "heading error (°, median of walks)": round(g["heading"].mean(), 1),
+            }
+        )
     p = provenance()
-    lines = [f"# Why BaseModel-GT is far from the paper's: one change at a time (L1, ~{bc.km:g} km)", "",
-             f"Generated by `wearnav bench easytrack-base` ({p['created']}, wearnav {p['wearnav']} {p['commit']}).", "",
-             f"BaseModel-GT (EasyTrack's BaseModel on true displacements), mean ± sd over {seeds} seed(s), "
-             f"{bc.ae_epochs} AE + {bc.pre_epochs} pre-training + {bc.joint_epochs} joint epochs (overlapping segments: "
-             f"a fifth, the same number of steps). Paper 004: ADE {PAPER_ADE_CM} cm on phone labels of "
-             f"~{PAPER_LABEL_CM:g} cm ({PAPER_ADE_CM / PAPER_LABEL_CM:.2f} of the displacement). Speed ratio: a walk's "
-             "predicted over its true path length (1 is right); heading error: median angle between predicted and "
-             f"true displacement. Machine: {platform.machine()}, trained on {', '.join(sorted(devices))}.", "",
-             pd.DataFrame(rows).to_markdown(index=False), "",
-             "Per held-out walk (seed 0):", "",
-             pd.concat(walks).query("seed == 0")[["variant", "walk", "ADE (cm)", "speed ratio",
-                                                  "heading error (°, median)"]].round(2).to_markdown(index=False), ""]
+    lines = [
+        f"# Why BaseModel-GT is far from the paper's: one change at a time (L1, ~{bc.km:g} km)",
+        "",
+        f"Generated by `wearnav bench easytrack-base` ({p['created']}, wearnav {p['wearnav']} {p['commit']}).",
+        "",
+        f"BaseModel-GT (EasyTrack's BaseModel on true displacements), mean ± sd over {seeds} seed(s), "
+        f"{bc.ae_epochs} AE + {bc.pre_epochs} pre-training + {bc.joint_epochs} joint epochs (overlapping segments: "
+        f"a fifth, the same number of steps). Paper 004: ADE {PAPER_ADE_CM} cm on phone labels of "
+        f"~{PAPER_LABEL_CM:g} cm ({PAPER_ADE_CM / PAPER_LABEL_CM:.2f} of the displacement). Speed ratio: a walk's "
+        "predicted over its true path length (1 is right); heading error: median angle between predicted and "
+        f"true displacement. Machine: {platform.machine()}, trained on {', '.join(sorted(devices))}.",
+        "",
+        pd.DataFrame(rows).to_markdown(index=False),
+        "",
+        "Per held-out walk (seed 0):",
+        "",
+        pd.concat(walks)
+        .query("seed == 0")[["variant", "walk", "ADE (cm)", "speed ratio", "heading error (°, median)"]]
+        .round(2)
+        .to_markdown(index=False),
+        "",
+    ]
     return write_text_atomic("\n".join(lines), out / "results.md")

@@ -72,8 +72,7 @@ class Timing:
 def time_call(fn: Callable[[], object], min_run_time_s: float = MIN_RUN_TIME_S, clock: str = "wall") -> Timing:
     """Time ``fn`` with ``torch.utils.benchmark.Timer.blocked_autorange`` on the current number of
     torch threads (Timer's default would be one), counting ``clock`` (:data:`CLOCKS`)."""
-    timer = benchmark.Timer(stmt="fn()", globals={"fn": fn}, num_threads=torch.get_num_threads(),
-                            timer=CLOCKS[clock])
+    timer = benchmark.Timer(stmt="fn()", globals={"fn": fn}, num_threads=torch.get_num_threads(), timer=CLOCKS[clock])
     m = timer.blocked_autorange(min_run_time=min_run_time_s)
     q25, q50, q75 = (max(float(v), 1e-12) for v in np.percentile(m.times, [25, 50, 75]))
     return Timing(q50, q25, q75, len(m.times), int(m.number_per_run))
@@ -99,8 +98,9 @@ def dense_gflops(n: int = 2048, min_run_time_s: float = MIN_RUN_TIME_S, clock: s
     return 2 * n**3 / t.median_s / 1e9
 
 
-def window_batch(batch: int, n_devices: int = DEVICES, window: int = WINDOW,
-                 seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+def window_batch(
+    batch: int, n_devices: int = DEVICES, window: int = WINDOW, seed: int = 0
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Random world-frame windows with every device present (the shapes, not the values, matter)."""
     g = torch.Generator().manual_seed(seed)
     return torch.randn(batch, n_devices, window, IMU_CHANNELS, generator=g), torch.ones(batch, n_devices)
@@ -147,6 +147,7 @@ def macs_per_window(model: torch.nn.Module, n_devices: int = DEVICES, window: in
     model.eval()
     seen_inside, analytic, start = [0], [0], {}
     with torch.inference_mode(), FlopCounterMode(display=False) as counter:
+
         def pre(mod, args):
             start[id(mod)] = counter.get_total_flops()
 
@@ -155,7 +156,7 @@ def macs_per_window(model: torch.nn.Module, n_devices: int = DEVICES, window: in
             inp = args[0]
             if isinstance(inp, torch.nn.utils.rnn.PackedSequence):
                 raise ValueError("macs_per_window: packed sequences are not supported")
-            if inp.ndim == 2:                       # unbatched (L, in)
+            if inp.ndim == 2:  # unbatched (L, in)
                 steps, batch = inp.shape[0], 1
             elif mod.batch_first:
                 batch, steps = inp.shape[:2]
@@ -176,8 +177,14 @@ def macs_per_window(model: torch.nn.Module, n_devices: int = DEVICES, window: in
     return int(flops // 2 + analytic[0])
 
 
-def windows_per_second(model: torch.nn.Module, batch: int, min_run_time_s: float = MIN_RUN_TIME_S,
-                       n_devices: int = DEVICES, window: int = WINDOW, clock: str = "wall") -> tuple[float, float]:
+def windows_per_second(
+    model: torch.nn.Module,
+    batch: int,
+    min_run_time_s: float = MIN_RUN_TIME_S,
+    n_devices: int = DEVICES,
+    window: int = WINDOW,
+    clock: str = "wall",
+) -> tuple[float, float]:
     """Inference throughput at a batch size (eval mode, inference_mode): (median, IQR) windows/s."""
     x, mask = window_batch(batch, n_devices, window)
     model.eval()
@@ -186,8 +193,14 @@ def windows_per_second(model: torch.nn.Module, batch: int, min_run_time_s: float
     return t.rate(batch)
 
 
-def train_step_seconds(model: torch.nn.Module, batch: int = 128, min_run_time_s: float = MIN_RUN_TIME_S,
-                       n_devices: int = DEVICES, window: int = WINDOW, clock: str = "wall") -> Timing:
+def train_step_seconds(
+    model: torch.nn.Module,
+    batch: int = 128,
+    min_run_time_s: float = MIN_RUN_TIME_S,
+    n_devices: int = DEVICES,
+    window: int = WINDOW,
+    clock: str = "wall",
+) -> Timing:
     """Seconds of one Adam step on ``model.loss`` (forward, backward, update) at a batch size:
     the model's share of a training epoch, without the data path. Works on a copy, so the
     model's weights and statistics are left as they were."""
@@ -206,9 +219,18 @@ def train_step_seconds(model: torch.nn.Module, batch: int = 128, min_run_time_s:
     return time_call(step, min_run_time_s, clock)
 
 
-def measure(model: torch.nn.Module | str, name: str | None = None, batches: Sequence[int] = (1, 256),
-            min_run_time_s: float = MIN_RUN_TIME_S, n_devices: int = DEVICES, window: int = WINDOW,
-            threads: int | None = None, clock: str = "wall", train_batch: int | None = 128, **build_kw) -> dict:
+def measure(
+    model: torch.nn.Module | str,
+    name: str | None = None,
+    batches: Sequence[int] = (1, 256),
+    min_run_time_s: float = MIN_RUN_TIME_S,
+    n_devices: int = DEVICES,
+    window: int = WINDOW,
+    threads: int | None = None,
+    clock: str = "wall",
+    train_batch: int | None = 128,
+    **build_kw,
+) -> dict:
     """One row of the efficiency table for a model (an instance or a registered name), with
     ``threads`` intra-op threads (default: torch's current setting); ``train_batch`` None skips
     the training-step timing. Each timing runs for at least ``min_run_time_s``."""
@@ -226,13 +248,18 @@ def _measure(model, name, batches, min_run_time_s, n_devices, window, clock, tra
         model = build(model, n_devices=n_devices, window=window, **build_kw)
     name = name or type(model).__name__
     flops = flops_per_window(model, n_devices, window)
-    row: dict = {"model": name, "params": n_parameters(model), "mflops_per_window": flops / 1e6,
-                 "mmacs_per_window": macs_per_window(model, n_devices, window) / 1e6}
+    row: dict = {
+        "model": name,
+        "params": n_parameters(model),
+        "mflops_per_window": flops / 1e6,
+        "mmacs_per_window": macs_per_window(model, n_devices, window) / 1e6,
+    }
     dense = []
     for b in batches:
         dense.append(dense_gflops(min_run_time_s=min_run_time_s, clock=clock))
         row[f"win_per_s_b{b}"], row[f"win_per_s_b{b}_iqr"] = windows_per_second(
-            model, b, min_run_time_s, n_devices, window, clock)
+            model, b, min_run_time_s, n_devices, window, clock
+        )
     dense.append(dense_gflops(min_run_time_s=min_run_time_s, clock=clock))
     row["dense_gflops"] = statistics.median(dense)
     for b in batches:
@@ -253,7 +280,7 @@ def table(models: Sequence[str], **kw):
     return pd.DataFrame([measure(m, **kw) for m in models])
 
 
-def write_report(rows, out, odometry_suite=None) -> "Path":
+def write_report(rows, out, odometry_suite=None) -> Path:
     """results.md + results.json in ``out``: the efficiency table (Table VI analogue), with training
     seconds per epoch taken from the run folders of an odometry suite where given."""
     import platform
@@ -276,20 +303,26 @@ def write_report(rows, out, odometry_suite=None) -> "Path":
     write_text_atomic(df.to_json(orient="records", indent=1), out / "results.json")
     p = provenance()
     cpu = platform.processor() or platform.machine()
-    lines = ["# Efficiency (Table VI analogue)", "",
-             f"Generated by `wearnav bench efficiency` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) on "
-             f"this machine: {cpu}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
-             f"{int(df['threads'].iloc[0])} thread(s), {df['clock'].iloc[0]} clock.", "",
-             "FLOPs per window: one forward pass on one window (3 devices × 100 samples × 6 channels), "
-             "`torch.utils.flop_counter` (a multiply-add = 2 FLOPs; it misses LSTMs). MMACs per window: "
-             "multiply-accumulates, the paper's \"FLOPs (G)\" of Table VI, with every LSTM/GRU counted "
-             "analytically (4 resp. 3 gates × (in·h + h·h) per step, direction and layer). Timings: "
-             "`torch.utils.benchmark.Timer.blocked_autorange` (warm-up, then blocks of calls for at least "
-             f"{df['min_run_time_s'].iloc[0]:g} s per timing); each column gives the median over blocks and, in its `_iqr` column, the "
-             "interquartile range (75th − 25th percentile). Windows/s: inference. "
-             "Fraction = FLOPs/window × median windows/s ÷ the dense fp32 matmul rate measured in the same run "
-             "(the FLOP-bound limit). Train step: one Adam step at batch 128, seconds. "
-             + ("Train s/epoch: measured by the odometry suite's runs. " if odometry_suite else "")
-             + "The machine is shared: timings vary with load.", "",
-             df.drop(columns=["threads", "clock", "min_run_time_s"]).to_markdown(index=False, floatfmt=".3g"), ""]
+    lines = [
+        "# Efficiency (Table VI analogue)",
+        "",
+        f"Generated by `wearnav bench efficiency` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) on "
+        f"this machine: {cpu}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
+        f"{int(df['threads'].iloc[0])} thread(s), {df['clock'].iloc[0]} clock.",
+        "",
+        "FLOPs per window: one forward pass on one window (3 devices × 100 samples × 6 channels), "
+        "`torch.utils.flop_counter` (a multiply-add = 2 FLOPs; it misses LSTMs). MMACs per window: "
+        'multiply-accumulates, the paper\'s "FLOPs (G)" of Table VI, with every LSTM/GRU counted '
+        "analytically (4 resp. 3 gates × (in·h + h·h) per step, direction and layer). Timings: "
+        "`torch.utils.benchmark.Timer.blocked_autorange` (warm-up, then blocks of calls for at least "
+        f"{df['min_run_time_s'].iloc[0]:g} s per timing); each column gives the median over blocks and, in its `_iqr` column, the "
+        "interquartile range (75th − 25th percentile). Windows/s: inference. "
+        "Fraction = FLOPs/window × median windows/s ÷ the dense fp32 matmul rate measured in the same run "
+        "(the FLOP-bound limit). Train step: one Adam step at batch 128, seconds. "
+        + ("Train s/epoch: measured by the odometry suite's runs. " if odometry_suite else "")
+        + "The machine is shared: timings vary with load.",
+        "",
+        df.drop(columns=["threads", "clock", "min_run_time_s"]).to_markdown(index=False, floatfmt=".3g"),
+        "",
+    ]
     return write_text_atomic("\n".join(lines), out / "results.md")

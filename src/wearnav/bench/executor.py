@@ -110,8 +110,9 @@ def _call(job: Job, threads: int | None) -> float | None:
     return _locked_call(job)
 
 
-def run_jobs(jobs: Sequence[Job], execution: Execution = Execution(),
-             echo: Callable[[str], None] | None = None) -> list[Path]:
+def run_jobs(
+    jobs: Sequence[Job], execution: Execution = Execution(), echo: Callable[[str], None] | None = None
+) -> list[Path]:
     """Run every incomplete job (longest first) as ``execution`` says; returns every job's folder,
     in the order given. The first failure stops the run (jobs already running finish) and is
     raised here; Ctrl-C or SIGTERM stop it at once (local worker processes still running a job are
@@ -128,8 +129,9 @@ def run_jobs(jobs: Sequence[Job], execution: Execution = Execution(),
 
     def finished(k: int, job: Job, wall_s: float | None) -> None:
         if wall_s is None:
-            say(f"{job.folder.name}: skipped, another wearnav process is using this run folder or "
-                f"finished it ({k}/{n})")
+            say(
+                f"{job.folder.name}: skipped, another wearnav process is using this run folder or finished it ({k}/{n})"
+            )
         else:
             say(f"{job.folder.name}: done in {wall_s:.0f} s ({k}/{n})")
 

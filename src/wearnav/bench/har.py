@@ -56,24 +56,51 @@ SIM_QUICK_DURATION_S = (20.0, 25.0)
 
 UCI_BASIC = ("WALKING", "WALKING_UPSTAIRS", "WALKING_DOWNSTAIRS", "SITTING", "STANDING", "LAYING")
 
-DATASETS: dict[str, HarDataset] = {d.name: d for d in (
-    HarDataset("motionsense", "motionsense", "motionsense", "motionsense", "activity", (), ("phone",), True, True),
-    # The first 6 experiments hold users 1–3, of whom 2 is a UCI HAR test subject.
-    HarDataset("uci-hapt", "uci-hapt", "uci_hapt", "uci-hapt", "activity", UCI_BASIC, ("phone",), True, False, 6),
-    HarDataset("uji-phone", "uji-phone-watch", "uji_phone_watch_har", "uji", "activity", (), ("phone",), True, False),
-    HarDataset("uji-watch", "uji-phone-watch", "uji_phone_watch_har", "uji", "activity_watch", (), ("watch",),
-               True, False),
-    HarDataset("uji-both", "uji-phone-watch", "uji_phone_watch_har", "uji", "activity", (), ("phone", "watch"),
-               True, False),
-    HarDataset("oxford", "oxford-steps", "oxford_step_counter", "oxford", "placement", (), ("phone",), False, False,
-               note="This copy holds two users, one recording per placement each: the models learn from user1's six "
-               "recordings and are tested on user2, so a placement's device orientation is seen on one person "
-               "only."),
-    # Generated, not imported: wearnav.simulate.presets.plan_placement_dataset (8 walkers, 6 walks
-    # each; --quick: 4 walkers, 20-25 s walks). Test walkers u4, u8.
-    HarDataset("sim-placement", "simulate-placement", "", "sim-placement", "placement", SIM_HOLDS, ("phone",),
-               True, True, 4),
-)}
+DATASETS: dict[str, HarDataset] = {
+    d.name: d
+    for d in (
+        HarDataset("motionsense", "motionsense", "motionsense", "motionsense", "activity", (), ("phone",), True, True),
+        # The first 6 experiments hold users 1–3, of whom 2 is a UCI HAR test subject.
+        HarDataset("uci-hapt", "uci-hapt", "uci_hapt", "uci-hapt", "activity", UCI_BASIC, ("phone",), True, False, 6),
+        HarDataset(
+            "uji-phone", "uji-phone-watch", "uji_phone_watch_har", "uji", "activity", (), ("phone",), True, False
+        ),
+        HarDataset(
+            "uji-watch", "uji-phone-watch", "uji_phone_watch_har", "uji", "activity_watch", (), ("watch",), True, False
+        ),
+        HarDataset(
+            "uji-both", "uji-phone-watch", "uji_phone_watch_har", "uji", "activity", (), ("phone", "watch"), True, False
+        ),
+        HarDataset(
+            "oxford",
+            "oxford-steps",
+            "oxford_step_counter",
+            "oxford",
+            "placement",
+            (),
+            ("phone",),
+            False,
+            False,
+            note="This copy holds two users, one recording per placement each: the models learn from user1's six "
+            "recordings and are tested on user2, so a placement's device orientation is seen on one person "
+            "only.",
+        ),
+        # Generated, not imported: wearnav.simulate.presets.plan_placement_dataset (8 walkers, 6 walks
+        # each; --quick: 4 walkers, 20-25 s walks). Test walkers u4, u8.
+        HarDataset(
+            "sim-placement",
+            "simulate-placement",
+            "",
+            "sim-placement",
+            "placement",
+            SIM_HOLDS,
+            ("phone",),
+            True,
+            True,
+            4,
+        ),
+    )
+}
 
 
 @dataclass(frozen=True)
@@ -139,8 +166,11 @@ def import_data(ds: HarDataset, data_root: Path, out: Path, quick: bool) -> Path
     if ds.fmt == "simulate-placement":
         from wearnav.simulate.presets import simulate_placement_dataset
 
-        simulate_placement_dataset(folder, subjects=ds.quick_limit if quick else SIM_SUBJECTS,
-                                   duration_s=SIM_QUICK_DURATION_S if quick else SIM_DURATION_S)
+        simulate_placement_dataset(
+            folder,
+            subjects=ds.quick_limit if quick else SIM_SUBJECTS,
+            duration_s=SIM_QUICK_DURATION_S if quick else SIM_DURATION_S,
+        )
     else:
         import_dataset(ds.fmt, data_root / ds.src, folder, limit=ds.quick_limit if quick else None, progress=False)
     return folder
@@ -150,11 +180,20 @@ def baseline_config(ds: HarDataset, data: Path, **train_kw):
     """The baseline's :class:`wearnav.train.classify.ClassifyConfig` on ``ds`` imported at ``data``."""
     from wearnav.train.classify import ClassifyConfig
 
-    return ClassifyConfig(model=BASELINE, data=str(data), scheme=ds.scheme, label_kind=ds.label_kind,
-                          classes=ds.classes, devices=ds.devices, **train_kw)
+    return ClassifyConfig(
+        model=BASELINE,
+        data=str(data),
+        scheme=ds.scheme,
+        label_kind=ds.label_kind,
+        classes=ds.classes,
+        devices=ds.devices,
+        **train_kw,
+    )
 
 
-def suite_configs(ds: HarDataset, data: Path, seeds: int, techniques=None, **train_kw) -> list[tuple[Technique, object]]:
+def suite_configs(
+    ds: HarDataset, data: Path, seeds: int, techniques=None, **train_kw
+) -> list[tuple[Technique, object]]:
     """(technique, config) for every applicable technique (of ``techniques``, default all) and seed."""
     if techniques is not None:
         check_names(techniques, [t.name for t in TECHNIQUES], "technique")
@@ -187,8 +226,9 @@ def expected_cost(cfg) -> int:
     return 1 + len(expansion_copies(cfg.expand)) if cfg.expand else 1
 
 
-def run_suite(items, root: Path, execution: Execution = Execution(threads=DEFAULT_THREADS),
-              echo=print) -> dict[str, list[Path]]:
+def run_suite(
+    items, root: Path, execution: Execution = Execution(threads=DEFAULT_THREADS), echo=print
+) -> dict[str, list[Path]]:
     """Train and evaluate every (technique, config) as ``execution`` says (:mod:`.executor`); skip
     complete runs. technique → folders.
 
@@ -220,9 +260,13 @@ def summarise(folders: dict[str, list[Path]]) -> dict[str, dict]:
         acc = np.array([m["accuracy"] for m in ms])
         f1 = np.array([m["macro_f1"] for m in ms])
         out[name] = {
-            "accuracy_mean": float(acc.mean()), "accuracy_std": float(acc.std(ddof=1)) if acc.size > 1 else 0.0,
-            "f1_mean": float(f1.mean()), "f1_std": float(f1.std(ddof=1)) if f1.size > 1 else 0.0,
-            "seeds": len(ms), "accuracy_per_seed": acc.tolist(), "classes": ms[0]["classes"],
+            "accuracy_mean": float(acc.mean()),
+            "accuracy_std": float(acc.std(ddof=1)) if acc.size > 1 else 0.0,
+            "f1_mean": float(f1.mean()),
+            "f1_std": float(f1.std(ddof=1)) if f1.size > 1 else 0.0,
+            "seeds": len(ms),
+            "accuracy_per_seed": acc.tolist(),
+            "classes": ms[0]["classes"],
             "confusion": np.sum([m["confusion"] for m in ms], axis=0).tolist(),
             "train_wall_s": float(sum(m["training"].get("wall_s", 0.0) for m in ms)),
             "epochs": ms[0]["training"].get("epochs_run"),
@@ -233,9 +277,11 @@ def summarise(folders: dict[str, list[Path]]) -> dict[str, dict]:
     return out
 
 
-SIGNIFICANCE_NOTE = ("† = differs from the baseline beyond seed spread: Welch's t-test over per-seed accuracies, "
-                     f"Benjamini–Hochberg-adjusted p < {SIGNIFICANCE} over the dataset's techniques (p: raw; "
-                     "p_BH: adjusted)")
+SIGNIFICANCE_NOTE = (
+    "† = differs from the baseline beyond seed spread: Welch's t-test over per-seed accuracies, "
+    f"Benjamini–Hochberg-adjusted p < {SIGNIFICANCE} over the dataset's techniques (p: raw; "
+    "p_BH: adjusted)"
+)
 
 
 def _plot_improvement(dataset: str, summary: dict, path: Path, p_bh: dict[str, float | None]) -> Path | None:
@@ -252,17 +298,38 @@ def _plot_improvement(dataset: str, summary: dict, path: Path, p_bh: dict[str, f
     fig = Figure(figsize=(7, 3.2))
     ax = fig.add_subplot()
     # error bar: the standard error of the difference of two seed means
-    se = [100 * np.hypot(summary[n]["accuracy_std"] / np.sqrt(summary[n]["seeds"]),
-                         base["accuracy_std"] / np.sqrt(base["seeds"])) for n in names]
+    se = [
+        100
+        * np.hypot(
+            summary[n]["accuracy_std"] / np.sqrt(summary[n]["seeds"]), base["accuracy_std"] / np.sqrt(base["seeds"])
+        )
+        for n in names
+    ]
     ax.bar(range(len(names)), d, yerr=se, capsize=3, color=["tab:green" if v > 0 else "tab:red" for v in d])
     for i, n in enumerate(names):
         if p_bh.get(n) is not None and p_bh[n] < SIGNIFICANCE:
-            ax.annotate("†", (i, d[i] + np.copysign(se[i], d[i])), xytext=(0, 2 if d[i] >= 0 else -2),
-                        textcoords="offset points", ha="center", va="bottom" if d[i] >= 0 else "top")
+            ax.annotate(
+                "†",
+                (i, d[i] + np.copysign(se[i], d[i])),
+                xytext=(0, 2 if d[i] >= 0 else -2),
+                textcoords="offset points",
+                ha="center",
+                va="bottom" if d[i] >= 0 else "top",
+            )
     ax.axhline(0, color="k", lw=0.8)
-    ax.legend(handles=[Line2D([], [], ls="none", marker="$†$", color="k",
-                              label=f"differs from the baseline (Welch's t over seeds, "
-                                    f"BH-adjusted p < {SIGNIFICANCE})")], fontsize=7)
+    ax.legend(
+        handles=[
+            Line2D(
+                [],
+                [],
+                ls="none",
+                marker="$†$",
+                color="k",
+                label=f"differs from the baseline (Welch's t over seeds, BH-adjusted p < {SIGNIFICANCE})",
+            )
+        ],
+        fontsize=7,
+    )
     ax.margins(y=0.15)
     ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
     ax.set_ylabel("Δ accuracy vs baseline (points)\n± standard error over seeds", fontsize=8)
@@ -284,8 +351,15 @@ def _plot_confusion(dataset: str, s: dict, path: Path) -> Path:
     ax.imshow(norm, cmap="Blues", vmin=0, vmax=1)
     for i in range(k):
         for j in range(k):
-            ax.text(j, i, f"{int(c[i, j])}", ha="center", va="center", fontsize=7,
-                    color="white" if norm[i, j] > 0.5 else "black")
+            ax.text(
+                j,
+                i,
+                f"{int(c[i, j])}",
+                ha="center",
+                va="center",
+                fontsize=7,
+                color="white" if norm[i, j] > 0.5 else "black",
+            )
     ax.set_xticks(range(k), s["classes"], rotation=45, ha="right", fontsize=7)
     ax.set_yticks(range(k), s["classes"], fontsize=7)
     ax.set_xlabel("predicted")
@@ -311,12 +385,18 @@ def _plot_summary(rows: list[dict], path: Path) -> Path | None:
     ax = fig.add_subplot()
     x = np.arange(len(rows))
     ax.bar(x, [r["datasets improved"] for r in rows], 0.6, color="tab:blue", alpha=0.4, label="datasets improved")
-    ax.bar(x, [r[IMPROVED_SIGNIFICANT] for r in rows], 0.6, color="tab:blue",
-           label=f"… of which beyond seed spread (Welch's t, BH-adjusted p < {SIGNIFICANCE})")
+    ax.bar(
+        x,
+        [r[IMPROVED_SIGNIFICANT] for r in rows],
+        0.6,
+        color="tab:blue",
+        label=f"… of which beyond seed spread (Welch's t, BH-adjusted p < {SIGNIFICANCE})",
+    )
     ax.yaxis.get_major_locator().set_params(integer=True)
     ax2 = ax.twinx()
-    ax2.plot(x, [r["max improvement (points)"] for r in rows], "o", color="tab:orange", ms=8,
-             label="max Δ accuracy (points)")
+    ax2.plot(
+        x, [r["max improvement (points)"] for r in rows], "o", color="tab:orange", ms=8, label="max Δ accuracy (points)"
+    )
     ax2.axhline(0, color="tab:orange", lw=0.8, ls=":")
     ax.set_xticks(x, [r["technique"] for r in rows], rotation=45, ha="right")
     ax.set_ylabel("datasets improved")
@@ -330,7 +410,7 @@ BEATS_MAJORITY = "beats majority class"  # seeds whose test accuracy beat always
 
 
 def _beats_text(beats: list) -> str:
-    """"3/3": seeds that beat the majority class; "NO 0/3" where some did not; "—" unrecorded."""
+    """ "3/3": seeds that beat the majority class; "NO 0/3" where some did not; "—" unrecorded."""
     known = [b for b in beats if b is not None]
     if not known:
         return "—"
@@ -361,20 +441,29 @@ def previous_invocations(out: Path) -> list[dict]:
     return calls
 
 
-def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: float | None = None,
-                 invocations: list[dict] = (), title: str = "") -> Path:
+def write_report(
+    results: dict[str, dict],
+    out: Path,
+    note: str = "",
+    wall_s: float | None = None,
+    invocations: list[dict] = (),
+    title: str = "",
+) -> Path:
     """results.md + results.json + PNGs from ``results``: dataset → technique → summary.
     ``invocations``: earlier invocations' wall times (this one's is ``wall_s``); the page gives
     their total, since a resumed benchmark trains across several."""
-    from wearnav.provenance import provenance
-
     import pandas as pd
 
+    from wearnav.provenance import provenance
+
     p = provenance()
-    lines = ["# Activity and placement recognition (paper 002 techniques)" + (f": {title}" if title else ""), "",
-             f"Generated by `wearnav bench har` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) from run "
-             f"folders. Machine: {platform.machine()}, {os.cpu_count()} CPU cores"
-             + _wall_text(wall_s, invocations) + ".", ""]
+    lines = [
+        "# Activity and placement recognition (paper 002 techniques)" + (f": {title}" if title else ""),
+        "",
+        f"Generated by `wearnav bench har` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) from run "
+        f"folders. Machine: {platform.machine()}, {os.cpu_count()} CPU cores" + _wall_text(wall_s, invocations) + ".",
+        "",
+    ]
     if note:
         lines += [note, ""]
     improve: dict[str, list[tuple[float, bool]]] = {}  # technique → (Δ accuracy, beyond seed spread) per dataset
@@ -382,9 +471,11 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
     for dataset, summary in results.items():
         spec = DATASETS[dataset]
         base = summary.get("baseline")
-        p_raw = {t.name: welch_p(summary[t.name]["accuracy_per_seed"], base["accuracy_per_seed"])
-                 for t in TECHNIQUES if base and t.name != "baseline" and t.name in summary
-                 and not applicable(t, spec)}
+        p_raw = {
+            t.name: welch_p(summary[t.name]["accuracy_per_seed"], base["accuracy_per_seed"])
+            for t in TECHNIQUES
+            if base and t.name != "baseline" and t.name in summary and not applicable(t, spec)
+        }
         p_bh = bh_adjust(p_raw)
         significance[dataset] = {k: {"p": p_raw[k], "p_bh": p_bh[k]} for k in p_raw}
         rows = []
@@ -392,10 +483,20 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
             why = applicable(tech, spec)
             s = summary.get(tech.name)
             if why or s is None:
-                rows.append({"technique": tech.label + (" *" if tech.extra else ""),
-                             "accuracy %": why or "not run", "macro-F1 %": "", "Δ acc (points)": "",
-                             "p": "", "p_BH": "", "Δ F1 (points)": "", "seeds": 0, "train s": "",
-                             BEATS_MAJORITY: ""})
+                rows.append(
+                    {
+                        "technique": tech.label + (" *" if tech.extra else ""),
+                        "accuracy %": why or "not run",
+                        "macro-F1 %": "",
+                        "Δ acc (points)": "",
+                        "p": "",
+                        "p_BH": "",
+                        "Δ F1 (points)": "",
+                        "seeds": 0,
+                        "train s": "",
+                        BEATS_MAJORITY: "",
+                    }
+                )
                 continue
             da = df = None
             sig = False
@@ -404,41 +505,71 @@ def write_report(results: dict[str, dict], out: Path, note: str = "", wall_s: fl
                 df = 100 * (s["f1_mean"] - base["f1_mean"])
                 sig = p_bh[tech.name] is not None and p_bh[tech.name] < SIGNIFICANCE
                 improve.setdefault(tech.name, []).append((da, sig))
-            rows.append({"technique": tech.label + (" *" if tech.extra else ""),
-                         "accuracy %": f"{100 * s['accuracy_mean']:.1f} ± {100 * s['accuracy_std']:.1f}",
-                         "macro-F1 %": f"{100 * s['f1_mean']:.1f} ± {100 * s['f1_std']:.1f}",
-                         "Δ acc (points)": "" if da is None else f"{da:+.1f}" + (" †" if sig else ""),
-                         "p": _p_text(p_raw.get(tech.name)), "p_BH": _p_text(p_bh.get(tech.name)),
-                         "Δ F1 (points)": "" if df is None else f"{df:+.1f}",
-                         "seeds": s["seeds"], "train s": f"{s['train_wall_s']:.0f}",
-                         BEATS_MAJORITY: _beats_text(s.get("beats_trivial", []))})
-        info = (f" {base['train_windows']} training / {base['test_windows']} test windows; {base['epochs']} epochs."
-                if base else "")
-        lines += [f"## {dataset}", "",
-                  f"Devices {', '.join(spec.devices)}; labels `{spec.label_kind}`; subject-independent split "
-                  f"`{spec.scheme}`.{info} Mean ± std over seeds; * = beyond the paper; {SIGNIFICANCE_NOTE}.", "",
-                  pd.DataFrame(rows).to_markdown(index=False, disable_numparse=True), ""]
+            rows.append(
+                {
+                    "technique": tech.label + (" *" if tech.extra else ""),
+                    "accuracy %": f"{100 * s['accuracy_mean']:.1f} ± {100 * s['accuracy_std']:.1f}",
+                    "macro-F1 %": f"{100 * s['f1_mean']:.1f} ± {100 * s['f1_std']:.1f}",
+                    "Δ acc (points)": "" if da is None else f"{da:+.1f}" + (" †" if sig else ""),
+                    "p": _p_text(p_raw.get(tech.name)),
+                    "p_BH": _p_text(p_bh.get(tech.name)),
+                    "Δ F1 (points)": "" if df is None else f"{df:+.1f}",
+                    "seeds": s["seeds"],
+                    "train s": f"{s['train_wall_s']:.0f}",
+                    BEATS_MAJORITY: _beats_text(s.get("beats_trivial", [])),
+                }
+            )
+        info = (
+            f" {base['train_windows']} training / {base['test_windows']} test windows; {base['epochs']} epochs."
+            if base
+            else ""
+        )
+        lines += [
+            f"## {dataset}",
+            "",
+            f"Devices {', '.join(spec.devices)}; labels `{spec.label_kind}`; subject-independent split "
+            f"`{spec.scheme}`.{info} Mean ± std over seeds; * = beyond the paper; {SIGNIFICANCE_NOTE}.",
+            "",
+            pd.DataFrame(rows).to_markdown(index=False, disable_numparse=True),
+            "",
+        ]
         if spec.note:
             lines += [spec.note, ""]
-        for png in (_plot_improvement(dataset, summary, out / f"{dataset}_improvement.png", p_bh),
-                    _plot_confusion(dataset, base, out / f"{dataset}_confusion.png") if base else None):
+        for png in (
+            _plot_improvement(dataset, summary, out / f"{dataset}_improvement.png", p_bh),
+            _plot_confusion(dataset, base, out / f"{dataset}_confusion.png") if base else None,
+        ):
             if png:
                 lines += [f"![{png.stem}]({png.name})", ""]
-    summary_rows = [{"technique": t.label, "datasets improved": sum(d > 0 for d, _ in improve[t.name]),
-                     IMPROVED_SIGNIFICANT: sum(d > 0 and q for d, q in improve[t.name]),
-                     WORSE_SIGNIFICANT: sum(d < 0 and q for d, q in improve[t.name]),
-                     "datasets run": len(improve[t.name]),
-                     "max improvement (points)": round(max(d for d, _ in improve[t.name]), 1)}
-                    for t in TECHNIQUES if t.name in improve]
+    summary_rows = [
+        {
+            "technique": t.label,
+            "datasets improved": sum(d > 0 for d, _ in improve[t.name]),
+            IMPROVED_SIGNIFICANT: sum(d > 0 and q for d, q in improve[t.name]),
+            WORSE_SIGNIFICANT: sum(d < 0 and q for d, q in improve[t.name]),
+            "datasets run": len(improve[t.name]),
+            "max improvement (points)": round(max(d for d, _ in improve[t.name]), 1),
+        }
+        for t in TECHNIQUES
+        if t.name in improve
+    ]
     if summary_rows:
-        lines += ["## Summary over datasets (Fig. 12 analogue)", "", pd.DataFrame(summary_rows).to_markdown(index=False), "",
-                  f"Significance as in the tables: {SIGNIFICANCE_NOTE}.", ""]
+        lines += [
+            "## Summary over datasets (Fig. 12 analogue)",
+            "",
+            pd.DataFrame(summary_rows).to_markdown(index=False),
+            "",
+            f"Significance as in the tables: {SIGNIFICANCE_NOTE}.",
+            "",
+        ]
         png = _plot_summary(summary_rows, out / "summary.png")
         if png:
             lines += [f"![{png.stem}]({png.name})", ""]
     calls = list(invocations) + ([{"at": p["created"], "wall_s": wall_s}] if wall_s is not None else [])
-    runs.write_json(out / "results.json", {"datasets": results, "significance": significance, "summary": summary_rows,
-                                           "invocations": calls})
+    runs.write_json(
+        out / "results.json",
+        {"datasets": results, "significance": significance, "summary": summary_rows, "invocations": calls},
+    )
     return write_text_atomic("\n".join(lines), out / "results.md")
 
 
@@ -455,10 +586,19 @@ def epochs_for_steps(spec: HarDataset, data: Path, steps: int, batch: int = 64) 
     return max(1, round(steps / max(1, -(-n // batch))))
 
 
-def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3,
-                  execution: Execution = Execution(threads=DEFAULT_THREADS), quick: bool = False,
-                  epochs: int | None = None, techniques=None, max_minutes: float | None = None,
-                  echo=print, steps: int | None = None) -> Path:
+def run_benchmark(
+    data_root: Path,
+    out: Path,
+    datasets=None,
+    seeds: int = 3,
+    execution: Execution = Execution(threads=DEFAULT_THREADS),
+    quick: bool = False,
+    epochs: int | None = None,
+    techniques=None,
+    max_minutes: float | None = None,
+    echo=print,
+    steps: int | None = None,
+) -> Path:
     """Import, train, evaluate and report. ``quick``: UCI HAPT's first 6 experiments, 1 epoch,
     at most 128 training windows per run, 1 seed unless ``seeds`` says otherwise. ``steps``
     (instead of ``epochs``): each dataset's epochs from :func:`epochs_for_steps`."""
@@ -480,20 +620,32 @@ def run_benchmark(data_root: Path, out: Path, datasets=None, seeds: int = 3,
         if steps is not None:
             kw["epochs"] = epochs_for_steps(spec, data, steps)
         echo(f"{name}: {data}, {kw['epochs']} epochs")
-        folders = run_suite(suite_configs(spec, data, seeds, techniques, **kw), Path(out) / "runs" / name,
-                            execution, echo)
+        folders = run_suite(
+            suite_configs(spec, data, seeds, techniques, **kw), Path(out) / "runs" / name, execution, echo
+        )
         results[name] = summarise(folders)
     wall = time.perf_counter() - t0
-    budget = (f"epochs per dataset for about {steps} baseline steps (listed per dataset)" if steps is not None
-              else f"{kw['epochs']} epochs")
-    note = (f"Training: Adam lr 1e-3, batch 64, {budget}"
-            + (f" or {max_minutes:g} min per run" if max_minutes else "") + ", last-epoch weights (no validation split, "
-            "as the paper); windows of 128 samples at 50 Hz with 50 % overlap; device-frame input. Sizes the paper "
-            "omits (ours): Bi-LSTM 64 units per direction, last states as the summary, max-pool stride 3, ReLU after "
-            "FC 256. Noise σ (eq. 12): 0.1 × the pooled std of the training windows' acc (resp. gyro) channels."
-            + (f" QUICK RUN ({QUICK_NOTE}): a tiny subset and few steps, for testing the pipeline, not a result."
-               if quick else ""))
-    title = (f"{len(names)} datasets, {seeds} seed(s), "
-             + (f"~{steps} baseline steps per dataset" if steps is not None else f"{kw['epochs']} epochs")
-             + (f" (--quick: {QUICK_NOTE})" if quick else ""))
+    budget = (
+        f"epochs per dataset for about {steps} baseline steps (listed per dataset)"
+        if steps is not None
+        else f"{kw['epochs']} epochs"
+    )
+    note = (
+        f"Training: Adam lr 1e-3, batch 64, {budget}"
+        + (f" or {max_minutes:g} min per run" if max_minutes else "")
+        + ", last-epoch weights (no validation split, "
+        "as the paper); windows of 128 samples at 50 Hz with 50 % overlap; device-frame input. Sizes the paper "
+        "omits (ours): Bi-LSTM 64 units per direction, last states as the summary, max-pool stride 3, ReLU after "
+        "FC 256. Noise σ (eq. 12): 0.1 × the pooled std of the training windows' acc (resp. gyro) channels."
+        + (
+            f" QUICK RUN ({QUICK_NOTE}): a tiny subset and few steps, for testing the pipeline, not a result."
+            if quick
+            else ""
+        )
+    )
+    title = (
+        f"{len(names)} datasets, {seeds} seed(s), "
+        + (f"~{steps} baseline steps per dataset" if steps is not None else f"{kw['epochs']} epochs")
+        + (f" (--quick: {QUICK_NOTE})" if quick else "")
+    )
     return write_report(results, Path(out), note, wall, earlier, title)

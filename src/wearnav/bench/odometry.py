@@ -22,7 +22,15 @@ from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run
 from wearnav.fileio import write_text_atomic
 from wearnav.models.registry import check_models, get
-from wearnav.train.odometry import TrainConfig, build_model, check_devices, fit, prepare_run, run_hash_exclude, run_record
+from wearnav.train.odometry import (
+    TrainConfig,
+    build_model,
+    check_devices,
+    fit,
+    prepare_run,
+    run_hash_exclude,
+    run_record,
+)
 
 DEFAULT_MODELS = ("suitein++", "suitein", "ronin", "ronin*", "pdr")
 TEST_SPLITS = ("test", "test_unseen", "cross_subject")
@@ -36,8 +44,18 @@ MODES = ("STW", "PVW", "MVW", "DRW", "DLW")
 # Suite-IN++ with the paper's row-keeping extractor (suitein++-rows). Names the registry does not
 # hold yet make `--grid paper` refuse to start, naming them: edit this list to run what exists.
 PAPER_GRID: list[tuple[str, dict]] = [
-    ("suitein++", {}), ("suitein", {}), ("rewf", {}), ("deepsense*", {}), ("deepit*", {}), ("imunet*", {}),
-    ("ronin*", {}), ("ionet*", {}), ("imunet", {}), ("ronin", {}), ("ionet", {"bidirectional": False}), ("pdr", {}),
+    ("suitein++", {}),
+    ("suitein", {}),
+    ("rewf", {}),
+    ("deepsense*", {}),
+    ("deepit*", {}),
+    ("imunet*", {}),
+    ("ronin*", {}),
+    ("ionet*", {}),
+    ("imunet", {}),
+    ("ronin", {}),
+    ("ionet", {"bidirectional": False}),
+    ("pdr", {}),
     ("suitein++-rows", {}),
     *[(f"suitein++-abl{n}", {}) for n in range(1, 6)],
 ]
@@ -71,8 +89,11 @@ def suite_configs(data: str | Path, models=DEFAULT_MODELS, seeds=None, **train_k
     seeds = [train_kw.pop("seed", 0)] if seeds is None else list(seeds)
     if not seeds or len(set(seeds)) != len(seeds):
         raise ConfigError(f"seeds must be distinct and at least one, got {seeds}")
-    return [TrainConfig(model=m, data=str(data), model_args=args, seed=seed, **train_kw)
-            for m, args in entries for seed in seeds]
+    return [
+        TrainConfig(model=m, data=str(data), model_args=args, seed=seed, **train_kw)
+        for m, args in entries
+        for seed in seeds
+    ]
 
 
 def run_key(cfg) -> dict:
@@ -102,8 +123,14 @@ def run_job(job: OdometryJob, run: Path) -> Path:
     prepare_run(job.cfg, run)
     training = fit(job.cfg, run, progress=job.progress)
     if job.cfg.eval_config().frame_align == "initial":
-        evaluate_run(run, splits=job.splits, progress=job.progress, training=training,
-                     preprocess={"eval_frame_align": "truth"}, out_dir=run / DIAGNOSTIC_TRUTH_FRAME)
+        evaluate_run(
+            run,
+            splits=job.splits,
+            progress=job.progress,
+            training=training,
+            preprocess={"eval_frame_align": "truth"},
+            out_dir=run / DIAGNOSTIC_TRUTH_FRAME,
+        )
     evaluate_run(run, splits=job.splits, progress=job.progress, training=training)
     return run
 
@@ -136,8 +163,9 @@ def run_folder(out: str | Path, cfg) -> Path:
     return runs.run_dir(out, cfg.model, run_key(cfg))
 
 
-def run_suite(configs, out: str | Path, splits=TEST_SPLITS, progress: bool = True, echo=print,
-              execution: Execution = Execution()) -> list[Path]:
+def run_suite(
+    configs, out: str | Path, splits=TEST_SPLITS, progress: bool = True, echo=print, execution: Execution = Execution()
+) -> list[Path]:
     """Train (or resume) and evaluate every config as ``execution`` says (:mod:`.executor`); skip
     complete runs. Returns the run folders, in the order of ``configs``."""
     check_configs(configs, splits)
@@ -155,7 +183,7 @@ BEATS_STILL = "beats standing still"  # best validation MSE below predicting zer
 
 
 def beats_text(training: dict) -> str:
-    """"yes" / "NO" (did not learn) / "not learned" (PDR) / "—" (a run from before it was recorded)."""
+    """ "yes" / "NO" (did not learn) / "not learned" (PDR) / "—" (a run from before it was recorded)."""
     if training.get("learned") is False:
         return "not learned"
     b = training.get("beats_trivial")
@@ -171,8 +199,7 @@ def comparison_table(folders, split: str = "test") -> pd.DataFrame:
         if res is None:
             continue
         s = res["summary"]
-        row = {"model": m["model"], "ATE": s.get("ate_mean"), "RTE": s.get("rte_mean"),
-               "sequences": s.get("sequences")}
+        row = {"model": m["model"], "ATE": s.get("ate_mean"), "RTE": s.get("rte_mean"), "sequences": s.get("sequences")}
         for mode in MODES:
             bm = res["by_mode"].get(mode)
             if bm:
@@ -225,16 +252,22 @@ METRICS_EXPLAINED = (
 )
 
 
-def write_suite_report(folders, out: str | Path, title: str, splits=TEST_SPLITS, note: str = "",
-                       command: str = "wearnav bench odometry") -> Path:
+def write_suite_report(
+    folders, out: str | Path, title: str, splits=TEST_SPLITS, note: str = "", command: str = "wearnav bench odometry"
+) -> Path:
     """results.md + results.json + comparison PNGs (error CDF and ATE box per split) in ``out``;
     ``command``: what the page says produced it."""
-    from wearnav.report.odometry import plot_box, plot_cdf
     from wearnav.provenance import provenance
+    from wearnav.report.odometry import plot_box, plot_cdf
 
     out = Path(out)
-    lines = [f"# {title}", "", f"Generated by `{command}` from {len(folders)} run folders "
-             f"({provenance()['created']}, wearnav {provenance()['wearnav']} {provenance()['commit']}).", ""]
+    lines = [
+        f"# {title}",
+        "",
+        f"Generated by `{command}` from {len(folders)} run folders "
+        f"({provenance()['created']}, wearnav {provenance()['wearnav']} {provenance()['commit']}).",
+        "",
+    ]
     if note:
         lines += [note, ""]
     doc = {}
@@ -243,11 +276,18 @@ def write_suite_report(folders, out: str | Path, title: str, splits=TEST_SPLITS,
         if table.empty or not (pd.to_numeric(table["sequences"], errors="coerce").fillna(0) > 0).any():
             continue
         doc[split] = table.to_dict(orient="records")
-        lines += [f"## Split `{split}`", "", "ATE and RTE in metres (mean over sequences; RTE over Δ = 60 s, "
-                  "scaled for shorter sequences as RoNIN does).", "",
-                  table.to_markdown(index=False, floatfmt=".2f"), ""]
-        cdf = plot_cdf(errors_by_model(folders, split), out / f"{split}_error_cdf.png",
-                       f"position error CDF, split {split}")
+        lines += [
+            f"## Split `{split}`",
+            "",
+            "ATE and RTE in metres (mean over sequences; RTE over Δ = 60 s, "
+            "scaled for shorter sequences as RoNIN does).",
+            "",
+            table.to_markdown(index=False, floatfmt=".2f"),
+            "",
+        ]
+        cdf = plot_cdf(
+            errors_by_model(folders, split), out / f"{split}_error_cdf.png", f"position error CDF, split {split}"
+        )
         box = plot_box(ate_by_model(folders, split), out / f"{split}_ate_box.png", f"ATE per sequence, split {split}")
         lines += [f"![{p.stem}]({p.name})" for p in (cdf, box) if p] + [""]
     if not doc:

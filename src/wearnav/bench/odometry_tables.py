@@ -48,8 +48,10 @@ FRAME_RULES = {
     "truth": "the truth's time-varying yaw (a diagnostic: it removes heading drift using ground truth)",
 }
 MARK = " †"
-MARK_NOTE = (f"† = Suite-IN++ differs from this row beyond seed spread: Welch's t-test over the per-seed "
-             f"values, Benjamini–Hochberg-adjusted p < {SIGNIFICANCE} over the rows of that column")
+MARK_NOTE = (
+    f"† = Suite-IN++ differs from this row beyond seed spread: Welch's t-test over the per-seed "
+    f"values, Benjamini–Hochberg-adjusted p < {SIGNIFICANCE} over the rows of that column"
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,13 +75,14 @@ def read_grid(folders) -> dict[str, list[GridRun]]:
             continue
         train = runs.read_config(folder)["config"]["train"]
         label = row_label(train["model"], train.get("model_args"))
-        out.setdefault(label, []).append(GridRun(Path(folder), label, train["model"], int(train.get("seed", 0)),
-                                                 train, runs.read_metrics(folder)))
+        out.setdefault(label, []).append(
+            GridRun(Path(folder), label, train["model"], int(train.get("seed", 0)), train, runs.read_metrics(folder))
+        )
     return {k: sorted(v, key=lambda r: r.seed) for k, v in out.items()}
 
 
 def cell_text(values: list[float], marked: bool = False) -> str:
-    """"m ± s" (std over seeds, ddof 1) with two decimals; one seed: "m"; none: ""."""
+    """ "m ± s" (std over seeds, ddof 1) with two decimals; one seed: "m"; none: ""."""
     if not values:
         return ""
     text = f"{np.mean(values):.2f}" + (f" ± {np.std(values, ddof=1):.2f}" if len(values) > 1 else "")
@@ -105,8 +108,9 @@ def summary_of_rows(run: GridRun, split: str) -> list[dict]:
     return (run.metrics.get("splits", {}).get(split) or {}).get("sequences", [])
 
 
-def marked_table(grid: dict[str, list[GridRun]], labels: list[str], columns: dict, expected: int | None,
-                 reference: str = REFERENCE) -> tuple[pd.DataFrame, dict]:
+def marked_table(
+    grid: dict[str, list[GridRun]], labels: list[str], columns: dict, expected: int | None, reference: str = REFERENCE
+) -> tuple[pd.DataFrame, dict]:
     """Rows ``labels``; per column ``name: fn(run) -> number | None``, mean ± std over seeds and a
     † where ``reference`` differs beyond seed spread (BH over the rows of that column). Returns
     the table and, per column, each row's per-seed values with raw and adjusted p."""
@@ -128,7 +132,10 @@ def marked_table(grid: dict[str, list[GridRun]], labels: list[str], columns: dic
 
 
 def table3_columns(split: str) -> dict:
-    cols = {"ATE": lambda r: summary_of(r, split).get("ate_mean"), "RTE": lambda r: summary_of(r, split).get("rte_mean")}
+    cols = {
+        "ATE": lambda r: summary_of(r, split).get("ate_mean"),
+        "RTE": lambda r: summary_of(r, split).get("rte_mean"),
+    }
     for mode in MODES:
         cols[f"{mode} ATE"] = lambda r, m=mode: summary_of(r, split, "by_mode", m).get("ate_mean")
         cols[f"{mode} RTE"] = lambda r, m=mode: summary_of(r, split, "by_mode", m).get("rte_mean")
@@ -161,8 +168,11 @@ def efficiency_row(run: GridRun, threads: int = 1, min_run_time_s: float = 0.2) 
     old = torch.get_num_threads()
     torch.set_num_threads(threads)
     try:
-        row = {"model": run.label, "params": n_parameters(model),
-               "MMACs per window": macs_per_window(model, n_devices, window) / 1e6}
+        row = {
+            "model": run.label,
+            "params": n_parameters(model),
+            "MMACs per window": macs_per_window(model, n_devices, window) / 1e6,
+        }
         for b in BATCHES:
             row[f"windows/s b{b}"] = windows_per_second(model, b, min_run_time_s, n_devices, window)[0]
     finally:
@@ -241,9 +251,12 @@ def rules_text(grid: dict[str, list[GridRun]]) -> list[str]:
     for rule in rules:
         if rule == "None":
             frame = sorted({str(r.train.get("frame_align")) for rs in grid.values() for r in rs})
-            said.append(f"not recorded (runs from before `eval_frame_align`): test input aligned as "
-                        f"training (`frame_align` {', '.join(frame)}"
-                        + (f": {FRAME_RULES['truth']}" if frame == ["truth"] else "") + ")")
+            said.append(
+                f"not recorded (runs from before `eval_frame_align`): test input aligned as "
+                f"training (`frame_align` {', '.join(frame)}"
+                + (f": {FRAME_RULES['truth']}" if frame == ["truth"] else "")
+                + ")"
+            )
         else:
             said.append(f"`{rule}`: {FRAME_RULES.get(rule, 'see TrainConfig.eval_frame_align')}")
     budget = []
@@ -252,10 +265,13 @@ def rules_text(grid: dict[str, list[GridRun]]) -> list[str]:
         if vals != ["None"]:
             budget.append(f"{key} {' / '.join(v.strip(chr(39)) for v in vals)}")
     seeds = sorted({r.seed for rs in grid.values() for r in rs})
-    return [f"**Test frame rule**: {'; '.join(said)}.", "",
-            f"**Training budget** (the same for every model unless two values are listed): {', '.join(budget)} "
-            "(None: the model's paper value); early stopping on validation velocity MSE; training seeds "
-            f"{', '.join(map(str, seeds))}."]
+    return [
+        f"**Test frame rule**: {'; '.join(said)}.",
+        "",
+        f"**Training budget** (the same for every model unless two values are listed): {', '.join(budget)} "
+        "(None: the model's paper value); early stopping on validation velocity MSE; training seeds "
+        f"{', '.join(map(str, seeds))}.",
+    ]
 
 
 def training_table(grid: dict[str, list[GridRun]], labels: list[str], expected: int | None) -> pd.DataFrame:
@@ -266,11 +282,18 @@ def training_table(grid: dict[str, list[GridRun]], labels: list[str], expected: 
         wall = [t["wall_s"] / 60 for t in tr if _finite(t.get("wall_s"))]
         stopped = sorted({str(t.get("stopped_by")) for t in tr if t.get("stopped_by")})
         beats = [beats_text(t) for t in tr]
-        rows.append({"model": lab, "seeds": seeds_text(len(tr), expected),
-                     "epochs run": cell_text(epochs) if epochs else "—", "stopped by": ", ".join(stopped) or "—",
-                     "train min": cell_text(wall) if wall else "—",
-                     "beats standing still": f"{beats.count('yes')} of {len(beats)}" if "not learned" not in beats
-                     else "not learned"})
+        rows.append(
+            {
+                "model": lab,
+                "seeds": seeds_text(len(tr), expected),
+                "epochs run": cell_text(epochs) if epochs else "—",
+                "stopped by": ", ".join(stopped) or "—",
+                "train min": cell_text(wall) if wall else "—",
+                "beats standing still": f"{beats.count('yes')} of {len(beats)}"
+                if "not learned" not in beats
+                else "not learned",
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -299,9 +322,16 @@ def test_frame_table(grid: dict[str, list[GridRun]], labels: list[str], splits=T
     return pd.DataFrame(rows)
 
 
-def write_grid_report(folders, out: str | Path, title: str = "Odometry comparison (Suite-IN++ Tables III–VI)",
-                      expected_seeds: int | None = None, note: str = "", command: str = "wearnav bench odometry",
-                      splits=TEST_SPLITS, measure: bool = True) -> Path:
+def write_grid_report(
+    folders,
+    out: str | Path,
+    title: str = "Odometry comparison (Suite-IN++ Tables III–VI)",
+    expected_seeds: int | None = None,
+    note: str = "",
+    command: str = "wearnav bench odometry",
+    splits=TEST_SPLITS,
+    measure: bool = True,
+) -> Path:
     """results.md + results.json + fig7_placement_cdf.png / fig11_speed.png in ``out`` from the
     complete ones of ``folders``; ``measure``: Table VI (timed now)."""
 
@@ -313,14 +343,23 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
     prov = provenance()
     n_done = sum(len(v) for v in grid.values())
     seeds = sorted({r.seed for rs in grid.values() for r in rs})
-    lines = [f"# {title}", "", f"Generated by `{command}` from {n_done} complete run folders "
-             f"({prov['created']}, wearnav {prov['wearnav']} {prov['commit']}): {expected_seeds or len(seeds)} seeds "
-             f"per model asked, training seeds {', '.join(map(str, seeds))} complete.", ""]
+    lines = [
+        f"# {title}",
+        "",
+        f"Generated by `{command}` from {n_done} complete run folders "
+        f"({prov['created']}, wearnav {prov['wearnav']} {prov['commit']}): {expected_seeds or len(seeds)} seeds "
+        f"per model asked, training seeds {', '.join(map(str, seeds))} complete.",
+        "",
+    ]
     if note:
         lines += [note, ""]
-    lines += [*rules_text(grid), "",
-              f"Cells: mean ± std over training seeds (each seed: the mean over sequences), metres. {MARK_NOTE}. `seeds`: complete runs (\"n of N\" "
-              "while a row is unfinished).", ""]
+    lines += [
+        *rules_text(grid),
+        "",
+        f'Cells: mean ± std over training seeds (each seed: the mean over sequences), metres. {MARK_NOTE}. `seeds`: complete runs ("n of N" '
+        "while a row is unfinished).",
+        "",
+    ]
     doc: dict = {"rows": labels, "tables": {}}
 
     abl = {n: (REFERENCE if n == 6 else f"suitein++-abl{n}") for n in ABLATIONS}  # Table V's rows
@@ -335,18 +374,28 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
         table, st = marked_table(grid, have, cols, expected_seeds)
         table = table.loc[:, (table != "").any(axis=0)]
         doc["tables"][f"III {split}"] = st
-        lines += [f"## Table III: split `{split}`", "", "ATE and RTE (Δ = 60 s) overall and per walking mode "
-                  "(ablation variants: Table V).", "",
-                  table.to_markdown(index=False), ""]
+        lines += [
+            f"## Table III: split `{split}`",
+            "",
+            "ATE and RTE (Δ = 60 s) overall and per walking mode (ablation variants: Table V).",
+            "",
+            table.to_markdown(index=False),
+            "",
+        ]
 
     frame = test_frame_table(grid, [lab for lab in labels if lab not in ablation_rows], splits)
     if not frame.empty:
         doc["tables"]["test frame"] = frame.to_dict(orient="records")
-        lines += ["## What the honest test frame costs", "",
-                  "ATE (mean over seeds) with the test input in the honest frame (one constant yaw from the "
-                  "first 10 s of truth) and in the old diagnostic frame (turned onto the truth's yaw over time, "
-                  "removing heading drift with ground truth), same trained weights; Δ = honest − diagnostic.", "",
-                  frame.to_markdown(index=False, floatfmt=".2f"), ""]
+        lines += [
+            "## What the honest test frame costs",
+            "",
+            "ATE (mean over seeds) with the test input in the honest frame (one constant yaw from the "
+            "first 10 s of truth) and in the old diagnostic frame (turned onto the truth's yaw over time, "
+            "removing heading drift with ground truth), same trained weights; Δ = honest − diagnostic.",
+            "",
+            frame.to_markdown(index=False, floatfmt=".2f"),
+            "",
+        ]
 
     t4 = [lab for lab in labels if lab == REFERENCE or phone_only(lab, grid)]
     cols4 = {}
@@ -357,12 +406,20 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
         table, st = marked_table(grid, t4, cols4, expected_seeds)
         table = table.loc[:, (table != "").any(axis=0)]
         doc["tables"]["IV"] = st
-        lines += ["## Table IV: phone-only models vs multi-device Suite-IN++ per phone placement", "",
-                  "HD handheld, MP multi-changed (split `test`), PK pocket, BG bag (split `test_unseen`: "
-                  "placements no training walk has). Phone-only: models reading the phone alone.", "",
-                  table.to_markdown(index=False), ""]
-        fig7 = plot_cdf_panels(placement_errors(grid, t4), out / "fig7_placement_cdf.png",
-                               "position error CDF per phone placement (Fig. 7), seeds pooled")
+        lines += [
+            "## Table IV: phone-only models vs multi-device Suite-IN++ per phone placement",
+            "",
+            "HD handheld, MP multi-changed (split `test`), PK pocket, BG bag (split `test_unseen`: "
+            "placements no training walk has). Phone-only: models reading the phone alone.",
+            "",
+            table.to_markdown(index=False),
+            "",
+        ]
+        fig7 = plot_cdf_panels(
+            placement_errors(grid, t4),
+            out / "fig7_placement_cdf.png",
+            "position error CDF per phone placement (Fig. 7), seeds pooled",
+        )
         if fig7:
             lines += [f"![Fig. 7]({fig7.name})", ""]
 
@@ -372,12 +429,23 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
         cols5["test RTE"] = lambda r: summary_of(r, "test").get("rte_mean")
         table, st = marked_table(grid, t5, cols5, expected_seeds)
         table = table.loc[:, (table != "").any(axis=0)]
-        marks = pd.DataFrame([{"variant": f"({n})", **{col: "✓" if ABLATIONS[n][key] else "" for col, key in ABLATION_MODULES}}
-                              for n, lab in abl.items() if lab in grid])
+        marks = pd.DataFrame(
+            [
+                {"variant": f"({n})", **{col: "✓" if ABLATIONS[n][key] else "" for col, key in ABLATION_MODULES}}
+                for n, lab in abl.items()
+                if lab in grid
+            ]
+        )
         table = pd.concat([marks, table], axis=1)
         doc["tables"]["V"] = st
-        lines += ["## Table V: ablations", "", "(6) = Suite-IN++; ✓ = the module is on.", "",
-                  table.to_markdown(index=False), ""]
+        lines += [
+            "## Table V: ablations",
+            "",
+            "(6) = Suite-IN++; ✓ = the module is on.",
+            "",
+            table.to_markdown(index=False),
+            "",
+        ]
 
     if measure:
         rows = []
@@ -388,20 +456,29 @@ def write_grid_report(folders, out: str | Path, title: str = "Odometry compariso
                 log.warning("Table VI: %s left out: %s", lab, exc)
         eff = pd.DataFrame(rows)
         doc["tables"]["VI"] = rows
-        lines += ["## Table VI: efficiency", "",
-                  "Measured by this command on this machine, 1 torch thread: trainable parameters; "
-                  "MMACs = 10⁶ multiply-accumulates of one forward pass on one window (3 devices × the "
-                  "run's window × 6 channels): FLOPs/2 of `torch.utils.flop_counter` for matrix products and "
-                  "convolutions, every LSTM/GRU counted analytically (4 or 3 gates × (in·h + h·h) per step); inference windows/s at batch 1 and 256 (median of "
-                  "`blocked_autorange` blocks). The machine is shared: timings vary with load.", "",
-                  eff.to_markdown(index=False, floatfmt=".4g"), ""]
+        lines += [
+            "## Table VI: efficiency",
+            "",
+            "Measured by this command on this machine, 1 torch thread: trainable parameters; "
+            "MMACs = 10⁶ multiply-accumulates of one forward pass on one window (3 devices × the "
+            "run's window × 6 channels): FLOPs/2 of `torch.utils.flop_counter` for matrix products and "
+            "convolutions, every LSTM/GRU counted analytically (4 or 3 gates × (in·h + h·h) per step); inference windows/s at batch 1 and 256 (median of "
+            "`blocked_autorange` blocks). The machine is shared: timings vary with load.",
+            "",
+            eff.to_markdown(index=False, floatfmt=".4g"),
+            "",
+        ]
 
-    fig11 = plot_speed(velocity_panels(grid), out / "fig11_speed.png",
-                       "true vs predicted speed (Fig. 11)")
+    fig11 = plot_speed(velocity_panels(grid), out / "fig11_speed.png", "true vs predicted speed (Fig. 11)")
     if fig11:
-        lines += ["## Fig. 11: predicted vs true speed", "",
-                  f"Speed from the trajectory files' positions (central differences, {SPEED_SMOOTH_S:g} s moving "
-                  "mean): the first `test` sequence of each mode that both models scored.", "",
-                  f"![Fig. 11]({fig11.name})", ""]
+        lines += [
+            "## Fig. 11: predicted vs true speed",
+            "",
+            f"Speed from the trajectory files' positions (central differences, {SPEED_SMOOTH_S:g} s moving "
+            "mean): the first `test` sequence of each mode that both models scored.",
+            "",
+            f"![Fig. 11]({fig11.name})",
+            "",
+        ]
     runs.write_json(out / "results.json", doc)
     return write_text_atomic("\n".join(lines), out / "results.md")

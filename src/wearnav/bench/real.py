@@ -44,6 +44,7 @@ Optionally ``train_data`` (a simulated dataset) trains the learned models instea
 training floors: the sim-to-real test of issue 11. Everything is a run folder; complete runs
 are skipped, so the benchmark resumes.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -57,13 +58,14 @@ from wearnav.bench.real_sites import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_err
 from wearnav.evaluate import evaluate_run
 from wearnav.models.registry import check_models, get
 from wearnav.pretrained.mix import MIX_FRAME, is_mix
-from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 from wearnav.textio import read_json
+from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 
 DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
 
 
 # ---- the suite ----------------------------------------------------------------------------------
+
 
 @dataclasses.dataclass(frozen=True)
 class RealBench:
@@ -85,9 +87,19 @@ class RealBench:
 
 
 def _train_config(model: str, data: str, yaw: float, bench: RealBench, elsewhere: bool):
-    kw = dict(model=model, data=data, devices=("phone",), epochs=bench.epochs, patience=bench.patience,
-              max_minutes=bench.max_minutes, seed=bench.seed, window=bench.window, stride=bench.stride,
-              lr=bench.lr, augment=bench.augment)
+    kw = dict(
+        model=model,
+        data=data,
+        devices=("phone",),
+        epochs=bench.epochs,
+        patience=bench.patience,
+        max_minutes=bench.max_minutes,
+        seed=bench.seed,
+        window=bench.window,
+        stride=bench.stride,
+        lr=bench.lr,
+        augment=bench.augment,
+    )
     if elsewhere and is_mix(data):  # several sources, truth turned into each input's common frame
         return TrainConfig(**kw, frame_align=MIX_FRAME, truth_max_gap=TRUTH_MAX_GAP_S)
     if elsewhere:  # the simulator's own truth frame and dense truth
@@ -129,8 +141,15 @@ def run_job(job: RealJob, run: Path) -> Path:
     training = fit(job.cfg, run, progress=job.progress)
     for e in job.evals:
         pre = {"frame_align": "none", "truth_max_gap": TRUTH_MAX_GAP_S, "yaw_deg": e.yaw(run)}
-        evaluate_run(run, data=e.data, splits=("test",), progress=job.progress, training=training,
-                     preprocess=pre, out_dir=e.out_dir)
+        evaluate_run(
+            run,
+            data=e.data,
+            splits=("test",),
+            progress=job.progress,
+            training=training,
+            preprocess=pre,
+            out_dir=e.out_dir,
+        )
     return run
 
 
@@ -150,10 +169,21 @@ class Plan:
         return write_report(self.out, self.sites, suite_runs(self.out, self.sites["main"]["data"]), self.bench, wall)
 
 
-def plan_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str | None = None,
-                   test_fmt: str | None = None, group_by: str | None = None, test_groups=None,
-                   test_group_by: str | None = None, test_test_groups=None, bench: RealBench = RealBench(),
-                   progress: bool = True, echo=print, in_process: bool = True) -> Plan:
+def plan_benchmark(
+    data: Path,
+    out: Path,
+    test_data: Path | None = None,
+    fmt: str | None = None,
+    test_fmt: str | None = None,
+    group_by: str | None = None,
+    test_groups=None,
+    test_group_by: str | None = None,
+    test_test_groups=None,
+    bench: RealBench = RealBench(),
+    progress: bool = True,
+    echo=print,
+    in_process: bool = True,
+) -> Plan:
     """Prepare the data, estimate the site yaws and list a job per model (:func:`run_job`)."""
     out = Path(out)
     t_start = time.perf_counter()
@@ -161,8 +191,9 @@ def plan_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: st
     main, info = prepare_data(data, out / "data" / "main", fmt, group_by, test_groups, progress)
     sites["main"] = {"data": str(main), "split": info}
     if test_data is not None:
-        other, oinfo = prepare_data(test_data, out / "data" / "other", test_fmt, test_group_by,
-                                    test_test_groups, progress)
+        other, oinfo = prepare_data(
+            test_data, out / "data" / "other", test_fmt, test_group_by, test_test_groups, progress
+        )
         sites["other"] = {"data": str(other), "split": oinfo}
     for name, site in sites.items():
         cached = out / "data" / name / "site_yaw.json"
@@ -180,21 +211,52 @@ def plan_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: st
         run = runs.run_dir(out / "runs", model, run_hash_exclude(run_record(cfg)))
         # a learned model scored where it did not train under PDR's site yaw is given its own
         # estimate of the site's yaw (PDR's heading bias differs by building: 18° at ILC2)
-        evals = tuple(RealEval(site["data"], site["yaw"]["yaw_deg"], run / f"eval_{s}",
-                               own_yaw=get(model).learned and (elsewhere or s != "main"))
-                      for s, site in sites.items())
-        jobs.append(Job(run_job, RealJob(cfg, evals, progress and in_process), run,
-                        marks=tuple(e.out_dir for e in evals)))
+        evals = tuple(
+            RealEval(
+                site["data"],
+                site["yaw"]["yaw_deg"],
+                run / f"eval_{s}",
+                own_yaw=get(model).learned and (elsewhere or s != "main"),
+            )
+            for s, site in sites.items()
+        )
+        jobs.append(
+            Job(run_job, RealJob(cfg, evals, progress and in_process), run, marks=tuple(e.out_dir for e in evals))
+        )
     return Plan(out, sites, jobs, bench, t_start)
 
 
-def run_benchmark(data: Path, out: Path, test_data: Path | None = None, fmt: str | None = None,
-                  test_fmt: str | None = None, group_by: str | None = None, test_groups=None,
-                  test_group_by: str | None = None, test_test_groups=None, bench: RealBench = RealBench(),
-                  progress: bool = True, echo=print, execution: Execution = Execution()) -> Path:
+def run_benchmark(
+    data: Path,
+    out: Path,
+    test_data: Path | None = None,
+    fmt: str | None = None,
+    test_fmt: str | None = None,
+    group_by: str | None = None,
+    test_groups=None,
+    test_group_by: str | None = None,
+    test_test_groups=None,
+    bench: RealBench = RealBench(),
+    progress: bool = True,
+    echo=print,
+    execution: Execution = Execution(),
+) -> Path:
     """Prepare the data, estimate the site yaws, train/evaluate every model (as ``execution``
     says, :mod:`.executor`), write results.md."""
-    plan = plan_benchmark(data, out, test_data, fmt, test_fmt, group_by, test_groups, test_group_by,
-                          test_test_groups, bench, progress, echo, execution.in_process)
+    plan = plan_benchmark(
+        data,
+        out,
+        test_data,
+        fmt,
+        test_fmt,
+        group_by,
+        test_groups,
+        test_group_by,
+        test_test_groups,
+        bench,
+        progress,
+        echo,
+        execution.in_process,
+    )
     run_jobs(plan.jobs, execution, echo)
     return plan.finish()

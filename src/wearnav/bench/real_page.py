@@ -26,6 +26,7 @@ from wearnav.textio import read_json
 if TYPE_CHECKING:
     from wearnav.bench.real import RealBench
 
+
 def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
     """Every run folder of the suite by its row label: the model's name when it was trained on
     the building's own training groups (or is not learned), "model · simulator `<data>`" when it
@@ -38,10 +39,13 @@ def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
         label = train["model"]
         if get(train["model"]).learned and Path(train["data"]).resolve() != Path(main_data).resolve():
             prov = Dataset.open(train["data"]).provenance
-            made = (f"simulator `{Path(train['data']).name}` (commit {prov.get('commit', '?')})"
-                    if prov.get("generator") == "wearnav.simulate" else
-                    f"{' + '.join(q['part'] for q in prov['parts'])} (`{Path(train['data']).name}`)"
-                    if is_mix(train["data"]) else f"`{Path(train['data']).name}`")
+            made = (
+                f"simulator `{Path(train['data']).name}` (commit {prov.get('commit', '?')})"
+                if prov.get("generator") == "wearnav.simulate"
+                else f"{' + '.join(q['part'] for q in prov['parts'])} (`{Path(train['data']).name}`)"
+                if is_mix(train["data"])
+                else f"`{Path(train['data']).name}`"
+            )
             label = f"{label} · {made}"
         labelled.append((not get(train["model"]).learned, "·" in label, label, run))
     return {label: run for *_, label, run in sorted(labelled, key=lambda x: x[:3])}
@@ -56,27 +60,52 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
             continue
         res = m["splits"]["test"]
         # the pooled per-point statistics are evaluate's summary; the errors themselves feed the CDF
-        errors[label] = np.concatenate([np.asarray(r.get("point_errors", []), float) for r in res["sequences"]]
-                                       or [np.empty(0)])
+        errors[label] = np.concatenate(
+            [np.asarray(r.get("point_errors", []), float) for r in res["sequences"]] or [np.empty(0)]
+        )
         summary = res["summary"]
         tr = m.get("training", {})
         own = run / f"site_yaw_eval_{site}.json"
         yaw = read_json(own)["yaw_deg"] if own.is_file() else sites[site]["yaw"]["yaw_deg"]
-        rows.append({"method": label, "site yaw (°)": yaw, "traces": summary["sequences"], "points": summary.get("points", 0),
-                     **{k: summary.get(k, float("nan")) for k in ("error_mean", "error_p50", "error_p75", "error_p95")},
-                     "length ratio": length_ratio(run / f"eval_{site}", sites[site]["data"]),
-                     "epochs": tr.get("epochs_run", "—"), "train min": round(tr["wall_s"] / 60, 1) if tr.get("wall_s") else "—",
-                     BEATS_STILL: beats_text(tr)})
+        rows.append(
+            {
+                "method": label,
+                "site yaw (°)": yaw,
+                "traces": summary["sequences"],
+                "points": summary.get("points", 0),
+                **{k: summary.get(k, float("nan")) for k in ("error_mean", "error_p50", "error_p75", "error_p95")},
+                "length ratio": length_ratio(run / f"eval_{site}", sites[site]["data"]),
+                "epochs": tr.get("epochs_run", "—"),
+                "train min": round(tr["wall_s"] / 60, 1) if tr.get("wall_s") else "—",
+                BEATS_STILL: beats_text(tr),
+            }
+        )
     fx = sites[site].get("fixes")
     if fx:
         errors["raw phone fixes"] = np.asarray(fx["point_errors"])
-        rows.append({"method": "raw phone fixes", "site yaw (°)": "—", "traces": fx["sequences"], "points": fx["points"],
-                     **{k: v for k, v in fx.items() if k.startswith("error_")}, "length ratio": float("nan"), "epochs": "—", "train min": "—",
-                     BEATS_STILL: "—"})
+        rows.append(
+            {
+                "method": "raw phone fixes",
+                "site yaw (°)": "—",
+                "traces": fx["sequences"],
+                "points": fx["points"],
+                **{k: v for k, v in fx.items() if k.startswith("error_")},
+                "length ratio": float("nan"),
+                "epochs": "—",
+                "train min": "—",
+                BEATS_STILL: "—",
+            }
+        )
     df = pd.DataFrame(rows)
     if not df.empty:
-        df = df.rename(columns={"error_mean": "mean (m)", "error_p50": "median (m)", "error_p75": "p75 (m)",
-                                "error_p95": "p95 (m)"})
+        df = df.rename(
+            columns={
+                "error_mean": "mean (m)",
+                "error_p50": "median (m)",
+                "error_p75": "p75 (m)",
+                "error_p95": "p95 (m)",
+            }
+        )
     return df, errors
 
 
@@ -100,67 +129,100 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
     from wearnav.report.odometry import plot_cdf
 
     p = provenance()
-    src = sites['main']['split']['source']
-    title = (f"Odometry in real buildings: trained on {src}" if not bench.train_data else
-             f"Odometry in real buildings: trained on `{Path(bench.train_data).name}`, tested on {src}")
-    lines = [f"# {title}", "",
-             f"Generated by `wearnav bench real-odometry` ({p['created']}, wearnav {p['wearnav']} {p['commit']}); "
-             f"this invocation {wall_s / 60:.1f} min of wall time (each run's own training minutes are in its row) on "
-             f"{platform.machine()}, {os.cpu_count()} CPUs, "
-             f"torch {torch.__version__}, CPU only, shared with other work while it ran.", "",
-             "Errors in metres at the surveyed points of the held-out test traces: every trace starts at its "
-             "first point and is scored at each later one (no reset). Training targets join the surveyed "
-             "points by straight lines (the competitions' assumption between waypoints); nothing is "
-             "tuned on the test groups. Phone only, 25 Hz, world frame rotated by the site's yaw "
-             "(estimated by PDR from training traces only).", "",
-             f"Training: at most {bench.epochs} epochs, early stopping on validation velocity MSE (patience "
-             f"{bench.patience})" + (f", at most {bench.max_minutes:g} min per model" if bench.max_minutes else "")
-             + (f", Adam lr {bench.lr:g}" if bench.lr else ", each model's paper learning rate")
-             + f", seed {bench.seed}, one run per row (the epochs and minutes each got are in its row).", "",
-             "Sim-to-real: a row named `model · simulator ...` is that model trained on the simulated "
-             "dataset only (phone only, the simulator's own truth frame, dense truth) and scored here "
-             "like the others; beside it the same model trained on the building's training groups, "
-             "and PDR (not learned).", ""]
+    src = sites["main"]["split"]["source"]
+    title = (
+        f"Odometry in real buildings: trained on {src}"
+        if not bench.train_data
+        else f"Odometry in real buildings: trained on `{Path(bench.train_data).name}`, tested on {src}"
+    )
+    lines = [
+        f"# {title}",
+        "",
+        f"Generated by `wearnav bench real-odometry` ({p['created']}, wearnav {p['wearnav']} {p['commit']}); "
+        f"this invocation {wall_s / 60:.1f} min of wall time (each run's own training minutes are in its row) on "
+        f"{platform.machine()}, {os.cpu_count()} CPUs, "
+        f"torch {torch.__version__}, CPU only, shared with other work while it ran.",
+        "",
+        "Errors in metres at the surveyed points of the held-out test traces: every trace starts at its "
+        "first point and is scored at each later one (no reset). Training targets join the surveyed "
+        "points by straight lines (the competitions' assumption between waypoints); nothing is "
+        "tuned on the test groups. Phone only, 25 Hz, world frame rotated by the site's yaw "
+        "(estimated by PDR from training traces only).",
+        "",
+        f"Training: at most {bench.epochs} epochs, early stopping on validation velocity MSE (patience "
+        f"{bench.patience})"
+        + (f", at most {bench.max_minutes:g} min per model" if bench.max_minutes else "")
+        + (f", Adam lr {bench.lr:g}" if bench.lr else ", each model's paper learning rate")
+        + f", seed {bench.seed}, one run per row (the epochs and minutes each got are in its row).",
+        "",
+        "Sim-to-real: a row named `model · simulator ...` is that model trained on the simulated "
+        "dataset only (phone only, the simulator's own truth frame, dense truth) and scored here "
+        "like the others; beside it the same model trained on the building's training groups, "
+        "and PDR (not learned).",
+        "",
+    ]
     doc = {"bench": dataclasses.asdict(bench), "wall_s": round(wall_s, 1), "sites": {}}
     for site, s in sites.items():
         info = s["split"]
         test = [g for g, c in info["groups"].items() if "test" in c]
         train = [g for g, c in info["groups"].items() if "test" not in c]
         n = {k: sum(c.get(k, 0) for c in info["groups"].values()) for k in ("train", "val", "test")}
-        head = ("Another building, never trained on" if site != "main" else "Held-out groups of the training building"
-                if not bench.train_data else "Held-out groups (a learned row trained elsewhere says where)")
-        lines += [f"## {head}: `{info['source']}`", "",
-                  f"Source `{shown_path(info['src'])}`, grouped by `{info['group_by']}`: test {', '.join(sorted(test))} "
-                  f"({n['test']} traces); " + (f"training groups {', '.join(sorted(train))} ({n['train']} train, "
-                  f"{n['val']} validation traces)." if site == "main" else
-                  f"its other groups ({n['train'] + n['val']} traces) serve only to estimate its yaw."),
-                  f"Site yaw {s['yaw']['yaw_deg']:+.1f}° from {s['yaw']['segments']} segments of "
-                  f"{s['yaw']['traces']} training traces (median |deviation| {s['yaw']['median_abs_dev_deg']}°)"
-                  + (f"; cross-check, valid only for a phone held flat and pointing ahead: its +y axis gives "
-                     f"{s['yaw']['phone_axis_yaw_deg']:+.1f}° (the difference is PDR's own heading bias, "
-                     "which a learned model absorbs)." if s["yaw"].get("phone_axis_yaw_deg") is not None else "."), ""]
+        head = (
+            "Another building, never trained on"
+            if site != "main"
+            else "Held-out groups of the training building"
+            if not bench.train_data
+            else "Held-out groups (a learned row trained elsewhere says where)"
+        )
+        lines += [
+            f"## {head}: `{info['source']}`",
+            "",
+            f"Source `{shown_path(info['src'])}`, grouped by `{info['group_by']}`: test {', '.join(sorted(test))} "
+            f"({n['test']} traces); "
+            + (
+                f"training groups {', '.join(sorted(train))} ({n['train']} train, {n['val']} validation traces)."
+                if site == "main"
+                else f"its other groups ({n['train'] + n['val']} traces) serve only to estimate its yaw."
+            ),
+            f"Site yaw {s['yaw']['yaw_deg']:+.1f}° from {s['yaw']['segments']} segments of "
+            f"{s['yaw']['traces']} training traces (median |deviation| {s['yaw']['median_abs_dev_deg']}°)"
+            + (
+                f"; cross-check, valid only for a phone held flat and pointing ahead: its +y axis gives "
+                f"{s['yaw']['phone_axis_yaw_deg']:+.1f}° (the difference is PDR's own heading bias, "
+                "which a learned model absorbs)."
+                if s["yaw"].get("phone_axis_yaw_deg") is not None
+                else "."
+            ),
+            "",
+        ]
         table, errors = results_table(sites, folders, site)
         doc["sites"][site] = {"split": info, "yaw": s["yaw"], "table": table.to_dict(orient="records")}
         if table.empty:
             lines += ["(no complete runs yet)", ""]
             continue
-        lines += ["Known-start protocol (each trace starts at its true first point, input turned by the site "
-                  "yaw: a floor, not available to a user). A learned row scored where it did not train under "
-                  "PDR's yaw uses its own estimate from the same training traces (*site yaw* column):", "", table.to_markdown(index=False, floatfmt=".2f"), ""]
+        lines += [
+            "Known-start protocol (each trace starts at its true first point, input turned by the site "
+            "yaw: a floor, not available to a user). A learned row scored where it did not train under "
+            "PDR's yaw uses its own estimate from the same training traces (*site yaw* column):",
+            "",
+            table.to_markdown(index=False, floatfmt=".2f"),
+            "",
+        ]
         if s.get("fixes"):
             # each model's smoother is calibrated where it is used (user_protocol.site_calibration)
             cal = doc["sites"][site]["calibration"] = {
                 label: site_calibration(run, site, s["data"], _trained_on(run))
-                for label, run in folders_with_eval(folders, site).items()}
-            rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"],
-                                   calibration=cal)
+                for label, run in folders_with_eval(folders, site).items()
+            }
+            rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"], calibration=cal)
             paired = paired_rows(raw)
             doc["sites"][site]["user_protocol"] = {"table": rows, "paired": paired, "runs": raw}
             lines += [USER_PROTOCOL_TEXT, "", pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), ""]
             if paired:
                 lines += [PAIRED_TEXT, "", pd.DataFrame(paired).to_markdown(index=False), ""]
-            lines += _user_protocol_elsewhere(folders_with_eval(folders, site), s["data"], cal,
-                                              doc["sites"][site]["user_protocol"])
+            lines += _user_protocol_elsewhere(
+                folders_with_eval(folders, site), s["data"], cal, doc["sites"][site]["user_protocol"]
+            )
         cdf = plot_cdf(errors, out / f"{site}_error_cdf.png", f"error at surveyed points, {info['source']} test")
         traj = _plot_examples(folders, site, out / f"{site}_trajectories.png", info["source"])
         lines += [f"![{q.stem}]({q.name})" for q in (cdf, traj) if q] + [""]
@@ -176,7 +238,8 @@ USER_PROTOCOL_TEXT = (
     "default). Errors at the same surveyed points; *length ratio*: median over walks of the path's "
     "length through its positions at the surveyed times over the truth's (1 is right); *inside σ's 68 % "
     "radius*: the share of the smoother's points whose error is inside 1.515 times the σ `track` "
-    "writes for them (0.68 where that σ is right, less where it is too small).")
+    "writes for them (0.68 where that σ is right, less where it is too small)."
+)
 
 
 def _user_protocol_elsewhere(folders: dict[str, Path], data: str, cal: dict, doc: dict) -> list[str]:
@@ -184,20 +247,27 @@ def _user_protocol_elsewhere(folders: dict[str, Path], data: str, cal: dict, doc
     them (PDR, a model from another building): three times the walks of the held-out routes, though
     not held out from the smoother's settings (chosen on IPIN's training walks) or its calibration
     (:func:`site_calibration`). Adds ``train_walks`` to ``doc``; returns the page's lines."""
-    others = {k: run for k, run in folders.items() if _trained_on(run) is None
-              or Path(_trained_on(run)).resolve() != Path(data).resolve()}
+    others = {
+        k: run
+        for k, run in folders.items()
+        if _trained_on(run) is None or Path(_trained_on(run)).resolve() != Path(data).resolve()
+    }
     fixes = fix_errors(Path(data), "train") if others else None
     if not fixes:
         return []
-    rows, raw = user_table(others, data, fixes, "train",
-                           calibration={k: cal[k] for k in others})
+    rows, raw = user_table(others, data, fixes, "train", calibration={k: cal[k] for k in others})
     paired = paired_rows(raw)
     doc["train_walks"] = {"table": rows, "paired": paired}
-    return [f"The same on the site's {fixes['sequences']} training walks, for the models that never trained "
-            "on them: not held out from the smoother's settings or its calibration, which were chosen and "
-            "measured on such walks, but three times as many walks:", "",
-            pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), "",
-            pd.DataFrame(paired).to_markdown(index=False) if paired else "", ""]
+    return [
+        f"The same on the site's {fixes['sequences']} training walks, for the models that never trained "
+        "on them: not held out from the smoother's settings or its calibration, which were chosen and "
+        "measured on such walks, but three times as many walks:",
+        "",
+        pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"),
+        "",
+        pd.DataFrame(paired).to_markdown(index=False) if paired else "",
+        "",
+    ]
 
 
 def _trained_on(run: Path) -> str | None:

@@ -18,9 +18,9 @@ from wearnav.models.registry import build
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
 from wearnav.progress import progress as report_progress
 from wearnav.rotations import from_wxyz
+from wearnav.textio import read_json
 from wearnav.train.odometry import TrainConfig, load_model
 from wearnav.trajectory import integrate_velocity
-from wearnav.textio import read_json
 
 TRUTH_MAX_GAP_S = SURVEYED_TRUTH_MAX_GAP_S
 # IPIN 2023 Track 3's held-out routes (meta ``trial``), for every benchmark on IPIN (this one, the
@@ -38,6 +38,7 @@ PERCENTILES = (50, 75, 95)
 
 # ---- data ---------------------------------------------------------------------------------------
 
+
 def _group(meta: dict, key: str, name: str) -> str:
     if key not in meta:
         raise ValidationError(f"recording {name} has no meta key {key!r} to group by")
@@ -52,8 +53,14 @@ def split_of(name: str, group: str, test_groups: set[str]) -> str:
     return "val" if is_validation_name(name) else "train"
 
 
-def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group_by: str | None = None,
-                 test_groups: tuple[str, ...] | None = None, progress: bool = True) -> tuple[Path, dict]:
+def prepare_data(
+    src: str | Path,
+    out: str | Path,
+    fmt: str | None = None,
+    group_by: str | None = None,
+    test_groups: tuple[str, ...] | None = None,
+    progress: bool = True,
+) -> tuple[Path, dict]:
     """Write ``src`` (an imported dataset folder, or an original-format folder read with importer
     ``fmt``) to ``out`` with splits by place. Returns the folder and what was decided."""
     from wearnav.dataset import DatasetWriter
@@ -84,15 +91,18 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
             g = _group(rec.meta, key, rec.name)
             split = split_of(rec.name, g, set(groups))
             if split == "test" and calib_key and str(rec.meta.get(calib_key)) in calib:
-                raise ConfigError(f"test group {g!r} holds data the simulator was calibrated on "
-                                  f"({calib_key} {sorted(calib)}); choose other --test-groups")
+                raise ConfigError(
+                    f"test group {g!r} holds data the simulator was calibrated on "
+                    f"({calib_key} {sorted(calib)}); choose other --test-groups"
+                )
             counts.setdefault(g, {}).setdefault(split, 0)
             counts[g][split] += 1
             w.add(rec, split=split)
     missing = set(groups) - set(counts)
     if missing:
-        raise ValidationError(f"test groups {sorted(missing)} are not in the data ({key} values: "
-                              f"{sorted(counts)})", src)
+        raise ValidationError(
+            f"test groups {sorted(missing)} are not in the data ({key} values: {sorted(counts)})", src
+        )
     info = {**wanted, "source": source, "groups": counts}
     runs.write_json(info_path, info)
     return out, info
@@ -100,13 +110,17 @@ def prepare_data(src: str | Path, out: str | Path, fmt: str | None = None, group
 
 # ---- the site's yaw ---------------------------------------------------------------------------
 
+
 def segment_products(seqs, window: int = 100, stride: int = 10, model=None) -> np.ndarray:
     """d_model · conj(d_truth) per segment between consecutive surveyed points (complex), over the
     sequences ``seqs`` (Aligned, world frame, no yaw applied); ``model`` None: PDR."""
     out = []
     for seq in seqs:
-        net = model if model is not None else build("pdr", n_devices=len(seq.devices), window=window,
-                                                     rate=seq.rate).eval()
+        net = (
+            model
+            if model is not None
+            else build("pdr", n_devices=len(seq.devices), window=window, rate=seq.rate).eval()
+        )
         t_c, vel, _ = predict_sequence(net, seq, window, stride)
         rec = seq.recording
         if t_c.size < 2 or rec is None or rec.truth is None:
@@ -152,14 +166,24 @@ def site_yaw(seqs, window: int = 100, stride: int = 10, model=None) -> dict:
     yaw = float(np.angle(np.sum(p)))
     dev = np.degrees(np.abs(np.angle(p * np.exp(-1j * yaw))))
     unit = p / np.maximum(np.abs(p), 1e-12)
-    return {"yaw_deg": round(float(np.degrees(yaw)), 2), "segments": int(p.size), "traces": len(seqs),
-            "median_abs_dev_deg": round(float(np.median(dev)), 1),
-            "resultant_length": round(float(np.abs(unit.mean())), 3),
-            "phone_axis_yaw_deg": device_axis_yaw(seqs)}
+    return {
+        "yaw_deg": round(float(np.degrees(yaw)), 2),
+        "segments": int(p.size),
+        "traces": len(seqs),
+        "median_abs_dev_deg": round(float(np.median(dev)), 1),
+        "resultant_length": round(float(np.abs(unit.mean())), 3),
+        "phone_axis_yaw_deg": device_axis_yaw(seqs),
+    }
 
 
-def estimate_site_yaw(data: Path, split: str | None = "train", devices=("phone",), rate: float = 25.0,
-                      progress: bool = False, run: Path | None = None) -> dict:
+def estimate_site_yaw(
+    data: Path,
+    split: str | None = "train",
+    devices=("phone",),
+    rate: float = 25.0,
+    progress: bool = False,
+    run: Path | None = None,
+) -> dict:
     """:func:`site_yaw` of the ``split`` traces (None: all) of dataset ``data`` (no yaw applied, no
     frame alignment), by PDR or by the model of ``run`` (a run folder: its rate, window and stride);
     ``progress``: report the traces' loading (:mod:`wearnav.progress`)."""
@@ -167,14 +191,21 @@ def estimate_site_yaw(data: Path, split: str | None = "train", devices=("phone",
     if run is not None:
         model, tcfg = load_model(run)
         devices, rate, window, stride = tcfg.devices, tcfg.rate, tcfg.window, tcfg.stride
-    cfg = TrainConfig(model="pdr", data=str(data), devices=tuple(devices), rate=rate, frame_align="none",
-                      truth_max_gap=TRUTH_MAX_GAP_S)
+    cfg = TrainConfig(
+        model="pdr",
+        data=str(data),
+        devices=tuple(devices),
+        rate=rate,
+        frame_align="none",
+        truth_max_gap=TRUTH_MAX_GAP_S,
+    )
     ds = Dataset.open(data)
     found = site_yaw(load_sequences(ds.split(split) if split else ds, cfg, progress), window, stride, model)
     return {**found, "by": "pdr" if run is None else "the model itself"}
 
 
 # ---- the phone's own fixes --------------------------------------------------------------------
+
 
 def fix_errors(data: Path, split: str = "test") -> dict | None:
     """Raw fix error at the surveyed points of ``split`` (nearest fix within metrics.FIX_MAX_GAP_S), each
@@ -189,8 +220,12 @@ def fix_errors(data: Path, split: str = "test") -> dict | None:
     if not errs:
         return None
     e = np.concatenate(errs)
-    return {"sequences": len(errs), "points": int(e.size), **_point_stats(e),
-            "point_errors": [round(float(x), 3) for x in e]}
+    return {
+        "sequences": len(errs),
+        "points": int(e.size),
+        **_point_stats(e),
+        "point_errors": [round(float(x), 3) for x in e],
+    }
 
 
 def _point_stats(e: np.ndarray) -> dict:

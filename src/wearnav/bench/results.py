@@ -16,47 +16,99 @@ from wearnav.fileio import atomic_path, shown_path, write_text_atomic
 from wearnav.provenance import provenance
 from wearnav.textio import read_text
 
-
 # Every metric a suite's page shows: (name, unit, one sentence). The glossary lists those the
 # page uses; docs/design.md "Metric definitions" has the formulas.
 GLOSSARY: tuple[tuple[str, str, str], ...] = (
-    ("ATE", "m", "absolute trajectory error: RMS distance between the estimated and the true position over a "
-                 "whole walk, the estimate starting at the true start with no alignment."),
-    ("RTE", "m", "relative trajectory error: the same over Δ = 60 s stretches (scaled for shorter walks, as "
-                 "RoNIN does), so it measures drift wherever the walk started."),
-    ("STW, PVW, MVW, DRW, DLW", "—", "Suite-IN++'s walking modes (standard walking; holding the phone in "
-                                      "front, calmly or moving; a device removed mid-walk; daily-living "
-                                      "episodes); `STW ATE` is ATE over that mode's walks only."),
-    ("ADE", "cm", "average displacement error: mean distance between each 1 s segment's estimated and true "
-                  "displacement (EasyTrack)."),
+    (
+        "ATE",
+        "m",
+        "absolute trajectory error: RMS distance between the estimated and the true position over a "
+        "whole walk, the estimate starting at the true start with no alignment.",
+    ),
+    (
+        "RTE",
+        "m",
+        "relative trajectory error: the same over Δ = 60 s stretches (scaled for shorter walks, as "
+        "RoNIN does), so it measures drift wherever the walk started.",
+    ),
+    (
+        "STW, PVW, MVW, DRW, DLW",
+        "—",
+        "Suite-IN++'s walking modes (standard walking; holding the phone in "
+        "front, calmly or moving; a device removed mid-walk; daily-living "
+        "episodes); `STW ATE` is ATE over that mode's walks only.",
+    ),
+    (
+        "ADE",
+        "cm",
+        "average displacement error: mean distance between each 1 s segment's estimated and true "
+        "displacement (EasyTrack).",
+    ),
     ("drift", "% of distance", "final position error divided by the distance walked."),
-    ("label noise", "cm", "distance between a segment's displacement as the phone's location fixes give it and "
-                          "its true displacement (EasyTrack eqs. 5–7)."),
+    (
+        "label noise",
+        "cm",
+        "distance between a segment's displacement as the phone's location fixes give it and "
+        "its true displacement (EasyTrack eqs. 5–7).",
+    ),
     ("accuracy", "%", "share of test windows whose predicted class is the true one."),
-    ("macro-F1", "%", "F1 = 2·TP / (2·TP + FP + FN) per class, averaged over classes with equal weight, so "
-                      "rare activities count as much as common ones."),
+    (
+        "macro-F1",
+        "%",
+        "F1 = 2·TP / (2·TP + FP + FN) per class, averaged over classes with equal weight, so "
+        "rare activities count as much as common ones.",
+    ),
     ("Δ acc, Δ F1", "points", "a technique's accuracy or macro-F1 minus the baseline's, same seeds."),
-    ("p < 0.05", "—", "p is Welch's two-sided t-test p-value of a technique against the baseline over "
-                      "seeds; a difference counts as real where the Benjamini–Hochberg-adjusted p < 0.05."),
-    ("surveyed points", "m", "real buildings' errors: distance between the estimated position and each "
-                             "surveyed waypoint of a real walk (the only truth they have); mean, median, p75, p95."),
-    ("params, MFLOPs per window", "count, 10⁶", "a model's weights, and the floating-point operations of one "
-                                                  "forward pass on one window (a multiply-add = 2)."),
-    ("MMACs per window", "10⁶", "multiply-accumulates of one forward pass on one window, LSTM/GRU included: "
-                                "what Suite-IN++'s Table VI calls FLOPs."),
-    ("HD, MP, PK, BG", "—", "the phone's placement (Suite-IN++ Table IV): handheld, multi-changed, pocket, bag; "
-                            "no training walk has PK or BG."),
-    ("†", "—", "a difference beyond seed spread: Welch's t-test over per-seed values, Benjamini–Hochberg-adjusted "
-               "p < 0.05 (the page says against what)."),
+    (
+        "p < 0.05",
+        "—",
+        "p is Welch's two-sided t-test p-value of a technique against the baseline over "
+        "seeds; a difference counts as real where the Benjamini–Hochberg-adjusted p < 0.05.",
+    ),
+    (
+        "surveyed points",
+        "m",
+        "real buildings' errors: distance between the estimated position and each "
+        "surveyed waypoint of a real walk (the only truth they have); mean, median, p75, p95.",
+    ),
+    (
+        "params, MFLOPs per window",
+        "count, 10⁶",
+        "a model's weights, and the floating-point operations of one forward pass on one window (a multiply-add = 2).",
+    ),
+    (
+        "MMACs per window",
+        "10⁶",
+        "multiply-accumulates of one forward pass on one window, LSTM/GRU included: "
+        "what Suite-IN++'s Table VI calls FLOPs.",
+    ),
+    (
+        "HD, MP, PK, BG",
+        "—",
+        "the phone's placement (Suite-IN++ Table IV): handheld, multi-changed, pocket, bag; "
+        "no training walk has PK or BG.",
+    ),
+    (
+        "†",
+        "—",
+        "a difference beyond seed spread: Welch's t-test over per-seed values, Benjamini–Hochberg-adjusted "
+        "p < 0.05 (the page says against what).",
+    ),
     ("windows/s", "1/s", "inference throughput on this machine at batch 1 or 256 (median of repeats)."),
     ("train s/epoch, train min", "s, min", "measured training time per epoch, and in total over a run's attempts."),
-    ("yaw", "°", "frame alignment: error of a device's estimated heading about the vertical against the "
-                 "simulator's, RMS over time per recording."),
+    (
+        "yaw",
+        "°",
+        "frame alignment: error of a device's estimated heading about the vertical against the "
+        "simulator's, RMS over time per recording.",
+    ),
 )
 
 HEADLINE, GLOSSARY_HEADING = "## At a glance", "## Glossary"
-_GENERATED = re.compile(r"Generated by `(?P<cmd>[^`]+)`[^(]*\((?P<date>[0-9T:+-]+), wearnav (?P<version>\S+) "
-                        r"(?P<commit>\w+)\)")
+_GENERATED = re.compile(
+    r"Generated by `(?P<cmd>[^`]+)`[^(]*\((?P<date>[0-9T:+-]+), wearnav (?P<version>\S+) "
+    r"(?P<commit>\w+)\)"
+)
 _ABSOLUTE = re.compile(r"(?<![\w.~/])/(?:work|root|home|Users|tmp|mnt|data|scratch|opt|srv)/[^\s`)\]|,;]+")
 
 
@@ -124,18 +176,29 @@ def _paper(text: str) -> str:
 def headline(sections: list[tuple[str, str]]) -> list[str]:
     """One screen: per section, its first numbers, the paper's figure where its page quotes one,
     the seeds, and the command, commit, date and machine that produced it."""
-    lines = ["## At a glance", "",
-             "Each section below, in one row: the numbers it leads with (its first table with a metric: "
-             "the system and its baselines, row by row), the paper's figure where the section quotes one, and what produced it. "
-             "Units and meanings: the glossary below.", "",
-             "| section | numbers | paper | seeds | produced by | commit | date | machine |",
-             "|:--|:--|:--|:--|:--|:--|:--|:--|"]
+    lines = [
+        "## At a glance",
+        "",
+        "Each section below, in one row: the numbers it leads with (its first table with a metric: "
+        "the system and its baselines, row by row), the paper's figure where the section quotes one, and what produced it. "
+        "Units and meanings: the glossary below.",
+        "",
+        "| section | numbers | paper | seeds | produced by | commit | date | machine |",
+        "|:--|:--|:--|:--|:--|:--|:--|:--|",
+    ]
     for heading, text in sections:
         title = re.sub(r"\s*<!--.*?-->", "", heading[3:]).strip()
         g = _GENERATED.search(text)
-        cells = [title, _numbers(text), _paper(text), _seeds(text),
-                 f"`{g['cmd']}`" if g else "not stated", g["commit"] if g else "—",
-                 g["date"][:10] if g else "—", _machine(text)]
+        cells = [
+            title,
+            _numbers(text),
+            _paper(text),
+            _seeds(text),
+            f"`{g['cmd']}`" if g else "not stated",
+            g["commit"] if g else "—",
+            g["date"][:10] if g else "—",
+            _machine(text),
+        ]
         lines.append("| " + " | ".join(c.replace("|", "/") for c in cells) + " |")
     return lines + [""]
 
@@ -155,8 +218,9 @@ def _sections(text: str) -> list[tuple[str, str]]:
     return [(p.splitlines()[0], p.strip()) for p in parts if p.startswith("## ")]
 
 
-def collect(suites: list[Path], out: Path, title: str = "Measured results", keep: bool = False,
-            drop: tuple[str, ...] = ()) -> Path:
+def collect(
+    suites: list[Path], out: Path, title: str = "Measured results", keep: bool = False, drop: tuple[str, ...] = ()
+) -> Path:
     """Write ``out`` from each suite's results.md (headings demoted one level) and copy the PNGs
     each page links into ``out.parent/img/<suite>_<file>``. With ``keep``, the sections of the
     existing ``out`` (each one a suite's generated page) stay, in their order, unless a suite given
@@ -166,9 +230,13 @@ def collect(suites: list[Path], out: Path, title: str = "Measured results", keep
     out = Path(out)
     img = out.parent / "img"
     p = provenance()
-    parts = [f"# {title}", "",
-             f"Generated by `wearnav results` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) from the "
-             "pages that the suite commands wrote; no number here is typed by hand.", ""]
+    parts = [
+        f"# {title}",
+        "",
+        f"Generated by `wearnav results` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) from the "
+        "pages that the suite commands wrote; no number here is typed by hand.",
+        "",
+    ]
     # Every page and every figure it links is checked before anything is written, so a refused
     # call leaves docs/ (its page and its img/) as it was.
     new: list[tuple[str, str]] = []
@@ -195,8 +263,7 @@ def collect(suites: list[Path], out: Path, title: str = "Measured results", keep
         new += _sections(text)
     old = _sections(read_text(out)) if keep and out.is_file() else []
     tags = {re.sub(r"[^A-Za-z0-9_-]+", "_", d) for d in drop}
-    old = [(h, t) for h, t in old
-           if not any(h.endswith(f"<!-- suite: {d} -->") for d in tags) and h[3:] not in drop]
+    old = [(h, t) for h, t in old if not any(h.endswith(f"<!-- suite: {d} -->") for d in tags) and h[3:] not in drop]
     fresh = dict(new)
     merged = [(h, fresh.pop(h) if h in fresh else t) for h, t in old] + [(h, t) for h, t in new if h in fresh]
     merged = [(h, _relative_paths(t)) for h, t in merged if h not in (HEADLINE, GLOSSARY_HEADING)]

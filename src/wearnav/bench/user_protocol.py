@@ -29,9 +29,9 @@ from wearnav.dataset import Dataset
 from wearnav.evaluate import predict_sequence
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
 from wearnav.stats import walk_bootstrap_difference
-from wearnav.train.odometry import load_model
 from wearnav.textio import read_json
 from wearnav.timeseries import interp_onto
+from wearnav.train.odometry import load_model
 from wearnav.trajectory import integrate_velocity
 
 RAW_FIXES = "raw phone fixes"
@@ -54,8 +54,9 @@ def score_path(t: np.ndarray, xy: np.ndarray, truth_t: np.ndarray, truth_xy: np.
 def fix_point_errors(rec) -> np.ndarray:
     """The raw fixes' error (m) at the recording's surveyed points from the second on: the latest
     fix within :data:`wearnav.metrics.FIX_MAX_GAP_S` (NaN where none is)."""
-    return metrics.errors_at_reference(rec.fixes.t, rec.fixes.pos[:, :2], rec.truth.t[1:], rec.truth.pos[1:, :2],
-                                       metrics.FIX_MAX_GAP_S)
+    return metrics.errors_at_reference(
+        rec.fixes.t, rec.fixes.pos[:, :2], rec.truth.t[1:], rec.truth.pos[1:, :2], metrics.FIX_MAX_GAP_S
+    )
 
 
 def _paths(run, data, split):
@@ -102,8 +103,13 @@ def calibration_of(walks, every_s: float | None = None) -> dict:
     return {**cal, **fuse.sigma_scale_of(ratios)}
 
 
-def user_protocol(run: str | Path, data: str | Path, split: str = "test",
-                  cfg: fuse.FuseConfig | None = None, calibration: dict | None = None) -> dict:
+def user_protocol(
+    run: str | Path,
+    data: str | Path,
+    split: str = "test",
+    cfg: fuse.FuseConfig | None = None,
+    calibration: dict | None = None,
+) -> dict:
     """Per anchoring of :data:`wearnav.fuse.ANCHORS`: the errors at the surveyed points of
     ``split`` of ``data`` for the model of ``run`` (a run folder) under the user protocol, the
     path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk.
@@ -122,16 +128,22 @@ def user_protocol(run: str | Path, data: str | Path, split: str = "test",
         c = fuse.calibrated(cfg if cfg is not None else fuse.config_for(run, rec.meta, "phone")[0], calibration)
         for anchor, fn in fuse.ANCHORS.items():
             t0 = time.perf_counter()
-            res = fn(t, xy, fx.t, fx.pos[:, :2], fx.accuracy) if anchor != "smooth" else \
-                fuse.smooth(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, c)
+            res = (
+                fn(t, xy, fx.t, fx.pos[:, :2], fx.accuracy)
+                if anchor != "smooth"
+                else fuse.smooth(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, c)
+            )
             if anchor == "smooth":
                 smooth_s += time.perf_counter() - t0
                 walk_s += float(t[-1] - t[0])
                 out["smooth"].setdefault("inside_68", []).extend(
-                    bool(z < fuse.RADIUS_68) for z in _error_over_sigma(t, res, rec.truth))
+                    bool(z < fuse.RADIUS_68) for z in _error_over_sigma(t, res, rec.truth)
+                )
                 out["smooth"]["traces"][rec.name] = {
-                    "method": res.method, "warnings": res.warnings,
-                    **{k: v for k, v in res.info.items() if k not in ("x", "config", "smoother")}}
+                    "method": res.method,
+                    "warnings": res.warnings,
+                    **{k: v for k, v in res.info.items() if k not in ("x", "config", "smoother")},
+                }
             err, ratio = score_path(t, res.xy, rec.truth.t, rec.truth.pos[:, :2])
             out[anchor]["errors"].append(err)
             out[anchor]["by_trace"][rec.name] = _rounded(err)
@@ -145,8 +157,13 @@ def user_protocol(run: str | Path, data: str | Path, split: str = "test",
     return out
 
 
-def ensure_calibration(run: str | Path, data: str | Path, split: str = "val", name: str = fuse.CALIBRATION_JSON,
-                       method: str = "wearnav.fuse.odometry_walk_sigma on the model's validation walks") -> dict:
+def ensure_calibration(
+    run: str | Path,
+    data: str | Path,
+    split: str = "val",
+    name: str = fuse.CALIBRATION_JSON,
+    method: str = "wearnav.fuse.odometry_walk_sigma on the model's validation walks",
+) -> dict:
     """The run's smoother calibration (:func:`calibrate` on its ``split`` walks of ``data``), computed
     once and stored in the run folder as ``name`` (`track` reads :data:`wearnav.fuse.CALIBRATION_JSON`);
     recomputed when the stored one came from other walks or predates the σ scale."""
@@ -168,28 +185,54 @@ def site_calibration(run: str | Path, site: str, site_data: str | Path, trained_
     recipe's model calibrates to 0.017 m/√s on its mix, 0.56 on IPIN's walks and 0.83 on ILC2's."""
     if trained_on is not None and Path(trained_on).resolve() == Path(site_data).resolve():
         return ensure_calibration(run, trained_on, "val", f"fuse_calibration_{site}.json")
-    return ensure_calibration(run, site_data, "train", f"fuse_calibration_{site}.json",
-                              "wearnav.fuse.odometry_walk_sigma on the site's training walks (not trained on)")
+    return ensure_calibration(
+        run,
+        site_data,
+        "train",
+        f"fuse_calibration_{site}.json",
+        "wearnav.fuse.odometry_walk_sigma on the site's training walks (not trained on)",
+    )
 
 
-def user_table(folders: dict[str, Path], data: str | Path, fixes: dict | None, split: str = "test",
-               cfg: fuse.FuseConfig | None = None, calibration: dict[str, dict] | None = None) -> tuple[list[dict], dict]:
+def user_table(
+    folders: dict[str, Path],
+    data: str | Path,
+    fixes: dict | None,
+    split: str = "test",
+    cfg: fuse.FuseConfig | None = None,
+    calibration: dict[str, dict] | None = None,
+) -> tuple[list[dict], dict]:
     """The user-protocol rows (raw fixes, then each model × anchoring) and the raw per-run results;
     ``cfg`` None: each run's own calibrated config, or ``calibration[label]`` where given."""
     raw = {}
     rows = []
     if fixes:
         ratio = raw_fix_length_ratio(data, split)
-        rows.append({"path": RAW_FIXES, "traces": fixes["sequences"], "points": fixes["points"],
-                     **error_stats(np.asarray(fixes["point_errors"])), "length ratio": median_ratio(ratio), SIGMA_COLUMN: "—"})
+        rows.append(
+            {
+                "path": RAW_FIXES,
+                "traces": fixes["sequences"],
+                "points": fixes["points"],
+                **error_stats(np.asarray(fixes["point_errors"])),
+                "length ratio": median_ratio(ratio),
+                SIGMA_COLUMN: "—",
+            }
+        )
     for label, run in folders.items():
         r = raw[label] = user_protocol(run, data, split, cfg, (calibration or {}).get(label))
         for anchor in fuse.ANCHORS:
             e = np.asarray(r[anchor]["errors"])
             inside = r[anchor].get("inside_68")
-            rows.append({"path": f"{label} · {ANCHOR_LABEL[anchor]}", "traces": len(r[anchor]["length_ratio"]),
-                         "points": int(e.size), **error_stats(e), "length ratio": median_ratio(r[anchor]["length_ratio"]),
-                         SIGMA_COLUMN: round(float(np.mean(inside)), 2) if inside else "—"})
+            rows.append(
+                {
+                    "path": f"{label} · {ANCHOR_LABEL[anchor]}",
+                    "traces": len(r[anchor]["length_ratio"]),
+                    "points": int(e.size),
+                    **error_stats(e),
+                    "length ratio": median_ratio(r[anchor]["length_ratio"]),
+                    SIGMA_COLUMN: round(float(np.mean(inside)), 2) if inside else "—",
+                }
+            )
     return rows, raw
 
 
@@ -199,7 +242,8 @@ PAIRED_TEXT = (
     "resampling whole walks (:func:`wearnav.stats.walk_bootstrap_difference`). An interval across 0 "
     "means these walks cannot tell the two apart at that quantile. Against the raw fixes, each side "
     "keeps its own points (the table's *points*: a surveyed point with no fix near it in time has no "
-    "raw-fix error).")
+    "raw-fix error)."
+)
 
 
 def paired_rows(raw: dict) -> list[dict]:
@@ -211,12 +255,23 @@ def paired_rows(raw: dict) -> list[dict]:
         if len(names) < 2:
             continue
         smooth = [r["smooth"]["by_trace"][n] for n in names]
-        for other, name in ((RAW_FIXES, RAW_FIXES), ("first-fixes", ANCHOR_LABEL["first-fixes"]),
-                            ("rigid", ANCHOR_LABEL["rigid"])):
+        for other, name in (
+            (RAW_FIXES, RAW_FIXES),
+            ("first-fixes", ANCHOR_LABEL["first-fixes"]),
+            ("rigid", ANCHOR_LABEL["rigid"]),
+        ):
             d = walk_bootstrap_difference(smooth, [r[other]["by_trace"][n] for n in names])
-            rows.append({"model": label, "smoother minus": name, "walks": d["walks"],
-                         **{f"{'median' if q == 50 else f'p{q}'} (m)": f"{p:+.2f} [{lo:+.2f}, {hi:+.2f}]"
-                            for q, p, lo, hi in zip(d["quantiles"], d["difference"], d["low"], d["high"])}})
+            rows.append(
+                {
+                    "model": label,
+                    "smoother minus": name,
+                    "walks": d["walks"],
+                    **{
+                        f"{'median' if q == 50 else f'p{q}'} (m)": f"{p:+.2f} [{lo:+.2f}, {hi:+.2f}]"
+                        for q, p, lo, hi in zip(d["quantiles"], d["difference"], d["low"], d["high"])
+                    },
+                }
+            )
     return rows
 
 
@@ -237,8 +292,11 @@ def _rounded(e) -> list[float]:
 
 SIGMA_COLUMN = "inside σ's 68 % radius"  # the share of points whose error is inside it (0.68 if σ is right)
 
-ANCHOR_LABEL = {"first-fixes": "first-fix anchoring (`track` before)", "rigid": "rigid fit to all fixes",
-                "smooth": "smoother (`track` now)"}
+ANCHOR_LABEL = {
+    "first-fixes": "first-fix anchoring (`track` before)",
+    "rigid": "rigid fit to all fixes",
+    "smooth": "smoother (`track` now)",
+}
 
 
 def median_ratio(x) -> float:
@@ -251,8 +309,12 @@ def error_stats(e: np.ndarray) -> dict:
     """Median, p75, p95 and mean (m) of errors (NaN for none)."""
     if e.size == 0:
         return {k: float("nan") for k in ("median (m)", "p75 (m)", "p95 (m)", "mean (m)")}
-    return {"median (m)": float(np.median(e)), "p75 (m)": float(np.percentile(e, 75)),
-            "p95 (m)": float(np.percentile(e, 95)), "mean (m)": float(e.mean())}
+    return {
+        "median (m)": float(np.median(e)),
+        "p75 (m)": float(np.percentile(e, 75)),
+        "p95 (m)": float(np.percentile(e, 95)),
+        "mean (m)": float(e.mean()),
+    }
 
 
 def raw_fix_length_ratio(data: str | Path, split: str = "test") -> list[float]:
@@ -268,6 +330,19 @@ def raw_fix_length_ratio(data: str | Path, split: str = "test") -> list[float]:
     return out
 
 
-__all__ = ["ensure_calibration", "site_calibration", "calibrate", "calibration_of", "user_protocol", "user_table",
-           "score_path", "raw_fix_length_ratio", "RAW_FIXES", "fix_point_errors", "paired_rows", "PAIRED_TEXT",
-           "error_stats", "median_ratio"]
+__all__ = [
+    "ensure_calibration",
+    "site_calibration",
+    "calibrate",
+    "calibration_of",
+    "user_protocol",
+    "user_table",
+    "score_path",
+    "raw_fix_length_ratio",
+    "RAW_FIXES",
+    "fix_point_errors",
+    "paired_rows",
+    "PAIRED_TEXT",
+    "error_stats",
+    "median_ratio",
+]

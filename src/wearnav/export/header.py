@@ -27,13 +27,15 @@ from pathlib import Path
 from wearnav.errors import ConfigError, FormatError, one_line
 
 HEADER_FORMAT = 1
-KEY = "wearnav"                                     # ONNX metadata_props key
-EXTRA_FILE = "wearnav.json"                         # TorchScript extra file
-FORMATS = {"onnx": ".onnx", "torchscript": ".pt"}   # format → file suffix
-IMU_CHANNELS = 6                                    # per device in x: acc x y z (m/s²), gyro x y z (rad/s)
-ONNX_EXTRA = "onnx"                                 # pyproject's optional dependencies for ONNX Runtime
-ONNX_MISSING = (f"running or exporting an ONNX model needs onnx and onnxruntime: install wearnav[{ONNX_EXTRA}] "
-                f"(pip install 'wearnav[{ONNX_EXTRA}]')")
+KEY = "wearnav"  # ONNX metadata_props key
+EXTRA_FILE = "wearnav.json"  # TorchScript extra file
+FORMATS = {"onnx": ".onnx", "torchscript": ".pt"}  # format → file suffix
+IMU_CHANNELS = 6  # per device in x: acc x y z (m/s²), gyro x y z (rad/s)
+ONNX_EXTRA = "onnx"  # pyproject's optional dependencies for ONNX Runtime
+ONNX_MISSING = (
+    f"running or exporting an ONNX model needs onnx and onnxruntime: install wearnav[{ONNX_EXTRA}] "
+    f"(pip install 'wearnav[{ONNX_EXTRA}]')"
+)
 
 
 def format_of(path: str | Path) -> str | None:

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from wearnav.errors import ConfigError
-from wearnav.export.header import format_of, onnx_session, parse_header, KEY, read_header
+from wearnav.export.header import KEY, format_of, onnx_session, parse_header, read_header
 from wearnav.train.classify import ClassifyConfig
 from wearnav.train.common import RUN_KINDS
 from wearnav.train.odometry import TrainConfig
@@ -35,7 +35,7 @@ class ExportedModel:
     def predict(self, x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         return self(x, mask)
 
-    def eval(self) -> "ExportedModel":
+    def eval(self) -> ExportedModel:
         return self
 
     def parameters(self):

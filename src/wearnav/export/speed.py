@@ -33,8 +33,14 @@ from wearnav.train.odometry import TrainConfig
 RUNTIMES = {"onnx": "onnxruntime", "torchscript": "torchscript"}  # format → the runtime that runs it
 
 
-def export_speed(model: str = "suitein++", batches: Sequence[int] = (1, 256), threads: int = 1,
-                 min_run_time_s: float = MIN_RUN_TIME_S, clock: str = "wall", **model_args) -> list[dict]:
+def export_speed(
+    model: str = "suitein++",
+    batches: Sequence[int] = (1, 256),
+    threads: int = 1,
+    min_run_time_s: float = MIN_RUN_TIME_S,
+    clock: str = "wall",
+    **model_args,
+) -> list[dict]:
     """One row per (runtime, batch): ``runtime`` (pytorch; pytorch-traced-graph, eager PyTorch on
     the module the exporters trace, :meth:`~wearnav.models.base.OdometryModel.for_export`;
     onnxruntime; torchscript), ``batch``,
@@ -59,9 +65,18 @@ def export_speed(model: str = "suitein++", batches: Sequence[int] = (1, 256), th
                 for name, run in runners.items():
                     with torch.inference_mode():
                         rate, iqr = time_call(lambda: run(x, mask), min_run_time_s, clock).rate(b)
-                    rows.append({"runtime": name, "batch": b, "win_per_s": rate, "win_per_s_iqr": iqr,
-                                 "max_abs_diff": diffs[name], "params": n_parameters(net), "threads": threads,
-                                 "clock": clock})
+                    rows.append(
+                        {
+                            "runtime": name,
+                            "batch": b,
+                            "win_per_s": rate,
+                            "win_per_s_iqr": iqr,
+                            "max_abs_diff": diffs[name],
+                            "params": n_parameters(net),
+                            "threads": threads,
+                            "clock": clock,
+                        }
+                    )
     return rows
 
 
@@ -82,8 +97,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--min-run-time", type=float, default=1.0, help="seconds per timing")
     a = p.parse_args(argv)
     rows = export_speed(a.model, threads=a.threads, clock=a.clock, min_run_time_s=a.min_run_time)
-    print(f"{a.model}: {rows[0]['params'] / 1e3:.1f} K parameters, {a.threads} thread(s), {a.clock} clock, "
-          f"torch {torch.__version__}")
+    print(
+        f"{a.model}: {rows[0]['params'] / 1e3:.1f} K parameters, {a.threads} thread(s), {a.clock} clock, "
+        f"torch {torch.__version__}"
+    )
     print(speed_table(rows))
 
 

@@ -56,11 +56,17 @@ def load_run(run: str | Path) -> tuple[nn.Module, dict]:
     run = Path(run)
     task, name = run_kind(run)
     if task not in ("odometry", "classify"):
-        raise ConfigError(f"is not an odometry or classifier run ({name or 'no model'}); `wearnav export` "
-                          "takes the run folder of `wearnav train` or of a classifier", run)
+        raise ConfigError(
+            f"is not an odometry or classifier run ({name or 'no model'}); `wearnav export` "
+            "takes the run folder of `wearnav train` or of a classifier",
+            run,
+        )
     if not registry.get(name).learned:
-        raise ConfigError(f"{name} is not a learned network (NumPy step detection, no weights): nothing to "
-                          f"export; use `--model {name}` directly", run)
+        raise ConfigError(
+            f"{name} is not a learned network (NumPy step detection, no weights): nothing to "
+            f"export; use `--model {name}` directly",
+            run,
+        )
     classes = None
     if task == "odometry":
         model, cfg = odometry.load_model(run)
@@ -68,26 +74,52 @@ def load_run(run: str | Path) -> tuple[nn.Module, dict]:
         model, cfg, classes = classify.load_model(run)
     training = read_json(run / odometry.TRAINING) if (run / odometry.TRAINING).is_file() else {}
     metrics = runs.read_metrics(run) if task == "classify" and runs.is_complete(run) else {}
-    return model, make_header(task, cfg, classes, training, {k: metrics[k] for k in TRUST_METRICS if k in metrics},
-                              str(run))
+    return model, make_header(
+        task, cfg, classes, training, {k: metrics[k] for k in TRUST_METRICS if k in metrics}, str(run)
+    )
 
 
-def make_header(task: str, cfg, classes: list[str] | None = None, training: dict | None = None,
-                metrics: dict | None = None, source_run: str = "") -> dict:
+def make_header(
+    task: str,
+    cfg,
+    classes: list[str] | None = None,
+    training: dict | None = None,
+    metrics: dict | None = None,
+    source_run: str = "",
+) -> dict:
     """The header of a model of ``task`` trained with ``cfg`` (TrainConfig / ClassifyConfig)."""
     D = len(cfg.devices)
     frame = "world (gravity on +z)" if task == "odometry" else f"{cfg.frame} (ClassifyConfig.frame)"
-    out = ({"name": "velocity", "shape": ["batch", 2], "units": "m/s, horizontal x and y of the input's frame"}
-           if task == "odometry" else
-           {"name": "logits", "shape": ["batch", len(classes or ())], "units": "unnormalised log-probabilities"})
+    out = (
+        {"name": "velocity", "shape": ["batch", 2], "units": "m/s, horizontal x and y of the input's frame"}
+        if task == "odometry"
+        else {"name": "logits", "shape": ["batch", len(classes or ())], "units": "unnormalised log-probabilities"}
+    )
     return {
-        "format": HEADER_FORMAT, "task": task, "model": cfg.model, "devices": list(cfg.devices),
-        "window": cfg.window, "rate_hz": cfg.rate, "stride": getattr(cfg, "stride", None),
-        "inputs": {"x": {"shape": ["batch", D, cfg.window, IMU_CHANNELS], "dtype": "float32",
-                         "units": "per device acc x y z (m/s²) then gyro x y z (rad/s)", "frame": frame},
-                   "mask": {"shape": ["batch", D], "dtype": "float32", "units": "1.0 where the device is present"}},
-        "output": out, "config": runs.to_dict(cfg), "classes": classes, "training": training or {},
-        "metrics": metrics or {}, "source_run": source_run, "provenance": provenance(), "torch": torch.__version__,
+        "format": HEADER_FORMAT,
+        "task": task,
+        "model": cfg.model,
+        "devices": list(cfg.devices),
+        "window": cfg.window,
+        "rate_hz": cfg.rate,
+        "stride": getattr(cfg, "stride", None),
+        "inputs": {
+            "x": {
+                "shape": ["batch", D, cfg.window, IMU_CHANNELS],
+                "dtype": "float32",
+                "units": "per device acc x y z (m/s²) then gyro x y z (rad/s)",
+                "frame": frame,
+            },
+            "mask": {"shape": ["batch", D], "dtype": "float32", "units": "1.0 where the device is present"},
+        },
+        "output": out,
+        "config": runs.to_dict(cfg),
+        "classes": classes,
+        "training": training or {},
+        "metrics": metrics or {},
+        "source_run": source_run,
+        "provenance": provenance(),
+        "torch": torch.__version__,
     }
 
 
@@ -98,8 +130,9 @@ def example_inputs(header: dict, batch: int = EXAMPLE_BATCH, seed: int = 0) -> t
     return torch.randn(batch, D, L, IMU_CHANNELS, generator=g), torch.ones(batch, D)
 
 
-def parity_inputs(n_devices: int, window: int, batch: int = PARITY_BATCH, seed: int = 1
-                  ) -> tuple[torch.Tensor, torch.Tensor]:
+def parity_inputs(
+    n_devices: int, window: int, batch: int = PARITY_BATCH, seed: int = 1
+) -> tuple[torch.Tensor, torch.Tensor]:
     """At least ``batch`` seeded windows (gravity-sized offset on acc z) whose masks cycle through
     every non-empty subset of the devices (phone only, all, one missing, …)."""
     subsets = [s for k in range(1, n_devices + 1) for s in itertools.combinations(range(n_devices), k)]
@@ -129,8 +162,9 @@ def export_model(model: nn.Module, header: dict, fmt: str, out: str | Path, chec
         raise ConfigError(f"unknown export format {fmt!r}; one of {', '.join(FORMATS)}")
     out = Path(out)
     if out.suffix.lower() != FORMATS[fmt]:
-        raise ConfigError(f"a {fmt} file's name ends in {FORMATS[fmt]} (`wearnav track --model` tells formats "
-                          "by it)", out)
+        raise ConfigError(
+            f"a {fmt} file's name ends in {FORMATS[fmt]} (`wearnav track --model` tells formats by it)", out
+        )
     if out.is_dir():
         raise ConfigError("is a folder; --out names the file to write", out)
     traced = model.for_export() if hasattr(model, "for_export") else model.eval()
@@ -141,10 +175,10 @@ def export_model(model: nn.Module, header: dict, fmt: str, out: str | Path, chec
         if check:
             diff = parity(model, load_file(tmp, fmt), *parity_inputs(len(header["devices"]), header["window"]))
             if not diff <= PARITY_TOL:
-                raise ValidationError(f"the {fmt} export differs from PyTorch by {diff:.3g} (> {PARITY_TOL:g}): "
-                                      "not written", out)
-    return {"path": str(out), "format": fmt, "bytes": out.stat().st_size, "max_abs_diff": diff,
-            "tolerance": PARITY_TOL}
+                raise ValidationError(
+                    f"the {fmt} export differs from PyTorch by {diff:.3g} (> {PARITY_TOL:g}): not written", out
+                )
+    return {"path": str(out), "format": fmt, "bytes": out.stat().st_size, "max_abs_diff": diff, "tolerance": PARITY_TOL}
 
 
 def export_run(run: str | Path, fmt: str, out: str | Path) -> dict:
@@ -177,9 +211,14 @@ def _write_onnx(module: nn.Module, x: torch.Tensor, mask: torch.Tensor, header: 
         raise ConfigError(ONNX_MISSING) from None
     batch = torch.export.Dim("batch")
     with _quiet(), torch.no_grad():
-        program = torch.onnx.export(module, (x, mask), input_names=["x", "mask"],
-                                    output_names=[header["output"]["name"]], dynamic_shapes=({0: batch}, {0: batch}),
-                                    dynamo=True)
+        program = torch.onnx.export(
+            module,
+            (x, mask),
+            input_names=["x", "mask"],
+            output_names=[header["output"]["name"]],
+            dynamic_shapes=({0: batch}, {0: batch}),
+            dynamo=True,
+        )
     proto = program.model_proto
     proto.doc_string = f"wearnav {header['task']} model {header['model']}; metadata_props['{KEY}']: JSON header"
     entry = proto.metadata_props.add()
@@ -191,4 +230,3 @@ def _write_torchscript(module: nn.Module, x: torch.Tensor, mask: torch.Tensor, h
     with _quiet(), torch.no_grad():
         traced = torch.jit.trace(module, (x, mask), check_trace=False)
     torch.jit.save(traced, str(path), _extra_files={EXTRA_FILE: json.dumps(header)})
-

@@ -44,12 +44,21 @@ copy of the model to keep equal); here batch and fixed-lag share one residual fu
 
 from __future__ import annotations
 
+from wearnav.errors import ValidationError
 from wearnav.fuse.anchor import first_fix_anchor, rigid_anchor, rigid_fit
 from wearnav.fuse.calibrate import calibrated, config_for, known_heading_deg, odometry_walk_sigma, sigma_scale_of
-from wearnav.fuse.config import (ANCHOR_S, CALIBRATION_JSON, DOWNWEIGHT, MEASURED_FIX_BIAS, RADIUS_68, RAYLEIGH_MEDIAN,
-                                 FuseConfig, FuseResult, fix_sigma_m)
+from wearnav.fuse.config import (
+    ANCHOR_S,
+    CALIBRATION_JSON,
+    DOWNWEIGHT,
+    MEASURED_FIX_BIAS,
+    RADIUS_68,
+    RAYLEIGH_MEDIAN,
+    FuseConfig,
+    FuseResult,
+    fix_sigma_m,
+)
 from wearnav.fuse.smoother import smooth
-from wearnav.errors import ValidationError
 
 ANCHORS = {"first-fixes": first_fix_anchor, "rigid": rigid_anchor, "smooth": smooth}
 
@@ -61,6 +70,25 @@ def fuse(t, xy, fix_t, fix_pos, fix_accuracy, anchor: str = "smooth", cfg: FuseC
     return ANCHORS[anchor](t, xy, fix_t, fix_pos, fix_accuracy, cfg)
 
 
-__all__ = ["ANCHORS", "ANCHOR_S", "CALIBRATION_JSON", "DOWNWEIGHT", "MEASURED_FIX_BIAS", "RADIUS_68", "RAYLEIGH_MEDIAN",
-           "FuseConfig", "FuseResult", "calibrated", "config_for", "first_fix_anchor", "fix_sigma_m", "fuse",
-           "known_heading_deg", "odometry_walk_sigma", "rigid_anchor", "rigid_fit", "sigma_scale_of", "smooth"]
+__all__ = [
+    "ANCHORS",
+    "ANCHOR_S",
+    "CALIBRATION_JSON",
+    "DOWNWEIGHT",
+    "MEASURED_FIX_BIAS",
+    "RADIUS_68",
+    "RAYLEIGH_MEDIAN",
+    "FuseConfig",
+    "FuseResult",
+    "calibrated",
+    "config_for",
+    "first_fix_anchor",
+    "fix_sigma_m",
+    "fuse",
+    "known_heading_deg",
+    "odometry_walk_sigma",
+    "rigid_anchor",
+    "rigid_fit",
+    "sigma_scale_of",
+    "smooth",
+]

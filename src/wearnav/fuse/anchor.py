@@ -5,8 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wearnav.fixcheck import (DOWN_WEIGHTED, NO_POSITION, OUTSIDE, REPEAT, UNUSED, USED, WIDE, FixCheck,
-                              check_fixes)
+from wearnav.fixcheck import DOWN_WEIGHTED, NO_POSITION, OUTSIDE, REPEAT, UNUSED, USED, WIDE, FixCheck, check_fixes
 from wearnav.fuse.config import ANCHOR_S, DOWNWEIGHT, MIN_SPREAD_M, FuseConfig, FuseResult, fix_sigma_m
 
 
@@ -20,7 +19,7 @@ def rigid_fit(p: np.ndarray, q: np.ndarray, w: np.ndarray) -> tuple[float, np.nd
     dot = np.sum(w * np.sum(pc * qc, axis=1))
     yaw = float(np.arctan2(cross, dot))
     offset = qm - _rot(yaw) @ pm
-    return yaw, offset, float(np.sqrt(np.average(np.sum(pc ** 2, axis=1), weights=w)))
+    return yaw, offset, float(np.sqrt(np.average(np.sum(pc**2, axis=1), weights=w)))
 
 
 def _rot(yaw: float) -> np.ndarray:
@@ -37,23 +36,28 @@ def _kept(t: np.ndarray, fix_t, fix_pos, fix_accuracy, wide_m: float):
     fp = np.asarray(fix_pos, np.float64)[k, :2] if k.size else np.empty((0, 2))
     acc = np.asarray(fix_accuracy, np.float64)
     inside = int(np.sum(check.reason != NO_POSITION) - np.sum(check.reason == OUTSIDE))
-    facts = {"fixes": inside, "fixes_outside_span": int(len(ft) - inside),
-             "fixes_nan_accuracy": int(np.sum(~(np.isfinite(acc[k]) & (acc[k] > 0)))),
-             "fixes_wide": int(np.sum(check.reason == WIDE)),
-             "fixes_repeated": int(np.sum(check.reason == REPEAT))}
+    facts = {
+        "fixes": inside,
+        "fixes_outside_span": int(len(ft) - inside),
+        "fixes_nan_accuracy": int(np.sum(~(np.isfinite(acc[k]) & (acc[k] > 0)))),
+        "fixes_wide": int(np.sum(check.reason == WIDE)),
+        "fixes_repeated": int(np.sum(check.reason == REPEAT)),
+    }
     return check, k, ft[k], fp, acc[k], facts
 
 
-def first_fix_anchor(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy,
-                     cfg: FuseConfig = FuseConfig()) -> FuseResult:
+def first_fix_anchor(
+    t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: FuseConfig = FuseConfig()
+) -> FuseResult:
     """Today's anchoring: a rigid fit over the kept fixes (bad ones dropped first) of the first
     ``ANCHOR_S`` seconds after the first kept fix (more while the path spreads less than
     ``MIN_SPREAD_M`` over them)."""
     return _anchored(t, xy, fix_t, fix_pos, fix_accuracy, ANCHOR_S, cfg)
 
 
-def rigid_anchor(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy,
-                 cfg: FuseConfig = FuseConfig()) -> FuseResult:
+def rigid_anchor(
+    t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: FuseConfig = FuseConfig()
+) -> FuseResult:
     """One rotation + translation fitted to every kept fix of the walk, weighted by 1/σ²."""
     return _anchored(t, xy, fix_t, fix_pos, fix_accuracy, None, cfg)
 
@@ -65,8 +69,9 @@ def _anchored(t, xy, fix_t, fix_pos, fix_accuracy, first_s: float | None, cfg: F
     return _with_fixes(res, check, k, facts)
 
 
-def _with_fixes(res: FuseResult, check: FixCheck, k: np.ndarray, facts: dict,
-                weight: np.ndarray | None = None) -> FuseResult:
+def _with_fixes(
+    res: FuseResult, check: FixCheck, k: np.ndarray, facts: dict, weight: np.ndarray | None = None
+) -> FuseResult:
     """``res`` with the per-fix statuses of the kept fixes ``k`` (the first ``fixes_used`` used by
     a rigid fit; by their robust ``weight`` for the smoother) and the counts in its info."""
     if weight is not None:
@@ -91,8 +96,13 @@ def _rigid(t, xy, ft, fp, acc, first_s: float | None) -> FuseResult:
     method = "first-fixes" if first_s is not None else "rigid"
     nan = np.full(len(t), np.nan)
     if ft.size == 0:
-        return FuseResult(xy.copy(), nan, "none", {"fixes_used": 0},
-                          ["no location fix inside the walk: the path starts at (0, 0) in the odometry's own frame"])
+        return FuseResult(
+            xy.copy(),
+            nan,
+            "none",
+            {"fixes_used": 0},
+            ["no location fix inside the walk: the path starts at (0, 0) in the odometry's own frame"],
+        )
     w = 1.0 / fix_sigma_m(acc) ** 2
     p = np.stack([np.interp(ft, t, xy[:, k]) for k in range(2)], axis=1)
     n = len(ft) if first_s is None else min(len(ft), max(2, int(np.sum(ft <= ft[0] + first_s))))
@@ -105,16 +115,27 @@ def _rigid(t, xy, ft, fp, acc, first_s: float | None) -> FuseResult:
     if len(ft) < 2 or spread < 1e-6:
         yaw = 0.0
         offset = np.average(fp, axis=0, weights=w) - np.average(p, axis=0, weights=w)
-        warn.append(f"{len(ft)} location fix(es) under a path that does not move: heading unknown, "
-                    "the path is only shifted onto them")
+        warn.append(
+            f"{len(ft)} location fix(es) under a path that does not move: heading unknown, "
+            "the path is only shifted onto them"
+        )
     out = xy @ _rot(yaw).T + offset
     resid = p[:n] @ _rot(yaw).T + offset - fp[:n]
-    rms = float(np.sqrt(np.average(np.sum(resid ** 2, axis=1), weights=w[:n])))
-    return FuseResult(out, nan, method,
-                      {"fixes_used": int(n),
-                       "heading_offset_deg": float(np.degrees(yaw)), "offset_m": [float(v) for v in offset],
-                       "scale": 1.0, "path_spread_m": spread,
-                       "span_s": float(ft[n - 1] - ft[0]), "rms_residual_m": rms,
-                       # the angular error of a rotation fitted to n points at that spread
-                       "yaw_std_deg": float(np.degrees(rms / max(spread, 1e-9) / np.sqrt(n)))},
-                      warn)
+    rms = float(np.sqrt(np.average(np.sum(resid**2, axis=1), weights=w[:n])))
+    return FuseResult(
+        out,
+        nan,
+        method,
+        {
+            "fixes_used": int(n),
+            "heading_offset_deg": float(np.degrees(yaw)),
+            "offset_m": [float(v) for v in offset],
+            "scale": 1.0,
+            "path_spread_m": spread,
+            "span_s": float(ft[n - 1] - ft[0]),
+            "rms_residual_m": rms,
+            # the angular error of a rotation fitted to n points at that spread
+            "yaw_std_deg": float(np.degrees(rms / max(spread, 1e-9) / np.sqrt(n))),
+        },
+        warn,
+    )

@@ -22,7 +22,7 @@ def _init_from(prob: Problem, old: Problem, x_old: np.ndarray) -> np.ndarray:
     x[:5] = [x_old[0] + x_old[2] * (mid_new - mid_old), x_old[1], x_old[2], p0.real, p0.imag]
     b = old.bias(x_old)
     bk = np.interp(prob.knots, old.knots, b.real) + 1j * np.interp(prob.knots, old.knots, b.imag)
-    x[prob.n_global:prob.n_global + 2 * len(prob.knots)] = np.stack([bk.real, bk.imag], 1).ravel()
+    x[prob.n_global : prob.n_global + 2 * len(prob.knots)] = np.stack([bk.real, bk.imag], 1).ravel()
     return x
 
 
@@ -57,14 +57,14 @@ class _Rows:
         rows = np.asarray(rows, np.float64).reshape(-1, self._a.shape[1])
         while self._n + len(rows) > len(self._a):
             self._a = np.concatenate([self._a, np.empty_like(self._a)])
-        self._a[self._n:self._n + len(rows)] = rows
+        self._a[self._n : self._n + len(rows)] = rows
         self._n += len(rows)
 
     def append(self, row) -> None:
         self.extend([row])
 
     def view(self) -> np.ndarray:
-        return self._a[:self._n]
+        return self._a[: self._n]
 
 
 class IncrementalFuser:
@@ -150,11 +150,19 @@ class IncrementalFuser:
         frozen = self._frozen.view()
         xy_out = np.concatenate([frozen[:, :2], win])
         sig_out = np.concatenate([frozen[:, 2], sig_w])
-        info = {"fixes_window": int(len(prob.ft)), "fixes_down_weighted_window": down,
-                "window_start_s": self._start, "lag_s": self.lag_s, "slices_marginalised": self.marginalised,
-                "heading_offset_deg": float(np.degrees(sol.x[0])), "scale": float(np.exp(sol.x[1])),
-                "heading_drift_deg_per_min": float(np.degrees(sol.x[2]) * 60.0),
-                "nodes": int(len(prob.tn)), "solver_evaluations": int(sol.nfev), "config": dataclasses.asdict(self.cfg)}
+        info = {
+            "fixes_window": int(len(prob.ft)),
+            "fixes_down_weighted_window": down,
+            "window_start_s": self._start,
+            "lag_s": self.lag_s,
+            "slices_marginalised": self.marginalised,
+            "heading_offset_deg": float(np.degrees(sol.x[0])),
+            "scale": float(np.exp(sol.x[1])),
+            "heading_drift_deg_per_min": float(np.degrees(sol.x[2]) * 60.0),
+            "nodes": int(len(prob.tn)),
+            "solver_evaluations": int(sol.nfev),
+            "config": dataclasses.asdict(self.cfg),
+        }
         return FuseResult(xy_out, sig_out, "smooth-fixed-lag", info, [])
 
     def _advance(self) -> None:
@@ -162,10 +170,13 @@ class IncrementalFuser:
         new_start = self._start + self.step_s
         prob_w, x_w = self._last
         t_all = self.t
-        tk = t_all[len(self._frozen):int(np.searchsorted(t_all, new_start, side="left"))]
+        tk = t_all[len(self._frozen) : int(np.searchsorted(t_all, new_start, side="left"))]
         pw = prob_w.path(x_w)
-        self._frozen.extend(np.stack([np.interp(tk, prob_w.tn, pw.real), np.interp(tk, prob_w.tn, pw.imag),
-                                      np.full(tk.size, np.nan)], axis=1))
+        self._frozen.extend(
+            np.stack(
+                [np.interp(tk, prob_w.tn, pw.real), np.interp(tk, prob_w.tn, pw.imag), np.full(tk.size, np.nan)], axis=1
+            )
+        )
         t, xy, ft, fz, sig = self._arrays(self._start)
         piece = build_problem(t, xy, ft, fz, sig, self._start, new_start, self.cfg, self._prior)
         sol = solve(piece, _init_from(piece, prob_w, x_w))

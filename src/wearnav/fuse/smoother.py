@@ -49,7 +49,7 @@ from wearnav.fuse.config import ANCHOR_S, DISAGREE_SHARE, DOWNWEIGHT, MIN_SIGMA_
 class Problem:
     """The smoother's residuals over nodes ``tn`` with displacements ``d`` (complex) and fixes."""
 
-    def __init__(self, tn, d, ft, fz, sigma, cfg: FuseConfig, prior: "Prior | None" = None):
+    def __init__(self, tn, d, ft, fz, sigma, cfg: FuseConfig, prior: Prior | None = None):
         self.tn, self.d, self.cfg, self.prior = tn, d, cfg, prior
         self.bias_sigma_m = cfg.bias_sigma_m
         self.tau = tn[:-1] - 0.5 * (tn[0] + tn[-1])  # time of each displacement about the middle
@@ -75,13 +75,13 @@ class Problem:
         """The heading correction (rad) of each displacement."""
         h = x[0] + x[2] * self.tau
         if self.walk:
-            hk = x[self.h0:self.s0]
+            hk = x[self.h0 : self.s0]
             h = h + hk[self.i_h] * (1 - self.w_h) + hk[self.i_h + 1] * self.w_h
         return h
 
     def slack_xy(self, x: np.ndarray) -> np.ndarray:
         """The odometry's position error at the knots (complex, m)."""
-        e = x[self.s0:self.s0 + 2 * len(self.knots)].reshape(-1, 2)
+        e = x[self.s0 : self.s0 + 2 * len(self.knots)].reshape(-1, 2)
         return e[:, 0] + 1j * e[:, 1]
 
     def path(self, x: np.ndarray) -> np.ndarray:
@@ -94,7 +94,7 @@ class Problem:
         return p
 
     def bias(self, x: np.ndarray) -> np.ndarray:
-        b = x[self.n_global:self.n_global + 2 * len(self.knots)].reshape(-1, 2)
+        b = x[self.n_global : self.n_global + 2 * len(self.knots)].reshape(-1, 2)
         return b[:, 0] + 1j * b[:, 1]
 
     def fix_residual(self, x: np.ndarray) -> np.ndarray:
@@ -109,19 +109,19 @@ class Problem:
         r = self.fix_residual(x)
         s2 = np.abs(r) ** 2
         # 2-D Cauchy: each fix contributes ρ(|r|²) = c² log(1 + |r|²/c²) (its x and y together)
-        scale = np.sqrt(c ** 2 * np.log1p(s2 / c ** 2) / np.maximum(s2, 1e-300))
+        scale = np.sqrt(c**2 * np.log1p(s2 / c**2) / np.maximum(s2, 1e-300))
         scale = np.where(s2 > 1e-12, scale, 1.0)
         rf = r * scale
         b = self.bias(x)
         sb = self.bias_sigma_m
-        prior_b = np.concatenate([[b[0] / sb], (b[1:] - self.a * b[:-1]) / (sb * np.sqrt(1 - self.a ** 2))])
+        prior_b = np.concatenate([[b[0] / sb], (b[1:] - self.a * b[:-1]) / (sb * np.sqrt(1 - self.a**2))])
         globals_prior = [(x[1] - np.log(cfg.scale_prior)) / cfg.scale_prior_log_sigma, x[2] / cfg.drift_sigma_rad_s]
         if self.prior is not None:  # the marginal of the frozen past replaces the priors at the start
             prior_b[0] = 0.0
             globals_prior = [0.0, 0.0]
         out = [rf.real, rf.imag, prior_b.real, prior_b.imag, globals_prior]
         if self.walk:  # h_0 = 0 (θ holds the offset), then a random walk between knots
-            hk = x[self.h0:self.s0]
+            hk = x[self.h0 : self.s0]
             sd = np.radians(cfg.heading_walk_deg_per_sqrt_min) * np.sqrt(np.diff(self.knots) / 60.0)
             out.append(np.concatenate([[hk[0] / 1e-3], np.diff(hk) / sd]))
         if self.slack:  # e_0 = 0 (the origin holds the start), then a random walk
@@ -139,7 +139,7 @@ class Problem:
     def start_state(self, x: np.ndarray) -> np.ndarray:
         """The state the frozen past's prior constrains, at the first node: position (2), heading
         (rad), fix bias (2), log scale, drift (rad/s)."""
-        b0 = x[self.n_global:self.n_global + 2]
+        b0 = x[self.n_global : self.n_global + 2]
         return np.array([x[3], x[4], x[0] + x[2] * self.tau[0], b0[0], b0[1], x[1], x[2]])
 
     def end_state(self, x: np.ndarray) -> np.ndarray:
@@ -158,7 +158,7 @@ class Problem:
         m = lil_matrix((n_rows, self.n_params), dtype=int)
         if heading:
             m[n_rows - 1, [0, 2]] = 1
-        m[:2 * nf, self.h0:self.s0] = 1  # a fix depends on every heading knot (before it)
+        m[: 2 * nf, self.h0 : self.s0] = 1  # a fix depends on every heading knot (before it)
         if self.slack:  # and on the slack knots around its nodes
             i_n = np.clip(self.i_n, 0, len(self.tn) - 2)
             for dn in (0, 1):
@@ -170,15 +170,15 @@ class Problem:
         row = 2 * nf + 2 * nk + 2
         if self.walk:
             for k in range(nk):
-                m[row + k, self.h0 + max(k - 1, 0):self.h0 + k + 1] = 1
+                m[row + k, self.h0 + max(k - 1, 0) : self.h0 + k + 1] = 1
             row += nk
         if self.slack:
             for k in range(2 * nk):
                 kk = k % nk
-                m[row + k, self.s0 + 2 * max(kk - 1, 0):self.s0 + 2 * kk + 2] = 1
+                m[row + k, self.s0 + 2 * max(kk - 1, 0) : self.s0 + 2 * kk + 2] = 1
         for half in range(2):
             rows = half * nf + np.arange(nf)
-            m[rows, :self.n_global] = 1
+            m[rows, : self.n_global] = 1
             for dk in (0, 1):
                 for ax in range(2):
                     m[rows, self.n_global + 2 * (self.i_b + dk) + ax] = 1
@@ -193,7 +193,7 @@ class Problem:
             from scipy.sparse import vstack
 
             p = lil_matrix((Prior.size, self.n_params), dtype=int)
-            p[:, :self.n_global + 2] = 1
+            p[:, : self.n_global + 2] = 1
             m = vstack([m, p]).tolil()
         return m
 
@@ -205,8 +205,15 @@ def _lin(grid: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return i, w
 
 
-def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: FuseConfig = FuseConfig(),
-           x0: np.ndarray | None = None) -> FuseResult:
+def smooth(
+    t: np.ndarray,
+    xy: np.ndarray,
+    fix_t,
+    fix_pos,
+    fix_accuracy,
+    cfg: FuseConfig = FuseConfig(),
+    x0: np.ndarray | None = None,
+) -> FuseResult:
     """The smoothed path (module docstring) of odometry ``xy`` (N, 2) m at times ``t`` (N,) s,
     given fixes at ``fix_t`` (M,) s, ``fix_pos`` (M, 2) m east/north, ``fix_accuracy`` (M,) m."""
     t, xy = np.asarray(t, np.float64), np.asarray(xy, np.float64)
@@ -222,8 +229,9 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
     if x0 is None or len(x0) != prob.n_params:
         yaw = rigid.info["heading_offset_deg"]
         o = _rot(np.radians(yaw)) @ xy[0] + np.asarray(rigid.info["offset_m"])
-        x0 = np.concatenate([[np.radians(yaw), np.log(cfg.scale_prior), 0.0, o[0], o[1]],
-                             np.zeros(prob.n_params - prob.n_global)])
+        x0 = np.concatenate(
+            [[np.radians(yaw), np.log(cfg.scale_prior), 0.0, o[0], o[1]], np.zeros(prob.n_params - prob.n_global)]
+        )
     sol = solve(prob, x0)
     x = sol.x
     r = np.abs(prob.fix_residual(x))
@@ -233,19 +241,27 @@ def smooth(t: np.ndarray, xy: np.ndarray, fix_t, fix_pos, fix_accuracy, cfg: Fus
     pnode = prob.path(x)
     out = np.stack([np.interp(t, tn, pnode.real), np.interp(t, tn, pnode.imag)], axis=1)
     sig_node = node_sigma(prob, x, sol.jac, pnode)
-    info = {"fixes_used": int(len(ft) - down), "fixes_down_weighted": down,
-            "heading_offset_deg": float(np.degrees(x[0])), "scale": float(np.exp(x[1])),
-            "heading_drift_deg_per_min": float(np.degrees(x[2]) * 60.0),
-            "origin_m": [float(x[3]), float(x[4])],
-            "fix_bias_rms_m": float(np.sqrt(np.mean(np.abs(prob.bias(x)) ** 2))),
-            "fix_bias_sigma_m": prob.bias_sigma_m,
-            "nodes": int(len(tn)), "solver_evaluations": int(sol.nfev),
-            "config": dataclasses.asdict(cfg), "x": [float(v) for v in x]}
+    info = {
+        "fixes_used": int(len(ft) - down),
+        "fixes_down_weighted": down,
+        "heading_offset_deg": float(np.degrees(x[0])),
+        "scale": float(np.exp(x[1])),
+        "heading_drift_deg_per_min": float(np.degrees(x[2]) * 60.0),
+        "origin_m": [float(x[3]), float(x[4])],
+        "fix_bias_rms_m": float(np.sqrt(np.mean(np.abs(prob.bias(x)) ** 2))),
+        "fix_bias_sigma_m": prob.bias_sigma_m,
+        "nodes": int(len(tn)),
+        "solver_evaluations": int(sol.nfev),
+        "config": dataclasses.asdict(cfg),
+        "x": [float(v) for v in x],
+    }
     if down > DISAGREE_SHARE * len(ft):
         first = _with_fixes(_rigid(t, xy, ft, fz, acc, ANCHOR_S), check, kept, facts)
         first.info["smoother"] = info
-        first.warnings.append(f"{down} of {len(ft)} location fixes disagree with the path and with each other: "
-                              "fell back to anchoring on the first minute's fixes")
+        first.warnings.append(
+            f"{down} of {len(ft)} location fixes disagree with the path and with each other: "
+            "fell back to anchoring on the first minute's fixes"
+        )
         return first
     return _with_fixes(FuseResult(out, np.interp(t, tn, sig_node), "smooth", info, []), check, kept, facts, weight)
 
@@ -298,13 +314,21 @@ def build_problem(t, xy, ft, fz, sigma, t0, t1, cfg, prior=None) -> Problem:
     k = (ft >= t0) & (ft <= t1)
     sigma = sigma[k]
     share = cfg.bias_share
-    prob = Problem(tn, np.diff(pn[:, 0] + 1j * pn[:, 1]), ft[k], fz[k],
-                    np.maximum(sigma * np.sqrt(1.0 - share), MIN_SIGMA_M) if share > 0 else sigma, cfg, prior)
+    prob = Problem(
+        tn,
+        np.diff(pn[:, 0] + 1j * pn[:, 1]),
+        ft[k],
+        fz[k],
+        np.maximum(sigma * np.sqrt(1.0 - share), MIN_SIGMA_M) if share > 0 else sigma,
+        cfg,
+        prior,
+    )
     if share > 0 and sigma.size:
         prob.bias_sigma_m = float(np.sqrt(share) * np.median(sigma))
     return prob
 
 
 def solve(prob: Problem, x0: np.ndarray):
-    return least_squares(prob.residuals, x0, jac_sparsity=prob.sparsity(), method="trf", x_scale="jac",
-                         ftol=1e-6, xtol=1e-6)
+    return least_squares(
+        prob.residuals, x0, jac_sparsity=prob.sparsity(), method="trf", x_scale="jac", ftol=1e-6, xtol=1e-6
+    )

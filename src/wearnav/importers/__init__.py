@@ -32,16 +32,18 @@ def get_importer(fmt: str) -> ModuleType:
     return importlib.import_module(FORMATS[fmt])
 
 
-def import_dataset(fmt: str, src: str | Path, out: str | Path, limit: int | None = None,
-                   progress: bool = True, **options):
+def import_dataset(
+    fmt: str, src: str | Path, out: str | Path, limit: int | None = None, progress: bool = True, **options
+):
     """Read ``src`` with the ``fmt`` importer and write a dataset folder at ``out``; ``options``
     go to that importer's ``read`` (e.g. sensorlogger's ``platform``)."""
     from wearnav.dataset import Dataset, DatasetWriter
 
     src = Path(src)
     module = get_importer(fmt)  # each read() checks src and limit (common.check_source)
-    bar = Progress(module.read(src, limit=limit, **options), total=limit, desc=f"import {fmt}", unit="rec",
-                   enabled=progress)
+    bar = Progress(
+        module.read(src, limit=limit, **options), total=limit, desc=f"import {fmt}", unit="rec", enabled=progress
+    )
     try:
         made_by = {"importer": fmt, "src": str(src.resolve()), "limit": limit, **options}
         with DatasetWriter(out, made_by) as writer:

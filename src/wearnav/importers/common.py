@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav.errors import ConfigError, FormatError, MissingFileError, ValidationError
+from wearnav.errors import ConfigError, FormatError, MissingFileError
 from wearnav.fileio import require_regular_file
 from wearnav.rotations import NotUnitQuaternion, from_android_rotation_vector, normalize_wxyz
 
@@ -94,6 +94,7 @@ def check_finite(arr: np.ndarray, what: str, path: str | Path) -> None:
 
 # ---- the start of every importer's read() ------------------------------------------------------
 
+
 def check_limit(limit) -> int | None:
     """``limit`` (at most this many recordings) if it is None or a non-negative integer."""
     if limit is None:
@@ -103,8 +104,9 @@ def check_limit(limit) -> int | None:
     return int(limit)
 
 
-def check_source(src: str | Path, limit=None, *, expect: str, file: bool = True,
-                 folder: bool = True) -> tuple[Path, int | None]:
+def check_source(
+    src: str | Path, limit=None, *, expect: str, file: bool = True, folder: bool = True
+) -> tuple[Path, int | None]:
     """The checks every importer's ``read()`` starts with; returns ``(src, limit)``.
 
     ``src`` must exist (a file may also be found as ``.gz`` / ``.xz``) and be a folder or a
@@ -138,8 +140,9 @@ def check_latlon(lat: np.ndarray, lon: np.ndarray, what: str, path: str | Path) 
     bad = ~((np.abs(lat) <= 90) & (np.abs(lon) <= 180))
     if np.any(bad):
         i = int(np.argmax(bad))
-        raise FormatError(f"{what}: latitude/longitude ({lat[i]:g}, {lon[i]:g}) out of range "
-                          f"(first at row {i} of that type)", path)
+        raise FormatError(
+            f"{what}: latitude/longitude ({lat[i]:g}, {lon[i]:g}) out of range (first at row {i} of that type)", path
+        )
 
 
 # Unix times of real recordings: after 2000-01-01 and before 2100-01-01. A timestamp outside
@@ -154,8 +157,11 @@ def check_unix_time(t_s: np.ndarray, what: str, path: str | Path) -> None:
     bad = ~((t_s >= lo) & (t_s <= hi))
     if np.any(bad):
         i = int(np.argmax(bad))
-        raise FormatError(f"{what}: timestamp {t_s[i]:.6g} s at row {i} of that type is not a Unix time "
-                          "between 2000 and 2100 (corrupt value or wrong unit?)", path)
+        raise FormatError(
+            f"{what}: timestamp {t_s[i]:.6g} s at row {i} of that type is not a Unix time "
+            "between 2000 and 2100 (corrupt value or wrong unit?)",
+            path,
+        )
 
 
 # The importers' gap rule when they merge a phone's gyroscope / orientation onto its accelerometer
@@ -167,11 +173,11 @@ MAX_INTERP_GAP_S = 0.25
 
 # ---- Android sensor logs (ilc2, ipin2023) ------------------------------------------------------
 
+
 def quat_from_rotation_vector(v: np.ndarray, path: str | Path, what: str) -> np.ndarray:
     """Android rotation-vector values (N, 3) x, y, z or (N, ≥4) x, y, z, w → unit (w, x, y, z)
     (:func:`wearnav.rotations.from_android_rotation_vector`), refusing rows that are not one."""
     try:
         return normalize_wxyz(from_android_rotation_vector(v))
     except NotUnitQuaternion as exc:
-        raise FormatError(f"{what}: row {exc.row} is not a rotation vector (|q| = {exc.norm:.3f})",
-                          path) from None
+        raise FormatError(f"{what}: row {exc.row} is not a rotation vector (|q| = {exc.norm:.3f})", path) from None

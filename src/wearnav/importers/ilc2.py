@@ -68,8 +68,7 @@ from wearnav.timeseries import drop_duplicate_times, interp_onto
 SOURCE = "ilc2"
 LICENCE = "MIT (Copyright (c) 2017-2020 XYZ10, Inc.; Indoor Location Competition 2.0 sample data)"
 
-ACC, GYRO, ROTVEC, WAYPOINT = ("TYPE_ACCELEROMETER", "TYPE_GYROSCOPE", "TYPE_ROTATION_VECTOR",
-                               "TYPE_WAYPOINT")
+ACC, GYRO, ROTVEC, WAYPOINT = ("TYPE_ACCELEROMETER", "TYPE_GYROSCOPE", "TYPE_ROTATION_VECTOR", "TYPE_WAYPOINT")
 # Values each imported row type must carry after the timestamp and type columns.
 MIN_VALUES = {ACC: 3, GYRO: 3, ROTVEC: 3, WAYPOINT: 2}
 # How far outside the floor plan a waypoint may lie (survey slack at the plan's edge).
@@ -77,6 +76,7 @@ MAP_MARGIN_M, MAP_MARGIN_SHARE = 10.0, 0.1
 TRACE_SUFFIXES = (".txt", ".txt.gz", ".txt.xz")
 
 # ---- reading one trace ---------------------------------------------------------------------
+
 
 def _parse_header(lines: list[str]) -> dict[str, str]:
     info: dict[str, str] = {}
@@ -173,7 +173,7 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
             continue
         i = ln.find("\t")
         j = ln.find("\t", i + 1)
-        bucket = rows.get(ln[i + 1: j] if j > 0 else ln[i + 1:])
+        bucket = rows.get(ln[i + 1 : j] if j > 0 else ln[i + 1 :])
         if bucket is not None:
             bucket.append(ln)
         elif first_data is None:
@@ -233,14 +233,20 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
         wp = data[WAYPOINT]
         if size is not None:  # waypoints were surveyed on this floor plan (all 580 shipped lie on it)
             margin = max(MAP_MARGIN_M, MAP_MARGIN_SHARE * max(size))
-            off = ((wp[:, 1] < -margin) | (wp[:, 1] > size[0] + margin) |
-                   (wp[:, 2] < -margin) | (wp[:, 2] > size[1] + margin))
+            off = (
+                (wp[:, 1] < -margin)
+                | (wp[:, 1] > size[0] + margin)
+                | (wp[:, 2] < -margin)
+                | (wp[:, 2] > size[1] + margin)
+            )
             if np.any(off):
                 i = int(np.argmax(off))
-                raise ValidationError(f"{WAYPOINT} ({wp[i, 1]:g}, {wp[i, 2]:g}) m lies outside the "
-                                      f"{size[0]:.0f} × {size[1]:.0f} m floor plan of floor_info.json", path)
-        truth = Trajectory(secs(wp), wp[:, 1:3],
-                           floor=None if floor is None else np.full(len(wp), float(floor)))
+                raise ValidationError(
+                    f"{WAYPOINT} ({wp[i, 1]:g}, {wp[i, 2]:g}) m lies outside the "
+                    f"{size[0]:.0f} × {size[1]:.0f} m floor plan of floor_info.json",
+                    path,
+                )
+        truth = Trajectory(secs(wp), wp[:, 1:3], floor=None if floor is None else np.full(len(wp), float(floor)))
 
     stream = DeviceStream(t=t, acc=acc[:, 1:4], gyro=gyro, quat=quat)
     name = strip_compression(path)
@@ -275,12 +281,15 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
         meta["map_size_m"] = size
     if truncated:
         meta["truncated"] = "no endTime footer: the trace was cut short (an unfinished last line is dropped)"
-        warnings.warn(WearnavWarning(f"{path}: {meta['truncated']}; imported as far as it goes, "
-                                     "flagged in meta['truncated']"), stacklevel=2)
+        warnings.warn(
+            WearnavWarning(f"{path}: {meta['truncated']}; imported as far as it goes, flagged in meta['truncated']"),
+            stacklevel=2,
+        )
     return Recording(name=name, devices={"phone": stream}, truth=truth, meta=meta)
 
 
 # ---- finding traces ------------------------------------------------------------------------
+
 
 def find_traces(src: Path) -> list[Path]:
     """Trace files under ``src``, sorted; prefer those in ``path_data_files`` folders.

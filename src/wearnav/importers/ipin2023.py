@@ -63,7 +63,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav import geo
-from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError
+from wearnav.errors import FormatError, ValidationError, WearnavError
 from wearnav.importers.common import (
     MAX_INTERP_GAP_S,
     check_finite,
@@ -80,8 +80,10 @@ from wearnav.recording import ANDROID_ENU_FRAME, DeviceStream, Fixes, Recording,
 from wearnav.timeseries import drop_duplicate_times, interp_onto, rate
 
 SOURCE = "ipin2023"
-LICENCE = ("CC BY 4.0 (Zenodo record; licence of the 2023 record to be confirmed) - cite "
-           "Torres-Sospedra et al., IPIN 2023 Track 3 datasets, doi:10.5281/zenodo.8362205")
+LICENCE = (
+    "CC BY 4.0 (Zenodo record; licence of the 2023 record to be confirmed) - cite "
+    "Torres-Sospedra et al., IPIN 2023 Track 3 datasets, doi:10.5281/zenodo.8362205"
+)
 
 # Known venues: name -> (lat, lon) of the local frame origin.
 VENUES = {
@@ -97,16 +99,15 @@ MAX_CLOCK_DISAGREEMENT_S = 1.0
 # Numeric columns needed after the tag (the rest is optional): text logs.
 TXT_COLUMNS = {"ACCE": 5, "GYRO": 5, "AHRS": 8, "GNSS": 7, "POSI": 5}
 # The .mat conversion's variables and their needed columns (no accuracy / counter columns).
-MAT_VARS = {"Acce": ("ACCE", 5), "Gyro": ("GYRO", 5), "Ahrs": ("AHRS", 8), "Gnss": ("GNSS", 7),
-            "Posi": ("POSI", 4)}
+MAT_VARS = {"Acce": ("ACCE", 5), "Gyro": ("GYRO", 5), "Ahrs": ("AHRS", 8), "Gnss": ("GNSS", 7), "Posi": ("POSI", 4)}
 LOG_SUFFIXES = (".txt", ".txt.gz", ".txt.xz", ".mat")
-SPLITS = {"training": "train", "testing": "validation", "validation": "validation",
-          "scoring": "test"}
+SPLITS = {"training": "train", "testing": "validation", "validation": "validation", "scoring": "test"}
 
 log = logging.getLogger(__name__)
 
 
 # ---- parsing -------------------------------------------------------------------------------
+
 
 def _parse_block(rows: list[str], tag: str, path: Path) -> np.ndarray:
     need = TXT_COLUMNS[tag]
@@ -117,13 +118,16 @@ def _parse_block(rows: list[str], tag: str, path: Path) -> np.ndarray:
     if df.shape[1] < 1 + need:
         raise FormatError(f"{tag} rows have {df.shape[1] - 1} fields, expected at least {need}", path)
     try:
-        arr = df.iloc[:, 1: 1 + need].to_numpy(dtype=np.float64)
+        arr = df.iloc[:, 1 : 1 + need].to_numpy(dtype=np.float64)
     except (ValueError, TypeError) as exc:
         raise FormatError(f"{tag} rows: not a number ({exc})", path) from None
     check_finite(arr, f"{tag} rows", path)
     if tag == "POSI":  # App, Counter, Lat, Lon, floor[, building] -> App, Lat, Lon, floor, building
-        building = (pd.to_numeric(df.iloc[:, 6], errors="coerce").to_numpy(np.float64)
-                    if df.shape[1] > 6 else np.full(len(df), np.nan))
+        building = (
+            pd.to_numeric(df.iloc[:, 6], errors="coerce").to_numpy(np.float64)
+            if df.shape[1] > 6
+            else np.full(len(df), np.nan)
+        )
         arr = np.column_stack([arr[:, 0], arr[:, 2], arr[:, 3], arr[:, 4], building])
     return arr
 
@@ -132,8 +136,14 @@ def _header_info(lines: list[str]) -> dict[str, str]:
     info = {}
     for ln in lines:
         m = re.match(r"%\s*([A-Za-z][A-Za-z ]*?)\s*:\s*(.+?)\s*$", ln)
-        if m and m.group(1) in ("Manufacturer", "Model", "API Android version",
-                                "Android version Release", "Date of creation", "Version"):
+        if m and m.group(1) in (
+            "Manufacturer",
+            "Model",
+            "API Android version",
+            "Android version Release",
+            "Date of creation",
+            "Version",
+        ):
             info[m.group(1)] = m.group(2).strip()
         m = re.match(r"%\s*Version\s+(\S.*?)\s*$", ln)
         if m:
@@ -213,6 +223,7 @@ def read_mat(path: Path) -> tuple[dict[str, np.ndarray], dict[str, str]]:
 
 # ---- building the recording ----------------------------------------------------------------
 
+
 def _imu(data: dict[str, np.ndarray], path: Path, meta: dict) -> DeviceStream:
     dropped: dict[str, int] = {}
     streams = {}
@@ -230,8 +241,7 @@ def _imu(data: dict[str, np.ndarray], path: Path, meta: dict) -> DeviceStream:
         if tag in streams:
             own = float(np.min(streams[tag][:, 0] - streams[tag][:, 1]))
             if abs(own - offset) > MAX_CLOCK_DISAGREEMENT_S:
-                raise ValidationError(
-                    f"{tag} sensor clock differs from ACCE's by {own - offset:.3f} s", path)
+                raise ValidationError(f"{tag} sensor clock differs from ACCE's by {own - offset:.3f} s", path)
     t = acc[:, 1] + offset
     keep = np.ones(t.shape, bool)
     gyro = quat = None
@@ -254,12 +264,14 @@ def _imu(data: dict[str, np.ndarray], path: Path, meta: dict) -> DeviceStream:
         quat = None if quat is None else quat[keep]
     if t.size < 2:
         raise FormatError(f"only {t.size} ACCE sample(s)", path)
-    meta.update({
-        "imu_clock_offset_s": round(offset, 6),
-        "imu_latency_median_s": round(float(np.median(acc[:, 0] - acc[:, 1]) - offset), 6),
-        "dropped_duplicates": dropped,
-        "dropped_uncovered": n_uncovered,
-    })
+    meta.update(
+        {
+            "imu_clock_offset_s": round(offset, 6),
+            "imu_latency_median_s": round(float(np.median(acc[:, 0] - acc[:, 1]) - offset), 6),
+            "dropped_duplicates": dropped,
+            "dropped_uncovered": n_uncovered,
+        }
+    )
     return DeviceStream(t=t, acc=acc[:, 2:5], gyro=gyro, quat=quat)
 
 
@@ -279,12 +291,14 @@ def _gnss(g: np.ndarray, path: Path, meta: dict):
     older = g_unique[:, 1] <= newest_before
     stale = late | older
     g_kept = g_unique[~stale]
-    meta.update({
-        "gnss_clock_offset_s": round(offset, 4),
-        "t0_unix_s": round(-offset, 3),  # Unix time of app-clock zero (from the fixes)
-        "gnss_repeats_dropped": int(repeat.sum()),
-        "gnss_stale_dropped": int(stale.sum()),
-    })
+    meta.update(
+        {
+            "gnss_clock_offset_s": round(offset, 4),
+            "t0_unix_s": round(-offset, 3),  # Unix time of app-clock zero (from the fixes)
+            "gnss_repeats_dropped": int(repeat.sum()),
+            "gnss_stale_dropped": int(stale.sum()),
+        }
+    )
     if not len(g_kept):
         return None
     t = g_kept[:, 1] + offset
@@ -364,11 +378,17 @@ def _read_log(path: Path) -> Recording:
     if posi is not None or fix_t is not None:
         ref = (posi[0, 1], posi[0, 2]) if posi is not None else (fix_lat[0], fix_lon[0])
         lat0, lon0, origin = _origin(*ref)
-        meta.update({"origin_lat": lat0, "origin_lon": lon0, "origin": origin, "projection": geo.PROJECTION,
-                     "position_frame": "local east, north (m) around origin_lat/origin_lon"})
+        meta.update(
+            {
+                "origin_lat": lat0,
+                "origin_lon": lon0,
+                "origin": origin,
+                "projection": geo.PROJECTION,
+                "position_frame": "local east, north (m) around origin_lat/origin_lon",
+            }
+        )
         if posi is not None:
-            truth = Trajectory(posi[:, 0], geo.latlon_to_local(posi[:, 1], posi[:, 2], lat0, lon0),
-                               floor=posi[:, 3])
+            truth = Trajectory(posi[:, 0], geo.latlon_to_local(posi[:, 1], posi[:, 2], lat0, lon0), floor=posi[:, 3])
             buildings = sorted({int(b) for b in posi[:, 4] if np.isfinite(b)})
             meta["building"] = buildings[0] if len(buildings) == 1 else (buildings or None)
             meta["floors"] = sorted({int(f) for f in posi[:, 3]})
@@ -378,6 +398,7 @@ def _read_log(path: Path) -> Recording:
 
 
 # ---- finding logs --------------------------------------------------------------------------
+
 
 def _looks_like_log(path: Path) -> bool:
     """Cheap sniff of a file found in a folder: is it a GetSensorData log (or broken trying)?"""
@@ -413,7 +434,9 @@ def find_logs(src: Path) -> list[Path]:
         if not (p.is_file() and p.name.endswith(LOG_SUFFIXES)):
             continue
         stem = strip_compression(p)
-        stem = stem[: -len(".txt")] if stem.endswith(".txt") else stem[: -len(".mat")] if stem.endswith(".mat") else stem
+        stem = (
+            stem[: -len(".txt")] if stem.endswith(".txt") else stem[: -len(".mat")] if stem.endswith(".mat") else stem
+        )
         key = p.with_name(stem)
         prev = by_stem.get(key)
         if prev is None or (prev.name.endswith(".mat") and not p.name.endswith(".mat")):

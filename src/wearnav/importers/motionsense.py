@@ -58,8 +58,12 @@ from wearnav.rotations import from_euler, to_wxyz
 
 RATE_HZ = 50.0
 ACTIVITIES = {
-    "dws": "downstairs", "ups": "upstairs", "wlk": "walking",
-    "jog": "jogging", "sit": "sitting", "std": "standing",
+    "dws": "downstairs",
+    "ups": "upstairs",
+    "wlk": "walking",
+    "jog": "jogging",
+    "sit": "sitting",
+    "std": "standing",
 }
 ATTITUDE = ["attitude.roll", "attitude.pitch", "attitude.yaw"]
 GRAVITY = ["gravity.x", "gravity.y", "gravity.z"]
@@ -77,7 +81,7 @@ META = {
     "source": "motionsense",
     "dataset": "MotionSense (Malekzadeh, Clegg, Cavallaro, Haddadi), A_DeviceMotion_data",
     "licence": "MIT (official repository, (c) 2018 Mohammad Malekzadeh); no separate data "
-               "licence stated (the Kaggle mirror lists ODbL)",
+    "licence stated (the Kaggle mirror lists ODbL)",
     "url": "https://github.com/mmalekzadeh/motion-sense",
     "citation": "Malekzadeh et al., Mobile Sensor Data Anonymization, IoTDI 2019",
     "device": "iPhone 6s (Core Motion CMDeviceMotion via SensingKit/Crowdsense)",
@@ -94,13 +98,13 @@ def _trial_dirs(src: Path) -> list[Path]:
         if base.is_dir():
             dirs = [d for d in base.iterdir() if d.is_dir() and TRIAL_RE.match(d.name)]
             if dirs:
+
                 def key(d: Path):
                     act, trial = TRIAL_RE.match(d.name).groups()
                     return (int(trial), act)
+
                 return sorted(dirs, key=key)
-    raise FormatError(
-        f"no MotionSense trial folders (dws_1, wlk_7, ... under {DATA_DIR}/) found", src
-    )
+    raise FormatError(f"no MotionSense trial folders (dws_1, wlk_7, ... under {DATA_DIR}/) found", src)
 
 
 def _subject_files(trial_dir: Path) -> list[tuple[int, Path]]:
@@ -141,7 +145,9 @@ def read_subjects(path: Path) -> dict[int, dict]:
         if gender not in (0, 1):
             raise FormatError(f"gender must be 0 (F) or 1 (M), got {gender:g} for subject {code:g}", path)
         out[int(code)] = {
-            "weight_kg": float(weight), "height_cm": float(height), "age": int(age),
+            "weight_kg": float(weight),
+            "height_cm": float(height),
+            "age": int(age),
             "gender": "M" if gender == 1 else "F",
         }
     return out
@@ -162,15 +168,16 @@ def read_file(path: Path, act: str, trial: int, subject: int, subject_info: dict
         i = int(bad[0])
         raise FormatError(
             f"row index is not 0, 1, 2, ... (row {i} has index {index[i]:g}); time is built from "
-            f"it at {RATE_HZ:g} Hz, so rows must be complete and in order", path)
-    att, grav, rot, user = (vals[:, k:k + 3] for k in (0, 3, 6, 9))
+            f"it at {RATE_HZ:g} Hz, so rows must be complete and in order",
+            path,
+        )
+    att, grav, rot, user = (vals[:, k : k + 3] for k in (0, 3, 6, 9))
     n = len(df)
     # Core Motion's Euler angles lie in [-π, π] (pitch in [-π/2, π/2]); anything else is not an
     # attitude, though its quaternion would still look like one.
     if np.any(np.abs(att) > np.pi + 1e-3):
         i = int(np.argmax(np.any(np.abs(att) > np.pi + 1e-3, axis=1)))
-        raise FormatError(f"row {i}: attitude angle {float(np.max(np.abs(att[i]))):.4g} rad is "
-                          "outside [-π, π]", path)
+        raise FormatError(f"row {i}: attitude angle {float(np.max(np.abs(att[i]))):.4g} rad is outside [-π, π]", path)
     # Core Motion's gravity is a unit vector in g: a direct check of the units.
     gnorm = float(np.median(np.linalg.norm(grav, axis=1)))
     if not 0.95 <= gnorm <= 1.05:
@@ -196,8 +203,10 @@ def read_file(path: Path, act: str, trial: int, subject: int, subject_info: dict
             "file": f"{act}_{trial}/{path.name}",
         }
         return Recording(
-            name=name, devices={"phone": stream},
-            labels=[(0.0, n / RATE_HZ, "activity", activity)], meta=meta,
+            name=name,
+            devices={"phone": stream},
+            labels=[(0.0, n / RATE_HZ, "activity", activity)],
+            meta=meta,
         )
     except ValidationError as exc:
         raise exc.with_source(path) from None

@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.errors import FormatError, ValidationError
 from wearnav.importers.common import check_finite, check_source, read_csv
 from wearnav.recording import DeviceStream, Recording
 from wearnav.timeseries import drop_duplicate_times, period
@@ -70,8 +70,7 @@ META = {
 def _files(src: Path) -> list[Path]:
     if src.is_file():
         if not FILE_RE.match(src.name):
-            raise FormatError(
-                "not an Oxford step-counter file (expected user<N>_<placement>_<unix ms>.csv)", src)
+            raise FormatError("not an Oxford step-counter file (expected user<N>_<placement>_<unix ms>.csv)", src)
         return [src]
     for cand in (src / VALIDATION_DIR, src):
         if cand.is_dir():
@@ -84,8 +83,7 @@ def _files(src: Path) -> list[Path]:
                         found[key] = f
             if found:
                 return [found[k] for k in sorted(found)]
-    raise FormatError(
-        f"no Oxford step-counter files ({VALIDATION_DIR}/user<N>_<placement>_<unix ms>.csv) found", src)
+    raise FormatError(f"no Oxford step-counter files ({VALIDATION_DIR}/user<N>_<placement>_<unix ms>.csv) found", src)
 
 
 def _events(t: np.ndarray, count: np.ndarray, what: str, path: Path) -> np.ndarray:
@@ -109,8 +107,9 @@ def read_file(path: Path) -> Recording:
     check_finite(ts, "timestamp", path)
     if not pd.api.types.is_integer_dtype(df["timestamp_ns"]):
         i = int(np.argmax(ts != np.round(ts))) if np.any(ts != np.round(ts)) else 0
-        raise FormatError(f"timestamp is not whole nanoseconds in int64 range (e.g. row {i}: "
-                          f"{df['timestamp_ns'].iloc[i]!r})", path)
+        raise FormatError(
+            f"timestamp is not whole nanoseconds in int64 range (e.g. row {i}: {df['timestamp_ns'].iloc[i]!r})", path
+        )
     ts_ns = df["timestamp_ns"].astype(np.int64).to_numpy()  # exact: float64 would round ns
     acc = df[["accx", "accy", "accz"]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     check_finite(acc, "acc", path)
@@ -120,8 +119,9 @@ def read_file(path: Path) -> Recording:
     bad = (counts < 0) | (counts > MAX_STEP_COUNT) | (counts != np.round(counts))
     if np.any(bad):
         i = int(np.argmax(bad.any(axis=1)))
-        raise FormatError(f"row {i}: step count {counts[i][bad[i]][0]:g} is not a whole number "
-                          f"in 0..{MAX_STEP_COUNT}", path)
+        raise FormatError(
+            f"row {i}: step count {counts[i][bad[i]][0]:g} is not a whole number in 0..{MAX_STEP_COUNT}", path
+        )
     counts = counts.astype(np.int64)
 
     # Logging artefacts: the all-zero placeholder rows written before the accelerometer's first
@@ -157,8 +157,9 @@ def read_file(path: Path) -> Recording:
             "dropped_zero_rows": int(leading_zero.sum()),
             "file": path.name,
         }
-        return Recording(name=f"oxford_{user}_{placement}_{start_ms}", devices={"phone": stream},
-                         labels=labels, meta=meta)
+        return Recording(
+            name=f"oxford_{user}_{placement}_{start_ms}", devices={"phone": stream}, labels=labels, meta=meta
+        )
     except ValidationError as exc:
         raise exc.with_source(path) from None
 

@@ -61,12 +61,19 @@ from wearnav.importers.common import (
     strip_compression,
 )
 from wearnav.importers.sensorlogger_build import Unusable, build_recording
-from wearnav.importers.sensorlogger_map import (KNOWN_FILES, MOTION_FILES, PLATFORMS, SENSORS, Table,
-                                                acceleration_convention)
+from wearnav.importers.sensorlogger_map import (
+    KNOWN_FILES,
+    MOTION_FILES,
+    PLATFORMS,
+    SENSORS,
+    Table,
+    acceleration_convention,
+)
 from wearnav.recording import Recording
 from wearnav.timeseries import drop_duplicate_times
 
 # ---- discovery ------------------------------------------------------------------------------
+
 
 def _has(folder: Path, name: str) -> bool:
     try:
@@ -121,7 +128,9 @@ def _exports(src: Path) -> Iterator[tuple[str, Path]]:
     if not found:
         raise FormatError(
             "no Sensor Logger export here: expected Metadata.csv and Accelerometer.csv / "
-            "WristMotion.csv / Headphone.csv in this folder, or export sub-folders or .zip files", src)
+            "WristMotion.csv / Headphone.csv in this folder, or export sub-folders or .zip files",
+            src,
+        )
 
 
 def _read_zip(zpath: Path, platform: str | None = None) -> Iterator[Recording]:
@@ -141,12 +150,19 @@ def _read_zip(zpath: Path, platform: str | None = None) -> Iterator[Recording]:
                 continue
             if strip_compression(Path(p.name)) in KNOWN_FILES:
                 groups.setdefault(str(p.parent), []).append(info)
-        groups = {d: m for d, m in groups.items()
-                  if any(strip_compression(Path(PurePosixPath(i.filename).name)) in
-                         ("Metadata.csv", *MOTION_FILES) for i in m)}
+        groups = {
+            d: m
+            for d, m in groups.items()
+            if any(
+                strip_compression(Path(PurePosixPath(i.filename).name)) in ("Metadata.csv", *MOTION_FILES) for i in m
+            )
+        }
         if not groups:
-            raise FormatError("no Sensor Logger export inside (no Metadata.csv / Accelerometer.csv / "
-                              "WristMotion.csv / Headphone.csv)", zpath)
+            raise FormatError(
+                "no Sensor Logger export inside (no Metadata.csv / Accelerometer.csv / "
+                "WristMotion.csv / Headphone.csv)",
+                zpath,
+            )
         for k, (member_dir, infos) in enumerate(sorted(groups.items())):
             dest = Path(tmp) / str(k)
             dest.mkdir()
@@ -154,8 +170,7 @@ def _read_zip(zpath: Path, platform: str | None = None) -> Iterator[Recording]:
                 try:
                     data = zf.read(info)
                 except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:
-                    raise FormatError(f"truncated or corrupt member {info.filename!r} ({exc})",
-                                      zpath) from None
+                    raise FormatError(f"truncated or corrupt member {info.filename!r} ({exc})", zpath) from None
                 (dest / PurePosixPath(info.filename).name).write_bytes(data)
             shown = f"{zpath}!{member_dir}/" if member_dir not in (".", "") else f"{zpath}!"
             name = zpath.stem if len(groups) == 1 else f"{zpath.stem}_{PurePosixPath(member_dir).name}"
@@ -164,6 +179,7 @@ def _read_zip(zpath: Path, platform: str | None = None) -> Iterator[Recording]:
 
 
 # ---- one export -----------------------------------------------------------------------------
+
 
 def _load(folder: Path, fname: str, cols: list[str], optional_cols: tuple[str, ...] = ()) -> Table | None:
     """Read one CSV (None if absent): required columns numeric and finite, time increasing."""
@@ -204,28 +220,42 @@ def _metadata(folder: Path, given: str | None = None) -> tuple[str, bool, dict]:
                 "Metadata.csv is missing from this export: its 'platform' (iOS, watchOS or Android) "
                 "decides the acceleration sign; copy Metadata.csv from the original export, or say "
                 "which phone recorded it (wearnav import sensorlogger --platform ios|watchos|android)",
-                folder) from None
+                folder,
+            ) from None
         return given, False, {"platform_from": "--platform (no Metadata.csv; standardisation read as off)"}
     df = read_csv(path, required=["platform"], dtype=str, keep_default_na=False)
     row = df.iloc[0]
     platform = given or row["platform"].strip().lower()
     if platform not in PLATFORMS:
-        raise FormatError(f"platform {row['platform']!r} is none of iOS, watchOS, Android "
-                          "(--platform overrides it)", path)
+        raise FormatError(
+            f"platform {row['platform']!r} is none of iOS, watchOS, Android (--platform overrides it)", path
+        )
     flag = str(row.get("standardisation", "")).strip().lower()
     if flag not in ("", "true", "false"):
         raise FormatError(f"standardisation {flag!r} is neither true nor false", path)
-    info = {k: str(row[c]) for k, c in (("device_name", "device name"), ("app_version", "appVersion"),
-                                        ("platform_version", "platform version"),
-                                        ("recording_time", "recording time"),
-                                        ("layout_version", "version")) if c in df.columns}
+    info = {
+        k: str(row[c])
+        for k, c in (
+            ("device_name", "device name"),
+            ("app_version", "appVersion"),
+            ("platform_version", "platform version"),
+            ("recording_time", "recording time"),
+            ("layout_version", "version"),
+        )
+        if c in df.columns
+    }
     if given:
         info["platform_from"] = f"--platform (Metadata.csv says {row['platform']!r})"
     return platform, flag == "true", info
 
 
-def read_export(folder: str | Path, name: str | None = None, shown_as: str | None = None,
-                file: str | None = None, platform: str | None = None) -> Recording:
+def read_export(
+    folder: str | Path,
+    name: str | None = None,
+    shown_as: str | None = None,
+    file: str | None = None,
+    platform: str | None = None,
+) -> Recording:
     """Read one export folder.
 
     ``shown_as`` replaces the folder in error messages and ``file`` names it in
@@ -235,7 +265,7 @@ def read_export(folder: str | Path, name: str | None = None, shown_as: str | Non
         return _read_export(folder, name or folder.name, file or folder.name, platform)
     except WearnavError as exc:
         if shown_as and exc.source and exc.source.startswith(str(folder)):
-            exc.source = shown_as + exc.source[len(str(folder)):].lstrip("/\\")
+            exc.source = shown_as + exc.source[len(str(folder)) :].lstrip("/\\")
             exc.args = (str(exc),)
         raise
 

@@ -72,8 +72,16 @@ from scipy.spatial.transform import Rotation
 from wearnav import geo
 from wearnav.errors import FormatError, ValidationError, WearnavError, WearnavWarning
 from wearnav.importers.common import MAX_INTERP_GAP_S, check_latlon
-from wearnav.importers.sensorlogger_map import (DEVICE_FILES, ORIENTATION_COLS, XYZ, Table, acceleration_convention,
-                                                quat_cols, wearable_acceleration, xyz_cols)
+from wearnav.importers.sensorlogger_map import (
+    DEVICE_FILES,
+    ORIENTATION_COLS,
+    XYZ,
+    Table,
+    acceleration_convention,
+    quat_cols,
+    wearable_acceleration,
+    xyz_cols,
+)
 from wearnav.recording import STANDARD_GRAVITY as G
 from wearnav.recording import DeviceStream, Fixes, Recording
 from wearnav.rotations import NotUnitQuaternion, from_wxyz, normalize_wxyz, to_wxyz
@@ -104,10 +112,18 @@ class Unusable(FormatError):
     still imported."""
 
 
-def build_recording(tables: dict[str, Table], platform: str, standardised: bool, folder: Path,
-                    name: str, file: str, info: dict | None = None,
-                    quat_inverted: Collection[str] | None = None, t0_ns: int | None = None,
-                    origin: tuple[float, float] | None = None) -> Recording:
+def build_recording(
+    tables: dict[str, Table],
+    platform: str,
+    standardised: bool,
+    folder: Path,
+    name: str,
+    file: str,
+    info: dict | None = None,
+    quat_inverted: Collection[str] | None = None,
+    t0_ns: int | None = None,
+    origin: tuple[float, float] | None = None,
+) -> Recording:
     """One Recording from an export's tables (by file name, e.g. ``"WristMotion.csv"``).
 
     ``folder`` is what errors and warnings name; ``info`` goes to meta as it is. ``quat_inverted``
@@ -118,17 +134,28 @@ def build_recording(tables: dict[str, Table], platform: str, standardised: bool,
     the local frame's origin: the receiver's slices of a session keep the session's."""
     info = info or {}
     s, u = acceleration_convention(platform, standardised)
-    units = (f"acceleration read as {'m/s²' if standardised else 'g'} because Metadata.csv says "
-             f"standardisation is {'on' if standardised else 'off'}")
+    units = (
+        f"acceleration read as {'m/s²' if standardised else 'g'} because Metadata.csv says "
+        f"standardisation is {'on' if standardised else 'off'}"
+    )
 
-    t_acc, acc_lin, grav, gyro, ori, loc = (tables.get(f) for f in (
-        "TotalAcceleration.csv", "Accelerometer.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv",
-        "Location.csv"))
+    t_acc, acc_lin, grav, gyro, ori, loc = (
+        tables.get(f)
+        for f in (
+            "TotalAcceleration.csv",
+            "Accelerometer.csv",
+            "Gravity.csv",
+            "Gyroscope.csv",
+            "Orientation.csv",
+            "Location.csv",
+        )
+    )
     wrist, head = tables.get(DEVICE_FILES["watch"]), tables.get(DEVICE_FILES["earbuds"])
     motion = [x for x in (t_acc, acc_lin, grav, gyro, ori, wrist, head) if x is not None]
     if not any(x is not None for x in (t_acc, acc_lin, wrist, head)):
-        raise FormatError("no motion file (Accelerometer.csv, TotalAcceleration.csv, WristMotion.csv "
-                          "or Headphone.csv)", folder)
+        raise FormatError(
+            "no motion file (Accelerometer.csv, TotalAcceleration.csv, WristMotion.csv or Headphone.csv)", folder
+        )
     stale = stale_fixes(loc, min(int(x.t_ns[0]) for x in motion)) if loc is not None else None
     if stale is not None and stale.any():
         loc = Table(loc.path, loc.t_ns[~stale], loc.df[~stale].reset_index(drop=True), loc.duplicates)
@@ -146,9 +173,11 @@ def build_recording(tables: dict[str, Table], platform: str, standardised: bool,
 
     def phone() -> DeviceStream:
         base, add_gravity = _phone_acceleration(t_acc, acc_lin, grav)
-        clock_info.update(file=base.path.name, rate_hz=round(_rate(base), 2),
-                          rates_hz={x.path.name: round(_rate(x), 2)
-                                    for x in (t_acc, acc_lin, grav, gyro, ori) if x is not None})
+        clock_info.update(
+            file=base.path.name,
+            rate_hz=round(_rate(base), 2),
+            rates_hz={x.path.name: round(_rate(x), 2) for x in (t_acc, acc_lin, grav, gyro, ori) if x is not None},
+        )
         t = sec(base.t_ns)
         acc = base.values(XYZ)
         keep = np.ones(len(t), bool)
@@ -160,8 +189,13 @@ def build_recording(tables: dict[str, Table], platform: str, standardised: bool,
             w, ok = interp_onto(t, sec(gyro.t_ns), gyro.values(XYZ), max_gap=MAX_INTERP_GAP_S)
             keep &= ok
         if ori is not None:
-            q, ok = interp_onto(t, sec(ori.t_ns), _unit_quats(ori.values(ORIENTATION_COLS), ori.path),
-                                max_gap=MAX_INTERP_GAP_S, quaternion=True)
+            q, ok = interp_onto(
+                t,
+                sec(ori.t_ns),
+                _unit_quats(ori.values(ORIENTATION_COLS), ori.path),
+                max_gap=MAX_INTERP_GAP_S,
+                quaternion=True,
+            )
             keep &= ok
         if keep.sum() < 2:
             others = ", ".join(x.path.name for x in (grav if add_gravity else None, gyro, ori) if x is not None)
@@ -171,14 +205,33 @@ def build_recording(tables: dict[str, Table], platform: str, standardised: bool,
             t, acc = t[keep], acc[keep]
             w = None if w is None else w[keep]
             q = None if q is None else q[keep]
-        return _stream("phone", t, s * acc, w, q, base.path, ori.path if ori else None,
-                       "phone acceleration is m/s² in every export (UNITS.md)", inverted, quat_inverted)
+        return _stream(
+            "phone",
+            t,
+            s * acc,
+            w,
+            q,
+            base.path,
+            ori.path if ori else None,
+            "phone acceleration is m/s² in every export (UNITS.md)",
+            inverted,
+            quat_inverted,
+        )
 
     def wearable(dev: str, tab) -> DeviceStream:
         acc = wearable_acceleration(dev, tab.values(xyz_cols("acceleration")), tab.values(xyz_cols("gravity")), s, u)
-        return _stream(dev, sec(tab.t_ns), acc, tab.values(xyz_cols("rotationRate")),
-                       _unit_quats(tab.values(quat_cols()), tab.path), tab.path, tab.path, units, inverted,
-                       quat_inverted)
+        return _stream(
+            dev,
+            sec(tab.t_ns),
+            acc,
+            tab.values(xyz_cols("rotationRate")),
+            _unit_quats(tab.values(quat_cols()), tab.path),
+            tab.path,
+            tab.path,
+            units,
+            inverted,
+            quat_inverted,
+        )
 
     def watch() -> DeviceStream:
         return wearable("watch", wrist)
@@ -191,8 +244,11 @@ def build_recording(tables: dict[str, Table], platform: str, standardised: bool,
     # device's reason. A failed plausibility check stays fatal: it usually means a wrong
     # Metadata.csv, which concerns every device.
     errors: list[WearnavError] = []
-    for dev, present, build in (("phone", t_acc is not None or acc_lin is not None, phone),
-                                ("watch", wrist is not None, watch), ("earbuds", head is not None, earbuds)):
+    for dev, present, build in (
+        ("phone", t_acc is not None or acc_lin is not None, phone),
+        ("watch", wrist is not None, watch),
+        ("earbuds", head is not None, earbuds),
+    ):
         if not present:
             continue
         try:
@@ -203,25 +259,37 @@ def build_recording(tables: dict[str, Table], platform: str, standardised: bool,
     if not devices:
         raise errors[0]
     if left_out:
-        warnings.warn(WearnavWarning(f"{folder}: imported {', '.join(devices)} only; left out "
-                                     + "; ".join(f"{d} ({r})" for d, r in left_out.items())))
+        warnings.warn(
+            WearnavWarning(
+                f"{folder}: imported {', '.join(devices)} only; left out "
+                + "; ".join(f"{d} ({r})" for d, r in left_out.items())
+            )
+        )
     gaps = {dev: g for dev, st in devices.items() if (g := _gaps(st.t))}
     if gaps:
-        warnings.warn(WearnavWarning(
-            f"{folder}: " + "; ".join(f"{dev} has {len(g)} gap(s) over {REPORT_GAP_S:g} s "
-                                      f"(longest {max(b - a for a, b in g):.1f} s)" for dev, g in gaps.items())
-            + "; they are masked, never interpolated"))
+        warnings.warn(
+            WearnavWarning(
+                f"{folder}: "
+                + "; ".join(
+                    f"{dev} has {len(g)} gap(s) over {REPORT_GAP_S:g} s (longest {max(b - a for a, b in g):.1f} s)"
+                    for dev, g in gaps.items()
+                )
+                + "; they are masked, never interpolated"
+            )
+        )
 
     meta = {
         "source": SOURCE,
         "dataset": "Sensor Logger export",
-        "subject": "", "mode": "", "placement": "",
+        "subject": "",
+        "mode": "",
+        "placement": "",
         "platform": platform,
         "standardisation": standardised,
         **info,
         "t0_unix_ns": t0,
         "quat_frame": "Sensor Logger orientation, world z up; phone yaw 0 with x north (iOS true, "
-                      "Android magnetic north); watch / earbuds yaw reference not documented",
+        "Android magnetic north); watch / earbuds yaw reference not documented",
         "quat_inverted": inverted,
         "dropped_duplicates": {x.path.name: x.duplicates for x in used if x.duplicates},
         "dropped_uncovered": uncovered,
@@ -246,14 +314,12 @@ def build_recording(tables: dict[str, Table], platform: str, standardised: bool,
     return Recording(name=name, devices=devices, fixes=fixes, meta=meta)
 
 
-
 def _rate(x: Table) -> float:
     dt = np.diff(x.t_ns) * 1e-9
     return float(1.0 / np.median(dt)) if dt.size else 0.0
 
 
-def _phone_acceleration(t_acc: Table | None, acc_lin: Table | None,
-                        grav: Table | None) -> tuple[Table, bool]:
+def _phone_acceleration(t_acc: Table | None, acc_lin: Table | None, grav: Table | None) -> tuple[Table, bool]:
     """The phone's acceleration clock: TotalAcceleration.csv as written, or Accelerometer.csv plus
     Gravity.csv (interpolated onto it), whichever is faster (on a tie the total, which needs no
     interpolation). On Android TotalAcceleration.csv can run at ~59 Hz while Accelerometer,
@@ -262,8 +328,11 @@ def _phone_acceleration(t_acc: Table | None, acc_lin: Table | None,
     if t_acc is not None and not (lin_ok and _rate(acc_lin) > (1 + RATE_TIE) * _rate(t_acc)):
         return t_acc, False
     if not lin_ok:
-        raise Unusable("holds acceleration without gravity (UNITS.md) and neither Gravity.csv nor "
-                          "TotalAcceleration.csv is there to add it back", acc_lin.path)
+        raise Unusable(
+            "holds acceleration without gravity (UNITS.md) and neither Gravity.csv nor "
+            "TotalAcceleration.csv is there to add it back",
+            acc_lin.path,
+        )
     return acc_lin, True
 
 
@@ -290,12 +359,23 @@ def _unit_quats(q: np.ndarray, path: Path) -> np.ndarray:
     try:
         return normalize_wxyz(q)
     except NotUnitQuaternion as exc:
-        raise FormatError(f"quaternion at line {exc.row + 2} has norm {exc.norm:.3g}, not a unit "
-                          "quaternion", path) from None
+        raise FormatError(
+            f"quaternion at line {exc.row + 2} has norm {exc.norm:.3g}, not a unit quaternion", path
+        ) from None
 
 
-def _stream(dev: str, t, acc, gyro, quat, path: Path, qpath: Path | None, units: str,
-            inverted: list[str], forced: Collection[str] | None = None) -> DeviceStream:
+def _stream(
+    dev: str,
+    t,
+    acc,
+    gyro,
+    quat,
+    path: Path,
+    qpath: Path | None,
+    units: str,
+    inverted: list[str],
+    forced: Collection[str] | None = None,
+) -> DeviceStream:
     try:
         stream = DeviceStream(t=t, acc=acc, gyro=gyro, quat=None)
     except ValidationError as exc:
@@ -313,8 +393,9 @@ def _stream(dev: str, t, acc, gyro, quat, path: Path, qpath: Path | None, units:
     return stream
 
 
-def _check_orientation(q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | None,
-                       t: np.ndarray, path: Path) -> tuple[np.ndarray, str]:
+def _check_orientation(
+    q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | None, t: np.ndarray, path: Path
+) -> tuple[np.ndarray, str]:
     """Pick the quaternion direction the data agrees with (see module docstring), or fail.
 
     A direction passes when the world-frame mean of the specific force lies within
@@ -341,7 +422,9 @@ def _check_orientation(q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | N
         if abs(vertical - G) > MAX_VERTICAL_ERROR:
             raise FormatError(
                 f"mean vertical specific force in the world frame is {vertical:.1f} m/s², expected "
-                f"{G:.1f} (gravity counted twice or missing?)", path)
+                f"{G:.1f} (gravity counted twice or missing?)",
+                path,
+            )
         return to_wxyz(r), label
     (_, _, _, _, tilt_a, res_a), (_, _, _, _, tilt_b, res_b) = found
     gyro_note = "" if res_a is None else f", gyro residual {res_a:.2f} ({res_b:.2f} inverse)"
@@ -352,11 +435,15 @@ def _check_orientation(q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | N
             f"orientation does not follow the gyroscope: its rotation between samples differs from "
             f"the gyroscope's by {res_a:.2f} of it ({res_b:.2f} with the inverse rotation), over "
             f"{MAX_GYRO_RESIDUAL:g} either way, although gravity agrees with it "
-            f"({min(tilt_a, tilt_b):.0f}° from up); the orientation or gyroscope column is unusable", path)
+            f"({min(tilt_a, tilt_b):.0f}° from up); the orientation or gyroscope column is unusable",
+            path,
+        )
     raise FormatError(
         f"orientation does not fit the accelerometer: gravity rotated to the world frame is "
         f"{tilt_a:.0f}° from up ({tilt_b:.0f}° with the inverse rotation){gyro_note}; is "
-        f"Metadata.csv's platform / standardisation right?", path)
+        f"Metadata.csv's platform / standardisation right?",
+        path,
+    )
 
 
 def _gyro_residual(rot: Rotation, gyro: np.ndarray | None, t: np.ndarray) -> float | None:

@@ -25,8 +25,14 @@ from scipy.spatial.transform import Rotation
 
 from wearnav import geo
 from wearnav.fileio import write_text_atomic
-from wearnav.importers.sensorlogger_map import (DEVICE_FILES, GRAVITY_IN_G, ORIENTATION_COLS, acceleration_convention,
-                                                quat_cols, xyz_cols)
+from wearnav.importers.sensorlogger_map import (
+    DEVICE_FILES,
+    GRAVITY_IN_G,
+    ORIENTATION_COLS,
+    acceleration_convention,
+    quat_cols,
+    xyz_cols,
+)
 from wearnav.outputs import staged_output
 from wearnav.recording import STANDARD_GRAVITY as G
 from wearnav.recording import Recording
@@ -68,10 +74,18 @@ def _euler(r: Rotation) -> np.ndarray:
     return r.as_euler("ZXY")  # yaw, pitch, roll (COORDINATES.md: Z-X'-Y'')
 
 
-def write_export(rec: Recording, folder: str | Path, platform: str = "ios",
-                 standardised: bool = False, total_acceleration: bool = False,
-                 quat_inverted: bool = False, metadata: bool = True, layout_version: int = 3,
-                 watch_extras: bool = False, device_name: str = "test phone") -> Path:
+def write_export(
+    rec: Recording,
+    folder: str | Path,
+    platform: str = "ios",
+    standardised: bool = False,
+    total_acceleration: bool = False,
+    quat_inverted: bool = False,
+    metadata: bool = True,
+    layout_version: int = 3,
+    watch_extras: bool = False,
+    device_name: str = "test phone",
+) -> Path:
     """Write ``rec`` (devices phone / watch / earbuds, fixes) into ``folder`` as Sensor Logger would.
 
     ``total_acceleration`` writes Android's TotalAcceleration.csv too. ``quat_inverted`` writes
@@ -103,9 +117,15 @@ def write_export(rec: Recording, folder: str | Path, platform: str = "ios",
             xyz(np.asarray(s.gyro, float)).to_csv(folder / "Gyroscope.csv", index=False)
         e = _euler(r)
         quat = dict(zip(ORIENTATION_COLS, q.T))
-        pd.DataFrame({**tc, **{c: quat[c] for c in reversed(ORIENTATION_COLS)},
-                      "roll": e[:, 2], "pitch": e[:, 1], "yaw": e[:, 0]}).to_csv(
-            folder / "Orientation.csv", index=False)
+        pd.DataFrame(
+            {
+                **tc,
+                **{c: quat[c] for c in reversed(ORIENTATION_COLS)},
+                "roll": e[:, 2],
+                "pitch": e[:, 1],
+                "yaw": e[:, 0],
+            }
+        ).to_csv(folder / "Orientation.csv", index=False)
         sensors += ["Accelerometer", "Gravity", "Gyroscope", "Orientation"]
 
     for dev, fname in DEVICE_FILES.items():
@@ -131,31 +151,54 @@ def write_export(rec: Recording, folder: str | Path, platform: str = "ios",
         f = rec.fixes
         lat, lon = geo.local_to_latlon(f.pos[:, :2], *ORIGIN)
         acc = np.where(np.isfinite(f.accuracy), f.accuracy, -1.0)
-        pd.DataFrame({**_time_cols(f.t, t_ref), "bearingAccuracy": 0.0, "speedAccuracy": 0.0,
-                      "verticalAccuracy": 3.0, "horizontalAccuracy": acc, "speed": 1.2,
-                      "bearing": 0.0, "altitude": 300.0, "longitude": lon, "latitude": lat}).to_csv(
-            folder / "Location.csv", index=False)
+        pd.DataFrame(
+            {
+                **_time_cols(f.t, t_ref),
+                "bearingAccuracy": 0.0,
+                "speedAccuracy": 0.0,
+                "verticalAccuracy": 3.0,
+                "horizontalAccuracy": acc,
+                "speed": 1.2,
+                "bearing": 0.0,
+                "altitude": 300.0,
+                "longitude": lon,
+                "latitude": lat,
+            }
+        ).to_csv(folder / "Location.csv", index=False)
         sensors.append("Location")
 
     if watch_extras and "watch" in rec.devices:
         s = rec.devices["watch"]
         tc = _time_cols(s.t, t_ref)
         pd.DataFrame({**tc, "z": -s.acc[:, 2] / G, "y": -s.acc[:, 1] / G, "x": -s.acc[:, 0] / G}).to_csv(
-            folder / "WatchAccelerometerUncalibrated.csv", index=False)
+            folder / "WatchAccelerometerUncalibrated.csv", index=False
+        )
         tc1 = _time_cols(s.t[::500], t_ref)
         pd.DataFrame({**tc1, "bpm": 92.0}).to_csv(folder / "HeartRate.csv", index=False)
         pd.DataFrame({**tc1, "magneticHeading": 10.0, "trueHeading": 12.0, "headingAccuracy": 5.0}).to_csv(
-            folder / "WatchCompass.csv", index=False)
+            folder / "WatchCompass.csv", index=False
+        )
         sensors += ["Watch Accelerometer Uncalibrated", "Heart Rate", "Watch Compass"]
 
     if metadata:
-        pd.DataFrame([{
-            "version": layout_version, "device name": device_name, "recording epoch time": T0_NS // 1_000_000,
-            "recording time": "2023-11-14_22-13-20", "recording timezone": "Europe/Berlin",
-            "platform": platform, "appVersion": "1.40", "device id": "abc",
-            "sensors": "|".join(sensors), "sampleRateMs": "10",
-            "standardisation": "true" if standardised else "false", "platform version": "17.0",
-        }]).to_csv(folder / "Metadata.csv", index=False)
+        pd.DataFrame(
+            [
+                {
+                    "version": layout_version,
+                    "device name": device_name,
+                    "recording epoch time": T0_NS // 1_000_000,
+                    "recording time": "2023-11-14_22-13-20",
+                    "recording timezone": "Europe/Berlin",
+                    "platform": platform,
+                    "appVersion": "1.40",
+                    "device id": "abc",
+                    "sensors": "|".join(sensors),
+                    "sampleRateMs": "10",
+                    "standardisation": "true" if standardised else "false",
+                    "platform version": "17.0",
+                }
+            ]
+        ).to_csv(folder / "Metadata.csv", index=False)
     return folder
 
 
@@ -168,8 +211,9 @@ def zip_export(folder: str | Path, zpath: str | Path, subfolder: str | None = No
     return zpath
 
 
-def simulated_export(folder: str | Path, seed: int = 0, duration_s: float = SIMULATED_WALK_S,
-                     platform: str = "ios") -> dict:
+def simulated_export(
+    folder: str | Path, seed: int = 0, duration_s: float = SIMULATED_WALK_S, platform: str = "ios"
+) -> dict:
     """One simulated walk (phone in the hand, watch, earbuds, GPS fixes; :mod:`wearnav.simulate`)
     written as an iPhone's Sensor Logger export into ``folder``, marked simulated: Metadata.csv's
     ``device name`` and ``SIMULATED_MARKER`` (what was written, returned too). A folder holding files
@@ -178,13 +222,29 @@ def simulated_export(folder: str | Path, seed: int = 0, duration_s: float = SIMU
     with staged_output(folder, SIMULATED_MARKER, "simulate") as stage:  # all files or none
         write_export(rec, stage, platform=platform, device_name=SIMULATED_DEVICE_NAME)
         files = sorted(p.name for p in stage.iterdir())
-        record = {"simulated": True, "generator": "wearnav simulate --format sensorlogger", "seed": seed,
-                  "duration_s": duration_s, "platform": platform, "devices": sorted(rec.devices),
-                  "fixes": 0 if rec.fixes is None else len(rec.fixes), "origin_lat_lon": list(ORIGIN),
-                  "export": str(folder), "files": files + [SIMULATED_MARKER]}
+        record = {
+            "simulated": True,
+            "generator": "wearnav simulate --format sensorlogger",
+            "seed": seed,
+            "duration_s": duration_s,
+            "platform": platform,
+            "devices": sorted(rec.devices),
+            "fixes": 0 if rec.fixes is None else len(rec.fixes),
+            "origin_lat_lon": list(ORIGIN),
+            "export": str(folder),
+            "files": files + [SIMULATED_MARKER],
+        }
         write_text_atomic(json.dumps(record, indent=2), stage / SIMULATED_MARKER)
     return record
 
 
-__all__ = ["ORIGIN", "SIMULATED_DEVICE_NAME", "SIMULATED_MARKER", "T0_NS", "simulated_export", "time_origin", "write_export",
-           "zip_export"]
+__all__ = [
+    "ORIGIN",
+    "SIMULATED_DEVICE_NAME",
+    "SIMULATED_MARKER",
+    "T0_NS",
+    "simulated_export",
+    "time_origin",
+    "write_export",
+    "zip_export",
+]

@@ -76,8 +76,7 @@ DEVICE_FILES = {"watch": "WristMotion.csv", "earbuds": "Headphone.csv"}  # the p
 # UNITS.md: WristMotion's gravity follows the units toggle (g when off), Headphone's is m/s² always.
 GRAVITY_IN_G = {"watch": True, "earbuds": False}
 MOTION_FILES = ("Accelerometer.csv", "TotalAcceleration.csv", *DEVICE_FILES.values())
-KNOWN_FILES = ("Metadata.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv", "Location.csv",
-               *MOTION_FILES)
+KNOWN_FILES = ("Metadata.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv", "Location.csv", *MOTION_FILES)
 # Platforms Metadata.csv names; a watch-only export says watchos and follows the iPhone's sign.
 PLATFORMS = ("ios", "watchos", "android")
 APPLE = ("ios", "watchos")
@@ -98,8 +97,9 @@ WEARABLE_COLS = [*xyz_cols("rotationRate"), *xyz_cols("gravity"), *xyz_cols("acc
 class Sensor:
     """One sensor: its export file, the device it belongs to, the numeric columns read (required)
     and those read where present (other columns, e.g. Headphone's ``devicelocation``, pass as text)."""
+
     file: str
-    device: str | None          # None: location fixes
+    device: str | None  # None: location fixes
     cols: tuple[str, ...]
     optional: tuple[str, ...] = ()
 
@@ -128,8 +128,7 @@ def acceleration_convention(platform: str, standardised: bool) -> tuple[float, f
     return sign, (1.0 if standardised else G)
 
 
-def wearable_acceleration(device: str, user: np.ndarray, gravity: np.ndarray, sign: float,
-                          unit: float) -> np.ndarray:
+def wearable_acceleration(device: str, user: np.ndarray, gravity: np.ndarray, sign: float, unit: float) -> np.ndarray:
     """Specific force (m/s², Recording convention) of the watch or earbuds from the user
     acceleration and gravity columns as written: ``sign × (unit × user + unit_g × gravity)``, with
     ``unit_g = unit`` where the file writes gravity in g (the watch) and 1 where in m/s² (earbuds)."""
@@ -140,8 +139,9 @@ def wearable_acceleration(device: str, user: np.ndarray, gravity: np.ndarray, si
 @dataclass
 class Table:
     """One sensor's rows, by sample time: from an export's CSV file or the receiver's messages."""
-    path: Path                # what errors name (the file, or the live session's sensor)
-    t_ns: np.ndarray          # int64 ns since epoch, strictly increasing
+
+    path: Path  # what errors name (the file, or the live session's sensor)
+    t_ns: np.ndarray  # int64 ns since epoch, strictly increasing
     df: pd.DataFrame
     duplicates: int
 
@@ -149,6 +149,21 @@ class Table:
         return self.df[cols].to_numpy(np.float64)
 
 
-__all__ = ["APPLE", "DEVICE_FILES", "GRAVITY_IN_G", "KNOWN_FILES", "MOTION_FILES", "ORIENTATION_COLS", "PLATFORMS",
-           "PUSH_NAMES", "SENSORS", "Sensor", "Table", "XYZ", "acceleration_convention", "quat_cols",
-           "wearable_acceleration", "xyz_cols"]
+__all__ = [
+    "APPLE",
+    "DEVICE_FILES",
+    "GRAVITY_IN_G",
+    "KNOWN_FILES",
+    "MOTION_FILES",
+    "ORIENTATION_COLS",
+    "PLATFORMS",
+    "PUSH_NAMES",
+    "SENSORS",
+    "Sensor",
+    "Table",
+    "XYZ",
+    "acceleration_convention",
+    "quat_cols",
+    "wearable_acceleration",
+    "xyz_cols",
+]

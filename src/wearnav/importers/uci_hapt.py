@@ -54,11 +54,11 @@ LABEL_FIELDS = ["exp", "user", "activity", "start", "end"]
 META = {
     "source": "uci-hapt",
     "dataset": "UCI HAPT: Smartphone-Based Recognition of Human Activities and Postural "
-              "Transitions v2.1 (Reyes-Ortiz, Oneto, Samà, Parra, Anguita), RawData",
+    "Transitions v2.1 (Reyes-Ortiz, Oneto, Samà, Parra, Anguita), RawData",
     "licence": "CC BY 4.0 (UCI Machine Learning Repository)",
     "url": "https://archive.ics.uci.edu/dataset/341",
     "citation": "Reyes-Ortiz et al., Transition-Aware Human Activity Recognition Using "
-                "Smartphones, Neurocomputing 171 (2016)",
+    "Smartphones, Neurocomputing 171 (2016)",
     "device": "Samsung Galaxy S II",
     "placement": "waist",
     "rate_hz": RATE_HZ,
@@ -102,8 +102,7 @@ def read_label_table(path: Path) -> pd.DataFrame:
     """``labels.txt`` as a DataFrame with columns exp, user, activity, start, end (integers)."""
     df = read_csv(path, sep=r"\s+", header=None)
     if df.shape[1] != len(LABEL_FIELDS):
-        raise FormatError(
-            f"expected {len(LABEL_FIELDS)} columns ({' '.join(LABEL_FIELDS)}), found {df.shape[1]}", path)
+        raise FormatError(f"expected {len(LABEL_FIELDS)} columns ({' '.join(LABEL_FIELDS)}), found {df.shape[1]}", path)
     vals = df.apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     check_finite(vals, "label table", path)
     if np.any(vals != np.round(vals)) or np.any(np.abs(vals) >= 2**31):
@@ -121,8 +120,11 @@ def read_label_table(path: Path) -> pd.DataFrame:
     if clash.size:
         a, b = order.index[clash[0]], order.index[clash[0] + 1]
         what = "repeats" if (out.loc[a] == out.loc[b]).all() else "overlaps"
-        raise FormatError(f"row {max(a, b) + 1} {what} row {min(a, b) + 1} (experiment "
-                          f"{out.loc[a, 'exp']}, samples {out.loc[b, 'start']}..{out.loc[b, 'end']})", path)
+        raise FormatError(
+            f"row {max(a, b) + 1} {what} row {min(a, b) + 1} (experiment "
+            f"{out.loc[a, 'exp']}, samples {out.loc[b, 'start']}..{out.loc[b, 'end']})",
+            path,
+        )
     return out
 
 
@@ -150,8 +152,15 @@ def _read_xyz(path: Path) -> np.ndarray:
     return vals
 
 
-def read_experiment(acc_path: Path, gyro_path: Path, labels: pd.DataFrame, labels_path: Path,
-                    names: dict[int, str], names_path: Path, split: str = "") -> Recording:
+def read_experiment(
+    acc_path: Path,
+    gyro_path: Path,
+    labels: pd.DataFrame,
+    labels_path: Path,
+    names: dict[int, str],
+    names_path: Path,
+    split: str = "",
+) -> Recording:
     """One experiment (acc + gyro files and its rows of labels.txt) as a Recording."""
     m = ACC_RE.match(acc_path.name)
     exp, user = int(m.group(1)), int(m.group(2))
@@ -162,17 +171,24 @@ def read_experiment(acc_path: Path, gyro_path: Path, labels: pd.DataFrame, label
         raise FormatError(f"{len(gyro)} rows but {acc_path.name} has {n}", gyro_path)
     rows = labels[labels["exp"] == exp]
     if (rows["user"] != user).any():
-        raise FormatError(f"experiment {exp} is labelled with user {int(rows['user'].iloc[0])}, "
-                          f"the file name says user {user}", labels_path)
+        raise FormatError(
+            f"experiment {exp} is labelled with user {int(rows['user'].iloc[0])}, the file name says user {user}",
+            labels_path,
+        )
     if (rows["end"] > n).any():
         e = int(rows["end"].max())
-        raise FormatError(f"experiment {exp}: label ends at sample {e}, beyond the {n} samples "
-                          f"of {acc_path.name} (truncated data file?)", labels_path)
+        raise FormatError(
+            f"experiment {exp}: label ends at sample {e}, beyond the {n} samples "
+            f"of {acc_path.name} (truncated data file?)",
+            labels_path,
+        )
     unknown = sorted(set(rows["activity"]) - set(names))
     if unknown:
         raise FormatError(f"activity ids {unknown} (used in labels.txt) are not listed", names_path)
-    label_rows = [((s - 1) / RATE_HZ, e / RATE_HZ, "activity", names[a])
-                  for a, s, e in rows[["activity", "start", "end"]].itertuples(index=False)]
+    label_rows = [
+        ((s - 1) / RATE_HZ, e / RATE_HZ, "activity", names[a])
+        for a, s, e in rows[["activity", "start", "end"]].itertuples(index=False)
+    ]
     try:
         stream = DeviceStream(t=np.arange(n) / RATE_HZ, acc=acc * G, gyro=gyro)
         meta = {
@@ -182,8 +198,9 @@ def read_experiment(acc_path: Path, gyro_path: Path, labels: pd.DataFrame, label
             "files": [acc_path.name, gyro_path.name],
             **({"split": split} if split else {}),
         }
-        return Recording(name=f"uci_hapt_exp{exp:02d}_user{user:02d}", devices={"phone": stream},
-                         labels=label_rows, meta=meta)
+        return Recording(
+            name=f"uci_hapt_exp{exp:02d}_user{user:02d}", devices={"phone": stream}, labels=label_rows, meta=meta
+        )
     except ValidationError as exc:
         raise exc.with_source(acc_path) from None
 
@@ -206,8 +223,7 @@ def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     names = read_activity_names(names_path)
     split = read_split(root)
     for count, ((exp, user), acc_path) in enumerate(sorted(accs.items()), 1):
-        gyro_path = find_file(raw / ("gyro_" + strip_compression(acc_path)[len("acc_"):]))
-        yield read_experiment(acc_path, gyro_path, labels, labels_path, names, names_path,
-                              split.get(user, ""))
+        gyro_path = find_file(raw / ("gyro_" + strip_compression(acc_path)[len("acc_") :]))
+        yield read_experiment(acc_path, gyro_path, labels, labels_path, names, names_path, split.get(user, ""))
         if limit is not None and count >= limit:
             return

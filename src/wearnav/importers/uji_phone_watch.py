@@ -75,11 +75,10 @@ MAX_CLOCK_RESIDUAL_S = 0.5
 META = {
     "source": "uji-phone-watch",
     "dataset": "Smartphone and smartwatch inertial measurements from heterogeneous subjects for "
-              "human activity recognition (Matey-Sanz, Casteleyn, Granell), Universitat Jaume I",
+    "human activity recognition (Matey-Sanz, Casteleyn, Granell), Universitat Jaume I",
     "licence": "CC BY 4.0",
     "url": "https://doi.org/10.5281/zenodo.8398688",
-    "citation": "Matey-Sanz, Casteleyn, Granell, Data in Brief 51 (2023) 109809, "
-                "doi:10.1016/j.dib.2023.109809",
+    "citation": "Matey-Sanz, Casteleyn, Granell, Data in Brief 51 (2023) 109809, doi:10.1016/j.dib.2023.109809",
     "placement": "pocket",
     "placements": {"phone": "pocket", "watch": "wrist"},
 }
@@ -97,8 +96,11 @@ def _data_dir(src: Path) -> Path:
 
 def _executions(data: Path) -> dict[str, dict[str, Path]]:
     """execution id (sXX_YY) → {"sp": file, "sw": file}; plain copies win over compressed ones."""
-    folders = [data] if SUBJECT_RE.match(data.name) else sorted(
-        d for d in data.iterdir() if d.is_dir() and SUBJECT_RE.match(d.name))
+    folders = (
+        [data]
+        if SUBJECT_RE.match(data.name)
+        else sorted(d for d in data.iterdir() if d.is_dir() and SUBJECT_RE.match(d.name))
+    )
     out: dict[str, dict[str, Path]] = {}
     for folder in folders:
         for f in folder.iterdir():
@@ -132,8 +134,11 @@ def _subject_meta(row: pd.Series, path: Path) -> dict:
     if nums.isna().any():
         raise FormatError(f"non-numeric age/height/weight/executions for {row.name}", path)
     return {
-        "age": int(nums["age"]), "gender": str(row["gender"]), "height_cm": float(nums["height"]),
-        "weight_kg": float(nums["weight"]), "dominant_hand": str(row["dominant_hand"]),
+        "age": int(nums["age"]),
+        "gender": str(row["gender"]),
+        "height_cm": float(nums["height"]),
+        "weight_kg": float(nums["weight"]),
+        "dominant_hand": str(row["dominant_hand"]),
         "executions": int(nums["executions"]),
     }
 
@@ -149,8 +154,7 @@ def regular_clock(ts_ms: np.ndarray, path: Path) -> tuple[np.ndarray, dict]:
     dt = np.diff(ts_ms)
     if np.any(dt < 0):
         i = int(np.argmax(dt < 0)) + 1
-        raise FormatError(
-            f"timestamps go backwards at row {i} ({ts_ms[i - 1]:.0f} → {ts_ms[i]:.0f} ms)", path)
+        raise FormatError(f"timestamps go backwards at row {i} ({ts_ms[i - 1]:.0f} → {ts_ms[i]:.0f} ms)", path)
     if ts_ms[-1] == ts_ms[0]:
         raise FormatError("all timestamps are equal", path)
     k = np.arange(n, dtype=np.float64)
@@ -159,7 +163,9 @@ def regular_clock(ts_ms: np.ndarray, path: Path) -> tuple[np.ndarray, dict]:
     if slope <= 0 or resid.max() - resid.min() > MAX_CLOCK_RESIDUAL_S * 1e3:
         raise FormatError(
             f"timestamps stray {(resid.max() - resid.min()) / 1e3:.2f} s from a constant sampling "
-            f"rate (limit {MAX_CLOCK_RESIDUAL_S} s): samples lost or rate changed", path)
+            f"rate (limit {MAX_CLOCK_RESIDUAL_S} s): samples lost or rate changed",
+            path,
+        )
     fitted = ts_ms[0] + icpt + resid.min() + slope * k
     timing = {
         "fitted_rate_hz": round(1e3 / slope, 3),
@@ -198,8 +204,10 @@ def read_execution(eid: str, files: dict[str, Path], subject: dict, execution: d
     for code in ("sp", "sw"):
         if code not in files:
             folder = next(iter(files.values())).parent
-            raise MissingFileError(f"the {DEVICES[code]} file of execution {eid} is missing "
-                                   "(also looked for .gz/.xz)", folder / f"{eid}_{code}.csv")
+            raise MissingFileError(
+                f"the {DEVICES[code]} file of execution {eid} is missing (also looked for .gz/.xz)",
+                folder / f"{eid}_{code}.csv",
+            )
         ts, acc, gyro, labels = _read_device(files[code])
         t_ms, timing = regular_clock(ts, files[code])
         raw[code] = (t_ms, acc, gyro, labels, timing)
@@ -245,8 +253,7 @@ def _count_mismatch(executions: dict, subjects: pd.DataFrame) -> dict[str, tuple
 
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """Yield UJI executions (at most ``limit``) from the dataset root, ``DATA`` or a subject folder."""
-    src, limit = check_source(src, limit, expect="the UJI dataset folder (or DATA, or a subject folder)",
-                              file=False)
+    src, limit = check_source(src, limit, expect="the UJI dataset folder (or DATA, or a subject folder)", file=False)
     data = _data_dir(src)
     executions = _executions(data)
     if limit == 0:
@@ -256,10 +263,13 @@ def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     mismatch = _count_mismatch(executions, subjects)
     if mismatch:
         shown = ", ".join(f"{sid} {declared} declared, {found} found" for sid, (declared, found) in mismatch.items())
-        warnings.warn(WearnavWarning(
-            f"{subjects_path}: executions column disagrees with the files ({shown}): files missing "
-            "(an incomplete copy?); those subjects' recordings are flagged in meta['executions_found']"),
-            stacklevel=2)
+        warnings.warn(
+            WearnavWarning(
+                f"{subjects_path}: executions column disagrees with the files ({shown}): files missing "
+                "(an incomplete copy?); those subjects' recordings are flagged in meta['executions_found']"
+            ),
+            stacklevel=2,
+        )
     for count, (eid, files) in enumerate(executions.items(), 1):
         sid = eid.split("_")[0]
         if sid not in subjects.index:
@@ -268,9 +278,14 @@ def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
             raise FormatError(f"execution {eid} is not listed", exec_path)
         execution = exec_info.loc[eid]
         rec = read_execution(
-            eid, files, _subject_meta(subjects.loc[sid], subjects_path),
-            {"phone_orientation": str(execution["orientation"]),
-             "first_turn": str(execution["first_turn"]), "second_turn": str(execution["second_turn"])},
+            eid,
+            files,
+            _subject_meta(subjects.loc[sid], subjects_path),
+            {
+                "phone_orientation": str(execution["orientation"]),
+                "first_turn": str(execution["first_turn"]),
+                "second_turn": str(execution["second_turn"]),
+            },
         )
         if sid in mismatch:
             rec.meta["executions_found"] = mismatch[sid][1]

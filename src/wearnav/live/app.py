@@ -55,13 +55,13 @@ from wearnav.live.store import Store
 
 log = logging.getLogger("wearnav.live")
 STATIC = Path(__file__).parent / "static"
-MAX_BODY = 4 * 1024 * 1024        # bytes; a 1-s batch of 3 devices at 100 Hz is ~150 kB
-RATE_LIMIT = 100.0                 # messages per second per client (burst: twice that)
-MAX_FUTURE_S = 120.0               # sample times this far ahead of the server's clock are refused
-MAX_AGE_S = 7 * 86400.0            # ... and this far behind it
-STOPPED_S = 5.0                    # a device silent this long is shown as stopped
-SESSION_END_S = 30.0               # a session without a push this long has ended: its last windows made final
-EVENT_PERIOD_S = 0.25              # /events sends at most 4 states a second
+MAX_BODY = 4 * 1024 * 1024  # bytes; a 1-s batch of 3 devices at 100 Hz is ~150 kB
+RATE_LIMIT = 100.0  # messages per second per client (burst: twice that)
+MAX_FUTURE_S = 120.0  # sample times this far ahead of the server's clock are refused
+MAX_AGE_S = 7 * 86400.0  # ... and this far behind it
+STOPPED_S = 5.0  # a device silent this long is shown as stopped
+SESSION_END_S = 30.0  # a session without a push this long has ended: its last windows made final
+EVENT_PERIOD_S = 0.25  # /events sends at most 4 states a second
 KEEPALIVE_S = 15.0
 
 
@@ -94,7 +94,7 @@ class SessionWorker:
     def __init__(self, buf: SessionBuffer, tracker_factory: Callable[[], object]):
         self.buf, self.tracker = buf, None
         self.error: str | None = None
-        self.latency_s: list[float] = []   # the oldest ack not yet on the page → the update that put it there
+        self.latency_s: list[float] = []  # the oldest ack not yet on the page → the update that put it there
         self._factory = tracker_factory
         self._event = threading.Event()
         self._pending_since: float | None = None
@@ -118,7 +118,7 @@ class SessionWorker:
         ended = False
         while True:
             if not self._event.wait(timeout=None if ended else SESSION_END_S):
-                ended = True   # quiet for SESSION_END_S: make the last windows final, once
+                ended = True  # quiet for SESSION_END_S: make the last windows final, once
                 self._update(final=True)
                 continue
             ended = False
@@ -128,10 +128,10 @@ class SessionWorker:
             changed = self._update()
             if since is None:
                 continue
-            if changed:   # the page's path now holds every push acknowledged since ``since``
+            if changed:  # the page's path now holds every push acknowledged since ``since``
                 self.latency_s.append(time.perf_counter() - since)
                 del self.latency_s[:-10_000]
-            else:         # nothing new on the page yet (the tracker waits for more): still pending
+            else:  # nothing new on the page yet (the tracker waits for more): still pending
                 with self._lock:
                     self._pending_since = since if self._pending_since is None else min(since, self._pending_since)
 
@@ -156,16 +156,32 @@ class SessionWorker:
 def untracked_state(buf: SessionBuffer, why: str = "off") -> dict:
     """The state without a tracker: ``why`` "off" (``--no-track``) or "starting"."""
     note = "tracking is off (wearnav live --no-track)" if why == "off" else "live tracking is starting"
-    return {"origin": None, "path": [], "anchor": "none", "fixes": [], "activity": None,
-            "warnings": [note], "t_s": buf.covered_until()}
+    return {
+        "origin": None,
+        "path": [],
+        "anchor": "none",
+        "fixes": [],
+        "activity": None,
+        "warnings": [note],
+        "t_s": buf.covered_until(),
+    }
 
 
 class Receiver:
     """The app's state: store, buffers, workers, limits (one per app)."""
 
-    def __init__(self, store: Store, token: str | None, max_body: int, rate_limit: float,
-                 tracker_factory: Callable[[], object] | None, platform: str | None, standardised: bool,
-                 max_future_s: float, max_age_s: float):
+    def __init__(
+        self,
+        store: Store,
+        token: str | None,
+        max_body: int,
+        rate_limit: float,
+        tracker_factory: Callable[[], object] | None,
+        platform: str | None,
+        standardised: bool,
+        max_future_s: float,
+        max_age_s: float,
+    ):
         self.store, self.token, self.max_body = store, token, max_body
         self.limiter = RateLimiter(rate_limit)
         self.tracker_factory = tracker_factory
@@ -175,8 +191,8 @@ class Receiver:
         self.workers: dict[str, SessionWorker] = {}
         self._workers_lock = threading.Lock()
         self.counts = {"accepted": 0, "repeats": 0, "refused": {}}
-        self._lock = threading.Lock()   # store + buffer in one order
-        for sid in store.sessions():   # resumed: what a restart finds in the store
+        self._lock = threading.Lock()  # store + buffer in one order
+        for sid in store.sessions():  # resumed: what a restart finds in the store
             self.buffers[sid] = SessionBuffer.from_store(store, sid)
             self.poke(sid)
 
@@ -204,8 +220,9 @@ class Receiver:
         which the HTTP route does once its 200 is sent."""
         push = parse(body, time.time_ns(), self.max_future_s, self.max_age_s)
         with self._lock:
-            new = self.store.add(push.session_id, push.device_id, push.message_id, body.decode("utf-8"),
-                                 platform, standardised)
+            new = self.store.add(
+                push.session_id, push.device_id, push.message_id, body.decode("utf-8"), platform, standardised
+            )
             if new:
                 # a session's settings are its first message's (the store keeps those)
                 self._buffer(push.session_id, platform, standardised).add(push.payload)
@@ -248,14 +265,20 @@ def _error(status: int, message: str) -> JSONResponse:
     return JSONResponse({"error": message}, status_code=status)
 
 
-def create_app(store: str | Path | Store, token: str | None = None, max_body: int = MAX_BODY,
-               rate_limit: float = RATE_LIMIT, tracker_factory: Callable[[], object] | None = None,
-               platform: str | None = None, standardised: bool = False, max_future_s: float = MAX_FUTURE_S,
-               max_age_s: float = MAX_AGE_S) -> Starlette:
+def create_app(
+    store: str | Path | Store,
+    token: str | None = None,
+    max_body: int = MAX_BODY,
+    rate_limit: float = RATE_LIMIT,
+    tracker_factory: Callable[[], object] | None = None,
+    platform: str | None = None,
+    standardised: bool = False,
+    max_future_s: float = MAX_FUTURE_S,
+    max_age_s: float = MAX_AGE_S,
+) -> Starlette:
     """The receiver app over the SQLite ``store`` (sessions in it are resumed)."""
     store = store if isinstance(store, Store) else Store(store)
-    rx = Receiver(store, token, max_body, rate_limit, tracker_factory, platform, standardised,
-                  max_future_s, max_age_s)
+    rx = Receiver(store, token, max_body, rate_limit, tracker_factory, platform, standardised, max_future_s, max_age_s)
 
     def refuse(request: Request, status: int, message: str) -> JSONResponse:
         rx.counts["refused"][str(status)] = rx.counts["refused"].get(str(status), 0) + 1
@@ -336,42 +359,66 @@ def create_app(store: str | Path | Store, token: str | None = None, max_body: in
                 await asyncio.sleep(EVENT_PERIOD_S)
                 quiet += EVENT_PERIOD_S
 
-        return StreamingResponse(stream(), media_type="text/event-stream",
-                                 headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+        return StreamingResponse(
+            stream(), media_type="text/event-stream", headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"}
+        )
 
     async def sessions(request: Request) -> Response:
         if not authorized(request):
             return refuse(request, 401, "a valid token is required")
         stored = rx.store.sessions()
-        def convention(sid: str, info: dict) -> dict:   # AUTO until the session's data decided it
+
+        def convention(sid: str, info: dict) -> dict:  # AUTO until the session's data decided it
             buf = rx.buffers.get(sid)
             if buf is None or buf.infer:
                 return {"platform": info["platform"], "standardised": info["standardised"]}
             return {"platform": buf.platform, "standardised": buf.standardised}
 
-        return JSONResponse([{"session": sid, **convention(sid, info),
-                              "created_unix_s": info["created_ns"] / 1e9, "messages": info["messages"],
-                              "devices": sorted(rx.buffers[sid].devices()) if sid in rx.buffers else []}
-                             for sid, info in stored.items()])
+        return JSONResponse(
+            [
+                {
+                    "session": sid,
+                    **convention(sid, info),
+                    "created_unix_s": info["created_ns"] / 1e9,
+                    "messages": info["messages"],
+                    "devices": sorted(rx.buffers[sid].devices()) if sid in rx.buffers else [],
+                }
+                for sid, info in stored.items()
+            ]
+        )
 
     async def stats(request: Request) -> Response:
         if not authorized(request):
             return refuse(request, 401, "a valid token is required")
         lat = {sid: w.latency_s[-1000:] for sid, w in rx.workers.items()}
-        return JSONResponse({**rx.counts, "sessions": len(rx.buffers), "tracking": rx.tracker_factory is not None,
-                             "update_latency_s": lat})
+        return JSONResponse(
+            {
+                **rx.counts,
+                "sessions": len(rx.buffers),
+                "tracking": rx.tracker_factory is not None,
+                "update_latency_s": lat,
+            }
+        )
 
     async def index(request: Request) -> Response:
         if not authorized(request):
             return refuse(request, 401, "a valid token is required (open the page as /?token=T)")
         page = STATIC / "index.html"
         if not page.is_file():
-            return PlainTextResponse("the live page is not installed (wearnav/live/static/index.html); "
-                                     "/state and /events work", status_code=404)
+            return PlainTextResponse(
+                "the live page is not installed (wearnav/live/static/index.html); /state and /events work",
+                status_code=404,
+            )
         return FileResponse(page, headers={"Cache-Control": "no-cache"})
 
-    routes = [Route("/push", push, methods=["POST"]), Route("/events", events), Route("/state", state),
-              Route("/sessions", sessions), Route("/stats", stats), Route("/", index)]
+    routes = [
+        Route("/push", push, methods=["POST"]),
+        Route("/events", events),
+        Route("/state", state),
+        Route("/sessions", sessions),
+        Route("/stats", stats),
+        Route("/", index),
+    ]
     if STATIC.is_dir():
         routes.append(Mount("/static", StaticFiles(directory=STATIC), name="static"))
     app = Starlette(routes=routes)

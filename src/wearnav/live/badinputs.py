@@ -12,10 +12,19 @@ DAY_S = 86400.0
 def body(**over) -> dict:
     """A good push (an accelerometer sample and a fix, now), with ``over`` replacing fields."""
     now = time.time_ns()
-    doc = {"messageId": 3, "sessionId": "s-1", "deviceId": "phone.A:1",
-           "payload": [{"name": "accelerometer", "time": now, "values": {"x": 0.1, "y": -0.2, "z": 0.3}},
-                       {"name": "location", "time": now, "values": {"latitude": 49.4, "longitude": 11.1,
-                                                                     "horizontalAccuracy": 4.0}}]}
+    doc = {
+        "messageId": 3,
+        "sessionId": "s-1",
+        "deviceId": "phone.A:1",
+        "payload": [
+            {"name": "accelerometer", "time": now, "values": {"x": 0.1, "y": -0.2, "z": 0.3}},
+            {
+                "name": "location",
+                "time": now,
+                "values": {"latitude": 49.4, "longitude": 11.1, "horizontalAccuracy": 4.0},
+            },
+        ],
+    }
     doc.update(over)
     return doc
 
@@ -50,8 +59,7 @@ def catalogue() -> dict[str, tuple[bytes, int, str]]:
         "time a string": (enc(body(payload=[sample(time="now")])), 422, "time"),
         "values a list": (enc(body(payload=[sample(values=[1, 2, 3])])), 422, "values"),
         "value nested": (enc(body(payload=[sample(values={"x": {"a": 1}, "y": 0, "z": 0})])), 422, "values.x"),
-        "known sensor, string value": (enc(body(payload=[sample(values={"x": "1", "y": 0, "z": 0})])), 422,
-                                       "values.x"),
+        "known sensor, string value": (enc(body(payload=[sample(values={"x": "1", "y": 0, "z": 0})])), 422, "values.x"),
         "known sensor, column missing": (enc(body(payload=[sample(values={"x": 1, "y": 0})])), 422, "values.z"),
         "time in the future": (enc(body(payload=[sample(time=now + day_ns)])), 422, "future"),
         "time years ago": (enc(body(payload=[sample(time=now - 3 * 365 * day_ns)])), 422, "past"),
@@ -63,11 +71,29 @@ def catalogue() -> dict[str, tuple[bytes, int, str]]:
         "sessionId a number": (enc(body(sessionId=7)), 422, "sessionId"),
         "acceleration 1e30": (enc(body()).replace(b"0.1", b"1e30"), 422, "beyond any acceleration"),
         "rotation rate 1e5": (enc(body(payload=[sample(values={"x": 1e5, "y": 0, "z": 0})])), 422, "rotation rate"),
-        "quaternion not unit": (enc(body(payload=[{"name": "orientation", "time": now, "values": {
-            "qw": 0.0, "qx": 0.0, "qy": 0.0, "qz": 0.0}}])), 422, "norm"),
+        "quaternion not unit": (
+            enc(
+                body(
+                    payload=[
+                        {"name": "orientation", "time": now, "values": {"qw": 0.0, "qx": 0.0, "qy": 0.0, "qz": 0.0}}
+                    ]
+                )
+            ),
+            422,
+            "norm",
+        ),
         "latitude 999": (enc(body()).replace(b"49.4", b"999"), 422, "out of range"),
-        "quaternion 1e300": (enc(body(payload=[{"name": "orientation", "time": now, "values": {
-            "qw": 1e300, "qx": 0.0, "qy": 0.0, "qz": 0.0}}])), 422, "norm"),
+        "quaternion 1e300": (
+            enc(
+                body(
+                    payload=[
+                        {"name": "orientation", "time": now, "values": {"qw": 1e300, "qx": 0.0, "qy": 0.0, "qz": 0.0}}
+                    ]
+                )
+            ),
+            422,
+            "norm",
+        ),
         "an integer of 400 digits": (enc(body()).replace(b"0.1", b"1" + b"0" * 400), 400, "not finite"),
     }
 

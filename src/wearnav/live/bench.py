@@ -53,12 +53,11 @@ from wearnav.live.tracker import STEP_S
 from wearnav.provenance import provenance
 
 BATCH_S = 0.2
-LATENCY_GOAL_S = 1.0     # issue 23: a push's 200 → the updated path, p95
+LATENCY_GOAL_S = 1.0  # issue 23: a push's 200 → the updated path, p95
 # Keeping up with real time: the path trails the pushes by a bounded time, not a growing one. The
 # tracker reads the buffer once per STEP_S of new data (live/tracker.py), so even an idle server
 # shows about that plus an update; 2 s means the updates no longer keep pace.
 KEPT_UP_UPDATE_S = 2.0
-
 
 
 def _pct(x, q) -> float | None:
@@ -73,10 +72,18 @@ def lost_and_duplicated(ref, live) -> dict:
         a = ref.devices[dev].t if dev in ref.devices else np.zeros(0)
         b = live.devices[dev].t if dev in live.devices else np.zeros(0)
         common = np.intersect1d(np.round(a, 9), np.round(b, 9)).size
-        same = dev in ref.devices and dev in live.devices and a.size == b.size and bool(
-            np.allclose(ref.devices[dev].acc, live.devices[dev].acc, atol=1e-6))
-        out[dev] = {"samples": int(a.size), "lost": int(a.size - common), "duplicated": int(b.size - common),
-                    "equal": same}
+        same = (
+            dev in ref.devices
+            and dev in live.devices
+            and a.size == b.size
+            and bool(np.allclose(ref.devices[dev].acc, live.devices[dev].acc, atol=1e-6))
+        )
+        out[dev] = {
+            "samples": int(a.size),
+            "lost": int(a.size - common),
+            "duplicated": int(b.size - common),
+            "equal": same,
+        }
     return out
 
 
@@ -97,7 +104,7 @@ def load_phase(work: Path, export: Path, duration_s: float, speed: float) -> dic
     rp = replay.build(export, batch_s=BATCH_S, session_id="bench-load")
     n = min(len(rp.messages), int(round(duration_s * speed / BATCH_S)))
     with LiveServer(work / "load.db", "--no-track") as srv:
-        time.sleep(1.0)   # start-up work done
+        time.sleep(1.0)  # start-up work done
         c0, w0 = srv.cpu_s(), time.perf_counter()
         res = replay.send(rp, f"{srv.url}/push", speed=speed, stop_after=n)
         c1, w1 = srv.cpu_s(), time.perf_counter()
@@ -106,13 +113,25 @@ def load_phase(work: Path, export: Path, duration_s: float, speed: float) -> dic
     ref = reference(export, rp.messages[n - 1]["_due_s"])
     live_rec = live.load("bench-load")
     lat = res.ack_latency_s
-    return {"messages": n, "samples": samples, "data_s": round(n * BATCH_S, 1), "speed": speed,
-            "wall_s": round(res.wall_s, 2), "schedule_s": round(n * BATCH_S / speed, 2),
-            "behind_at_end_s": round(res.late_s, 3), "acknowledged": len(res.acknowledged), "retries": res.retries,
-            "cpu_share_of_one_core": None if c0 is None or c1 is None else round((c1 - c0) / (w1 - w0), 4),
-            "ack_ms": {"p50": _pct(lat, 50), "p95": _pct(lat, 95), "p99": _pct(lat, 99),
-                       "max": round(1e3 * max(lat), 2) if lat else None},
-            "devices": lost_and_duplicated(ref, live_rec)}
+    return {
+        "messages": n,
+        "samples": samples,
+        "data_s": round(n * BATCH_S, 1),
+        "speed": speed,
+        "wall_s": round(res.wall_s, 2),
+        "schedule_s": round(n * BATCH_S / speed, 2),
+        "behind_at_end_s": round(res.late_s, 3),
+        "acknowledged": len(res.acknowledged),
+        "retries": res.retries,
+        "cpu_share_of_one_core": None if c0 is None or c1 is None else round((c1 - c0) / (w1 - w0), 4),
+        "ack_ms": {
+            "p50": _pct(lat, 50),
+            "p95": _pct(lat, 95),
+            "p99": _pct(lat, 99),
+            "max": round(1e3 * max(lat), 2) if lat else None,
+        },
+        "devices": lost_and_duplicated(ref, live_rec),
+    }
 
 
 def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track: bool) -> dict:
@@ -121,21 +140,24 @@ def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track:
     tracking = track and importlib.util.find_spec("wearnav.live.tracker") is not None
     base = replay.build(export, batch_s=BATCH_S, session_id="walker-0")
     n = min(len(base.messages), int(round(seconds / BATCH_S)))
-    plays = [replace(base, session_id=f"walker-{i}", messages=[{**m, "sessionId": f"walker-{i}"}
-                                                               for m in base.messages[:n]])
-             for i in range(walkers)]
+    plays = [
+        replace(base, session_id=f"walker-{i}", messages=[{**m, "sessionId": f"walker-{i}"} for m in base.messages[:n]])
+        for i in range(walkers)
+    ]
     results: list = [None] * walkers
     with LiveServer(work / f"walkers-{walkers}.db", *([] if tracking else ["--no-track"])) as srv:
-        time.sleep(1.0)   # start-up work done
+        time.sleep(1.0)  # start-up work done
         c0, w0 = srv.cpu_s(), time.perf_counter()
-        threads = [threading.Thread(target=lambda i=i: results.__setitem__(i, replay.send(plays[i], f"{srv.url}/push")))
-                   for i in range(walkers)]
+        threads = [
+            threading.Thread(target=lambda i=i: results.__setitem__(i, replay.send(plays[i], f"{srv.url}/push")))
+            for i in range(walkers)
+        ]
         for t in threads:
             t.start()
         for t in threads:
             t.join()
         c1, w1 = srv.cpu_s(), time.perf_counter()
-        time.sleep(1.0)   # the trackers' last updates
+        time.sleep(1.0)  # the trackers' last updates
         stats = httpx.get(f"{srv.url}/stats").json()
     acks = [x for r in results if r is not None for x in r.ack_latency_s]
     upd = [x for v in stats.get("update_latency_s", {}).values() for x in v]
@@ -143,11 +165,18 @@ def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track:
     complete = all(r is not None and len(r.acknowledged) == n for r in results)
     upd_p95 = _pct(upd, 95)
     kept_up = complete and behind < 1.0 and (not tracking or (upd_p95 is not None and upd_p95 < 1e3 * KEPT_UP_UPDATE_S))
-    return {"walkers": walkers, "seconds": round(w1 - w0, 1), "messages": n * walkers, "tracking": tracking,
-            "cpu_share_of_one_core": None if c0 is None or c1 is None else round((c1 - c0) / (w1 - w0), 4),
-            "ack_ms": {"p50": _pct(acks, 50), "p99": _pct(acks, 99)}, "behind_at_end_s": round(behind, 3),
-            "update_ms": {"p50": _pct(upd, 50), "p95": upd_p95, "n": len(upd)}, "kept_up": kept_up,
-            "latency_goal_met": None if not tracking or upd_p95 is None else upd_p95 < 1e3 * LATENCY_GOAL_S}
+    return {
+        "walkers": walkers,
+        "seconds": round(w1 - w0, 1),
+        "messages": n * walkers,
+        "tracking": tracking,
+        "cpu_share_of_one_core": None if c0 is None or c1 is None else round((c1 - c0) / (w1 - w0), 4),
+        "ack_ms": {"p50": _pct(acks, 50), "p99": _pct(acks, 99)},
+        "behind_at_end_s": round(behind, 3),
+        "update_ms": {"p50": _pct(upd, 50), "p95": upd_p95, "n": len(upd)},
+        "kept_up": kept_up,
+        "latency_goal_met": None if not tracking or upd_p95 is None else upd_p95 < 1e3 * LATENCY_GOAL_S,
+    }
 
 
 def stored_rows(db: Path) -> int:
@@ -162,15 +191,17 @@ def bad_input_phase(work: Path, fuzz: int = 200, seed: int = 0) -> dict:
     rng = np.random.default_rng(seed)
     db, token = work / "bad.db", "bench-token"
     wrong: list[str] = []
-    with LiveServer(db, "--no-track", "--max-body", "65536", "--rate-limit", "20", "--token", token,
-                    token=token) as srv, httpx.Client(base_url=srv.url, headers={"authorization": f"Bearer {token}"}) as c:
+    with (
+        LiveServer(db, "--no-track", "--max-body", "65536", "--rate-limit", "20", "--token", token, token=token) as srv,
+        httpx.Client(base_url=srv.url, headers={"authorization": f"Bearer {token}"}) as c,
+    ):
         tried = 0
         for name, (raw, status, _word) in catalogue().items():
             tried += 1
             r = c.post("/push", content=raw)
             if r.status_code != status:
                 wrong.append(f"{name}: {r.status_code}")
-            time.sleep(0.06)   # under the rate limit
+            time.sleep(0.06)  # under the rate limit
         big = enc(body(payload=[{"name": "battery", "time": time.time_ns(), "values": {"s": "x" * 70_000}}]))
         tried += 1
         if c.post("/push", content=big).status_code != 413:
@@ -184,7 +215,7 @@ def bad_input_phase(work: Path, fuzz: int = 200, seed: int = 0) -> dict:
             r = c.post("/push", content=bytes(raw))
             if r.status_code in (400, 422):
                 fz["refused"] += 1
-            elif r.status_code == 200:   # still a valid push (a digit changed, say)
+            elif r.status_code == 200:  # still a valid push (a digit changed, say)
                 fz["accepted"] += 1
                 fz["stored"] += bool(r.json().get("stored"))
             else:
@@ -195,9 +226,18 @@ def bad_input_phase(work: Path, fuzz: int = 200, seed: int = 0) -> dict:
         time.sleep(1.0)
         flood = [c.post("/push", content=enc(body(messageId=1000 + k))).status_code for k in range(100)]
         rows_flood = stored_rows(db) - rows_after_bad
-    return {"catalogue": tried, "catalogue_wrong": wrong, "fuzz": fuzz, "fuzz_answers": fz,
-            "rows_after_bad": rows_after_bad, "no_token_401": no_token, "flood": len(flood),
-            "flood_429": flood.count(429), "flood_200": flood.count(200), "flood_stored": rows_flood}
+    return {
+        "catalogue": tried,
+        "catalogue_wrong": wrong,
+        "fuzz": fuzz,
+        "fuzz_answers": fz,
+        "rows_after_bad": rows_after_bad,
+        "no_token_401": no_token,
+        "flood": len(flood),
+        "flood_429": flood.count(429),
+        "flood_200": flood.count(200),
+        "flood_stored": rows_flood,
+    }
 
 
 def kill_phase(work: Path, export: Path, kills: int = 2, speed: float = 10.0, data_s: float = 60.0) -> dict:
@@ -210,8 +250,11 @@ def kill_phase(work: Path, export: Path, kills: int = 2, speed: float = 10.0, da
     acked: list[int] = []
     out: dict = {}
     srv = LiveServer(db, "--no-track").start()
-    sender = threading.Thread(target=lambda: out.update(res=replay.send(
-        rp, f"{srv.url}/push", speed=speed, stop_after=n, on_ack=acked.append)))
+    sender = threading.Thread(
+        target=lambda: out.update(
+            res=replay.send(rp, f"{srv.url}/push", speed=speed, stop_after=n, on_ack=acked.append)
+        )
+    )
     sender.start()
     missing = 0
     try:
@@ -231,13 +274,26 @@ def kill_phase(work: Path, export: Path, kills: int = 2, speed: float = 10.0, da
     res = out.get("res")
     live = export_session(db, "bench-kill", work / "kill-export").load("bench-kill")
     same = lost_and_duplicated(reference(export, rp.messages[n - 1]["_due_s"]), live)
-    return {"kills": kills, "messages": n, "acknowledged": len(res.acknowledged) if res else 0,
-            "retries": res.retries if res else 0, "acknowledged_missing": missing,
-            "export_equal": all(d["equal"] and not d["lost"] and not d["duplicated"] for d in same.values())}
+    return {
+        "kills": kills,
+        "messages": n,
+        "acknowledged": len(res.acknowledged) if res else 0,
+        "retries": res.retries if res else 0,
+        "acknowledged_missing": missing,
+        "export_equal": all(d["equal"] and not d["lost"] and not d["duplicated"] for d in same.values()),
+    }
 
 
-def run_bench(out: str | Path, duration_s: float = 60.0, speed: float = 10.0, cpu_s: float = 30.0,
-              track: bool = True, walkers: tuple[int, ...] = (1, 2, 4, 8), fuzz: int = 200, seed: int = 0) -> Path:
+def run_bench(
+    out: str | Path,
+    duration_s: float = 60.0,
+    speed: float = 10.0,
+    cpu_s: float = 30.0,
+    track: bool = True,
+    walkers: tuple[int, ...] = (1, 2, 4, 8),
+    fuzz: int = 200,
+    seed: int = 0,
+) -> Path:
     out = Path(out)
     work = out / "work"
     for db in work.glob("*.db*"):
@@ -252,11 +308,15 @@ def run_bench(out: str | Path, duration_s: float = 60.0, speed: float = 10.0, cp
     for k in sorted(set(walkers) | {1}):
         rows.append(walkers_phase(work, export, k, cpu_s, track))
         if not rows[-1]["kept_up"]:
-            break   # more walkers will not keep up either
-    result = {"load": load_phase(work, export, duration_s, speed), "walkers": rows,
-              "bad_inputs": bad_input_phase(work, fuzz=fuzz), "faults": kill_phase(work, export, speed=speed),
-              "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count()},
-              "provenance": provenance()}
+            break  # more walkers will not keep up either
+    result = {
+        "load": load_phase(work, export, duration_s, speed),
+        "walkers": rows,
+        "bad_inputs": bad_input_phase(work, fuzz=fuzz),
+        "faults": kill_phase(work, export, speed=speed),
+        "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count()},
+        "provenance": provenance(),
+    }
     write_text_atomic(json.dumps(result, indent=1, default=str), out / "results.json")
     return write_text_atomic(page(result), out / "results.md")
 
@@ -266,8 +326,10 @@ def page(r: dict) -> str:
     bad, fl = r["bad_inputs"], r["faults"]
     lost = sum(d["lost"] for d in ld["devices"].values())
     dup = sum(d["duplicated"] for d in ld["devices"].values())
-    devs = "\n".join(f"| {dev} | {d['samples']} | {d['lost']} | {d['duplicated']} | {'yes' if d['equal'] else 'no'} |"
-                     for dev, d in ld["devices"].items())
+    devs = "\n".join(
+        f"| {dev} | {d['samples']} | {d['lost']} | {d['duplicated']} | {'yes' if d['equal'] else 'no'} |"
+        for dev, d in ld["devices"].items()
+    )
     one = rows[0]
     tracking = one["tracking"]
 
@@ -277,7 +339,9 @@ def page(r: dict) -> str:
     table = "\n".join(
         f"| {w['walkers']} | {pc(w['cpu_share_of_one_core'])} | {w['ack_ms']['p50']} | {w['ack_ms']['p99']} | "
         f"{w['update_ms']['p50'] if tracking else '–'} | {w['update_ms']['p95'] if tracking else '–'} | "
-        f"{w['behind_at_end_s']} | {'yes' if w['kept_up'] else 'no'} |" for w in rows)
+        f"{w['behind_at_end_s']} | {'yes' if w['kept_up'] else 'no'} |"
+        for w in rows
+    )
     kept = [w["walkers"] for w in rows if w["kept_up"]]
     tried = ", ".join(str(w["walkers"]) for w in rows)
     if not kept:
@@ -286,64 +350,99 @@ def page(r: dict) -> str:
         capacity = f"at least {max(kept)} walkers (all of {tried} kept up)"
     else:
         capacity = f"{max(kept)} walkers kept up, {rows[-1]['walkers']} did not (tried {tried})"
-    return "\n".join([
-        "# Live receiver (wearnav live)", "",
-        f"Generated by `wearnav live bench` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) on this machine: "
-        f"{r['machine']['cpu']}, {r['machine']['cores']} CPUs; a real `wearnav live` process on 127.0.0.1 fed by "
-        "`wearnav replay` over HTTP from a simulated walk written as an iPhone's Sensor Logger export (phone's four "
-        "motion sensors and the watch at 100 Hz, earbuds at 25 Hz, fixes at 1 Hz: 526 samples per second of walk; "
-        f"{BATCH_S:g}-s batches). Ack latency: POST sent → 200 received, the message committed to SQLite "
-        "(WAL, synchronous=FULL) first. The machine is shared: timings vary with load.", "",
-        "| measure | value |", "|---|---|",
-        f"| ack latency p99 at {ld['speed']:g}× real time (ms) | {ld['ack_ms']['p99']} |",
-        f"| lost samples at {ld['speed']:g}× | {lost} |", f"| duplicated samples at {ld['speed']:g}× | {dup} |",
-        f"| server CPU, one walker (% of one core) | {'?' if one['cpu_share_of_one_core'] is None else round(100 * one['cpu_share_of_one_core'], 1)} |",
-        *([f"| tracker update p95, one walker (ms) | {one['update_ms']['p95']} |"] if tracking else []),
-        f"| walkers kept up at real time | {max(kept) if kept else 0} |",
-        f"| bad inputs refused as expected | {bad['catalogue'] - len(bad['catalogue_wrong'])} |",
-        f"| acknowledged messages lost in {fl['kills']} SIGKILLs | {fl['acknowledged_missing']} |", "",
-        f"## Load: {ld['data_s']:g} s of walk at {ld['speed']:g}× real time", "",
-        f"{ld['messages']} messages ({ld['samples']} samples) in {ld['wall_s']} s (schedule {ld['schedule_s']} s; "
-        f"{ld['behind_at_end_s']} s behind at the end), {ld['acknowledged']} acknowledged, {ld['retries']} retries. "
-        f"Ack latency: p50 {ld['ack_ms']['p50']} ms, p95 {ld['ack_ms']['p95']} ms, p99 {ld['ack_ms']['p99']} ms, "
-        f"max {ld['ack_ms']['max']} ms. The server process used {pc(ld['cpu_share_of_one_core'])} of one core "
-        f"(storing only, no tracking: {ld['speed']:g} walkers' worth of pushes). Lost samples: {lost}, duplicated: "
-        f"{dup} (the stored session exported with `wearnav live export`, compared with `wearnav import` of the same "
-        "export):", "",
-        "| device | samples | lost | duplicated | equal to the import |", "|---|---|---|---|---|", devs, "",
-        f"## Walkers at real time ({one['seconds']} s each, {'with' if tracking else 'without'} live tracking)", "",
-        "Each walker is one session (phone, watch, earbuds) pushing in real time; all at once into one server. "
-        "CPU: the server process's user + system time over the wall time, as a share of one core. "
-        + ("Update: from the oldest 200 whose samples are not yet on the page to the tracker update that put them "
-           "there (an update that changed the path, fixes or activity; the tracker reads the buffer once "
-           f"{STEP_S:g} s of new data have arrived). " if tracking else
-           "No live tracker in this installation: storing and serving only. ")
-        + "Kept up: every message acknowledged, under 1 s behind schedule at the end"
-        + (f", update p95 under {KEPT_UP_UPDATE_S:g} s (the path trails by a bounded time); the issue's goal is a "
-           f"p95 under {LATENCY_GOAL_S:g} s." if tracking else "."), "",
-        "| walkers | server CPU | ack p50 ms | ack p99 ms | update p50 ms | update p95 ms | behind at end s | kept up |",
-        "|---|---|---|---|---|---|---|---|", table, "",
-        f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}."
-        + ("" if not tracking or one["update_ms"]["p95"] is None else
-           f" Push → path p95 at one walker: {one['update_ms']['p95'] / 1e3:.2f} s, the {LATENCY_GOAL_S:g}-s goal "
-           + ("met." if one["latency_goal_met"] else f"not met: the tracker waits for {STEP_S:g} s of new data "
-              "before it reads the buffer, and a push carries 0.2 s.")), "",
-        "## Bad input and faults", "",
-        f"Bad input (token required, 64-KiB body limit, 20 messages a second): {bad['catalogue']} bad bodies "
-        f"(malformed JSON, not UTF-8, NaN / inf, wrong types, missing columns, values no sensor reports, times a day "
-        f"ahead or years back, ids with path characters, a body over the limit): {bad['catalogue'] - len(bad['catalogue_wrong'])} answered "
-        f"with the expected 4xx{' (not: ' + '; '.join(bad['catalogue_wrong']) + ')' if bad['catalogue_wrong'] else ''}; "
-        f"{bad['fuzz']} random byte mutations of a good body: {bad['fuzz_answers']['refused']} refused with 400/422, "
-        f"{bad['fuzz_answers']['accepted']} still valid pushes and accepted ({bad['fuzz_answers']['stored']} new), "
-        f"{bad['fuzz_answers']['other']} answered otherwise; rows in the store after all of these: "
-        f"{bad['rows_after_bad']} (the new valid ones only). Without the "
-        f"token: {bad['no_token_401']} of 5 answered 401. A flood of {bad['flood']} messages at once: "
-        f"{bad['flood_429']} answered 429, {bad['flood_200']} accepted, {bad['flood_stored']} stored.", "",
-        f"Faults: {fl['kills']} SIGKILLs of the server during a {fl['messages']}-message replay at {ld['speed']:g}×, "
-        f"each followed by a restart on the same store; acknowledged messages missing after a restart: "
-        f"{fl['acknowledged_missing']}; the replay's retries ({fl['retries']}) filled in the rest "
-        f"({fl['acknowledged']} acknowledged); the final export "
-        f"{'equals' if fl['export_equal'] else 'differs from'} importing the export directly.", ""])
+    return "\n".join(
+        [
+            "# Live receiver (wearnav live)",
+            "",
+            f"Generated by `wearnav live bench` ({p['created']}, wearnav {p['wearnav']} {p['commit']}) on this machine: "
+            f"{r['machine']['cpu']}, {r['machine']['cores']} CPUs; a real `wearnav live` process on 127.0.0.1 fed by "
+            "`wearnav replay` over HTTP from a simulated walk written as an iPhone's Sensor Logger export (phone's four "
+            "motion sensors and the watch at 100 Hz, earbuds at 25 Hz, fixes at 1 Hz: 526 samples per second of walk; "
+            f"{BATCH_S:g}-s batches). Ack latency: POST sent → 200 received, the message committed to SQLite "
+            "(WAL, synchronous=FULL) first. The machine is shared: timings vary with load.",
+            "",
+            "| measure | value |",
+            "|---|---|",
+            f"| ack latency p99 at {ld['speed']:g}× real time (ms) | {ld['ack_ms']['p99']} |",
+            f"| lost samples at {ld['speed']:g}× | {lost} |",
+            f"| duplicated samples at {ld['speed']:g}× | {dup} |",
+            f"| server CPU, one walker (% of one core) | {'?' if one['cpu_share_of_one_core'] is None else round(100 * one['cpu_share_of_one_core'], 1)} |",
+            *([f"| tracker update p95, one walker (ms) | {one['update_ms']['p95']} |"] if tracking else []),
+            f"| walkers kept up at real time | {max(kept) if kept else 0} |",
+            f"| bad inputs refused as expected | {bad['catalogue'] - len(bad['catalogue_wrong'])} |",
+            f"| acknowledged messages lost in {fl['kills']} SIGKILLs | {fl['acknowledged_missing']} |",
+            "",
+            f"## Load: {ld['data_s']:g} s of walk at {ld['speed']:g}× real time",
+            "",
+            f"{ld['messages']} messages ({ld['samples']} samples) in {ld['wall_s']} s (schedule {ld['schedule_s']} s; "
+            f"{ld['behind_at_end_s']} s behind at the end), {ld['acknowledged']} acknowledged, {ld['retries']} retries. "
+            f"Ack latency: p50 {ld['ack_ms']['p50']} ms, p95 {ld['ack_ms']['p95']} ms, p99 {ld['ack_ms']['p99']} ms, "
+            f"max {ld['ack_ms']['max']} ms. The server process used {pc(ld['cpu_share_of_one_core'])} of one core "
+            f"(storing only, no tracking: {ld['speed']:g} walkers' worth of pushes). Lost samples: {lost}, duplicated: "
+            f"{dup} (the stored session exported with `wearnav live export`, compared with `wearnav import` of the same "
+            "export):",
+            "",
+            "| device | samples | lost | duplicated | equal to the import |",
+            "|---|---|---|---|---|",
+            devs,
+            "",
+            f"## Walkers at real time ({one['seconds']} s each, {'with' if tracking else 'without'} live tracking)",
+            "",
+            "Each walker is one session (phone, watch, earbuds) pushing in real time; all at once into one server. "
+            "CPU: the server process's user + system time over the wall time, as a share of one core. "
+            + (
+                "Update: from the oldest 200 whose samples are not yet on the page to the tracker update that put them "
+                "there (an update that changed the path, fixes or activity; the tracker reads the buffer once "
+                f"{STEP_S:g} s of new data have arrived). "
+                if tracking
+                else "No live tracker in this installation: storing and serving only. "
+            )
+            + "Kept up: every message acknowledged, under 1 s behind schedule at the end"
+            + (
+                f", update p95 under {KEPT_UP_UPDATE_S:g} s (the path trails by a bounded time); the issue's goal is a "
+                f"p95 under {LATENCY_GOAL_S:g} s."
+                if tracking
+                else "."
+            ),
+            "",
+            "| walkers | server CPU | ack p50 ms | ack p99 ms | update p50 ms | update p95 ms | behind at end s | kept up |",
+            "|---|---|---|---|---|---|---|---|",
+            table,
+            "",
+            f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}."
+            + (
+                ""
+                if not tracking or one["update_ms"]["p95"] is None
+                else f" Push → path p95 at one walker: {one['update_ms']['p95'] / 1e3:.2f} s, the {LATENCY_GOAL_S:g}-s goal "
+                + (
+                    "met."
+                    if one["latency_goal_met"]
+                    else f"not met: the tracker waits for {STEP_S:g} s of new data "
+                    "before it reads the buffer, and a push carries 0.2 s."
+                )
+            ),
+            "",
+            "## Bad input and faults",
+            "",
+            f"Bad input (token required, 64-KiB body limit, 20 messages a second): {bad['catalogue']} bad bodies "
+            f"(malformed JSON, not UTF-8, NaN / inf, wrong types, missing columns, values no sensor reports, times a day "
+            f"ahead or years back, ids with path characters, a body over the limit): {bad['catalogue'] - len(bad['catalogue_wrong'])} answered "
+            f"with the expected 4xx{' (not: ' + '; '.join(bad['catalogue_wrong']) + ')' if bad['catalogue_wrong'] else ''}; "
+            f"{bad['fuzz']} random byte mutations of a good body: {bad['fuzz_answers']['refused']} refused with 400/422, "
+            f"{bad['fuzz_answers']['accepted']} still valid pushes and accepted ({bad['fuzz_answers']['stored']} new), "
+            f"{bad['fuzz_answers']['other']} answered otherwise; rows in the store after all of these: "
+            f"{bad['rows_after_bad']} (the new valid ones only). Without the "
+            f"token: {bad['no_token_401']} of 5 answered 401. A flood of {bad['flood']} messages at once: "
+            f"{bad['flood_429']} answered 429, {bad['flood_200']} accepted, {bad['flood_stored']} stored.",
+            "",
+            f"Faults: {fl['kills']} SIGKILLs of the server during a {fl['messages']}-message replay at {ld['speed']:g}×, "
+            f"each followed by a restart on the same store; acknowledged messages missing after a restart: "
+            f"{fl['acknowledged_missing']}; the replay's retries ({fl['retries']}) filled in the rest "
+            f"({fl['acknowledged']} acknowledged); the final export "
+            f"{'equals' if fl['export_equal'] else 'differs from'} importing the export directly.",
+            "",
+        ]
+    )
 
 
 __all__ = ["lost_and_duplicated", "run_bench"]

@@ -31,9 +31,9 @@ from wearnav.importers.sensorlogger_map import PUSH_NAMES, SENSORS, Table
 from wearnav.recording import DeviceStream, Fixes, Recording
 
 NS = 1_000_000_000
-DECIDE_S = 10.0   # seconds of data after which the quaternion direction is decided for good
-MARGIN_S = 2.0    # a slice reads this much earlier data, for interpolation at its start
-AUTO = "auto"     # a session whose push URL gave no platform: decided from its data
+DECIDE_S = 10.0  # seconds of data after which the quaternion direction is decided for good
+MARGIN_S = 2.0  # a slice reads this much earlier data, for interpolation at its start
+AUTO = "auto"  # a session whose push URL gave no platform: decided from its data
 CONNECTED_S = 5.0  # a device this far behind the newest (sample time) no longer holds the path back
 # The distinct readings of an app's acceleration (sign, unit: sensorlogger_map.acceleration_convention),
 # tried in this order: iOS with "Standardise Units & Frames" off (the app's default), on, and Android.
@@ -62,15 +62,15 @@ class _Sensor:
 
     @property
     def t(self) -> np.ndarray:
-        return self._t[:self.n]
+        return self._t[: self.n]
 
     @property
     def vals(self) -> np.ndarray:
-        return self._v[:self.n]
+        return self._v[: self.n]
 
     @property
     def text(self) -> np.ndarray | None:
-        return None if self._text is None else self._text[:self.n]
+        return None if self._text is None else self._text[: self.n]
 
     def consolidate(self) -> None:
         """Merge the pending chunks (module docstring's order rule)."""
@@ -78,17 +78,20 @@ class _Sensor:
             return
         t = np.concatenate([c[0] for c in self.chunks])
         v = np.concatenate([c[1] for c in self.chunks])
-        x = None if self._text is None else np.array([y for c in self.chunks for y in (c[2] or [None] * len(c[0]))],
-                                                     object)
+        x = (
+            None
+            if self._text is None
+            else np.array([y for c in self.chunks for y in (c[2] or [None] * len(c[0]))], object)
+        )
         self.chunks = []
-        if self.n and t.min() <= self._t[self.n - 1]:   # out of order: merge with the rows from t.min() on
+        if self.n and t.min() <= self._t[self.n - 1]:  # out of order: merge with the rows from t.min() on
             i = int(np.searchsorted(self.t, t.min(), side="left"))
-            t, v = np.concatenate([self._t[i:self.n], t]), np.concatenate([self._v[i:self.n], v])
-            x = None if x is None else np.concatenate([self._text[i:self.n], x])
-            self._t, self._v = self._t[:i].copy(), self._v[:i].copy()   # new arrays: snapshots keep theirs
+            t, v = np.concatenate([self._t[i : self.n], t]), np.concatenate([self._v[i : self.n], v])
+            x = None if x is None else np.concatenate([self._text[i : self.n], x])
+            self._t, self._v = self._t[:i].copy(), self._v[:i].copy()  # new arrays: snapshots keep theirs
             self._text = None if x is None else self._text[:i].copy()
             self.n = i
-        order = np.argsort(t, kind="stable")          # earlier arrivals first on equal times
+        order = np.argsort(t, kind="stable")  # earlier arrivals first on equal times
         t, v = t[order], v[order]
         keep = np.concatenate([[True], np.diff(t) > 0])
         self.duplicates += int((~keep).sum())
@@ -96,15 +99,15 @@ class _Sensor:
         if x is not None:
             x = x[order][keep]
         need = self.n + t.size
-        if need > self._t.size:                       # grow by doubling (new arrays)
+        if need > self._t.size:  # grow by doubling (new arrays)
             cap = max(need, 2 * self._t.size, 1024)
-            self._t = np.concatenate([self._t[:self.n], np.zeros(cap - self.n, np.int64)])
-            self._v = np.concatenate([self._v[:self.n], np.zeros((cap - self.n, self._v.shape[1]))])
+            self._t = np.concatenate([self._t[: self.n], np.zeros(cap - self.n, np.int64)])
+            self._v = np.concatenate([self._v[: self.n], np.zeros((cap - self.n, self._v.shape[1]))])
             if self._text is not None:
-                self._text = np.concatenate([self._text[:self.n], np.zeros(cap - self.n, object)])
-        self._t[self.n:need], self._v[self.n:need] = t, v
+                self._text = np.concatenate([self._text[: self.n], np.zeros(cap - self.n, object)])
+        self._t[self.n : need], self._v[self.n : need] = t, v
         if x is not None:
-            self._text[self.n:need] = x
+            self._text[self.n : need] = x
         self.n = need
 
 
@@ -113,13 +116,13 @@ class SessionBuffer:
 
     def __init__(self, session_id: str, platform: str = "ios", standardised: bool = False):
         self.session_id = session_id
-        self.infer = platform == AUTO    # decided from the data (see _full) until then
+        self.infer = platform == AUTO  # decided from the data (see _full) until then
         self.platform, self.standardised = CONVENTIONS[0] if self.infer else (platform, standardised)
         self.platform_from = "the data" if self.infer else "the push URL / wearnav live --platform"
         self.t0_unix_ns: int | None = None
         self.version = 0
         self.messages = 0
-        self.ignored: dict[str, int] = {}       # unknown sensor names → samples (stored, not read)
+        self.ignored: dict[str, int] = {}  # unknown sensor names → samples (stored, not read)
         self.warnings: list[str] = []
         self._sensors: dict[str, _Sensor] = {}
         self._lock = threading.Lock()
@@ -127,7 +130,7 @@ class SessionBuffer:
         self._cache: tuple | None = None
 
     @classmethod
-    def from_store(cls, store, session_id: str) -> "SessionBuffer":
+    def from_store(cls, store, session_id: str) -> SessionBuffer:
         """The session rebuilt from a :class:`wearnav.live.store.Store` (on restart, for export):
         its messages in the order they were stored, with the time each was received."""
         sessions = store.sessions()
@@ -177,9 +180,17 @@ class SessionBuffer:
         with self._lock:
             for s in self._sensors.values():
                 s.consolidate()
-            snap = {f: (s.t, s.vals, [*s.cols[:len(SENSORS[f].cols)],
-                                      *[c for c in SENSORS[f].optional if c in s.optional_seen]],
-                        s.text, s.duplicates) for f, s in self._sensors.items() if s.t.size}
+            snap = {
+                f: (
+                    s.t,
+                    s.vals,
+                    [*s.cols[: len(SENSORS[f].cols)], *[c for c in SENSORS[f].optional if c in s.optional_seen]],
+                    s.text,
+                    s.duplicates,
+                )
+                for f, s in self._sensors.items()
+                if s.t.size
+            }
             version = self.version
         self.t0_unix_ns = self._t0(snap)
         return version, snap
@@ -209,9 +220,17 @@ class SessionBuffer:
         platform, standardised = convention or (self.platform, self.standardised)
         with _BUILD_LOCK, warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            rec = build_recording(tables, platform, standardised, Path(f"live:{self.session_id}"),
-                                  self.session_id, f"live session {self.session_id}",
-                                  {"platform_from": self.platform_from}, t0_ns=self.t0_unix_ns, **kw)
+            rec = build_recording(
+                tables,
+                platform,
+                standardised,
+                Path(f"live:{self.session_id}"),
+                self.session_id,
+                f"live session {self.session_id}",
+                {"platform_from": self.platform_from},
+                t0_ns=self.t0_unix_ns,
+                **kw,
+            )
         self.warnings = [str(w.message) for w in caught]
         return rec
 
@@ -252,8 +271,9 @@ class SessionBuffer:
         tables = self._tables(snap, None)
         span = self.covered_until()
         decided = span >= DECIDE_S
-        tried = [(self.platform, self.standardised)] + ([c for c in CONVENTIONS if c != (self.platform, self.standardised)]
-                                                        if self.infer else [])
+        tried = [(self.platform, self.standardised)] + (
+            [c for c in CONVENTIONS if c != (self.platform, self.standardised)] if self.infer else []
+        )
         first_error = None
         for convention in tried:
             try:
@@ -265,21 +285,28 @@ class SessionBuffer:
                 self.platform, self.standardised = convention
             if decided:
                 if self.infer:
-                    self.infer, self.platform_from = False, "the data (the first reading that passes the importer's checks)"
+                    self.infer, self.platform_from = (
+                        False,
+                        "the data (the first reading that passes the importer's checks)",
+                    )
                 if self._quat_inverted is None:
                     self._quat_inverted = list(rec.meta.get("quat_inverted", []))
             return rec
         if not decided and not self.infer:
             return self._build(tables, quat_inverted=())
         if not decided:
-            raise FormatError(f"the phone's platform is decided from the data once {DECIDE_S:g} s are in (the "
-                              "push URL does not say it: ?platform=ios|android&standardisation=true|false)",
-                              first_error.source)
+            raise FormatError(
+                f"the phone's platform is decided from the data once {DECIDE_S:g} s are in (the "
+                "push URL does not say it: ?platform=ios|android&standardisation=true|false)",
+                first_error.source,
+            )
         raise FormatError(  # the push carries no platform: say where it is set
             f"{first_error.reason} (this session is read as platform {self.platform}, standardisation "
             f"{'on' if self.standardised else 'off'}{', none of ' + str(len(tried)) + ' readings fits' if self.infer else ''}: "
             "the push URL's ?platform=android / &standardisation=true, or wearnav live --platform / "
-            "--standardised, say otherwise)", first_error.source) from None
+            "--standardised, say otherwise)",
+            first_error.source,
+        ) from None
 
     def covered_until(self) -> float:
         """s since t0: min over connected IMU devices of their latest sample time (a device's: the
@@ -308,8 +335,12 @@ class SessionBuffer:
             dev = SENSORS[fname].device
             if dev is None:
                 continue
-            recent = t[int(np.searchsorted(t, t[-1] - 2 * NS)):]
-            rate = (recent.size - 1) / ((recent[-1] - recent[0]) / NS) if recent.size > 1 and recent[-1] > recent[0] else 0.0
+            recent = t[int(np.searchsorted(t, t[-1] - 2 * NS)) :]
+            rate = (
+                (recent.size - 1) / ((recent[-1] - recent[0]) / NS)
+                if recent.size > 1 and recent[-1] > recent[0]
+                else 0.0
+            )
             d = out.setdefault(dev, {"rate_hz": 0.0, "last_seen_unix_s": 0.0, "samples": 0})
             if rate >= d["rate_hz"]:
                 d["rate_hz"], d["samples"] = round(float(rate), 1), int(t.size)
@@ -323,8 +354,11 @@ def _num(x) -> float:
 
 def _table(session_id: str, fname: str, entry: tuple, i: int) -> Table:
     t, vals, cols, text, dups = entry
-    df = pd.DataFrame(vals[i:, :len(cols)], columns=cols) if len(cols) == vals.shape[1] else \
-        pd.DataFrame(vals[i:], columns=SENSORS[fname].cols + SENSORS[fname].optional)[cols]
+    df = (
+        pd.DataFrame(vals[i:, : len(cols)], columns=cols)
+        if len(cols) == vals.shape[1]
+        else pd.DataFrame(vals[i:], columns=SENSORS[fname].cols + SENSORS[fname].optional)[cols]
+    )
     if text is not None:
         df[TEXT_COLS[fname]] = text[i:]
     return Table(Path(f"live:{session_id}/{fname}"), t[i:], df, dups)
@@ -336,8 +370,13 @@ def cut(rec: Recording, t_from: float) -> Recording:
     for dev, s in rec.devices.items():
         k = s.t >= t_from
         if k.any():
-            devices[dev] = DeviceStream(t=s.t[k], acc=s.acc[k], gyro=None if s.gyro is None else s.gyro[k],
-                                        quat=None if s.quat is None else s.quat[k], check_units=False)
+            devices[dev] = DeviceStream(
+                t=s.t[k],
+                acc=s.acc[k],
+                gyro=None if s.gyro is None else s.gyro[k],
+                quat=None if s.quat is None else s.quat[k],
+                check_units=False,
+            )
     fixes = None
     if rec.fixes is not None and (k := rec.fixes.t >= t_from).any():
         fixes = Fixes(t=rec.fixes.t[k], pos=rec.fixes.pos[k], accuracy=rec.fixes.accuracy[k])

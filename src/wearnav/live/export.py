@@ -22,8 +22,9 @@ def export_session(store_path: str | Path, session_id: str, out: str | Path):
     finally:
         store.close()
     rec = buf.recording()
-    with DatasetWriter(out, {"importer": "wearnav live", "store": str(store_path.resolve()),
-                             "session": session_id}) as writer:
+    with DatasetWriter(
+        out, {"importer": "wearnav live", "store": str(store_path.resolve()), "session": session_id}
+    ) as writer:
         writer.add(rec)
     return Dataset.open(out)
 

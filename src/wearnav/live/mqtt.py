@@ -19,8 +19,12 @@ from wearnav.live.app import settings
 from wearnav.live.push import BadPush
 
 log = logging.getLogger("wearnav.live")
-SCHEMES = {"ws": ("websockets", False, 80), "wss": ("websockets", True, 443),
-           "mqtt": ("tcp", False, 1883), "mqtts": ("tcp", True, 8883)}
+SCHEMES = {
+    "ws": ("websockets", False, 80),
+    "wss": ("websockets", True, 443),
+    "mqtt": ("tcp", False, 1883),
+    "mqtts": ("tcp", True, 8883),
+}
 DEFAULT_TOPIC = "sensor-logger"
 WS_PATH = "/mqtt"
 
@@ -31,10 +35,16 @@ def parse_url(url: str) -> dict:
         raise ConfigError(f"--mqtt {url!r}: expected ws://broker:port/topic (or wss://, mqtt://, mqtts://)")
     transport, tls, port = SCHEMES[parts.scheme]
     query = dict(parse_qsl(parts.query))
-    return {"transport": transport, "tls": tls, "host": parts.hostname, "port": parts.port or port,
-            "topic": unquote(parts.path.lstrip("/")) or DEFAULT_TOPIC,
-            "username": unquote(parts.username) if parts.username else None,
-            "password": unquote(parts.password) if parts.password else None, "query": query}
+    return {
+        "transport": transport,
+        "tls": tls,
+        "host": parts.hostname,
+        "port": parts.port or port,
+        "topic": unquote(parts.path.lstrip("/")) or DEFAULT_TOPIC,
+        "username": unquote(parts.username) if parts.username else None,
+        "password": unquote(parts.password) if parts.password else None,
+        "query": query,
+    }
 
 
 def subscribe(url: str, receiver):

@@ -118,19 +118,32 @@ def page_points(t: np.ndarray, xy: np.ndarray, sigma: np.ndarray | None, rate: f
     if len(t) and idx[-1] != len(t) - 1:
         idx = np.append(idx, len(t) - 1)
     sig = np.full(len(t), np.nan) if sigma is None else np.asarray(sigma, float)
-    return [[round(float(t[i]), 3), round(float(xy[i, 0]), 3), round(float(xy[i, 1]), 3),
-             round(float(sig[i]), 2) if np.isfinite(sig[i]) else None] for i in idx]
+    return [
+        [
+            round(float(t[i]), 3),
+            round(float(xy[i, 0]), 3),
+            round(float(xy[i, 1]), 3),
+            round(float(sig[i]), 2) if np.isfinite(sig[i]) else None,
+        ]
+        for i in idx
+    ]
 
 
-def trajectory_html(state: dict, title: str, subtitle: str = "", activity_note: str = "",
-                    path_note: str = "") -> str:
+def trajectory_html(state: dict, title: str, subtitle: str = "", activity_note: str = "", path_note: str = "") -> str:
     """The self-contained page for ``state`` (the live state's keys, ``activity`` as intervals)."""
     data = json.dumps(state, allow_nan=False).replace("</", "<\\/")  # never ends the script element
     warnings = "".join(f"<li>{html.escape(w)}</li>" for w in state.get("warnings", []))
-    return _PAGE.format(title=html.escape(title), subtitle=html.escape(subtitle),
-                        css=(STATIC / "style.css").read_text(),
-                        activity_note=html.escape(activity_note), path_note=html.escape(path_note),
-                        warnings=warnings, data=data, draw=(STATIC / "draw.js").read_text(), script=_SCRIPT)
+    return _PAGE.format(
+        title=html.escape(title),
+        subtitle=html.escape(subtitle),
+        css=(STATIC / "style.css").read_text(),
+        activity_note=html.escape(activity_note),
+        path_note=html.escape(path_note),
+        warnings=warnings,
+        data=data,
+        draw=(STATIC / "draw.js").read_text(),
+        script=_SCRIPT,
+    )
 
 
 __all__ = ["POINT_S", "TRAJECTORY_HTML", "activity_intervals", "page_points", "trajectory_html"]

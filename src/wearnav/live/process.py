@@ -32,11 +32,22 @@ class LiveServer:
         self.log = self.store.with_suffix(f".{self.port}.log")
         self.proc: subprocess.Popen | None = None
 
-    def start(self, timeout_s: float = 30.0) -> "LiveServer":
+    def start(self, timeout_s: float = 30.0) -> LiveServer:
         path = os.pathsep.join(p for p in (str(SRC), os.environ.get("PYTHONPATH", "")) if p)
         env = {**os.environ, "PYTHONPATH": path, "OMP_NUM_THREADS": "1"}
-        cmd = [sys.executable, "-m", "wearnav", "live", "--host", "127.0.0.1", "--port", str(self.port),
-               "--store", str(self.store), *self.args]
+        cmd = [
+            sys.executable,
+            "-m",
+            "wearnav",
+            "live",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(self.port),
+            "--store",
+            str(self.store),
+            *self.args,
+        ]
         with open(self.log, "ab") as log:
             self.proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
         headers = {"authorization": f"Bearer {self.token}"} if self.token else {}
@@ -78,7 +89,7 @@ class LiveServer:
     def output(self) -> str:
         return self.log.read_text(errors="replace")
 
-    def __enter__(self) -> "LiveServer":
+    def __enter__(self) -> LiveServer:
         return self.start()
 
     def __exit__(self, *exc) -> None:

@@ -41,7 +41,7 @@ MAX_NAME_LEN = 64
 # A raw acceleration or gravity value: half the Recording's limit, so that user acceleration plus
 # gravity stays within it (in m/s²; a wearable writing g stays far below in any case).
 ACC_RAW_MAX = ACC_AXIS_MAX / 2
-MAX_INT = 10 ** 300  # larger JSON integers are refused as not finite (float() would overflow)
+MAX_INT = 10**300  # larger JSON integers are refused as not finite (float() would overflow)
 NS = 1_000_000_000
 
 
@@ -91,7 +91,7 @@ def _finite(x, where: str) -> None:
     """No inf anywhere in ``x`` (``1e999`` parses as inf; NaN / Infinity are refused at parsing)."""
     if isinstance(x, float) and not math.isfinite(x):
         raise BadPush(400, f"{where} is not finite")
-    if isinstance(x, int) and not isinstance(x, bool) and abs(x) > MAX_INT:   # no float holds it
+    if isinstance(x, int) and not isinstance(x, bool) and abs(x) > MAX_INT:  # no float holds it
         raise BadPush(400, f"{where} is not finite (an integer of {len(str(abs(x)))} digits)")
     if isinstance(x, dict):
         for key, v in x.items():
@@ -127,14 +127,16 @@ def _check_values(values, name: str, k: int) -> None:
 def _plausible(values: dict, name: str, k: int) -> None:
     """Values no sensor reports (beyond the Recording's limits, whatever the session's units) are
     refused here: once stored, one would make every later Recording of the session fail."""
+
     def bad(col: str, why: str):
         raise BadPush(422, f"payload[{k}] ({name}) values.{col} = {values[col]:g} is {why}")
 
     for col, v in values.items():
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             continue
-        if (col in "xyz" and name in ("accelerometer", "totalacceleration", "gravity")) or \
-                col.startswith(("acceleration", "gravity")):
+        if (col in "xyz" and name in ("accelerometer", "totalacceleration", "gravity")) or col.startswith(
+            ("acceleration", "gravity")
+        ):
             if abs(v) > ACC_RAW_MAX:
                 bad(col, f"beyond any acceleration ({ACC_RAW_MAX:.0f}, half of 16 g in m/s²)")
         elif (col in "xyz" and name == "gyroscope") or col.startswith("rotationRate"):
@@ -142,7 +144,7 @@ def _plausible(values: dict, name: str, k: int) -> None:
                 bad(col, f"beyond any rotation rate ({GYRO_AXIS_MAX:.1f} rad/s)")
     quat = ORIENTATION_COLS if name == "orientation" else quat_cols() if name in ("wrist motion", "headphone") else None
     if quat is not None:
-        norm = math.hypot(*(float(values[c]) for c in quat))   # no overflow for 1e300
+        norm = math.hypot(*(float(values[c]) for c in quat))  # no overflow for 1e300
         if abs(norm - 1.0) > UNIT_NORM_TOL:
             raise BadPush(422, f"payload[{k}] ({name}) quaternion has norm {norm:.3g}, not 1")
     if name == "location":
@@ -156,7 +158,7 @@ def _plausible(values: dict, name: str, k: int) -> None:
 def _days(ns: int) -> str:
     """A time span (ns, any size: a corrupt time may be a 300-digit integer) in days, as text."""
     days = ns // (86400 * NS)
-    return f"{ns / (86400 * NS):.3g}" if days < 10 ** 6 else "over a million"
+    return f"{ns / (86400 * NS):.3g}" if days < 10**6 else "over a million"
 
 
 def parse(body: bytes, now_ns: int, max_future_s: float, max_age_s: float) -> Push:
@@ -175,7 +177,7 @@ def parse(body: bytes, now_ns: int, max_future_s: float, max_age_s: float) -> Pu
         if key not in doc:
             raise BadPush(422, f"the body has no {key}")
     mid = doc["messageId"]
-    if not _is_int(mid) or not 0 <= mid < 2 ** 62:
+    if not _is_int(mid) or not 0 <= mid < 2**62:
         raise BadPush(422, "messageId must be a non-negative integer")
     session, device = check_id(doc["sessionId"], "sessionId"), check_id(doc["deviceId"], "deviceId")
     payload = doc["payload"]
@@ -190,11 +192,15 @@ def parse(body: bytes, now_ns: int, max_future_s: float, max_age_s: float) -> Pu
             raise BadPush(422, f"payload[{k}].name must be a string of 1-{MAX_NAME_LEN} characters")
         t = _sample_time(item.get("time"), k)
         if t > hi:
-            raise BadPush(422, f"payload[{k}].time is {_days(t - now_ns)} days in the future "
-                               f"(over {max_future_s:g} s ahead of this server's clock)")
+            raise BadPush(
+                422,
+                f"payload[{k}].time is {_days(t - now_ns)} days in the future "
+                f"(over {max_future_s:g} s ahead of this server's clock)",
+            )
         if t < lo:
-            raise BadPush(422, f"payload[{k}].time is {_days(now_ns - t)} days in the past "
-                               f"(over {max_age_s / 86400:g} days)")
+            raise BadPush(
+                422, f"payload[{k}].time is {_days(now_ns - t)} days in the past (over {max_age_s / 86400:g} days)"
+            )
         item["time"] = t
         _check_values(item.get("values"), name, k)
     return Push(session, device, mid, payload)

@@ -46,19 +46,19 @@ class Replay:
     device_id: str
     platform: str
     standardised: bool
-    messages: list[dict]                 # ready to send, messageId in order
+    messages: list[dict]  # ready to send, messageId in order
     samples: int
-    shift_ns: int                        # added to every sample time of the export
+    shift_ns: int  # added to every sample time of the export
 
 
 @dataclass
 class Result:
     sent: int = 0
-    acknowledged: list[int] = field(default_factory=list)   # messageIds answered 200
+    acknowledged: list[int] = field(default_factory=list)  # messageIds answered 200
     retries: int = 0
     ack_latency_s: list[float] = field(default_factory=list)
     wall_s: float = 0.0
-    late_s: float = 0.0                  # how far behind schedule the last message went out
+    late_s: float = 0.0  # how far behind schedule the last message went out
 
 
 @contextmanager
@@ -78,8 +78,13 @@ def export_folder(src: str | Path) -> Iterator[Path]:
         yield Path(tmp)
 
 
-def build(src: str | Path, batch_s: float = 0.2, session_id: str | None = None,
-          device_id: str | None = None, start_ns: int | None = None) -> Replay:
+def build(
+    src: str | Path,
+    batch_s: float = 0.2,
+    session_id: str | None = None,
+    device_id: str | None = None,
+    start_ns: int | None = None,
+) -> Replay:
     """The messages replaying ``src`` (module docstring); ``start_ns``: the export's last sample
     becomes this time (default now)."""
     if batch_s <= 0:
@@ -110,8 +115,15 @@ def build(src: str | Path, batch_s: float = 0.2, session_id: str | None = None,
     for k, start in enumerate(np.flatnonzero(np.r_[True, np.diff(batch_of) > 0])):
         end = start + int(np.searchsorted(batch_of[start:], batch_of[start], side="right"))
         payload = [{"name": n, "time": t + shift, "values": v} for t, n, v in rows[start:end]]
-        messages.append({"messageId": k, "sessionId": session_id, "deviceId": device_id, "payload": payload,
-                         "_due_s": float((batch_of[start] + 1) * batch_s)})
+        messages.append(
+            {
+                "messageId": k,
+                "sessionId": session_id,
+                "deviceId": device_id,
+                "payload": payload,
+                "_due_s": float((batch_of[start] + 1) * batch_s),
+            }
+        )
     return Replay(session_id, device_id, platform, standardised, messages, len(rows), shift)
 
 
@@ -138,8 +150,16 @@ def push_url(url: str, replay: Replay, token: str | None = None, platform: bool 
     return urlunsplit(parts._replace(query=urlencode(query)))
 
 
-def send(replay: Replay, url: str, speed: float = 1.0, token: str | None = None,
-         retry_for_s: float = 60.0, stop_after: int | None = None, on_ack=None, platform: bool = True) -> Result:
+def send(
+    replay: Replay,
+    url: str,
+    speed: float = 1.0,
+    token: str | None = None,
+    retry_for_s: float = 60.0,
+    stop_after: int | None = None,
+    on_ack=None,
+    platform: bool = True,
+) -> Result:
     """POST every message in order at ``speed`` × real time; a failed message is retried (every
     0.1 s, for at most ``retry_for_s`` without any success) before the next is sent."""
     if speed <= 0:

@@ -49,8 +49,9 @@ class Store:
             self._db.executescript(SCHEMA)
         self._lock = threading.Lock()
 
-    def add(self, session_id: str, device_id: str, message_id: int, body: str,
-            platform: str, standardised: bool) -> bool:
+    def add(
+        self, session_id: str, device_id: str, message_id: int, body: str, platform: str, standardised: bool
+    ) -> bool:
         """Store one message (and its session's settings, the first time); True when new, False
         for a repeat (nothing changes). Committed to disk when this returns."""
         now = time.time_ns()
@@ -59,11 +60,14 @@ class Store:
             try:
                 cur = self._db.execute(
                     "INSERT OR IGNORE INTO messages VALUES (?, ?, ?, ?, ?)",
-                    (session_id, device_id, message_id, now, body))
+                    (session_id, device_id, message_id, now, body),
+                )
                 new = cur.rowcount == 1
                 if new:
-                    self._db.execute("INSERT OR IGNORE INTO sessions VALUES (?, ?, ?, ?)",
-                                     (session_id, platform, int(standardised), now))
+                    self._db.execute(
+                        "INSERT OR IGNORE INTO sessions VALUES (?, ?, ?, ?)",
+                        (session_id, platform, int(standardised), now),
+                    )
                 self._db.execute("COMMIT")
             except BaseException:
                 self._db.execute("ROLLBACK")
@@ -76,21 +80,26 @@ class Store:
             rows = self._db.execute(
                 "SELECT s.session_id, s.platform, s.standardised, s.created_ns, "
                 "(SELECT COUNT(*) FROM messages m WHERE m.session_id = s.session_id) "
-                "FROM sessions s ORDER BY s.created_ns, s.session_id").fetchall()
-        return {r[0]: {"platform": r[1], "standardised": bool(r[2]), "created_ns": r[3], "messages": r[4]}
-                for r in rows}
+                "FROM sessions s ORDER BY s.created_ns, s.session_id"
+            ).fetchall()
+        return {
+            r[0]: {"platform": r[1], "standardised": bool(r[2]), "created_ns": r[3], "messages": r[4]} for r in rows
+        }
 
     def messages(self, session_id: str) -> Iterator[tuple[str, int, int, str]]:
         """(device_id, message_id, received_ns, body) of a session in the order they were stored."""
         with self._lock:
-            rows = self._db.execute("SELECT device_id, message_id, received_ns, body FROM messages "
-                                    "WHERE session_id = ? ORDER BY rowid", (session_id,)).fetchall()
+            rows = self._db.execute(
+                "SELECT device_id, message_id, received_ns, body FROM messages WHERE session_id = ? ORDER BY rowid",
+                (session_id,),
+            ).fetchall()
         yield from rows
 
     def message_ids(self, session_id: str) -> set[tuple[str, int]]:
         with self._lock:
-            rows = self._db.execute("SELECT device_id, message_id FROM messages WHERE session_id = ?",
-                                    (session_id,)).fetchall()
+            rows = self._db.execute(
+                "SELECT device_id, message_id FROM messages WHERE session_id = ?", (session_id,)
+            ).fetchall()
         return {(d, m) for d, m in rows}
 
     def count(self) -> int:

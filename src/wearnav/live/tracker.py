@@ -94,9 +94,17 @@ class LiveTracker:
     ``LAG_S``, ``FRAME_LAG_S``, ``STEP_S``; ``fuse_lag_s`` / ``fuse_step_s``: the fixed-lag
     smoother's window and step."""
 
-    def __init__(self, model: str | Path | None = None, activity_model: str | Path | None = "activity",
-                 context_s: float = CONTEXT_S, lag_s: float = LAG_S, frame_lag_s: float = FRAME_LAG_S,
-                 step_s: float = STEP_S, fuse_lag_s: float = 300.0, fuse_step_s: float = 30.0):
+    def __init__(
+        self,
+        model: str | Path | None = None,
+        activity_model: str | Path | None = "activity",
+        context_s: float = CONTEXT_S,
+        lag_s: float = LAG_S,
+        frame_lag_s: float = FRAME_LAG_S,
+        step_s: float = STEP_S,
+        fuse_lag_s: float = 300.0,
+        fuse_step_s: float = 30.0,
+    ):
         self._model_arg = model
         self.context_s, self.lag_s, self.step_s = float(context_s), float(lag_s), float(step_s)
         self.frame_lag_s = float(frame_lag_s)
@@ -142,8 +150,9 @@ class LiveTracker:
             self.model, self.cfg = resolve_model(path, "odometry")
             self.model_path = path
             # a heading prior only for a phone-only walk (the frame's reference is the phone's)
-            fcfg = fuse.config_for(path if Path(path).exists() else None, rec.meta,
-                                   "phone" if set(rec.devices) == {"phone"} else "common")[0]
+            fcfg = fuse.config_for(
+                path if Path(path).exists() else None, rec.meta, "phone" if set(rec.devices) == {"phone"} else "common"
+            )[0]
             self.fuser = IncrementalFuser(fcfg, *self._fuse_lag)
         pcfg = odometry_preprocess(self.cfg)
         if not any(d in rec.devices for d in pcfg.devices):
@@ -249,8 +258,14 @@ class LiveTracker:
         self._pending += list(zip(ft.tolist(), lat.tolist(), lon.tolist(), acc.tolist()))
         if self.origin is None:
             p = np.asarray(self._pending)
-            check = check_fixes(-np.inf, np.inf, p[:, 0], geo.latlon_to_local(p[:, 1], p[:, 2], p[0, 1], p[0, 2]),
-                                p[:, 3], self.fuser.cfg.wide_m if self.fuser else fuse.FuseConfig().wide_m)
+            check = check_fixes(
+                -np.inf,
+                np.inf,
+                p[:, 0],
+                geo.latlon_to_local(p[:, 1], p[:, 2], p[0, 1], p[0, 2]),
+                p[:, 3],
+                self.fuser.cfg.wide_m if self.fuser else fuse.FuseConfig().wide_m,
+            )
             if check.kept.sum() < ORIGIN_MIN_FIXES:
                 return False
             first = int(np.flatnonzero(check.kept)[0])
@@ -325,18 +340,26 @@ class LiveTracker:
 
     def _snapshot(self) -> dict:
         t, xy, sig, anchor = self.path()
-        return {"origin": list(self.origin) if self.origin is not None else None,
-                "path": page_points(t, xy, sig, self.cfg.rate if self.cfg is not None else 1.0),
-                "anchor": anchor,
-                # the path after this time is provisional: predicted again as data arrives (FRAME_LAG_S)
-                "final_t_s": round(float(self.odo.t[-1]), 3) if self.odo.t else None,
-                "fixes": [[round(t, 3), round(e, 3), round(n, 3), round(a, 2) if np.isfinite(a) else None]
-                          for t, e, n, a in self.fixes],
-                "activity": self.activity,
-                "warnings": self.warnings + (self._fused.warnings if self._fused is not None else []) + (
-                    [] if self.fixes or self.t_s < TRUST_AFTER_S else
-                    ["no location fixes yet: the path is not placed on a map"]),
-                "t_s": round(float(self.t_s), 3)}
+        return {
+            "origin": list(self.origin) if self.origin is not None else None,
+            "path": page_points(t, xy, sig, self.cfg.rate if self.cfg is not None else 1.0),
+            "anchor": anchor,
+            # the path after this time is provisional: predicted again as data arrives (FRAME_LAG_S)
+            "final_t_s": round(float(self.odo.t[-1]), 3) if self.odo.t else None,
+            "fixes": [
+                [round(t, 3), round(e, 3), round(n, 3), round(a, 2) if np.isfinite(a) else None]
+                for t, e, n, a in self.fixes
+            ],
+            "activity": self.activity,
+            "warnings": self.warnings
+            + (self._fused.warnings if self._fused is not None else [])
+            + (
+                []
+                if self.fixes or self.t_s < TRUST_AFTER_S
+                else ["no location fixes yet: the path is not placed on a map"]
+            ),
+            "t_s": round(float(self.t_s), 3),
+        }
 
 
 def _integrate_on(clock_t: np.ndarray, tc: np.ndarray, v: np.ndarray, n_old: int, t_prev: list, xy_prev: list):
@@ -360,8 +383,11 @@ def _tail(rec: Recording, t_from: float) -> Recording:
         k = s.t >= t_from
         if k.sum() >= 2:
             devices[name] = DeviceStream(*(None if a is None else a[k] for a in (s.t, s.acc, s.gyro, s.quat, s.worn)))
-    return Recording(rec.name, devices, meta=rec.meta) if devices else Recording(rec.name, dict(rec.devices),
-                                                                                    meta=rec.meta)
+    return (
+        Recording(rec.name, devices, meta=rec.meta)
+        if devices
+        else Recording(rec.name, dict(rec.devices), meta=rec.meta)
+    )
 
 
 __all__ = ["LiveTracker", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]

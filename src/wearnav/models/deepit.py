@@ -35,8 +35,16 @@ def masked_softmax(logits: Tensor, mask: Tensor) -> Tensor:
 
 
 class DeepIT(OdometryModel):
-    def __init__(self, n_devices: int = 3, window: int = 100, hidden: int = 60, pooled: int = 10,
-                 embed: int = 140, score_hidden: int = 32, head_hidden: int = 64):
+    def __init__(
+        self,
+        n_devices: int = 3,
+        window: int = 100,
+        hidden: int = 60,
+        pooled: int = 10,
+        embed: int = 140,
+        score_hidden: int = 32,
+        head_hidden: int = 64,
+    ):
         super().__init__()
         if window < pooled:
             raise ConfigError(f"deepit: window {window} is shorter than its {pooled} pooled segments")
@@ -55,8 +63,8 @@ class DeepIT(OdometryModel):
         s = (x - self.shift) / self.scale
         z = []
         for j, (lstm, fc) in enumerate(zip(self.lstms, self.embeds)):
-            h, _ = lstm(s[:, j])                                            # (B, L, hidden)
-            h = F.adaptive_avg_pool1d(h.transpose(1, 2), self.pooled)       # (B, hidden, pooled)
+            h, _ = lstm(s[:, j])  # (B, L, hidden)
+            h = F.adaptive_avg_pool1d(h.transpose(1, 2), self.pooled)  # (B, hidden, pooled)
             z.append(F.relu(fc(h.flatten(1))))
         z = torch.stack(z, 1)
         return z, masked_softmax(self.score(z).squeeze(-1), mask)
@@ -66,7 +74,11 @@ class DeepIT(OdometryModel):
         return self.head(torch.einsum("bde,bd->be", z, w))
 
 
-@register("deepit*", task="odometry", layout="multi",
-          description="DeepIT*: an LSTM per device, reliability-weighted fusion of the present devices")
+@register(
+    "deepit*",
+    task="odometry",
+    layout="multi",
+    description="DeepIT*: an LSTM per device, reliability-weighted fusion of the present devices",
+)
 def deepit_star(n_devices: int = 3, window: int = 100, **kw) -> DeepIT:
     return DeepIT(n_devices, window, **kw)

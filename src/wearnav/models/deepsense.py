@@ -23,7 +23,6 @@ original uses 64 filters and GRU 120, which here would cost 14 M MACs.
 
 from __future__ import annotations
 
-import torch
 from torch import Tensor, nn
 
 from wearnav.errors import ConfigError
@@ -32,13 +31,22 @@ from wearnav.models.registry import register
 
 
 def _block(c_in: int, c_out: int, kernel: tuple[int, int], dropout: float) -> nn.Sequential:
-    return nn.Sequential(nn.Conv2d(c_in, c_out, kernel), nn.BatchNorm2d(c_out), nn.ReLU(inplace=True),
-                         nn.Dropout(dropout))
+    return nn.Sequential(
+        nn.Conv2d(c_in, c_out, kernel), nn.BatchNorm2d(c_out), nn.ReLU(inplace=True), nn.Dropout(dropout)
+    )
 
 
 class DeepSense(OdometryModel):
-    def __init__(self, n_devices: int = 3, window: int = 100, intervals: int = 10, local: int = 32,
-                 global_: int = 64, gru_hidden: int = 140, dropout: float = 0.2):
+    def __init__(
+        self,
+        n_devices: int = 3,
+        window: int = 100,
+        intervals: int = 10,
+        local: int = 32,
+        global_: int = 64,
+        gru_hidden: int = 140,
+        dropout: float = 0.2,
+    ):
         super().__init__()
         tau = window // intervals
         if tau < 6:
@@ -48,14 +56,25 @@ class DeepSense(OdometryModel):
         # Local CNN of every sensor as one grouped stack: group k = sensor k.
         self.local = nn.Sequential(
             _block(K, K * local, (3, 2), dropout),
-            nn.Sequential(nn.Conv2d(K * local, K * local, (1, 3), groups=K), nn.BatchNorm2d(K * local),
-                          nn.ReLU(inplace=True), nn.Dropout(dropout)),
-            nn.Sequential(nn.Conv2d(K * local, K * local, (1, 2), groups=K), nn.BatchNorm2d(K * local),
-                          nn.ReLU(inplace=True), nn.Dropout(dropout)))
+            nn.Sequential(
+                nn.Conv2d(K * local, K * local, (1, 3), groups=K),
+                nn.BatchNorm2d(K * local),
+                nn.ReLU(inplace=True),
+                nn.Dropout(dropout),
+            ),
+            nn.Sequential(
+                nn.Conv2d(K * local, K * local, (1, 2), groups=K),
+                nn.BatchNorm2d(K * local),
+                nn.ReLU(inplace=True),
+                nn.Dropout(dropout),
+            ),
+        )
         self.local_channels = local
-        self.global_ = nn.Sequential(_block(local, global_, (K, 2), dropout),
-                                     _block(global_, global_, (1, 3), dropout),
-                                     _block(global_, global_, (1, 2), dropout))
+        self.global_ = nn.Sequential(
+            _block(local, global_, (K, 2), dropout),
+            _block(global_, global_, (1, 3), dropout),
+            _block(global_, global_, (1, 2), dropout),
+        )
         steps = tau - 1 - 2 - 1 - 1 - 2 - 1
         self.gru = nn.GRU(global_ * steps, gru_hidden, num_layers=2, batch_first=True)
         self.head = nn.Linear(gru_hidden, 2)
@@ -64,18 +83,22 @@ class DeepSense(OdometryModel):
         B = x.shape[0]
         if x.shape[1] != self.n_devices:
             raise ConfigError(f"deepsense: model built for {self.n_devices} devices, got {x.shape[1]}")
-        h = concat_devices(x, mask)[..., : self.intervals * self.tau]          # (B, 6D, L)
+        h = concat_devices(x, mask)[..., : self.intervals * self.tau]  # (B, 6D, L)
         K, T, tau = self.sensors, self.intervals, self.tau
         # (B, K, 3, T, tau) → (B·T, K, 3, tau): one image per sensor and interval.
         h = h.view(B, K, 3, T, tau).permute(0, 3, 1, 2, 4).reshape(B * T, K, 3, tau)
-        h = self.local(h)                                                      # (B·T, K·c, 1, t)
-        h = h.view(B * T, K, self.local_channels, -1).transpose(1, 2)          # (B·T, c, K, t)
-        h = self.global_(h)                                                    # (B·T, g, 1, t')
+        h = self.local(h)  # (B·T, K·c, 1, t)
+        h = h.view(B * T, K, self.local_channels, -1).transpose(1, 2)  # (B·T, c, K, t)
+        h = self.global_(h)  # (B·T, g, 1, t')
         r, _ = self.gru(h.reshape(B, T, -1))
         return self.head(r.mean(1))
 
 
-@register("deepsense*", task="odometry", layout="concat",
-          description="DeepSense*: local CNN per sensor, global CNN across sensors, 2-layer GRU over intervals")
+@register(
+    "deepsense*",
+    task="odometry",
+    layout="concat",
+    description="DeepSense*: local CNN per sensor, global CNN across sensors, 2-layer GRU over intervals",
+)
 def deepsense_star(n_devices: int = 3, window: int = 100, **kw) -> DeepSense:
     return DeepSense(n_devices, window, **kw)

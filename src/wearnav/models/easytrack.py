@@ -103,7 +103,11 @@ class DualBaseModel(nn.Module):
         return self.displacement(first_present(x, mask)[0])
 
 
-@register("easytrack-base", task="odometry", layout="single",
-          description="EasyTrack BaseModel: LSTM(64) encoder, LSTM decoder (AE loss), LSTM+FC(10)+FC(2) predictor")
+@register(
+    "easytrack-base",
+    task="odometry",
+    layout="single",
+    description="EasyTrack BaseModel: LSTM(64) encoder, LSTM decoder (AE loss), LSTM+FC(10)+FC(2) predictor",
+)
 def easytrack_base(n_devices: int = 3, window: int = 25, **kw) -> BaseModel:
     return BaseModel(n_devices=n_devices, window=window, **kw)

@@ -64,9 +64,19 @@ class HARNet(nn.Module):
     default_lr = 1e-3
     default_batch = 64
 
-    def __init__(self, n_devices: int = 1, window: int = 128, n_classes: int = 6, heads: int = 1,
-                 filters: int = 64, kernel: int = 5, pool: int = 3, hidden: int = 64,
-                 dropout: float = 0.25, fc: int = 256):
+    def __init__(
+        self,
+        n_devices: int = 1,
+        window: int = 128,
+        n_classes: int = 6,
+        heads: int = 1,
+        filters: int = 64,
+        kernel: int = 5,
+        pool: int = 3,
+        hidden: int = 64,
+        dropout: float = 0.25,
+        fc: int = 256,
+    ):
         super().__init__()
         if heads not in HEAD_CHANNELS:
             raise ConfigError(f"heads must be 1, 2 or 3, got {heads}")
@@ -101,19 +111,31 @@ class HARNet(nn.Module):
         return ce, {"ce": ce}
 
 
-@register("har-cnn-bilstm", task="classify", layout="concat",
-          description="HAR baseline: CNN(64,k5) → maxpool 3 → Bi-LSTM → dropout → FC 256 (paper 002)")
+@register(
+    "har-cnn-bilstm",
+    task="classify",
+    layout="concat",
+    description="HAR baseline: CNN(64,k5) → maxpool 3 → Bi-LSTM → dropout → FC 256 (paper 002)",
+)
 def har_baseline(n_devices: int = 1, window: int = 128, **kw) -> HARNet:
     return HARNet(n_devices, window, heads=1, **kw)
 
 
-@register("har-head2", task="classify", layout="concat",
-          description="HAR Head2: accelerometer head + gyroscope head (paper 002, Fig. 2)")
+@register(
+    "har-head2",
+    task="classify",
+    layout="concat",
+    description="HAR Head2: accelerometer head + gyroscope head (paper 002, Fig. 2)",
+)
 def har_head2(n_devices: int = 1, window: int = 128, **kw) -> HARNet:
     return HARNet(n_devices, window, heads=2, **kw)
 
 
-@register("har-head3", task="classify", layout="concat",
-          description="HAR Head3: one head per axis with its acc + gyro (paper 002, Fig. 3)")
+@register(
+    "har-head3",
+    task="classify",
+    layout="concat",
+    description="HAR Head3: one head per axis with its acc + gyro (paper 002, Fig. 3)",
+)
 def har_head3(n_devices: int = 1, window: int = 128, **kw) -> HARNet:
     return HARNet(n_devices, window, heads=3, **kw)

@@ -28,8 +28,11 @@ def separable(c_in: int, c_out: int, stride: int) -> nn.Sequential:
     """Depthwise kernel-3 conv (stride) + BN, then pointwise 1×1 conv + BN: (B, c_in, L) →
     (B, c_out, ⌈L/stride⌉)."""
     return nn.Sequential(
-        nn.Conv1d(c_in, c_in, 3, stride, 1, groups=c_in, bias=False), nn.BatchNorm1d(c_in),
-        nn.Conv1d(c_in, c_out, 1, bias=False), nn.BatchNorm1d(c_out))
+        nn.Conv1d(c_in, c_in, 3, stride, 1, groups=c_in, bias=False),
+        nn.BatchNorm1d(c_in),
+        nn.Conv1d(c_in, c_out, 1, bias=False),
+        nn.BatchNorm1d(c_out),
+    )
 
 
 class SeparableBlock(nn.Module):
@@ -49,9 +52,18 @@ class SeparableBlock(nn.Module):
 
 
 class IMUNet(OdometryModel):
-    def __init__(self, n_devices: int = 3, window: int = 100, concat: bool = False,
-                 widths: tuple[int, ...] = (100, 200, 400, 800), blocks: tuple[int, ...] = (2, 2, 2, 2),
-                 base: int = 64, trans_planes: int = 128, fc_dim: int = 512, dropout: float = 0.5):
+    def __init__(
+        self,
+        n_devices: int = 3,
+        window: int = 100,
+        concat: bool = False,
+        widths: tuple[int, ...] = (100, 200, 400, 800),
+        blocks: tuple[int, ...] = (2, 2, 2, 2),
+        base: int = 64,
+        trans_planes: int = 128,
+        fc_dim: int = 512,
+        dropout: float = 0.5,
+    ):
         super().__init__()
         if window < MIN_WINDOW:
             raise ConfigError(f"IMUNet needs windows of at least {MIN_WINDOW} samples, got {window}")
@@ -60,8 +72,8 @@ class IMUNet(OdometryModel):
         self.n_devices, self.concat = n_devices, concat
         c = 6 * n_devices if concat else 6
         self.input_block = nn.Sequential(
-            nn.Conv1d(c, base, 7, 2, 3, bias=False), nn.BatchNorm1d(base), nn.ELU(inplace=True),
-            nn.MaxPool1d(3, 2, 1))
+            nn.Conv1d(c, base, 7, 2, 3, bias=False), nn.BatchNorm1d(base), nn.ELU(inplace=True), nn.MaxPool1d(3, 2, 1)
+        )
         layers, c = [], base
         for i, (w, n) in enumerate(zip(widths, blocks)):
             layers += [SeparableBlock(c, w, 1 if i == 0 else 2)] + [SeparableBlock(w, w) for _ in range(n - 1)]
@@ -70,9 +82,14 @@ class IMUNet(OdometryModel):
         self.transition = nn.Sequential(nn.Conv1d(c, trans_planes, 1, bias=False), nn.BatchNorm1d(trans_planes))
         length = -(-window // 2 ** (2 + len(widths) - 1))
         self.fc = nn.Sequential(
-            nn.Linear(trans_planes * length, fc_dim), nn.ELU(inplace=True), nn.Dropout(dropout),
-            nn.Linear(fc_dim, fc_dim), nn.ELU(inplace=True), nn.Dropout(dropout),
-            nn.Linear(fc_dim, 2))
+            nn.Linear(trans_planes * length, fc_dim),
+            nn.ELU(inplace=True),
+            nn.Dropout(dropout),
+            nn.Linear(fc_dim, fc_dim),
+            nn.ELU(inplace=True),
+            nn.Dropout(dropout),
+            nn.Linear(fc_dim, 2),
+        )
 
     def forward(self, x: Tensor, mask: Tensor) -> Tensor:
         h = concat_devices(x, mask) if self.concat else first_present(x, mask)[0].transpose(1, 2)
@@ -80,13 +97,21 @@ class IMUNet(OdometryModel):
         return self.fc(h.flatten(1))
 
 
-@register("imunet", task="odometry", layout="single",
-          description="IMUNet: depthwise-separable 1-D ResNet on one device (phone; else the first present)")
+@register(
+    "imunet",
+    task="odometry",
+    layout="single",
+    description="IMUNet: depthwise-separable 1-D ResNet on one device (phone; else the first present)",
+)
 def imunet(n_devices: int = 3, window: int = 100, **kw) -> IMUNet:
     return IMUNet(n_devices, window, concat=False, **kw)
 
 
-@register("imunet*", task="odometry", layout="concat",
-          description="IMUNet*: depthwise-separable 1-D ResNet on all devices' channels (zeros if absent)")
+@register(
+    "imunet*",
+    task="odometry",
+    layout="concat",
+    description="IMUNet*: depthwise-separable 1-D ResNet on all devices' channels (zeros if absent)",
+)
 def imunet_star(n_devices: int = 3, window: int = 100, **kw) -> IMUNet:
     return IMUNet(n_devices, window, concat=True, **kw)

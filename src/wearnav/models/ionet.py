@@ -26,20 +26,26 @@ from wearnav.recording import STANDARD_GRAVITY
 
 
 class IONet(OdometryModel):
-    def __init__(self, n_devices: int = 3, window: int = 200, hidden: int = 96, layers: int = 2,
-                 concat: bool = False, bidirectional: bool = True):
+    def __init__(
+        self,
+        n_devices: int = 3,
+        window: int = 200,
+        hidden: int = 96,
+        layers: int = 2,
+        concat: bool = False,
+        bidirectional: bool = True,
+    ):
         super().__init__()
         self.n_devices, self.window, self.concat = n_devices, window, concat
         reps = n_devices if concat else 1
-        self.lstm = nn.LSTM(6 * reps, hidden, num_layers=layers, batch_first=True,
-                            bidirectional=bidirectional)
+        self.lstm = nn.LSTM(6 * reps, hidden, num_layers=layers, batch_first=True, bidirectional=bidirectional)
         self.fc = nn.Linear(hidden * (2 if bidirectional else 1), 2)
         self.register_buffer("shift", torch.tensor([0.0, 0.0, STANDARD_GRAVITY, 0.0, 0.0, 0.0]).repeat(reps))
         self.register_buffer("scale", torch.tensor([2.0, 2.0, 2.0, 1.0, 1.0, 1.0]).repeat(reps))
 
     def forward(self, x: Tensor, mask: Tensor) -> Tensor:
         if self.concat:
-            present = (mask > 0).to(x.dtype).repeat_interleave(6, dim=1)[:, None]      # (B, 1, 6D)
+            present = (mask > 0).to(x.dtype).repeat_interleave(6, dim=1)[:, None]  # (B, 1, 6D)
             s = (concat_devices(x, mask).transpose(1, 2) - self.shift) / self.scale * present
         else:
             s = (first_present(x, mask)[0] - self.shift) / self.scale
@@ -47,13 +53,21 @@ class IONet(OdometryModel):
         return self.fc(h[:, -1])
 
 
-@register("ionet", task="odometry", layout="single",
-          description="IONet: 2-layer Bi-LSTM (96) on one device's IMU window → horizontal vector")
+@register(
+    "ionet",
+    task="odometry",
+    layout="single",
+    description="IONet: 2-layer Bi-LSTM (96) on one device's IMU window → horizontal vector",
+)
 def ionet(n_devices: int = 3, window: int = 200, **kw) -> IONet:
     return IONet(n_devices=n_devices, window=window, **kw)
 
 
-@register("ionet*", task="odometry", layout="concat",
-          description="IONet*: 2-layer LSTM (96) on all devices' channels concatenated (zeros if absent)")
+@register(
+    "ionet*",
+    task="odometry",
+    layout="concat",
+    description="IONet*: 2-layer LSTM (96) on all devices' channels concatenated (zeros if absent)",
+)
 def ionet_star(n_devices: int = 3, window: int = 100, **kw) -> IONet:
     return IONet(n_devices=n_devices, window=window, **{"concat": True, "bidirectional": False, **kw})

@@ -51,13 +51,21 @@ class PDR(OdometryModel):
 
     learned = False
 
-    def __init__(self, n_devices: int = 3, window: int = 100, rate: float = 25.0, step_length: float = 0.67,
-                 band: tuple[float, float] = (1.0, 3.0), min_step_s: float = 0.3, min_peak: float = 0.6,
-                 phase_lead_deg: float = 90.0, filter_order: int = 2):
+    def __init__(
+        self,
+        n_devices: int = 3,
+        window: int = 100,
+        rate: float = 25.0,
+        step_length: float = 0.67,
+        band: tuple[float, float] = (1.0, 3.0),
+        min_step_s: float = 0.3,
+        min_peak: float = 0.6,
+        phase_lead_deg: float = 90.0,
+        filter_order: int = 2,
+    ):
         super().__init__()
         if window < 32 or rate <= 0 or not 0 < band[0] < band[1] < rate / 2:
-            raise ConfigError(f"PDR needs window ≥ 32, rate > 0 and 0 < band < rate/2, "
-                              f"got {window}, {rate}, {band}")
+            raise ConfigError(f"PDR needs window ≥ 32, rate > 0 and 0 < band < rate/2, got {window}, {rate}, {band}")
         self.n_devices, self.window, self.rate = n_devices, window, rate
         self.step_length, self.min_peak, self.phase_lead = step_length, min_peak, np.deg2rad(phase_lead_deg)
         self.half_gap = max(1, int(round(min_step_s * rate)))
@@ -105,7 +113,12 @@ class PDR(OdometryModel):
         return torch.from_numpy(vel).to(device=x.device, dtype=x.dtype)
 
 
-@register("pdr", task="odometry", layout="single", learned=False,
-          description="step detection × 0.67 m along the gait-derived walking direction (not learned)")
+@register(
+    "pdr",
+    task="odometry",
+    layout="single",
+    learned=False,
+    description="step detection × 0.67 m along the gait-derived walking direction (not learned)",
+)
 def pdr(n_devices: int = 3, window: int = 100, **kw) -> PDR:
     return PDR(n_devices, window, **kw)

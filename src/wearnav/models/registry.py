@@ -20,8 +20,18 @@ from torch import nn
 from wearnav.errors import ConfigError, check_names
 
 # Modules under wearnav.models that register models when imported.
-FAMILIES: tuple[str, ...] = ("suitein", "ronin", "pdr", "har", "easytrack", "ionet", "imunet", "deepit",
-                            "rewf", "deepsense")
+FAMILIES: tuple[str, ...] = (
+    "suitein",
+    "ronin",
+    "pdr",
+    "har",
+    "easytrack",
+    "ionet",
+    "imunet",
+    "deepit",
+    "rewf",
+    "deepsense",
+)
 
 TASKS = ("odometry", "classify", "noisy")
 # How a model uses the devices: "multi" = per-device branches with masked fusion; "single" = one

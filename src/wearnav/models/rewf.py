@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import torch
 from torch import Tensor, nn
-from torch.nn import functional as F
 
 from wearnav.errors import ConfigError
 from wearnav.models.base import OdometryModel
@@ -33,35 +32,52 @@ from wearnav.models.ronin import resnet_layers
 class ResNetEncoder(nn.Module):
     """RoNIN's ResNet-18-1D without its FC head: (B, 6, L) → (B, trans_planes, L')."""
 
-    def __init__(self, in_channels: int = 6, blocks=(2, 2, 2, 2), base: int = 64, trans_planes: int = 128,
-                 input_stride: int = 1):
+    def __init__(
+        self, in_channels: int = 6, blocks=(2, 2, 2, 2), base: int = 64, trans_planes: int = 128, input_stride: int = 1
+    ):
         super().__init__()
         self.input_block, self.groups, self.transition, self.halvings = resnet_layers(
-            in_channels, blocks, base, trans_planes, input_stride)
+            in_channels, blocks, base, trans_planes, input_stride
+        )
 
     def length(self, window: int) -> int:
-        return -(-window // 2 ** self.halvings)
+        return -(-window // 2**self.halvings)
 
     def forward(self, x: Tensor) -> Tensor:
         return self.transition(self.groups(self.input_block(x)))
 
 
 class ReWF(OdometryModel):
-    def __init__(self, n_devices: int = 3, window: int = 100, lstm_hidden: int = 256, tau: float = 1.0,
-                 fc_dim: int = 768, dropout: float = 0.5, input_stride: int = 1, trans_planes: int = 128):
+    def __init__(
+        self,
+        n_devices: int = 3,
+        window: int = 100,
+        lstm_hidden: int = 256,
+        tau: float = 1.0,
+        fc_dim: int = 768,
+        dropout: float = 0.5,
+        input_stride: int = 1,
+        trans_planes: int = 128,
+    ):
         super().__init__()
         self.n_devices, self.tau = n_devices, tau
-        self.encoders = nn.ModuleList(ResNetEncoder(trans_planes=trans_planes, input_stride=input_stride)
-                                      for _ in range(n_devices))
+        self.encoders = nn.ModuleList(
+            ResNetEncoder(trans_planes=trans_planes, input_stride=input_stride) for _ in range(n_devices)
+        )
         length = self.encoders[0].length(window)
         if length < 1 or window < 8:
             raise ConfigError(f"rewf: window {window} is too short")
         self.weight_lstm = nn.LSTM(trans_planes, lstm_hidden, batch_first=True)
         self.weight_out = nn.Linear(lstm_hidden, 1)
         self.fc = nn.Sequential(
-            nn.Linear(trans_planes * length, fc_dim), nn.ReLU(inplace=True), nn.Dropout(dropout),
-            nn.Linear(fc_dim, fc_dim), nn.ReLU(inplace=True), nn.Dropout(dropout),
-            nn.Linear(fc_dim, 2))
+            nn.Linear(trans_planes * length, fc_dim),
+            nn.ReLU(inplace=True),
+            nn.Dropout(dropout),
+            nn.Linear(fc_dim, fc_dim),
+            nn.ReLU(inplace=True),
+            nn.Dropout(dropout),
+            nn.Linear(fc_dim, 2),
+        )
 
     def weights(self, x: Tensor, mask: Tensor) -> tuple[Tensor, Tensor]:
         """Per-device features (B, D, C, L') and fusion weights (B, D), 0 where absent."""
@@ -74,7 +90,7 @@ class ReWF(OdometryModel):
         B, D, C, L = feats.shape
         h, _ = self.weight_lstm(feats.reshape(B * D, C, L).transpose(1, 2))
         logits = self.weight_out(h[:, -1]).view(B, D)
-        if self.training:       # Gumbel-softmax: logits + Gumbel noise, softened by tau
+        if self.training:  # Gumbel-softmax: logits + Gumbel noise, softened by tau
             u = torch.rand_like(logits).clamp(1e-10, 1.0 - 1e-7)
             logits = logits - torch.log(-torch.log(u))
         return feats, masked_softmax(logits / self.tau, mask)
@@ -84,7 +100,11 @@ class ReWF(OdometryModel):
         return self.fc(torch.einsum("bdcl,bd->bcl", feats, w).flatten(1))
 
 
-@register("rewf", task="odometry", layout="multi",
-          description="ReWF: ResNet encoder per device, LSTM sensor weights (Gumbel-softmax) fusing the present devices")
+@register(
+    "rewf",
+    task="odometry",
+    layout="multi",
+    description="ReWF: ResNet encoder per device, LSTM sensor weights (Gumbel-softmax) fusing the present devices",
+)
 def rewf(n_devices: int = 3, window: int = 100, **kw) -> ReWF:
     return ReWF(n_devices, window, **kw)

@@ -53,8 +53,7 @@ class BasicBlock1D(nn.Module):
         self.relu = nn.ReLU(inplace=True)
         self.shortcut = None
         if stride != 1 or c_in != c_out:
-            self.shortcut = nn.Sequential(nn.Conv1d(c_in, c_out, 1, stride, bias=False),
-                                          nn.BatchNorm1d(c_out))
+            self.shortcut = nn.Sequential(nn.Conv1d(c_in, c_out, 1, stride, bias=False), nn.BatchNorm1d(c_out))
 
     def forward(self, x: Tensor) -> Tensor:
         out = self.relu(self.bn1(self.conv1(x)))
@@ -63,19 +62,23 @@ class BasicBlock1D(nn.Module):
         return self.relu(out + skip)
 
 
-def resnet_layers(in_channels: int, blocks=(2, 2, 2, 2), base: int = 64, trans_planes: int = 128,
-                  input_stride: int = 2) -> tuple[nn.Sequential, nn.Sequential, nn.Sequential, int]:
+def resnet_layers(
+    in_channels: int, blocks=(2, 2, 2, 2), base: int = 64, trans_planes: int = 128, input_stride: int = 2
+) -> tuple[nn.Sequential, nn.Sequential, nn.Sequential, int]:
     """RoNIN's ResNet-18-1D body: the input block (7-tap convolution with ``input_stride``, batch
     norm, ReLU, and a stride-2 max-pool where ``input_stride`` > 1), the residual groups (widths
     ``base`` · 2^i, stride 2 from the second) and the 1×1 transition to ``trans_planes``; and how
     many times they halve the length (all padded: L → ceil(L / 2^halvings))."""
-    layers: list[nn.Module] = [nn.Conv1d(in_channels, base, 7, input_stride, 3, bias=False),
-                               nn.BatchNorm1d(base), nn.ReLU(inplace=True)]
+    layers: list[nn.Module] = [
+        nn.Conv1d(in_channels, base, 7, input_stride, 3, bias=False),
+        nn.BatchNorm1d(base),
+        nn.ReLU(inplace=True),
+    ]
     if input_stride > 1:
         layers.append(nn.MaxPool1d(3, 2, 1))
     groups, c = [], base
     for i, n in enumerate(blocks):
-        width, stride = base * 2 ** i, 1 if i == 0 else 2
+        width, stride = base * 2**i, 1 if i == 0 else 2
         groups += [BasicBlock1D(c, width, stride)] + [BasicBlock1D(width, width) for _ in range(n - 1)]
         c = width
     transition = nn.Sequential(nn.Conv1d(c, trans_planes, 1, bias=False), nn.BatchNorm1d(trans_planes))
@@ -86,18 +89,33 @@ def resnet_layers(in_channels: int, blocks=(2, 2, 2, 2), base: int = 64, trans_p
 class ResNet1D(nn.Module):
     """RoNIN's ResNet-18-1D backbone and FC output head: (B, C, L) → (B, n_out)."""
 
-    def __init__(self, in_channels: int, window: int, n_out: int = 2, blocks=(2, 2, 2, 2),
-                 base: int = 64, trans_planes: int = 128, fc_dim: int = 512, dropout: float = 0.5):
+    def __init__(
+        self,
+        in_channels: int,
+        window: int,
+        n_out: int = 2,
+        blocks=(2, 2, 2, 2),
+        base: int = 64,
+        trans_planes: int = 128,
+        fc_dim: int = 512,
+        dropout: float = 0.5,
+    ):
         super().__init__()
         if window < MIN_WINDOW:
             raise ConfigError(f"RoNIN ResNet needs windows of at least {MIN_WINDOW} samples, got {window}")
-        self.input_block, self.groups, self.transition, halvings = resnet_layers(in_channels, blocks, base,
-                                                                                 trans_planes, input_stride=2)
-        length = -(-window // 2 ** halvings)
+        self.input_block, self.groups, self.transition, halvings = resnet_layers(
+            in_channels, blocks, base, trans_planes, input_stride=2
+        )
+        length = -(-window // 2**halvings)
         self.fc = nn.Sequential(
-            nn.Linear(trans_planes * length, fc_dim), nn.ReLU(inplace=True), nn.Dropout(dropout),
-            nn.Linear(fc_dim, fc_dim), nn.ReLU(inplace=True), nn.Dropout(dropout),
-            nn.Linear(fc_dim, n_out))
+            nn.Linear(trans_planes * length, fc_dim),
+            nn.ReLU(inplace=True),
+            nn.Dropout(dropout),
+            nn.Linear(fc_dim, fc_dim),
+            nn.ReLU(inplace=True),
+            nn.Dropout(dropout),
+            nn.Linear(fc_dim, n_out),
+        )
         self._init_weights()
 
     def _init_weights(self) -> None:
@@ -140,13 +158,21 @@ class RoNIN(OdometryModel):
         return self.net(self.inputs(x, mask))
 
 
-@register("ronin", task="odometry", layout="single",
-          description="RoNIN ResNet-18-1D on one device (phone; else the first present device)")
+@register(
+    "ronin",
+    task="odometry",
+    layout="single",
+    description="RoNIN ResNet-18-1D on one device (phone; else the first present device)",
+)
 def ronin(n_devices: int = 3, window: int = 100, **kw) -> RoNIN:
     return RoNIN(n_devices, window, concat=False, **kw)
 
 
-@register("ronin*", task="odometry", layout="concat",
-          description="RoNIN ResNet-18-1D on all devices' channels concatenated (zeros if absent)")
+@register(
+    "ronin*",
+    task="odometry",
+    layout="concat",
+    description="RoNIN ResNet-18-1D on all devices' channels concatenated (zeros if absent)",
+)
 def ronin_star(n_devices: int = 3, window: int = 100, **kw) -> RoNIN:
     return RoNIN(n_devices, window, concat=True, **kw)

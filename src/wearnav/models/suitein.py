@@ -109,34 +109,34 @@ EXTRACTORS = ("paper", "mixed")  # SuiteINConfig.extractor
 @dataclass(frozen=True)
 class SuiteINConfig:
     n_devices: int = 3
-    window: int = 100                       # samples at 25 Hz (Sec. V-A)
+    window: int = 100  # samples at 25 Hz (Sec. V-A)
     widths: tuple[int, ...] = (48, 64, 64, 76, 72, 68)
-    kernels: tuple[int, ...] = (3, 2, 2, 2, 2, 2)   # the paper's temporal kernels
+    kernels: tuple[int, ...] = (3, 2, 2, 2, 2, 2)  # the paper's temporal kernels
     pools: tuple[int, ...] = (1, 1, 1, 2, 2, 2)
     # "paper": each IMU axis stays a row of its own through the blocks (temporal kernels (1, k)
     # slide over time on every row, max-pool by ``sensor_pools`` along the axes; ROWS_SIZE gives
     # it the paper's size); "mixed" (default, measured: module docstring): the six axes are the
     # first convolution's input channels (block 1 mixes them).
     extractor: str = "mixed"
-    sensor_pools: tuple[int, ...] = (1, 1, 1, 1, 1, 1)     # paper: rows kept (module docstring)
+    sensor_pools: tuple[int, ...] = (1, 1, 1, 1, 1, 1)  # paper: rows kept (module docstring)
     dropout: float = 0.2
-    glb_pool: int = 3                       # eq. 9
-    gru_hidden: int = 64                    # eq. 14
-    loc_dim: int = 64                       # d^j of eq. 17
-    heads: int = 4                          # eq. 18
-    loc_hidden: int = 64                    # r_loc of eq. 19
-    tau: float = 0.1                        # eq. 4
-    lambda_a: float = 9.0                   # eq. 11
+    glb_pool: int = 3  # eq. 9
+    gru_hidden: int = 64  # eq. 14
+    loc_dim: int = 64  # d^j of eq. 17
+    heads: int = 4  # eq. 18
+    loc_hidden: int = 64  # r_loc of eq. 19
+    tau: float = 0.1  # eq. 4
+    lambda_a: float = 9.0  # eq. 11
     lambda_b: float = 0.01
     lambda_c: float = 10.0
-    w_vel: float = 1.0                      # eq. 25: λ_v, λ_v^glb, λ_v^loc, λ_c(on), λ_o(rth)
+    w_vel: float = 1.0  # eq. 25: λ_v, λ_v^glb, λ_v^loc, λ_c(on), λ_o(rth)
     w_vel_glb: float = 0.1
     w_vel_loc: float = 1.0
     w_con: float = 0.2
     w_orth: float = 0.05
-    contrast: bool = True                   # Contrast.FE
-    weighted: bool = True                   # Weighted.GF
-    attentive: bool = True                  # Attentive.LA
+    contrast: bool = True  # Contrast.FE
+    weighted: bool = True  # Weighted.GF
+    attentive: bool = True  # Attentive.LA
 
     def __post_init__(self) -> None:
         if not (len(self.widths) == len(self.kernels) == len(self.pools) == len(self.sensor_pools)):
@@ -182,6 +182,7 @@ class SuiteINConfig:
 
 # --- Extractors (eqs. 1–2) --------------------------------------------------------------------
 
+
 class _MaskedBatchNormFn(torch.autograd.Function):
     """Training batch norm of y (B, T, G, C) with statistics over the present samples of each
     group (mask m (B, G)), written out with its closed-form gradient: a few passes over
@@ -189,9 +190,9 @@ class _MaskedBatchNormFn(torch.autograd.Function):
 
     @staticmethod
     def forward(ctx, y, m, weight, bias, eps):
-        n = (m.sum(0) * y.shape[1])[:, None]                              # (G, 1)
-        mb = m[:, :, None]                                                  # (B, G, 1)
-        mean = (y.sum(1) * mb).sum(0) / n.clamp(min=1)                      # (G, C)
+        n = (m.sum(0) * y.shape[1])[:, None]  # (G, 1)
+        mb = m[:, :, None]  # (B, G, 1)
+        mean = (y.sum(1) * mb).sum(0) / n.clamp(min=1)  # (G, C)
         # One pass, E[y²] − mean²: exact enough in fp32 while |mean|/std ≪ 10³ (gravity on the
         # world z axis gives ~10²) and it saves a pass over the largest activations.
         var = (((y * y).sum(1) * mb).sum(0) / n.clamp(min=1) - mean.square()).clamp(min=0)
@@ -207,7 +208,7 @@ class _MaskedBatchNormFn(torch.autograd.Function):
     def backward(ctx, dout, _dmean, _dvar):
         y, m, mean, invstd, weight, n = ctx.saved_tensors
         dbias = dout.sum((0, 1))
-        dweight = ((dout * y).sum((0, 1)) - mean * dbias) * invstd          # Σ dout·x̂
+        dweight = ((dout * y).sum((0, 1)) - mean * dbias) * invstd  # Σ dout·x̂
         # Every output depends on the statistics; only present inputs move them.
         scale = weight * invstd
         k1 = -scale * invstd * dweight / n
@@ -244,13 +245,14 @@ class MaskedBatchNorm(nn.Module):
         G, C = self.groups, self.channels
         # (B, H·T, G, C) is the memory order of a channels-last (B, G·C, H, T): a view.
         yt = y.permute(0, 2, 3, 1).reshape(B, H * T, G, C)
-        out, mean, var = _MaskedBatchNormFn.apply(yt, group_mask.to(y.dtype), self.weight.view(G, C),
-                                                  self.bias.view(G, C), self.eps)
-        with torch.no_grad():       # running statistics move only where someone was present
+        out, mean, var = _MaskedBatchNormFn.apply(
+            yt, group_mask.to(y.dtype), self.weight.view(G, C), self.bias.view(G, C), self.eps
+        )
+        with torch.no_grad():  # running statistics move only where someone was present
             n = (group_mask.sum(0) * H * T)[:, None].expand(G, C).reshape(-1)
             step = torch.where(n > 1, self.momentum, 0.0)
             self.running_mean.lerp_(mean.reshape(-1), step)
-            self.running_var.lerp_(var.reshape(-1) * n / (n - 1).clamp(min=1), step)   # unbiased
+            self.running_var.lerp_(var.reshape(-1) * n / (n - 1).clamp(min=1), step)  # unbiased
         return out.reshape(B, H, T, G * C).permute(0, 3, 1, 2)
 
 
@@ -274,9 +276,9 @@ def max_pool_time(h: Tensor, p: int, rows: int = 1) -> Tensor:
 
 
 # oneDNN convolution with the ReLU fused in (what torch.compile uses on a CPU); inference only.
-_CONV_RELU = (getattr(torch.ops.mkldnn, "_convolution_pointwise", None)
-              if torch.backends.mkldnn.is_available() else None)
-if _CONV_RELU is not None and _CONV_RELU not in flop_registry:   # FlopCounterMode counts it
+_CONV_RELU = getattr(torch.ops.mkldnn, "_convolution_pointwise", None) if torch.backends.mkldnn.is_available() else None
+if _CONV_RELU is not None and _CONV_RELU not in flop_registry:  # FlopCounterMode counts it
+
     @register_flop_formula(_CONV_RELU)
     def _conv_relu_flops(x_shape, w_shape, *args, out_shape=None, **kwargs) -> int:
         return conv_flop_count(x_shape, w_shape, out_shape)
@@ -286,8 +288,9 @@ def conv_relu(h: Tensor, w: Tensor, b: Tensor, conv: nn.Conv2d, fused: bool = Tr
     """ReLU(conv(h)) with weights w, bias b and ``conv``'s geometry; ``fused``: oneDNN's fused
     kernel where it applies (CPU inference), else plain ``F.conv2d`` (what an export traces)."""
     if fused and _CONV_RELU is not None and h.device.type == "cpu" and not torch.is_grad_enabled():
-        return _CONV_RELU(h, w, b, list(conv.padding), list(conv.stride), list(conv.dilation),
-                          conv.groups, "relu", [], "")
+        return _CONV_RELU(
+            h, w, b, list(conv.padding), list(conv.stride), list(conv.dilation), conv.groups, "relu", [], ""
+        )
     return F.relu_(F.conv2d(h, w, b, conv.stride, conv.padding, conv.dilation, conv.groups))
 
 
@@ -319,23 +322,22 @@ class GroupedExtractors(nn.Module):
         self.pools, self.row_pools, self.p = cfg.pools, cfg.row_pools, cfg.dropout
         self.separate = False
         self.fused = True
-        self.chunk = 64     # windows per inference pass through the blocks
+        self.chunk = 64  # windows per inference pass through the blocks
         self.convs = nn.ModuleList()
         self.norms = nn.ModuleList()
         self.c_first = c_in = 1 if self.paper else IMU_CHANNELS
         for i, (c, k) in enumerate(zip(cfg.widths, cfg.kernels)):
             g = D if i == 0 else D * nb
-            self.convs.append(nn.Conv2d(g * c_in, D * nb * c, (1, k),
-                                        padding=(0, k // 2 if i == 0 else 0), groups=g))
+            self.convs.append(nn.Conv2d(g * c_in, D * nb * c, (1, k), padding=(0, k // 2 if i == 0 else 0), groups=g))
             self.norms.append(MaskedBatchNorm(D * nb, c))
             c_in = c
         self.rows = cfg.sensor_rows
-        self.out_channels = c_in * self.rows        # per extractor, rows flattened into channels
+        self.out_channels = c_in * self.rows  # per extractor, rows flattened into channels
 
     def _inputs(self, x: Tensor) -> Tensor:
         """x (B, D, L, 6) → (B, D·c_first, H, L) in channels-last memory."""
         B, D, L, _ = x.shape
-        if self.paper:      # (B, D, 6, L), memory order (B, 6, L, D)
+        if self.paper:  # (B, D, 6, L), memory order (B, 6, L, D)
             return x.permute(0, 3, 2, 1).contiguous().permute(0, 3, 1, 2)
         return x.permute(0, 2, 1, 3).reshape(B, 1, L, D * IMU_CHANNELS).permute(0, 3, 1, 2)
 
@@ -355,10 +357,9 @@ class GroupedExtractors(nn.Module):
             # statistics, several times faster than convolutions over 6-row images).
             B, D, L, R = x.shape
             rows = x.permute(0, 3, 2, 1).reshape(B * R, 1, L, D).permute(0, 3, 1, 2)
-            h = self._blocks(rows, mask.repeat_interleave(R, dim=0))          # (B·6, 1, T', G·C)
+            h = self._blocks(rows, mask.repeat_interleave(R, dim=0))  # (B·6, 1, T', G·C)
             T = h.shape[2]
-            return (h.reshape(B, R, T, self.groups, -1).permute(0, 2, 3, 4, 1)
-                    .reshape(B, 1, T, -1))
+            return h.reshape(B, R, T, self.groups, -1).permute(0, 2, 3, 4, 1).reshape(B, 1, T, -1)
         return self._blocks(self._inputs(x), mask)
 
     def _blocks(self, h: Tensor, mask: Tensor) -> Tensor:
@@ -367,7 +368,7 @@ class GroupedExtractors(nn.Module):
             group_mask = mask.repeat_interleave(self.branches, dim=1)
             for conv, norm, pool, rows in zip(self.convs, self.norms, self.pools, self.row_pools):
                 h = norm(conv(h), group_mask)
-                if pool > 1 or rows > 1:   # F.max_pool2d: its backward is 2× faster than max_pool_time's
+                if pool > 1 or rows > 1:  # F.max_pool2d: its backward is 2× faster than max_pool_time's
                     h = F.max_pool2d(h, (rows, pool))
                 h = F.dropout(F.relu(h), self.p, True)
             return self._features(h)
@@ -393,13 +394,21 @@ class GroupedExtractors(nn.Module):
         outs = []
         for g in range(self.groups):
             dev = g // self.branches
-            y = x[:, dev * self.c_first:(dev + 1) * self.c_first]
+            y = x[:, dev * self.c_first : (dev + 1) * self.c_first]
             for conv, norm, pool, rows_p in zip(self.convs, self.norms, self.pools, self.row_pools):
                 c = conv.out_channels // self.groups
                 rows = slice(g * c, (g + 1) * c)
                 y = F.conv2d(y, conv.weight[rows], conv.bias[rows], padding=conv.padding)
-                y = F.batch_norm(y, norm.running_mean[rows], norm.running_var[rows],
-                                 norm.weight[rows], norm.bias[rows], False, 0.0, norm.eps)
+                y = F.batch_norm(
+                    y,
+                    norm.running_mean[rows],
+                    norm.running_var[rows],
+                    norm.weight[rows],
+                    norm.bias[rows],
+                    False,
+                    0.0,
+                    norm.eps,
+                )
                 y = F.relu(y)
                 if pool > 1 or rows_p > 1:
                     y = F.max_pool2d(y, (rows_p, pool))
@@ -409,6 +418,7 @@ class GroupedExtractors(nn.Module):
 
 # --- Separating global and local features (eqs. 3–5) -------------------------------------------
 
+
 def contrastive_loss(h_glb: Tensor, h_loc: Tensor, mask: Tensor, tau: float) -> Tensor:
     """InfoNCE of eqs. 3–4. h_glb, h_loc (B, D, F); mask (B, D). Positives: global features of
     two present devices; negatives: each present device's global vs its local feature, and the
@@ -417,14 +427,14 @@ def contrastive_loss(h_glb: Tensor, h_loc: Tensor, mask: Tensor, tau: float) -> 
     g, l = F.normalize(h_glb, dim=-1), F.normalize(h_loc, dim=-1)
     D = mask.shape[1]
     off_diag = 1.0 - torch.eye(D, device=mask.device, dtype=mask.dtype)
-    pairs = (mask[:, :, None] * mask[:, None, :] * off_diag).bool()          # (B, D, D)
-    pos = g @ g.transpose(1, 2) / tau                                        # s(H_glb^i, H_glb^j)
+    pairs = (mask[:, :, None] * mask[:, None, :] * off_diag).bool()  # (B, D, D)
+    pos = g @ g.transpose(1, 2) / tau  # s(H_glb^i, H_glb^j)
     # Left-out terms get the most negative finite logit, not −inf: exp() is 0 all the same, and
     # a sample without any device keeps a finite gradient.
     never = torch.finfo(g.dtype).min
-    neg_gl = ((g * l).sum(-1) / tau).masked_fill(mask == 0, never)          # (B, D)
-    neg_ll = (l @ l.transpose(1, 2) / tau).masked_fill(~pairs, never)       # (B, D, D)
-    log_neg = torch.logsumexp(torch.cat([neg_gl, neg_ll.flatten(1)], 1), dim=1)   # (B,)
+    neg_gl = ((g * l).sum(-1) / tau).masked_fill(mask == 0, never)  # (B, D)
+    neg_ll = (l @ l.transpose(1, 2) / tau).masked_fill(~pairs, never)  # (B, D, D)
+    log_neg = torch.logsumexp(torch.cat([neg_gl, neg_ll.flatten(1)], 1), dim=1)  # (B,)
     log_ratio = pos - torch.logaddexp(pos, log_neg[:, None, None])
     return -(log_ratio * pairs).sum((1, 2)).mean()
 
@@ -443,8 +453,10 @@ def orthogonality_loss(h_glb: Tensor, h_loc: Tensor, mask: Tensor) -> Tensor:
 
 # --- Weighted global fusion (eqs. 9–15) --------------------------------------------------------
 
-def fusion_weights(e: Tensor, mask: Tensor, lambda_a: float, lambda_b: float, lambda_c: float,
-                   weighted: bool = True) -> Tensor:
+
+def fusion_weights(
+    e: Tensor, mask: Tensor, lambda_a: float, lambda_b: float, lambda_c: float, weighted: bool = True
+) -> Tensor:
     """α (B, D) of eqs. 11–12 from quality scores e (B, D): the sigmoid rescaling bounded in
     [λ_c, λ_a + λ_c], normalised over the PRESENT devices only; absent devices get 0. With
     ``weighted=False`` the mean over present devices (Suite-IN). Rows without any device are 0."""
@@ -461,25 +473,26 @@ class WeightedGlobalFusion(nn.Module):
         super().__init__()
         self.cfg = cfg
         self.steps = cfg.feature_steps // cfg.glb_pool
-        self.quality = nn.Linear(self.steps * channels, 1)       # w_glb, b_glb (shared)
+        self.quality = nn.Linear(self.steps * channels, 1)  # w_glb, b_glb (shared)
         self.gru = nn.GRU(channels, cfg.gru_hidden, num_layers=2, batch_first=True)
-        self.head = nn.Linear(cfg.gru_hidden, 2)                   # FC_glb
+        self.head = nn.Linear(cfg.gru_hidden, 2)  # FC_glb
 
     def forward(self, h_glb: Tensor, mask: Tensor) -> tuple[Tensor, Tensor]:
         """h_glb (B, T', D, C) → (v_glb (B, 2), α (B, D))."""
         B, T, D, C = h_glb.shape
         p = self.cfg.glb_pool
-        u = h_glb[:, : self.steps * p].reshape(B, self.steps, p, D, C).mean(2)   # eq. 9
+        u = h_glb[:, : self.steps * p].reshape(B, self.steps, p, D, C).mean(2)  # eq. 9
         flat = u.permute(0, 2, 1, 3).reshape(B, D, self.steps * C)
-        e = self.quality(flat).squeeze(-1) / flat.shape[-1]                      # eq. 10
+        e = self.quality(flat).squeeze(-1) / flat.shape[-1]  # eq. 10
         c = self.cfg
         alpha = fusion_weights(e, mask, c.lambda_a, c.lambda_b, c.lambda_c, c.weighted)
-        g = torch.einsum("btdc,bd->btc", u, alpha)                              # eq. 13
-        r, _ = self.gru(g)                                                       # eq. 14
-        return self.head(r[:, -1]), alpha                                        # eq. 15
+        g = torch.einsum("btdc,bd->btc", u, alpha)  # eq. 13
+        r, _ = self.gru(g)  # eq. 14
+        return self.head(r[:, -1]), alpha  # eq. 15
 
 
 # --- Attentive local analysis (eqs. 16–20) ----------------------------------------------------
+
 
 class AttentiveLocalAnalysis(nn.Module):
     """Eqs. 16–20: per-device linear maps of the flattened local features (16–17), multi-head
@@ -490,30 +503,31 @@ class AttentiveLocalAnalysis(nn.Module):
         super().__init__()
         D, n_in, d = cfg.n_devices, cfg.feature_steps * channels, cfg.loc_dim
         self.heads = cfg.heads
-        self.w_loc = nn.Parameter(torch.empty(D, n_in, d))                    # eq. 17, one per device
+        self.w_loc = nn.Parameter(torch.empty(D, n_in, d))  # eq. 17, one per device
         self.b_loc = nn.Parameter(torch.zeros(D, d))
         nn.init.uniform_(self.w_loc, -1 / math.sqrt(n_in), 1 / math.sqrt(n_in))
         self.qkv = nn.Linear(d, 3 * d)
         self.out = nn.Linear(d, d)
         self.fc = nn.Linear(d, cfg.loc_hidden)
-        self.head = nn.Linear(cfg.loc_hidden, 2)                               # FC_loc
+        self.head = nn.Linear(cfg.loc_hidden, 2)  # FC_loc
 
     def forward(self, h_loc: Tensor, mask: Tensor) -> Tensor:
         """h_loc (B, D, T'·C) flattened (eq. 16) → v_loc (B, 2)."""
         B, D, n_in = h_loc.shape
         d = torch.baddbmm(self.b_loc[:, None], h_loc.transpose(0, 1), self.w_loc) / n_in  # eq. 17
-        d = d.transpose(0, 1)                                                   # D: (B, D, d)
+        d = d.transpose(0, 1)  # D: (B, D, d)
         q, k, v = self.qkv(d).view(B, D, 3, self.heads, -1).permute(2, 0, 3, 1, 4)
-        scores = q @ k.transpose(-1, -2) / math.sqrt(q.shape[-1])               # (B, h, D, D)
+        scores = q @ k.transpose(-1, -2) / math.sqrt(q.shape[-1])  # (B, h, D, D)
         keys_absent = (mask == 0)[:, None, None, :]
         scores = scores.masked_fill(keys_absent, torch.finfo(scores.dtype).min)
-        att = torch.softmax(scores, -1) @ v                                     # eq. 18
+        att = torch.softmax(scores, -1) @ v  # eq. 18
         d_att = self.out(att.transpose(1, 2).reshape(B, D, -1))
         d_mean = (d_att * mask[..., None]).sum(1) / mask.sum(1, keepdim=True).clamp(min=1)
-        return self.head(F.relu(self.fc(d_mean)))                               # eqs. 19–20
+        return self.head(F.relu(self.fc(d_mean)))  # eqs. 19–20
 
 
 # --- The model (eqs. 21–25) -------------------------------------------------------------------
+
 
 class SuiteIN(OdometryModel):
     """Suite-IN++ (all switches on) and its ablations / Suite-IN; see the module docstring."""
@@ -532,8 +546,8 @@ class SuiteIN(OdometryModel):
         self.fusion = WeightedGlobalFusion(cfg, C)
         self.local = AttentiveLocalAnalysis(cfg, C) if cfg.attentive else None
         if cfg.attentive:
-            self.combine = nn.Linear(4, 2)                                      # eq. 21
-            with torch.no_grad():       # starts as v_glb + v_loc: v_loc corrects v_glb (eq. 22)
+            self.combine = nn.Linear(4, 2)  # eq. 21
+            with torch.no_grad():  # starts as v_glb + v_loc: v_loc corrects v_glb (eq. 22)
                 self.combine.weight.copy_(torch.cat([torch.eye(2), torch.eye(2)], 1))
                 self.combine.bias.zero_()
         self.to(memory_format=torch.channels_last)
@@ -542,7 +556,7 @@ class SuiteIN(OdometryModel):
         """Global and local features H (B, T', D, C) (eqs. 1–2); local is None for one branch."""
         if x.ndim != 4 or x.shape[1] != self.cfg.n_devices or x.shape[3] != IMU_CHANNELS:
             raise ConfigError(f"suitein: expected x (B, {self.cfg.n_devices}, L, 6), got {tuple(x.shape)}")
-        h = self.extractors(x, mask.to(x.dtype))                 # (B, 1, T', D·nb·C)
+        h = self.extractors(x, mask.to(x.dtype))  # (B, 1, T', D·nb·C)
         B, _, T, _ = h.shape
         h = h.reshape(B, T, self.cfg.n_devices, self.cfg.branches, -1)
         return h[:, :, :, 0], (h[:, :, :, 1] if self.cfg.branches == 2 else None)
@@ -553,7 +567,7 @@ class SuiteIN(OdometryModel):
         h_glb, h_loc = self.features(x, mask)
         v_glb, alpha = self.fusion(h_glb, mask)
         out = {"v_glb": v_glb, "alpha": alpha, "v": v_glb}
-        flat = lambda h: h.permute(0, 2, 1, 3).flatten(2)             # (B, D, T'·C)
+        flat = lambda h: h.permute(0, 2, 1, 3).flatten(2)  # (B, D, T'·C)
         if h_loc is not None:
             out["h_glb"], out["h_loc"] = flat(h_glb), flat(h_loc)
         if self.local is not None:
@@ -564,7 +578,7 @@ class SuiteIN(OdometryModel):
     def forward(self, x: Tensor, mask: Tensor) -> Tensor:
         return self.parts(x, mask)["v"]
 
-    def for_export(self) -> "SuiteIN":
+    def for_export(self) -> SuiteIN:
         """A copy without the fused CPU kernels and batch chunking (:class:`GroupedExtractors`'
         ``fused``), in eval mode: the same arithmetic as one graph for any batch size."""
         model = copy.deepcopy(self).eval()
@@ -593,6 +607,7 @@ class SuiteIN(OdometryModel):
 
 # --- Registered constructors ------------------------------------------------------------------
 
+
 def _build(n_devices: int = 3, window: int = 100, **overrides) -> SuiteIN:
     unknown = set(overrides) - set(SuiteINConfig.__dataclass_fields__)
     if unknown:
@@ -600,9 +615,13 @@ def _build(n_devices: int = 3, window: int = 100, **overrides) -> SuiteIN:
     return SuiteIN(replace(SuiteINConfig(), n_devices=n_devices, window=window, **overrides))
 
 
-@register("suitein++", task="odometry", layout="multi",
-          description="Suite-IN++: contrastive global/local features, weighted global fusion, "
-                      "attentive local analysis (paper 000)")
+@register(
+    "suitein++",
+    task="odometry",
+    layout="multi",
+    description="Suite-IN++: contrastive global/local features, weighted global fusion, "
+    "attentive local analysis (paper 000)",
+)
 def suitein_pp(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
     return _build(n_devices, window, **{"contrast": True, "weighted": True, "attentive": True, **kw})
 
@@ -614,18 +633,25 @@ SUITEIN_SIZE: dict[str, object] = dict(extractor="paper", widths=(24, 32, 36, 36
 ROWS_SIZE: dict[str, object] = dict(extractor="paper", widths=(16, 24, 32, 32, 32, 28))
 
 
-@register("suitein", task="odometry", layout="multi",
-          description="Suite-IN: contrastive global/local features, mean fusion of global features")
+@register(
+    "suitein",
+    task="odometry",
+    layout="multi",
+    description="Suite-IN: contrastive global/local features, mean fusion of global features",
+)
 def suitein(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
-    return _build(n_devices, window, **{"contrast": True, "weighted": False, "attentive": False,
-                                        **SUITEIN_SIZE, **kw})
+    return _build(n_devices, window, **{"contrast": True, "weighted": False, "attentive": False, **SUITEIN_SIZE, **kw})
 
 
 # The paper's row-keeping reading of the extractor at the paper's size (module docstring), by name
 # so a suite or the CLI can run it (``model_args=ROWS_SIZE`` builds the same).
-@register("suitein++-rows", task="odometry", layout="multi",
-          description="Suite-IN++ with the paper's row-keeping extractor (each IMU axis its own row; ~10x the "
-                      "training time on a CPU)")
+@register(
+    "suitein++-rows",
+    task="odometry",
+    layout="multi",
+    description="Suite-IN++ with the paper's row-keeping extractor (each IMU axis its own row; ~10x the "
+    "training time on a CPU)",
+)
 def suitein_pp_rows(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
     return suitein_pp(n_devices, window, **{**ROWS_SIZE, **kw})
 
@@ -642,14 +668,21 @@ ABLATIONS: dict[int, dict[str, bool]] = {
 
 
 def _register_ablation(number: int, switches: dict[str, bool]) -> None:
-    on = [name for name, key in (("Contrast.FE", "contrast"), ("Weighted.GF", "weighted"),
-                                 ("Attentive.LA", "attentive")) if switches[key]]
+    on = [
+        name
+        for name, key in (("Contrast.FE", "contrast"), ("Weighted.GF", "weighted"), ("Attentive.LA", "attentive"))
+        if switches[key]
+    ]
 
     def build(n_devices: int = 3, window: int = 100, **kw) -> SuiteIN:
         return _build(n_devices, window, **{**switches, **kw})
 
-    register(f"suitein++-abl{number}", task="odometry", layout="multi",
-             description=f"Suite-IN++ ablation ({number}) of Table V: {' + '.join(on) or 'no module'}")(build)
+    register(
+        f"suitein++-abl{number}",
+        task="odometry",
+        layout="multi",
+        description=f"Suite-IN++ ablation ({number}) of Table V: {' + '.join(on) or 'no module'}",
+    )(build)
 
 
 for _n, _sw in ABLATIONS.items():

@@ -42,15 +42,30 @@ class Shipped:
         return sum(p.stat().st_size for p in self.path.rglob("*") if p.is_file()) if self.path.is_dir() else 0
 
 
-SHIPPED = {s.name: s for s in (
-    Shipped(PHONE, "odometry", ("phone",),
-            "Suite-IN++ on the phone alone: ILC2 site 1, IPIN 2023 Track 3 and the simulator"),
-    Shipped(MULTI, "odometry", ("phone", "watch", "earbuds"),
-            "Suite-IN++ on phone, watch and earbuds (any of them absent): the same data"),
-    Shipped(ACTIVITY, "classify", ("phone",),
+SHIPPED = {
+    s.name: s
+    for s in (
+        Shipped(
+            PHONE,
+            "odometry",
+            ("phone",),
+            "Suite-IN++ on the phone alone: ILC2 site 1, IPIN 2023 Track 3 and the simulator",
+        ),
+        Shipped(
+            MULTI,
+            "odometry",
+            ("phone", "watch", "earbuds"),
+            "Suite-IN++ on phone, watch and earbuds (any of them absent): the same data",
+        ),
+        Shipped(
+            ACTIVITY,
+            "classify",
+            ("phone",),
             "CNN+BiLSTM activity baseline (paper 002) on MotionSense: downstairs, jogging, sitting, "
-            "standing, upstairs, walking"),
-)}
+            "standing, upstairs, walking",
+        ),
+    )
+}
 
 
 def get(name: str) -> Shipped:
@@ -73,8 +88,10 @@ def default_for(task: str, devices_in_recording=()) -> Shipped:
         name = MULTI if {"watch", "earbuds"} & set(devices_in_recording) else PHONE
     spec = SHIPPED[name]
     if not spec.installed:
-        raise ConfigError(f"this installation has no shipped model {name!r} (models/{name} is missing); "
-                          f"give --model RUN, or train it with `wearnav pretrain`")
+        raise ConfigError(
+            f"this installation has no shipped model {name!r} (models/{name} is missing); "
+            f"give --model RUN, or train it with `wearnav pretrain`"
+        )
     return spec
 
 

@@ -71,15 +71,17 @@ def turn(rec: Recording, yaw_rad: float) -> Recording:
 
     truth = rec.truth and Trajectory(rec.truth.t, xy(rec.truth.pos), None, rec.truth.floor)
     fixes = rec.fixes and Fixes(rec.fixes.t, xy(rec.fixes.pos), rec.fixes.accuracy, rec.fixes.floor)
-    return dataclasses.replace(rec, truth=truth, fixes=fixes, meta={**rec.meta, "truth_turned_deg": round(
-        float(np.degrees(yaw_rad)), 3)})
+    return dataclasses.replace(
+        rec, truth=truth, fixes=fixes, meta={**rec.meta, "truth_turned_deg": round(float(np.degrees(yaw_rad)), 3)}
+    )
 
 
 def recording_yaw(rec: Recording, devices: tuple[str, ...], rate: float = 25.0) -> float | None:
     """The constant yaw (rad) of ``rec``'s common frame relative to its truth, from all of its
     dense truth; None where the truth says nothing (no overlap, no motion)."""
-    cfg = PreprocessConfig(rate=rate, devices=tuple(d for d in devices if d in rec.devices) or devices[:1],
-                           frame_align="none")
+    cfg = PreprocessConfig(
+        rate=rate, devices=tuple(d for d in devices if d in rec.devices) or devices[:1], frame_align="none"
+    )
     seq = align(rec, cfg)
     if seq.pos is None:
         return None
@@ -99,14 +101,16 @@ def axis_yaw(data: str | Path, rate: float = 25.0) -> dict:
     return {"yaw_deg": found["phone_axis_yaw_deg"], "pdr_yaw_deg": found["yaw_deg"], "segments": found["segments"]}
 
 
-def write_mix(parts: list[Part], out: str | Path, devices: tuple[str, ...] = ("phone",), rate: float = 25.0,
-              progress: bool = True) -> Path:
+def write_mix(
+    parts: list[Part], out: str | Path, devices: tuple[str, ...] = ("phone",), rate: float = 25.0, progress: bool = True
+) -> Path:
     """Write the recordings of ``parts`` (their truth turned as the module docstring says) into one
     dataset folder ``out`` with ``train``/``val`` splits; ``dataset.yaml`` records every yaw."""
     out = Path(out)
     info = []
-    with DatasetWriter(out, {"generator": "wearnav.pretrained.mix", "frame": MIX_FRAME,
-                             "truth_max_gap": SURVEYED_TRUTH_MAX_GAP_S}) as w:
+    with DatasetWriter(
+        out, {"generator": "wearnav.pretrained.mix", "frame": MIX_FRAME, "truth_max_gap": SURVEYED_TRUTH_MAX_GAP_S}
+    ) as w:
         for part in parts:
             ds = Dataset.open(part.data)
             names = ds.names
@@ -125,9 +129,16 @@ def write_mix(parts: list[Part], out: str | Path, devices: tuple[str, ...] = ("p
                 rec.meta["mix_source"] = part.name
                 w.add(rec, split="val" if is_validation_name(rec.name) else "train")
                 kept += 1
-            info.append({"part": part.name, "data": str(part.data), "yaw": part.yaw, "recordings": kept,
-                         "skipped": skipped,
-                         **({"site_yaw": site} if site else {})})
+            info.append(
+                {
+                    "part": part.name,
+                    "data": str(part.data),
+                    "yaw": part.yaw,
+                    "recordings": kept,
+                    "skipped": skipped,
+                    **({"site_yaw": site} if site else {}),
+                }
+            )
         w.provenance["parts"] = info
     return out
 

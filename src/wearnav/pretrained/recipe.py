@@ -38,14 +38,17 @@ from wearnav.pretrained import ACTIVITY, MULTI, PHONE, SHIPPED, cards
 from wearnav.pretrained.mix import MIX_FRAME, Part, write_mix
 from wearnav.simulate import simulate_dataset
 from wearnav.textio import read_json
-from wearnav.train.common import BEST, CHECKPOINTS, LAST
 from wearnav.train.classify import run_folder
+from wearnav.train.common import BEST, CHECKPOINTS, LAST
 from wearnav.train.odometry import TRAINING, TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 
 MODEL = "suitein++"
 # name → (importer, folder under the shared data root)
-SOURCES = {"ilc2": ("ilc2", "ilc2_indoor_location"), "ipin": ("ipin2023", "ipin2023_track3"),
-           "motionsense": ("motionsense", "motionsense")}
+SOURCES = {
+    "ilc2": ("ilc2", "ilc2_indoor_location"),
+    "ipin": ("ipin2023", "ipin2023_track3"),
+    "motionsense": ("motionsense", "motionsense"),
+}
 MIXES = {"mix-all": ("ilc2", "ipin", "sim"), "mix-noipin": ("ilc2", "sim"), "mix-noilc2": ("ipin", "sim")}
 # leave-one-building-out suite → (the building scored, the mix trained on)
 LOBO = {"lobo-ipin": ("ipin", "mix-noipin"), "lobo-ilc2": ("ilc2", "mix-noilc2")}
@@ -79,8 +82,11 @@ def prepare_data(data_root: Path, work: Path, recipe: Recipe, progress: bool = T
     if not (folders["sim"] / "manifest.csv").is_file():
         echo(f"simulating preset {recipe.preset} ...")
         simulate_dataset(recipe.preset, folders["sim"], seed=recipe.seed, progress=progress)
-    parts = {"ilc2": Part(str(folders["ilc2"]), "ilc2"), "ipin": Part(str(folders["ipin"]), "ipin"),
-             "sim": Part(str(folders["sim"]), "sim", yaw="recording")}
+    parts = {
+        "ilc2": Part(str(folders["ilc2"]), "ilc2"),
+        "ipin": Part(str(folders["ipin"]), "ipin"),
+        "sim": Part(str(folders["sim"]), "sim", yaw="recording"),
+    }
     for mix, names in MIXES.items():
         folders[mix] = work / mix
         if not (folders[mix] / "manifest.csv").is_file():
@@ -91,10 +97,19 @@ def prepare_data(data_root: Path, work: Path, recipe: Recipe, progress: bool = T
 
 def odometry_config(mix: Path, devices: tuple[str, ...], recipe: Recipe) -> TrainConfig:
     """The shipped odometry recipe: Suite-IN++ in the mix's frame (the frame `track` feeds)."""
-    return TrainConfig(model=MODEL, data=str(mix), devices=devices, epochs=recipe.epochs, patience=recipe.patience,
-                       max_minutes=recipe.max_minutes, lr=recipe.lr, seed=recipe.seed, frame_align=MIX_FRAME,
-                       augment=recipe.augment,
-                       truth_max_gap=TRUTH_MAX_GAP_S)
+    return TrainConfig(
+        model=MODEL,
+        data=str(mix),
+        devices=devices,
+        epochs=recipe.epochs,
+        patience=recipe.patience,
+        max_minutes=recipe.max_minutes,
+        lr=recipe.lr,
+        seed=recipe.seed,
+        frame_align=MIX_FRAME,
+        augment=recipe.augment,
+        truth_max_gap=TRUTH_MAX_GAP_S,
+    )
 
 
 def run_odometry(cfg: TrainConfig, run: Path) -> Path:
@@ -103,8 +118,15 @@ def run_odometry(cfg: TrainConfig, run: Path) -> Path:
     building, and the leave-one-building-out suites measure the recipe instead."""
     prepare_run(cfg, run)
     training = fit(cfg, run, progress=False)
-    runs.write_metrics(run, {"splits": {}, "training": training, "calibration": ensure_calibration(run, cfg.data),
-                             "measured_by": "the leave-one-building-out suites (wearnav pretrain's page)"})
+    runs.write_metrics(
+        run,
+        {
+            "splits": {},
+            "training": training,
+            "calibration": ensure_calibration(run, cfg.data),
+            "measured_by": "the leave-one-building-out suites (wearnav pretrain's page)",
+        },
+    )
     return run
 
 
@@ -114,27 +136,53 @@ def shipped_jobs(folders: dict[str, Path], out: Path, recipe: Recipe) -> dict[st
         cfg = odometry_config(folders["mix-all"], SHIPPED[name].devices, recipe)
         run = runs.run_dir(out / "runs", name, run_hash_exclude(run_record(cfg)))
         jobs[name] = Job(run_odometry, cfg, run, cost=2 if name == MULTI else 1)
-    cfg = har.baseline_config(har.DATASETS["motionsense"], folders["motionsense"], epochs=recipe.har_epochs,
-                              seed=recipe.seed)
+    cfg = har.baseline_config(
+        har.DATASETS["motionsense"], folders["motionsense"], epochs=recipe.har_epochs, seed=recipe.seed
+    )
     jobs[ACTIVITY] = Job(har.run_job, cfg, run_folder(out / "runs", ACTIVITY, cfg), cost=0)
     return jobs
 
 
-def pretrain(data_root: Path, out: Path, work: Path | None = None, recipe: Recipe = Recipe(),
-             execution: Execution = Execution(), install: bool = False, progress: bool = True, echo=print) -> Path:
+def pretrain(
+    data_root: Path,
+    out: Path,
+    work: Path | None = None,
+    recipe: Recipe = Recipe(),
+    execution: Execution = Execution(),
+    install: bool = False,
+    progress: bool = True,
+    echo=print,
+) -> Path:
     """Steps 1–3 of the module docstring; returns the page (``out/results.md``)."""
     out = Path(out)
     work = Path(work) if work else out / "data"
     folders = prepare_data(Path(data_root), work, recipe, progress, echo)
     shipped = shipped_jobs(folders, out, recipe)
-    plans = {suite: plan_benchmark(folders[site], out / suite, bench=RealBench(
-        models=(MODEL, "pdr"), epochs=recipe.epochs, patience=recipe.patience, max_minutes=recipe.max_minutes,
-        lr=recipe.lr, seed=recipe.seed, train_data=str(folders[mix]), augment=recipe.augment), progress=progress, echo=echo,
-        in_process=execution.in_process) for suite, (site, mix) in LOBO.items()}
+    plans = {
+        suite: plan_benchmark(
+            folders[site],
+            out / suite,
+            bench=RealBench(
+                models=(MODEL, "pdr"),
+                epochs=recipe.epochs,
+                patience=recipe.patience,
+                max_minutes=recipe.max_minutes,
+                lr=recipe.lr,
+                seed=recipe.seed,
+                train_data=str(folders[mix]),
+                augment=recipe.augment,
+            ),
+            progress=progress,
+            echo=echo,
+            in_process=execution.in_process,
+        )
+        for suite, (site, mix) in LOBO.items()
+    }
     run_jobs(list(shipped.values()) + [j for p in plans.values() for j in p.jobs], execution, echo)
     lobo = {suite: plan.finish() for suite, plan in plans.items()}
-    runs.write_json(out / "recipe.json", {"recipe": dataclasses.asdict(recipe), "data_root": str(data_root),
-                                          "work": str(work)})
+    runs.write_json(
+        out / "recipe.json", {"recipe": dataclasses.asdict(recipe), "data_root": str(data_root), "work": str(work)}
+    )
     for name, job in shipped.items():
         if SHIPPED[name].task == "odometry":
             cross_building_calibration(job.folder, [out / suite for suite in LOBO])
@@ -152,21 +200,30 @@ def cross_building_calibration(run: Path, suites: list[Path]) -> dict:
     largest of them, and the largest σ scale. Its validation walks (mostly simulated) say 0.017 m/√s;
     the held-out buildings 0.56 (IPIN) and 0.83 (ILC2), and a smoother that trusts the path 30× too
     much follows its errors."""
-    per = {suite.name: site_calibration(lobo, "main", suite / "data" / "main", runs.read_config(lobo)["config"]["train"]["data"])
-           for suite in suites for lobo in sorted((suite / "runs").glob(f"{MODEL}-*"))[:1]}
+    per = {
+        suite.name: site_calibration(
+            lobo, "main", suite / "data" / "main", runs.read_config(lobo)["config"]["train"]["data"]
+        )
+        for suite in suites
+        for lobo in sorted((suite / "runs").glob(f"{MODEL}-*"))[:1]
+    }
     per = {k: c for k, c in per.items() if c.get("odometry_walk_m_per_sqrt_s")}
     if not per:
         return read_json(run / fuse.CALIBRATION_JSON)
     worst = max(per.values(), key=lambda c: c["odometry_walk_m_per_sqrt_s"])
     scales = {k: c["sigma_scale"] for k, c in per.items() if c.get("sigma_scale")}  # buildings with fixes
-    cal = {"odometry_walk_m_per_sqrt_s": worst["odometry_walk_m_per_sqrt_s"],
-           "sigma_scale": max(scales.values()) if scales else None,
-           "walks": sum(int(c.get("walks", 0)) for c in per.values()), "data": "leave-one-building-out suites",
-           "split": "train", "per_building": {k: c["odometry_walk_m_per_sqrt_s"] for k, c in per.items()},
-           "sigma_scale_per_building": scales,
-           "method": "the largest wearnav.fuse.odometry_walk_sigma (and wearnav.fuse.sigma_scale_of, where the "
-                     "building has fixes) of the recipe trained without a building, on that building's training "
-                     "walks (wearnav.pretrained.recipe.cross_building_calibration)"}
+    cal = {
+        "odometry_walk_m_per_sqrt_s": worst["odometry_walk_m_per_sqrt_s"],
+        "sigma_scale": max(scales.values()) if scales else None,
+        "walks": sum(int(c.get("walks", 0)) for c in per.values()),
+        "data": "leave-one-building-out suites",
+        "split": "train",
+        "per_building": {k: c["odometry_walk_m_per_sqrt_s"] for k, c in per.items()},
+        "sigma_scale_per_building": scales,
+        "method": "the largest wearnav.fuse.odometry_walk_sigma (and wearnav.fuse.sigma_scale_of, where the "
+        "building has fixes) of the recipe trained without a building, on that building's training "
+        "walks (wearnav.pretrained.recipe.cross_building_calibration)",
+    }
     runs.write_json(run / fuse.CALIBRATION_JSON, cal)
     return cal
 

@@ -14,8 +14,17 @@ import numpy as np
 
 from wearnav.realism.fixes import FIX_STATS, fix_stats
 from wearnav.realism.gait import MIN_SEGMENT_S, RATE_HZ, SEGMENT_S, TRIM_S
-from wearnav.realism.sources import (FIX_REAL, GROUPS, ILC2_CALIBRATION, IPIN_CALIBRATION, SIM_DURATION_S, Group,
-                                     RealSource, open_real, simulate_realism_walks)
+from wearnav.realism.sources import (
+    FIX_REAL,
+    GROUPS,
+    ILC2_CALIBRATION,
+    IPIN_CALIBRATION,
+    SIM_DURATION_S,
+    Group,
+    RealSource,
+    open_real,
+    simulate_realism_walks,
+)
 from wearnav.realism.stats import STATS, recording_segments, spectrum
 from wearnav.recording import Recording
 
@@ -44,8 +53,7 @@ def summary(v: np.ndarray) -> dict:
     if v.size == 0:
         return {"n": 0}
     q25, q50, q75 = np.percentile(v, [25, 50, 75])
-    return {"n": int(v.size), "median": round(float(q50), 4), "q25": round(float(q25), 4),
-            "q75": round(float(q75), 4)}
+    return {"n": int(v.size), "median": round(float(q50), 4), "q25": round(float(q25), 4), "q75": round(float(q75), 4)}
 
 
 def weighted_quantiles(samples: list[np.ndarray], q) -> np.ndarray:
@@ -79,8 +87,11 @@ def compare(sim: SourceResult, real: list[SourceResult]) -> dict:
     for stat in STATS:
         s = sim.values(stat)
         r = [x.values(stat) for x in real]
-        entry = {"sim": summary(s), "real": summary(np.concatenate(r) if r else np.empty(0)),
-                 "per_source": {x.label: summary(x.values(stat)) for x in real}}
+        entry = {
+            "sim": summary(s),
+            "real": summary(np.concatenate(r) if r else np.empty(0)),
+            "per_source": {x.label: summary(x.values(stat)) for x in real},
+        }
         band = band_of(r)
         if band is not None and s.size:
             lo, hi, kind = band
@@ -90,9 +101,17 @@ def compare(sim: SourceResult, real: list[SourceResult]) -> dict:
     return out
 
 
-def compute_realism(data: Path, work: Path, n_sim: int = 12, limit: int | None = None, seed: int = 0,
-                    sim_duration_s: float = SIM_DURATION_S, groups: tuple[Group, ...] = GROUPS,
-                    fix_source: RealSource | None = FIX_REAL, progress: bool = False) -> dict:
+def compute_realism(
+    data: Path,
+    work: Path,
+    n_sim: int = 12,
+    limit: int | None = None,
+    seed: int = 0,
+    sim_duration_s: float = SIM_DURATION_S,
+    groups: tuple[Group, ...] = GROUPS,
+    fix_source: RealSource | None = FIX_REAL,
+    progress: bool = False,
+) -> dict:
     """All the numbers of the report (no files but the imported datasets under ``work``)."""
     data, work = Path(data), Path(work)
     sims: dict[str, list[Recording]] = {}
@@ -118,8 +137,11 @@ def compute_realism(data: Path, work: Path, n_sim: int = 12, limit: int | None =
     for g in groups:
         if g.sim_hold not in sims:
             sims[g.sim_hold] = simulate_realism_walks(g.sim_hold, n_sim, seed, sim_duration_s)
-        sim = collect(f"sim {g.sim_device}" + (f" {g.sim_hold}" if g.sim_device == "phone" else ""), "sim",
-                      [(r, g.sim_device) for r in sims[g.sim_hold]])
+        sim = collect(
+            f"sim {g.sim_device}" + (f" {g.sim_hold}" if g.sim_device == "phone" else ""),
+            "sim",
+            [(r, g.sim_device) for r in sims[g.sim_hold]],
+        )
         reals = []
         for src in g.real:
             if src not in real_cache:
@@ -132,8 +154,9 @@ def compute_realism(data: Path, work: Path, n_sim: int = 12, limit: int | None =
         results[g.key] = {
             "title": g.title,
             "sim": {"label": sim.label, "segments": len(sim.rows), "recordings": sim.recordings},
-            "real": [{"label": r.label, "segments": len(r.rows), "recordings": r.recordings, "how": r.how}
-                     for r in reals],
+            "real": [
+                {"label": r.label, "segments": len(r.rows), "recordings": r.recordings, "how": r.how} for r in reals
+            ],
             "compare": compare(sim, reals),
         }
 
@@ -148,11 +171,24 @@ def compute_realism(data: Path, work: Path, n_sim: int = 12, limit: int | None =
         for n in names:
             for k, v in fix_stats(ds.load(n)).items():
                 fix[fix_source.label][k] += v
-    return {"groups": results, "fixes": fix, "_figs": figs, "_freqs": freqs,
-            "settings": {"rate_hz": RATE_HZ, "segment_s": SEGMENT_S, "min_segment_s": MIN_SEGMENT_S,
-                         "trim_s": TRIM_S, "n_sim": n_sim, "sim_duration_s": sim_duration_s, "limit": limit,
-                         "seed": seed, "ilc2_calibration": ILC2_CALIBRATION,
-                         "ipin_calibration": IPIN_CALIBRATION}}
+    return {
+        "groups": results,
+        "fixes": fix,
+        "_figs": figs,
+        "_freqs": freqs,
+        "settings": {
+            "rate_hz": RATE_HZ,
+            "segment_s": SEGMENT_S,
+            "min_segment_s": MIN_SEGMENT_S,
+            "trim_s": TRIM_S,
+            "n_sim": n_sim,
+            "sim_duration_s": sim_duration_s,
+            "limit": limit,
+            "seed": seed,
+            "ilc2_calibration": ILC2_CALIBRATION,
+            "ipin_calibration": IPIN_CALIBRATION,
+        },
+    }
 
 
 def fix_compare(fix: dict) -> dict:
@@ -165,7 +201,10 @@ def fix_compare(fix: dict) -> dict:
         e = {"sim": summary(s), "real": summary(r)}
         band = band_of([r])
         if band is not None and s.size:
-            e.update(band=[round(band[0], 4), round(band[1], 4)], band_kind=band[2],
-                     inside=bool(band[0] <= float(np.median(s)) <= band[1]))
+            e.update(
+                band=[round(band[0], 4), round(band[1], 4)],
+                band_kind=band[2],
+                inside=bool(band[0] <= float(np.median(s)) <= band[1]),
+            )
         out[k] = e
     return out

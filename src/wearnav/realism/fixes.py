@@ -51,4 +51,3 @@ def fix_stats(rec: Recording) -> dict[str, list[float]]:
     out["fix_speed"] = (step / np.maximum(dt, 1e-3)).tolist()
     out["jumps_per_100"] = [float(100.0 * np.mean(step > JUMP_SPEED_MPS * np.maximum(dt, 1.0)))]
     return out
-

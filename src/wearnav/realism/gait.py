@@ -30,6 +30,7 @@ WALK_POWER_BAND_HZ = (0.5, 5.0)
 MIN_STEP_POWER_SHARE = 0.4
 _DETECT_NFFT = 256  # periodogram length of one 2-s window (50 samples at 25 Hz): 0.1 Hz bins
 
+
 def resample(t: np.ndarray, x: np.ndarray, t0: float, t1: float, rate: float = RATE_HZ) -> np.ndarray:
     """``x`` (N, k) sampled at times ``t`` → uniform ``rate`` samples over [t0, t1): linear
     interpolation onto a 100 Hz grid, then polyphase FIR decimation (its anti-alias filter)."""
@@ -61,11 +62,11 @@ def detect_walking(t: np.ndarray, acc: np.ndarray, gyro: np.ndarray | None = Non
     starts = np.arange(0, x.size - n + 1, hop)
     walk = np.zeros(x.size, bool)
     for s in starts:
-        w = x[s:s + n]
+        w = x[s : s + n]
         sd = w.std()
         if not WALK_STD_BAND[0] <= sd <= WALK_STD_BAND[1]:
             continue
-        if g is not None and g[s:s + n].mean() > MAX_WALK_GYRO:
+        if g is not None and g[s : s + n].mean() > MAX_WALK_GYRO:
             continue
         f, p = periodogram(w - w.mean(), RATE_HZ, window="hann", nfft=_DETECT_NFFT)
         band = (f >= WALK_POWER_BAND_HZ[0]) & (f <= WALK_POWER_BAND_HZ[1])
@@ -75,7 +76,7 @@ def detect_walking(t: np.ndarray, acc: np.ndarray, gyro: np.ndarray | None = Non
         peak = fb[np.argmax(pb)]
         step = (fb >= STEP_BAND_HZ[0]) & (fb <= STEP_BAND_HZ[1])
         if STEP_BAND_HZ[0] <= peak <= STEP_BAND_HZ[1] and pb[step].sum() >= MIN_STEP_POWER_SHARE * pb.sum():
-            walk[s + n // 4:s + n - n // 4] = True  # the window's centre: edges good to ±0.5 s
+            walk[s + n // 4 : s + n - n // 4] = True  # the window's centre: edges good to ±0.5 s
     # close gaps shorter than one window (a turn or a missed window inside a walk)
     gaps = _runs(~walk)
     for a, b in gaps:

@@ -61,8 +61,18 @@ from wearnav.errors import ConfigError
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.realism.calibrate import IQR_MIN_SEGMENTS, SourceResult, compute_realism, fix_compare, summary
 from wearnav.realism.fixes import FIX_STATS, JUMP_SPEED_MPS, OUTAGE_GAP_S, SIM_REFERENCE_EVERY_S
-from wearnav.realism.sources import (CALIBRATION_COLUMNS, CALIBRATION_NOTES, CALIBRATION_TABLE, CLAIMED, FIX_REAL,
-                                     GROUPS, ILC2_CALIBRATION, SIM_DURATION_S, Group, RealSource)
+from wearnav.realism.sources import (
+    CALIBRATION_COLUMNS,
+    CALIBRATION_NOTES,
+    CALIBRATION_TABLE,
+    CLAIMED,
+    FIX_REAL,
+    GROUPS,
+    ILC2_CALIBRATION,
+    SIM_DURATION_S,
+    Group,
+    RealSource,
+)
 from wearnav.realism.stats import STAT_LABELS, STATS
 from wearnav.report.plots import plot_ecdf
 
@@ -86,9 +96,13 @@ def _hist_data(results: list[SourceResult], stat: str, bins: int = 30) -> dict |
     if not hi > lo:
         lo, hi = lo - 0.5, hi + 0.5
     edges = np.linspace(lo, hi, bins + 1)
-    return {"edges": np.round(edges, 5).tolist(),
-            "density": {r.label: (np.round(np.histogram(np.clip(v, lo, hi), edges, density=True)[0], 5).tolist()
-                                  if v.size else []) for r, v in zip(results, vals)}}
+    return {
+        "edges": np.round(edges, 5).tolist(),
+        "density": {
+            r.label: (np.round(np.histogram(np.clip(v, lo, hi), edges, density=True)[0], 5).tolist() if v.size else [])
+            for r, v in zip(results, vals)
+        },
+    }
 
 
 def _plot_group(group: Group, results: list[SourceResult], freqs: np.ndarray, out: Path) -> tuple[Path, dict]:
@@ -106,8 +120,14 @@ def _plot_group(group: Group, results: list[SourceResult], freqs: np.ndarray, ou
         for c, r in zip(_COLORS, results):
             d = h["density"][r.label]
             if d:
-                ax.stairs(d, h["edges"], color=c, fill=r.kind == "sim", alpha=0.35 if r.kind == "sim" else 1.0,
-                          label=f"{r.label} ({r.kind})")
+                ax.stairs(
+                    d,
+                    h["edges"],
+                    color=c,
+                    fill=r.kind == "sim",
+                    alpha=0.35 if r.kind == "sim" else 1.0,
+                    label=f"{r.label} ({r.kind})",
+                )
         ax.set_title(STAT_LABELS[stat], fontsize=9)
         ax.tick_params(labelsize=7)
     ax = fig.add_subplot(nrow, ncol, len(stats) + 1)
@@ -120,8 +140,9 @@ def _plot_group(group: Group, results: list[SourceResult], freqs: np.ndarray, ou
     ax.set_xlabel("Hz", fontsize=8)
     ax.tick_params(labelsize=7)
     handles, labels = fig.axes[0].get_legend_handles_labels()
-    fig.suptitle(f"{group.title}: walking segments (histograms clipped to the 1st–99th percentile)",
-                 y=0.995, fontsize=10)
+    fig.suptitle(
+        f"{group.title}: walking segments (histograms clipped to the 1st–99th percentile)", y=0.995, fontsize=10
+    )
     fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.965), ncol=len(results), fontsize=8)
     fig.tight_layout(rect=(0, 0, 1, 0.93))
     return _save(fig, out), data
@@ -130,9 +151,13 @@ def _plot_group(group: Group, results: list[SourceResult], freqs: np.ndarray, ou
 def _plot_fixes(res: dict[str, dict], out: Path) -> tuple[Path, dict]:
     fig = Figure(figsize=(12, 3.2))
     data = {}
-    for k, (stat, title, log) in enumerate((("error_m", "fix error at reference points (m)", False),
-                                            ("acc_over_error", "reported accuracy / error", True),
-                                            ("fix_speed", "fix-to-fix distance / time (m/s)", True))):
+    for k, (stat, title, log) in enumerate(
+        (
+            ("error_m", "fix error at reference points (m)", False),
+            ("acc_over_error", "reported accuracy / error", True),
+            ("fix_speed", "fix-to-fix distance / time (m/s)", True),
+        )
+    ):
         ax = fig.add_subplot(1, 3, k + 1)
         data[stat] = {}
         for c, (label, r) in zip(_COLORS, res.items()):
@@ -171,12 +196,21 @@ def _band_count(g: dict | None) -> str:
 def _table(groups: dict, claimed: bool = False) -> list[str]:
     lines = []
     for key, g in groups.items():
-        lines += [f"### {g['title']}", "",
-                  f"Simulated: {g['sim']['label']} ({g['sim']['segments']} segments of "
-                  f"{g['sim']['recordings']} recordings). Real: "
-                  + (", ".join(f"{r['label']} ({r['segments']} segments of {r['recordings']} recordings, "
-                               f"walking by {r['how']})" for r in g["real"]) or "none in the shipped data")
-                  + ".", ""]
+        lines += [
+            f"### {g['title']}",
+            "",
+            f"Simulated: {g['sim']['label']} ({g['sim']['segments']} segments of "
+            f"{g['sim']['recordings']} recordings). Real: "
+            + (
+                ", ".join(
+                    f"{r['label']} ({r['segments']} segments of {r['recordings']} recordings, walking by {r['how']})"
+                    for r in g["real"]
+                )
+                or "none in the shipped data"
+            )
+            + ".",
+            "",
+        ]
         reals = [r["label"] for r in g["real"]]
         head = ["statistic", "simulated"] + reals + (["band (pooled real)", "in band"] if reals else [])
         rows = []
@@ -187,15 +221,21 @@ def _table(groups: dict, claimed: bool = False) -> list[str]:
             row += [_fmt(e["per_source"][r]) for r in reals]
             if reals:
                 if "band" in e:
-                    row += [f"{e['band'][0]:.3g} … {e['band'][1]:.3g} ({e['band_kind']})",
-                            "yes" if e["inside"] else "**no**"]
+                    row += [
+                        f"{e['band'][0]:.3g} … {e['band'][1]:.3g} ({e['band_kind']})",
+                        "yes" if e["inside"] else "**no**",
+                    ]
                 else:
                     row += ["—", "—"]
             rows.append(row)
         lines.append(_markdown(rows, head))
         if claimed and g["real"] and key in CLAIMED:
-            lines += ["", "Claimed (re-checked by tests/test_realism.py): "
-                      + ", ".join(STAT_LABELS[k].replace("|", "\\|") for k in CLAIMED[key]) + "."]
+            lines += [
+                "",
+                "Claimed (re-checked by tests/test_realism.py): "
+                + ", ".join(STAT_LABELS[k].replace("|", "\\|") for k in CLAIMED[key])
+                + ".",
+            ]
         lines.append("")
     return lines
 
@@ -204,11 +244,14 @@ def _fix_table(fix: dict) -> list[str]:
     labels = list(fix)
     comp = fix_compare(fix)
     rows = []
-    names = {"error_m": "error at reference points (m)", "acc_over_error": "reported accuracy / error",
-             "fix_speed": "fix-to-fix distance / time (m/s; walking ≈ 1.3, jumps far above)",
-             "outage_s": f"outage length (s, gaps > {OUTAGE_GAP_S:g} s)",
-             "outage_share": "share of time in outages (per recording)",
-             "jumps_per_100": f"jumps per 100 fixes (> {JUMP_SPEED_MPS:g} m/s apart, per recording)"}
+    names = {
+        "error_m": "error at reference points (m)",
+        "acc_over_error": "reported accuracy / error",
+        "fix_speed": "fix-to-fix distance / time (m/s; walking ≈ 1.3, jumps far above)",
+        "outage_s": f"outage length (s, gaps > {OUTAGE_GAP_S:g} s)",
+        "outage_share": "share of time in outages (per recording)",
+        "jumps_per_100": f"jumps per 100 fixes (> {JUMP_SPEED_MPS:g} m/s apart, per recording)",
+    }
     for k in FIX_STATS:
         row = [names[k]]
         for lab in labels:
@@ -223,10 +266,20 @@ def _fix_table(fix: dict) -> list[str]:
     return [_markdown(rows, ["statistic", *labels, "band (IPIN)", "in band"])]
 
 
-def realism_report(data: Path, out: Path, work: Path, n_sim: int = 12, limit: int | None = None,
-                   seed: int = 0, before: Path | None = None, json_out: Path | None = None,
-                   progress: bool = False, sim_duration_s: float = SIM_DURATION_S,
-                   groups: tuple[Group, ...] = GROUPS, fix_source: RealSource | None = FIX_REAL) -> dict:
+def realism_report(
+    data: Path,
+    out: Path,
+    work: Path,
+    n_sim: int = 12,
+    limit: int | None = None,
+    seed: int = 0,
+    before: Path | None = None,
+    json_out: Path | None = None,
+    progress: bool = False,
+    sim_duration_s: float = SIM_DURATION_S,
+    groups: tuple[Group, ...] = GROUPS,
+    fix_source: RealSource | None = FIX_REAL,
+) -> dict:
     """Compute everything, write ``out`` (Markdown), ``<out dir>/img/realism_*.png`` and the JSON
     (default: ``out`` with suffix .json). ``before``: an earlier JSON of this report (e.g. of the
     uncalibrated simulator) whose tables the page shows beside the current ones."""
@@ -256,42 +309,74 @@ def realism_report(data: Path, out: Path, work: Path, n_sim: int = 12, limit: in
     res["fix_compare"] = fix_compare(res["fixes"]) if res["fixes"] is not None else None
     write_text_atomic(json.dumps(res, indent=1, default=float) + "\n", json_out)
 
-    cmd = (f"wearnav realism --data {data} --out {out} --work {work} --n-sim {n_sim}"
-           + (f" --limit {limit}" if limit else "") + (f" --before {before}" if before else ""))
-    lines = [f"_Generated by `{cmd}` (wearnav {__version__}{', commit ' + commit if commit else ''}); "
-             "do not edit by hand._", "", "# How real is the simulated walking?", "",
-             re.sub(r":(?:data|func):`([^`]+)`", r"`\1`", (__doc__ or "").split("\n\n", 1)[1].strip()), "",
-             f"Each cell: median [25th, 75th percentile] over walking segments. **Band**: the pooled real "
-             f"segments' interquartile range (±15 % of their median when fewer than {IQR_MIN_SEGMENTS}); "
-             "**in band**: the simulated median lies inside it.", "",
-             "## Calibration data", "",
-             f"- ILC2: only `{ILC2_CALIBRATION}` (site 1, floor F1). **Odometry benchmarks must not test on "
-             "ILC2 floor F1.**",
-             "- IPIN 2023: only training trials 01 and 02 (all repetitions). **Odometry and EasyTrack "
-             "benchmarks must not evaluate on IPIN trials 01 and 02.**",
-             "- MotionSense (`wlk` trials), UJI (phone and watch), Oxford validation (all placements): "
-             "used whole; no benchmark evaluates odometry on them.", ""]
-    lines += ["## What is calibrated against what", "",
-              _markdown([list(r) for r in CALIBRATION_TABLE], list(CALIBRATION_COLUMNS)), "", CALIBRATION_NOTES, ""]
+    cmd = (
+        f"wearnav realism --data {data} --out {out} --work {work} --n-sim {n_sim}"
+        + (f" --limit {limit}" if limit else "")
+        + (f" --before {before}" if before else "")
+    )
+    lines = [
+        f"_Generated by `{cmd}` (wearnav {__version__}{', commit ' + commit if commit else ''}); do not edit by hand._",
+        "",
+        "# How real is the simulated walking?",
+        "",
+        re.sub(r":(?:data|func):`([^`]+)`", r"`\1`", (__doc__ or "").split("\n\n", 1)[1].strip()),
+        "",
+        f"Each cell: median [25th, 75th percentile] over walking segments. **Band**: the pooled real "
+        f"segments' interquartile range (±15 % of their median when fewer than {IQR_MIN_SEGMENTS}); "
+        "**in band**: the simulated median lies inside it.",
+        "",
+        "## Calibration data",
+        "",
+        f"- ILC2: only `{ILC2_CALIBRATION}` (site 1, floor F1). **Odometry benchmarks must not test on "
+        "ILC2 floor F1.**",
+        "- IPIN 2023: only training trials 01 and 02 (all repetitions). **Odometry and EasyTrack "
+        "benchmarks must not evaluate on IPIN trials 01 and 02.**",
+        "- MotionSense (`wlk` trials), UJI (phone and watch), Oxford validation (all placements): "
+        "used whole; no benchmark evaluates odometry on them.",
+        "",
+    ]
+    lines += [
+        "## What is calibrated against what",
+        "",
+        _markdown([list(r) for r in CALIBRATION_TABLE], list(CALIBRATION_COLUMNS)),
+        "",
+        CALIBRATION_NOTES,
+        "",
+    ]
     prev = json.loads(Path(before).read_text()) if before is not None else None
-    counts = [[g["title"], *([_band_count(prev["groups"].get(key))] if prev else []), _band_count(g)]
-              for key, g in res["groups"].items() if g["real"]]
-    lines += ["## Summary: statistics whose simulated median lies in the real band", "",
-              _markdown(counts, ["device and placement", *(["before calibration"] if prev else []), "now"])]
+    counts = [
+        [g["title"], *([_band_count(prev["groups"].get(key))] if prev else []), _band_count(g)]
+        for key, g in res["groups"].items()
+        if g["real"]
+    ]
+    lines += [
+        "## Summary: statistics whose simulated median lies in the real band",
+        "",
+        _markdown(counts, ["device and placement", *(["before calibration"] if prev else []), "now"]),
+    ]
     was = f", {prev.get('provenance', {}).get('simulator_version', '?')} before (from `{before}`)" if prev else ""
     lines += ["", f"Simulator version {res['provenance']['simulator_version']} now{was}.", ""]
     lines += ["## Now", ""] + _table(res["groups"], claimed=True)
     if res["fixes"] is not None:
-        lines += ["### Location fixes", "", f"IPIN: phone GNSS at the surveyed POSI points (trials 01–02); "
-                  f"simulator: its fixes against its truth every {SIM_REFERENCE_EVERY_S:g} s.", ""]
+        lines += [
+            "### Location fixes",
+            "",
+            f"IPIN: phone GNSS at the surveyed POSI points (trials 01–02); "
+            f"simulator: its fixes against its truth every {SIM_REFERENCE_EVERY_S:g} s.",
+            "",
+        ]
         lines += _fix_table(res["fixes"]) + [""]
     for key, f in figures.items():
         lines += [f"![{key}]({f['png']})", ""]
     if prev is not None:
         pv = prev.get("provenance", {})
-        lines += ["## Before calibration", "",
-                  f"The same report on the simulator before calibration (from `{before}`: simulator version "
-                  f"{pv.get('simulator_version', '?')}, wearnav {pv.get('wearnav', '?')}).", ""]
+        lines += [
+            "## Before calibration",
+            "",
+            f"The same report on the simulator before calibration (from `{before}`: simulator version "
+            f"{pv.get('simulator_version', '?')}, wearnav {pv.get('wearnav', '?')}).",
+            "",
+        ]
         lines += _table(prev["groups"])
         if prev.get("fixes"):
             lines += ["### Location fixes", ""] + _fix_table(prev["fixes"]) + [""]

@@ -47,25 +47,49 @@ class Group:
 ILC2_CALIBRATION = "site1/F1"
 IPIN_CALIBRATION = r"IPIN2023_T3_TrainingTrial0[12]_"
 GROUPS: tuple[Group, ...] = (
-    Group("phone_hand", "phone held in the hand in front of the body (texting)", "phone", "texting", (
-        RealSource("ILC2 F1", "ilc2", f"ilc2_indoor_location/{ILC2_CALIBRATION}", "phone"),
-        RealSource("IPIN T01-02", "ipin2023", "ipin2023_track3", "phone", IPIN_CALIBRATION),
-        RealSource("Oxford hand", "oxford-steps", "oxford_step_counter", "phone", r"_hand_"),
-    )),
-    Group("phone_front_pocket", "phone in a front trouser pocket", "phone", "front_pocket", (
-        RealSource("MotionSense", "motionsense", "motionsense", "phone", r"_wlk_"),
-        RealSource("UJI phone", "uji-phone-watch", "uji_phone_watch_har", "phone"),
-        RealSource("Oxford frontpocket", "oxford-steps", "oxford_step_counter", "phone", r"_frontpocket_"),
-    )),
-    Group("phone_back_pocket", "phone in a back trouser pocket", "phone", "back_pocket", (
-        RealSource("Oxford backpocket", "oxford-steps", "oxford_step_counter", "phone", r"_backpocket_"),
-    )),
-    Group("phone_bag", "phone in a bag", "phone", "bag", (
-        RealSource("Oxford bag", "oxford-steps", "oxford_step_counter", "phone", r"_bag_"),
-    )),
-    Group("watch", "watch on the wrist", "watch", "texting", (
-        RealSource("UJI watch", "uji-phone-watch", "uji_phone_watch_har", "watch"),
-    )),
+    Group(
+        "phone_hand",
+        "phone held in the hand in front of the body (texting)",
+        "phone",
+        "texting",
+        (
+            RealSource("ILC2 F1", "ilc2", f"ilc2_indoor_location/{ILC2_CALIBRATION}", "phone"),
+            RealSource("IPIN T01-02", "ipin2023", "ipin2023_track3", "phone", IPIN_CALIBRATION),
+            RealSource("Oxford hand", "oxford-steps", "oxford_step_counter", "phone", r"_hand_"),
+        ),
+    ),
+    Group(
+        "phone_front_pocket",
+        "phone in a front trouser pocket",
+        "phone",
+        "front_pocket",
+        (
+            RealSource("MotionSense", "motionsense", "motionsense", "phone", r"_wlk_"),
+            RealSource("UJI phone", "uji-phone-watch", "uji_phone_watch_har", "phone"),
+            RealSource("Oxford frontpocket", "oxford-steps", "oxford_step_counter", "phone", r"_frontpocket_"),
+        ),
+    ),
+    Group(
+        "phone_back_pocket",
+        "phone in a back trouser pocket",
+        "phone",
+        "back_pocket",
+        (RealSource("Oxford backpocket", "oxford-steps", "oxford_step_counter", "phone", r"_backpocket_"),),
+    ),
+    Group(
+        "phone_bag",
+        "phone in a bag",
+        "phone",
+        "bag",
+        (RealSource("Oxford bag", "oxford-steps", "oxford_step_counter", "phone", r"_bag_"),),
+    ),
+    Group(
+        "watch",
+        "watch on the wrist",
+        "watch",
+        "texting",
+        (RealSource("UJI watch", "uji-phone-watch", "uji_phone_watch_har", "watch"),),
+    ),
     Group("phone_swinging", "phone in the swinging hand", "phone", "swinging"),
     Group("earbuds", "earbuds (25 Hz)", "earbuds", "texting"),
 )
@@ -76,8 +100,7 @@ FIX_REAL = RealSource("IPIN T01-02", "ipin2023", "ipin2023_track3", "phone", IPI
 # others marked "yes" in the tables are in band here but too close to an edge to promise.
 CLAIMED = {
     "phone_hand": ("acc_std", "gyro_mean", "f_dom", "step_cv", "amp_cv", "hv_ratio", "band_0.3_1.2", "band_2.6_5"),
-    "phone_front_pocket": ("acc_std", "gyro_mean", "f_dom", "cadence", "amp_cv", "band_5_8",
-                           "band_8_12.5"),
+    "phone_front_pocket": ("acc_std", "gyro_mean", "f_dom", "cadence", "amp_cv", "band_5_8", "band_8_12.5"),
     # step_cv and band_0.3_1.2 were claimed too until the pelvis' fore-aft ripple got the inverted
     # pendulum's phase (forward acceleration leading the vertical, as ILC2's phones show); since
     # then they fall below the band in 2 of 4 seeds: recalibrating the arm swing is open work.
@@ -90,34 +113,49 @@ CLAIMED = {
 # per parameter (the page's table), then what is not calibrated.
 CALIBRATION_COLUMNS = ("simulator parameter (src/wearnav/simulate/)", "calibrated against", "real recordings")
 CALIBRATION_TABLE: tuple[tuple[str, str, str], ...] = (
-    ("walker population cadence about 1.77 ± 0.07 steps/s, rising with speed as 1.77 · (v / 1.16)^0.22 "
-     "(`config.sample_subject`)",
-     "cadence, f_dom of every placement",
-     "all sources above (real walkers: 1.66–1.88 steps/s)"),
-    ("step-to-step timing variability `step_time_cv` (path: cadence wander over one step)",
-     "step-period CV",
-     "ILC2 F1, IPIN T01-02, Oxford hand; UJI watch"),
-    ("step-to-step amplitude variability `step_amp_cv`, left/right asymmetry `step_asymmetry`",
-     "step-amplitude CV, autocorr 1 step, power 0.3–1.2 Hz",
-     "same"),
-    ("hand-held phone: step bob `hand_bob_deg`, forearm bounce and stride rise `hand_bounce_m`, heel-strike "
-     "shock `hand_impact` (peak m/s², a 20 ms spike train, `body.impact_train`)",
-     "\\|gyro\\|, \\|acc\\| std, horiz/vert, power by band",
-     "ILC2 F1, IPIN T01-02, Oxford hand"),
-    ("watch: forearm roll at step frequency `wrist_wobble_deg`, arm swing 10–20°, the same heel-strike "
-     "shock",
-     "\\|gyro\\|, f_dom, autocorr 1 step, power by band",
-     "UJI watch"),
-    ("front pocket: thigh heel-strike spike `leg_impact` (peak m/s², 16 ms, right heel only), irregular "
-     "soft-tissue wobble `thigh_wobble_mm`, pocket 18 cm down the thigh, hip swing 22–30°",
-     "\\|acc\\| std, \\|gyro\\|, autocorr 1 step, horiz/vert, power by band",
-     "MotionSense, UJI phone, Oxford frontpocket"),
-    ("bag knocks on each heel strike (`BAG_JOLT_GAIN` × the hands' shock)",
-     "\\|acc\\| std, power by band",
-     "Oxford bag"),
-    ("GNSS multipath jumps (rate, size, hold), outages, accuracy growing with the offset (`fixes.FixNoise`)",
-     "jumps per 100 fixes, outage lengths, reported accuracy / error",
-     "IPIN T01-02 phone GNSS at POSI points"),
+    (
+        "walker population cadence about 1.77 ± 0.07 steps/s, rising with speed as 1.77 · (v / 1.16)^0.22 "
+        "(`config.sample_subject`)",
+        "cadence, f_dom of every placement",
+        "all sources above (real walkers: 1.66–1.88 steps/s)",
+    ),
+    (
+        "step-to-step timing variability `step_time_cv` (path: cadence wander over one step)",
+        "step-period CV",
+        "ILC2 F1, IPIN T01-02, Oxford hand; UJI watch",
+    ),
+    (
+        "step-to-step amplitude variability `step_amp_cv`, left/right asymmetry `step_asymmetry`",
+        "step-amplitude CV, autocorr 1 step, power 0.3–1.2 Hz",
+        "same",
+    ),
+    (
+        "hand-held phone: step bob `hand_bob_deg`, forearm bounce and stride rise `hand_bounce_m`, heel-strike "
+        "shock `hand_impact` (peak m/s², a 20 ms spike train, `body.impact_train`)",
+        "\\|gyro\\|, \\|acc\\| std, horiz/vert, power by band",
+        "ILC2 F1, IPIN T01-02, Oxford hand",
+    ),
+    (
+        "watch: forearm roll at step frequency `wrist_wobble_deg`, arm swing 10–20°, the same heel-strike shock",
+        "\\|gyro\\|, f_dom, autocorr 1 step, power by band",
+        "UJI watch",
+    ),
+    (
+        "front pocket: thigh heel-strike spike `leg_impact` (peak m/s², 16 ms, right heel only), irregular "
+        "soft-tissue wobble `thigh_wobble_mm`, pocket 18 cm down the thigh, hip swing 22–30°",
+        "\\|acc\\| std, \\|gyro\\|, autocorr 1 step, horiz/vert, power by band",
+        "MotionSense, UJI phone, Oxford frontpocket",
+    ),
+    (
+        "bag knocks on each heel strike (`BAG_JOLT_GAIN` × the hands' shock)",
+        "\\|acc\\| std, power by band",
+        "Oxford bag",
+    ),
+    (
+        "GNSS multipath jumps (rate, size, hold), outages, accuracy growing with the offset (`fixes.FixNoise`)",
+        "jumps per 100 fixes, outage lengths, reported accuracy / error",
+        "IPIN T01-02 phone GNSS at POSI points",
+    ),
 )
 CALIBRATION_NOTES = """\
 Not calibrated here:
@@ -154,9 +192,16 @@ def simulate_realism_walks(hold: str, n: int, seed: int = 0, duration_s: float =
     recs = []
     for i in range(n):
         subject = sample_subject(rng, f"r{i + 1}")
-        cfg = WalkConfig(name=f"realism_{hold}_{i:02d}", subject=subject, mode="STW", placement=placement,
-                         phone_hold=hold, duration_s=duration_s, scene="medium",
-                         noise_level=("L1", "L2", "L3")[i % 3])
+        cfg = WalkConfig(
+            name=f"realism_{hold}_{i:02d}",
+            subject=subject,
+            mode="STW",
+            placement=placement,
+            phone_hold=hold,
+            duration_s=duration_s,
+            scene="medium",
+            noise_level=("L1", "L2", "L3")[i % 3],
+        )
         recs.append(simulate_recording(cfg, seed=int(rng.integers(0, 2**31))))
     return recs
 

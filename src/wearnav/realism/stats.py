@@ -31,11 +31,17 @@ STEP_LOWPASS_HZ = 4.0
 STEP_LOWPASS_ORDER = 4
 
 STATS = ("acc_std", "gyro_mean", "f_dom", "cadence", "step_reg", "step_cv", "amp_cv", "hv_ratio") + tuple(
-    f"band_{lo:g}_{hi:g}" for lo, hi in BANDS)
+    f"band_{lo:g}_{hi:g}" for lo, hi in BANDS
+)
 STAT_LABELS = {
-    "acc_std": "|acc| std (m/s²)", "gyro_mean": "|gyro| mean (rad/s)", "f_dom": "f_dom (Hz)",
-    "cadence": "cadence (steps/s)", "step_reg": "autocorr 1 step", "step_cv": "step-period CV",
-    "amp_cv": "step-amplitude CV", "hv_ratio": "horiz/vert acc",
+    "acc_std": "|acc| std (m/s²)",
+    "gyro_mean": "|gyro| mean (rad/s)",
+    "f_dom": "f_dom (Hz)",
+    "cadence": "cadence (steps/s)",
+    "step_reg": "autocorr 1 step",
+    "step_cv": "step-period CV",
+    "amp_cv": "step-amplitude CV",
+    "hv_ratio": "horiz/vert acc",
     **{f"band_{lo:g}_{hi:g}": f"power {lo:g}–{hi:g} Hz" for lo, hi in BANDS},
 }
 
@@ -61,8 +67,9 @@ def _peak(y: np.ndarray, lo: int, hi: int) -> tuple[float, float]:
     return i + d, float(b - 0.25 * (a - c) * d)
 
 
-def segment_stats(acc: np.ndarray, gyro: np.ndarray | None = None, acc_world: np.ndarray | None = None,
-                  rate: float = RATE_HZ) -> dict[str, float]:
+def segment_stats(
+    acc: np.ndarray, gyro: np.ndarray | None = None, acc_world: np.ndarray | None = None, rate: float = RATE_HZ
+) -> dict[str, float]:
     """The statistics of one walking segment sampled uniformly at ``rate`` (module doc, step 3)."""
     x = np.linalg.norm(acc, axis=1)
     n = x.size
@@ -79,8 +86,9 @@ def segment_stats(acc: np.ndarray, gyro: np.ndarray | None = None, acc_world: np
     stride_lag, _ = _peak(ac, int(STRIDE_LAGS_S[0] * rate), int(np.ceil(STRIDE_LAGS_S[1] * rate)) + 1)
     if np.isfinite(stride_lag):
         out["cadence"] = float(2.0 * rate / stride_lag)
-        step_lag, step_val = _peak(ac, int(STEP_LAG_SHARE[0] * stride_lag),
-                                   int(np.ceil(STEP_LAG_SHARE[1] * stride_lag)) + 1)
+        step_lag, step_val = _peak(
+            ac, int(STEP_LAG_SHARE[0] * stride_lag), int(np.ceil(STEP_LAG_SHARE[1] * stride_lag)) + 1
+        )
         out["step_reg"] = step_val
         # steps: peaks of the low-passed |acc|, at least MIN_STEP_SPACING of a step apart
         b, a = butter(STEP_LOWPASS_ORDER, STEP_LOWPASS_HZ / (0.5 * rate))

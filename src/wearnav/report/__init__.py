@@ -9,12 +9,29 @@ Metrics (ATE, fix errors, label noise ...) are defined in :mod:`wearnav.metrics`
 """
 
 from wearnav.report.datasets_page import SHIPPED_DATASETS, write_datasets_report
-from wearnav.report.plots import (ACC_COLOR, FIX_COLOR, GYRO_COLOR, TRUTH_COLOR, decimate_minmax,
-                                  plot_recording, plot_trajectories)
+from wearnav.report.plots import (
+    ACC_COLOR,
+    FIX_COLOR,
+    GYRO_COLOR,
+    TRUTH_COLOR,
+    decimate_minmax,
+    plot_recording,
+    plot_trajectories,
+)
 from wearnav.report.stats import FIX_MAX_GAP_S, dataset_stats, stats_markdown, walk_tables
 
 __all__ = [
-    "ACC_COLOR", "FIX_COLOR", "FIX_MAX_GAP_S", "GYRO_COLOR", "SHIPPED_DATASETS", "TRUTH_COLOR",
-    "dataset_stats", "decimate_minmax", "plot_recording", "plot_trajectories", "stats_markdown",
-    "walk_tables", "write_datasets_report",
+    "ACC_COLOR",
+    "FIX_COLOR",
+    "FIX_MAX_GAP_S",
+    "GYRO_COLOR",
+    "SHIPPED_DATASETS",
+    "TRUTH_COLOR",
+    "dataset_stats",
+    "decimate_minmax",
+    "plot_recording",
+    "plot_trajectories",
+    "stats_markdown",
+    "walk_tables",
+    "write_datasets_report",
 ]

@@ -95,8 +95,11 @@ def plot_run_split(plots: Path, split: str, result: dict, trajs: dict[str, pd.Da
     for r in rows:
         if r["name"] in trajs and "error" in trajs[r["name"]]:
             by_mode.setdefault(r["mode"] or "all", []).append(trajs[r["name"]]["error"].to_numpy())
-    plot_cdf({m: np.concatenate(v) for m, v in sorted(by_mode.items())}, plots / f"{split}_error_cdf.png",
-             f"{model} on {split}: position error by walking mode")
+    plot_cdf(
+        {m: np.concatenate(v) for m, v in sorted(by_mode.items())},
+        plots / f"{split}_error_cdf.png",
+        f"{model} on {split}: position error by walking mode",
+    )
     ates: dict[str, list[float]] = {}
     for r in rows:
         if "ate" in r:

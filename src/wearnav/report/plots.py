@@ -24,9 +24,9 @@ from wearnav.metrics import ecdf
 from wearnav.recording import DeviceStream, Recording, device_order
 from wearnav.timeseries import period
 
-MAX_PLOT_POINTS = 4000      # per time-series line; longer series are min/max decimated
-MAX_MAP_POINTS = 20000      # per trajectory line on a map
-MAX_CDF_POINTS = 2000       # steps per empirical CDF line
+MAX_PLOT_POINTS = 4000  # per time-series line; longer series are min/max decimated
+MAX_MAP_POINTS = 20000  # per trajectory line on a map
+MAX_CDF_POINTS = 2000  # steps per empirical CDF line
 MAX_ACCURACY_CIRCLES = 150  # more circles than this hide the map; draw every k-th
 ACC_COLOR, GYRO_COLOR = "tab:blue", "tab:orange"
 TRUTH_COLOR, FIX_COLOR = "black", "tab:red"
@@ -36,6 +36,7 @@ LABEL_PALETTES = ("Dark2", "Set2", "tab20b", "tab20c")
 
 
 # ---- small helpers ------------------------------------------------------------------------
+
 
 def save(fig: Figure, out: Path, dpi: int = 110) -> Path:
     FigureCanvasAgg(fig)
@@ -67,8 +68,7 @@ def _segments(t: np.ndarray, span: float) -> list[slice]:
     return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def decimate_minmax(t: np.ndarray, y: np.ndarray, max_points: int = MAX_PLOT_POINTS
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def decimate_minmax(t: np.ndarray, y: np.ndarray, max_points: int = MAX_PLOT_POINTS) -> tuple[np.ndarray, np.ndarray]:
     """At most about ``max_points`` points that draw like the full series.
 
     Each bin keeps its minimum and maximum (so spikes stay visible); visible gaps become NaN
@@ -123,6 +123,7 @@ def _meta_line(meta: dict, keys=("source", "subject", "mode", "placement", "scen
 
 # ---- one recording ------------------------------------------------------------------------
 
+
 def _device_panel(ax_acc, ax_gyro, dev: str, s: DeviceStream, t0: float) -> list:
     """|acc| above |gyro|, not-worn spans shaded in both; returns the legend handles used."""
     t = s.t - t0
@@ -130,15 +131,23 @@ def _device_panel(ax_acc, ax_gyro, dev: str, s: DeviceStream, t0: float) -> list
     tt, yy = decimate_minmax(t, np.linalg.norm(s.acc, axis=1))
     ax_acc.plot(tt, yy, color=ACC_COLOR, lw=0.6)
     ax_acc.set_ylabel("|acc|\nm/s²", color=ACC_COLOR, fontsize=8)
-    info = [f"{s.rate:.1f} Hz", f"{len(s):,} samples",
-            "orientation" if s.quat is not None else "no orientation"]
+    info = [f"{s.rate:.1f} Hz", f"{len(s):,} samples", "orientation" if s.quat is not None else "no orientation"]
     if s.gyro is not None:
         tt, yy = decimate_minmax(t, np.linalg.norm(s.gyro, axis=1))
         ax_gyro.plot(tt, yy, color=GYRO_COLOR, lw=0.6)
         ax_gyro.set_ylim(bottom=0)
     else:
-        ax_gyro.text(0.5, 0.5, "no gyroscope in this stream", transform=ax_gyro.transAxes,
-                     ha="center", va="center", color=GYRO_COLOR, fontsize=9, fontweight="bold")
+        ax_gyro.text(
+            0.5,
+            0.5,
+            "no gyroscope in this stream",
+            transform=ax_gyro.transAxes,
+            ha="center",
+            va="center",
+            color=GYRO_COLOR,
+            fontsize=9,
+            fontweight="bold",
+        )
         ax_gyro.set_yticks([])
     ax_gyro.set_ylabel("|gyro|\nrad/s", color=GYRO_COLOR, fontsize=8)
     if s.worn is not None and not s.worn.all():
@@ -164,8 +173,9 @@ def _label_lanes(ax, labels, colors, t0: float) -> list:
             c = colors[value]
             start = g["start"].to_numpy() - t0
             width = (g["end"] - g["start"]).to_numpy()
-            ax.broken_barh(list(zip(start[width > 0], width[width > 0])), (y + 0.1, 0.8),
-                           facecolors=c, edgecolors="none")
+            ax.broken_barh(
+                list(zip(start[width > 0], width[width > 0])), (y + 0.1, 0.8), facecolors=c, edgecolors="none"
+            )
             if np.any(width == 0):  # point events (e.g. steps): ticks
                 ax.vlines(start[width == 0], y + 0.1, y + 0.9, colors=[c], lw=0.8)
     ax.set_yticks(np.arange(len(kinds)) + 0.5, labels=list(reversed(kinds)))
@@ -182,8 +192,16 @@ def _label_lanes(ax, labels, colors, t0: float) -> list:
 def _map_panel(ax, rec: Recording, compact: bool = False) -> None:
     truth, fixes = rec.truth, rec.fixes
     if truth is None and fixes is None:
-        ax.text(0.5, 0.5, "no truth trajectory\nno location fixes", ha="center", va="center",
-                transform=ax.transAxes, fontsize=10, color="0.3")
+        ax.text(
+            0.5,
+            0.5,
+            "no truth trajectory\nno location fixes",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+            fontsize=10,
+            color="0.3",
+        )
         ax.set_xticks([])
         ax.set_yticks([])
         return
@@ -195,21 +213,32 @@ def _map_panel(ax, rec: Recording, compact: bool = False) -> None:
         circ = np.flatnonzero(ok)[::every]
         if circ.size:
             d = 2 * fixes.accuracy[circ]  # diameters: the circle's radius is the accuracy
-            ax.add_collection(EllipseCollection(d, d, np.zeros(circ.size), units="xy", offsets=p[circ],
-                                                offset_transform=ax.transData, facecolors="none",
-                                                edgecolors=FIX_COLOR, alpha=0.3, linewidths=0.6))
+            ax.add_collection(
+                EllipseCollection(
+                    d,
+                    d,
+                    np.zeros(circ.size),
+                    units="xy",
+                    offsets=p[circ],
+                    offset_transform=ax.transData,
+                    facecolors="none",
+                    edgecolors=FIX_COLOR,
+                    alpha=0.3,
+                    linewidths=0.6,
+                )
+            )
         ax.plot(p[:, 0], p[:, 1], ".", color=FIX_COLOR, ms=3 if len(p) < 2000 else 1.5)
         what = "" if not circ.size else (", circles: accuracy" + (f", 1 fix in {every}" if every > 1 else ""))
-        handles.append(Line2D([], [], color=FIX_COLOR, marker=".", ls="none",
-                              label=f"location fixes ({len(p)}){what}"))
+        handles.append(Line2D([], [], color=FIX_COLOR, marker=".", ls="none", label=f"location fixes ({len(p)}){what}"))
     if truth is not None:
         p = truth.pos[:, :2]
         step = max(1, len(p) // MAX_MAP_POINTS)
         sparse = len(p) < 300 and (len(p) < 2 or period(truth.t) > 1.0)
         if sparse:
             ax.plot(p[:, 0], p[:, 1], "-o", color=TRUTH_COLOR, lw=0.8, ms=3.5, mfc="white")
-            handles.append(Line2D([], [], color=TRUTH_COLOR, marker="o", mfc="white", lw=0.8,
-                                  label=f"truth waypoints ({len(p)})"))
+            handles.append(
+                Line2D([], [], color=TRUTH_COLOR, marker="o", mfc="white", lw=0.8, label=f"truth waypoints ({len(p)})")
+            )
         else:
             ax.plot(p[::step, 0], p[::step, 1], "-", color=TRUTH_COLOR, lw=1.0)
             handles.append(Line2D([], [], color=TRUTH_COLOR, lw=1.0, label="truth trajectory"))
@@ -217,16 +246,23 @@ def _map_panel(ax, rec: Recording, compact: bool = False) -> None:
     else:
         start = fixes.pos[0, :2]
     ax.plot(*start, marker="*", color="tab:green", ms=14, mec="black", mew=0.6, ls="none", zorder=5)
-    handles.append(Line2D([], [], marker="*", color="tab:green", mec="black", ms=11, ls="none",
-                          label="start"))
+    handles.append(Line2D([], [], marker="*", color="tab:green", mec="black", ms=11, ls="none", label="start"))
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     ax.grid(alpha=0.3)
     if compact:
         ax.tick_params(labelsize=7)
         if truth is None:
-            ax.text(0.02, 0.98, "no truth: location fixes", transform=ax.transAxes, ha="left",
-                    va="top", fontsize=7, color=FIX_COLOR)
+            ax.text(
+                0.02,
+                0.98,
+                "no truth: location fixes",
+                transform=ax.transAxes,
+                ha="left",
+                va="top",
+                fontsize=7,
+                color=FIX_COLOR,
+            )
     else:
         ax.set_xlabel("x / east [m]")
         ax.set_ylabel("y / north [m]")
@@ -234,8 +270,7 @@ def _map_panel(ax, rec: Recording, compact: bool = False) -> None:
         fl = truth.floor
         ax.set_title(f"floors {np.nanmin(fl):g} … {np.nanmax(fl):g} (map shows x, y only)", fontsize=8)
     if not compact:  # below the map, where it hides nothing
-        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), fontsize=8,
-                  frameon=False, ncol=1)
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), fontsize=8, frameon=False, ncol=1)
 
 
 def plot_recording(rec: Recording, out: Path) -> Path:
@@ -272,8 +307,13 @@ def plot_recording(rec: Recording, out: Path) -> Path:
     axes[0].set_xlim(0, max(rec.duration, 1e-3))
     _map_panel(fig.add_subplot(gs[:, 1]), rec)
     if legend_handles:
-        fig.legend(handles=legend_handles, loc="outside lower center",
-                   ncol=min(6, len(legend_handles)), fontsize=8, frameon=False)
+        fig.legend(
+            handles=legend_handles,
+            loc="outside lower center",
+            ncol=min(6, len(legend_handles)),
+            fontsize=8,
+            frameon=False,
+        )
     extras = [f"{rec.duration:.1f} s", ", ".join(d for d, _ in devices)]
     meta = _meta_line(rec.meta)
     fig.suptitle(f"{rec.name} — " + " · ".join(extras) + (f"\n{meta}" if meta else ""), fontsize=11)
@@ -281,6 +321,7 @@ def plot_recording(rec: Recording, out: Path) -> Path:
 
 
 # ---- a dataset ----------------------------------------------------------------------------
+
 
 def plot_trajectories(ds: Dataset, out: Path, max_recordings: int = 12) -> Path:
     """A grid of small maps of truth trajectories: up to ``max_recordings``, taken in turn from
@@ -301,8 +342,7 @@ def plot_trajectories(ds: Dataset, out: Path, max_recordings: int = 12) -> Path:
             p = rec.truth.pos[:, :2]
             step = max(1, len(p) // MAX_MAP_POINTS)
             sparse = len(p) < 300 and (len(p) < 2 or period(rec.truth.t) > 1.0)
-            ax.plot(p[::step, 0], p[::step, 1], "-o" if sparse else "-", color=TRUTH_COLOR,
-                    lw=0.9, ms=2.5, mfc="white")
+            ax.plot(p[::step, 0], p[::step, 1], "-o" if sparse else "-", color=TRUTH_COLOR, lw=0.9, ms=2.5, mfc="white")
             ax.plot(*p[0], marker="*", color="tab:green", ms=11, mec="black", mew=0.5)
             ax.set_aspect("equal", adjustable="datalim")
             ax.grid(alpha=0.3)
@@ -313,6 +353,5 @@ def plot_trajectories(ds: Dataset, out: Path, max_recordings: int = 12) -> Path:
             sub += (" · " if sub else "") + f"subject {m['subject']}"
         ax.set_title(f"{name}\n{sub}" if sub else name, fontsize=8)
     shown = f"{len(names)} of {len(ds)}" if len(names) < len(ds) else f"all {len(ds)}"
-    fig.suptitle(f"{ds.root.name}: truth trajectories ({shown} recordings; metres, start ★)",
-                 fontsize=11)
+    fig.suptitle(f"{ds.root.name}: truth trajectories ({shown} recordings; metres, start ★)", fontsize=11)
     return save(fig, out)

@@ -15,6 +15,7 @@ from wearnav.progress import progress as report_progress
 from wearnav.recording import device_order
 from wearnav.timeseries import sampling
 
+
 def _pct(x: np.ndarray, q: float) -> float:
     return float(np.percentile(x, q)) if x.size else float("nan")
 
@@ -89,13 +90,21 @@ def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_
         "truth_points": truth_points,
         "recordings_with_truth": truth_recs,
         "fixes": fixes_total,
-        "fix_error_m": None if not fix_err else {
-            "points": int(errs.size), "recordings": fix_err_recs,
-            "median": _pct(errs, 50), "p75": _pct(errs, 75), "max_gap_s": fix_max_gap,
+        "fix_error_m": None
+        if not fix_err
+        else {
+            "points": int(errs.size),
+            "recordings": fix_err_recs,
+            "median": _pct(errs, 50),
+            "p75": _pct(errs, 75),
+            "max_gap_s": fix_max_gap,
         },
-        "needs_reimport": None if not stale else (
+        "needs_reimport": None
+        if not stale
+        else (
             f"{len(stale)} of {len(ds)} recordings ({', '.join(list(stale)[:3])}{', ...' if len(stale) > 3 else ''})"
-            f": {next(iter(stale.values()))}"),
+            f": {next(iter(stale.values()))}"
+        ),
     }
 
 
@@ -120,9 +129,15 @@ def walk_tables(ds: Dataset, by: Iterable[str] = ("mode",)) -> dict[str, pd.Data
         for key, names in ds.manifest.groupby(col, sort=True)["name"]:
             dur, dist, noise = zip(*(per_rec[n] for n in names))
             n = np.concatenate(noise)
-            rows.append({col: key or "-", "recordings": len(names), "minutes": round(sum(dur) / 60, 1),
-                         "distance_km": round(sum(dist) / 1000, 2),
-                         "fix_label_noise_median_cm": round(100 * float(np.median(n)), 1) if n.size else None})
+            rows.append(
+                {
+                    col: key or "-",
+                    "recordings": len(names),
+                    "minutes": round(sum(dur) / 60, 1),
+                    "distance_km": round(sum(dist) / 1000, 2),
+                    "fix_label_noise_median_cm": round(100 * float(np.median(n)), 1) if n.size else None,
+                }
+            )
         tables[col] = pd.DataFrame(rows)
     return tables
 
@@ -145,35 +160,73 @@ def _markdown(df: pd.DataFrame, align: str) -> str:
 def stats_markdown(stats: dict) -> str:
     """Markdown tables for one dataset's :func:`dataset_stats`."""
     out = []
-    truth = f"{stats['truth_points']:,} in {stats['recordings_with_truth']} recordings" \
-        if stats["truth_points"] else "none"
-    overview = pd.DataFrame([{
-        "recordings": f"{stats['recordings']:,}", "subjects": str(stats["subjects"] or "—"),
-        "total duration": _fmt_duration(stats["duration_s"]), "truth points": truth,
-        "location fixes": f"{stats['fixes']:,}"}])
+    truth = (
+        f"{stats['truth_points']:,} in {stats['recordings_with_truth']} recordings" if stats["truth_points"] else "none"
+    )
+    overview = pd.DataFrame(
+        [
+            {
+                "recordings": f"{stats['recordings']:,}",
+                "subjects": str(stats["subjects"] or "—"),
+                "total duration": _fmt_duration(stats["duration_s"]),
+                "truth points": truth,
+                "location fixes": f"{stats['fixes']:,}",
+            }
+        ]
+    )
     out += [_markdown(overview, "rrrrr"), ""]
-    devices = pd.DataFrame([{
-        "device": d, "recordings": f"{e['recordings']:,}", "samples": f"{e['samples']:,}",
-        "median rate": f"{e['rate_hz']:.2f} Hz", "median interval": f"{e['interval_median_ms']:.2f} ms",
-        "jitter (IQR of intervals)": f"{e['jitter_iqr_ms']:.3f} ms",
-        "intervals > 2× median": f"{100 * e['gap_share']:.2f} %", "with gyro": f"{100 * e['gyro_share']:.0f} %",
-        "with orientation": f"{100 * e['orientation_share']:.0f} %"} for d, e in stats["devices"].items()],
-        columns=["device", "recordings", "samples", "median rate", "median interval", "jitter (IQR of intervals)",
-                 "intervals > 2× median", "with gyro", "with orientation"])
+    devices = pd.DataFrame(
+        [
+            {
+                "device": d,
+                "recordings": f"{e['recordings']:,}",
+                "samples": f"{e['samples']:,}",
+                "median rate": f"{e['rate_hz']:.2f} Hz",
+                "median interval": f"{e['interval_median_ms']:.2f} ms",
+                "jitter (IQR of intervals)": f"{e['jitter_iqr_ms']:.3f} ms",
+                "intervals > 2× median": f"{100 * e['gap_share']:.2f} %",
+                "with gyro": f"{100 * e['gyro_share']:.0f} %",
+                "with orientation": f"{100 * e['orientation_share']:.0f} %",
+            }
+            for d, e in stats["devices"].items()
+        ],
+        columns=[
+            "device",
+            "recordings",
+            "samples",
+            "median rate",
+            "median interval",
+            "jitter (IQR of intervals)",
+            "intervals > 2× median",
+            "with gyro",
+            "with orientation",
+        ],
+    )
     out += [_markdown(devices, "lrrrrrrrr"), ""]
     if stats["labels"]:
-        labels = pd.DataFrame([{"label kind": kind, "value": value, "intervals": f"{c['intervals']:,}",
-                                "total duration": _fmt_duration(c["duration_s"])}
-                               for (kind, value), c in stats["labels"].items()])
+        labels = pd.DataFrame(
+            [
+                {
+                    "label kind": kind,
+                    "value": value,
+                    "intervals": f"{c['intervals']:,}",
+                    "total duration": _fmt_duration(c["duration_s"]),
+                }
+                for (kind, value), c in stats["labels"].items()
+            ]
+        )
         out.append(_markdown(labels, "llrr"))
     else:
         out.append("No labels.")
     out.append("")
     fe = stats["fix_error_m"]
     if fe is not None:
-        out += [f"**Location fixes at the truth points** (fixes linearly interpolated at each truth "
-                f"time that has a fix within {fe['max_gap_s']:g} s; horizontal distance): "
-                f"median **{fe['median']:.2f} m**, 75th percentile **{fe['p75']:.2f} m** over "
-                f"{fe['points']:,} points in {fe['recordings']} recordings. This is the reference "
-                f"a learned tracker must beat.", ""]
+        out += [
+            f"**Location fixes at the truth points** (fixes linearly interpolated at each truth "
+            f"time that has a fix within {fe['max_gap_s']:g} s; horizontal distance): "
+            f"median **{fe['median']:.2f} m**, 75th percentile **{fe['p75']:.2f} m** over "
+            f"{fe['points']:,} points in {fe['recordings']} recordings. This is the reference "
+            f"a learned tracker must beat.",
+            "",
+        ]
     return "\n".join(out)

@@ -14,16 +14,44 @@ Modules, in data-flow order: ``config`` (what to simulate), ``scenario`` (events
 >>> rec = simulate_recording(WalkConfig(mode="PVW", placement="MP", duration_s=60), seed=1)
 """
 
-from wearnav.simulate.config import (DEVICES, MODES, NOISE_LEVELS, PHONE_HOLDS, PLACEMENTS, SCENES,
-                                     SubjectParams, WalkConfig, sample_subject)
+from wearnav.simulate.config import (
+    DEVICES,
+    MODES,
+    NOISE_LEVELS,
+    PHONE_HOLDS,
+    PLACEMENTS,
+    SCENES,
+    SubjectParams,
+    WalkConfig,
+    sample_subject,
+)
 from wearnav.simulate.fixes import LABEL_NOISE_MEDIAN_M, FixNoise, simulate_fixes
 from wearnav.simulate.imu import IMU_SPECS, ImuSpec, TrueImu
 from wearnav.simulate.presets import PRESETS, Preset, get_preset, plan_dataset, simulate_dataset
 from wearnav.simulate.walk import SimulatedWalk, simulate_recording, simulate_walk
 
 __all__ = [
-    "DEVICES", "IMU_SPECS", "LABEL_NOISE_MEDIAN_M", "MODES", "NOISE_LEVELS", "PHONE_HOLDS",
-    "PLACEMENTS", "PRESETS", "SCENES", "FixNoise", "ImuSpec", "Preset", "SimulatedWalk",
-    "SubjectParams", "TrueImu", "WalkConfig", "get_preset", "plan_dataset",
-    "sample_subject", "simulate_dataset", "simulate_fixes", "simulate_recording", "simulate_walk",
+    "DEVICES",
+    "IMU_SPECS",
+    "LABEL_NOISE_MEDIAN_M",
+    "MODES",
+    "NOISE_LEVELS",
+    "PHONE_HOLDS",
+    "PLACEMENTS",
+    "PRESETS",
+    "SCENES",
+    "FixNoise",
+    "ImuSpec",
+    "Preset",
+    "SimulatedWalk",
+    "SubjectParams",
+    "TrueImu",
+    "WalkConfig",
+    "get_preset",
+    "plan_dataset",
+    "sample_subject",
+    "simulate_dataset",
+    "simulate_fixes",
+    "simulate_recording",
+    "simulate_walk",
 ]

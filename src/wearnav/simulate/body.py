@@ -60,10 +60,12 @@ def impact_train(phase: np.ndarray, at: float, width: float, rate: float) -> np.
 # Posture of each daily-living episode while held (rad / m); "lean_move" is the extra forward
 # lean in the middle of sitting down or getting up (people lean forward to shift their weight).
 POSTURES = {
-    "sit": dict(seat_m=0.50, back_m=0.12, lean=-0.06, lean_move=0.45, hip=1.45, l_shoulder=0.35,
-                l_elbow=0.9, head=0.10),
-    "squat": dict(seat_m=0.36, back_m=0.10, lean=0.60, lean_move=0.15, hip=1.90, l_shoulder=0.55,
-                  l_elbow=0.25, head=0.35),
+    "sit": dict(
+        seat_m=0.50, back_m=0.12, lean=-0.06, lean_move=0.45, hip=1.45, l_shoulder=0.35, l_elbow=0.9, head=0.10
+    ),
+    "squat": dict(
+        seat_m=0.36, back_m=0.10, lean=0.60, lean_move=0.15, hip=1.90, l_shoulder=0.55, l_elbow=0.25, head=0.35
+    ),
 }
 
 
@@ -92,7 +94,7 @@ class BodyState:
     phase: np.ndarray  # gait phase φ (2π per step)
     heel: np.ndarray  # vertical displacement (m) of the heel-strike shock felt at the hands, both feet
 
-    def take(self, idx) -> "BodyState":
+    def take(self, idx) -> BodyState:
         return BodyState(**{f.name: getattr(self, f.name)[idx] for f in fields(self)})
 
     def __len__(self) -> int:
@@ -102,8 +104,7 @@ class BodyState:
 class Body:
     """Evaluates :class:`BodyState` at arbitrary times (vectorised)."""
 
-    def __init__(self, subject: SubjectParams, scenario: Scenario, base: BaseMotion,
-                 rng: np.random.Generator):
+    def __init__(self, subject: SubjectParams, scenario: Scenario, base: BaseMotion, rng: np.random.Generator):
         self.s = subject
         self.base = base
         self.scenario = scenario
@@ -118,8 +119,7 @@ class Body:
         # step-to-step amplitude variability, correlated over about one step
         self.step_amp = smooth_noise(rng, -2, T + 2, 1.0 / subject.cadence_hz, subject.step_amp_cv)
         # the thigh's soft tissue wobbles irregularly (5–10 Hz) under a pocket
-        self.thigh_wobble = smooth_noise(rng, -2, T + 2, THIGH_WOBBLE_KNOT_S, subject.thigh_wobble_mm * 1e-3,
-                                         dims=3)
+        self.thigh_wobble = smooth_noise(rng, -2, T + 2, THIGH_WOBBLE_KNOT_S, subject.thigh_wobble_mm * 1e-3, dims=3)
 
     @property
     def hip_height(self) -> float:
@@ -157,8 +157,9 @@ class Body:
         t = np.asarray(t, dtype=np.float64)
         s, H = self.s, self.s.height_m
         c = self.base(t)
-        x, y, theta, phi, a = (c[:, i] for i in (BaseMotion.X, BaseMotion.Y, BaseMotion.THETA,
-                                                 BaseMotion.PHASE, BaseMotion.ENV))
+        x, y, theta, phi, a = (
+            c[:, i] for i in (BaseMotion.X, BaseMotion.Y, BaseMotion.THETA, BaseMotion.PHASE, BaseMotion.ENV)
+        )
         a = np.clip(a, 0.0, 1.0)
         # Gait amplitude grows with speed: with cadence ∝ v^0.5 (path) the step grows ∝ v^0.5 and
         # the pendulum's rise ∝ step² ∝ v (config.pendulum_excursion), so linearly in v/v₀.
@@ -202,10 +203,17 @@ class Body:
         neck = pelvis + apply(R_torso, np.array([0.0, 0.0, 0.288 * H]))
 
         # ---- head (stabilised: follows the heading more than the trunk's oscillations) ----
-        R_head = (rot_z(theta + 0.3 * yaw_torso + self.head_yaw(t) + head_dist[:, 2])
-                  @ rot_y(s.head_pitch_deg * DEG + 0.3 * (pitch - pitch_slow) + self.head_pitch(t)
-                          + post["head"] + head_dist[:, 1])
-                  @ rot_x(0.3 * roll + self.head_roll(t) + head_dist[:, 0]))
+        R_head = (
+            rot_z(theta + 0.3 * yaw_torso + self.head_yaw(t) + head_dist[:, 2])
+            @ rot_y(
+                s.head_pitch_deg * DEG
+                + 0.3 * (pitch - pitch_slow)
+                + self.head_pitch(t)
+                + post["head"]
+                + head_dist[:, 1]
+            )
+            @ rot_x(0.3 * roll + self.head_roll(t) + head_dist[:, 0])
+        )
         head = neck + apply(R_head, np.array([0.02, 0.0, 0.10 * H]))
         head[:, 2] -= 0.7 * impact
 
@@ -244,10 +252,26 @@ class Body:
         r_elbow[:, 2] += heel
 
         return BodyState(
-            t=t, theta=theta, env=a, yaw_torso=yaw_torso, pitch_torso_slow=pitch_slow,
-            pelvis=pelvis, R_pelvis=R_pelvis, chest=chest, R_torso=R_torso, head=head, R_head=R_head,
-            l_elbow=l_elbow, R_l_forearm=R_l_forearm, r_elbow=r_elbow, R_r_forearm=R_r_forearm,
-            r_hip=r_hip, R_r_thigh=R_r_thigh, r_hip_flex=hip_flex_r, phase=phi, heel=heel,
+            t=t,
+            theta=theta,
+            env=a,
+            yaw_torso=yaw_torso,
+            pitch_torso_slow=pitch_slow,
+            pelvis=pelvis,
+            R_pelvis=R_pelvis,
+            chest=chest,
+            R_torso=R_torso,
+            head=head,
+            R_head=R_head,
+            l_elbow=l_elbow,
+            R_l_forearm=R_l_forearm,
+            r_elbow=r_elbow,
+            R_r_forearm=R_r_forearm,
+            r_hip=r_hip,
+            R_r_thigh=R_r_thigh,
+            r_hip_flex=hip_flex_r,
+            phase=phi,
+            heel=heel,
         )
 
     @property

@@ -221,7 +221,7 @@ class WalkConfig:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "WalkConfig":
+    def from_dict(cls, d: dict[str, Any]) -> WalkConfig:
         d = dict(d)
         known = {f.name for f in fields(cls)}
         extra = set(d) - known
@@ -233,5 +233,5 @@ class WalkConfig:
             d["devices"] = tuple(d["devices"])
         return cls(**d)
 
-    def replace(self, **changes) -> "WalkConfig":
+    def replace(self, **changes) -> WalkConfig:
         return replace(self, **changes)

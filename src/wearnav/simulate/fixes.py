@@ -85,18 +85,23 @@ class FixNoise:
     outage_median_s: float = 4.0
 
     def __post_init__(self):
-        if min(self.median_label_noise_m, self.correlation_s, self.segment_s, self.filter_s) <= 0 \
-                or not 0 <= self.filter_share <= 1:
+        if (
+            min(self.median_label_noise_m, self.correlation_s, self.segment_s, self.filter_s) <= 0
+            or not 0 <= self.filter_share <= 1
+        ):
             raise ConfigError("FixNoise parameters must be positive (filter_share in [0, 1])")
-        if min(self.jump_rate_hz, self.outage_rate_hz, self.jump_ramp_s) < 0 or min(
-                self.jump_median_m, self.jump_hold_s, self.outage_median_s) <= 0:
+        if (
+            min(self.jump_rate_hz, self.outage_rate_hz, self.jump_ramp_s) < 0
+            or min(self.jump_median_m, self.jump_hold_s, self.outage_median_s) <= 0
+        ):
             raise ConfigError("FixNoise jump and outage parameters must be positive (rates and ramp may be 0)")
         if self.multipath_share >= 0.5:
-            raise ConfigError(f"multipath episodes touch {self.multipath_share:.0%} of the labels: "
-                              "no median left to calibrate")
+            raise ConfigError(
+                f"multipath episodes touch {self.multipath_share:.0%} of the labels: no median left to calibrate"
+            )
 
     @classmethod
-    def from_level(cls, level: str, correlation_s: float = 120.0) -> "FixNoise":
+    def from_level(cls, level: str, correlation_s: float = 120.0) -> FixNoise:
         if level not in LABEL_NOISE_MEDIAN_M:
             raise ConfigError(f"unknown noise level {level!r} (expected one of {', '.join(LABEL_NOISE_MEDIAN_M)})")
         return cls(LABEL_NOISE_MEDIAN_M[level], correlation_s)
@@ -121,8 +126,9 @@ class FixNoise:
     @property
     def filter_sigma(self) -> float:
         """Stationary per-axis std of the receiver-filter error f, m."""
-        return float(self.increment_std * np.sqrt(self.filter_share / _gm2_increment_var(self.segment_s,
-                                                                                            self.filter_s)))
+        return float(
+            self.increment_std * np.sqrt(self.filter_share / _gm2_increment_var(self.segment_s, self.filter_s))
+        )
 
     @property
     def sigma(self) -> float:
@@ -182,14 +188,14 @@ class FixNoise:
             r_in, r_out = rng.uniform(0.0, self.jump_ramp_s, 2) + 1e-9
             w = np.clip((t - a) / r_in, 0.0, 1.0) - np.clip((t - b - r_in) / r_out, 0.0, 1.0)  # full after a + r_in
             offset += (size * w)[:, None] * np.array([np.cos(ang), np.sin(ang)])
-        for a, b in self._episodes(t[0], t[-1], self.outage_rate_hz,
-                                   lambda: self.outage_median_s * np.exp(rng.normal(0.0, 0.6)), rng):
+        for a, b in self._episodes(
+            t[0], t[-1], self.outage_rate_hz, lambda: self.outage_median_s * np.exp(rng.normal(0.0, 0.6)), rng
+        ):
             keep &= ~((t >= a) & (t < b))
         return offset, keep
 
 
-def simulate_fixes(t: np.ndarray, true_xy: np.ndarray, noise: FixNoise,
-                   rng: np.random.Generator) -> Fixes:
+def simulate_fixes(t: np.ndarray, true_xy: np.ndarray, noise: FixNoise, rng: np.random.Generator) -> Fixes:
     """Fixes at times ``t`` for a walker whose true horizontal position there is ``true_xy``."""
     true_xy = np.asarray(true_xy, dtype=np.float64)[:, :2]
     err = noise.sample_error(t, rng)

@@ -64,25 +64,64 @@ class ImuSpec:
 
 IMU_SPECS: dict[str, ImuSpec] = {
     "phone": ImuSpec(
-        rate_hz=100.0, acc_noise=0.012, gyro_noise=0.0015, acc_bias=0.03, gyro_bias=0.002,
-        acc_bias_drift=0.005, gyro_bias_drift=0.0003, acc_scale=0.005, gyro_scale=0.004,
-        misalignment_deg=0.2, acc_lsb=16 * G / 32768, gyro_lsb=np.deg2rad(2000) / 32768,
-        acc_range=16 * G, gyro_range=np.deg2rad(2000), jitter_s=0.0005, start_delay_s=(0.0, 0.2),
-        yaw_walk_deg_per_sqrt_min=(1.0, 2.0), tilt_error_deg=0.3,
+        rate_hz=100.0,
+        acc_noise=0.012,
+        gyro_noise=0.0015,
+        acc_bias=0.03,
+        gyro_bias=0.002,
+        acc_bias_drift=0.005,
+        gyro_bias_drift=0.0003,
+        acc_scale=0.005,
+        gyro_scale=0.004,
+        misalignment_deg=0.2,
+        acc_lsb=16 * G / 32768,
+        gyro_lsb=np.deg2rad(2000) / 32768,
+        acc_range=16 * G,
+        gyro_range=np.deg2rad(2000),
+        jitter_s=0.0005,
+        start_delay_s=(0.0, 0.2),
+        yaw_walk_deg_per_sqrt_min=(1.0, 2.0),
+        tilt_error_deg=0.3,
     ),
     "watch": ImuSpec(
-        rate_hz=100.0, acc_noise=0.02, gyro_noise=0.003, acc_bias=0.05, gyro_bias=0.004,
-        acc_bias_drift=0.008, gyro_bias_drift=0.0005, acc_scale=0.008, gyro_scale=0.006,
-        misalignment_deg=0.4, acc_lsb=16 * G / 32768, gyro_lsb=np.deg2rad(2000) / 32768,
-        acc_range=16 * G, gyro_range=np.deg2rad(2000), jitter_s=0.001, start_delay_s=(0.1, 0.8),
-        yaw_walk_deg_per_sqrt_min=(1.5, 3.0), tilt_error_deg=0.5,
+        rate_hz=100.0,
+        acc_noise=0.02,
+        gyro_noise=0.003,
+        acc_bias=0.05,
+        gyro_bias=0.004,
+        acc_bias_drift=0.008,
+        gyro_bias_drift=0.0005,
+        acc_scale=0.008,
+        gyro_scale=0.006,
+        misalignment_deg=0.4,
+        acc_lsb=16 * G / 32768,
+        gyro_lsb=np.deg2rad(2000) / 32768,
+        acc_range=16 * G,
+        gyro_range=np.deg2rad(2000),
+        jitter_s=0.001,
+        start_delay_s=(0.1, 0.8),
+        yaw_walk_deg_per_sqrt_min=(1.5, 3.0),
+        tilt_error_deg=0.5,
     ),
     "earbuds": ImuSpec(
-        rate_hz=25.0, acc_noise=0.04, gyro_noise=0.006, acc_bias=0.08, gyro_bias=0.008,
-        acc_bias_drift=0.015, gyro_bias_drift=0.001, acc_scale=0.01, gyro_scale=0.01,
-        misalignment_deg=0.5, acc_lsb=G / 1024, gyro_lsb=np.deg2rad(2000) / 16384,
-        acc_range=8 * G, gyro_range=np.deg2rad(2000), jitter_s=0.003, start_delay_s=(0.2, 1.2),
-        yaw_walk_deg_per_sqrt_min=(2.0, 3.0), tilt_error_deg=0.8,
+        rate_hz=25.0,
+        acc_noise=0.04,
+        gyro_noise=0.006,
+        acc_bias=0.08,
+        gyro_bias=0.008,
+        acc_bias_drift=0.015,
+        gyro_bias_drift=0.001,
+        acc_scale=0.01,
+        gyro_scale=0.01,
+        misalignment_deg=0.5,
+        acc_lsb=G / 1024,
+        gyro_lsb=np.deg2rad(2000) / 16384,
+        acc_range=8 * G,
+        gyro_range=np.deg2rad(2000),
+        jitter_s=0.003,
+        start_delay_s=(0.2, 1.2),
+        yaw_walk_deg_per_sqrt_min=(2.0, 3.0),
+        tilt_error_deg=0.8,
         # A MEMS IMU streaming 25 Hz samples its internal (kHz) data through a digital low-pass
         # of about ODR/3 before decimating. Assumed (no real earbud walking data here): 8 Hz.
         antialias_hz=8.0,
@@ -90,8 +129,9 @@ IMU_SPECS: dict[str, ImuSpec] = {
 }
 
 
-def sample_times(spec: ImuSpec, rng: np.random.Generator, t_start: float, t_end: float,
-                 jitter: bool = True) -> np.ndarray:
+def sample_times(
+    spec: ImuSpec, rng: np.random.Generator, t_start: float, t_end: float, jitter: bool = True
+) -> np.ndarray:
     """Nominal ``rate_hz`` grid from ``t_start`` with small timestamp jitter, strictly increasing."""
     dt = 1.0 / spec.rate_hz
     n = int(np.floor((t_end - t_start) / dt)) + 1
@@ -113,17 +153,16 @@ class TrueImu:
     omega: np.ndarray  # body-frame angular rate, rad/s
     specific_force: np.ndarray  # device frame, m/s², what an ideal accelerometer reads
 
-    def take(self, idx) -> "TrueImu":
-        return TrueImu(*(getattr(self, k)[idx] for k in
-                         ("t", "pos", "vel", "acc", "R", "omega", "specific_force")))
+    def take(self, idx) -> TrueImu:
+        return TrueImu(*(getattr(self, k)[idx] for k in ("t", "pos", "vel", "acc", "R", "omega", "specific_force")))
 
 
 def true_imu(pose, t: np.ndarray, h: float = DIFF_STEP_S) -> TrueImu:
     """Evaluate ``pose(t) -> (pos, R)`` at t ± h and t and form the ideal IMU quantities."""
     n = t.size
     p, R = pose(np.concatenate([t - h, t, t + h]))
-    pm, p0, pp = p[:n], p[n:2 * n], p[2 * n:]
-    Rm, R0, Rp = R[:n], R[n:2 * n], R[2 * n:]
+    pm, p0, pp = p[:n], p[n : 2 * n], p[2 * n :]
+    Rm, R0, Rp = R[:n], R[n : 2 * n], R[2 * n :]
     vel = (pp - pm) / (2 * h)
     acc = (pp - 2 * p0 + pm) / (h * h)
     omega = log_so3(np.swapaxes(Rm, -1, -2) @ Rp) / (2 * h)
@@ -150,7 +189,7 @@ def antialiased(pose, truth: TrueImu, spec: ImuSpec) -> TrueImu:
     n = int(np.ceil((t[-1] - t[0]) / ANTIALIAS_STEP_S))
     grid = t[0] + ANTIALIAS_STEP_S * np.arange(-half - 1, n + half + 2)
     g = true_imu(pose, grid)
-    inner = grid[half:grid.size - half]
+    inner = grid[half : grid.size - half]
 
     def filt(x):
         y = np.stack([np.convolve(x[:, k], taps, mode="valid") for k in range(3)], 1)
@@ -175,7 +214,7 @@ class ImuErrors:
     tilt: object
 
     @classmethod
-    def draw(cls, spec: ImuSpec, rng: np.random.Generator, t0: float, t1: float) -> "ImuErrors":
+    def draw(cls, spec: ImuSpec, rng: np.random.Generator, t0: float, t1: float) -> ImuErrors:
         def matrix(scale_std):
             mis = exp_so3(rng.normal(0, np.deg2rad(spec.misalignment_deg), 3))
             return np.diag(1.0 + rng.normal(0, scale_std, 3)) @ mis

@@ -89,8 +89,13 @@ def _try_route(rng, area_m: float, length_m: float) -> Route:
     kappa = gaussian_filter1d(np.gradient(theta_s, ROUTE_DS), TURN_SMOOTH_M / ROUTE_DS)
     s = np.arange(n) * ROUTE_DS
     theta_sm = theta_s[0] + cumulative_trapezoid(kappa, s, initial=0.0)
-    xy = start + np.stack([cumulative_trapezoid(np.cos(theta_sm), s, initial=0.0),
-                           cumulative_trapezoid(np.sin(theta_sm), s, initial=0.0)], 1)
+    xy = start + np.stack(
+        [
+            cumulative_trapezoid(np.cos(theta_sm), s, initial=0.0),
+            cumulative_trapezoid(np.sin(theta_sm), s, initial=0.0),
+        ],
+        1,
+    )
     return Route(s, theta_sm, kappa, xy, area_m)
 
 
@@ -108,8 +113,16 @@ class BaseMotion:
 
     X, Y, THETA, PHASE, ENV, SPEED_RATIO, DIST = range(7)
 
-    def __init__(self, subject: SubjectParams, bouts: list[tuple[float, float]], duration: float,
-                 area_m: float, speed_variation: float, rng: np.random.Generator, ramp_s: float):
+    def __init__(
+        self,
+        subject: SubjectParams,
+        bouts: list[tuple[float, float]],
+        duration: float,
+        area_m: float,
+        speed_variation: float,
+        rng: np.random.Generator,
+        ramp_s: float,
+    ):
         t = np.arange(-1.0, duration + 1.0 + 1 / GRID_HZ, 1 / GRID_HZ)
         env = np.zeros_like(t)
         for a, b in bouts:

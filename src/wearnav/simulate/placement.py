@@ -20,8 +20,17 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import cont2discrete, lfilter
 
 from wearnav.simulate.body import Body, BodyState
-from wearnav.simulate.geometry import (apply, blend_rotations, exp_so3, from_axes, log_so3,
-                                       random_rotation, rot_x, rot_y, rot_z)
+from wearnav.simulate.geometry import (
+    apply,
+    blend_rotations,
+    exp_so3,
+    from_axes,
+    log_so3,
+    random_rotation,
+    rot_x,
+    rot_y,
+    rot_z,
+)
 from wearnav.simulate.path import GRID_HZ
 from wearnav.simulate.scenario import Removal, Scenario
 from wearnav.simulate.signals import bump, plateau, ramp, smooth_noise
@@ -126,11 +135,11 @@ class Phone(PosePath):
             pos = st.chest + apply(F, self.texting_offset) + self.wander_pos(t)
             # the held forearm amplifies the trunk's bounce, and rises and falls a little with each stride
             hb = self.body.s.hand_bounce_m * st.env
-            pos[:, 2] += st.heel + hb * (np.cos(st.phase + self.bob_phase[0])
-                                         + 0.6 * np.sin(0.5 * st.phase + self.bob_phase[1]))
+            pos[:, 2] += st.heel + hb * (
+                np.cos(st.phase + self.bob_phase[0]) + 0.6 * np.sin(0.5 * st.phase + self.bob_phase[1])
+            )
             psi = 0.5 * st.phase
-            bob = st.env[:, None] * self.bob_amp * np.sin(
-                np.stack([psi, st.phase, psi], 1) + self.bob_phase)
+            bob = st.env[:, None] * self.bob_amp * np.sin(np.stack([psi, st.phase, psi], 1) + self.bob_phase)
             R = F @ M @ exp_so3(self.wander_rot(t) + bob)
         elif placement == "swinging":
             elbow, R_fa = (st.l_elbow, st.R_l_forearm) if self.hand == "left" else (st.r_elbow, st.R_r_forearm)
@@ -184,8 +193,11 @@ class Phone(PosePath):
             pb, Rb = self._hold_pose(b.placement, sub)
             w = ramp(sub.t, a.end, b.start)
             # the hand takes the phone out and away from the body on the way
-            out = bump(sub.t, a.end, b.start)[:, None] * 0.10 * np.stack(
-                [np.sin(sub.theta), -np.cos(sub.theta), np.zeros_like(sub.theta)], 1)
+            out = (
+                bump(sub.t, a.end, b.start)[:, None]
+                * 0.10
+                * np.stack([np.sin(sub.theta), -np.cos(sub.theta), np.zeros_like(sub.theta)], 1)
+            )
             pos[m] = (1 - w)[:, None] * pa + w[:, None] * pb + out
             R[m] = blend_rotations(Ra, Rb, w, self.deltas[i])
         return pos, R
@@ -225,8 +237,11 @@ class _Bag:
         lag = self.lag(st.t)
         fwd = lag[:, 0] * np.cos(st.theta) + lag[:, 1] * np.sin(st.theta)
         lat = -lag[:, 0] * np.sin(st.theta) + lag[:, 1] * np.cos(st.theta)
-        R = (rot_z(st.theta + 0.5 * st.yaw_torso) @ rot_y(st.pitch_torso_slow + fwd / self.strap)
-             @ rot_x(-lat / self.strap))
+        R = (
+            rot_z(st.theta + 0.5 * st.yaw_torso)
+            @ rot_y(st.pitch_torso_slow + fwd / self.strap)
+            @ rot_x(-lat / self.strap)
+        )
         return self._anchor(st) + lag, R
 
 

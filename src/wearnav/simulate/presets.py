@@ -18,10 +18,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from wearnav.progress import progress as report_progress
 
 from wearnav.dataset import Dataset, DatasetWriter
 from wearnav.errors import ConfigError
+from wearnav.progress import progress as report_progress
 from wearnav.simulate.config import MODES, NOISE_LEVELS, SCENES, WalkConfig, sample_subject
 from wearnav.simulate.walk import simulate_walk
 
@@ -45,14 +45,22 @@ class Preset:
 
 PRESETS: dict[str, Preset] = {
     # tests: every mode, device and split, ~17 min of data, a few seconds to simulate
-    "tiny": Preset("tiny", per_mode_main=5, unseen_per_placement=1, cross_subjects=1,
-                   per_mode_cross=1, duration_s=(28.0, 36.0)),
+    "tiny": Preset(
+        "tiny", per_mode_main=5, unseen_per_placement=1, cross_subjects=1, per_mode_cross=1, duration_s=(28.0, 36.0)
+    ),
     # the demo: a few minutes per mode, ~45 min of data
-    "small": Preset("small", per_mode_main=5, unseen_per_placement=1, cross_subjects=2,
-                    per_mode_cross=1, duration_s=(60.0, 90.0)),
+    "small": Preset(
+        "small", per_mode_main=5, unseen_per_placement=1, cross_subjects=2, per_mode_cross=1, duration_s=(60.0, 90.0)
+    ),
     # benchmarks: five subjects, ~3.3 h, recordings of 1.5–3.5 min (the paper's average is 2.8)
-    "default": Preset("default", per_mode_main=10, unseen_per_placement=3, cross_subjects=4,
-                      per_mode_cross=1, duration_s=(90.0, 210.0)),
+    "default": Preset(
+        "default",
+        per_mode_main=10,
+        unseen_per_placement=3,
+        cross_subjects=4,
+        per_mode_cross=1,
+        duration_s=(90.0, 210.0),
+    ),
 }
 
 
@@ -95,7 +103,9 @@ def plan_dataset(preset: str | Preset, seed: int = 0) -> list[PlannedWalk]:
     def add(subject, mode, placement, index, split):
         cfg = WalkConfig(
             name=f"{subject.name}_{mode}_{placement}_{index:03d}",
-            subject=subject, mode=mode, placement=placement,
+            subject=subject,
+            mode=mode,
+            placement=placement,
             scene=str(rng.choice(scenes, p=np.asarray(p.scene_weights) / sum(p.scene_weights))),
             duration_s=round(float(rng.uniform(*p.duration_s)), 2),
             noise_level=str(rng.choice(NOISE_LEVELS)),
@@ -113,8 +123,10 @@ def plan_dataset(preset: str | Preset, seed: int = 0) -> list[PlannedWalk]:
         for mode in MODES:
             for i in range(p.per_mode_cross):
                 add(subject, mode, DEFAULT_PLACEMENT[mode], i, "cross_subject")
-    return [PlannedWalk(cfg, int(s), split) for (cfg, split), s in
-            zip(plan, np.random.SeedSequence([seed, 3]).generate_state(len(plan)))]
+    return [
+        PlannedWalk(cfg, int(s), split)
+        for (cfg, split), s in zip(plan, np.random.SeedSequence([seed, 3]).generate_state(len(plan)))
+    ]
 
 
 def simulate_dataset(preset: str, out: str | Path, seed: int = 0, progress: bool = True) -> Dataset:
@@ -135,12 +147,12 @@ def simulate_dataset(preset: str, out: str | Path, seed: int = 0, progress: bool
 
 # The phone holds a single-placement walk can have (every hold except "call", which the simulator
 # only makes inside multi-placement walks).
-SINGLE_HOLDS = (("HD", "texting"), ("HD", "swinging"), ("PK", "front_pocket"), ("PK", "back_pocket"),
-                ("BG", "bag"))
+SINGLE_HOLDS = (("HD", "texting"), ("HD", "swinging"), ("PK", "front_pocket"), ("PK", "back_pocket"), ("BG", "bag"))
 
 
-def plan_placement_dataset(subjects: int = 8, duration_s: tuple[float, float] = (60.0, 90.0),
-                           seed: int = 0) -> list[PlannedWalk]:
+def plan_placement_dataset(
+    subjects: int = 8, duration_s: tuple[float, float] = (60.0, 90.0), seed: int = 0
+) -> list[PlannedWalk]:
     """A placement-recognition dataset: per subject (``u1`` … drawn as in :func:`plan_dataset`, so
     ``u1`` is the same person), one STW walk per single phone hold (:data:`SINGLE_HOLDS`) and one
     PVW walk with multi-placement changes (MP: the holds change with 1–2 s hand moves, "call"
@@ -157,20 +169,39 @@ def plan_placement_dataset(subjects: int = 8, duration_s: tuple[float, float] = 
     for person in people:
         walks = [("STW", placement, hold) for placement, hold in SINGLE_HOLDS] + [("PVW", "MP", None)]
         for mode, placement, hold in walks:
-            configs.append(WalkConfig(
-                name=f"{person.name}_{mode}_{hold or placement}", subject=person, mode=mode, placement=placement,
-                phone_hold=hold, devices=("phone",), scene=str(rng.choice(scenes)),
-                duration_s=round(float(rng.uniform(*duration_s)), 2), noise_level=str(rng.choice(NOISE_LEVELS))))
+            configs.append(
+                WalkConfig(
+                    name=f"{person.name}_{mode}_{hold or placement}",
+                    subject=person,
+                    mode=mode,
+                    placement=placement,
+                    phone_hold=hold,
+                    devices=("phone",),
+                    scene=str(rng.choice(scenes)),
+                    duration_s=round(float(rng.uniform(*duration_s)), 2),
+                    noise_level=str(rng.choice(NOISE_LEVELS)),
+                )
+            )
     walk_seeds = np.random.SeedSequence([seed, 5]).generate_state(len(configs))
     return [PlannedWalk(cfg, int(s), "") for cfg, s in zip(configs, walk_seeds)]
 
 
-def simulate_placement_dataset(out: str | Path, subjects: int = 8, duration_s: tuple[float, float] = (60.0, 90.0),
-                               seed: int = 0, progress: bool = False) -> Dataset:
+def simulate_placement_dataset(
+    out: str | Path,
+    subjects: int = 8,
+    duration_s: tuple[float, float] = (60.0, 90.0),
+    seed: int = 0,
+    progress: bool = False,
+) -> Dataset:
     """Simulate :func:`plan_placement_dataset` into the dataset folder ``out`` and open it."""
     plan = plan_placement_dataset(subjects, duration_s, seed)
-    made_by = {"generator": "wearnav.simulate", "dataset": "placement", "subjects": int(subjects),
-               "duration_s": list(duration_s), "seed": int(seed)}
+    made_by = {
+        "generator": "wearnav.simulate",
+        "dataset": "placement",
+        "subjects": int(subjects),
+        "duration_s": list(duration_s),
+        "seed": int(seed),
+    }
     return simulate_plan(plan, out, made_by, progress, meta={"dataset": "placement", "dataset_seed": int(seed)})
 
 
@@ -181,8 +212,14 @@ def simulate_placement_dataset(out: str | Path, subjects: int = 8, duration_s: t
 PHONE_ONLY_KINDS = (("STW", "HD"), ("STW", "PK"), ("PVW", "MP"), ("DLW", "HD"))
 
 
-def plan_phone_only(level: str, km: float, seed: int = 0, duration_s: tuple[float, float] = (240.0, 420.0),
-                    test: bool = False, n: int | None = None) -> list[PlannedWalk]:
+def plan_phone_only(
+    level: str,
+    km: float,
+    seed: int = 0,
+    duration_s: tuple[float, float] = (240.0, 420.0),
+    test: bool = False,
+    n: int | None = None,
+) -> list[PlannedWalk]:
     """Phone-only walks at fix-noise ``level`` until about ``km`` of walking (at ~1.3 m/s), or ``n``
     walks; one subject per walk drawn from the seed (the paper's data come from many users).
     ``test``: held-out trajectories (split ``test``), drawn from a separate seed stream."""
@@ -196,16 +233,24 @@ def plan_phone_only(level: str, km: float, seed: int = 0, duration_s: tuple[floa
         i = len(plan)
         mode, placement = PHONE_ONLY_KINDS[int(rng.integers(len(PHONE_ONLY_KINDS)))]
         dur = round(float(rng.uniform(*duration_s)), 2)
-        cfg = WalkConfig(name=f"et{'T' if test else ''}_{level}_{i:04d}", subject=sample_subject(rng, f"s{i}"),
-                         mode=mode, placement=placement, devices=("phone",),
-                         scene=str(rng.choice(scenes, p=[0.2, 0.4, 0.4])), duration_s=dur, noise_level=level)
-        plan.append(PlannedWalk(cfg, int(rng.integers(2 ** 31)), "test" if test else "train"))
+        cfg = WalkConfig(
+            name=f"et{'T' if test else ''}_{level}_{i:04d}",
+            subject=sample_subject(rng, f"s{i}"),
+            mode=mode,
+            placement=placement,
+            devices=("phone",),
+            scene=str(rng.choice(scenes, p=[0.2, 0.4, 0.4])),
+            duration_s=dur,
+            noise_level=level,
+        )
+        plan.append(PlannedWalk(cfg, int(rng.integers(2**31)), "test" if test else "train"))
         dist += 1.3 * dur
     return plan
 
 
-def simulate_plan(plan: list[PlannedWalk], out: str | Path, made_by: dict, progress: bool = True,
-                  meta: dict | None = None) -> Dataset:
+def simulate_plan(
+    plan: list[PlannedWalk], out: str | Path, made_by: dict, progress: bool = True, meta: dict | None = None
+) -> Dataset:
     """Simulate planned walks into dataset folder ``out`` (``meta`` added to every recording's)."""
     with DatasetWriter(Path(out), made_by) as writer:
         for item in report_progress(plan, desc="simulate", unit="rec", enabled=progress):

@@ -114,11 +114,21 @@ def _episode(kind: str, t: float, rng, short: bool) -> Episode:
     if kind == "stand":
         return Episode("stand", t, t + _u(rng, 3, 3 + 5 * s))
     if kind == "sit":
-        pre, down, hold, up, post = (_u(rng, 0.3, 0.3 + 0.3 * s), _u(rng, 1.5, 1.5 + s),
-                                     _u(rng, 4, 4 + 8 * s), _u(rng, 1.5, 1.5 + s), _u(rng, 0.3, 0.3 + 0.3 * s))
+        pre, down, hold, up, post = (
+            _u(rng, 0.3, 0.3 + 0.3 * s),
+            _u(rng, 1.5, 1.5 + s),
+            _u(rng, 4, 4 + 8 * s),
+            _u(rng, 1.5, 1.5 + s),
+            _u(rng, 0.3, 0.3 + 0.3 * s),
+        )
     else:  # squat, e.g. to tie a shoelace
-        pre, down, hold, up, post = (_u(rng, 0.2, 0.2 + 0.3 * s), _u(rng, 0.9, 0.9 + 0.6 * s),
-                                     _u(rng, 3, 3 + 5 * s), _u(rng, 0.9, 0.9 + 0.6 * s), _u(rng, 0.2, 0.2 + 0.3 * s))
+        pre, down, hold, up, post = (
+            _u(rng, 0.2, 0.2 + 0.3 * s),
+            _u(rng, 0.9, 0.9 + 0.6 * s),
+            _u(rng, 3, 3 + 5 * s),
+            _u(rng, 0.9, 0.9 + 0.6 * s),
+            _u(rng, 0.2, 0.2 + 0.3 * s),
+        )
     d0 = t + pre
     u0 = d0 + down + hold
     return Episode(kind, t, u0 + up + post, (d0, d0 + down), (u0, u0 + up))
@@ -159,7 +169,7 @@ def _phone_holds(cfg: WalkConfig, rng) -> list[Hold]:
     t, p = 0.0, str(rng.choice(HAND_HOLDS))
     while True:
         dur = float(np.clip(_u(rng, 0.12, 0.3) * T, 6.0, 45.0))
-        pocket = lambda q: q.endswith("pocket")  # noqa: E731
+        pocket = lambda q: q.endswith("pocket")
         nxt = str(rng.choice([q for q in HOLDS_OF_PLACEMENT["MP"] if q != p]))
         move = _u(rng, 1.6, 2.4) if pocket(p) or pocket(nxt) else _u(rng, 1.0, 1.6)
         if t + dur + move + 6.0 > T:
@@ -183,8 +193,9 @@ def _disturbances(cfg: WalkConfig, holds: list[Hold], rng) -> list[Disturbance]:
             return out
         kind = order[i % 3]
         i += 1
-        if kind == "phone_shake" and not any(h.placement in HAND_HOLDS and h.start <= t and t + dur <= h.end
-                                             for h in holds):
+        if kind == "phone_shake" and not any(
+            h.placement in HAND_HOLDS and h.start <= t and t + dur <= h.end for h in holds
+        ):
             kind = order[i % 3]
             i += 1
             if kind == "phone_shake":
@@ -199,8 +210,14 @@ def _disturbances(cfg: WalkConfig, holds: list[Hold], rng) -> list[Disturbance]:
             d = Disturbance(kind, t, t + dur, amp, 0.0, (float(axis),))
         else:
             ax = rng.standard_normal(3)
-            d = Disturbance(kind, t, t + dur, np.deg2rad(_u(rng, 8, 20)), _u(rng, 2.0, 4.0),
-                            tuple(float(a) for a in ax / np.linalg.norm(ax)))
+            d = Disturbance(
+                kind,
+                t,
+                t + dur,
+                np.deg2rad(_u(rng, 8, 20)),
+                _u(rng, 2.0, 4.0),
+                tuple(float(a) for a in ax / np.linalg.norm(ax)),
+            )
         out.append(d)
         t += dur + _u(rng, 3.0, 9.0)
 
@@ -227,6 +244,10 @@ def make_scenario(cfg: WalkConfig, rng: np.random.Generator) -> Scenario:
     bouts, episodes = _walking(cfg, rng, t0, t1)
     holds = _phone_holds(cfg, rng)
     return Scenario(
-        duration=T, bouts=bouts, episodes=episodes, holds=holds,
-        disturbances=_disturbances(cfg, holds, rng), removal=_removal(cfg, rng),
+        duration=T,
+        bouts=bouts,
+        episodes=episodes,
+        holds=holds,
+        disturbances=_disturbances(cfg, holds, rng),
+        removal=_removal(cfg, rng),
     )

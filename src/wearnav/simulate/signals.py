@@ -46,8 +46,16 @@ class SmoothNoise:
     walk, used for yaw drift and bias instability).
     """
 
-    def __init__(self, rng: np.random.Generator, t0: float, t1: float, knot_s: float, std: float,
-                 dims: int = 1, random_walk: bool = False):
+    def __init__(
+        self,
+        rng: np.random.Generator,
+        t0: float,
+        t1: float,
+        knot_s: float,
+        std: float,
+        dims: int = 1,
+        random_walk: bool = False,
+    ):
         n_inner = int(np.ceil((t1 - t0) / knot_s)) + 1
         knots = t0 + knot_s * np.arange(-3, n_inner + 4)
         n_coef = len(knots) - 4

@@ -13,18 +13,30 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from wearnav.recording import DeviceStream, Recording, Trajectory
+from wearnav.rotations import matrix_to_wxyz
 from wearnav.simulate.body import Body
 from wearnav.simulate.config import REMOVABLE, SCENES, WalkConfig
 from wearnav.simulate.fixes import FixNoise, simulate_fixes
-from wearnav.rotations import matrix_to_wxyz
 from wearnav.simulate.imu import IMU_SPECS, ImuErrors, TrueImu, antialiased, sample_times, true_imu
 from wearnav.simulate.path import BaseMotion
 from wearnav.simulate.placement import Earbuds, Phone, PosePath, Removed, Watch
 from wearnav.simulate.scenario import WALK_RAMP_S, Scenario, make_scenario
 
 SIMULATOR_VERSION = 3  # 2: calibrated against real walking (docs/realism.md); 3: speed in the gait (cadence, bounce), receiver-filter fix error
-_STREAMS = ("scenario", "path", "body", "phone", "watch", "earbuds", "removal", "area",
-            "imu_phone", "imu_watch", "imu_earbuds", "fixes")
+_STREAMS = (
+    "scenario",
+    "path",
+    "body",
+    "phone",
+    "watch",
+    "earbuds",
+    "removal",
+    "area",
+    "imu_phone",
+    "imu_watch",
+    "imu_earbuds",
+    "fixes",
+)
 
 
 @dataclass
@@ -121,8 +133,11 @@ def simulate_walk(cfg: WalkConfig, seed=0) -> SimulatedWalk:
         "removed_device": rem.device if rem else None,
         "removal_variant": rem.variant if rem else None,
         "devices": dev_meta,
-        "fix_noise": {"median_label_noise_m": noise.median_label_noise_m, "sigma_m": round(noise.sigma, 4),
-                      "correlation_s": noise.correlation_s},
+        "fix_noise": {
+            "median_label_noise_m": noise.median_label_noise_m,
+            "sigma_m": round(noise.sigma, 4),
+            "correlation_s": noise.correlation_s,
+        },
         "truth": "chest point (harness) position; quat = torso orientation world<-torso (x forward, y left, z up)",
         "config": cfg.to_dict(),
         "simulator_version": SIMULATOR_VERSION,
@@ -131,8 +146,9 @@ def simulate_walk(cfg: WalkConfig, seed=0) -> SimulatedWalk:
         meta["phone_hand"] = getattr(poses["phone"], "hand", None)
     if "phone" in poses and getattr(poses["phone"], "bag", None) is not None:
         meta.update(poses["phone"].bag.meta)
-    rec = Recording(name=cfg.name, devices=streams, truth=truth, fixes=fixes,
-                    labels=scenario.label_rows(cfg.mode), meta=meta)
+    rec = Recording(
+        name=cfg.name, devices=streams, truth=truth, fixes=fixes, labels=scenario.label_rows(cfg.mode), meta=meta
+    )
     return SimulatedWalk(cfg, seed, rec, truths, poses, body, scenario, base.mean_cadence_hz)
 
 

@@ -35,8 +35,14 @@ import numpy as np
 import torch
 
 from wearnav import runs, trust
-from wearnav.errors import (ConfigError, FormatError, MissingFileError, ValidationError, WearnavWarning,
-                            check_field_types)
+from wearnav.errors import (
+    ConfigError,
+    FormatError,
+    MissingFileError,
+    ValidationError,
+    WearnavWarning,
+    check_field_types,
+)
 from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import write_text_atomic
 from wearnav.models import registry
@@ -72,7 +78,7 @@ def subject_number(subject: str) -> int:
 
 
 def split_of(scheme: str, subject: str) -> str:
-    """"train" or "test" for a subject under ``scheme``; "manifest" is not handled here."""
+    """ "train" or "test" for a subject under ``scheme``; "manifest" is not handled here."""
     if scheme not in TEST_SUBJECTS:
         raise ConfigError(f"unknown split scheme {scheme!r} (expected one of {', '.join(TEST_SUBJECTS)} or manifest)")
     return "test" if subject_number(subject) in TEST_SUBJECTS[scheme] else "train"
@@ -130,7 +136,7 @@ class ClassifyConfig:
         self.window_config()  # damaged config.yaml is refused when it is read
 
     @classmethod
-    def from_dict(cls, d: dict) -> "ClassifyConfig":
+    def from_dict(cls, d: dict) -> ClassifyConfig:
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = set(d) - names
         if unknown:
@@ -143,8 +149,9 @@ class ClassifyConfig:
         return PreprocessConfig(rate=self.rate, devices=tuple(self.devices), frame=self.frame, frame_align="none")
 
     def window_config(self, target: str | None = "class") -> WindowConfig:
-        return WindowConfig(window=self.window, stride=self.stride, target=target,
-                            label_kind=self.label_kind if target else None)
+        return WindowConfig(
+            window=self.window, stride=self.stride, target=target, label_kind=self.label_kind if target else None
+        )
 
 
 HASH_EXCLUDE = ("max_minutes",)
@@ -190,8 +197,9 @@ def sequences(view, cfg: ClassifyConfig, progress: bool = False) -> list[Aligned
 
     seqs = load_sequences(view, cfg, progress)
     if cfg.denoise > 1:  # new objects: the aligned cache must stay raw
-        seqs = [dataclasses.replace(s, imu=moving_average(s.imu, cfg.denoise, axis=1).astype(s.imu.dtype))
-                for s in seqs]
+        seqs = [
+            dataclasses.replace(s, imu=moving_average(s.imu, cfg.denoise, axis=1).astype(s.imu.dtype)) for s in seqs
+        ]
     return seqs
 
 
@@ -230,8 +238,9 @@ def _fit(cfg: ClassifyConfig, run: Path, progress: bool) -> dict:
         raise ValidationError(f"no labelled training windows of kind {cfg.label_kind!r}", cfg.data)
     classes = list(train_ds.classes)
     L.seed_everything(cfg.seed, workers=True, verbose=False)  # before the weights are drawn
-    model = registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, n_classes=len(classes),
-                           **cfg.model_args)
+    model = registry.build(
+        cfg.model, n_devices=len(cfg.devices), window=cfg.window, n_classes=len(classes), **cfg.model_args
+    )
     lr = cfg.lr or getattr(model, "default_lr", 1e-3)
     batch = cfg.batch or getattr(model, "default_batch", 64)
     sigma = None
@@ -253,18 +262,26 @@ def _fit(cfg: ClassifyConfig, run: Path, progress: bool) -> dict:
     wall = time.perf_counter() - t0
     epochs = int(trainer.current_epoch)
     record = {
-        "classes": classes, "lr": lr, "batch": batch, "train_windows": len(train_ds),
-        "train_windows_expanded": len(data), "noise_sigma": sigma, "epochs_run": epochs,
+        "classes": classes,
+        "lr": lr,
+        "batch": batch,
+        "train_windows": len(train_ds),
+        "train_windows_expanded": len(data),
+        "noise_sigma": sigma,
+        "epochs_run": epochs,
         "stopped_by": "max time" if cfg.max_minutes and epochs < cfg.epochs else "max epochs",
-        "wall_s": round(wall, 2), "s_per_epoch": round(wall / max(epochs, 1), 2), "resumed": resumed,
+        "wall_s": round(wall, 2),
+        "s_per_epoch": round(wall / max(epochs, 1), 2),
+        "resumed": resumed,
         "accelerator": str(trainer.strategy.root_device),
     }
     # the training windows' labels (the majority class is the trivial baseline) and the data's
     # facts (rates, placements, gravity directions), for evaluate_run and `wearnav classify`
     labels = window_labels(train_ds)
     record["class_windows"] = {c: int(np.sum(labels == i)) for i, c in enumerate(classes)}
-    record["training_data"] = trust.data_facts([s.recording for s in train_seqs if s.recording is not None],
-                                               cfg.devices, cfg.window / cfg.rate)
+    record["training_data"] = trust.data_facts(
+        [s.recording for s in train_seqs if s.recording is not None], cfg.devices, cfg.window / cfg.rate
+    )
     runs.write_json(run / TRAINING, record)
     return record
 
@@ -287,8 +304,9 @@ def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[s
     classes = read_json(path).get("classes")
     if not isinstance(classes, list) or not classes or not all(isinstance(c, str) for c in classes):
         raise FormatError("no 'classes' list of class names", path)
-    model = registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, n_classes=len(classes),
-                           **cfg.model_args)
+    model = registry.build(
+        cfg.model, n_devices=len(cfg.devices), window=cfg.window, n_classes=len(classes), **cfg.model_args
+    )
     load_weights(model, run / CHECKPOINTS / LAST)
     model.eval()
     return model, cfg, classes
@@ -323,9 +341,12 @@ def evaluate_run(run: str | Path, training: dict | None = None, progress: bool =
     if training is None and (run / TRAINING).is_file():
         training = read_json(run / TRAINING)
     metrics = {
-        "model": cfg.model, "classes": classes, "test_windows": int(len(true)),
+        "model": cfg.model,
+        "classes": classes,
+        "test_windows": int(len(true)),
         "test_subjects": sorted(split_view(ds, cfg.scheme, "test").manifest["subject"].astype(str).unique()),
-        "accuracy": accuracy(true, pred, k), "macro_f1": macro_f1(true, pred, k),
+        "accuracy": accuracy(true, pred, k),
+        "macro_f1": macro_f1(true, pred, k),
         "confusion": confusion_matrix(true, pred, k).tolist(),
         "training": training if training is not None else {},
     }
@@ -350,8 +371,9 @@ def intervals(t0: np.ndarray, t1: np.ndarray, cls: np.ndarray, conf: np.ndarray,
         start = float(t0[i]) if not out else float((mid[i - 1] + mid[i]) / 2)
         if out:
             out[-1]["end_s"] = start
-        out.append({"start_s": start, "end_s": float(t1[i]), "label": classes[cls[i]], "windows": 1,
-                    "_c": float(conf[i])})
+        out.append(
+            {"start_s": start, "end_s": float(t1[i]), "label": classes[cls[i]], "windows": 1, "_c": float(conf[i])}
+        )
     for r in out:
         r["mean_confidence"] = round(r.pop("_c") / r["windows"], 4)
     return out
@@ -381,8 +403,20 @@ def label_recordings(recordings, run: str | Path, out: str | Path, classifier=No
     with staged_output(out, CLASSIFY_JSON, "classify", replace=False) as stage:
         names = _label_into(recordings, model, cfg, classes, stage, found, Path(run))
         files = [f for n in names for f in (f"{n}_intervals.csv", f"{n}_timeline.png")] + [CLASSIFY_JSON]
-        write_text_atomic(json.dumps({"run": str(run), "model": cfg.model, "classes": classes, "recordings": names,
-                                      "files": files, "warnings": found}, indent=2), stage / CLASSIFY_JSON)
+        write_text_atomic(
+            json.dumps(
+                {
+                    "run": str(run),
+                    "model": cfg.model,
+                    "classes": classes,
+                    "recordings": names,
+                    "files": files,
+                    "warnings": found,
+                },
+                indent=2,
+            ),
+            stage / CLASSIFY_JSON,
+        )
     for w in found:
         warnings.warn(WearnavWarning(w))
     return {"files": [Path(out) / f for f in files[:-1]], "classes": classes, "warnings": found}
@@ -456,8 +490,12 @@ def _label_into(recordings, model, cfg, classes: list[str], out: Path, found: li
         ax.plot(seq.t - seq.t[0], np.linalg.norm(seq.imu[d, :, :3], axis=1), color="k", lw=0.5)
         from matplotlib.patches import Patch
 
-        ax.legend(handles=[Patch(color=colours[c], alpha=0.3, label=c) for c in classes if c in set(df["label"])],
-                  fontsize=7, loc="upper right", ncol=3)
+        ax.legend(
+            handles=[Patch(color=colours[c], alpha=0.3, label=c) for c in classes if c in set(df["label"])],
+            fontsize=7,
+            loc="upper right",
+            ncol=3,
+        )
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"|acc| {seq.devices[d]} (m/s²)")
         ax.set_title(f"{rec.name}: {cfg.label_kind} by {cfg.model}", fontsize=9)

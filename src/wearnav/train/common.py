@@ -27,12 +27,11 @@ from lightning.pytorch.callbacks import Callback, Timer
 from lightning.pytorch.plugins import TorchCheckpointIO
 
 from wearnav import runs
+from wearnav.augment import apply as augment_batch
+from wearnav.errors import ConfigError, FormatError, MissingFileError
 from wearnav.fileio import atomic_path
 from wearnav.models import registry
 from wearnav.progress import eta_line, interval_s, on_terminal
-
-from wearnav.augment import apply as augment_batch
-from wearnav.errors import ConfigError, FormatError, MissingFileError
 
 log = logging.getLogger(__name__)
 
@@ -93,8 +92,14 @@ class SeededModule(L.LightningModule):
     augmentations from :mod:`wearnav.augment` drawn from a generator seeded per epoch; the
     training loss is ``model.loss(batch)`` → (loss, named parts)."""
 
-    def __init__(self, model: torch.nn.Module, lr: float, augment: tuple[str, ...] = (), seed: int = 0,
-                 schedule: Schedule = Schedule()):
+    def __init__(
+        self,
+        model: torch.nn.Module,
+        lr: float,
+        augment: tuple[str, ...] = (),
+        seed: int = 0,
+        schedule: Schedule = Schedule(),
+    ):
         super().__init__()
         self.model = model
         self.lr = lr
@@ -125,8 +130,10 @@ class SeededModule(L.LightningModule):
         opt = torch.optim.Adam(self.model.parameters(), lr=self.lr)
         if self.schedule.total_steps <= 0:
             return opt
-        return {"optimizer": opt, "lr_scheduler": {"scheduler": torch.optim.lr_scheduler.LambdaLR(opt, self.schedule),
-                                                   "interval": "step"}}
+        return {
+            "optimizer": opt,
+            "lr_scheduler": {"scheduler": torch.optim.lr_scheduler.LambdaLR(opt, self.schedule), "interval": "step"},
+        }
 
 
 STRATEGIES = ("auto", "ddp", "ddp_spawn")
@@ -153,8 +160,9 @@ class LogProgress(Callback):
         self.last = now
         n_batches = trainer.num_training_batches if isinstance(trainer.num_training_batches, int) else 0
         epoch = trainer.current_epoch + ((batch_idx + 1) / n_batches if n_batches else 0.0)
-        line = eta_line(f"train {self.name}", round(epoch, 1), trainer.max_epochs, now - self.t0, "epochs",
-                        epoch - self.first_epoch)
+        line = eta_line(
+            f"train {self.name}", round(epoch, 1), trainer.max_epochs, now - self.t0, "epochs", epoch - self.first_epoch
+        )
         timer = next((c for c in trainer.callbacks if isinstance(c, Timer)), None)  # --max-time, over resumes
         budget_s = timer.time_remaining("train") if timer is not None else None
         done_here = epoch - self.first_epoch
@@ -164,9 +172,18 @@ class LogProgress(Callback):
         log.info(line)
 
 
-def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bool, steps_per_epoch: int,
-                 monitor: str | None = None, mode: str = "min", patience: int = 10, devices: int = 1,
-                 strategy: str = "auto"):
+def make_trainer(
+    run: Path,
+    epochs: int,
+    max_minutes: float | None,
+    progress: bool,
+    steps_per_epoch: int,
+    monitor: str | None = None,
+    mode: str = "min",
+    patience: int = 10,
+    devices: int = 1,
+    strategy: str = "auto",
+):
     """The Trainer every task uses: checkpoints/last.ckpt always (a resume point), best.ckpt and
     early stopping on ``monitor`` when one is given. Returns (trainer, checkpoint, stopper|None).
 
@@ -185,8 +202,15 @@ def make_trainer(run: Path, epochs: int, max_minutes: float | None, progress: bo
     logging.getLogger("lightning.pytorch.utilities.rank_zero").setLevel(logging.WARNING)
     warnings.filterwarnings("ignore", message=r"Checkpoint directory .* exists and is not empty")
     warnings.filterwarnings("ignore", message=r".*isinstance\(treespec, LeafSpec\)")
-    checkpoint = ModelCheckpoint(dirpath=run / CHECKPOINTS, filename="best", monitor=monitor, mode=mode,
-                                 save_last=True, enable_version_counter=False, save_top_k=1 if monitor else 0)
+    checkpoint = ModelCheckpoint(
+        dirpath=run / CHECKPOINTS,
+        filename="best",
+        monitor=monitor,
+        mode=mode,
+        save_last=True,
+        enable_version_counter=False,
+        save_top_k=1 if monitor else 0,
+    )
     callbacks = [checkpoint]
     if progress and not on_terminal():  # no bar can be drawn: periodic log lines instead
         callbacks.append(LogProgress(run.name, max_minutes))
@@ -228,9 +252,11 @@ def load_weights(model: torch.nn.Module, path: Path) -> None:
 
 
 # What each kind of run is called, and the command that takes it (for a run given to the wrong one).
-RUN_KINDS = {"odometry": ("an odometry model", "wearnav track (or wearnav eval)"),
-             "classify": ("an activity classifier", "wearnav classify"),
-             "noisy": ("an EasyTrack noisy-label run", "wearnav bench easytrack")}
+RUN_KINDS = {
+    "odometry": ("an odometry model", "wearnav track (or wearnav eval)"),
+    "classify": ("an activity classifier", "wearnav classify"),
+    "noisy": ("an EasyTrack noisy-label run", "wearnav bench easytrack"),
+}
 
 
 def run_kind(run: str | Path) -> tuple[str | None, str | None]:

@@ -50,8 +50,8 @@ hyper-parameters carry a unit:
 from __future__ import annotations
 
 import dataclasses
-import logging
 import json
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -115,6 +115,7 @@ class NoisyConfig:
 
 # ---- schedules and losses (each a pure function; tests use hand-made tensors) -------------------
 
+
 def r_tau(T: int, T_max: int, tau: float = 0.8, eta: float = 1.0) -> float:
     """R_τ^T = 1 − τ·g(η, T), g = log(η(T−1)+1) / log(η·T_max + 1), T ∈ [1, T_max] (eq. 15)."""
     if T_max < 1:
@@ -136,8 +137,9 @@ def r_select(r_t: float, r_d: float) -> float:
     return max(r_t, r_d)
 
 
-def select_small_loss(losses: Tensor, ratio: float, low_share: float = 0.2, low_weight: float = 0.1
-                      ) -> tuple[Tensor, Tensor]:
+def select_small_loss(
+    losses: Tensor, ratio: float, low_share: float = 0.2, low_weight: float = 0.1
+) -> tuple[Tensor, Tensor]:
     """Indices of the ⌈ratio·B⌉ smallest losses (ascending) and their weights: 1, except the last
     ``low_share`` of the selected (the largest losses among them), which get ``low_weight``
     (§IV-D2)."""
@@ -147,7 +149,7 @@ def select_small_loss(losses: Tensor, ratio: float, low_share: float = 0.2, low_
     w = torch.ones(k, dtype=losses.dtype, device=losses.device)
     n_low = int(math.floor(low_share * k + 1e-9))
     if n_low:
-        w[k - n_low:] = low_weight
+        w[k - n_low :] = low_weight
     return idx, w
 
 
@@ -185,11 +187,12 @@ def aux_loss(label: Tensor, corr: Tensor, pred: Tensor, gamma_aux: float = 1.0) 
     have). The MSE averages the two components, so its gradient on c_i is (d̃_i + c_i − d̂_i)/B and
     the prior's 2γ_aux·c_i/B: the optimum is c_i* = (d̂_i − d̃_i)/(1 + 2γ_aux), a third of the
     residual for γ_aux = 1."""
-    return F.mse_loss(label + corr, pred) + gamma_aux * (corr ** 2).sum(dim=1).mean()
+    return F.mse_loss(label + corr, pred) + gamma_aux * (corr**2).sum(dim=1).mean()
 
 
-def coadapt_losses(l1: Tensor, l2: Tensor, ratio: float, low_share: float = 0.2, low_weight: float = 0.1
-                   ) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+def coadapt_losses(
+    l1: Tensor, l2: Tensor, ratio: float, low_share: float = 0.2, low_weight: float = 0.1
+) -> tuple[Tensor, Tensor, Tensor, Tensor]:
     """(L_pre1, L_pre2, D_s1, D_s2) of eq. 18: model 1 learns on its peer's selection D_s2 with its
     peer's weights and vice versa; sums divided by the batch size."""
     B = l1.numel()
@@ -207,6 +210,7 @@ def turn(v: Tensor, angle: Tensor) -> Tensor:
 
 
 # ---- models ---------------------------------------------------------------------------------------
+
 
 class Resampled(nn.Module):
     """Run a registry model that needs longer windows (RoNIN ≥ 32 samples) on a segment
@@ -248,13 +252,14 @@ def build_models(cfg: NoisyConfig, window: int) -> list[nn.Module]:
 
 # ---- training -------------------------------------------------------------------------------------
 
+
 def _adam(params, lr, cfg):
     return torch.optim.Adam(params, lr=lr, betas=tuple(cfg.betas))
 
 
 def _batches(n: int, batch: int, gen: torch.Generator) -> list[Tensor]:
     perm = torch.randperm(n, generator=gen)
-    return [perm[i:i + batch] for i in range(0, n, batch)]
+    return [perm[i : i + batch] for i in range(0, n, batch)]
 
 
 def _epoch_gen(cfg: NoisyConfig, epoch: int) -> torch.Generator:
@@ -267,8 +272,16 @@ def _save(run: Path, state: dict) -> None:
         torch.save(state, tmp)
 
 
-def fit_noisy(cfg: NoisyConfig, train: Segments, run: str | Path, progress: bool = False, echo=None,
-              stop_after: int | None = None, monitor=None, device: str | None = None) -> dict:
+def fit_noisy(
+    cfg: NoisyConfig,
+    train: Segments,
+    run: str | Path,
+    progress: bool = False,
+    echo=None,
+    stop_after: int | None = None,
+    monitor=None,
+    device: str | None = None,
+) -> dict:
     """Train ``cfg.method`` on ``train`` (phone labels; ``basemodel-gt`` uses the truth) in run folder
     ``run``; resumes from ``state.pt``. ``stop_after``: return after that many epochs of this call (an
     interruption, for tests). ``monitor``: a function of the ensemble's displacement function
@@ -282,8 +295,16 @@ def fit_noisy(cfg: NoisyConfig, train: Segments, run: str | Path, progress: bool
         return _fit_noisy(cfg, train, Path(run), progress, echo, stop_after, monitor, dev)
 
 
-def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, echo, stop_after: int | None,
-               monitor, dev: torch.device) -> dict:
+def _fit_noisy(
+    cfg: NoisyConfig,
+    train: Segments,
+    run: Path,
+    progress: bool,
+    echo,
+    stop_after: int | None,
+    monitor,
+    dev: torch.device,
+) -> dict:
     x = torch.as_tensor(train.x, dtype=torch.float32, device=dev)
     use_truth = cfg.method == "basemodel-gt"
     y_np = train.truth if use_truth else train.label
@@ -329,8 +350,7 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
     halves = [h.to(dev) for h in halves]
     r_delta = state["r_delta"]
 
-    bar = Progress(total=total, initial=state["epoch"], desc=cfg.method, unit="epoch", enabled=progress,
-                   leave=False)
+    bar = Progress(total=total, initial=state["epoch"], desc=cfg.method, unit="epoch", enabled=progress, leave=False)
     done_here = 0
     while state["epoch"] < total and (stop_after is None or done_here < stop_after):
         done_here += 1
@@ -349,9 +369,18 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
         for m in models:
             m.train()
         # running sums stay on the device (no host sync per batch); read once at the epoch's end
-        sums = {"loss": zero.clone(), "rec": zero.clone(), "r_s": 0.0, "sel_noise_cm": zero.clone(),
-                "sel_noise_corr_cm": zero.clone(), "all_noise_cm": zero.clone(), "sel_disp_cm": zero.clone(),
-                "all_disp_cm": zero.clone(), "n_sel": 0, "n_b": 0}
+        sums = {
+            "loss": zero.clone(),
+            "rec": zero.clone(),
+            "r_s": 0.0,
+            "sel_noise_cm": zero.clone(),
+            "sel_noise_corr_cm": zero.clone(),
+            "all_noise_cm": zero.clone(),
+            "sel_disp_cm": zero.clone(),
+            "all_disp_cm": zero.clone(),
+            "n_sel": 0,
+            "n_b": 0,
+        }
         sel_noise_last = []
         if phase == "ae":
             for k, m in enumerate(models):
@@ -390,8 +419,7 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
                         lp1, lp2, s1, s2 = coadapt_losses(losses[0], losses[1], ratio, 0.0, 1.0)
                     else:
                         pooled = torch.cat([preds[0].detach(), preds[1].detach()])
-                        r_delta = r_delta_update(r_delta, pooled, tgt_models.detach().repeat(2, 1), cfg.delta,
-                                                 cfg.beta)
+                        r_delta = r_delta_update(r_delta, pooled, tgt_models.detach().repeat(2, 1), cfg.delta, cfg.beta)
                         ratio = r_select(r_t, r_delta)
                         lp1, lp2, s1, s2 = coadapt_losses(losses[0], losses[1], ratio, cfg.low_share, cfg.low_weight)
                     total_loss = total_loss + lp1 + lp2
@@ -438,42 +466,77 @@ def _fit_noisy(cfg: NoisyConfig, train: Segments, run: Path, progress: bool, ech
                 sums["n_b"] += 1
         sums = {k: float(v) if isinstance(v, Tensor) else v for k, v in sums.items()}
         nb = max(sums["n_b"], 1)
-        rec = {"epoch": ep + 1, "phase": phase, "lr": lr, "loss": sums["loss"] / nb, "rec": sums["rec"] / nb,
-               "r_tau": r_tau(T, cfg.joint_epochs, cfg.tau, cfg.eta) if phase == "joint" else None,
-               "r_delta": r_delta if phase == "joint" else None, "r_s": sums["r_s"] / nb if phase != "ae" else None,
-               "selected_noise_cm": sums["sel_noise_cm"] / sums["n_sel"] if sums["n_sel"] else None,
-               "selected_noise_corrected_cm": sums["sel_noise_corr_cm"] / sums["n_sel"] if sums["n_sel"] else None,
-               "batch_noise_cm": sums["all_noise_cm"] / nb if sums["n_sel"] else None,
-               "selected_displacement_cm": sums["sel_disp_cm"] / sums["n_sel"] if sums["n_sel"] else None,
-               "batch_displacement_cm": sums["all_disp_cm"] / nb if sums["n_sel"] else None,
-               "s": time.perf_counter() - t0}
+        rec = {
+            "epoch": ep + 1,
+            "phase": phase,
+            "lr": lr,
+            "loss": sums["loss"] / nb,
+            "rec": sums["rec"] / nb,
+            "r_tau": r_tau(T, cfg.joint_epochs, cfg.tau, cfg.eta) if phase == "joint" else None,
+            "r_delta": r_delta if phase == "joint" else None,
+            "r_s": sums["r_s"] / nb if phase != "ae" else None,
+            "selected_noise_cm": sums["sel_noise_cm"] / sums["n_sel"] if sums["n_sel"] else None,
+            "selected_noise_corrected_cm": sums["sel_noise_corr_cm"] / sums["n_sel"] if sums["n_sel"] else None,
+            "batch_noise_cm": sums["all_noise_cm"] / nb if sums["n_sel"] else None,
+            "selected_displacement_cm": sums["sel_disp_cm"] / sums["n_sel"] if sums["n_sel"] else None,
+            "batch_displacement_cm": sums["all_disp_cm"] / nb if sums["n_sel"] else None,
+            "s": time.perf_counter() - t0,
+        }
         if opt_c is not None and cnal and np.isfinite(train.truth).all():
-            rec["corrected_label_noise_median_cm"] = 100 * float(np.median(np.linalg.norm(
-                train.truth - cnal_labels(y, corr.detach(), node0, node1).cpu().numpy(), axis=1)))
+            rec["corrected_label_noise_median_cm"] = 100 * float(
+                np.median(
+                    np.linalg.norm(train.truth - cnal_labels(y, corr.detach(), node0, node1).cpu().numpy(), axis=1)
+                )
+            )
         if monitor is not None:
             for m in models:
                 m.eval()
             with torch.no_grad():
-                rec.update(monitor(lambda xs: torch.stack([m.displacement(torch.as_tensor(xs, dtype=torch.float32, device=dev))
-                                                             for m in models]).mean(0).cpu().numpy()))
+                rec.update(
+                    monitor(
+                        lambda xs: (
+                            torch.stack(
+                                [m.displacement(torch.as_tensor(xs, dtype=torch.float32, device=dev)) for m in models]
+                            )
+                            .mean(0)
+                            .cpu()
+                            .numpy()
+                        )
+                    )
+                )
         state["history"].append(rec)
         state["epoch"] = ep + 1
         state["r_delta"] = r_delta
         state["wall_s"] += rec["s"]
         if sel_noise_last:
             save_npy_atomic(run / "selected_noise_last_epoch.npy", np.concatenate(sel_noise_last))
-        _save(run, {**state, "models": [m.state_dict() for m in models], "opts": [o.state_dict() for o in opts],
-                    "corr": corr.detach().clone(), "opt_c": opt_c.state_dict() if opt_c is not None else None,
-                    "config": dataclasses.asdict(cfg)})
+        _save(
+            run,
+            {
+                **state,
+                "models": [m.state_dict() for m in models],
+                "opts": [o.state_dict() for o in opts],
+                "corr": corr.detach().clone(),
+                "opt_c": opt_c.state_dict() if opt_c is not None else None,
+                "config": dataclasses.asdict(cfg),
+            },
+        )
         bar.update(1)
         if echo:
             echo(f"{cfg.method} epoch {ep + 1}/{total} {phase} loss {rec['loss']:.4f} ({rec['s']:.1f} s)")
     bar.close()
     hist = state["history"]
     timed = [h["s"] for h in hist if h["phase"] != "ae"] or [h["s"] for h in hist]
-    return {"epochs": total, "ae_epochs": ae_epochs, "pre_epochs": cfg.pre_epochs, "joint_epochs": cfg.joint_epochs,
-            "wall_s": state["wall_s"], "s_per_epoch": float(np.mean(timed)) if timed else None,
-            "device": str(dev) + (f" ({torch.cuda.get_device_name(dev)})" if dev.type == "cuda" else ""), "history": hist}
+    return {
+        "epochs": total,
+        "ae_epochs": ae_epochs,
+        "pre_epochs": cfg.pre_epochs,
+        "joint_epochs": cfg.joint_epochs,
+        "wall_s": state["wall_s"],
+        "s_per_epoch": float(np.mean(timed)) if timed else None,
+        "device": str(dev) + (f" ({torch.cuda.get_device_name(dev)})" if dev.type == "cuda" else ""),
+        "history": hist,
+    }
 
 
 def load_predictor(cfg: NoisyConfig, run: str | Path, window: int):
@@ -489,7 +552,7 @@ def load_predictor(cfg: NoisyConfig, run: str | Path, window: int):
     def predict(x: np.ndarray, batch: int = 1024) -> np.ndarray:
         out = []
         for i in range(0, len(x), batch):
-            xb = torch.as_tensor(x[i:i + batch], dtype=torch.float32)
+            xb = torch.as_tensor(x[i : i + batch], dtype=torch.float32)
             out.append(torch.stack([m.displacement(xb) for m in models]).mean(0).numpy())
         return np.concatenate(out) if out else np.empty((0, 2))
 
@@ -502,5 +565,4 @@ def corrections(run: str | Path) -> np.ndarray:
 
 
 def write_history(run: str | Path, record: dict) -> None:
-    write_text_atomic(json.dumps(record["history"], indent=1, default=float), Path(run) / "history.json",
-                      durable=True)
+    write_text_atomic(json.dumps(record["history"], indent=1, default=float), Path(run) / "history.json", durable=True)

@@ -27,14 +27,27 @@ import torch
 from wearnav import runs, trust
 from wearnav.dataset import Dataset, scorable_split, train_val_views
 from wearnav.errors import ConfigError, FormatError, ValidationError, check_field_types, check_names
-from wearnav.recording import CANONICAL_DEVICES
 from wearnav.models import registry
 from wearnav.models.base import ScaledVelocity
-from wearnav.preprocess import (SPARSE_TRUTH_HZ, SURVEYED_TRUTH_MAX_GAP_S, TRUTH_MAX_GAP_S, PreprocessConfig,
-                                load_sequences)
+from wearnav.preprocess import (
+    SPARSE_TRUTH_HZ,
+    SURVEYED_TRUTH_MAX_GAP_S,
+    TRUTH_MAX_GAP_S,
+    PreprocessConfig,
+    load_sequences,
+)
+from wearnav.recording import CANONICAL_DEVICES
 from wearnav.textio import read_json
-from wearnav.train.common import (BEST, CHECKPOINTS, LAST, Schedule, SeededModule, check_run_kind, load_weights,
-                                  make_trainer)
+from wearnav.train.common import (
+    BEST,
+    CHECKPOINTS,
+    LAST,
+    Schedule,
+    SeededModule,
+    check_run_kind,
+    load_weights,
+    make_trainer,
+)
 from wearnav.train.interrupt import stop_between_batches
 from wearnav.windows import WindowConfig, WindowDataset
 
@@ -121,7 +134,7 @@ class TrainConfig:
         self.window_config()  # so that a damaged config.yaml is refused when it is read
 
     @classmethod
-    def from_dict(cls, d: dict) -> "TrainConfig":
+    def from_dict(cls, d: dict) -> TrainConfig:
         names = {f.name: f for f in dataclasses.fields(cls)}
         unknown = set(d) - set(names)
         if unknown:
@@ -130,10 +143,15 @@ class TrainConfig:
         return cls(**kw)
 
     def preprocess_config(self) -> PreprocessConfig:
-        return PreprocessConfig(rate=self.rate, devices=tuple(self.devices), frame_align=self.frame_align,
-                                truth_max_gap=self.truth_max_gap, yaw_deg=self.yaw_deg)
+        return PreprocessConfig(
+            rate=self.rate,
+            devices=tuple(self.devices),
+            frame_align=self.frame_align,
+            truth_max_gap=self.truth_max_gap,
+            yaw_deg=self.yaw_deg,
+        )
 
-    def eval_config(self) -> "TrainConfig":
+    def eval_config(self) -> TrainConfig:
         """This config as validation and test recordings are prepared: ``frame_align`` replaced by
         ``eval_frame_align`` where training aligns onto the truth ("truth" or "initial"); a
         training frame without truth ("none", "common") is kept, so a test input never holds more
@@ -172,8 +190,9 @@ class OdometryModule(SeededModule):
 
 def _check_windows(ds: WindowDataset, what: str, data: str) -> None:
     if len(ds) == 0:
-        raise ValidationError(f"no {what} windows with truth (is the split empty, or has the data no "
-                              "dense truth?)", data)
+        raise ValidationError(
+            f"no {what} windows with truth (is the split empty, or has the data no dense truth?)", data
+        )
 
 
 def fit(cfg: TrainConfig, run: str | Path, progress: bool = True, devices: int = 1, strategy: str = "auto") -> dict:
@@ -225,23 +244,32 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
     train_view, val_view, val_note = train_val_views(Dataset.open(cfg.data), cfg.train_split, cfg.val_split)
     train_seqs = load_sequences(train_view, cfg, progress)
     if len(val_view) == 0:
-        raise ValidationError(f"split {cfg.val_split!r} is empty; name a validation split with --val-split",
-                              cfg.data)
+        raise ValidationError(f"split {cfg.val_split!r} is empty; name a validation split with --val-split", cfg.data)
     val_seqs = load_sequences(val_view, cfg.eval_config(), progress)
     train_ds = WindowDataset(train_seqs, cfg.window_config())
     val_ds = WindowDataset(val_seqs, cfg.window_config())
     _check_windows(train_ds, f"training ({cfg.train_split})", cfg.data)
     _check_windows(val_ds, f"validation ({cfg.val_split})", cfg.data)
     # what the model is trained on, for `wearnav track` to compare a recording with (wearnav.trust)
-    facts = trust.data_facts([s.recording for s in train_seqs if s.recording is not None], cfg.devices,
-                             cfg.window / cfg.rate)
+    facts = trust.data_facts(
+        [s.recording for s in train_seqs if s.recording is not None], cfg.devices, cfg.window / cfg.rate
+    )
 
     steps = -(-len(train_ds) // batch)  # optimizer steps per epoch (the last batch may be partial)
     module = OdometryModule(model, lr, cfg.augment, cfg.seed, recipe_schedule(cfg.recipe, cfg.epochs, steps))
     ckpt_dir = run / CHECKPOINTS
-    trainer, checkpoint, stopper = make_trainer(run, cfg.epochs, cfg.max_minutes, progress, len(train_ds) // batch,
-                                                monitor="val/vel_mse", mode="min", patience=cfg.patience,
-                                                devices=devices, strategy=strategy)
+    trainer, checkpoint, stopper = make_trainer(
+        run,
+        cfg.epochs,
+        cfg.max_minutes,
+        progress,
+        len(train_ds) // batch,
+        monitor="val/vel_mse",
+        mode="min",
+        patience=cfg.patience,
+        devices=devices,
+        strategy=strategy,
+    )
     last = ckpt_dir / LAST
     resumed = last.is_file()
     # A resumed run adds to what earlier attempts measured: epochs already done, wall time spent.
@@ -251,14 +279,23 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
         log.info(f"{run.name}: resuming from {last} ({before_epochs} epoch(s) done)")
     t0 = time.perf_counter()
     with stop_between_batches(trainer):  # Ctrl-C / SIGTERM: exit 130 / 143, last.ckpt intact
-        trainer.fit(module, train_ds.loader(batch, cfg.seed, shard=True), val_ds.loader(1024, shard=True),
-                    ckpt_path=str(last) if last.is_file() else None)
+        trainer.fit(
+            module,
+            train_ds.loader(batch, cfg.seed, shard=True),
+            val_ds.loader(1024, shard=True),
+            ckpt_path=str(last) if last.is_file() else None,
+        )
     wall = time.perf_counter() - t0
     if trainer.global_rank > 0:  # a DDP worker that re-ran the command: rank 0 records and evaluates
         sys.exit(0)
     epochs = max(int(trainer.current_epoch), before_epochs)  # a resume that stops at once did none
-    stopped = ("early stopping" if stopper.stopped_epoch > 0 else
-               "max time" if cfg.max_minutes and epochs < cfg.epochs else "max epochs")
+    stopped = (
+        "early stopping"
+        if stopper.stopped_epoch > 0
+        else "max time"
+        if cfg.max_minutes and epochs < cfg.epochs
+        else "max epochs"
+    )
     best = checkpoint.best_model_score
     record = {
         "learned": True,
@@ -271,8 +308,9 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
         "best_val_vel_mse": None if best is None else float(best),
         "wall_s": round(wall + earlier.get("wall_s", 0.0), 2),
         # this attempt's own rate; an attempt that ran no epoch keeps the earlier one
-        "s_per_epoch": (round(wall / (epochs - before_epochs), 2) if epochs > before_epochs
-                        else earlier.get("s_per_epoch")),
+        "s_per_epoch": (
+            round(wall / (epochs - before_epochs), 2) if epochs > before_epochs else earlier.get("s_per_epoch")
+        ),
         "resumed": resumed,
         "attempts": earlier.get("attempts", 1) + 1 if resumed else 1,
         "accelerator": str(trainer.strategy.root_device),
@@ -296,7 +334,7 @@ def zero_velocity_mse(ds: WindowDataset) -> float:
         s = ds.index[ds.index[:, 0] == i, 1]
         if len(s) and seq.pos is not None:
             vel = (seq.pos[s + L - 1] - seq.pos[s]) / (seq.t[s + L - 1] - seq.t[s])[:, None]
-            sq.append(vel ** 2)
+            sq.append(vel**2)
     return float(np.mean(np.concatenate(sq))) if sq else float("nan")
 
 
@@ -329,11 +367,13 @@ def velocity_scale(run: str | Path) -> float:
     return float(scale)
 
 
-
 def run_record(cfg: TrainConfig) -> dict:
     """What a run folder's config.yaml holds under ``config`` (and what its hash is taken of)."""
-    return {"train": runs.to_dict(cfg), "preprocess": runs.to_dict(cfg.preprocess_config()),
-            "eval_preprocess": runs.to_dict(cfg.eval_config().preprocess_config())}
+    return {
+        "train": runs.to_dict(cfg),
+        "preprocess": runs.to_dict(cfg.preprocess_config()),
+        "eval_preprocess": runs.to_dict(cfg.eval_config().preprocess_config()),
+    }
 
 
 def run_hash_exclude(record: dict) -> dict:
@@ -360,20 +400,31 @@ def dataset_defaults(data: str | Path) -> dict[str, tuple[Any, str | None]]:
     devices = tuple(d for d in CANONICAL_DEVICES if d in have) + tuple(sorted(have - set(CANONICAL_DEVICES)))
     fields: dict[str, tuple[Any, str | None]] = {}
     if devices:
-        fields["devices"] = (devices, None if devices == CANONICAL_DEVICES else
-                             f"devices: {', '.join(devices)} (those the dataset's recordings have)")
+        fields["devices"] = (
+            devices,
+            None
+            if devices == CANONICAL_DEVICES
+            else f"devices: {', '.join(devices)} (those the dataset's recordings have)",
+        )
     with_truth = m[m["truth_points"] >= 2]
     if len(with_truth):
         hz = float((with_truth["truth_points"] / with_truth["duration"].clip(lower=1e-9)).median())
         if hz < SPARSE_TRUTH_HZ:
-            fields["truth_max_gap"] = (SURVEYED_TRUTH_MAX_GAP_S,
-                                       f"truth: surveyed points ({hz:.2f} per second), joined by straight lines "
-                                       f"across gaps up to {SURVEYED_TRUTH_MAX_GAP_S:g} s into training targets")
+            fields["truth_max_gap"] = (
+                SURVEYED_TRUTH_MAX_GAP_S,
+                f"truth: surveyed points ({hz:.2f} per second), joined by straight lines "
+                f"across gaps up to {SURVEYED_TRUTH_MAX_GAP_S:g} s into training targets",
+            )
     return fields
 
 
-def configure(model: str, data: str | Path, devices: tuple[str, ...] | None = None,
-              eval_splits: tuple[str, ...] = ("test",), **fields) -> tuple[TrainConfig, tuple[str, ...], list[str]]:
+def configure(
+    model: str,
+    data: str | Path,
+    devices: tuple[str, ...] | None = None,
+    eval_splits: tuple[str, ...] = ("test",),
+    **fields,
+) -> tuple[TrainConfig, tuple[str, ...], list[str]]:
     """`wearnav train`'s config for ``model`` on ``data``: the fields the data decides where the user
     gave none (:func:`dataset_defaults`; ``devices`` None: the dataset's), the ``eval_splits`` the
     data has (:func:`evaluation_splits`), and one line for each choice made for the user (devices,
@@ -394,9 +445,11 @@ def evaluation_splits(cfg: TrainConfig, splits: tuple[str, ...] = ("test",)) -> 
     missing = [s for s in splits if s not in known]
     if not missing:
         return splits, None
-    return (tuple(s for s in splits if s in known),
-            f"the dataset has no {' or '.join(repr(s) for s in missing)} split (its splits: {', '.join(known) or 'none'}): "
-            "not evaluated after training; evaluate with `wearnav eval RUN --split NAME` (or --data ANOTHER)")
+    return (
+        tuple(s for s in splits if s in known),
+        f"the dataset has no {' or '.join(repr(s) for s in missing)} split (its splits: {', '.join(known) or 'none'}): "
+        "not evaluated after training; evaluate with `wearnav eval RUN --split NAME` (or --data ANOTHER)",
+    )
 
 
 def check_devices(ds, devices: tuple[str, ...]) -> None:
@@ -414,8 +467,7 @@ def prepare_run(cfg: TrainConfig, run: str | Path, eval_splits: tuple[str, ...] 
     spec = registry.get(cfg.model)  # an unknown model is refused before anything is written
     if spec.task != "odometry":
         odometry = ", ".join(s.name for s in registry.available() if s.task == "odometry")
-        raise ConfigError(f"{cfg.model!r} is a {spec.task} model; `wearnav train` trains odometry models "
-                          f"({odometry})")
+        raise ConfigError(f"{cfg.model!r} is a {spec.task} model; `wearnav train` trains odometry models ({odometry})")
     record = run_record(cfg)
     if (run / runs.CONFIG).is_file():
         old = runs.read_config(run)["config"]
@@ -429,13 +481,17 @@ def prepare_run(cfg: TrainConfig, run: str | Path, eval_splits: tuple[str, ...] 
     ds = Dataset.open(cfg.data)
     check_devices(ds, cfg.devices)
     if registry.get(cfg.model).learned:
-        for split, view in zip((cfg.train_split, cfg.val_split),
-                               train_val_views(ds, cfg.train_split, cfg.val_split)[:2]):
+        for split, view in zip(
+            (cfg.train_split, cfg.val_split), train_val_views(ds, cfg.train_split, cfg.val_split)[:2]
+        ):
             if len(view) == 0:
                 raise ValidationError(f"split {split!r} is empty", cfg.data)
             if (view.manifest["truth_points"].astype(float) < 2).all():
-                raise ValidationError(f"no training data: the {split!r} recordings have no truth positions "
-                                      "(odometry training needs truth)", cfg.data)
+                raise ValidationError(
+                    f"no training data: the {split!r} recordings have no truth positions "
+                    "(odometry training needs truth)",
+                    cfg.data,
+                )
     for split in eval_splits:
         scorable_split(ds, split)
     run.mkdir(parents=True, exist_ok=True)

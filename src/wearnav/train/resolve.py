@@ -44,9 +44,13 @@ def resolve_model(arg: str | Path, task: str):
     if p.exists():
         if p.is_file():
             if task != "odometry" or p.parent.name != CHECKPOINTS:
-                raise FormatError(f"a checkpoint must lie in a run folder's {CHECKPOINTS}/ (next to "
-                                  "config.yaml, which says how the model was trained)" if task == "odometry"
-                                  else "not a run folder", p)
+                raise FormatError(
+                    f"a checkpoint must lie in a run folder's {CHECKPOINTS}/ (next to "
+                    "config.yaml, which says how the model was trained)"
+                    if task == "odometry"
+                    else "not a run folder",
+                    p,
+                )
             check_run_kind(p.parent.parent, task)
             return odometry.load_model(p.parent.parent, which=p.name)
         if task == "odometry":
@@ -57,19 +61,26 @@ def resolve_model(arg: str | Path, task: str):
 
 def _by_name(name: str, task: str):
     baselines = untrained_baselines(task)
-    hint = (f"untrained baselines usable by name: {', '.join(baselines)}" if baselines
-            else "no model of this kind works untrained")
+    hint = (
+        f"untrained baselines usable by name: {', '.join(baselines)}"
+        if baselines
+        else "no model of this kind works untrained"
+    )
     try:
         spec = registry.get(name)
     except ConfigError:
-        raise ConfigError(f"no such run folder or checkpoint (nor an exported .onnx / .pt file), nor a model name "
-                          f"({hint})", name) from None
+        raise ConfigError(
+            f"no such run folder or checkpoint (nor an exported .onnx / .pt file), nor a model name ({hint})", name
+        ) from None
     if spec.task != task:
         what, command = RUN_KINDS.get(spec.task, (f"a {spec.task} model", "another command"))
         raise ConfigError(f"is {what}, not {RUN_KINDS[task][0]}; use {command}", name)
     if spec.learned or task != "odometry":
-        raise ConfigError(f"is a model that must be trained first (wearnav train {name} --data DATA --out RUN, "
-                          f"then --model RUN); {hint}", name)
+        raise ConfigError(
+            f"is a model that must be trained first (wearnav train {name} --data DATA --out RUN, "
+            f"then --model RUN); {hint}",
+            name,
+        )
     cfg = odometry.TrainConfig(model=name, data="")  # untrained: no data behind it
     model = odometry.build_model(cfg)
     model.eval()
