@@ -144,7 +144,13 @@ def test_geojson_is_an_rfc7946_feature_collection_in_the_walks_bbox(exports, tmp
     p = line["properties"]
     assert p["kind"] == "path" and p["model"] == "pdr" and p["anchor"] == "smooth"
     en = pd.read_csv(tmp_path / "out" / "trajectory.csv")[["east", "north"]].to_numpy()
-    assert p["length_m"] == pytest.approx(np.sum(np.linalg.norm(np.diff(en, axis=0), axis=1)), abs=0.05)
+    drawn_m = np.sum(np.linalg.norm(np.diff(en, axis=0), axis=1))
+    assert p["length_m"] == pytest.approx(drawn_m, abs=0.05)
+    # track.json (and the page's header, which reads it) report the path drawn, not the odometry's
+    saved = json.loads((tmp_path / "out" / "track.json").read_text())
+    assert saved["length_m"] == summary["length_m"] == pytest.approx(drawn_m, abs=0.05)
+    assert saved["odometry_length_m"] > 0
+    assert f"{drawn_m:.0f} m" in (tmp_path / "out" / "trajectory.html").read_text()
     assert 0 < p["median_sigma_m"] < 50
     start, end = datetime.fromisoformat(p["start_time"]), datetime.fromisoformat(p["end_time"])
     assert p["start_time"].endswith("Z") and (end - start).total_seconds() == pytest.approx(

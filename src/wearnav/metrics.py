@@ -59,6 +59,44 @@ def errors_at_reference(t_est, pos_est, t_ref, pos_ref, max_gap: float) -> np.nd
     return np.linalg.norm(p_at_ref[keep] - p_ref[keep], axis=1)
 
 
+# A segment between surveyed points shorter than this (m) has no direction worth scoring: the
+# surveyed points' own error (decimetres) would dominate its angle.
+MIN_SEGMENT_M = 1.0
+
+
+def segment_speed_heading(t_est, pos_est, t_ref, pos_ref, min_length_m: float = MIN_SEGMENT_M) -> dict:
+    """An estimate's error split into speed and heading between consecutive reference points.
+
+    For each pair of consecutive reference points inside the estimate's time span, with the
+    reference moving at least ``min_length_m`` between them: the estimate's displacement over the
+    same interval (linear interpolation at both times) against the reference's. Returns arrays
+    (one entry per segment): ``t0_s``, ``t1_s``, ``true_speed_m_s`` (reference length / duration),
+    ``speed_ratio`` (estimate length / reference length: below 1 the path is short) and
+    ``heading_error_deg`` (the estimate's direction minus the reference's, counter-clockwise
+    positive, wrapped to (−180, 180]).
+    """
+    t_est, p_est = _track(t_est, pos_est, "estimate")
+    t_ref, p_ref = _track(t_ref, pos_ref, "reference")
+    keys = ("t0_s", "t1_s", "true_speed_m_s", "speed_ratio", "heading_error_deg")
+    inside = (t_ref >= t_est[0]) & (t_ref <= t_est[-1]) if t_est.size else np.zeros(len(t_ref), bool)
+    t_ref, p_ref = t_ref[inside], p_ref[inside]
+    if len(t_ref) < 2:
+        return {k: np.empty(0) for k in keys}
+    at = np.stack([np.interp(t_ref, t_est, p_est[:, j]) for j in range(2)], axis=1)
+    d_true, d_est, dt = np.diff(p_ref, axis=0), np.diff(at, axis=0), np.diff(t_ref)
+    length = np.linalg.norm(d_true, axis=1)
+    k = (length >= min_length_m) & (dt > 0)
+    ang = np.arctan2(d_est[:, 1], d_est[:, 0]) - np.arctan2(d_true[:, 1], d_true[:, 0])
+    ang = -np.degrees(np.angle(np.exp(-1j * ang)))  # wrapped to (−180, 180]
+    return {
+        "t0_s": t_ref[:-1][k],
+        "t1_s": t_ref[1:][k],
+        "true_speed_m_s": (length / np.where(dt > 0, dt, 1.0))[k],
+        "speed_ratio": (np.linalg.norm(d_est, axis=1) / np.where(length > 0, length, 1.0))[k],
+        "heading_error_deg": ang[k],
+    }
+
+
 def label_noise(t_fix, pos_fix, t_true, pos_true, max_gap: float = np.inf) -> np.ndarray:
     """|d_e| of each segment between consecutive location fixes (EasyTrack, paper 004, eqs. 5–7).
 

@@ -467,10 +467,13 @@ def _write_track(
         if res.method != "none":
             anchored = res.xy
             table["east"], table["north"] = anchored[:, 0], anchored[:, 1]
+            # the length reported is the length of the path drawn (issue 34): the placed one, which
+            # the smoother may stretch; the odometry's own length is kept beside it
+            summary["odometry_length_m"] = summary["length_m"]
+            summary["length_m"] = round(float(np.sum(np.linalg.norm(np.diff(anchored, axis=0), axis=1))), 2)
             if np.isfinite(res.sigma_m).any():
                 table["sigma_m"] = res.sigma_m
             if has_origin:
-                length = float(np.sum(np.linalg.norm(np.diff(anchored, axis=0), axis=1)))
                 gj = geojson(
                     geo.local_to_latlon(anchored, float(lat0), float(lon0)),
                     t,
@@ -478,7 +481,7 @@ def _write_track(
                     fx.t,
                     fx.accuracy,
                     res.fixes,
-                    {"recording": rec.name, "model": cfg.model, "anchor": res.method, "length_m": round(length, 2)},
+                    {"recording": rec.name, "model": cfg.model, "anchor": res.method, "length_m": summary["length_m"]},
                     sigma_m=res.sigma_m,
                     t0_unix_s=t0_unix,
                 )

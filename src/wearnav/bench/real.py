@@ -81,6 +81,7 @@ class RealBench:
     stride: int = 10
     train_data: str | None = None  # a simulated dataset or a mix (wearnav.pretrained.mix) to train on instead
     augment: tuple[str, ...] = ("rotate_yaw",)  # the learned models' batch augmentations (wearnav.augment)
+    vel_loss: str = "mse"  # the learned models' velocity loss (wearnav.models.base.velocity_loss)
 
     def __post_init__(self) -> None:
         check_models(self.models, "odometry")  # before any data is prepared
@@ -99,6 +100,7 @@ def _train_config(model: str, data: str, yaw: float, bench: RealBench, elsewhere
         stride=bench.stride,
         lr=bench.lr,
         augment=bench.augment,
+        vel_loss=bench.vel_loss,
     )
     if elsewhere and is_mix(data):  # several sources, truth turned into each input's common frame
         return TrainConfig(**kw, frame_align=MIX_FRAME, truth_max_gap=TRUTH_MAX_GAP_S)

@@ -11,6 +11,48 @@ import torch
 from torch import Tensor, nn
 from torch.nn import functional as F
 
+from wearnav.errors import ConfigError
+
+# The velocity losses a model may train with (:func:`velocity_loss`; TrainConfig.vel_loss).
+VEL_LOSSES = ("mse", "polar", "mse+logspeed")
+# The polar loss's floor under a speed before its log (m/s): a window standing still (0 m/s) and
+# one creeping at a few cm/s count alike, and the log stays finite. 0.1 m/s is a tenth of a
+# walker's speed (IPIN's walkers 0.92 m/s, ILC2's 1.12: issue 34).
+LOG_SPEED_FLOOR_M_S = 0.1
+_TINY = 1e-9
+LOGSPEED_WEIGHT = 2.0
+
+
+def velocity_loss(pred: Tensor, target: Tensor, kind: str = "mse") -> Tensor:
+    """The loss between predicted and true window velocities, (B, 2) m/s each.
+
+    ``"mse"``: the mean squared error of the vector (Suite-IN++ eqs. 7, 22, 23). Its minimiser is
+    the conditional mean of the velocity, which is *shorter* than any of the velocities averaged
+    wherever the input leaves their direction uncertain: a walker at 1.2 m/s whose heading is
+    known only to ±60° is predicted at 0.99 m/s (``tests/test_velocity_loss.py``).
+
+    ``"polar"``: speed and direction apart, so uncertainty in one cannot shorten the other:
+    ``|log(|v̂| + f) − log(|v| + f)|`` (L1 on log speed, f = :data:`LOG_SPEED_FLOOR_M_S`: a
+    median in ratio, which no direction uncertainty moves) plus ``Σ|v|·(1 − cos∠(v̂, v)) / Σ|v|``
+    (the direction error weighted by the true speed, so a window standing still has none). Both
+    terms are dimensionless; their gradients are radial and tangential to v̂ respectively.
+    """
+    if kind == "mse":
+        return F.mse_loss(pred, target)
+    if kind == "mse+logspeed":
+        speed_hat = torch.sqrt((pred**2).sum(-1) + _TINY)
+        speed = target.norm(dim=-1)
+        log_err = torch.log(speed_hat + LOG_SPEED_FLOOR_M_S) - torch.log(speed + LOG_SPEED_FLOOR_M_S)
+        return F.mse_loss(pred, target) + LOGSPEED_WEIGHT * log_err.abs().mean()
+    if kind != "polar":
+        raise ConfigError(f"unknown velocity loss {kind!r}; one of {', '.join(VEL_LOSSES)}")
+    speed_hat = torch.sqrt((pred**2).sum(-1) + _TINY)  # (B,) m/s, finite gradient at 0
+    speed = target.norm(dim=-1)
+    log_err = torch.log(speed_hat + LOG_SPEED_FLOOR_M_S) - torch.log(speed + LOG_SPEED_FLOOR_M_S)
+    cos = (pred * target).sum(-1) / (speed_hat * speed + _TINY)
+    direction = (speed * (1 - cos)).sum() / (speed.sum() + _TINY)
+    return log_err.abs().mean() + direction
+
 
 class OdometryModel(nn.Module):
     """Base class. ``forward(x, mask)``: x (B, D, L, 6) world-frame acc+gyro, mask (B, D) with 1.0
@@ -22,15 +64,18 @@ class OdometryModel(nn.Module):
     # terms), set per step by the trainer's recipe (wearnav.train.common.Schedule.aux): the "fast"
     # recipe ramps them in while the velocity is learned first.
     aux_scale: float = 1.0
+    # The loss on its velocity outputs (:func:`velocity_loss`), set by the trainer from
+    # TrainConfig.vel_loss; inference does not depend on it.
+    vel_loss: str = "mse"
 
     def forward(self, x: Tensor, mask: Tensor) -> Tensor:  # pragma: no cover - abstract
         raise NotImplementedError
 
     def loss(self, batch: dict[str, Tensor]) -> tuple[Tensor, dict[str, Tensor]]:
-        """Total loss and its named parts. Default: MSE of the mean window velocity."""
+        """Total loss and its named parts. Default: :func:`velocity_loss` of the mean window velocity."""
         vel = self(batch["x"], batch["mask"])
-        mse = F.mse_loss(vel, batch["vel"])
-        return mse, {"vel": mse}
+        loss = velocity_loss(vel, batch["vel"], self.vel_loss)
+        return loss, {"vel": loss}
 
     @torch.no_grad()
     def predict(self, x: Tensor, mask: Tensor) -> Tensor:

@@ -99,7 +99,7 @@ from torch.nn import functional as F
 from torch.utils.flop_counter import conv_flop_count, flop_registry, register_flop_formula
 
 from wearnav.errors import ConfigError
-from wearnav.models.base import OdometryModel
+from wearnav.models.base import OdometryModel, velocity_loss
 from wearnav.models.registry import register
 
 IMU_CHANNELS = 6  # acc xyz + gyro xyz, world frame
@@ -592,10 +592,12 @@ class SuiteIN(OdometryModel):
         c = self.cfg
         x, mask, vel = batch["x"], batch["mask"].to(batch["x"].dtype), batch["vel"]
         p = self.parts(x, mask)
-        named = {"vel": F.mse_loss(p["v"], vel)}
+        named = {"vel": velocity_loss(p["v"], vel, self.vel_loss)}
         total = c.w_vel * named["vel"]
         if self.local is not None:
-            named["vel_glb"] = F.mse_loss(p["v_glb"], vel)
+            named["vel_glb"] = velocity_loss(p["v_glb"], vel, self.vel_loss)
+            # the local branch corrects v_glb (eq. 22): a residual, small and of any direction, so
+            # its own term stays a squared error whichever loss the velocity takes
             named["vel_loc"] = F.mse_loss(p["v_loc"], vel - p["v_glb"].detach())
             total = total + c.w_vel_glb * named["vel_glb"] + c.w_vel_loc * named["vel_loc"]
         if c.contrast:

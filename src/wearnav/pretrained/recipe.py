@@ -66,6 +66,7 @@ class Recipe:
     seed: int = 0
     preset: str = "default"  # the simulator's
     augment: tuple[str, ...] = ("rotate_yaw",)
+    vel_loss: str = "mse"  # wearnav.models.base.velocity_loss
 
 
 def prepare_data(data_root: Path, work: Path, recipe: Recipe, progress: bool = True, echo=print) -> dict[str, Path]:
@@ -109,6 +110,7 @@ def odometry_config(mix: Path, devices: tuple[str, ...], recipe: Recipe) -> Trai
         frame_align=MIX_FRAME,
         augment=recipe.augment,
         truth_max_gap=TRUTH_MAX_GAP_S,
+        vel_loss=recipe.vel_loss,
     )
 
 
@@ -171,6 +173,7 @@ def pretrain(
                 seed=recipe.seed,
                 train_data=str(folders[mix]),
                 augment=recipe.augment,
+                vel_loss=recipe.vel_loss,
             ),
             progress=progress,
             echo=echo,

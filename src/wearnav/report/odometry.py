@@ -149,3 +149,33 @@ def plot_speed(panels: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]], out:
     ax.set_xlabel("time from the sequence's first scored sample (s)")
     fig.suptitle(title, fontsize=11)
     return save(fig, out)
+
+
+def plot_speed_ratio(panels: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]], out: Path, title: str) -> Path | None:
+    """One panel per site, in it each source's speed ratio (estimated / true length between
+    consecutive surveyed points) against the true speed (m/s) of those segments
+    (``{label: (true_speed_m_s, speed_ratio)}``): points, and the median in speed bins as a line.
+    A ratio of 1 (dashed) is right; below it the path is short."""
+    panels = {k: v for k, v in panels.items() if any(len(s) for s, _ in v.values())}
+    if not panels:
+        return None
+    fig = Figure(figsize=(5.0 * len(panels), 3.8), layout="constrained")
+    for i, (name, curves) in enumerate(panels.items()):
+        ax = fig.add_subplot(1, len(panels), i + 1)
+        for label, (speed, ratio) in curves.items():
+            if not len(speed):
+                continue
+            dots = ax.scatter(speed, ratio, s=4, alpha=0.25)
+            edges = np.quantile(speed, np.linspace(0, 1, 7))
+            mid = 0.5 * (edges[1:] + edges[:-1])
+            med = [np.median(ratio[(speed >= a) & (speed <= b)]) for a, b in zip(edges[:-1], edges[1:])]
+            ax.plot(mid, med, lw=2, color=dots.get_facecolor()[0][:3], label=f"{label} (median {np.median(ratio):.2f})")
+        ax.axhline(1.0, color="black", ls="--", lw=0.8)
+        ax.set_ylim(0, 2)
+        ax.set_xlabel("true speed between surveyed points (m/s)")
+        ax.set_ylabel("estimated / true length")
+        ax.set_title(name, fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    fig.suptitle(title, fontsize=11)
+    return save(fig, out)

@@ -28,7 +28,7 @@ from wearnav import runs, trust
 from wearnav.dataset import Dataset, scorable_split, train_val_views
 from wearnav.errors import ConfigError, FormatError, ValidationError, check_field_types, check_names
 from wearnav.models import registry
-from wearnav.models.base import ScaledVelocity
+from wearnav.models.base import VEL_LOSSES, ScaledVelocity
 from wearnav.preprocess import (
     SPARSE_TRUTH_HZ,
     SURVEYED_TRUTH_MAX_GAP_S,
@@ -112,9 +112,14 @@ class TrainConfig:
     eval_frame_align: str = "initial"
     truth_max_gap: float = TRUTH_MAX_GAP_S
     yaw_deg: float = 0.0
+    # the loss on the velocity (wearnav.models.base.velocity_loss): "mse", the papers' (which
+    # shortens a velocity whose direction is uncertain), or "polar" (log speed + direction apart)
+    vel_loss: str = "mse"
 
     def __post_init__(self) -> None:
         check_field_types(self)
+        if self.vel_loss not in VEL_LOSSES:
+            raise ConfigError(f"velocity loss must be one of {', '.join(VEL_LOSSES)}, got {self.vel_loss!r}")
         if self.epochs < 1:
             raise ConfigError(f"epochs must be ≥ 1, got {self.epochs}")
         if self.seed < 0:
@@ -168,7 +173,9 @@ HASH_EXCLUDE = ("max_minutes",)
 
 
 def build_model(cfg: TrainConfig) -> torch.nn.Module:
-    return registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, **cfg.model_args)
+    model = registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, **cfg.model_args)
+    model.vel_loss = cfg.vel_loss  # read by the model's own loss(); inference does not depend on it
+    return model
 
 
 def recipe_schedule(recipe: str, epochs: int, steps_per_epoch: int) -> Schedule:
@@ -378,6 +385,8 @@ def run_record(cfg: TrainConfig) -> dict:
 
 def run_hash_exclude(record: dict) -> dict:
     train = {k: v for k, v in record["train"].items() if k not in HASH_EXCLUDE}
+    if train.get("vel_loss") == "mse":  # every run before the field had it: their folders keep their names
+        del train["vel_loss"]
     return {**record, "train": train}
 
 
