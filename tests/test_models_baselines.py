@@ -313,3 +313,22 @@ def test_pdr_walks_forward_on_real_phone_data(shared_data):
     # lead of -60°, the simulator's gait phase before it was corrected: 0.25).
     assert len(agree) > 200
     assert agree.mean() > 0.8, agree.mean()
+
+
+def test_pdr_speed_hybrid_keeps_the_models_direction_at_pdrs_speed():
+    """wearnav.models.pdr.PDRSpeed: a learned model's direction (here a short vector at 100°)
+    with the step counter's speed (0.67 m × cadence); standing still stays still."""
+    from wearnav.models.pdr import PDRSpeed
+
+    class Short(torch.nn.Module):
+        def forward(self, x, mask):
+            a = np.deg2rad(100.0)
+            return torch.tensor([[0.4 * np.cos(a), 0.4 * np.sin(a)]], dtype=x.dtype).expand(x.shape[0], 2)
+
+    hybrid = PDRSpeed(Short(), PDR(n_devices=1, window=100))
+    x, _ = synthetic_walk(100, cadence=1.8, heading_deg=40.0)
+    vel = hybrid(x, torch.ones(1, 1))[0].numpy()
+    assert np.linalg.norm(vel) == pytest.approx(0.67 * 1.8, rel=0.05)
+    assert np.rad2deg(np.arctan2(vel[1], vel[0])) == pytest.approx(100.0, abs=1e-3)
+    still, _ = synthetic_walk(100, standing=True)
+    assert np.linalg.norm(hybrid(still, torch.ones(1, 1))[0].numpy()) < 0.05

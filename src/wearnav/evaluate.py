@@ -207,13 +207,15 @@ def evaluate_run(
     training: dict | None = None,
     preprocess: dict | None = None,
     out_dir: str | Path | None = None,
+    speed: str = "model",
 ) -> dict:
     """Evaluate a run folder's best model on ``splits`` of ``data`` (default: the training data);
     write metrics.json, trajectories/<split>/<name>.csv and plots/ into ``out_dir`` (default: the
     run folder). ``preprocess`` replaces preprocessing fields of the run's config for this data
-    (e.g. another site's ``yaw_deg``); it is recorded in the metrics. Returns the metrics."""
+    (e.g. another site's ``yaw_deg``); it is recorded in the metrics. ``speed`` "pdr": the model's
+    direction at PDR's speed (:func:`wearnav.train.odometry.load_model`). Returns the metrics."""
     run = Path(run)
-    model, cfg = load_model(run)
+    model, cfg = load_model(run, speed=speed)
     if preprocess:
         unknown = set(preprocess) - {"frame_align", "eval_frame_align", "truth_max_gap", "yaw_deg"}
         if unknown:
@@ -234,6 +236,7 @@ def evaluate_run(
         "window": cfg.window,
         "eval_stride": stride or cfg.stride,
         "preprocess": dict(preprocess or {}),
+        "speed": speed,
         # the test recordings' frame (wearnav.frames): "initial" = one constant yaw from the
         # truth's first 10 s; "truth" = the truth's yaw over time (a diagnostic)
         "test_frame": cfg.eval_config().frame_align,

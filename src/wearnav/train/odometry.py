@@ -29,6 +29,7 @@ from wearnav.dataset import Dataset, scorable_split, train_val_views
 from wearnav.errors import ConfigError, FormatError, ValidationError, check_field_types, check_names
 from wearnav.models import registry
 from wearnav.models.base import VEL_LOSSES, ScaledVelocity
+from wearnav.models.pdr import PDR, PDRSpeed
 from wearnav.preprocess import (
     SPARSE_TRUTH_HZ,
     SURVEYED_TRUTH_MAX_GAP_S,
@@ -345,9 +346,17 @@ def zero_velocity_mse(ds: WindowDataset) -> float:
     return float(np.mean(np.concatenate(sq))) if sq else float("nan")
 
 
-def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, TrainConfig]:
+# Where a loaded model's speed comes from (:func:`load_model`): the model itself, or PDR's step
+# counter with the model's direction (wearnav.models.pdr.PDRSpeed, issue 34's hybrid).
+SPEED_SOURCES = ("model", "pdr")
+
+
+def load_model(run: str | Path, which: str = BEST, speed: str = "model") -> tuple[torch.nn.Module, TrainConfig]:
     """The model of a run folder with its ``best`` (or ``last``) weights, in eval mode; where the
-    run was adapted with a speed scale (:func:`velocity_scale`), wrapped to apply it."""
+    run was adapted with a speed scale (:func:`velocity_scale`), wrapped to apply it. ``speed``
+    "pdr": its direction at PDR's speed in the same window (:class:`wearnav.models.pdr.PDRSpeed`)."""
+    if speed not in SPEED_SOURCES:
+        raise ConfigError(f"speed must come from one of {', '.join(SPEED_SOURCES)}, got {speed!r}")
     run = Path(run)
     check_run_kind(run, "odometry")  # a classifier's run: say so, not "unknown config keys"
     cfg = runs.read_run_config(run, TrainConfig)
@@ -357,6 +366,8 @@ def load_model(run: str | Path, which: str = BEST) -> tuple[torch.nn.Module, Tra
     scale = velocity_scale(run)
     if scale != 1.0:
         model = ScaledVelocity(model, scale)
+    if speed == "pdr":
+        model = PDRSpeed(model, PDR(len(cfg.devices), cfg.window, rate=cfg.rate))
     model.eval()
     return model, cfg
 
