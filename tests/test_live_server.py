@@ -118,6 +118,8 @@ def test_token_required_and_never_logged(tmp_path):
         assert set(event["devices"]) == {"phone"} and event["devices"]["phone"]["stopped"] is False
         page = c.get("/?token=" + TOKEN)
         assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
+        for name in ("live.js", "draw.js", "style.css"):  # its own script; the drawing it shares (report/static)
+            assert c.get(f"/static/{name}").status_code == 200, name
         sessions = c.get("/sessions?token=" + TOKEN).json()
         assert [x["session"] for x in sessions] == ["s-1"] and sessions[0]["messages"] == 2
         assert stored_rows(db) == 2

@@ -6,6 +6,8 @@ import datetime as _dt
 import subprocess
 from pathlib import Path
 
+__version__ = "0.1.0"  # the package's version, as pyproject.toml's [project] version; wearnav.__version__
+
 
 def git_commit() -> str:
     """Short commit of the source tree wearnav runs from ('' outside a git checkout)."""
@@ -23,8 +25,6 @@ def git_commit() -> str:
 
 
 def provenance() -> dict:
-    from wearnav import __version__
-
     return {
         "wearnav": __version__,
         "commit": git_commit(),

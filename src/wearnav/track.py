@@ -15,7 +15,7 @@ and write into the output folder:
 ``trajectory.png``
     The path with its start and end, and per-device presence over time.
 ``trajectory.html``
-    The live page's drawing (:mod:`wearnav.live.page`), static and self-contained (opens offline
+    The live page's drawing (:mod:`wearnav.report.trajectory_page`), static and self-contained (opens offline
     from the file): the path (anchored where it is, 1 point per second) on a metric grid, OSM map
     tiles under it when the browser is online, the fixes used with their accuracy circles, a time
     slider, and the path coloured by the activity the shipped activity model finds as
@@ -89,11 +89,11 @@ from wearnav.evaluate import predict_sequence
 from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.fixcheck import FixCheck
-from wearnav.live.page import activity_intervals, page_points, trajectory_html
 from wearnav.models.pdr import PDR
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import Recording
+from wearnav.report.trajectory_page import activity_intervals, page_points, trajectory_html
 from wearnav.textio import read_json
 from wearnav.train.resolve import resolve_model
 from wearnav.trajectory import integrate_velocity
@@ -505,7 +505,7 @@ def _write_track(
 def page_html(
     t: np.ndarray, xy: np.ndarray, rec: Recording, cfg, summary: dict, res=None, kept: np.ndarray | None = None
 ) -> str:
-    """``trajectory.html`` (:mod:`wearnav.live.page`): the live page's drawing of the path (anchored
+    """``trajectory.html`` (:mod:`wearnav.report.trajectory_page`): the live page's drawing of the path (anchored
     by ``res`` where given, with the ``kept`` fixes; else the odometry's own frame, without fixes),
     self-contained, with a time slider, coloured by the activity ``classify`` finds
     (``summary["activity"]`` says which model, or why not)."""

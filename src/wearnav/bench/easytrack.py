@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from wearnav import metrics, runs
-from wearnav.bench.easytrack_page import write_page
+from wearnav.bench.easytrack_page import PageConfig, write_page
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.bench.real_sites import IPIN_TEST_TRIALS
 from wearnav.dataset import Dataset
@@ -409,7 +409,7 @@ def run_benchmark(
     real = real_scores(plan, out, lc) if plan else None
     sim = [{**runs.read_metrics(job.folder), "folder": str(job.folder)} for job in jobs]
     train, test = sim_segments(out, bc, lc, echo)
-    return write_page(out, bc, lc, sim, train, test, real, seeds, quick)
+    return write_page(out, PageConfig.of(bc), lc, sim, train, test, real, seeds, quick)
 
 
 def _todo(out: Path, bc: BenchConfig, seeds: int, lc: LabelConfig) -> list[tuple]:

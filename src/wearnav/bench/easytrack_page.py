@@ -4,9 +4,9 @@ the joint epochs (Fig. 5/6) and the real-data tables, written as ``<out>/results
 
 from __future__ import annotations
 
+import dataclasses
 import platform
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -20,8 +20,25 @@ from wearnav.stats import welch_p
 from wearnav.textio import read_json
 from wearnav.trust import QUICK_NOTE
 
-if TYPE_CHECKING:  # the benchmark imports this module: its config is named for the reader only
-    from wearnav.bench.easytrack import BenchConfig
+
+@dataclasses.dataclass(frozen=True)
+class PageConfig:
+    """What the page says of the benchmark's settings: the same names as
+    :class:`wearnav.bench.easytrack.BenchConfig` (which builds it), as plain data so that the page
+    imports nothing of the benchmark."""
+
+    ae_epochs: int
+    pre_epochs: int
+    joint_epochs: int
+    km: float  # simulated walking per level
+    stride_s: float | None  # overlapping segments every this many s; None: back to back
+    levels: tuple[str, ...]
+    methods: tuple[str, ...]
+
+    @classmethod
+    def of(cls, config: object) -> PageConfig:
+        """The fields of any config object that has them (the benchmark passes its BenchConfig)."""
+        return cls(**{f.name: getattr(config, f.name) for f in dataclasses.fields(cls)})
 
 
 def _pct(share) -> str:
@@ -157,7 +174,7 @@ def _ade_curves(out: Path, sim: list[dict]) -> str | None:
 
 def write_page(
     out: Path,
-    bc: BenchConfig,
+    bc: PageConfig,
     lc: LabelConfig,
     sim: list[dict],
     train: dict[str, Segments],

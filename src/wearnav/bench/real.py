@@ -168,7 +168,9 @@ class Plan:
     def finish(self) -> Path:
         """Write results.md once the jobs have run (:func:`write_report`)."""
         wall = time.perf_counter() - self.t_start
-        return write_report(self.out, self.sites, suite_runs(self.out, self.sites["main"]["data"]), self.bench, wall)
+        return write_report(
+            self.out, self.sites, suite_runs(self.out, self.sites["main"]["data"]), dataclasses.asdict(self.bench), wall
+        )
 
 
 def plan_benchmark(

@@ -4,11 +4,9 @@ fixes (:mod:`wearnav.bench.user_protocol`), the error CDF and example paths."""
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import platform
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -22,9 +20,6 @@ from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.models.registry import get
 from wearnav.pretrained.mix import is_mix
 from wearnav.textio import read_json
-
-if TYPE_CHECKING:
-    from wearnav.bench.real import RealBench
 
 
 def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
@@ -122,7 +117,9 @@ def length_ratio(eval_dir: Path, data: str) -> float:
     return round(float(np.nanmedian(ratios)), 3) if np.isfinite(ratios).any() else float("nan")
 
 
-def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBench, wall_s: float) -> Path:
+def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, wall_s: float) -> Path:
+    """results.md and results.json; ``bench`` is the suite's config as plain data (``dataclasses.asdict`` of
+    :class:`wearnav.bench.real.RealBench`: train_data, epochs, patience, max_minutes, lr, seed are read)."""
     import torch
 
     from wearnav.provenance import provenance
@@ -132,8 +129,8 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
     src = sites["main"]["split"]["source"]
     title = (
         f"Odometry in real buildings: trained on {src}"
-        if not bench.train_data
-        else f"Odometry in real buildings: trained on `{Path(bench.train_data).name}`, tested on {src}"
+        if not bench["train_data"]
+        else f"Odometry in real buildings: trained on `{Path(bench['train_data']).name}`, tested on {src}"
     )
     lines = [
         f"# {title}",
@@ -149,11 +146,11 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
         "tuned on the test groups. Phone only, 25 Hz, world frame rotated by the site's yaw "
         "(estimated by PDR from training traces only).",
         "",
-        f"Training: at most {bench.epochs} epochs, early stopping on validation velocity MSE (patience "
-        f"{bench.patience})"
-        + (f", at most {bench.max_minutes:g} min per model" if bench.max_minutes else "")
-        + (f", Adam lr {bench.lr:g}" if bench.lr else ", each model's paper learning rate")
-        + f", seed {bench.seed}, one run per row (the epochs and minutes each got are in its row).",
+        f"Training: at most {bench['epochs']} epochs, early stopping on validation velocity MSE (patience "
+        f"{bench['patience']})"
+        + (f", at most {bench['max_minutes']:g} min per model" if bench["max_minutes"] else "")
+        + (f", Adam lr {bench['lr']:g}" if bench["lr"] else ", each model's paper learning rate")
+        + f", seed {bench['seed']}, one run per row (the epochs and minutes each got are in its row).",
         "",
         "Sim-to-real: a row named `model · simulator ...` is that model trained on the simulated "
         "dataset only (phone only, the simulator's own truth frame, dense truth) and scored here "
@@ -161,7 +158,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
         "and PDR (not learned).",
         "",
     ]
-    doc = {"bench": dataclasses.asdict(bench), "wall_s": round(wall_s, 1), "sites": {}}
+    doc = {"bench": dict(bench), "wall_s": round(wall_s, 1), "sites": {}}
     for site, s in sites.items():
         info = s["split"]
         test = [g for g, c in info["groups"].items() if "test" in c]
@@ -171,7 +168,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: RealBe
             "Another building, never trained on"
             if site != "main"
             else "Held-out groups of the training building"
-            if not bench.train_data
+            if not bench["train_data"]
             else "Held-out groups (a learned row trained elsewhere says where)"
         )
         lines += [

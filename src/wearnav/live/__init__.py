@@ -2,7 +2,7 @@
 
 push.py      one push body, checked (4xx reasons)        store.py   SQLite, one row per message
 buffer.py    a session's samples as a Recording          app.py     the Starlette receiver
-tracker.py   the live path and activity (LiveTracker)    page.py    the page's drawing, static
+tracker.py   the live path and activity (LiveTracker)    static/    the page (its drawing: report/static)
 replay.py    an export sent as the app pushes it          mqtt.py    the MQTT transport
 export.py    a stored session as a dataset folder        bench.py   ``wearnav live bench``
 

@@ -8,7 +8,8 @@ Routes (``wearnav live`` serves them with uvicorn)::
     GET  /state      the same JSON once            (?session=ID; default the latest session)
     GET  /sessions   the sessions in the store, oldest first
     GET  /stats      counters: accepted, repeats, refused by status, tracker update latency
-    GET  /           the live page (wearnav/live/static/index.html; its files under /static)
+    GET  /           the live page (wearnav/live/static/index.html; its files under /static, with the
+                     path drawing it shares with trajectory.html: wearnav/report/static/draw.js, style.css)
 
 With a token set (required when the server listens beyond 127.0.0.1; ``wearnav live`` makes one
 when none is given) every route but ``/static`` (the page's own scripts and styles) wants it, as
@@ -55,6 +56,9 @@ from wearnav.live.store import Store
 
 log = logging.getLogger("wearnav.live")
 STATIC = Path(__file__).parent / "static"
+# draw.js and style.css: the path drawing the live page shares with track's trajectory.html
+# (wearnav.report.trajectory_page), served under /static beside the live page's own files
+DRAWING = ("wearnav.report", "static")
 MAX_BODY = 4 * 1024 * 1024  # bytes; a 1-s batch of 3 devices at 100 Hz is ~150 kB
 RATE_LIMIT = 100.0  # messages per second per client (burst: twice that)
 MAX_FUTURE_S = 120.0  # sample times this far ahead of the server's clock are refused
@@ -420,7 +424,7 @@ def create_app(
         Route("/", index),
     ]
     if STATIC.is_dir():
-        routes.append(Mount("/static", StaticFiles(directory=STATIC), name="static"))
+        routes.append(Mount("/static", StaticFiles(directory=STATIC, packages=[DRAWING]), name="static"))
     app = Starlette(routes=routes)
     app.state.receiver = rx
     return app

@@ -43,9 +43,9 @@ from wearnav.errors import ValidationError
 from wearnav.evaluate import predict_sequence
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse.live import IncrementalFuser
-from wearnav.live.page import page_points
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.recording import DeviceStream, Recording
+from wearnav.report.trajectory_page import page_points
 from wearnav.track import input_warnings, odometry_preprocess, path_times
 from wearnav.train.classify import window_classes
 from wearnav.train.resolve import resolve_model

@@ -59,6 +59,7 @@ from matplotlib.figure import Figure
 
 from wearnav.errors import ConfigError
 from wearnav.fileio import atomic_path, write_text_atomic
+from wearnav.provenance import __version__, git_commit
 from wearnav.realism.calibrate import IQR_MIN_SEGMENTS, SourceResult, compute_realism, fix_compare, summary
 from wearnav.realism.fixes import FIX_STATS, JUMP_SPEED_MPS, OUTAGE_GAP_S, SIM_REFERENCE_EVERY_S
 from wearnav.realism.sources import (
@@ -283,9 +284,6 @@ def realism_report(
     """Compute everything, write ``out`` (Markdown), ``<out dir>/img/realism_*.png`` and the JSON
     (default: ``out`` with suffix .json). ``before``: an earlier JSON of this report (e.g. of the
     uncalibrated simulator) whose tables the page shows beside the current ones."""
-    from wearnav import __version__
-    from wearnav.provenance import git_commit
-
     if n_sim < 2:
         raise ConfigError("the realism report needs at least 2 simulated walks per placement")
     out = Path(out)

@@ -11,7 +11,8 @@ import pandas as pd
 from wearnav.dataset import Dataset
 from wearnav.errors import WearnavError
 from wearnav.fileio import shown_path, write_text_atomic
-from wearnav.provenance import git_commit
+from wearnav.importers import import_dataset
+from wearnav.provenance import __version__, git_commit
 from wearnav.report.plots import plot_recording
 from wearnav.report.stats import dataset_stats, stats_markdown
 
@@ -46,9 +47,6 @@ def write_datasets_report(
     ``<out's folder>/img/``. A dataset whose folder is missing or whose import fails gets a line
     saying so; the page is written anyway, and then the failures raise one WearnavError.
     """
-    from wearnav import __version__
-    from wearnav.importers import import_dataset
-
     data, out, work = Path(data), Path(out), Path(work)
     datasets = SHIPPED_DATASETS if datasets is None else datasets
     img_dir = out.parent / "img"

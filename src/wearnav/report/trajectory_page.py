@@ -1,5 +1,9 @@
 """``trajectory.html``: the live page's drawing as one static, self-contained file (``wearnav track``).
 
+The drawing lives here, below both of its users: ``wearnav track`` writes the static file and
+``wearnav live`` serves the same ``static/draw.js`` and ``static/style.css`` beside its own page
+(:mod:`wearnav.live.app`), and takes :func:`page_points` for its path.
+
 The file holds the live page's stylesheet and drawing code (``static/style.css``, ``static/draw.js``)
 inline, and the path as data in the live state's form (:meth:`wearnav.live.tracker.LiveTracker.state`:
 ``origin``, ``path`` [t, east, north, σ] at ``POINT_S``, ``fixes`` [t, east, north, accuracy]), so it
