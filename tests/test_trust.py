@@ -63,6 +63,15 @@ def test_rate_outside_allows_the_tolerance():
     assert "at 25–50 Hz" in trust.rate_outside("watch", 100.0, [25.0, 40.0, 50.0])
 
 
+def test_rate_outside_is_no_finding_for_an_input_resampled_down_to_the_models_rate():
+    """A 100 Hz export for a 50 Hz model trained on 50 Hz data is low-passed and resampled to 50 Hz
+    as the training data was; a 25 Hz input, interpolated up, still is a finding."""
+    assert trust.rate_outside("phone", 100.0, [50.0, 50.0, 50.0], model_rate_hz=50.0) is None
+    assert trust.rate_outside("phone", 25.0, [50.0, 50.0, 50.0], model_rate_hz=50.0) == (
+        "phone is sampled at 25 Hz; the model's training data at 50 Hz"
+    )
+
+
 def test_placement_outside_maps_the_simulators_codes():
     assert trust.placement_outside("handheld", ["HD", "PK"]) is None  # HD = handheld
     assert trust.placement_outside("pocket", ["MP"]) is None  # MP changes between hand and pocket
