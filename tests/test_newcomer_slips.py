@@ -153,8 +153,9 @@ def test_a_bad_path_is_refused_before_torch_is_imported(args, tmp_path):
 
 
 def test_the_bad_path_error_is_one_line_and_quick(tmp_path):
-    """`python -m wearnav track /no/such/path` as a user runs it: exit 2, one line; measured
-    1.3–1.5 s here (6–8 s while torch was imported first; `--help` 0.5 s)."""
+    """`python -m wearnav track /no/such/path` as a user runs it: exit 2, one line; measured on the
+    busy 2-core dev machine 1.0–1.2 s (before issue 38: 5.6–9.2 s, torch imported first; `--help`
+    0.5–0.9 s)."""
     env = {**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"}
     t0 = time.perf_counter()
     p = subprocess.run(
