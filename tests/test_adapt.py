@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import shutil
+import warnings
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ from conftest import error_line, run_cli
 from wearnav import cli_models
 from wearnav.adapt import DEFAULT_METHOD, METHODS, AdaptConfig, adapt
 from wearnav.adapt.finetune import FinetuneConfig
+from wearnav.adapt.run import MIN_SEGMENTS, SCALE_MAX_RELATIVE_SE, SCALE_RANGE, check_scale, scale_fit
 from wearnav.adapt.segments import compare, integration_weights, odometry_displacements, walk_segments
 from wearnav.dataset import DatasetWriter
 from wearnav.errors import ValidationError, WearnavWarning
@@ -29,7 +31,8 @@ from wearnav.preprocess import interpolate_position
 from wearnav.recording import Fixes
 from wearnav.simulate import WalkConfig, simulate_recording
 from wearnav.track import track
-from wearnav.train.odometry import ADAPTATION, TrainConfig, fit, load_model, prepare_run
+from wearnav.train.common import BEST, CHECKPOINTS
+from wearnav.train.odometry import ADAPTATION, TrainConfig, build_model, fit, load_model, prepare_run
 from wearnav.trajectory import integrate_velocity
 
 WRONG = 0.7  # the wrong model's speed over the true speed (made right on all four walks' truth)
@@ -81,6 +84,19 @@ def wrong_run(walks, tmp_path_factory):
     shutil.copytree(run, wrong)
     (wrong / ADAPTATION).write_text(json.dumps({"velocity_scale": WRONG * right}))
     return wrong, right
+
+
+@pytest.fixture(scope="module")
+def learned_base(walks, tmp_path_factory):
+    """A small learned run (RoNIN, one block per stage, random weights) that finetune can adapt."""
+    root, _, _ = walks
+    cfg = TrainConfig(model="ronin", data=str(root / "ds"), devices=("phone",), model_args={"blocks": (1, 1, 1, 1)})
+    run = prepare_run(cfg, tmp_path_factory.mktemp("learned") / "run")
+    torch.manual_seed(0)
+    (run / CHECKPOINTS).mkdir(exist_ok=True)
+    state = build_model(cfg).state_dict()
+    torch.save({"state_dict": {f"model.{k}": v for k, v in state.items()}}, run / CHECKPOINTS / BEST)
+    return run
 
 
 def test_integration_weights_integrate_as_the_path_does():
@@ -151,7 +167,7 @@ def test_adapt_reads_no_truth_and_holds_out_the_end_of_a_single_walk(walks, wron
     assert without["segments"]["held_out"] == int(np.ceil(0.2 * n))
 
 
-def test_adapt_refuses_walks_without_fixes_or_too_few_segments(walks, wrong_run, tmp_path):
+def test_adapt_refuses_walks_without_fixes_or_too_few_segments(walks, wrong_run, learned_base, tmp_path):
     _, recs, _ = walks
     wrong, _ = wrong_run
     no_fixes = [dataclasses.replace(r, fixes=None) for r in recs[:2]]
@@ -162,9 +178,68 @@ def test_adapt_refuses_walks_without_fixes_or_too_few_segments(walks, wrong_run,
     keep = f.t < f.t[0] + 60  # one minute of fixes: 5 segments of 10 s
     short = dataclasses.replace(recs[0], fixes=Fixes(f.t[keep], f.pos[keep], f.accuracy[keep]))
     with pytest.raises(ValidationError) as e:
-        adapt([short], wrong, tmp_path / "b", AdaptConfig(method="scale"))
-    assert "segment(s) between good fixes" in error_line(e.value) and "at least 20" in error_line(e.value)
-    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+        adapt([short], learned_base, tmp_path / "b", AdaptConfig(method="finetune"))
+    line = error_line(e.value)
+    assert "segment(s) between good fixes" in line and "--method finetune needs at least 20" in line
+    assert "--segment-s" in line  # the knob that gives more segments
+    keep = f.t < f.t[0] + 25  # two segments: too few even for one number
+    shorter = dataclasses.replace(recs[0], fixes=Fixes(f.t[keep], f.pos[keep], f.accuracy[keep]))
+    with pytest.raises(ValidationError) as e:
+        adapt([shorter], wrong, tmp_path / "c", AdaptConfig(method="scale"))
+    assert f"--method scale needs at least {MIN_SEGMENTS['scale']}" in error_line(e.value)
+    assert not any((tmp_path / d).exists() for d in "abc")
+
+
+def test_scale_needs_fewer_segments_than_finetune(walks, wrong_run, tmp_path):
+    """One minute of fixes (5 segments of 10 s) is enough for one number, not for fine-tuning."""
+    _, recs, _ = walks
+    wrong, _ = wrong_run
+    assert MIN_SEGMENTS["scale"] < MIN_SEGMENTS["finetune"]
+    f = recs[0].fixes
+    keep = f.t < f.t[0] + 120
+    walk = dataclasses.replace(recs[0], fixes=Fixes(f.t[keep], f.pos[keep], f.accuracy[keep]))
+    rec = adapt([walk], wrong, tmp_path / "a", AdaptConfig(method="scale"))
+    n = rec["segments"]["train"] + rec["segments"]["held_out"]
+    assert MIN_SEGMENTS["scale"] <= n < MIN_SEGMENTS["finetune"]
+    fit = rec["scale_fit"]
+    assert fit["range"] == list(SCALE_RANGE) and fit["max_relative_se"] == SCALE_MAX_RELATIVE_SE
+    assert 0 < fit["relative_se"] <= SCALE_MAX_RELATIVE_SE and SCALE_RANGE[0] <= fit["factor"] <= SCALE_RANGE[1]
+
+
+def test_a_scale_the_fixes_cannot_support_is_refused():
+    """A factor outside the walking range (11.4 from 4-s segments of a real phone's fixes), or one
+    whose segments disagree too widely, is refused naming --segment-s."""
+    wild = scale_fit(np.array([10.0, 11.0, 11.4, 12.0, 13.0]))
+    with pytest.raises(ValidationError) as e:
+        check_scale(wild, 4.0)
+    line = error_line(e.value)
+    assert "speed factor of 11.4" in line and f"outside the {SCALE_RANGE[0]:g}–{SCALE_RANGE[1]:g}" in line
+    assert "--segment-s" in line
+    spread = scale_fit(np.array([0.3, 0.6, 1.0, 1.5, 1.9]))
+    assert spread["relative_se"] > SCALE_MAX_RELATIVE_SE
+    with pytest.raises(ValidationError, match="uncertain by"):
+        check_scale(spread, 4.0)
+    check_scale(scale_fit(np.array([0.95, 1.0, 1.02, 1.05, 1.1])), 10.0)  # a tight fit passes
+
+
+def test_finetune_that_keeps_its_start_says_nothing_changed(walks, learned_base, tmp_path, monkeypatch):
+    """No epoch beat the starting weights: "nothing changed", not "agree less … 3.31 → 3.31 m"."""
+    _, recs, _ = walks
+    from wearnav.adapt import run as run_module
+
+    def no_better(model, *a, **k):  # what finetune returns when no epoch beats epoch 0 on held-out loss
+        return model, [{"epoch": 0, "held_out_loss": 1.0}, {"epoch": 1, "held_out_loss": 1.5}, {"best_epoch": 0}]
+
+    monkeypatch.setattr(run_module, "finetune", no_better)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rec = adapt(
+            recs[:1], learned_base, tmp_path / "a", AdaptConfig(method="finetune", finetune=FinetuneConfig(epochs=1))
+        )
+    said = [str(w.message) for w in caught if issubclass(w.category, WearnavWarning)]
+    assert rec["changed"] is False
+    assert any(s.startswith("nothing changed: the starting model was kept") for s in said), said
+    assert not any("agree less" in s for s in said), said
 
 
 def test_cli_adapts_a_learned_run_by_finetune_and_track_takes_it(walks, tmp_path, monkeypatch, capsys):

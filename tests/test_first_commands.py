@@ -77,10 +77,12 @@ def test_model_names_that_are_not_untrained_baselines_are_refused_with_what_work
     assert p.returncode == 2
     assert p.stderr == (
         "error: ronin: is a model that must be trained first (wearnav train ronin --data DATA "
-        "--out RUN, then --model RUN); untrained baselines usable by name: pdr\n"
+        "--out RUN, then --model RUN); shipped models: phone, phone-watch-earbuds; untrained baselines "
+        "usable by name: pdr\n"
     )
     p = wearnav("track", "x.h5", "--model", "pdx", "--out", tmp_path / "t")
-    assert p.returncode == 2 and "nor a model name (untrained baselines usable by name: pdr)" in p.stderr
+    assert p.returncode == 2 and "nor a model name (shipped models: phone, phone-watch-earbuds; untrained" in p.stderr
+    assert "did you mean 'pdr'?" in p.stderr
 
 
 @pytest.mark.parametrize(
@@ -102,7 +104,8 @@ def test_a_run_of_the_wrong_kind_says_what_it_is_and_which_command_takes_it(tmp_
     run = tmp_path / "run"
     run.mkdir()
     runs.write_config(run, {"train": {"model": model, "data": "somewhere"}})
-    p = wearnav(command, "x.h5", "--model", run, "--out", tmp_path / "o")
+    (tmp_path / "x.h5").touch()  # an input that exists: the model is refused before it is read
+    p = wearnav(command, tmp_path / "x.h5", "--model", run, "--out", tmp_path / "o")
     assert p.returncode == 2
     assert p.stderr == f"error: {run}: {words}\n"
 

@@ -63,6 +63,15 @@ def test_rate_outside_allows_the_tolerance():
     assert "at 25–50 Hz" in trust.rate_outside("watch", 100.0, [25.0, 40.0, 50.0])
 
 
+def test_rate_outside_is_no_finding_for_an_input_resampled_down_to_the_models_rate():
+    """A 100 Hz export for a 50 Hz model trained on 50 Hz data is low-passed and resampled to 50 Hz
+    as the training data was; a 25 Hz input, interpolated up, still is a finding."""
+    assert trust.rate_outside("phone", 100.0, [50.0, 50.0, 50.0], model_rate_hz=50.0) is None
+    assert trust.rate_outside("phone", 25.0, [50.0, 50.0, 50.0], model_rate_hz=50.0) == (
+        "phone is sampled at 25 Hz; the model's training data at 50 Hz"
+    )
+
+
 def test_placement_outside_maps_the_simulators_codes():
     assert trust.placement_outside("handheld", ["HD", "PK"]) is None  # HD = handheld
     assert trust.placement_outside("pocket", ["MP"]) is None  # MP changes between hand and pocket
@@ -163,7 +172,7 @@ def test_track_warns_when_the_model_is_out_of_its_depth(odometry_run, tmp_path):
     assert record["beats_trivial"] is False  # the untrained network is worse than standing still
     assert record["trivial_val_vel_mse"] > 0.5 and record["best_val_vel_mse"] >= record["trivial_val_vel_mse"]
     assert record["training_data"]["devices"]["phone"]["rate_hz"][1] == pytest.approx(100.0, abs=0.1)
-    # the same walk, phone only, sampled at 50 Hz, held another way, placement named "waist"
+    # the same walk, phone only, sampled at 50 Hz (above the model's 25), held another way, placement "waist"
     phone = _rotate_device(rec.devices["phone"], every=2)
     other = Recording(name="mine", devices={"phone": phone}, meta={"placement": "waist"})
     other.save(tmp_path / "mine.h5")
@@ -176,13 +185,13 @@ def test_track_warns_when_the_model_is_out_of_its_depth(odometry_run, tmp_path):
         "(e.g. `wearnav train ronin --devices phone`) or with `--model pdr`",
         "warning: mine: the recording's placement is 'waist'; the model's training data had HD: the path may be "
         "wrong: use a model trained on recordings like this one, or `--model pdr`",
-        "warning: mine: phone is sampled at 50 Hz; the model's training data at 100 Hz: the path may be wrong: "
-        "use a model trained on recordings like this one, or `--model pdr`",
         "warning: mine: phone is held or worn differently from the model's training data: in 100% of the "
         "recording its gravity direction is more than 30° from any training window's: the path may be wrong: "
         "use a model trained on recordings like this one, or `--model pdr`",
     ]
-    assert lines[:4] == expect
+    assert lines[:3] == expect
+    # 50 Hz against 100 Hz training data is no finding: both are resampled to the model's 25 Hz
+    assert not any("sampled at" in ln for ln in lines)
     assert any(
         ln.startswith("warning: mine: the model did not learn: its best validation velocity MSE")
         and ln.endswith("train it longer (more --epochs / --max-time) or use `--model pdr`")

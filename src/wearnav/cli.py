@@ -25,6 +25,8 @@ from wearnav.cli_common import (
     RECIPE_HELP,
     ImportFormat,
     Recipe,
+    check_input,
+    check_out_folder_path,
     choice_value,
     echo_json,
     on_interrupt,
@@ -34,7 +36,15 @@ from wearnav.cli_common import (
 )
 from wearnav.cli_live import register as register_live_commands
 from wearnav.cli_models import register as register_model_commands
-from wearnav.errors import ConfigError, Terminated, ValidationError, WearnavError, WearnavWarning, one_line
+from wearnav.errors import (
+    ConfigError,
+    MissingFileError,
+    Terminated,
+    ValidationError,
+    WearnavError,
+    WearnavWarning,
+    one_line,
+)
 
 app = typer.Typer(
     help="Inertial odometry and activity recognition from everyday wearables.",
@@ -250,6 +260,15 @@ def track(
       wearnav track my_walk.zip --out walk
       wearnav track data/sim --model runs/sipp --out walk
     """
+    from wearnav.outputs import check_out_folder
+    from wearnav.track_files import TRACK_FILES, TRACK_JSON
+    from wearnav.train.resolve import locate_model
+
+    # Refused before torch is imported (a mistake is said in well under a second, not 6 s).
+    check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")
+    if model is not None:
+        locate_model(model, "odometry")
+    check_input(src)
     from wearnav.track import track as track_
 
     summary = track_(
@@ -345,6 +364,10 @@ def train(
     Example:
       wearnav train suitein++ --data data/sim --out runs/sipp --max-time 5
     """
+    if not data.is_dir():  # before torch is imported (as wearnav.dataset.Dataset.open says it)
+        raise MissingFileError("no such dataset folder", data)
+    if out.exists() and not out.is_dir():
+        raise ConfigError("exists and is not a folder; choose another --out", out)
     from wearnav.evaluate import evaluate_run
     from wearnav.runs import locked
     from wearnav.train.odometry import configure, fit, prepare_run
@@ -400,13 +423,18 @@ def eval_(
     Example:
       wearnav eval runs/sipp --split test,cross_subject
     """
-    from wearnav.evaluate import evaluate_run
+    from wearnav.runs import read_config
 
+    read_config(run)  # a run folder (config.yaml), before torch is imported
+    if data is not None and not data.is_dir():
+        raise MissingFileError("no such dataset folder", data)
     if test_frame == TestFrame.truth and out is None:
         raise ConfigError(
             "--test-frame truth is a diagnostic (ground truth inside the test input); "
             "give --out so that the run's own metrics stay honest"
         )
+    from wearnav.evaluate import evaluate_run
+
     dest = out if out is not None else run
     on_interrupt(f"{dest / 'metrics.json'} is written only when every split is scored; run the same command again")
     pre = {"eval_frame_align": test_frame.value} if test_frame is not None else None
@@ -481,13 +509,18 @@ def classify_(
       wearnav classify my_walk.zip --out activity
       wearnav classify data/sim --model runs/har/runs/uci-hapt/baseline --out activity
     """
-    from wearnav.pretrained import model_path
+    from wearnav.train.resolve import locate_model
+
+    # Refused before torch is imported: --out, --model (a shipped model's folder where none is
+    # given or one is named), the input.
+    check_out_folder_path(out)
+    model = locate_model(model, "classify")
+    check_input(input_)
     from wearnav.recording import Recording
     from wearnav.train.classify import label_recordings
     from wearnav.train.resolve import resolve_model
 
-    model = model_path(model, "classify")  # a shipped model's folder where none is given or one is named
-    classifier = resolve_model(model, "classify")  # before the input is read
+    classifier = resolve_model(model, "classify")
     if input_.is_file() and input_.suffix == ".h5":
         recs = [Recording.load(input_)]
     elif (input_ / "manifest.csv").is_file():

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import typer
 
+from wearnav.errors import FormatError
 from wearnav.importers import FORMATS
 
 # Options with a fixed set of values that both modules take (wearnav.cli explains the enums).
@@ -63,3 +64,25 @@ def progress_enabled() -> bool:
 def split_list(text: str) -> tuple[str, ...]:
     """A comma-separated option (devices, splits, methods) as its items."""
     return tuple(d.strip() for d in text.split(",") if d.strip())
+
+
+# The files a command reads a recording from: a wearnav recording, a Sensor Logger export zip
+# (wearnav.track.load_input); anything else must be a folder (a dataset, an export or several).
+INPUT_SUFFIXES = (".h5", ".zip")
+
+
+def check_input(path: Path) -> None:
+    """Refuse a command's input before the heavy imports (torch, the importers): it must exist,
+    and a file must be one of :data:`INPUT_SUFFIXES` (a folder is read by the command)."""
+    path = Path(path)
+    if not path.exists():
+        raise FormatError("no such file or folder", path)
+    if path.is_file() and path.suffix.lower() not in INPUT_SUFFIXES:
+        raise FormatError("not a recording (.h5), a dataset folder, or a Sensor Logger export (folder or .zip)", path)
+
+
+def check_out_folder_path(out: Path) -> None:
+    """Refuse an output folder that is a file (the command checks what the folder holds)."""
+    from wearnav.outputs import check_out_folder
+
+    check_out_folder(out, (), "", "")

@@ -11,6 +11,7 @@ from pathlib import Path
 import typer
 
 from wearnav.cli_common import choice_value, echo_json, progress_enabled, suite_folder
+from wearnav.errors import ConfigError
 
 
 class AdaptMethod(str, Enum):  # wearnav.adapt.METHODS
@@ -96,7 +97,9 @@ def pretrain(
 
 
 def export_(
-    run: Path = typer.Argument(..., metavar="RUN", help="A run folder of `wearnav train` (or a classifier's)."),
+    run: Path = typer.Argument(
+        ..., metavar="RUN", help="A run folder of `wearnav train` (or a classifier's), or a shipped model by name."
+    ),
     format_: ExportFormat = typer.Option(
         ..., "--format", help="onnx (ONNX Runtime; needs wearnav[onnx]) or torchscript (torch.jit)."
     ),
@@ -114,6 +117,12 @@ def export_(
       wearnav export runs/sipp --format onnx --out sipp.onnx
       wearnav track walk.zip --model sipp.onnx --out walk
     """
+    from wearnav.export.header import check_out_file
+    from wearnav.train.resolve import locate_model
+
+    # Refused before torch is imported: the run (a shipped model's name → its folder), --out.
+    run = locate_model(run, None, files=False, baselines=False)
+    check_out_file(choice_value(format_), out)
     from wearnav.export.write import export_run
 
     echo_json(export_run(run, choice_value(format_), out))
@@ -126,7 +135,9 @@ def adapt(
         help="The user's own walks with location "
         "fixes: Sensor Logger exports (folder or .zip), recordings (.h5), dataset folders.",
     ),
-    model: Path = typer.Option(..., "--model", help="The run folder of `wearnav train` to adapt."),
+    model: Path = typer.Option(
+        ..., "--model", help="The run folder of `wearnav train` to adapt, or a shipped model by name (phone)."
+    ),
     out: Path = typer.Option(..., "--out", help="New run folder for the adapted model (`wearnav track --model OUT`)."),
     method: AdaptMethod = typer.Option(
         AdaptMethod.finetune,
@@ -147,6 +158,16 @@ def adapt(
       wearnav adapt my_walks/*.zip --model runs/sipp --out runs/sipp-mine
       wearnav track walk.zip --model runs/sipp-mine --out walk
     """
+    from wearnav.cli_common import check_input
+    from wearnav.train.resolve import locate_model
+
+    # Refused before torch is imported: the model (a shipped model's name → its folder), --out,
+    # the recordings.
+    model = Path(locate_model(model, "odometry", files=False, baselines=False))
+    if out.exists() and not out.is_dir():
+        raise ConfigError("exists and is not an empty folder; choose another --out for the adapted run", out)
+    for src in recordings:
+        check_input(src)
     from wearnav.adapt import AdaptConfig, read_recordings
     from wearnav.adapt import adapt as adapt_
     from wearnav.adapt.finetune import FinetuneConfig

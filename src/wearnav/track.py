@@ -95,7 +95,8 @@ from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import Recording
 from wearnav.report.trajectory_page import activity_intervals, page_points, trajectory_html
 from wearnav.textio import read_json
-from wearnav.train.resolve import resolve_model
+from wearnav.track_files import TRACK_FILES, TRACK_JSON
+from wearnav.train.resolve import locate_model, resolve_model
 from wearnav.trajectory import integrate_velocity
 
 ANCHOR_S = fuse.ANCHOR_S
@@ -108,8 +109,6 @@ ANCHOR_TEXT = {
     "none": "not placed on the fixes",
 }
 TRAJ_FORMAT = "%.4f"
-TRACK_JSON = "track.json"  # the marker: a folder holding it was written by `wearnav track`
-TRACK_FILES = ("trajectory.csv", "trajectory.png", "trajectory.html", "trajectory.geojson", "fixes.csv", TRACK_JSON)
 COORD_DIGITS = 7  # GeoJSON and fixes.csv lat/lon decimals: 1e-7° is 1.1 cm
 INDEX_LIST_MAX = 10  # track.json lists at most this many dropped fixes' indices per reason
 
@@ -262,23 +261,26 @@ def run_training_record(model_path: str | Path) -> dict:
 
 
 def input_warnings(model_path, cfg, rec: Recording) -> list[str]:
-    """The reasons not to trust a path that the input alone gives (one line each, with what to do):
-    devices the recording lacks, and for learned models a rate / placement / gravity direction
-    unlike the training data's, or a model that did not beat standing still. The live receiver
+    """The reasons not to trust a path that the input alone gives (one line each, with what to do),
+    for learned models only (an untrained baseline such as PDR has no training data, and uses the
+    first device the recording has): devices the recording lacks, a rate / placement / gravity
+    direction unlike the training data's (a rate only where the recording is slower than the
+    model's, :func:`wearnav.trust.rate_outside`), or a model that did not beat standing still. The live receiver
     gives these as the session's first half minute arrives (:mod:`wearnav.live.tracker`)."""
     from wearnav.models import registry
 
-    out = []
+    out: list[str] = []
+    if not registry.get(cfg.model).learned:  # PDR: no training data, any one device will do
+        return out
     if (m := trust.missing_devices(cfg.devices, rec.devices)) is not None:
         out.append(f"{m}: {trust.TRACK_DEVICES_ADVICE}")
-    if registry.get(cfg.model).learned:
-        record = run_training_record(model_path)
-        facts = trust.recording_facts(rec, cfg.devices, cfg.window / cfg.rate)
-        known = record.get("training_data")
-        known = known if isinstance(known, dict) else None
-        out += [f"{f}: {trust.TRACK_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, known)]
-        if (m := trust.did_not_learn(record)) is not None:
-            out.append(f"{m}: {trust.LEARN_ADVICE}")
+    record = run_training_record(model_path)
+    facts = trust.recording_facts(rec, cfg.devices, cfg.window / cfg.rate)
+    known = record.get("training_data")
+    known = known if isinstance(known, dict) else None
+    out += [f"{f}: {trust.TRACK_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, known, cfg.rate)]
+    if (m := trust.did_not_learn(record)) is not None:
+        out.append(f"{m}: {trust.LEARN_ADVICE}")
     return out
 
 
@@ -351,11 +353,11 @@ def track(
         raise ConfigError(f"unknown anchoring {anchor!r}; one of {', '.join(fuse.ANCHORS)}")
     check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")  # before any work
     if model_path is not None:  # a bad --model is said before the input is read
-        model_path = pretrained.model_path(model_path, "odometry")
-        model, cfg = resolve_model(model_path, "odometry")  # a run folder, checkpoint, shipped model or `pdr`
+        model_path = locate_model(model_path, "odometry")  # a run folder, checkpoint, file, shipped model, `pdr`
+        model, cfg = resolve_model(model_path, "odometry")
     rec = load_input(src, name, platform)
     if model_path is None:  # the shipped model for the devices the recording has
-        model_path = pretrained.model_path(None, "odometry", rec.devices)
+        model_path = locate_model(None, "odometry", rec.devices)
         model, cfg = resolve_model(model_path, "odometry")
     usable = [d for d in cfg.devices if d in rec.devices]
     if not usable:

@@ -147,8 +147,17 @@ def missing_devices(model_devices, recording_devices) -> str | None:
     )
 
 
-def rate_outside(device: str, rate_hz: float, training_rate_hz) -> str | None:
-    """``rate_hz`` outside the training recordings' [min, median, max] range (± RATE_TOLERANCE)."""
+def rate_outside(device: str, rate_hz: float, training_rate_hz, model_rate_hz: float | None = None) -> str | None:
+    """``rate_hz`` outside the training recordings' [min, median, max] range (± RATE_TOLERANCE).
+
+    With the model's own rate ``model_rate_hz`` (Hz), a recording sampled at least that fast
+    (within RATE_TOLERANCE) is never a finding: preprocessing low-passes it below the model
+    clock's Nyquist and resamples it onto that clock (:mod:`wearnav.preprocess`), as it did the
+    training recordings, so the model sees the same band whatever the rate it started at (a
+    100 Hz Sensor Logger export for a 50 Hz model). Only a slower recording, interpolated up,
+    lacks part of what the model saw in training."""
+    if model_rate_hz is not None and rate_hz >= model_rate_hz / RATE_TOLERANCE:
+        return None
     lo, med, hi = training_rate_hz
     if lo / RATE_TOLERANCE <= rate_hz <= hi * RATE_TOLERANCE:
         return None
@@ -192,9 +201,10 @@ def gravity_outside(device: str, directions: np.ndarray, training_directions) ->
     )
 
 
-def domain_findings(facts: dict, training: dict | None) -> list[str]:
+def domain_findings(facts: dict, training: dict | None, model_rate_hz: float | None = None) -> list[str]:
     """Rate, placement and gravity findings of a recording's ``facts`` (:func:`recording_facts`)
-    against the ``training`` facts (:func:`data_facts`); None: the training data is unknown."""
+    against the ``training`` facts (:func:`data_facts`); None: the training data is unknown.
+    ``model_rate_hz``: the rate the model's input is resampled to (:func:`rate_outside`)."""
     if not training:
         return [
             "training data unknown: the model's run does not record its training data's rates, "
@@ -208,7 +218,7 @@ def domain_findings(facts: dict, training: dict | None) -> list[str]:
         t = training.get("devices", {}).get(dev)
         if t is None:
             continue
-        if (r := rate_outside(dev, f["rate_hz"], t["rate_hz"])) is not None:
+        if (r := rate_outside(dev, f["rate_hz"], t["rate_hz"], model_rate_hz)) is not None:
             out.append(r)
         if (g := gravity_outside(dev, f["gravity_directions"], t["gravity_directions"])) is not None:
             out.append(g)

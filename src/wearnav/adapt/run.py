@@ -7,8 +7,16 @@ Methods (:data:`METHODS`):
               speed factor of :func:`wearnav.adapt.segments.compare` (the length of the fixes'
               displacement over the odometry's; a median, so fix jumps do not move it), stored
               as ``velocity_scale`` in the run's ``adaptation.json``, which
-              :func:`wearnav.train.odometry.load_model` applies (:class:`wearnav.models.base.ScaledVelocity`).
-``finetune``  a few epochs on the segments (:mod:`wearnav.adapt.finetune`), new weights.
+              :func:`wearnav.train.odometry.load_model` applies (:class:`wearnav.models.base.ScaledVelocity`);
+              refused where the fixes cannot support it (:func:`check_scale`: a factor outside
+              :data:`SCALE_RANGE`, or one whose standard error is wider than
+              :data:`SCALE_MAX_RELATIVE_SE`; ``scale_fit`` in adaptation.json says both).
+``finetune``  a few epochs on the segments (:mod:`wearnav.adapt.finetune`), new weights; where
+              no epoch beats the starting weights on the held-out segments, those are kept and
+              the command says "nothing changed" (``changed`` false in adaptation.json).
+
+Each method needs a least number of good segments (:data:`MIN_SEGMENTS`; ``--segment-s`` sets
+their length, so a short walk cut shorter gives more).
 
 A share of the user's segments is held out (:func:`split_walks`): whole recordings where there
 are several, else the last part of the one walk. ``adaptation.json`` says what was done, on how
@@ -51,6 +59,26 @@ METHODS = ("scale", "finetune")
 # median at their POSI points un-adapted 7.81 m, scale 6.90, finetune 4.75. (A base trained on the
 # simulator alone, already right in length, read scale 4.23, finetune 4.93, un-adapted 4.06.)
 DEFAULT_METHOD = "finetune"
+# The fewest good segments each method accepts. finetune: 20, a fifth of them held out (at least
+# 4) to stop on, the rest a few batches of training. scale: 5, one number from a median; one
+# walk's held-out fifth (at least 1) leaves 4 training segments, whose median still stands when
+# one of them is a fix jump; whether they agree well enough is checked on the fit itself
+# (SCALE_MAX_RELATIVE_SE).
+MIN_SEGMENTS = {"scale": 5, "finetune": 20}
+# The speed factors a scale adaptation may set: walking speeds of one person vary by about a
+# factor 2 either way (0.7–1.6 m/s for slow to brisk walking), and a model trained on walking
+# is right to well within it (the shipped recipe's length ratio on IPIN's held-out routes:
+# 0.8–1.2); a factor outside says the fixes, not the model, are off (e.g. 11.4 from 4-s
+# segments of a phone's fixes on a 158-s walk).
+SCALE_RANGE = (0.5, 2.0)
+# The largest relative standard error of the fitted factor (a median: 1.2533 · 1.4826 · MAD / √n,
+# over the factor) accepted: a factor known to ±20 % (1 σ) moves a 100-m walk's length by less
+# than 20 m, about what the fixes' own noise spans over it; wider, and the fit is noise.
+SCALE_MAX_RELATIVE_SE = 0.2
+# The standard error of a median of n normal values over the σ/√n of their mean: √(π/2).
+MEDIAN_SE_FACTOR = 1.2533
+# MAD → σ of a normal distribution.
+MAD_TO_SIGMA = 1.4826
 
 
 @dataclass(frozen=True)
@@ -61,11 +89,14 @@ class AdaptConfig:
     segments: SegmentConfig = field(default_factory=SegmentConfig)
     finetune: FinetuneConfig = field(default_factory=FinetuneConfig)
     holdout: float = 0.2  # share of the user's recordings (or of one walk's segments) held out
-    min_segments: int = 20  # fewer good segments than this: refused (a median over too few is noise)
+    # fewer good segments than this: refused (None: the method's MIN_SEGMENTS)
+    min_segments: int | None = None
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise ConfigError(f"unknown adaptation method {self.method!r}; one of {', '.join(METHODS)}")
+        if self.min_segments is None:
+            object.__setattr__(self, "min_segments", MIN_SEGMENTS[self.method])
         if not 0 < self.holdout < 1 or self.min_segments < 2:
             raise ConfigError(
                 f"holdout must be in (0, 1) and min_segments ≥ 2, got {self.holdout}, {self.min_segments}"
@@ -146,7 +177,8 @@ def adapt(
         raise ValidationError(
             f"only {n_seg} segment(s) between good fixes ({s.segment_s:g} s apart, accuracy ≤ "
             f"{s.max_accuracy_m:g} m, moved ≥ {s.min_length_m:g} m) in {n_rec} recording(s); "
-            f"adaptation needs at least {cfg.min_segments}: walk longer with location on"
+            f"--method {cfg.method} needs at least {cfg.min_segments}: walk longer with location on, "
+            f"or cut shorter segments with --segment-s (each must still span ≥ {s.min_length_m:g} m)"
         )
     train, held, held_by = split_walks(walks, cfg.holdout)
     window, stride = tcfg.window, tcfg.stride
@@ -156,17 +188,15 @@ def adapt(
     if cfg.method == "scale":
         factor = np.concatenate([p["factor"] for p in train_parts])
         factor = factor[np.isfinite(factor)]
-        scale = float(np.median(factor))
+        scale = float(np.median(factor)) if factor.size else float("nan")
         if not (np.isfinite(scale) and scale > 0):
             raise ValidationError(
                 f"the fixes give no usable speed factor (median {scale:.3g}): does the model move at all?"
             )
+        fit = scale_fit(factor)
+        check_scale(fit, s.segment_s)
         adapted = ScaledVelocity(model.inner if isinstance(model, ScaledVelocity) else model, base_scale * scale)
-        record["scale_fit"] = {
-            "factor": round(scale, 4),
-            "segments": int(factor.size),
-            "iqr": [round(float(q), 4) for q in np.percentile(factor, [25, 75])],
-        }
+        record["scale_fit"] = fit
         velocity_scale, state = base_scale * scale, None
     else:
         adapted, history = finetune(model, train, held, window, tcfg.rate, cfg.finetune)
@@ -175,7 +205,17 @@ def adapt(
         velocity_scale, state = base_scale, inner.state_dict()
     after, _ = agreement(adapted, held, window, stride)
     improved = after["segment_error_median_m"] < before["segment_error_median_m"]
-    if not improved:
+    kept = cfg.method == "finetune" and record["finetune"][-1].get("best_epoch") == 0
+    record["changed"] = not kept
+    if kept:  # no epoch beat the starting weights on the held-out segments
+        warnings.warn(
+            WearnavWarning(
+                f"nothing changed: the starting model was kept (no fine-tuning epoch agreed better with the "
+                f"held-out fixes: median segment error {before['segment_error_median_m']:.2f} m); "
+                f"{out} holds the same model"
+            )
+        )
+    elif not improved:
         warnings.warn(
             WearnavWarning(
                 f"the held-out walks agree less with their own fixes after adapting ({cfg.method}: median segment error "
@@ -208,6 +248,46 @@ def adapt(
     return record
 
 
+def scale_fit(factor: np.ndarray) -> dict:
+    """What a scale adaptation's fit says (``adaptation.json`` ``scale_fit``): the ``factor`` (the
+    median of the segments' speed factors), ``segments``, ``iqr``, ``relative_se`` (the median's
+    standard error over it, :data:`MEDIAN_SE_FACTOR` · :data:`MAD_TO_SIGMA` · MAD / √n / factor),
+    and the bounds it must meet: ``range`` (:data:`SCALE_RANGE`) and ``max_relative_se``
+    (:data:`SCALE_MAX_RELATIVE_SE`)."""
+    factor = np.asarray(factor, np.float64)
+    med = float(np.median(factor))
+    mad = float(np.median(np.abs(factor - med)))
+    rel_se = MEDIAN_SE_FACTOR * MAD_TO_SIGMA * mad / np.sqrt(factor.size) / med
+    return {
+        "factor": round(med, 4),
+        "segments": int(factor.size),
+        "iqr": [round(float(q), 4) for q in np.percentile(factor, [25, 75])],
+        "relative_se": round(float(rel_se), 4),
+        "range": list(SCALE_RANGE),
+        "max_relative_se": SCALE_MAX_RELATIVE_SE,
+    }
+
+
+def check_scale(fit: dict, segment_s: float) -> None:
+    """Refuse a scale the fixes cannot support (:func:`scale_fit`): outside ``range``, or with a
+    relative standard error above ``max_relative_se``; the message names what to change."""
+    lo, hi = fit["range"]
+    advice = (
+        f"the fixes over {segment_s:g}-s segments are too noisy to scale the model: record longer walks "
+        f"with location on, or use longer segments (--segment-s)"
+    )
+    if not lo <= fit["factor"] <= hi:
+        raise ValidationError(
+            f"the fixes ask for a speed factor of {fit['factor']:.3g} over {fit['segments']} segment(s), "
+            f"outside the {lo:g}–{hi:g} a walking model can be off by; {advice}"
+        )
+    if fit["relative_se"] > fit["max_relative_se"]:
+        raise ValidationError(
+            f"the fitted speed factor {fit['factor']:.3g} is uncertain by ±{fit['relative_se']:.0%} (1 σ, "
+            f"{fit['segments']} segment(s), more than ±{fit['max_relative_se']:.0%} accepted); {advice}"
+        )
+
+
 def _write_run(base: Path, out: Path, record: dict, state: dict | None) -> None:
     """The adapted run folder (module docstring), written whole or not at all."""
     doc = runs.read_config(base)
@@ -231,4 +311,17 @@ def _write_run(base: Path, out: Path, record: dict, state: dict | None) -> None:
         runs.write_json(stage / ADAPTATION, record)
 
 
-__all__ = ["AdaptConfig", "METHODS", "DEFAULT_METHOD", "adapt", "agreement", "read_recordings", "split_walks"]
+__all__ = [
+    "AdaptConfig",
+    "METHODS",
+    "DEFAULT_METHOD",
+    "MIN_SEGMENTS",
+    "SCALE_RANGE",
+    "SCALE_MAX_RELATIVE_SE",
+    "scale_fit",
+    "check_scale",
+    "adapt",
+    "agreement",
+    "read_recordings",
+    "split_walks",
+]

@@ -14,7 +14,9 @@ units); ``config`` (the run's whole training config, as config.yaml's ``train`` 
 :class:`wearnav.train.odometry.TrainConfig` or :class:`wearnav.train.classify.ClassifyConfig`);
 ``classes`` (classifiers: the label of each logit); ``training`` (the run's training.json:
 whether it beat its trivial baseline, what data it saw, for ``wearnav track``'s warnings);
-``metrics`` (classifiers: test accuracy against the majority class); ``source_run``;
+``metrics`` (classifiers: test accuracy against the majority class); ``fuse_calibration`` (odometry:
+the run's smoother calibration, ``fuse_calibration.json``, that ``wearnav track`` places the path
+with, :func:`wearnav.fuse.config_for`; null where the run has none); ``source_run``;
 ``provenance`` (wearnav version, commit, time) and ``torch`` (the exporting version).
 """
 
@@ -47,6 +49,20 @@ def format_of(path: str | Path) -> str | None:
 def is_exported(path: str | Path) -> bool:
     """Whether ``path`` is a file with an export suffix (``.onnx``, ``.pt``)."""
     return Path(path).is_file() and format_of(path) is not None
+
+
+def check_out_file(fmt: str, out: str | Path) -> None:
+    """Refuse an export's ``out`` before any work: an unknown ``fmt``, a name without the
+    format's suffix (`wearnav track --model` tells formats by it), or a folder."""
+    if fmt not in FORMATS:
+        raise ConfigError(f"unknown export format {fmt!r}; one of {', '.join(FORMATS)}")
+    out = Path(out)
+    if out.suffix.lower() != FORMATS[fmt]:
+        raise ConfigError(
+            f"a {fmt} file's name ends in {FORMATS[fmt]} (`wearnav track --model` tells formats by it)", out
+        )
+    if out.is_dir():
+        raise ConfigError("is a folder; --out names the file to write", out)
 
 
 def onnxruntime():

@@ -30,9 +30,18 @@ from torch import nn
 
 from wearnav import runs
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.export.header import EXTRA_FILE, FORMATS, HEADER_FORMAT, IMU_CHANNELS, KEY, ONNX_MISSING, onnxruntime
+from wearnav.export.header import (
+    EXTRA_FILE,
+    HEADER_FORMAT,
+    IMU_CHANNELS,
+    KEY,
+    ONNX_MISSING,
+    check_out_file,
+    onnxruntime,
+)
 from wearnav.export.runtime import load_file
 from wearnav.fileio import atomic_path
+from wearnav.fuse.config import CALIBRATION_JSON
 from wearnav.models import registry
 from wearnav.provenance import provenance
 from wearnav.textio import read_json
@@ -74,8 +83,15 @@ def load_run(run: str | Path) -> tuple[nn.Module, dict]:
         model, cfg, classes = classify.load_model(run)
     training = read_json(run / odometry.TRAINING) if (run / odometry.TRAINING).is_file() else {}
     metrics = runs.read_metrics(run) if task == "classify" and runs.is_complete(run) else {}
+    calibration = read_json(run / CALIBRATION_JSON) if (run / CALIBRATION_JSON).is_file() else None
     return model, make_header(
-        task, cfg, classes, training, {k: metrics[k] for k in TRUST_METRICS if k in metrics}, str(run)
+        task,
+        cfg,
+        classes,
+        training,
+        {k: metrics[k] for k in TRUST_METRICS if k in metrics},
+        str(run),
+        calibration if isinstance(calibration, dict) else None,
     )
 
 
@@ -86,8 +102,10 @@ def make_header(
     training: dict | None = None,
     metrics: dict | None = None,
     source_run: str = "",
+    fuse_calibration: dict | None = None,
 ) -> dict:
-    """The header of a model of ``task`` trained with ``cfg`` (TrainConfig / ClassifyConfig)."""
+    """The header of a model of ``task`` trained with ``cfg`` (TrainConfig / ClassifyConfig);
+    ``fuse_calibration``: the run's smoother calibration (:data:`wearnav.fuse.CALIBRATION_JSON`)."""
     D = len(cfg.devices)
     frame = "world (gravity on +z)" if task == "odometry" else f"{cfg.frame} (ClassifyConfig.frame)"
     out = (
@@ -117,6 +135,7 @@ def make_header(
         "classes": classes,
         "training": training or {},
         "metrics": metrics or {},
+        "fuse_calibration": fuse_calibration,
         "source_run": source_run,
         "provenance": provenance(),
         "torch": torch.__version__,
@@ -158,15 +177,8 @@ def export_model(model: nn.Module, header: dict, fmt: str, out: str | Path, chec
     ``check``, run the written file on :func:`parity_inputs` first and refuse it (nothing kept)
     when it differs from PyTorch by more than :data:`PARITY_TOL`. Returns what was written:
     ``path``, ``format``, ``bytes``, ``max_abs_diff`` (None unchecked), ``tolerance``."""
-    if fmt not in FORMATS:
-        raise ConfigError(f"unknown export format {fmt!r}; one of {', '.join(FORMATS)}")
+    check_out_file(fmt, out)
     out = Path(out)
-    if out.suffix.lower() != FORMATS[fmt]:
-        raise ConfigError(
-            f"a {fmt} file's name ends in {FORMATS[fmt]} (`wearnav track --model` tells formats by it)", out
-        )
-    if out.is_dir():
-        raise ConfigError("is a folder; --out names the file to write", out)
     traced = model.for_export() if hasattr(model, "for_export") else model.eval()
     x, mask = example_inputs(header)
     diff = None

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from wearnav.errors import FormatError
+from wearnav.export.header import is_exported, read_header
 from wearnav.fuse.config import CALIBRATION_JSON, RAYLEIGH_MEDIAN, FuseConfig
 from wearnav.recording import ANDROID_ENU_FRAME
 from wearnav.textio import read_json
@@ -88,9 +89,16 @@ def config_for(run, meta: dict | None = None, reference: str | None = "phone") -
     where the run has one (:func:`calibrated`), and a prior on the heading offset where the recording's world frame is north-referenced
     (:func:`known_heading_deg`; on IPIN 2023's training walks it cut the p95 error of PDR from 25.8
     to 17.9 m and of a learned model from another building from 21.8 to 19.2 m). Returns the config
-    and the calibration read (None: none)."""
+    and the calibration read (None: none). ``run`` may be a file of `wearnav export`: the
+    calibration is then the one its header carries (``fuse_calibration``,
+    :mod:`wearnav.export.header`), so that an exported model places the path as its run does."""
     cfg, cal = FuseConfig(), None
     p = Path(run) if run is not None else None
+    if p is not None and is_exported(p):
+        c = read_header(p).get("fuse_calibration")
+        if isinstance(c, dict) and calibrated(cfg, c) != cfg:
+            cfg, cal = calibrated(cfg, c), c
+        p = None
     folder = (p.parent.parent if p.is_file() else p) if p is not None else None
     f = folder / CALIBRATION_JSON if folder is not None else None
     if f is not None and f.is_file():

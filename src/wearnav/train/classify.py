@@ -437,7 +437,10 @@ def trust_warnings(run: Path, cfg: ClassifyConfig, rec) -> list[str]:
         record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
         metrics = runs.read_metrics(run) if runs.is_complete(run) else {}
     facts = trust.recording_facts(rec, cfg.devices, cfg.window / cfg.rate)
-    out += [f"{f}: {trust.CLASSIFY_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, record.get("training_data"))]
+    out += [
+        f"{f}: {trust.CLASSIFY_DOMAIN_ADVICE}"
+        for f in trust.domain_findings(facts, record.get("training_data"), cfg.rate)
+    ]
     if (m := trust.did_not_learn(metrics)) is not None:
         out.append(f"{m}: {trust.CLASSIFY_LEARN_ADVICE}")
     return [f"{rec.name}: {w}" for w in out]

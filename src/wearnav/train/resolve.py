@@ -1,87 +1,149 @@
 """The one reading of a command's ``--model``: a run folder, one of its checkpoints, a model file of
-``wearnav export`` (``.onnx``, ``.pt``), or the name of an untrained baseline (a registry model
-with ``learned=False``, e.g. ``pdr``), turned into the model and the config that says how to
-feed it.
+``wearnav export`` (``.onnx``, ``.pt``), the name of a shipped model (:mod:`wearnav.pretrained`), or
+the name of an untrained baseline (a registry model with ``learned=False``, e.g. ``pdr``), turned
+into the model and the config that says how to feed it.
 
-``wearnav track`` and ``wearnav classify`` take their ``--model`` through :func:`resolve_model`; a
-run of the wrong kind is refused saying what it is and which command takes it
+Two steps, so that a command refuses a bad ``--model`` before it imports torch (issue 38):
+:func:`locate_model` reads the argument without loading anything (what it names: a path, or a
+baseline's name; a typo is refused listing the shipped names and the baselines, with the nearest
+suggested), and :func:`resolve_model` loads what it locates. ``track``, ``classify``, ``adapt``
+and ``export`` all take their ``--model`` (``export``'s RUN) through :func:`locate_model`; a run
+of the wrong kind is refused saying what it is and which command takes it
 (:func:`wearnav.train.common.check_run_kind`).
 """
 
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
 
-from wearnav.errors import ConfigError, FormatError
-from wearnav.export.header import is_exported
-from wearnav.export.runtime import load_exported
-from wearnav.models import registry
-from wearnav.train import classify, odometry
-from wearnav.train.common import BEST, CHECKPOINTS, RUN_KINDS, check_run_kind
+from wearnav import pretrained
+from wearnav.errors import ConfigError, FormatError, MissingFileError
+from wearnav.export.header import format_of, is_exported, onnxruntime
+from wearnav.runs import CONFIG
+
+TASKS = ("odometry", "classify")
+CHECKPOINTS_DIR = "checkpoints"  # wearnav.train.common.CHECKPOINTS (that module imports Lightning)
+# difflib.get_close_matches' cutoff (its default): 'phnoe' → 'phone' scores 0.8, 'pdr' → 'phone' 0.25.
+SUGGEST_CUTOFF = 0.6
 
 
 def untrained_baselines(task: str = "odometry") -> list[str]:
     """Registry models of ``task`` that need no training, usable by name as ``--model``."""
+    from wearnav.models import registry  # imports the model families (torch): only for a name
+
     return sorted(s.name for s in registry.available(task) if not s.learned)
 
 
-def resolve_model(arg: str | Path, task: str):
-    """The model behind ``arg`` for a command of ``task`` (``odometry`` or ``classify``).
-
-    Odometry: ``(model, TrainConfig)``; classify: ``(model, ClassifyConfig, class names)``. An
-    existing path is a run folder (best weights for odometry), a checkpoint inside its
-    ``checkpoints/``, or an exported model file (:func:`wearnav.export.runtime.load_exported`: run
-    by ONNX Runtime or TorchScript, its config from the file's header); otherwise ``arg`` must
-    name an untrained baseline of ``task``, built with the default
-    :class:`wearnav.train.odometry.TrainConfig` (25 Hz, 100-sample windows, the first of phone,
-    watch, earbuds that the recording has). Anything else is a ConfigError naming what is accepted.
-    """
-    if task not in RUN_KINDS or task == "noisy":
+def locate_model(
+    arg: str | Path | None,
+    task: str | None,
+    devices_in_recording=(),
+    *,
+    files: bool = True,
+    baselines: bool = True,
+) -> Path | str:
+    """What ``arg`` names for a command of ``task``, without loading it (no torch, unless ``arg`` is
+    neither a path nor a shipped name): None → the shipped default for ``devices_in_recording``
+    (:func:`wearnav.pretrained.default_for`); an exported file (``files``: the command runs one;
+    an ONNX file needs ONNX Runtime, checked here); a checkpoint inside a run's ``checkpoints/``;
+    a run folder (it holds ``config.yaml``); a shipped model's name → its folder; an untrained
+    baseline's name (``baselines``) → the name. ``task`` None: a model of either task (`wearnav
+    export`; a checkpoint file is then refused, a run folder is any run). Anything else is one ConfigError line listing the
+    names accepted, with the nearest suggested (:data:`SUGGEST_CUTOFF`)."""
+    if task not in TASKS and not (task is None and arg is not None):
         raise ValueError(f"task must be odometry or classify, got {task!r}")
+    if arg is None:
+        return pretrained.default_for(task, devices_in_recording).path
     p = Path(arg)
-    if is_exported(p):
-        return load_exported(p, task)
     if p.exists():
+        if is_exported(p):
+            if not files:
+                raise ConfigError("is a file of `wearnav export`; give the run folder it was exported from", p)
+            if format_of(p) == "onnx":
+                onnxruntime()  # the runtime it needs, named before any work
+            return p
         if p.is_file():
-            if task != "odometry" or p.parent.name != CHECKPOINTS:
+            if task != "odometry" or p.parent.name != CHECKPOINTS_DIR:
                 raise FormatError(
-                    f"a checkpoint must lie in a run folder's {CHECKPOINTS}/ (next to "
+                    f"a checkpoint must lie in a run folder's {CHECKPOINTS_DIR}/ (next to "
                     "config.yaml, which says how the model was trained)"
                     if task == "odometry"
                     else "not a run folder",
                     p,
                 )
-            check_run_kind(p.parent.parent, task)
-            return odometry.load_model(p.parent.parent, which=p.name)
-        if task == "odometry":
-            return odometry.load_model(p, which=BEST)
-        return classify.load_model(p)
-    return _by_name(str(arg), task)
+            if not (p.parent.parent / CONFIG).is_file():
+                raise MissingFileError(f"not a run folder (no {CONFIG})", p.parent.parent)
+            return p
+        if not (p / CONFIG).is_file():
+            raise MissingFileError(f"not a run folder (no {CONFIG})", p)
+        return p
+    name = str(arg)
+    if name in pretrained.SHIPPED:
+        return pretrained.model_path(name, task or pretrained.SHIPPED[name].task)
+    shipped = [s.name for s in pretrained.installed(task)]
+    base = untrained_baselines(task or "odometry")
+    if name in base:
+        if not baselines:
+            raise ConfigError(
+                f"is an untrained baseline (no run folder, no weights); this command takes a run "
+                f"folder or a shipped model ({', '.join(shipped) or 'none installed'})",
+                name,
+            )
+        return name
+    known = shipped + (base if baselines else [])
+    near = difflib.get_close_matches(name, known, n=1, cutoff=SUGGEST_CUTOFF)
+    what = f"shipped models: {', '.join(shipped) or 'none installed'}"
+    if baselines:
+        what += f"; untrained baselines usable by name: {', '.join(base) or 'none of this kind'}"
+    from wearnav.models import registry
 
-
-def _by_name(name: str, task: str):
-    baselines = untrained_baselines(task)
-    hint = (
-        f"untrained baselines usable by name: {', '.join(baselines)}"
-        if baselines
-        else "no model of this kind works untrained"
-    )
     try:
         spec = registry.get(name)
     except ConfigError:
-        raise ConfigError(
-            f"no such run folder or checkpoint (nor an exported .onnx / .pt file), nor a model name ({hint})", name
-        ) from None
-    if spec.task != task:
-        what, command = RUN_KINDS.get(spec.task, (f"a {spec.task} model", "another command"))
-        raise ConfigError(f"is {what}, not {RUN_KINDS[task][0]}; use {command}", name)
-    if spec.learned or task != "odometry":
+        spec = None
+    if spec is not None:  # a registered model to train first, or of another task
+        if task is not None and spec.task != task:
+            from wearnav.train.common import RUN_KINDS
+
+            kind, command = RUN_KINDS.get(spec.task, (f"a {spec.task} model", "another command"))
+            raise ConfigError(f"is {kind}, not {RUN_KINDS[task][0]}; use {command}", name)
         raise ConfigError(
             f"is a model that must be trained first (wearnav train {name} --data DATA --out RUN, "
-            f"then --model RUN); {hint}",
+            f"then --model RUN); {what}",
             name,
         )
-    cfg = odometry.TrainConfig(model=name, data="")  # untrained: no data behind it
-    model = odometry.build_model(cfg)
-    model.eval()
-    return model, cfg
+    hint = f"; did you mean {near[0]!r}?" if near else ""
+    raise ConfigError(
+        f"no such run folder or checkpoint (nor an exported .onnx / .pt file), nor a model name ({what}){hint}",
+        name,
+    )
+
+
+def resolve_model(arg: str | Path | None, task: str, devices_in_recording=()):
+    """The model behind ``arg`` (:func:`locate_model`) for a command of ``task``.
+
+    Odometry: ``(model, TrainConfig)``; classify: ``(model, ClassifyConfig, class names)``. A run
+    folder gives its best weights for odometry, a checkpoint its own, an exported model file is
+    run by ONNX Runtime or TorchScript with its config from the file's header
+    (:func:`wearnav.export.runtime.load_exported`); an untrained baseline is built with the
+    default :class:`wearnav.train.odometry.TrainConfig` (25 Hz, 100-sample windows, the first of
+    phone, watch, earbuds that the recording has)."""
+    from wearnav.export.runtime import load_exported
+    from wearnav.train import classify, odometry
+    from wearnav.train.common import BEST, check_run_kind
+
+    where = locate_model(arg, task, devices_in_recording)
+    if isinstance(where, str):  # an untrained baseline's name
+        cfg = odometry.TrainConfig(model=where, data="")  # untrained: no data behind it
+        model = odometry.build_model(cfg)
+        model.eval()
+        return model, cfg
+    if is_exported(where):
+        return load_exported(where, task)
+    if where.is_file():  # a checkpoint inside its run folder
+        check_run_kind(where.parent.parent, task)
+        return odometry.load_model(where.parent.parent, which=where.name)
+    if task == "odometry":
+        return odometry.load_model(where, which=BEST)
+    return classify.load_model(where)
