@@ -83,6 +83,7 @@ LAYERS: dict[str, int] = {
     "wearnav.pretrained.recipe": 7,  # makes the shipped models by running the bench suites
     # 8 wearnav track: one recording to a path, its page and summary
     "wearnav.track": 8,
+    "wearnav.track_files": 8,  # the names track writes, read by the CLI before torch is imported
     # 9 wearnav live: the receiver; its tracker runs track's steps as data arrives
     "wearnav.live": 9,
     # 10 the command line

@@ -53,7 +53,7 @@ from pathlib import Path
 
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.bench.real_page import suite_runs, write_report
+from wearnav.bench.real_page import HYBRID_SUFFIX, suite_runs, write_report
 from wearnav.bench.real_sites import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
 from wearnav.evaluate import evaluate_run
 from wearnav.models.registry import check_models, get
@@ -141,18 +141,28 @@ def run_job(job: RealJob, run: Path) -> Path:
     """Train one model (or resume) and score it on every site's test traces (an executor job)."""
     prepare_run(job.cfg, run)
     training = fit(job.cfg, run, progress=job.progress)
+    learned = get(job.cfg.model).learned
     for e in job.evals:
         pre = {"frame_align": "none", "truth_max_gap": TRUTH_MAX_GAP_S, "yaw_deg": e.yaw(run)}
-        evaluate_run(
-            run,
-            data=e.data,
-            splits=("test",),
-            progress=job.progress,
-            training=training,
-            preprocess=pre,
-            out_dir=e.out_dir,
-        )
+        # a learned model is scored as trained, and as the hybrid with PDR's speed (issue 34)
+        for speed, out_dir in (("model", e.out_dir), ("pdr", hybrid_dir(e.out_dir)))[: 2 if learned else 1]:
+            evaluate_run(
+                run,
+                data=e.data,
+                splits=("test",),
+                progress=job.progress,
+                training=training,
+                preprocess=pre,
+                out_dir=out_dir,
+                speed=speed,
+            )
     return run
+
+
+def hybrid_dir(eval_dir: Path) -> Path:
+    """Where a learned model's evaluation as the PDR-speed hybrid (:class:`wearnav.models.pdr.PDRSpeed`)
+    goes, beside its own ``eval_<site>``."""
+    return eval_dir.with_name(eval_dir.name + HYBRID_SUFFIX)
 
 
 @dataclasses.dataclass
@@ -224,9 +234,10 @@ def plan_benchmark(
             )
             for s, site in sites.items()
         )
-        jobs.append(
-            Job(run_job, RealJob(cfg, evals, progress and in_process), run, marks=tuple(e.out_dir for e in evals))
+        marks = tuple(e.out_dir for e in evals) + (
+            tuple(hybrid_dir(e.out_dir) for e in evals) if get(model).learned else ()
         )
+        jobs.append(Job(run_job, RealJob(cfg, evals, progress and in_process), run, marks=marks))
     return Plan(out, sites, jobs, bench, t_start)
 
 

@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav import runs
+from wearnav.bench import decompose
 from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.bench.real_sites import fix_errors
 from wearnav.bench.user_protocol import PAIRED_TEXT, paired_rows, score_path, site_calibration, user_table
@@ -19,6 +20,7 @@ from wearnav.dataset import Dataset
 from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.models.registry import get
 from wearnav.pretrained.mix import is_mix
+from wearnav.report.odometry import plot_speed_ratio
 from wearnav.textio import read_json
 
 
@@ -46,11 +48,29 @@ def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
     return {label: run for *_, label, run in sorted(labelled, key=lambda x: x[:3])}
 
 
-def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.DataFrame, dict]:
-    """One row per model (and the raw fixes): errors at the surveyed points of the test traces."""
-    rows, errors = [], {}
+# A learned model's evaluation as the PDR-speed hybrid (wearnav.models.pdr.PDRSpeed) is the folder
+# ``eval_<site>`` + this suffix; its row is the model's label + HYBRID_LABEL.
+HYBRID_SUFFIX = "_pdrspeed"
+HYBRID_LABEL = " · PDR speed"
+
+
+def evaluations(folders: dict[str, Path], site: str) -> dict[str, tuple[Path, Path]]:
+    """Every scored path of ``site`` by its row label: (run folder, evaluation folder); a learned
+    model's hybrid with PDR's speed follows the model's own row."""
+    out = {}
     for label, run in folders.items():
-        m = runs.read_metrics(run / f"eval_{site}") if runs.is_complete(run / f"eval_{site}") else None
+        for suffix, name in (("", label), (HYBRID_SUFFIX, label + HYBRID_LABEL)):
+            if runs.is_complete(run / f"eval_{site}{suffix}"):
+                out[name] = (run, run / f"eval_{site}{suffix}")
+    return out
+
+
+def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.DataFrame, dict]:
+    """One row per model, its PDR-speed hybrid, and the raw fixes: errors at the surveyed points of
+    the test traces."""
+    rows, errors = [], {}
+    for label, (run, ev) in evaluations(folders, site).items():
+        m = runs.read_metrics(ev)
         if not m:
             continue
         res = m["splits"]["test"]
@@ -69,7 +89,7 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
                 "traces": summary["sequences"],
                 "points": summary.get("points", 0),
                 **{k: summary.get(k, float("nan")) for k in ("error_mean", "error_p50", "error_p75", "error_p95")},
-                "length ratio": length_ratio(run / f"eval_{site}", sites[site]["data"]),
+                "length ratio": length_ratio(ev, sites[site]["data"]),
                 "epochs": tr.get("epochs_run", "—"),
                 "train min": round(tr["wall_s"] / 60, 1) if tr.get("wall_s") else "—",
                 BEATS_STILL: beats_text(tr),
@@ -205,26 +225,64 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
             table.to_markdown(index=False, floatfmt=".2f"),
             "",
         ]
+        lines += _decomposition(evaluations(folders, site), s["data"], out / f"{site}_speed_ratio.png", info["source"])
         if s.get("fixes"):
+            scored = {label: run for label, (run, _) in evaluations(folders, site).items()}
+            speeds = {label: "pdr" for label in scored if label.endswith(HYBRID_LABEL)}
             # each model's smoother is calibrated where it is used (user_protocol.site_calibration)
             cal = doc["sites"][site]["calibration"] = {
-                label: site_calibration(run, site, s["data"], _trained_on(run))
-                for label, run in folders_with_eval(folders, site).items()
+                label: site_calibration(run, site, s["data"], _trained_on(run), speeds.get(label, "model"))
+                for label, run in scored.items()
             }
-            rows, raw = user_table(folders_with_eval(folders, site), s["data"], s["fixes"], calibration=cal)
+            rows, raw = user_table(scored, s["data"], s["fixes"], calibration=cal, speeds=speeds)
             paired = paired_rows(raw)
             doc["sites"][site]["user_protocol"] = {"table": rows, "paired": paired, "runs": raw}
             lines += [USER_PROTOCOL_TEXT, "", pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), ""]
             if paired:
                 lines += [PAIRED_TEXT, "", pd.DataFrame(paired).to_markdown(index=False), ""]
-            lines += _user_protocol_elsewhere(
-                folders_with_eval(folders, site), s["data"], cal, doc["sites"][site]["user_protocol"]
-            )
+            lines += _user_protocol_elsewhere(scored, s["data"], cal, doc["sites"][site]["user_protocol"], speeds)
         cdf = plot_cdf(errors, out / f"{site}_error_cdf.png", f"error at surveyed points, {info['source']} test")
         traj = _plot_examples(folders, site, out / f"{site}_trajectories.png", info["source"])
         lines += [f"![{q.stem}]({q.name})" for q in (cdf, traj) if q] + [""]
     runs.write_json(out / "results.json", doc)
     return write_text_atomic("\n".join(lines), out / "results.md")
+
+
+DECOMPOSITION_TEXT = (
+    "Why, per walk (:mod:`wearnav.bench.decompose`): the known-start paths split into speed and heading "
+    "between consecutive surveyed points. *Speed ratio*: the path's length over the truth's on each "
+    "segment (1 is right, below 1 the path is short); *heading error*: the angle between their "
+    "directions. A source short at every walking speed errs in scale, one with a wide heading error "
+    "in direction."
+)
+
+
+def _decomposition(scored: dict[str, tuple[Path, Path]], data: str, figure: Path, source: str) -> list[str]:
+    """The page's speed/heading split of every scored path (:mod:`wearnav.bench.decompose`): the
+    summary, the speed ratio by walking speed and by device, and the speed-ratio figure."""
+    segments = {label: decompose.eval_segments(ev, data) for label, (_, ev) in scored.items()}
+    segments = {k: v for k, v in segments.items() if len(v)}
+    if not segments:
+        return []
+    fig = plot_speed_ratio(
+        {source: {k: (v["true_speed_m_s"].to_numpy(), v["speed_ratio"].to_numpy()) for k, v in segments.items()}},
+        figure,
+        f"speed ratio against true speed, {source} test (known start)",
+    )
+    return [
+        DECOMPOSITION_TEXT,
+        "",
+        decompose.summary(segments).to_markdown(index=False),
+        "",
+        "Median speed ratio by the true speed of the segment (segments in brackets):",
+        "",
+        decompose.by_speed(segments).to_markdown(index=False),
+        "",
+        "Median speed ratio / median |heading error| by the phone that recorded the walk:",
+        "",
+        decompose.by_device(segments).to_markdown(index=False),
+        "",
+    ] + ([f"![{fig.stem}]({fig.name})", ""] if fig else [])
 
 
 USER_PROTOCOL_TEXT = (
@@ -239,7 +297,9 @@ USER_PROTOCOL_TEXT = (
 )
 
 
-def _user_protocol_elsewhere(folders: dict[str, Path], data: str, cal: dict, doc: dict) -> list[str]:
+def _user_protocol_elsewhere(
+    folders: dict[str, Path], data: str, cal: dict, doc: dict, speeds: dict[str, str]
+) -> list[str]:
     """The user protocol again on the site's training walks, for the models that never trained on
     them (PDR, a model from another building): three times the walks of the held-out routes, though
     not held out from the smoother's settings (chosen on IPIN's training walks) or its calibration
@@ -252,7 +312,7 @@ def _user_protocol_elsewhere(folders: dict[str, Path], data: str, cal: dict, doc
     fixes = fix_errors(Path(data), "train") if others else None
     if not fixes:
         return []
-    rows, raw = user_table(others, data, fixes, "train", calibration={k: cal[k] for k in others})
+    rows, raw = user_table(others, data, fixes, "train", calibration={k: cal[k] for k in others}, speeds=speeds)
     paired = paired_rows(raw)
     doc["train_walks"] = {"table": rows, "paired": paired}
     return [
@@ -271,11 +331,6 @@ def _trained_on(run: Path) -> str | None:
     """The data a learned run trained on; None for a model that is not learned."""
     train = runs.read_config(run)["config"]["train"]
     return train["data"] if get(train["model"]).learned and train.get("data") else None
-
-
-def folders_with_eval(folders: dict[str, Path], site: str) -> dict[str, Path]:
-    """The runs of ``folders`` scored on ``site`` (complete evaluation)."""
-    return {label: run for label, run in folders.items() if runs.is_complete(run / f"eval_{site}")}
 
 
 def _plot_examples(folders: dict[str, Path], site: str, path: Path, source: str, k: int = 4) -> Path | None:

@@ -59,9 +59,10 @@ def fix_point_errors(rec) -> np.ndarray:
     )
 
 
-def _paths(run, data, split):
-    """(recording, t, path from (0, 0) in the phone's world frame, no yaw) per trace of ``split``."""
-    model, tcfg = load_model(run)
+def _paths(run, data, split, speed: str = "model"):
+    """(recording, t, path from (0, 0) in the phone's world frame, no yaw) per trace of ``split``;
+    ``speed`` as :func:`wearnav.train.odometry.load_model`'s."""
+    model, tcfg = load_model(run, speed=speed)
     tcfg = dataclasses.replace(tcfg, frame_align="none", yaw_deg=0.0, truth_max_gap=SURVEYED_TRUTH_MAX_GAP_S)
     for seq in load_sequences(Dataset.open(data).split(split), tcfg):
         rec = seq.recording
@@ -74,10 +75,10 @@ def _paths(run, data, split):
         yield rec, t, integrate_velocity(t_c, vel, t, np.zeros(2))
 
 
-def calibrate(run: str | Path, data: str | Path, split: str = "val") -> dict:
+def calibrate(run: str | Path, data: str | Path, split: str = "val", speed: str = "model") -> dict:
     """The smoother's calibration for the run's model on the ``split`` walks of ``data``
     (:func:`calibration_of`)."""
-    return calibration_of(_paths(run, data, split))
+    return calibration_of(_paths(run, data, split, speed))
 
 
 def calibration_of(walks, every_s: float | None = None) -> dict:
@@ -109,18 +110,20 @@ def user_protocol(
     split: str = "test",
     cfg: fuse.FuseConfig | None = None,
     calibration: dict | None = None,
+    speed: str = "model",
 ) -> dict:
     """Per anchoring of :data:`wearnav.fuse.ANCHORS`: the errors at the surveyed points of
     ``split`` of ``data`` for the model of ``run`` (a run folder) under the user protocol, the
     path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk.
     ``cfg``: the smoother's; default the run's own for each recording (:func:`wearnav.fuse.config_for`:
     its calibration, and a heading prior where the recording's frame is north-referenced); ``calibration``
-    replaces its calibration (:func:`site_calibration`)."""
+    replaces its calibration (:func:`site_calibration`); ``speed`` "pdr": the model's direction at
+    PDR's speed (:func:`wearnav.train.odometry.load_model`)."""
     out: dict = {a: {"errors": [], "length_ratio": [], "by_trace": {}} for a in fuse.ANCHORS}
     out["smooth"]["traces"] = {}
     out[RAW_FIXES] = {"by_trace": {}}
     smooth_s, walk_s = 0.0, 0.0
-    for rec, t, xy in _paths(run, data, split):
+    for rec, t, xy in _paths(run, data, split, speed):
         if rec.fixes is None or len(rec.fixes) == 0:
             continue
         fx = rec.fixes
@@ -163,6 +166,7 @@ def ensure_calibration(
     split: str = "val",
     name: str = fuse.CALIBRATION_JSON,
     method: str = "wearnav.fuse.odometry_walk_sigma on the model's validation walks",
+    speed: str = "model",
 ) -> dict:
     """The run's smoother calibration (:func:`calibrate` on its ``split`` walks of ``data``), computed
     once and stored in the run folder as ``name`` (`track` reads :data:`wearnav.fuse.CALIBRATION_JSON`);
@@ -172,25 +176,30 @@ def ensure_calibration(
         cal = read_json(f)
         if cal.get("data") == str(data) and cal.get("split") == split and "sigma_scale" in cal:
             return cal
-    cal = {**calibrate(run, data, split), "data": str(data), "split": split, "method": method}
+    cal = {**calibrate(run, data, split, speed), "data": str(data), "split": split, "method": method}
     runs.write_json(f, cal)
     return cal
 
 
-def site_calibration(run: str | Path, site: str, site_data: str | Path, trained_on: str | Path | None) -> dict:
+def site_calibration(
+    run: str | Path, site: str, site_data: str | Path, trained_on: str | Path | None, speed: str = "model"
+) -> dict:
     """The calibration a run's smoother uses on ``site`` (stored as ``fuse_calibration_<site>.json``):
     a learned model on the building it trained in, from its own validation walks; anywhere else
     (another building, PDR), from the site's training walks, which it never trained on and which
     are not the held-out routes. A model's validation walks overstate it elsewhere: the shipped
-    recipe's model calibrates to 0.017 m/√s on its mix, 0.56 on IPIN's walks and 0.83 on ILC2's."""
+    recipe's model calibrates to 0.017 m/√s on its mix, 0.56 on IPIN's walks and 0.83 on ILC2's.
+    ``speed`` "pdr" (the PDR-speed hybrid) has its own calibration, ``..._pdr.json``."""
+    name = f"fuse_calibration_{site}{'' if speed == 'model' else '_' + speed}.json"
     if trained_on is not None and Path(trained_on).resolve() == Path(site_data).resolve():
-        return ensure_calibration(run, trained_on, "val", f"fuse_calibration_{site}.json")
+        return ensure_calibration(run, trained_on, "val", name, speed=speed)
     return ensure_calibration(
         run,
         site_data,
         "train",
-        f"fuse_calibration_{site}.json",
+        name,
         "wearnav.fuse.odometry_walk_sigma on the site's training walks (not trained on)",
+        speed,
     )
 
 
@@ -201,9 +210,11 @@ def user_table(
     split: str = "test",
     cfg: fuse.FuseConfig | None = None,
     calibration: dict[str, dict] | None = None,
+    speeds: dict[str, str] | None = None,
 ) -> tuple[list[dict], dict]:
     """The user-protocol rows (raw fixes, then each model × anchoring) and the raw per-run results;
-    ``cfg`` None: each run's own calibrated config, or ``calibration[label]`` where given."""
+    ``cfg`` None: each run's own calibrated config, or ``calibration[label]`` where given;
+    ``speeds[label]``: where that row's speed comes from (default the model's own)."""
     raw = {}
     rows = []
     if fixes:
@@ -219,7 +230,8 @@ def user_table(
             }
         )
     for label, run in folders.items():
-        r = raw[label] = user_protocol(run, data, split, cfg, (calibration or {}).get(label))
+        speed = (speeds or {}).get(label, "model")
+        r = raw[label] = user_protocol(run, data, split, cfg, (calibration or {}).get(label), speed)
         for anchor in fuse.ANCHORS:
             e = np.asarray(r[anchor]["errors"])
             inside = r[anchor].get("inside_68")
