@@ -135,7 +135,8 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
     doc = json.loads((out / "results.json").read_text())
     for site in ("main", "other"):
         table = {r["method"]: r for r in doc["sites"][site]["table"]}
-        assert {"pdr", "suitein++", "raw phone fixes"} <= set(table)
+        # the learned model is also scored as the hybrid with PDR's speed (issue 34)
+        assert {"pdr", "suitein++", "suitein++ · PDR speed", "raw phone fixes"} <= set(table)
         for r in table.values():
             assert r["points"] > 0 and 0 <= r["median (m)"] <= r["p95 (m)"] < 1e3
         # whether each learned run beat standing still on validation (PDR is not learned)
@@ -147,7 +148,11 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
     assert {(r["model"], r["smoother minus"]) for r in up["paired"]} >= {
         ("pdr", "raw phone fixes"),
         ("suitein++", "raw phone fixes"),
+        ("suitein++ · PDR speed", "raw phone fixes"),
     }
+    # why, per walk: speed and heading between surveyed points, with its figure
+    assert "Why, per walk" in text and (out / "main_speed_ratio.png").is_file()
+    assert "suitein++ · PDR speed" in text.split("Why, per walk")[1].split("User protocol")[0]
     assert all(r["walks"] == table["pdr"]["traces"] for r in up["paired"])
     train_rows = [r["path"] for r in up["train_walks"]["table"]]
     assert train_rows[0] == "raw phone fixes" and any(p.startswith("pdr ·") for p in train_rows)
@@ -169,8 +174,9 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
     run_benchmark(building / "building", out, building / "other", echo=msgs.append, **{**kw, "bench": sim_bench})
     doc = json.loads((out / "results.json").read_text())
     methods = [r["method"] for r in doc["sites"]["main"]["table"]]
-    assert methods[:2] == ["suitein++", "suitein++ · simulator `sim` (commit " + methods[1].split("(commit ")[1]]
-    assert methods[2:] == ["pdr", "raw phone fixes"]
+    sim_label = "suitein++ · simulator `sim` (commit " + methods[2].split("(commit ")[1]
+    assert methods[:4] == ["suitein++", "suitein++ · PDR speed", sim_label, sim_label + " · PDR speed"]
+    assert methods[4:] == ["pdr", "raw phone fixes"]
     sim_run = [p for p in (out / "runs").glob("suitein++-*") if "sim" in runs.read_config(p)["config"]["train"]["data"]]
     assert len(sim_run) == 1 and runs.read_config(sim_run[0])["config"]["preprocess"]["frame_align"] == "truth"
 

@@ -247,6 +247,20 @@ def test_flags_read_as_flags_and_seed_is_documented():
                 assert len(line.split(None, 2)) == 3 and "seed" in line.split(None, 2)[2].lower(), (path, line)
 
 
+def test_models_tables_have_column_headers():
+    """`wearnav models`: each table's first line names its columns, aligned with the rows."""
+    from typer.testing import CliRunner
+
+    res = CliRunner().invoke(app, ["models"], terminal_width=200)
+    assert res.exit_code == 0, res.output
+    registered, shipped = res.output.split("\nshipped", 1)
+    header, first = registered.splitlines()[:2]
+    assert header.split()[:5] == ["model", "task", "layout", "parameters", "description"]
+    assert header.index("description") == first.index(first.split("  ")[-1].strip())  # same column
+    header = shipped.splitlines()[1]
+    assert header.split()[:3] == ["name", "task", "devices"], shipped
+
+
 def test_plot_and_info_list_the_recordings(sim):
     res = wearnav("plot", sim, "--name", "nope", "--out", sim.parent / "x.png", cwd=sim.parent)
     assert res.returncode == 2

@@ -222,6 +222,20 @@ def test_text_log_wins_over_mat_of_same_name(tmp_path, log_path):
     assert ipin2023.find_logs(tmp_path) == [tmp_path / log_path.name]
 
 
+def test_the_datasets_own_readme_is_skipped_without_a_word(tmp_path, caplog):
+    """ZZ_README.txt (the organisers' readme) and a LICENSE pass silently; a stray text file that is
+    not a log is still named."""
+    (tmp_path / "trial01.txt").write_text("% GetSensorData log\nACCE;0.01;0.01;0.1;0.2;9.8;3\n")
+    (tmp_path / "ZZ_README.txt").write_text("Contents of the IPIN 2023 Track 3 folder\n")
+    (tmp_path / "LICENSE.txt").write_text("CC BY 4.0\n")
+    (tmp_path / "notes.txt").write_text("my notes\n")
+    with caplog.at_level("INFO", logger="wearnav.importers.ipin2023"):
+        logs = ipin2023.find_logs(tmp_path)
+    assert logs == [tmp_path / "trial01.txt"]
+    skipped = [r.getMessage() for r in caplog.records if r.getMessage().startswith("skipping")]
+    assert skipped == [f"skipping {tmp_path / 'notes.txt'}: not a GetSensorData log"]
+
+
 def test_stale_fix_is_dropped(tmp_path, log_lines):
     lines = short_log(log_lines)
     gnss = [k for k, ln in enumerate(lines) if ln.startswith("GNSS;")]

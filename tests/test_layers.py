@@ -33,6 +33,7 @@ LAYERS: dict[str, int] = {
     "wearnav.textio": 0,
     "wearnav.progress": 0,
     "wearnav.provenance": 0,  # also holds __version__ (the root package re-exports it)
+    "wearnav.interrupts": 0,  # Ctrl-C / SIGTERM that a finalizer swallowed, raised again later
     "wearnav.rotations": 0,
     "wearnav.timeseries": 0,
     "wearnav.geo": 0,

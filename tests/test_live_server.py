@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import sqlite3
 import subprocess
 import sys
@@ -130,6 +131,23 @@ def test_token_required_and_never_logged(tmp_path):
         assert httpx.post(f"{srv2.url}/push", content=enc(body())).status_code == 401
         assert httpx.post(f"{srv2.url}/push?token={made}", content=enc(body())).status_code == 200
         assert srv2.output().count(made) == 2  # push URL and page URL lines, nothing after
+
+
+@pytest.mark.parametrize("signum, name", [(signal.SIGTERM, "SIGTERM"), (signal.SIGINT, "Ctrl-C")])
+def test_a_stopped_server_says_so_neutrally_and_exits_0(tmp_path, signum, name):
+    """SIGTERM or Ctrl-C is how a server is stopped: one neutral line naming the sessions kept,
+    exit 0, no ``error:`` (README: "wearnav live")."""
+    db = tmp_path / "live.db"
+    srv = LiveServer(db, "--no-track").start()
+    try:
+        assert httpx.post(f"{srv.url}/push", content=enc(body())).status_code == 200
+    finally:
+        code = srv.stop(signum)
+    lines = srv.output().strip().splitlines()
+    assert code == 0, srv.output()
+    assert lines[-1] == f"live: stopped ({name}); 1 session stored in {db} (`wearnav live` resumes them)"
+    assert not any(line.startswith("error") for line in lines), srv.output()
+    assert stored_rows(db) == 1
 
 
 def test_load_10x_no_sample_lost_or_duplicated(tmp_path, export60, imported):

@@ -45,6 +45,7 @@ from wearnav.errors import (
     WearnavWarning,
     one_line,
 )
+from wearnav.interrupts import noting_lost_interrupts, raise_lost_interrupt
 
 app = typer.Typer(
     help="Inertial odometry and activity recognition from everyday wearables.",
@@ -682,7 +683,8 @@ def main() -> None:
     main_thread = threading.current_thread() is threading.main_thread()
     old_sigterm = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
     try:
-        _main()
+        with noting_lost_interrupts():  # a SIGTERM a finalizer swallowed still ends the command: 143
+            _main()
     finally:
         if main_thread:
             signal.signal(signal.SIGTERM, old_sigterm)
@@ -709,7 +711,9 @@ def _main() -> None:
         warnings.simplefilter("default", WearnavWarning)
         warnings.showwarning = _show_warning
         try:
+            raise_lost_interrupt()  # one that came while the command line loaded (wearnav.__main__)
             code = app(standalone_mode=False)
+            raise_lost_interrupt()
         except typer.TyperException as exc:  # bad options / arguments (the parser's UsageError)
             if type(exc).__name__ == "NoArgsIsHelpError":  # no arguments at all: the help, on stdout
                 typer.echo(exc.format_message())

@@ -6,7 +6,9 @@ CPU share) and ``replay`` (send an export as the app would). Registered on the m
 from __future__ import annotations
 
 import secrets
+import signal
 import socket
+import threading
 from pathlib import Path
 
 import typer
@@ -14,6 +16,9 @@ import typer
 from wearnav.cli_common import echo_json, on_interrupt, split_list
 from wearnav.errors import ConfigError
 from wearnav.outputs import check_new_dataset, check_suite_folder
+
+# The signals that stop `wearnav live` cleanly (exit 0), as its stop line names them.
+STOP_SIGNALS = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM"}
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 
@@ -95,6 +100,7 @@ def live(
     if ctx.invoked_subcommand is not None:
         return
     _needs_live_extra()
+    main = threading.current_thread() is threading.main_thread()
     import uvicorn
 
     from wearnav.importers.sensorlogger_map import PLATFORMS
@@ -130,10 +136,25 @@ def live(
     if made:
         typer.echo("(the token was made now; give --token to keep one across restarts)")
     on_interrupt(f"stopped; every acknowledged message is in {store} (`wearnav live` resumes its sessions)")
+    # Ctrl-C and SIGTERM are how a server is stopped: uvicorn shuts down cleanly (open requests
+    # answered, every acknowledged message stored) and raises the signal again once it has stopped;
+    # it is noted here, and the command ends with one neutral line and exit 0 (README, "wearnav live").
+    stopped: list[int] = []
+    noted = {s: signal.signal(s, lambda signum, frame: stopped.append(signum)) for s in STOP_SIGNALS} if main else {}
     try:
         uvicorn.run(app, host=host, port=port, access_log=False, log_level="warning")
     except SystemExit as exc:  # uvicorn exits when it cannot bind
         raise ConfigError(f"could not listen on {host}:{port} (in use?)") from exc
+    finally:
+        for s, handler in noted.items():
+            signal.signal(s, handler)
+    if stopped:
+        n = len(app.state.receiver.store.sessions())
+        typer.echo(
+            f"live: stopped ({STOP_SIGNALS[stopped[0]]}); {n} session{'s' * (n != 1)} stored in {store} "
+            "(`wearnav live` resumes them)",
+            err=True,
+        )
 
 
 @live_app.command("export")

@@ -35,6 +35,7 @@ def models_():
     from wearnav import pretrained
     from wearnav.models.registry import available, n_parameters
 
+    typer.echo(f"{'model':15s} {'task':9s} {'layout':7s} {'parameters':>12s}  description")
     for spec in available():
         try:
             n = f"{n_parameters(spec.build(n_devices=3, window=100)):,}"
@@ -42,6 +43,7 @@ def models_():
             n = f"? ({type(exc).__name__})"
         typer.echo(f"{spec.name:15s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
     typer.echo("\nshipped (pretrained; `wearnav track`/`classify` use them without --model, card: MODEL_CARD.md):")
+    typer.echo(f"{'name':20s} {'task':9s} {'devices':22s} size and card")
     for s in pretrained.SHIPPED.values():
         where = (
             f"{s.size_bytes() / 1e6:.1f} MB  {s.path / pretrained.CARD}"

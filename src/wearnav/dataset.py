@@ -29,6 +29,7 @@ import yaml
 
 from wearnav.errors import FormatError, MissingFileError, Terminated, ValidationError, check_names
 from wearnav.fileio import fsync_dir, fsync_file, host_tag, pid_alive, require_regular_file
+from wearnav.interrupts import noting_lost_interrupts, raise_lost_interrupt
 from wearnav.provenance import provenance
 from wearnav.recording import Recording, check_name, check_text
 from wearnav.textio import read_yaml
@@ -157,7 +158,8 @@ class DatasetWriter:
     (:func:`replaceable_reason`); any other existing folder is refused before anything is written.
 
     An exception inside the ``with`` block — and SIGTERM, turned into :class:`Terminated` while
-    the block runs in the main thread — removes the partial folder, so a failed or stopped import
+    the block runs in the main thread (also when a finalizer swallowed it: :mod:`wearnav.interrupts`)
+    — removes the partial folder, so a failed or stopped import
     or simulation leaves nothing behind. Work folders of writers killed outright (SIGKILL) are
     removed by the next writer of the same ``root`` (:func:`clean_stale_work_dirs`).
 
@@ -182,10 +184,12 @@ class DatasetWriter:
         self.tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=".partial", dir=self.root.parent))
         self.rows: list[dict] = []
         self._old_handler = None
+        self._noting = noting_lost_interrupts()
         self._deferred = False  # SIGTERM arrived while the renames in close() ran
         self._critical = False
 
     def add(self, rec: Recording, split: str = "") -> None:
+        raise_lost_interrupt()  # a SIGTERM whose exception a finalizer swallowed (wearnav.interrupts)
         if any(r["name"] == rec.name for r in self.rows):
             raise ValidationError(f"duplicate recording name {rec.name!r}", self.root)
         file = f"{rec.name}.h5"
@@ -198,6 +202,7 @@ class DatasetWriter:
 
     def close(self) -> Path:
         """Write the manifest and move the finished dataset into place; returns ``root``."""
+        raise_lost_interrupt()
         df = pd.DataFrame(self.rows)
         for col in MANIFEST_COLUMNS:
             if col not in df.columns:
@@ -257,6 +262,7 @@ class DatasetWriter:
     def __enter__(self) -> DatasetWriter:
         if threading.current_thread() is threading.main_thread():
             self._old_handler = signal.signal(signal.SIGTERM, self._on_sigterm)
+            self._noting.__enter__()
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -273,6 +279,7 @@ class DatasetWriter:
             if self._old_handler is not None:
                 signal.signal(signal.SIGTERM, self._old_handler)
                 self._old_handler = None
+                self._noting.__exit__(None, None, None)
 
 
 class Dataset:

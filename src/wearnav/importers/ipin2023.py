@@ -101,6 +101,9 @@ TXT_COLUMNS = {"ACCE": 5, "GYRO": 5, "AHRS": 8, "GNSS": 7, "POSI": 5}
 # The .mat conversion's variables and their needed columns (no accuracy / counter columns).
 MAT_VARS = {"Acce": ("ACCE", 5), "Gyro": ("GYRO", 5), "Ahrs": ("AHRS", 8), "Gnss": ("GNSS", 7), "Posi": ("POSI", 4)}
 LOG_SUFFIXES = (".txt", ".txt.gz", ".txt.xz", ".mat")
+# The dataset's own documentation beside its logs (ZZ_README.txt in the organisers' folder):
+# passed over without a word, where any other text file that is not a log is named.
+DOC_NAME = re.compile(r"readme|licen[cs]e|changelog|citation", re.IGNORECASE)
 SPLITS = {"training": "train", "testing": "validation", "validation": "validation", "scoring": "test"}
 
 log = logging.getLogger(__name__)
@@ -428,7 +431,9 @@ def _looks_like_log(path: Path) -> bool:
 
 
 def find_logs(src: Path) -> list[Path]:
-    """Log files under ``src``, sorted; the text log wins over a .mat of the same name."""
+    """Log files under ``src``, sorted; the text log wins over a .mat of the same name. The dataset's
+    documentation (:data:`DOC_NAME`) is passed over quietly; another file that is not a log is
+    named in an info line ("skipping ...")."""
     by_stem: dict[Path, Path] = {}
     for p in sorted(src.rglob("*")):
         if not (p.is_file() and p.name.endswith(LOG_SUFFIXES)):
@@ -443,6 +448,8 @@ def find_logs(src: Path) -> list[Path]:
             by_stem[key] = p
     logs = []
     for p in sorted(by_stem.values()):
+        if DOC_NAME.search(p.name):
+            continue
         if _looks_like_log(p):
             logs.append(p)
         else:

@@ -70,13 +70,15 @@ class LiveServer:
             os.kill(self.proc.pid, signal.SIGKILL)
             self.proc.wait(10)
 
-    def stop(self) -> None:
+    def stop(self, signum: int = signal.SIGTERM) -> int | None:
+        """Stop the server with ``signum`` (SIGTERM; SIGINT as Ctrl-C), SIGKILL after 10 s; its exit code."""
         if self.proc is not None and self.proc.poll() is None:
-            self.proc.terminate()
+            self.proc.send_signal(signum)
             try:
                 self.proc.wait(10)
             except subprocess.TimeoutExpired:
                 self.kill()
+        return None if self.proc is None else self.proc.returncode
 
     def cpu_s(self) -> float | None:
         """CPU seconds (user + system) the server process has used so far (Linux /proc), or None."""
