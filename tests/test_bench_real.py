@@ -246,3 +246,38 @@ def test_cli_real_odometry_reports_progress_without_a_terminal(building, tmp_pat
     assert any(re.fullmatch(r"prepare building: \d+ rec, \d+ s elapsed", l) for l in lines), lines
     assert any(re.fullmatch(r"preprocess: \d+/\d+ rec, \d+ s elapsed, about \d+ s left", l) for l in lines), lines
     assert "\r" not in res.stderr
+
+
+def test_seeds_suite_pairs_each_path_with_pdr_by_walk(building, tmp_path):
+    """`bench real-odometry --seeds`: a suite per seed sharing one prepared data folder, and one page
+    with each path's statistics over the seeds and its difference from PDR, paired by walk."""
+    from wearnav.bench.real_seeds import run_seeds
+
+    out = tmp_path / "seeds"
+    bench = RealBench(models=("pdr", "ronin"), epochs=1, stride=25)
+    page = run_seeds(
+        building / "building",
+        out,
+        (0, 1),
+        bench,
+        progress=False,
+        echo=lambda s: None,
+        group_by="floor_name",
+        test_groups=("F9",),
+    )
+    assert (out / "seed-0" / "results.md").is_file() and (out / "seed-1" / "results.md").is_file()
+    assert (out / "seed-1" / "data").resolve() == (out / "data").resolve()
+    ronin = [p.name for s in (0, 1) for p in (out / f"seed-{s}" / "runs").glob("ronin-*")]
+    assert len(set(ronin)) == 2  # one run per seed, different hashes
+    doc = json.loads((out / "results.json").read_text())
+    rows = {r["path"]: r for r in doc["sites"]["main"]["known_start"]}
+    assert set(rows) >= {"ronin", "ronin · PDR speed", "pdr", "raw phone fixes"}
+    assert rows["ronin"]["seeds"] == 2 and "±" in rows["ronin"]["median (m)"]
+    assert rows["pdr"]["minus PDR, median (m)"] == "—"
+    # PDR's speed with ronin's direction, paired by walk with PDR: a difference and its interval
+    d = rows["ronin · PDR speed"]["minus PDR, median (m)"]
+    mid, lo, hi = (float(v) for v in d.replace("[", "").replace("]", "").replace(",", "").split())
+    assert lo <= mid <= hi
+    smoother = {r["smoother of"]: r for r in doc["sites"]["main"]["smoother"]}
+    assert {"ronin", "pdr"} <= set(smoother)
+    assert "over 2 seeds" in page.read_text()

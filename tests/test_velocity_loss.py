@@ -107,3 +107,9 @@ def test_unknown_loss_is_refused():
     assert "mse" in VEL_LOSSES and "polar" in VEL_LOSSES
     with pytest.raises(ConfigError, match="velocity loss"):
         velocity_loss(torch.zeros(1, 2), torch.zeros(1, 2), "l2")
+
+
+def test_the_command_lines_choices_are_the_losses():
+    from wearnav.cli_common import VelLoss
+
+    assert tuple(v.value for v in VelLoss) == VEL_LOSSES

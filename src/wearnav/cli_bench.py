@@ -12,8 +12,10 @@ import typer
 from wearnav.bench.executor import Backend
 from wearnav.cli_common import (
     RECIPE_HELP,
+    VEL_LOSS_HELP,
     ImportFormat,
     Recipe,
+    VelLoss,
     choice_value,
     progress_enabled,
     split_list,
@@ -182,6 +184,12 @@ def bench_real_odometry(
     ),
     lr: float = typer.Option(1e-3, help="Adam learning rate for every learned model."),
     seed: int = typer.Option(0, min=0, help=SEED_HELP),
+    seeds: str | None = typer.Option(
+        None,
+        help="Several seeds, comma-separated (e.g. 0,1,2): a suite per seed in OUT/seed-<s>/ and one page "
+        "over them with walk-paired intervals against PDR (replaces --seed).",
+    ),
+    vel_loss: VelLoss = typer.Option(VelLoss.mse, "--vel-loss", help=VEL_LOSS_HELP),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
     address: str | None = typer.Option(None, help=ADDRESS_HELP),
@@ -194,31 +202,35 @@ def bench_real_odometry(
       wearnav bench real-odometry --data data/ilc2 --test-data data/ipin --out runs/real/ilc2 --max-time 15
     """
     from wearnav.bench.real import RealBench, run_benchmark
+    from wearnav.bench.real_seeds import run_seeds
 
     suite_folder(out, "bench real-odometry")
+    seed_list = tuple(int(s) for s in split_list(seeds)) if seeds else (seed,)
     bench = RealBench(
         models=split_list(models),
         epochs=epochs,
         max_minutes=max_time,
-        seed=seed,
+        seed=seed_list[0],
         lr=lr,
         train_data=str(train_data) if train_data else None,
+        vel_loss=vel_loss.value,
     )
-    page = run_benchmark(
-        data,
-        out,
-        test_data,
-        choice_value(format_),
-        choice_value(test_format),
-        group_by,
-        split_list(test_groups) if test_groups else None,
-        test_group_by,
-        split_list(test_test_groups) if test_test_groups else None,
-        bench,
-        progress=progress_enabled(),
-        echo=typer.echo,
-        execution=_execution(jobs, executor, address),
+    where = dict(
+        test_data=test_data,
+        fmt=choice_value(format_),
+        test_fmt=choice_value(test_format),
+        group_by=group_by,
+        test_groups=split_list(test_groups) if test_groups else None,
+        test_group_by=test_group_by,
+        test_test_groups=split_list(test_test_groups) if test_test_groups else None,
     )
+    common = dict(
+        bench=bench, progress=progress_enabled(), echo=typer.echo, execution=_execution(jobs, executor, address)
+    )
+    if len(seed_list) > 1:
+        page = run_seeds(data, out, seed_list, **common, **where)
+    else:
+        page = run_benchmark(data, out, **where, **common)
     typer.echo(f"wrote {page}")
 
 

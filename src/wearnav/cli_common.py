@@ -29,6 +29,19 @@ RECIPE_HELP = (
 )
 
 
+class VelLoss(str, Enum):
+    """The velocity loss of a learned odometry model (wearnav.models.base.VEL_LOSSES)."""
+
+    mse = "mse"
+    polar = "polar"
+
+
+VEL_LOSS_HELP = (
+    "mse: the papers' squared error of the velocity vector (shortens a velocity whose direction is "
+    "uncertain); polar: L1 on log speed plus a speed-weighted direction term (keeps the length)."
+)
+
+
 # What an interrupted command keeps and how to resume, said on the one line that ends it (exit
 # 130 / 143); a command that writes sets it before its work starts (:func:`on_interrupt`).
 NOTHING_KEPT = "nothing was written; run the same command again"

@@ -14,13 +14,12 @@ from torch.nn import functional as F
 from wearnav.errors import ConfigError
 
 # The velocity losses a model may train with (:func:`velocity_loss`; TrainConfig.vel_loss).
-VEL_LOSSES = ("mse", "polar", "mse+logspeed")
+VEL_LOSSES = ("mse", "polar")
 # The polar loss's floor under a speed before its log (m/s): a window standing still (0 m/s) and
 # one creeping at a few cm/s count alike, and the log stays finite. 0.1 m/s is a tenth of a
 # walker's speed (IPIN's walkers 0.92 m/s, ILC2's 1.12: issue 34).
 LOG_SPEED_FLOOR_M_S = 0.1
 _TINY = 1e-9
-LOGSPEED_WEIGHT = 2.0
 
 
 def velocity_loss(pred: Tensor, target: Tensor, kind: str = "mse") -> Tensor:
@@ -39,11 +38,6 @@ def velocity_loss(pred: Tensor, target: Tensor, kind: str = "mse") -> Tensor:
     """
     if kind == "mse":
         return F.mse_loss(pred, target)
-    if kind == "mse+logspeed":
-        speed_hat = torch.sqrt((pred**2).sum(-1) + _TINY)
-        speed = target.norm(dim=-1)
-        log_err = torch.log(speed_hat + LOG_SPEED_FLOOR_M_S) - torch.log(speed + LOG_SPEED_FLOOR_M_S)
-        return F.mse_loss(pred, target) + LOGSPEED_WEIGHT * log_err.abs().mean()
     if kind != "polar":
         raise ConfigError(f"unknown velocity loss {kind!r}; one of {', '.join(VEL_LOSSES)}")
     speed_hat = torch.sqrt((pred**2).sum(-1) + _TINY)  # (B,) m/s, finite gradient at 0
