@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT ?= runs/demo
 
-.PHONY: demo test install install-dev clean
+.PHONY: demo test check lint install install-dev clean
 
 # torch is installed first and pinned, so pip takes the CPU wheel and never pulls CUDA packages.
 $(BIN)/python:
@@ -25,7 +25,17 @@ install-dev: $(VENV)/.installed-dev
 demo: $(VENV)/.installed
 	$(BIN)/wearnav demo --out $(OUT)
 
-test: $(VENV)/.installed-dev
+# The house rules (pyproject.toml: [tool.ruff], [tool.mypy]); `make test` runs them first, so CI does.
+lint: $(VENV)/.installed-dev
+	$(BIN)/ruff check src tests scripts
+	$(BIN)/ruff format --check src tests scripts
+	$(BIN)/mypy
+
+# The fast inner loop: lint, types and the tests not marked slow.
+check: lint
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not slow"
+
+test: lint
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 clean:
