@@ -129,7 +129,7 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
             )
         rec = Recording.load(path)
         if (stale := needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
-            warnings.warn(WearnavWarning(f"{path}: {stale}"))
+            warnings.warn(WearnavWarning(f"{path}: {stale}"), stacklevel=1)
         echo_json(rec.summary())
         return
     ds = Dataset.open(path)
@@ -156,7 +156,7 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
             k: round(v, 3) if isinstance(v, float) else v for k, v in stats["fix_error_m"].items()
         }
     if stats["needs_reimport"]:
-        warnings.warn(WearnavWarning(f"{path}: {stats['needs_reimport']}"))
+        warnings.warn(WearnavWarning(f"{path}: {stats['needs_reimport']}"), stacklevel=1)
     echo_json(summary)
 
 
@@ -372,7 +372,7 @@ def train(
         record = fit(cfg, run, progress=progress_enabled(), devices=num_devices, strategy=strategy.value)
         echo_json({"run": str(run), "training": {k: v for k, v in record.items() if k != "training_data"}})
         if (unlearned := did_not_learn(record)) is not None:  # wearnav.trust
-            warnings.warn(WearnavWarning(f"{run}: {unlearned}: {LEARN_ADVICE}"))
+            warnings.warn(WearnavWarning(f"{run}: {unlearned}: {LEARN_ADVICE}"), stacklevel=1)
         if evaluate:
             m = evaluate_run(run, splits=("test",), training=record, progress=progress_enabled())
             echo_json({"test": m["splits"]["test"]["summary"]})

@@ -408,7 +408,7 @@ def track(
         f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel, summary["length_m"])
     ]
     for w in summary["warnings"]:
-        warnings.warn(WearnavWarning(w))
+        warnings.warn(WearnavWarning(w), stacklevel=2)
     with staged_output(out, TRACK_JSON, "track") as stage:
         _write_track(stage, out, table, t, xy, rec, cfg, seq, summary, anchor)
     return summary
@@ -437,7 +437,7 @@ def _write_track(
             "note": "the recording has no location fixes: the path starts at (0, 0) in the odometry's own frame",
         }
         summary["warnings"].append(f"{rec.name}: no location fixes: the path is not placed on a map")
-        warnings.warn(WearnavWarning(summary["warnings"][-1]))
+        warnings.warn(WearnavWarning(summary["warnings"][-1]), stacklevel=2)
     else:
         fcfg, cal = fuse.config_for(
             summary["run"] if Path(summary["run"]).exists() else None,
@@ -457,7 +457,7 @@ def _write_track(
         }
         summary["warnings"] += [f"{rec.name}: {w}" for w in res.warnings]
         for w in res.warnings:
-            warnings.warn(WearnavWarning(f"{rec.name}: {w}"))
+            warnings.warn(WearnavWarning(f"{rec.name}: {w}"), stacklevel=2)
         lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
         has_origin = lat0 is not None and lon0 is not None
         fix_ll = geo.local_to_latlon(fx.pos[:, :2], float(lat0), float(lon0)) if has_origin else None

@@ -182,7 +182,8 @@ def adapt(
                 f"{before['segment_error_median_m']:.2f} → {after['segment_error_median_m']:.2f} m, length ratio "
                 f"{before['length_ratio_median']:.2f} → {after['length_ratio_median']:.2f}): the adaptation may not help; "
                 f"compare both runs with `wearnav track`"
-            )
+            ),
+            stacklevel=2,
         )
     record.update(
         {

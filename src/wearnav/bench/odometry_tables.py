@@ -297,7 +297,7 @@ def training_table(grid: dict[str, list[GridRun]], labels: list[str], expected: 
     return pd.DataFrame(rows)
 
 
-def test_frame_table(grid: dict[str, list[GridRun]], labels: list[str], splits=TEST_SPLITS) -> pd.DataFrame:
+def test_frame_table(grid: dict[str, list[GridRun]], labels: list[str], splits=TEST_SPLITS) -> pd.DataFrame:  # noqa: PT028  a table of the test frame, not a pytest test
     """Per row label and split: mean ATE over seeds in the honest test frame and in the diagnostic
     truth frame (``<run>/diagnostic-truth-frame``, :func:`wearnav.bench.odometry.run_job`), over the
     seeds that have both; empty where no run has the diagnostic."""

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 
 import pandas as pd
@@ -64,7 +65,7 @@ def export_speed(
                 x, mask = window_batch(b)
                 for name, run in runners.items():
                     with torch.inference_mode():
-                        rate, iqr = time_call(lambda: run(x, mask), min_run_time_s, clock).rate(b)
+                        rate, iqr = time_call(partial(run, x, mask), min_run_time_s, clock).rate(b)
                     rows.append(
                         {
                             "runtime": name,

@@ -263,7 +263,8 @@ def build_recording(
             WearnavWarning(
                 f"{folder}: imported {', '.join(devices)} only; left out "
                 + "; ".join(f"{d} ({r})" for d, r in left_out.items())
-            )
+            ),
+            stacklevel=2,
         )
     gaps = {dev: g for dev, st in devices.items() if (g := _gaps(st.t))}
     if gaps:
@@ -275,7 +276,8 @@ def build_recording(
                     for dev, g in gaps.items()
                 )
                 + "; they are masked, never interpolated"
-            )
+            ),
+            stacklevel=2,
         )
 
     meta = {
@@ -483,9 +485,6 @@ def _fixes(loc: Table, t: np.ndarray, origin: tuple[float, float] | None = None)
     except ValidationError as exc:
         raise FormatError(exc.reason, loc.path) from None
     return fixes, {"origin_lat": lat0, "origin_lon": lon0, "projection": geo.PROJECTION}
-
-
-__all__ = ["read", "read_export", "is_export"]
 
 
 __all__ = ["REPORT_GAP_S", "Unusable", "build_recording", "stale_fixes"]

@@ -222,7 +222,7 @@ def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     labels = read_label_table(labels_path)
     names = read_activity_names(names_path)
     split = read_split(root)
-    for count, ((exp, user), acc_path) in enumerate(sorted(accs.items()), 1):
+    for count, ((_exp, user), acc_path) in enumerate(sorted(accs.items()), 1):
         gyro_path = find_file(raw / ("gyro_" + strip_compression(acc_path)[len("acc_") :]))
         yield read_experiment(acc_path, gyro_path, labels, labels_path, names, names_path, split.get(user, ""))
         if limit is not None and count >= limit:

@@ -418,7 +418,7 @@ def label_recordings(recordings, run: str | Path, out: str | Path, classifier=No
             stage / CLASSIFY_JSON,
         )
     for w in found:
-        warnings.warn(WearnavWarning(w))
+        warnings.warn(WearnavWarning(w), stacklevel=2)
     return {"files": [Path(out) / f for f in files[:-1]], "classes": classes, "warnings": found}
 
 

@@ -411,7 +411,6 @@ def _fit_noisy(
                     target = yb
                 tgt_models = target if phase == "joint" else yb
                 losses = [instance_mse(p, tgt_models) for p in preds]
-                B = xb.shape[0]
                 total_loss = torch.zeros((), device=dev)
                 if dual and phase == "joint" and cfg.method in ("easytrack", "nocnal", "coteaching"):
                     if cfg.method == "coteaching":
