@@ -163,6 +163,7 @@ def read_experiment(
 ) -> Recording:
     """One experiment (acc + gyro files and its rows of labels.txt) as a Recording."""
     m = ACC_RE.match(acc_path.name)
+    assert m is not None  # read() lists only the files it matches
     exp, user = int(m.group(1)), int(m.group(2))
     acc = _read_xyz(acc_path)
     gyro = _read_xyz(gyro_path)
