@@ -211,7 +211,7 @@ def make_trainer(
         enable_version_counter=False,
         save_top_k=1 if monitor else 0,
     )
-    callbacks = [checkpoint]
+    callbacks: list[Callback] = [checkpoint]
     if progress and not on_terminal():  # no bar can be drawn: periodic log lines instead
         callbacks.append(LogProgress(run.name, max_minutes))
     stopper = None

@@ -139,7 +139,7 @@ class TrainConfig:
         unknown = set(d) - set(names)
         if unknown:
             raise ConfigError(f"unknown training config keys: {sorted(unknown)}")
-        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+        kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
         return cls(**kw)
 
     def preprocess_config(self) -> PreprocessConfig:
@@ -239,8 +239,9 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
     if (done := finished(run, cfg)) is not None:  # a finished run is kept, not resumed (its patience would restart)
         log.info(f"{run.name}: finished earlier ({done['stopped_by']}, {done['epochs_run']} epochs), not resumed")
         return done
-    lr = cfg.lr or (getattr(model, "default_lr", DEFAULT_LR) if cfg.recipe == "paper" else DEFAULT_LR)
-    batch = cfg.batch or getattr(model, "default_batch", DEFAULT_BATCH)
+    model_lr: float = getattr(model, "default_lr", DEFAULT_LR) if cfg.recipe == "paper" else DEFAULT_LR
+    model_batch: int = getattr(model, "default_batch", DEFAULT_BATCH)
+    lr, batch = cfg.lr or model_lr, cfg.batch or model_batch
     train_view, val_view, val_note = train_val_views(Dataset.open(cfg.data), cfg.train_split, cfg.val_split)
     train_seqs = load_sequences(train_view, cfg, progress)
     if len(val_view) == 0:
