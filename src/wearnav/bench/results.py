@@ -261,7 +261,7 @@ def collect(
         text = re.sub(r"!\[([^\]]*)\]\(([^)\s]+\.png)\)", relink, text)
         text = re.sub(r"^(#+) ", lambda m: "#" + m.group(1) + " ", text, flags=re.M)
         # the suite's folder name marks its section, so two suites may share a title
-        text = re.sub(r"^(## .*)$", lambda m, tag=tag: f"{m.group(1)} <!-- suite: {tag} -->", text, count=1, flags=re.M)
+        text = re.sub(r"^(## .*)$", rf"\1 <!-- suite: {tag} -->", text, count=1, flags=re.M)  # tag: [A-Za-z0-9_-]
         new += _sections(text)
     old = _sections(read_text(out)) if keep and out.is_file() else []
     tags = {re.sub(r"[^A-Za-z0-9_-]+", "_", d) for d in drop}
