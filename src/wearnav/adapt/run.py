@@ -161,7 +161,9 @@ def adapt(
             raise ValidationError(
                 f"the fixes give no usable speed factor (median {scale:.3g}): does the model move at all?"
             )
-        adapted = ScaledVelocity(model.inner if isinstance(model, ScaledVelocity) else model, base_scale * scale)
+        adapted: torch.nn.Module = ScaledVelocity(
+            model.inner if isinstance(model, ScaledVelocity) else model, base_scale * scale
+        )
         record["scale_fit"] = {
             "factor": round(scale, 4),
             "segments": int(factor.size),

@@ -54,7 +54,7 @@ def export_speed(
         net = build(model, n_devices=DEVICES, window=WINDOW, **model_args).eval()
         header = make_header("odometry", TrainConfig(model=model, data="", window=WINDOW, model_args=model_args))
         with tempfile.TemporaryDirectory() as tmp:
-            runners = {"pytorch": net, "pytorch-traced-graph": net.for_export()}
+            runners = {"pytorch": net, "pytorch-traced-graph": net.for_export()}  # type: ignore[operator]  # an OdometryModel's
             diffs = {"pytorch": 0.0, "pytorch-traced-graph": 0.0}
             for fmt, suffix in FORMATS.items():
                 written = export_model(net, header, fmt, Path(tmp) / f"model{suffix}")

@@ -61,6 +61,7 @@ def load_run(run: str | Path) -> tuple[nn.Module, dict]:
             "takes the run folder of `wearnav train` or of a classifier",
             run,
         )
+    assert name is not None  # run_kind names the model of an odometry or classifier run
     if not registry.get(name).learned:
         raise ConfigError(
             f"{name} is not a learned network (NumPy step detection, no weights): nothing to "
@@ -68,6 +69,7 @@ def load_run(run: str | Path) -> tuple[nn.Module, dict]:
             run,
         )
     classes = None
+    cfg: odometry.TrainConfig | classify.ClassifyConfig
     if task == "odometry":
         model, cfg = odometry.load_model(run)
     else:
@@ -167,7 +169,7 @@ def export_model(model: nn.Module, header: dict, fmt: str, out: str | Path, chec
         )
     if out.is_dir():
         raise ConfigError("is a folder; --out names the file to write", out)
-    traced = model.for_export() if hasattr(model, "for_export") else model.eval()
+    traced = model.for_export() if hasattr(model, "for_export") else model.eval()  # type: ignore[operator]  # hasattr checked
     x, mask = example_inputs(header)
     diff = None
     with atomic_path(out) as tmp:
@@ -219,6 +221,7 @@ def _write_onnx(module: nn.Module, x: torch.Tensor, mask: torch.Tensor, header: 
             dynamic_shapes=({0: batch}, {0: batch}),
             dynamo=True,
         )
+    assert program is not None  # dynamo=True returns the ONNXProgram
     proto = program.model_proto
     proto.doc_string = f"wearnav {header['task']} model {header['model']}; metadata_props['{KEY}']: JSON header"
     entry = proto.metadata_props.add()
