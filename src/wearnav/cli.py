@@ -13,6 +13,7 @@ import signal
 import sys
 import threading
 import warnings
+from collections.abc import Iterable
 from enum import Enum
 from pathlib import Path
 
@@ -180,13 +181,13 @@ def import_(
     from wearnav.importers import import_dataset
     from wearnav.outputs import check_new_dataset
 
-    fmt, platform = fmt.value, choice_value(platform)
-    if platform is not None and fmt != "sensorlogger":
+    fmt_name, platform_name = fmt.value, choice_value(platform)
+    if platform_name is not None and fmt_name != "sensorlogger":
         raise typer.BadParameter("--platform is for the sensorlogger format only")
     check_new_dataset(out, overwrite, "import")
     on_interrupt(f"nothing was written to {out}; run the same command again")
-    options = {"platform": platform} if platform is not None else {}
-    ds = import_dataset(fmt, src, out, limit=limit, progress=progress_enabled(), **options)
+    options = {"platform": platform_name} if platform_name is not None else {}
+    ds = import_dataset(fmt_name, src, out, limit=limit, progress=progress_enabled(), **options)
     echo_json(ds.summary())
 
 
@@ -489,7 +490,7 @@ def classify_(
     model = model_path(model, "classify")  # a shipped model's folder where none is given or one is named
     classifier = resolve_model(model, "classify")  # before the input is read
     if input_.is_file() and input_.suffix == ".h5":
-        recs = [Recording.load(input_)]
+        recs: Iterable[Recording] = [Recording.load(input_)]
     elif (input_ / "manifest.csv").is_file():
         from wearnav.dataset import Dataset
 

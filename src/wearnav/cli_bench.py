@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 from enum import Enum
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -379,7 +380,7 @@ def bench_easytrack(
 
     suite_folder(out, "bench easytrack")
     bc = BenchConfig.quick() if quick else BenchConfig()
-    changes = {}
+    changes: dict[str, Any] = {}
     if km is not None:
         changes["km"] = km
     for key, value in (
