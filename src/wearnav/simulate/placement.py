@@ -269,6 +269,7 @@ class Removed(PosePath):
         pos, R = self.inner.pose(t)
         if self.table_pos is None:
             return pos, R
+        assert self.table_R is not None  # set with table_pos
         m = t > self.removal.start
         if m.any():
             w = ramp(t[m], self.removal.start, self.removal.end)
