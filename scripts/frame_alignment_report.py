@@ -71,7 +71,7 @@ def recording_errors(rec, cfg: frames.FrameConfig = frames.FrameConfig()) -> lis
     z_truth, ok_truth = frames.truth_acceleration(a.pos, rate)
     z = frames.horizontal(a.imu)
     naive = {}
-    for d, dev in enumerate(a.devices):
+    for d in range(len(a.devices)):
         if a.mask[d].any():
             naive[d] = naive_yaw(z[d], z_truth, (a.mask[d] & ok_truth).astype(float), rate)
     for d, dev in enumerate(a.devices):

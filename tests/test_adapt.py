@@ -24,7 +24,7 @@ from wearnav.adapt.finetune import FinetuneConfig
 from wearnav.adapt.run import MIN_SEGMENTS, SCALE_MAX_RELATIVE_SE, SCALE_RANGE, check_scale, scale_fit
 from wearnav.adapt.segments import compare, integration_weights, odometry_displacements, walk_segments
 from wearnav.dataset import DatasetWriter
-from wearnav.errors import ValidationError, WearnavWarning
+from wearnav.errors import ConfigError, ValidationError, WearnavWarning
 from wearnav.evaluate import predict_sequence
 from wearnav.models.base import ScaledVelocity
 from wearnav.preprocess import interpolate_position
@@ -307,7 +307,7 @@ def test_cli_method_choices_are_the_librarys():
 
 
 def test_finetune_config_is_checked():
-    with pytest.raises(Exception):
+    with pytest.raises(ConfigError, match="epochs"):
         FinetuneConfig(epochs=0)
 
 

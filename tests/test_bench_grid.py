@@ -34,7 +34,7 @@ def fake_run(root, model, seed, ate, model_args=None, modes=("DRW", "DLW")):
     splits = {}
     for split, places in (("test", ("HD", "MP")), ("test_unseen", ("PK", "BG"))):
         rows = []
-        for i, (mode, place) in enumerate(zip(modes, places)):
+        for mode, place in zip(modes, places):
             name = f"{split}-{mode}-{place}"
             true = np.stack([1.2 * t, 0 * t], 1)
             est = np.stack([(1.2 + 0.05 * ate) * t, 0 * t], 1)

@@ -15,6 +15,7 @@ import torch
 
 from conftest import ROOT, make_stream
 from wearnav import augment
+from wearnav.errors import ConfigError
 from wearnav.models.har import HARNet
 from wearnav.preprocess import Aligned
 from wearnav.train.classify import split_of, split_view
@@ -37,7 +38,7 @@ def test_rotation_matrices_are_eqs_9_to_11_and_orthonormal():
         np.testing.assert_allclose(T, m, atol=1e-15)
         np.testing.assert_allclose(T @ T.T, np.eye(3), atol=1e-12)
         assert np.linalg.det(T) == pytest.approx(1.0)
-    with pytest.raises(Exception):
+    with pytest.raises(ConfigError, match="rotation axis"):
         augment.axis_rotation("w")
 
 
@@ -114,7 +115,7 @@ def test_moving_average_is_eq_13():
         for t in range(60):
             stop = min(t + n, 60)  # the last n − 1 samples average what remains
             np.testing.assert_allclose(y[:, t], x[:, t:stop].mean(axis=1), atol=1e-12)
-    with pytest.raises(Exception):
+    with pytest.raises(ConfigError, match="moving-average window"):
         augment.moving_average(x, 0)
 
 
@@ -270,7 +271,7 @@ def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
 
     assert re.search(r"\|\s+" + ("1/1" if beats[0] else "NO 0/1") + r"\s+\|", page)
     assert "not applicable (no orientation)" in page  # UCI HAPT has no orientation: world frame not run
-    for name, s in res.items():
+    for s in res.values():
         assert 0.0 <= s["accuracy_mean"] <= 1.0 and 0.0 <= s["f1_mean"] <= 1.0
         assert np.sum(s["confusion"]) == s["test_windows"] > 0
     for png in ("uci-hapt_improvement.png", "uci-hapt_confusion.png", "summary.png"):

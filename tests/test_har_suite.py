@@ -19,6 +19,7 @@ from wearnav import runs
 from wearnav.bench import har
 from wearnav.bench.executor import Execution
 from wearnav.dataset import Dataset
+from wearnav.errors import ConfigError
 from wearnav.simulate.config import PHONE_HOLDS
 from wearnav.simulate.presets import SINGLE_HOLDS, plan_placement_dataset
 from wearnav.train.classify import split_view
@@ -56,7 +57,7 @@ def test_placement_plan_every_walker_every_hold_phone_only():
     # a pure function of the seed; another seed, other walks
     assert plan_placement_dataset(4, (20.0, 25.0), 3) == plan
     assert [p.seed for p in plan_placement_dataset(4, (20.0, 25.0), 4)] != [p.seed for p in plan]
-    with pytest.raises(Exception):
+    with pytest.raises(ConfigError, match="at least 2 subjects"):
         plan_placement_dataset(subjects=1)
 
 
@@ -128,7 +129,6 @@ def test_jobs_2_gives_the_same_runs_as_one_process(sim_quick, tmp_path):
 def test_steps_budget_sets_each_datasets_epochs(sim_quick, tmp_path):
     """--steps: epochs = round(steps / batches per epoch) of the un-augmented training set, at
     least 1, recorded in each run's config; --epochs and --steps together are refused."""
-    from wearnav.errors import ConfigError
     from wearnav.train.classify import ClassifyConfig, _windows, sequences
 
     cfg = ClassifyConfig(

@@ -145,7 +145,7 @@ def synthetic_trace(n=300, gyro_shift_ms=0, with_w=False):
     """A small trace: phone flat, turning slowly about z; optional gyro clock shift and w column."""
     t0 = 1_600_000_000_000
     lines = [
-        "#\tstartTime:%d" % t0,
+        f"#\tstartTime:{t0}",
         "#\tSiteID:s\tSiteName:x\tFloorId:f\tFloorName:B2",
         "#\tBrand:Acme\tModel:P1",
         f"{t0}\tTYPE_WAYPOINT\t1.0\t2.0",

@@ -93,7 +93,7 @@ def test_a_cached_and_a_wide_first_fix_do_not_pull_the_path(exports, tmp_path, a
     t_clean = clean.t - time_origin(dataclasses.replace(rec, fixes=clean))
     res = {name: track(folder, run, tmp_path / name, anchor=anchor) for name, folder in folders.items()}
     d = {name: _median_distance_to(tmp_path / name, t_clean, clean.pos[:, :2]) for name in folders}
-    (t, p_bad), (_, p_clean) = _path(tmp_path / "bad"), _path(tmp_path / "clean")
+    (_, p_bad), (_, p_clean) = _path(tmp_path / "bad"), _path(tmp_path / "clean")
     apart = np.linalg.norm(p_bad - p_clean, axis=1)
     print(
         f"{anchor}: median distance to the good fixes {d['bad']:.4f} m with the bad first fixes, "

@@ -13,6 +13,7 @@ import signal
 import sys
 import threading
 import warnings
+from collections.abc import Iterable
 from enum import Enum
 from pathlib import Path
 
@@ -142,7 +143,7 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
             )
         rec = Recording.load(path)
         if (stale := needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
-            warnings.warn(WearnavWarning(f"{path}: {stale}"))
+            warnings.warn(WearnavWarning(f"{path}: {stale}"), stacklevel=1)
         echo_json(rec.summary())
         return
     ds = Dataset.open(path)
@@ -169,7 +170,7 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
             k: round(v, 3) if isinstance(v, float) else v for k, v in stats["fix_error_m"].items()
         }
     if stats["needs_reimport"]:
-        warnings.warn(WearnavWarning(f"{path}: {stats['needs_reimport']}"))
+        warnings.warn(WearnavWarning(f"{path}: {stats['needs_reimport']}"), stacklevel=1)
     echo_json(summary)
 
 
@@ -193,13 +194,13 @@ def import_(
     from wearnav.importers import import_dataset
     from wearnav.outputs import check_new_dataset
 
-    fmt, platform = fmt.value, choice_value(platform)
-    if platform is not None and fmt != "sensorlogger":
+    fmt_name, platform_name = fmt.value, choice_value(platform)
+    if platform_name is not None and fmt_name != "sensorlogger":
         raise typer.BadParameter("--platform is for the sensorlogger format only")
     check_new_dataset(out, overwrite, "import")
     on_interrupt(f"nothing was written to {out}; run the same command again")
-    options = {"platform": platform} if platform is not None else {}
-    ds = import_dataset(fmt, src, out, limit=limit, progress=progress_enabled(), **options)
+    options = {"platform": platform_name} if platform_name is not None else {}
+    ds = import_dataset(fmt_name, src, out, limit=limit, progress=progress_enabled(), **options)
     echo_json(ds.summary())
 
 
@@ -400,7 +401,7 @@ def train(
         record = fit(cfg, run, progress=progress_enabled(), devices=num_devices, strategy=strategy.value)
         echo_json({"run": str(run), "training": {k: v for k, v in record.items() if k != "training_data"}})
         if (unlearned := did_not_learn(record)) is not None:  # wearnav.trust
-            warnings.warn(WearnavWarning(f"{run}: {unlearned}: {LEARN_ADVICE}"))
+            warnings.warn(WearnavWarning(f"{run}: {unlearned}: {LEARN_ADVICE}"), stacklevel=1)
         if evaluate:
             m = evaluate_run(run, splits=("test",), training=record, progress=progress_enabled())
             echo_json({"test": m["splits"]["test"]["summary"]})
@@ -519,15 +520,15 @@ def classify_(
     # Refused before torch is imported: --out, --model (a shipped model's folder where none is
     # given or one is named), the input.
     check_out_folder_path(out)
-    model = locate_model(model, "classify")
+    located = locate_model(model, "classify")
     check_input(input_)
     from wearnav.recording import Recording
     from wearnav.train.classify import label_recordings
     from wearnav.train.resolve import resolve_model
 
-    classifier = resolve_model(model, "classify")
+    classifier = resolve_model(located, "classify")
     if input_.is_file() and input_.suffix == ".h5":
-        recs = [Recording.load(input_)]
+        recs: Iterable[Recording] = [Recording.load(input_)]
     elif (input_ / "manifest.csv").is_file():
         from wearnav.dataset import Dataset
 
@@ -536,7 +537,7 @@ def classify_(
         from wearnav.importers import sensorlogger
 
         recs = sensorlogger.read(input_)
-    labelled = label_recordings(recs, model, out, classifier)
+    labelled = label_recordings(recs, located, out, classifier)
     for path in labelled["files"]:
         typer.echo(str(path))
     typer.echo(f"labels the model knows: {', '.join(labelled['classes'])}")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 from enum import Enum
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -201,7 +202,7 @@ def bench_real_odometry(
     Example:
       wearnav bench real-odometry --data data/ilc2 --test-data data/ipin --out runs/real/ilc2 --max-time 15
     """
-    from wearnav.bench.real import RealBench, run_benchmark
+    from wearnav.bench.real import PlanPlace, RealBench, run_benchmark
     from wearnav.bench.real_seeds import run_seeds
 
     suite_folder(out, "bench real-odometry")
@@ -215,7 +216,7 @@ def bench_real_odometry(
         train_data=str(train_data) if train_data else None,
         vel_loss=vel_loss.value,
     )
-    where = dict(
+    where = PlanPlace(
         test_data=test_data,
         fmt=choice_value(format_),
         test_fmt=choice_value(test_format),
@@ -224,13 +225,13 @@ def bench_real_odometry(
         test_group_by=test_group_by,
         test_test_groups=split_list(test_test_groups) if test_test_groups else None,
     )
-    common = dict(
-        bench=bench, progress=progress_enabled(), echo=typer.echo, execution=_execution(jobs, executor, address)
-    )
+    execution = _execution(jobs, executor, address)
     if len(seed_list) > 1:
-        page = run_seeds(data, out, seed_list, **common, **where)
+        page = run_seeds(data, out, seed_list, bench, execution, progress_enabled(), typer.echo, **where)
     else:
-        page = run_benchmark(data, out, **where, **common)
+        page = run_benchmark(
+            data, out, **where, bench=bench, progress=progress_enabled(), echo=typer.echo, execution=execution
+        )
     typer.echo(f"wrote {page}")
 
 
@@ -391,7 +392,7 @@ def bench_easytrack(
 
     suite_folder(out, "bench easytrack")
     bc = BenchConfig.quick() if quick else BenchConfig()
-    changes = {}
+    changes: dict[str, Any] = {}
     if km is not None:
         changes["km"] = km
     for key, value in (

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from enum import Enum
 from pathlib import Path
+from typing import overload
 
 import typer
 
@@ -13,7 +14,8 @@ from wearnav.errors import FormatError
 from wearnav.importers import FORMATS
 
 # Options with a fixed set of values that both modules take (wearnav.cli explains the enums).
-ImportFormat = Enum("ImportFormat", {f: f for f in FORMATS}, type=str)  # wearnav.importers.FORMATS
+# (members from FORMATS at run time, which mypy cannot list: it sees an Enum without members)
+ImportFormat = Enum("ImportFormat", {f: f for f in FORMATS}, type=str)  # type: ignore[misc]
 
 
 class Recipe(str, Enum):
@@ -48,6 +50,12 @@ NOTHING_KEPT = "nothing was written; run the same command again"
 KEPT = {"line": NOTHING_KEPT}
 
 
+@overload
+def choice_value(choice: Enum) -> str: ...
+@overload
+def choice_value(choice: None) -> None: ...
+@overload
+def choice_value(choice: Enum | None) -> str | None: ...
 def choice_value(choice: Enum | None) -> str | None:
     return None if choice is None else choice.value
 

@@ -151,7 +151,7 @@ def live(
     if stopped:
         n = len(app.state.receiver.store.sessions())
         typer.echo(
-            f"live: stopped ({STOP_SIGNALS[stopped[0]]}); {n} session{'s' * (n != 1)} stored in {store} "
+            f"live: stopped ({STOP_SIGNALS[signal.Signals(stopped[0])]}); {n} session{'s' * (n != 1)} stored in {store} "
             "(`wearnav live` resumes them)",
             err=True,
         )

@@ -123,11 +123,11 @@ def export_(
     from wearnav.train.resolve import locate_model
 
     # Refused before torch is imported: the run (a shipped model's name → its folder), --out.
-    run = locate_model(run, None, files=False, baselines=False)
+    located = locate_model(run, None, files=False, baselines=False)
     check_out_file(choice_value(format_), out)
     from wearnav.export.write import export_run
 
-    echo_json(export_run(run, choice_value(format_), out))
+    echo_json(export_run(located, choice_value(format_), out))
 
 
 def adapt(

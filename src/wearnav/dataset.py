@@ -20,8 +20,10 @@ import signal
 import tempfile
 import threading
 import zlib
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
+from types import FrameType
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -87,7 +89,8 @@ def _work_dir_re(root: Path) -> re.Pattern:
 def clean_stale_work_dirs(root: Path) -> list[Path]:
     """Remove the work folders that writers of ``root`` on this host left when they died (kill -9,
     power loss); an ``.old`` copy whose replacement never landed is moved back to ``root``."""
-    pattern, host, cleaned = _work_dir_re(root), host_tag(), []
+    pattern, host = _work_dir_re(root), host_tag()
+    cleaned: list[Path] = []
     try:
         siblings = list(root.parent.iterdir())
     except OSError:
@@ -183,7 +186,7 @@ class DatasetWriter:
         prefix = f".{self.root.name}.{host_tag()}.{os.getpid()}."
         self.tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=".partial", dir=self.root.parent))
         self.rows: list[dict] = []
-        self._old_handler = None
+        self._old_handler: Callable[[int, FrameType | None], Any] | int | None = None  # signal.signal's
         self._noting = noting_lost_interrupts()
         self._deferred = False  # SIGTERM arrived while the renames in close() ran
         self._critical = False

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -77,6 +78,7 @@ def evaluate_sequence(
         return row, pd.DataFrame()
     inside = (seq.t >= t_c[0]) & (seq.t <= t_c[-1])
     if _is_dense(rec):
+        assert seq.pos is not None  # align interpolates dense truth onto the clock
         ok = inside & np.isfinite(seq.pos[:, 0])
         # the longest stretch of truth inside the predictions (truth gaps split a walk)
         idx = np.flatnonzero(ok)
@@ -228,7 +230,7 @@ def evaluate_run(
         raise FormatError("'splits' is not a mapping of split names to results", dest / runs.METRICS)
     if training is None and (run / TRAINING).is_file():
         training = read_json(run / TRAINING)
-    out = {
+    out: dict[str, Any] = {
         "model": cfg.model,
         "run": run.name,
         "data": str(data or cfg.data),

@@ -44,6 +44,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -161,7 +162,7 @@ class Segments:
         if not parts:
             raise ValidationError("no segments to concatenate")
         n_off, t_off = 0, 0
-        cols = {
+        cols: dict[str, list[np.ndarray]] = {
             k: []
             for k in (
                 "x",
@@ -268,7 +269,7 @@ def fix_frame_yaw(
     from wearnav.models.pdr import PDR
 
     W = int(round(window_s * rate))
-    info = {"windows": 0, "yaw_deg": None}
+    info: dict[str, Any] = {"windows": 0, "yaw_deg": None}
     if t.size < W + 2 or t_fix.size < 3:
         return np.zeros(t.size), info
     starts = np.arange(0, t.size - W, int(round(rate)))
@@ -370,6 +371,7 @@ def label_recording(rec: Recording, cfg: LabelConfig = LabelConfig(), warn_drops
     truth = np.full_like(label, np.nan)
     start = np.full((1, 2), np.nan)
     if _dense_truth(rec):
+        assert rec.truth is not None  # _dense_truth checked it
         tt = interpolate_position(rec.truth.t, rec.truth.pos, t_pt[nodes])
         truth = tt[[node_of[j] for j in j_idx]] - tt[[node_of[i] for i in i_idx]]
         start = tt[:1]
@@ -398,7 +400,9 @@ def _chain_points(
     ``steps`` > 1, ``steps`` − 1 points evenly between each pair, positions linearly interpolated
     between the two fixes. Returns times, positions and each unbroken chain's [first, last] point
     indices (a segment spans ``steps`` points: the fix spacing)."""
-    t_pt, p_pt, span = [], [], []
+    t_pt: list[float] = []
+    p_pt: list[np.ndarray] = []
+    span = []
     k = 0
     while k < len(pairs):
         chain = [pairs[k][0]]
@@ -423,6 +427,7 @@ def segments_from_truth(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Seg
     if not _dense_truth(rec) or "phone" not in rec.devices:
         return None
     seq = aligned_phone(rec, cfg)
+    assert rec.truth is not None  # _dense_truth checked it
     pos = interpolate_position(rec.truth.t, rec.truth.pos, seq.t)
     N = cfg.samples
     starts = np.arange(0, seq.t.size - N, N)
@@ -440,7 +445,8 @@ def segments_from_truth(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Seg
     # keep the longest contiguous stretch so the displacements integrate one trajectory
     if not ok.any():
         return None
-    best, cur, best_run = [], [], []
+    cur: list[int] = []
+    best_run: list[int] = []
     for k, good in enumerate(ok):
         cur = cur + [k] if good else []
         if len(cur) > len(best_run):
@@ -469,10 +475,10 @@ def segments_from_truth(rec: Recording, cfg: LabelConfig = LabelConfig()) -> Seg
 def label_dataset(view, cfg: LabelConfig = LabelConfig(), from_truth: bool = False, progress: bool = False) -> Segments:
     """All recordings of a dataset view, phone-labelled (or truth-labelled with ``from_truth``)."""
     recs = report_progress(view, total=len(view), desc="label", unit="rec", enabled=progress)
-    parts = [
+    labelled = [
         segments_from_truth(rec, cfg) if from_truth else label_recording(rec, cfg, warn_drops=False) for rec in recs
     ]
-    parts = [p for p in parts if p is not None and len(p)]
+    parts = [p for p in labelled if p is not None and len(p)]
     dropped = sum(int(p.dropped.sum()) for p in parts if p.dropped is not None)
     if dropped:
         hit = sum(int((p.dropped > 0).sum()) for p in parts if p.dropped is not None)
@@ -517,7 +523,7 @@ def noise_summary(seg: Segments) -> dict:
         if np.isfinite(seg.truth).any()
         else float(np.sum(np.linalg.norm(seg.label, axis=1)))
     )
-    out = {
+    out: dict[str, Any] = {
         "segments": len(seg),
         "trajectories": len(seg.names),
         "length_km": round(dist / 1000, 3),

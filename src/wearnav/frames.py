@@ -55,6 +55,7 @@ kernels of 10–60 s instead of 20 s, a body turn rate from the median of all de
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -259,7 +260,7 @@ def relative_yaw(
     weight: np.ndarray,
     rate: float,
     cfg: FrameConfig = FrameConfig(),
-    nuisance: list[np.ndarray] = (),
+    nuisance: Sequence[np.ndarray] = (),
 ) -> YawTrack:
     """Yaw of a's frame relative to b's (z_a ≈ e^{iψ} z_b) over time, from horizontal world
     accelerations ``z_a``, ``z_b`` (complex, T) and a per-sample ``weight`` (0 where either is

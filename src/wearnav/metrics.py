@@ -132,7 +132,8 @@ def label_noise_correlation(noise, consecutive) -> tuple[float, float]:
     i = i[np.isfinite(e[i, :2]).all(1) & np.isfinite(e[i + 1, :2]).all(1)]
     if i.size < 3:
         return float("nan"), float("nan")
-    return tuple(float(np.corrcoef(e[i, k], e[i + 1, k])[0, 1]) for k in (0, 1))
+    rx, ry = (float(np.corrcoef(e[i, k], e[i + 1, k])[0, 1]) for k in (0, 1))
+    return rx, ry
 
 
 def _common(t, pos_est, pos_true) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -104,7 +104,7 @@ def _signals_held() -> Iterator[None]:
     try:
         yield
     finally:
-        if can:
+        if old is not None:  # set exactly when can
             signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 

@@ -27,7 +27,7 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, TypeVar
 
 import yaml
 from filelock import FileLock, Timeout
@@ -162,7 +162,17 @@ def read_config(run: str | Path) -> dict:
     return doc
 
 
-def read_run_config(run: str | Path, cls: type):
+class _FromDict(Protocol):
+    """A config dataclass that reads itself from a mapping (``TrainConfig``, ``ClassifyConfig``)."""
+
+    @classmethod
+    def from_dict(cls: type[_ConfigT], d: dict) -> _ConfigT: ...
+
+
+_ConfigT = TypeVar("_ConfigT", bound=_FromDict)
+
+
+def read_run_config(run: str | Path, cls: type[_ConfigT]) -> _ConfigT:
     """The run's training config (``config.train`` of config.yaml) as ``cls`` (a config dataclass
     with ``from_dict``); a missing, mistyped or invalid entry is a FormatError naming the file."""
     path = Path(run) / CONFIG

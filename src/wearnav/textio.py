@@ -54,6 +54,7 @@ def read_yaml(path: str | Path, kind: type | None = dict) -> Any:
 
 def _require(value: Any, kind: type | None, what: str, path: str | Path) -> Any:
     if kind is not None and not isinstance(value, kind):
-        name = {dict: "a mapping", list: "a list"}.get(kind, kind.__name__)
+        names: dict[type, str] = {dict: "a mapping", list: "a list"}
+        name = names.get(kind, kind.__name__)
         raise FormatError(f"the {what} is not {name} (got {type(value).__name__})", path)
     return value

@@ -197,10 +197,10 @@ def geojson(
         "t_start_s": round(float(t[0]), 3),
         "t_end_s": round(float(t[-1]), 3),
         "duration_s": round(float(t[-1] - t[0]), 3),
-        "median_sigma_m": _num(np.nanmedian(sigma_m), 2) if known else None,
+        "median_sigma_m": _num(np.nanmedian(sigma_m), 2) if known and sigma_m is not None else None,
         "fix_status": fixes.counts(),
     }
-    if known:
+    if known and sigma_m is not None:
         line["sigma_m"] = [_num(v, 2) for v in sigma_m]
         line["t"] = [round(float(v), 3) for v in t]
     feats = [
@@ -410,7 +410,7 @@ def track(
         f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel, summary["length_m"])
     ]
     for w in summary["warnings"]:
-        warnings.warn(WearnavWarning(w))
+        warnings.warn(WearnavWarning(w), stacklevel=2)
     with staged_output(out, TRACK_JSON, "track") as stage:
         _write_track(stage, out, table, t, xy, rec, cfg, seq, summary, anchor)
     return summary
@@ -439,7 +439,7 @@ def _write_track(
             "note": "the recording has no location fixes: the path starts at (0, 0) in the odometry's own frame",
         }
         summary["warnings"].append(f"{rec.name}: no location fixes: the path is not placed on a map")
-        warnings.warn(WearnavWarning(summary["warnings"][-1]))
+        warnings.warn(WearnavWarning(summary["warnings"][-1]), stacklevel=2)
     else:
         fcfg, cal = fuse.config_for(
             summary["run"] if Path(summary["run"]).exists() else None,
@@ -447,6 +447,7 @@ def _write_track(
             seq.meta.get("frame", {}).get("reference"),
         )
         res = fuse.fuse(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, anchor, fcfg)
+        assert res.fixes is not None  # every anchoring reports on each fix it was given
         summary["anchoring"] = {
             "requested": anchor,
             "method": res.method,
@@ -459,10 +460,10 @@ def _write_track(
         }
         summary["warnings"] += [f"{rec.name}: {w}" for w in res.warnings]
         for w in res.warnings:
-            warnings.warn(WearnavWarning(f"{rec.name}: {w}"))
+            warnings.warn(WearnavWarning(f"{rec.name}: {w}"), stacklevel=2)
         lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
-        has_origin = lat0 is not None and lon0 is not None
-        fix_ll = geo.local_to_latlon(fx.pos[:, :2], float(lat0), float(lon0)) if has_origin else None
+        origin = (float(lat0), float(lon0)) if lat0 is not None and lon0 is not None else None
+        fix_ll = geo.local_to_latlon(fx.pos[:, :2], *origin) if origin is not None else None
         t0_unix = rec.meta["t0_unix_ns"] * 1e-9 if "t0_unix_ns" in rec.meta else None
         with atomic_path(stage / "fixes.csv") as tmp:
             fix_table(fx, res.fixes, t0_unix, fix_ll).to_csv(tmp, index=False)
@@ -475,9 +476,9 @@ def _write_track(
             summary["length_m"] = round(float(np.sum(np.linalg.norm(np.diff(anchored, axis=0), axis=1))), 2)
             if np.isfinite(res.sigma_m).any():
                 table["sigma_m"] = res.sigma_m
-            if has_origin:
+            if origin is not None and fix_ll is not None:
                 gj = geojson(
-                    geo.local_to_latlon(anchored, float(lat0), float(lon0)),
+                    geo.local_to_latlon(anchored, *origin),
                     t,
                     fix_ll,
                     fx.t,
@@ -493,7 +494,7 @@ def _write_track(
                 summary["geojson"] = "not written: the recording's fixes have no lat/lon origin"
     with atomic_path(stage / "trajectory.csv") as tmp:
         table.to_csv(tmp, index=False, float_format=TRAJ_FORMAT)
-    kept = res.fixes.kept if fx is not None and len(fx) and res.fixes is not None else None
+    kept = res.fixes.kept if res is not None and fx is not None and len(fx) and res.fixes is not None else None
     plot_track(table, seq.devices, anchored, fx, summary, stage / "trajectory.png", kept)
     write_text_atomic(
         page_html(t, xy, rec, cfg, summary, res if anchored is not None else None, kept), stage / "trajectory.html"
@@ -516,7 +517,8 @@ def page_html(
     origin, fixes = None, []
     if res is not None:
         fx = rec.fixes
-        k = np.ones(len(fx.t), bool) if kept is None else kept
+        assert fx is not None  # res: the path was anchored on them
+        k = np.ones(len(fx.t), dtype=np.bool_) if kept is None else kept
         fixes = [
             [round(float(a), 3), round(float(e), 3), round(float(n), 3), _num(acc, 2)]
             for a, (e, n), acc in zip(fx.t[k], fx.pos[k, :2], fx.accuracy[k])
@@ -576,14 +578,14 @@ def plot_track(
     ax, ax_dev = fig.subplots(2, 1, height_ratios=[5, 1])
     xy = anchored if anchored is not None else table[["x", "y"]].to_numpy()
     if anchored is not None:
-        k = np.ones(len(fixes.t), bool) if kept is None else kept
+        shown = np.ones(len(fixes.t), bool) if kept is None else kept
         ax.scatter(
-            fixes.pos[k, 0],
-            fixes.pos[k, 1],
+            fixes.pos[shown, 0],
+            fixes.pos[shown, 1],
             s=8,
             c="tab:red",
             alpha=0.6,
-            label="location fixes" + (f" ({int(np.sum(~k))} dropped, not drawn)" if (~k).any() else ""),
+            label="location fixes" + (f" ({int(np.sum(~shown))} dropped, not drawn)" if (~shown).any() else ""),
         )
     ax.plot(xy[:, 0], xy[:, 1], color="tab:blue", lw=1.2, label=f"path ({summary['model']})")
     ax.plot(*xy[0], "o", color="tab:green", ms=8, label="start")

@@ -90,7 +90,7 @@ class WindowDataset(TorchDataset):
 
     def _build_index(self) -> np.ndarray:
         L, S = self.cfg.window, self.cfg.stride
-        rows = []
+        rows: list[tuple[int, int]] = []
         for i, seq in enumerate(self.sequences):
             starts = np.arange(0, len(seq) - L + 1, S)
             if self.cfg.target == "velocity":

@@ -92,12 +92,17 @@ class AdaptConfig:
     # fewer good segments than this: refused (None: the method's MIN_SEGMENTS)
     min_segments: int | None = None
 
+    @property
+    def least_segments(self) -> int:
+        """The segments this method needs: ``min_segments``, or the method's :data:`MIN_SEGMENTS`."""
+        return self.min_segments if self.min_segments is not None else MIN_SEGMENTS[self.method]
+
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise ConfigError(f"unknown adaptation method {self.method!r}; one of {', '.join(METHODS)}")
         if self.min_segments is None:
             object.__setattr__(self, "min_segments", MIN_SEGMENTS[self.method])
-        if not 0 < self.holdout < 1 or self.min_segments < 2:
+        if not 0 < self.holdout < 1 or self.least_segments < 2:
             raise ConfigError(
                 f"holdout must be in (0, 1) and min_segments ≥ 2, got {self.holdout}, {self.min_segments}"
             )
@@ -173,11 +178,11 @@ def adapt(
         )
     n_seg = sum(len(w) for w in walks)
     s = cfg.segments
-    if n_seg < cfg.min_segments:
+    if n_seg < cfg.least_segments:
         raise ValidationError(
             f"only {n_seg} segment(s) between good fixes ({s.segment_s:g} s apart, accuracy ≤ "
             f"{s.max_accuracy_m:g} m, moved ≥ {s.min_length_m:g} m) in {n_rec} recording(s); "
-            f"--method {cfg.method} needs at least {cfg.min_segments}: walk longer with location on, "
+            f"--method {cfg.method} needs at least {cfg.least_segments}: walk longer with location on, "
             f"or cut shorter segments with --segment-s (each must still span ≥ {s.min_length_m:g} m)"
         )
     train, held, held_by = split_walks(walks, cfg.holdout)
@@ -195,7 +200,9 @@ def adapt(
             )
         fit = scale_fit(factor)
         check_scale(fit, s.segment_s)
-        adapted = ScaledVelocity(model.inner if isinstance(model, ScaledVelocity) else model, base_scale * scale)
+        adapted: torch.nn.Module = ScaledVelocity(
+            model.inner if isinstance(model, ScaledVelocity) else model, base_scale * scale
+        )
         record["scale_fit"] = fit
         velocity_scale, state = base_scale * scale, None
     else:
@@ -213,7 +220,8 @@ def adapt(
                 f"nothing changed: the starting model was kept (no fine-tuning epoch agreed better with the "
                 f"held-out fixes: median segment error {before['segment_error_median_m']:.2f} m); "
                 f"{out} holds the same model"
-            )
+            ),
+            stacklevel=2,
         )
     elif not improved:
         warnings.warn(
@@ -222,7 +230,8 @@ def adapt(
                 f"{before['segment_error_median_m']:.2f} → {after['segment_error_median_m']:.2f} m, length ratio "
                 f"{before['length_ratio_median']:.2f} → {after['length_ratio_median']:.2f}): the adaptation may not help; "
                 f"compare both runs with `wearnav track`"
-            )
+            ),
+            stacklevel=2,
         )
     record.update(
         {

@@ -86,6 +86,7 @@ def scored(run: Path, data: Path, splits: tuple[str, ...], yaw_deg: float, out_d
             errors.append(np.asarray(r["point_errors"], float))
             traj = pd.read_csv(out_dir / "trajectories" / split / f"{r['name']}.csv")
             truth = ds.load(r["name"]).truth
+            assert truth is not None  # a scored recording has truth
             ratios.append(score_path(traj["t"].to_numpy(), traj[["x", "y"]].to_numpy(), truth.t, truth.pos[:, :2])[1])
         out[split] = (np.concatenate(errors) if errors else np.empty(0), ratios)
     return out

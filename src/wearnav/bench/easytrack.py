@@ -27,6 +27,7 @@ import logging
 import re
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -318,7 +319,8 @@ def real_scores(plan: RealPlan, out: Path, lc: LabelConfig) -> dict:
     for job in plan.jobs:
         preds.setdefault(job.config.cfg.method, []).append(load_predictor(job.config.cfg, job.folder, train.x.shape[1]))
     N = lc.samples
-    pdr = build("pdr", n_devices=1, window=int(round(4 * lc.rate)), rate=lc.rate)
+    pdr_window = int(round(4 * lc.rate))
+    pdr = build("pdr", n_devices=1, window=pdr_window, rate=lc.rate)
     errs: dict[tuple, list] = {}  # (protocol, method, seed) → error arrays per route
     per_route = []
     for name in test_names:
@@ -349,7 +351,7 @@ def real_scores(plan: RealPlan, out: Path, lc: LabelConfig) -> dict:
                         metrics.errors_at_reference(t_nodes, est, ref_t, ref_p, SPARSE_MAX_GAP)
                     )
             row[method] = float(np.median(np.concatenate([errs[("user", method, k)][-1] for k in range(len(fns))])))
-        t_c, vel, _ = predict_sequence(pdr, dataclasses.replace(seq, pos=None), pdr.window, int(round(lc.rate)))
+        t_c, vel, _ = predict_sequence(pdr, dataclasses.replace(seq, pos=None), pdr_window, int(round(lc.rate)))
         t_int = seq.t[seq.t >= tt[inside[0]]]
         for proto, p0 in starts_at.items():
             est = integrate_velocity(t_c, vel, t_int, p0)
@@ -362,7 +364,7 @@ def real_scores(plan: RealPlan, out: Path, lc: LabelConfig) -> dict:
             errs.setdefault((proto, "gnss", 0), []).append(e)
         row["gnss"] = float(np.median(e)) if e.size else None
         per_route.append(row)
-    summary = {proto: {} for proto in ("user", "known")}
+    summary: dict[str, dict[str, Any]] = {proto: {} for proto in ("user", "known")}
     for proto in summary:
         for method in (*IPIN_METHODS, "pdr", "gnss"):
             per_seed = [np.concatenate(v) for (p, m, _), v in sorted(errs.items()) if p == proto and m == method and v]

@@ -385,9 +385,9 @@ def write_page(
             ]
             lines += [head, "", pd.DataFrame(rows).round(2).to_markdown(index=False), ""]
             pair = [real["summary"][proto].get(m, {}).get("seed_medians_m", []) for m in real["methods"]]
-            p = welch_p(*pair)
-            if p is not None:
-                lines += [f"EasyTrack vs BaseModel, per-seed medians: Welch's p = {p:.3f}.", ""]
+            p_welch = welch_p(*pair)
+            if p_welch is not None:
+                lines += [f"EasyTrack vs BaseModel, per-seed medians: Welch's p = {p_welch:.3f}.", ""]
         lines += [
             "Per route (user protocol; median error over the seeds' points, m):",
             "",

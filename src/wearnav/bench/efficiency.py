@@ -29,6 +29,7 @@ from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import torch
@@ -36,6 +37,7 @@ from torch.utils import benchmark
 from torch.utils.flop_counter import FlopCounterMode
 
 from wearnav.fileio import write_text_atomic
+from wearnav.models.base import OdometryModel
 from wearnav.models.registry import build, get, n_parameters
 from wearnav.textio import read_json
 
@@ -206,7 +208,7 @@ def train_step_seconds(
     model's weights and statistics are left as they were."""
     import copy
 
-    model = copy.deepcopy(model).train()
+    model = cast(OdometryModel, copy.deepcopy(model).train())  # an odometry model: loss(batch)
     x, mask = window_batch(batch, n_devices, window)
     b = {"x": x, "mask": mask, "vel": torch.randn(batch, 2, generator=torch.Generator().manual_seed(1))}
     opt = torch.optim.Adam(model.parameters(), lr=1e-4)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import os
 import platform
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -166,6 +167,7 @@ def import_data(ds: HarDataset, data_root: Path, out: Path, quick: bool) -> Path
     if ds.fmt == "simulate-placement":
         from wearnav.simulate.presets import simulate_placement_dataset
 
+        assert ds.quick_limit is not None  # the simulated dataset's --quick size (walkers)
         simulate_placement_dataset(
             folder,
             subjects=ds.quick_limit if quick else SIM_SUBJECTS,
@@ -307,7 +309,7 @@ def _plot_improvement(dataset: str, summary: dict, path: Path, p_bh: dict[str, f
     ]
     ax.bar(range(len(names)), d, yerr=se, capsize=3, color=["tab:green" if v > 0 else "tab:red" for v in d])
     for i, n in enumerate(names):
-        if p_bh.get(n) is not None and p_bh[n] < SIGNIFICANCE:
+        if (p_n := p_bh.get(n)) is not None and p_n < SIGNIFICANCE:
             ax.annotate(
                 "†",
                 (i, d[i] + np.copysign(se[i], d[i])),
@@ -392,7 +394,7 @@ def _plot_summary(rows: list[dict], path: Path) -> Path | None:
         color="tab:blue",
         label=f"… of which beyond seed spread (Welch's t, BH-adjusted p < {SIGNIFICANCE})",
     )
-    ax.yaxis.get_major_locator().set_params(integer=True)
+    ax.yaxis.get_major_locator().set_params(integer=True)  # type: ignore[call-arg]  # a MaxNLocator (matplotlib's default)
     ax2 = ax.twinx()
     ax2.plot(
         x, [r["max improvement (points)"] for r in rows], "o", color="tab:orange", ms=8, label="max Δ accuracy (points)"
@@ -421,7 +423,7 @@ def _p_text(p: float | None) -> str:
     return "" if p is None else f"{p:.2g}"
 
 
-def _wall_text(wall_s: float | None, earlier: list[dict]) -> str:
+def _wall_text(wall_s: float | None, earlier: Sequence[dict]) -> str:
     if wall_s is None:
         return ""
     if not earlier:
@@ -446,7 +448,7 @@ def write_report(
     out: Path,
     note: str = "",
     wall_s: float | None = None,
-    invocations: list[dict] = (),
+    invocations: Sequence[dict] = (),
     title: str = "",
 ) -> Path:
     """results.md + results.json + PNGs from ``results``: dataset → technique → summary.
@@ -503,7 +505,7 @@ def write_report(
             if base and tech.name != "baseline":
                 da = 100 * (s["accuracy_mean"] - base["accuracy_mean"])
                 df = 100 * (s["f1_mean"] - base["f1_mean"])
-                sig = p_bh[tech.name] is not None and p_bh[tech.name] < SIGNIFICANCE
+                sig = (p_tech := p_bh[tech.name]) is not None and p_tech < SIGNIFICANCE
                 improve.setdefault(tech.name, []).append((da, sig))
             rows.append(
                 {

@@ -16,7 +16,9 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -131,14 +133,19 @@ def marked_table(
     return pd.DataFrame(rows), stats
 
 
+def _metric(split: str, key: str, group: str | None = None, name: str | None = None) -> Callable[[GridRun], Any]:
+    """``fn(run)``: the run's summary ``key`` on ``split`` (of one ``group`` entry where given)."""
+    return lambda r: summary_of(r, split, group, name).get(key)
+
+
 def table3_columns(split: str) -> dict:
-    cols = {
+    cols: dict[str, Callable[[GridRun], Any]] = {
         "ATE": lambda r: summary_of(r, split).get("ate_mean"),
         "RTE": lambda r: summary_of(r, split).get("rte_mean"),
     }
     for mode in MODES:
-        cols[f"{mode} ATE"] = lambda r, m=mode: summary_of(r, split, "by_mode", m).get("ate_mean")
-        cols[f"{mode} RTE"] = lambda r, m=mode: summary_of(r, split, "by_mode", m).get("rte_mean")
+        cols[f"{mode} ATE"] = _metric(split, "ate_mean", "by_mode", mode)
+        cols[f"{mode} RTE"] = _metric(split, "rte_mean", "by_mode", mode)
     return cols
 
 
@@ -297,7 +304,7 @@ def training_table(grid: dict[str, list[GridRun]], labels: list[str], expected: 
     return pd.DataFrame(rows)
 
 
-def test_frame_table(grid: dict[str, list[GridRun]], labels: list[str], splits=TEST_SPLITS) -> pd.DataFrame:
+def test_frame_table(grid: dict[str, list[GridRun]], labels: list[str], splits=TEST_SPLITS) -> pd.DataFrame:  # noqa: PT028  a table of the test frame, not a pytest test
     """Per row label and split: mean ATE over seeds in the honest test frame and in the diagnostic
     truth frame (``<run>/diagnostic-truth-frame``, :func:`wearnav.bench.odometry.run_job`), over the
     seeds that have both; empty where no run has the diagnostic."""
@@ -305,7 +312,7 @@ def test_frame_table(grid: dict[str, list[GridRun]], labels: list[str], splits=T
     for lab in labels:
         row: dict = {"model": lab}
         for split in splits:
-            pairs = []
+            pairs: list[tuple[float, float]] = []
             for r in grid[lab]:
                 diag = r.folder / DIAGNOSTIC_TRUTH_FRAME
                 if not runs.is_complete(diag):
@@ -313,7 +320,7 @@ def test_frame_table(grid: dict[str, list[GridRun]], labels: list[str], splits=T
                 d = (runs.read_metrics(diag).get("splits", {}).get(split) or {}).get("summary", {}).get("ate_mean")
                 h = summary_of(r, split).get("ate_mean")
                 if _finite(d) and _finite(h):
-                    pairs.append((h, d))
+                    pairs.append((float(h), float(d)))  # type: ignore[arg-type]  # _finite: numbers
             if pairs:
                 h, d = np.mean(pairs, axis=0)
                 row |= {f"{split} honest": h, f"{split} diagnostic": d, f"{split} Δ": h - d}
@@ -425,7 +432,7 @@ def write_grid_report(
 
     t5 = [lab for lab in abl.values() if lab in grid]
     if len(t5) > 1:
-        cols5 = {f"{s} ATE": (lambda r, s=s: summary_of(r, s).get("ate_mean")) for s in splits}
+        cols5: dict[str, Callable[[GridRun], Any]] = {f"{s} ATE": _metric(s, "ate_mean") for s in splits}
         cols5["test RTE"] = lambda r: summary_of(r, "test").get("rte_mean")
         table, st = marked_table(grid, t5, cols5, expected_seeds)
         table = table.loc[:, (table != "").any(axis=0)]

@@ -50,6 +50,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from pathlib import Path
+from typing import Any, TypedDict
 
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
@@ -88,7 +89,7 @@ class RealBench:
 
 
 def _train_config(model: str, data: str, yaw: float, bench: RealBench, elsewhere: bool):
-    kw = dict(
+    kw: dict[str, Any] = dict(
         model=model,
         data=data,
         devices=("phone",),
@@ -107,6 +108,18 @@ def _train_config(model: str, data: str, yaw: float, bench: RealBench, elsewhere
     if elsewhere:  # the simulator's own truth frame and dense truth
         return TrainConfig(**kw)
     return TrainConfig(**kw, frame_align="none", truth_max_gap=TRUTH_MAX_GAP_S, yaw_deg=yaw)
+
+
+class PlanPlace(TypedDict, total=False):
+    """Where a suite's data come from and what it holds out (:func:`plan_benchmark`'s keywords)."""
+
+    test_data: Path | None
+    fmt: str | None
+    test_fmt: str | None
+    group_by: str | None
+    test_groups: tuple[str, ...] | None
+    test_group_by: str | None
+    test_test_groups: tuple[str, ...] | None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -201,7 +214,7 @@ def plan_benchmark(
     """Prepare the data, estimate the site yaws and list a job per model (:func:`run_job`)."""
     out = Path(out)
     t_start = time.perf_counter()
-    sites = {}
+    sites: dict[str, dict[str, Any]] = {}
     main, info = prepare_data(data, out / "data" / "main", fmt, group_by, test_groups, progress)
     sites["main"] = {"data": str(main), "split": info}
     if test_data is not None:
@@ -221,7 +234,9 @@ def plan_benchmark(
     jobs = []
     for model in bench.models:
         elsewhere = bool(bench.train_data) and get(model).learned
-        cfg = _train_config(model, bench.train_data if elsewhere else str(main), yaw, bench, elsewhere)
+        cfg = _train_config(
+            model, bench.train_data if elsewhere and bench.train_data else str(main), yaw, bench, elsewhere
+        )
         run = runs.run_dir(out / "runs", model, run_hash_exclude(run_record(cfg)))
         # a learned model scored where it did not train under PDR's site yaw is given its own
         # estimate of the site's yaw (PDR's heading bias differs by building: 18° at ILC2)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import platform
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -133,6 +134,7 @@ def length_ratio(eval_dir: Path, data: str) -> float:
         df = pd.read_csv(f)
         if f.stem in ds.names and len(df) > 1:
             truth = ds.load(f.stem).truth
+            assert truth is not None  # a scored test recording has truth
             ratios.append(score_path(df["t"].to_numpy(), df[["x", "y"]].to_numpy(), truth.t, truth.pos[:, :2])[1])
     return round(float(np.nanmedian(ratios)), 3) if np.isfinite(ratios).any() else float("nan")
 
@@ -178,7 +180,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         "and PDR (not learned).",
         "",
     ]
-    doc = {"bench": dict(bench), "wall_s": round(wall_s, 1), "sites": {}}
+    doc: dict[str, Any] = {"bench": dict(bench), "wall_s": round(wall_s, 1), "sites": {}}
     for site, s in sites.items():
         info = s["split"]
         test = [g for g, c in info["groups"].items() if "test" in c]
@@ -307,7 +309,7 @@ def _user_protocol_elsewhere(
     others = {
         k: run
         for k, run in folders.items()
-        if _trained_on(run) is None or Path(_trained_on(run)).resolve() != Path(data).resolve()
+        if (trained := _trained_on(run)) is None or Path(trained).resolve() != Path(data).resolve()
     }
     fixes = fix_errors(Path(data), "train") if others else None
     if not fixes:

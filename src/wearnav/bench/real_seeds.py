@@ -89,7 +89,10 @@ def walk_errors(eval_dir: Path) -> dict[str, np.ndarray]:
 def _paired(a: dict[int, dict[str, np.ndarray]], b: dict[int, dict[str, np.ndarray]]) -> dict | None:
     """``a`` minus ``b`` over the walks both scored in every seed of ``a`` (a walk's points of all
     seeds together; ``b`` taken from its own seed, or its only one)."""
-    walks = sorted(set.intersection(*(set(v) for v in a.values())) & set.intersection(*(set(v) for v in b.values())))
+    common: set[str] | None = None
+    for d in (*a.values(), *b.values()):
+        common = set(d) if common is None else common & set(d)
+    walks = sorted(common or ())
     if len(walks) < 2:
         return None
     pick = lambda d, s: d.get(s, next(iter(d.values())))
@@ -164,12 +167,12 @@ def smoother_table(seed_docs: dict[int, dict], site: str) -> pd.DataFrame | None
     }
     rows = []
     for label in labels:
-        stats = [
+        found = [
             next((r for r in u["table"] if r["path"] == label + SMOOTH_SUFFIX), None)
             for u in ups.values()
             if label in u["runs"]
         ]
-        stats = [r for r in stats if r is not None]
+        stats = [r for r in found if r is not None]
         paired = _paired(by_trace[label], by_trace[REFERENCE]) if REFERENCE in by_trace else None
         rows.append(
             {

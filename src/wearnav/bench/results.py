@@ -248,7 +248,9 @@ def collect(
         text = read_text(page)
         tag = re.sub(r"[^A-Za-z0-9_-]+", "_", suite.name)
 
-        def relink(m: re.Match) -> str:
+        # suite and tag bound as defaults: re.sub calls relink within this iteration, so the late
+        # binding of a closure was no bug here, but the binding keeps it right if that ever changes
+        def relink(m: re.Match, suite: Path = suite, tag: str = tag) -> str:
             src = suite / m.group(2)
             if not src.is_file():
                 raise MissingFileError(f"results.md links {m.group(2)}, which is not in the suite folder", suite)
@@ -259,7 +261,7 @@ def collect(
         text = re.sub(r"!\[([^\]]*)\]\(([^)\s]+\.png)\)", relink, text)
         text = re.sub(r"^(#+) ", lambda m: "#" + m.group(1) + " ", text, flags=re.M)
         # the suite's folder name marks its section, so two suites may share a title
-        text = re.sub(r"^(## .*)$", lambda m: f"{m.group(1)} <!-- suite: {tag} -->", text, count=1, flags=re.M)
+        text = re.sub(r"^(## .*)$", rf"\1 <!-- suite: {tag} -->", text, count=1, flags=re.M)  # tag: [A-Za-z0-9_-]
         new += _sections(text)
     old = _sections(read_text(out)) if keep and out.is_file() else []
     tags = {re.sub(r"[^A-Za-z0-9_-]+", "_", d) for d in drop}

@@ -96,7 +96,7 @@ def load_exported(path: str | Path, task: str, threads: int | None = None):
     model = load_file(path, threads=threads)
     header = model.header() if isinstance(model, OnnxModel) else read_header(path)
     if header.get("task") != task:
-        what, command = RUN_KINDS.get(header.get("task"), (f"a {header.get('task')} model", "another command"))
+        what, command = RUN_KINDS.get(str(header.get("task")), (f"a {header.get('task')} model", "another command"))
         raise ConfigError(f"is {what} ({header.get('model')}) exported, not {RUN_KINDS[task][0]}; use {command}", path)
     if task == "odometry":
         return model, TrainConfig.from_dict(header["config"])

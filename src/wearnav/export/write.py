@@ -70,6 +70,7 @@ def load_run(run: str | Path) -> tuple[nn.Module, dict]:
             "takes the run folder of `wearnav train` or of a classifier",
             run,
         )
+    assert name is not None  # run_kind names the model of an odometry or classifier run
     if not registry.get(name).learned:
         raise ConfigError(
             f"{name} is not a learned network (NumPy step detection, no weights): nothing to "
@@ -77,6 +78,7 @@ def load_run(run: str | Path) -> tuple[nn.Module, dict]:
             run,
         )
     classes = None
+    cfg: odometry.TrainConfig | classify.ClassifyConfig
     if task == "odometry":
         model, cfg = odometry.load_model(run)
     else:
@@ -179,7 +181,7 @@ def export_model(model: nn.Module, header: dict, fmt: str, out: str | Path, chec
     ``path``, ``format``, ``bytes``, ``max_abs_diff`` (None unchecked), ``tolerance``."""
     check_out_file(fmt, out)
     out = Path(out)
-    traced = model.for_export() if hasattr(model, "for_export") else model.eval()
+    traced = model.for_export() if hasattr(model, "for_export") else model.eval()  # type: ignore[operator]  # hasattr checked
     x, mask = example_inputs(header)
     diff = None
     with atomic_path(out) as tmp:
@@ -231,6 +233,7 @@ def _write_onnx(module: nn.Module, x: torch.Tensor, mask: torch.Tensor, header: 
             dynamic_shapes=({0: batch}, {0: batch}),
             dynamo=True,
         )
+    assert program is not None  # dynamo=True returns the ONNXProgram
     proto = program.model_proto
     proto.doc_string = f"wearnav {header['task']} model {header['model']}; metadata_props['{KEY}']: JSON header"
     entry = proto.metadata_props.add()

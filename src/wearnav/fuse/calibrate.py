@@ -63,7 +63,7 @@ def calibrated(cfg: FuseConfig, cal: dict | None) -> FuseConfig:
     found = {}
     for key in ("odometry_walk_m_per_sqrt_s", "sigma_scale"):
         try:
-            v = float((cal or {}).get(key))
+            v = float((cal or {}).get(key))  # type: ignore[arg-type]  # a missing key: the TypeError caught below
         except (TypeError, ValueError):
             continue
         if np.isfinite(v) and v > 0:

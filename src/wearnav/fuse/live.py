@@ -134,6 +134,7 @@ class IncrementalFuser:
             t, xy, ft, fz, sig = self._arrays(self._start)
             prob = build_problem(t, xy, ft, fz, sig, self._start, float(t_all[-1]), self.cfg)
             self._last = (prob, np.asarray(res.info["x"]))
+        assert self._start is not None  # set with _last
         t_end = float(t_all[-1])
         while t_end - self._start > self.lag_s + self.step_s:
             self._advance()
@@ -167,6 +168,7 @@ class IncrementalFuser:
 
     def _advance(self) -> None:
         """Freeze the window's oldest ``step_s`` seconds (as last solved) and marginalise them."""
+        assert self._start is not None and self._last is not None  # result() started the window
         new_start = self._start + self.step_s
         prob_w, x_w = self._last
         t_all = self.t

@@ -39,6 +39,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 
 from wearnav.errors import ValidationError
@@ -119,7 +120,7 @@ class Problem:
         if self.prior is not None:  # the marginal of the frozen past replaces the priors at the start
             prior_b[0] = 0.0
             globals_prior = [0.0, 0.0]
-        out = [rf.real, rf.imag, prior_b.real, prior_b.imag, globals_prior]
+        out: list[ArrayLike] = [rf.real, rf.imag, prior_b.real, prior_b.imag, globals_prior]
         if self.walk:  # h_0 = 0 (θ holds the offset), then a random walk between knots
             hk = x[self.h0 : self.s0]
             sd = np.radians(cfg.heading_walk_deg_per_sqrt_min) * np.sqrt(np.diff(self.knots) / 60.0)

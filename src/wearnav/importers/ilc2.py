@@ -47,6 +47,7 @@ import re
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -163,7 +164,8 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
     truncated = not any(ln.startswith("#") and "endTime:" in ln for ln in lines[-3:])
     if truncated and not text.endswith("\n"):
         lines = lines[:-1]
-    header, rows = [], {ACC: [], GYRO: [], ROTVEC: [], WAYPOINT: []}
+    header: list[str] = []
+    rows: dict[str, list[str]] = {ACC: [], GYRO: [], ROTVEC: [], WAYPOINT: []}
     first_data = None
     for ln in lines:
         if not ln or ln.isspace():
@@ -251,7 +253,7 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
     stream = DeviceStream(t=t, acc=acc[:, 1:4], gyro=gyro, quat=quat)
     name = strip_compression(path)
     name = name[: -len(".txt")] if name.endswith(".txt") else name
-    meta = {
+    meta: dict[str, Any] = {
         "source": SOURCE,
         "licence": LICENCE,
         "mode": "walk",

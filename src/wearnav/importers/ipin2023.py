@@ -58,6 +58,7 @@ import lzma
 import re
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -363,7 +364,10 @@ def _read_log(path: Path) -> Recording:
     }
     stream = _imu(data, path, meta)
 
-    fix_t = fix_lat = fix_lon = fix_acc = None
+    fix_t: np.ndarray | None = None
+    fix_lat: Any = None  # these three are set together with fix_t
+    fix_lon: Any = None
+    fix_acc: Any = None
     if "GNSS" in data:
         gnss = _gnss(data["GNSS"], path, meta)
         if gnss is not None:

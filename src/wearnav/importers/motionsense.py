@@ -100,7 +100,7 @@ def _trial_dirs(src: Path) -> list[Path]:
             if dirs:
 
                 def key(d: Path):
-                    act, trial = TRIAL_RE.match(d.name).groups()
+                    act, trial = TRIAL_RE.match(d.name).groups()  # type: ignore[union-attr]  # dirs were filtered by it
                     return (int(trial), act)
 
                 return sorted(dirs, key=key)
@@ -231,7 +231,7 @@ def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     subjects = read_subjects(_find_subjects_file(base, jobs[0][0]))
     count = 0
     for trial_dir, files in jobs:
-        act, trial = TRIAL_RE.match(trial_dir.name).groups()
+        act, trial = TRIAL_RE.match(trial_dir.name).groups()  # type: ignore[union-attr]  # jobs' folders matched it
         for n, path in files:
             if n not in subjects:
                 raise FormatError(f"subject {n} is not in {SUBJECTS_FILE}", path)

@@ -98,7 +98,10 @@ def _events(t: np.ndarray, count: np.ndarray, what: str, path: Path) -> np.ndarr
 
 def read_file(path: Path) -> Recording:
     """One validation trace as a Recording."""
-    user, placement, start_ms = FILE_RE.match(path.name).groups()[:3]
+    m = FILE_RE.match(path.name)
+    if m is None:  # was an AttributeError on None
+        raise FormatError("not an Oxford step-counter file (expected user<N>_<placement>_<unix ms>.csv)", path)
+    user, placement, start_ms = m.groups()[:3]
     df = read_csv(path, header=None)
     if df.shape[1] != len(FIELDS):
         raise FormatError(f"expected {len(FIELDS)} columns ({', '.join(FIELDS)}), found {df.shape[1]}", path)

@@ -157,7 +157,7 @@ def build_recording(
             "no motion file (Accelerometer.csv, TotalAcceleration.csv, WristMotion.csv or Headphone.csv)", folder
         )
     stale = stale_fixes(loc, min(int(x.t_ns[0]) for x in motion)) if loc is not None else None
-    if stale is not None and stale.any():
+    if loc is not None and stale is not None and stale.any():
         loc = Table(loc.path, loc.t_ns[~stale], loc.df[~stale].reset_index(drop=True), loc.duplicates)
     used = [*motion, *([loc] if loc is not None and len(loc.t_ns) else [])]
     t0 = min(int(x.t_ns[0]) for x in used) if t0_ns is None else int(t0_ns)
@@ -183,6 +183,7 @@ def build_recording(
         keep = np.ones(len(t), bool)
         w = q = None
         if add_gravity:
+            assert grav is not None  # add_gravity: Gravity.csv is there (_phone_acceleration)
             g, ok = interp_onto(t, sec(grav.t_ns), grav.values(XYZ), max_gap=MAX_INTERP_GAP_S)
             acc, keep = acc + g, keep & ok
         if gyro is not None:
@@ -263,7 +264,8 @@ def build_recording(
             WearnavWarning(
                 f"{folder}: imported {', '.join(devices)} only; left out "
                 + "; ".join(f"{d} ({r})" for d, r in left_out.items())
-            )
+            ),
+            stacklevel=2,
         )
     gaps = {dev: g for dev, st in devices.items() if (g := _gaps(st.t))}
     if gaps:
@@ -275,7 +277,8 @@ def build_recording(
                     for dev, g in gaps.items()
                 )
                 + "; they are masked, never interpolated"
-            )
+            ),
+            stacklevel=2,
         )
 
     meta = {
@@ -303,7 +306,7 @@ def build_recording(
         meta["gaps"] = gaps
     if stale is not None and stale.any():
         meta["dropped_stale_fixes"] = int(stale.sum())
-    if "earbuds" in devices and "devicelocation" in head.df.columns:
+    if "earbuds" in devices and head is not None and "devicelocation" in head.df.columns:
         sides = head.df["devicelocation"].dropna().astype(str)
         if len(sides):
             meta["earbud_side"] = str(sides.mode().iloc[0])
@@ -324,15 +327,17 @@ def _phone_acceleration(t_acc: Table | None, acc_lin: Table | None, grav: Table 
     Gravity.csv (interpolated onto it), whichever is faster (on a tie the total, which needs no
     interpolation). On Android TotalAcceleration.csv can run at ~59 Hz while Accelerometer,
     Gravity, Gyroscope and Orientation run at 100 Hz; the chosen file is ``meta["phone_clock"]``."""
-    lin_ok = acc_lin is not None and grav is not None
-    if t_acc is not None and not (lin_ok and _rate(acc_lin) > (1 + RATE_TIE) * _rate(t_acc)):
-        return t_acc, False
-    if not lin_ok:
+    if acc_lin is None or grav is None:  # no Accelerometer.csv + Gravity.csv: the total or nothing
+        if t_acc is not None:
+            return t_acc, False
+        assert acc_lin is not None  # the phone is built only where one acceleration file is there
         raise Unusable(
             "holds acceleration without gravity (UNITS.md) and neither Gravity.csv nor "
             "TotalAcceleration.csv is there to add it back",
             acc_lin.path,
         )
+    if t_acc is not None and not _rate(acc_lin) > (1 + RATE_TIE) * _rate(t_acc):
+        return t_acc, False
     return acc_lin, True
 
 
@@ -385,6 +390,7 @@ def _stream(
             convention = "device<-world (inverted on import)" if dev in forced else "world<-device"
             quat = to_wxyz(from_wxyz(quat).inv()) if dev in forced else quat
         else:
+            assert qpath is not None  # an orientation comes from a file
             quat, convention = _check_orientation(quat, acc, gyro, t, qpath)
         if convention != "world<-device":
             inverted.append(dev)
@@ -483,9 +489,6 @@ def _fixes(loc: Table, t: np.ndarray, origin: tuple[float, float] | None = None)
     except ValidationError as exc:
         raise FormatError(exc.reason, loc.path) from None
     return fixes, {"origin_lat": lat0, "origin_lon": lon0, "projection": geo.PROJECTION}
-
-
-__all__ = ["read", "read_export", "is_export"]
 
 
 __all__ = ["REPORT_GAP_S", "Unusable", "build_recording", "stale_fixes"]

@@ -163,6 +163,7 @@ def read_experiment(
 ) -> Recording:
     """One experiment (acc + gyro files and its rows of labels.txt) as a Recording."""
     m = ACC_RE.match(acc_path.name)
+    assert m is not None  # read() lists only the files it matches
     exp, user = int(m.group(1)), int(m.group(2))
     acc = _read_xyz(acc_path)
     gyro = _read_xyz(gyro_path)
@@ -222,7 +223,7 @@ def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     labels = read_label_table(labels_path)
     names = read_activity_names(names_path)
     split = read_split(root)
-    for count, ((exp, user), acc_path) in enumerate(sorted(accs.items()), 1):
+    for count, ((_exp, user), acc_path) in enumerate(sorted(accs.items()), 1):
         gyro_path = find_file(raw / ("gyro_" + strip_compression(acc_path)[len("acc_") :]))
         yield read_experiment(acc_path, gyro_path, labels, labels_path, names, names_path, split.get(user, ""))
         if limit is not None and count >= limit:

@@ -40,13 +40,14 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from starlette.applications import Starlette
 from starlette.background import BackgroundTask
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response, StreamingResponse
-from starlette.routing import Mount, Route
+from starlette.routing import BaseRoute, Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from wearnav.importers.sensorlogger_map import PLATFORMS
@@ -95,8 +96,9 @@ class SessionWorker:
     thread (loading a model must not hold up a 200); one that cannot be made, or fails, is a
     warning on the page, never a failed push."""
 
-    def __init__(self, buf: SessionBuffer, tracker_factory: Callable[[], object]):
-        self.buf, self.tracker = buf, None
+    def __init__(self, buf: SessionBuffer, tracker_factory: Callable[[], Any]):
+        self.buf = buf
+        self.tracker: Any = None  # a LiveTracker, or what tracker_factory makes (tests: a stand-in)
         self.error: str | None = None
         self.latency_s: list[float] = []  # the oldest ack not yet on the page → the update that put it there
         self._factory = tracker_factory
@@ -194,7 +196,7 @@ class Receiver:
         self.buffers: dict[str, SessionBuffer] = {}
         self.workers: dict[str, SessionWorker] = {}
         self._workers_lock = threading.Lock()
-        self.counts = {"accepted": 0, "repeats": 0, "refused": {}}
+        self.counts: dict[str, Any] = {"accepted": 0, "repeats": 0, "refused": {}}
         self._lock = threading.Lock()  # store + buffer in one order
         for sid in store.sessions():  # resumed: what a restart finds in the store
             self.buffers[sid] = SessionBuffer.from_store(store, sid)
@@ -415,7 +417,7 @@ def create_app(
             )
         return FileResponse(page, headers={"Cache-Control": "no-cache"})
 
-    routes = [
+    routes: list[BaseRoute] = [
         Route("/push", push, methods=["POST"]),
         Route("/events", events),
         Route("/state", state),

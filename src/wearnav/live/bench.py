@@ -209,10 +209,10 @@ def bad_input_phase(work: Path, fuzz: int = 200, seed: int = 0) -> dict:
         good = enc(body())
         fz = {"refused": 0, "accepted": 0, "stored": 0, "other": 0}
         for _ in range(fuzz):
-            raw = bytearray(good)
-            for i in rng.integers(0, len(raw), size=int(rng.integers(1, 6))):
-                raw[i] = int(rng.integers(0, 256))
-            r = c.post("/push", content=bytes(raw))
+            flipped = bytearray(good)
+            for i in rng.integers(0, len(flipped), size=int(rng.integers(1, 6))):
+                flipped[i] = int(rng.integers(0, 256))
+            r = c.post("/push", content=bytes(flipped))
             if r.status_code in (400, 422):
                 fz["refused"] += 1
             elif r.status_code == 200:  # still a valid push (a digit changed, say)

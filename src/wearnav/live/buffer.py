@@ -87,9 +87,9 @@ class _Sensor:
         if self.n and t.min() <= self._t[self.n - 1]:  # out of order: merge with the rows from t.min() on
             i = int(np.searchsorted(self.t, t.min(), side="left"))
             t, v = np.concatenate([self._t[i : self.n], t]), np.concatenate([self._v[i : self.n], v])
-            x = None if x is None else np.concatenate([self._text[i : self.n], x])
+            x = None if x is None or self._text is None else np.concatenate([self._text[i : self.n], x])
             self._t, self._v = self._t[:i].copy(), self._v[:i].copy()  # new arrays: snapshots keep theirs
-            self._text = None if x is None else self._text[:i].copy()
+            self._text = None if x is None or self._text is None else self._text[:i].copy()
             self.n = i
         order = np.argsort(t, kind="stable")  # earlier arrivals first on equal times
         t, v = t[order], v[order]
@@ -106,7 +106,7 @@ class _Sensor:
             if self._text is not None:
                 self._text = np.concatenate([self._text[: self.n], np.zeros(cap - self.n, object)])
         self._t[self.n : need], self._v[self.n : need] = t, v
-        if x is not None:
+        if x is not None and self._text is not None:  # x is there exactly when _text is
             self._text[self.n : need] = x
         self.n = need
 
@@ -292,6 +292,7 @@ class SessionBuffer:
                 if self._quat_inverted is None:
                     self._quat_inverted = list(rec.meta.get("quat_inverted", []))
             return rec
+        assert first_error is not None  # every convention tried (at least one) failed
         if not decided and not self.infer:
             return self._build(tables, quat_inverted=())
         if not decided:

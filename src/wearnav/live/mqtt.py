@@ -51,13 +51,14 @@ def subscribe(url: str, receiver):
     """Start a paho client (its own thread) feeding ``receiver`` (:class:`wearnav.live.app.Receiver`);
     returns it (``client.loop_stop()`` ends it)."""
     import paho.mqtt.client as mqtt
+    from paho.mqtt.enums import CallbackAPIVersion  # where paho 2 defines it (the client re-exports it)
 
     cfg = parse_url(url)
     try:
         platform, standardised = settings(cfg["query"], receiver.platform, receiver.standardised)
     except BadPush as exc:
         raise ConfigError(f"--mqtt: {exc.message}") from None
-    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, transport=cfg["transport"])
+    client = mqtt.Client(CallbackAPIVersion.VERSION2, transport=cfg["transport"])
     if cfg["transport"] == "websockets":
         client.ws_set_options(path=WS_PATH)
     if cfg["tls"]:

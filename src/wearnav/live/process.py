@@ -82,6 +82,8 @@ class LiveServer:
 
     def cpu_s(self) -> float | None:
         """CPU seconds (user + system) the server process has used so far (Linux /proc), or None."""
+        if self.proc is None:  # not started
+            return None
         try:
             fields = Path(f"/proc/{self.proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
         except (OSError, AttributeError, IndexError):

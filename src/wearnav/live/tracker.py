@@ -35,6 +35,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -42,12 +43,14 @@ from wearnav import fuse, geo, pretrained
 from wearnav.errors import ValidationError
 from wearnav.evaluate import predict_sequence
 from wearnav.fixcheck import check_fixes
+from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.recording import DeviceStream, Recording
 from wearnav.report.trajectory_page import page_points
 from wearnav.track import input_warnings, odometry_preprocess, path_times
 from wearnav.train.classify import window_classes
+from wearnav.train.odometry import TrainConfig
 from wearnav.train.resolve import resolve_model
 from wearnav.trajectory import integrate_velocity
 
@@ -109,7 +112,10 @@ class LiveTracker:
         self.context_s, self.lag_s, self.step_s = float(context_s), float(lag_s), float(step_s)
         self.frame_lag_s = float(frame_lag_s)
         self._fuse_lag = (float(fuse_lag_s), float(fuse_step_s))
-        self.model = self.cfg = self.model_path = None
+        # the odometry model, its training config and file: set by _start
+        self.model: Any = None
+        self.cfg: TrainConfig | None = None
+        self.model_path: Path | None = None
         self.classifier = None
         if activity_model is not None:
             path = pretrained.model_path(activity_model, "classify")
@@ -118,7 +124,7 @@ class LiveTracker:
         self._next = 0  # clock index of the next window's start
         self.odo = _Odometry()
         self.fuser: IncrementalFuser | None = None
-        self._fused = None  # the latest FuseResult
+        self._fused: FuseResult | None = None  # the latest
         self.origin: tuple[float, float] | None = None
         self._fix_t = -np.inf  # the latest fix time taken, s
         self._pending: list[tuple[float, float, float, float]] = []  # fixes before an origin: t, lat, lon, acc
@@ -173,6 +179,7 @@ class LiveTracker:
             whole = buf.recording()  # the session so far (short): the clock's start, and every fix so far
             if not self._start(whole):
                 return False
+        assert self.clock0 is not None and self.cfg is not None  # set by _start
         covered = float(buf.covered_until())
         if not final and covered - self._seen_s < self.step_s:
             return False
@@ -207,6 +214,7 @@ class LiveTracker:
         """Align the clock from the context to ``g_end`` and predict the windows inside ``g_last``:
         those inside ``g_final`` for good (the path and the smoother grow by them), the rest as the
         provisional tail (predicted again at the next update)."""
+        assert self.clock0 is not None and self.cfg is not None and self.fuser is not None  # set by _start
         rate, L, S = pcfg.rate, self.cfg.window, self.cfg.stride
         g_a = max(0, self._next - int(round(self.context_s * rate)))
         clock = self.clock0 + np.arange(g_a, g_end + 1) / rate  # align's clock(): t0 + k / rate
@@ -279,6 +287,7 @@ class LiveTracker:
 
     def _add_fix(self, t, e, n, a) -> None:
         self.fixes.append((float(t), float(e), float(n), float(a)))
+        assert self.fuser is not None  # set by _start, which comes before any fix is taken
         self.fuser.add_fix(float(t), float(e), float(n), float(a))
 
     def _fuse(self) -> None:
@@ -287,8 +296,10 @@ class LiveTracker:
         if not self.fixes:
             self._fused = None
         elif len(self.odo.t) >= 2:
+            assert self.fuser is not None  # set by _start, before any fix is taken
             self._fused = self.fuser.result()
         elif len(self._tail[0]) >= 2:
+            assert self.fuser is not None
             f = np.asarray(self.fixes)
             self._fused = fuse.smooth(*self._tail, f[:, 0], f[:, 1:3], f[:, 3], self.fuser.cfg)
 
@@ -382,7 +393,13 @@ def _tail(rec: Recording, t_from: float) -> Recording:
     for name, s in rec.devices.items():
         k = s.t >= t_from
         if k.sum() >= 2:
-            devices[name] = DeviceStream(*(None if a is None else a[k] for a in (s.t, s.acc, s.gyro, s.quat, s.worn)))
+            devices[name] = DeviceStream(
+                s.t[k],
+                s.acc[k],
+                None if s.gyro is None else s.gyro[k],
+                None if s.quat is None else s.quat[k],
+                None if s.worn is None else s.worn[k],
+            )
     return (
         Recording(rec.name, devices, meta=rec.meta)
         if devices

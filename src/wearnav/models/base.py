@@ -7,6 +7,8 @@ LightningModule trains every odometry model.
 
 from __future__ import annotations
 
+from typing import cast
+
 import torch
 from torch import Tensor, nn
 from torch.nn import functional as F
@@ -109,6 +111,8 @@ class ScaledVelocity(OdometryModel):
     (:func:`wearnav.train.odometry.load_model` reads it from the run's ``adaptation.json``).
     Heading is untouched: models are yaw-equivariant, so only their speed scale can be calibrated."""
 
+    scale: Tensor  # buffers (register_buffer), typed
+
     def __init__(self, inner: nn.Module, scale: float):
         super().__init__()
         self.inner = inner
@@ -120,4 +124,4 @@ class ScaledVelocity(OdometryModel):
 
     @torch.no_grad()
     def predict(self, x: Tensor, mask: Tensor) -> Tensor:
-        return self.inner.predict(x, mask) * self.scale
+        return cast(OdometryModel, self.inner).predict(x, mask) * self.scale  # the wrapped model is one

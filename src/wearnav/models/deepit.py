@@ -35,6 +35,9 @@ def masked_softmax(logits: Tensor, mask: Tensor) -> Tensor:
 
 
 class DeepIT(OdometryModel):
+    shift: Tensor  # buffers (register_buffer), typed
+    scale: Tensor
+
     def __init__(
         self,
         n_devices: int = 3,
@@ -61,12 +64,12 @@ class DeepIT(OdometryModel):
         if x.shape[1] != self.n_devices:
             raise ConfigError(f"deepit: model built for {self.n_devices} devices, got {x.shape[1]}")
         s = (x - self.shift) / self.scale
-        z = []
+        per_device = []
         for j, (lstm, fc) in enumerate(zip(self.lstms, self.embeds)):
             h, _ = lstm(s[:, j])  # (B, L, hidden)
             h = F.adaptive_avg_pool1d(h.transpose(1, 2), self.pooled)  # (B, hidden, pooled)
-            z.append(F.relu(fc(h.flatten(1))))
-        z = torch.stack(z, 1)
+            per_device.append(F.relu(fc(h.flatten(1))))
+        z = torch.stack(per_device, 1)
         return z, masked_softmax(self.score(z).squeeze(-1), mask)
 
     def forward(self, x: Tensor, mask: Tensor) -> Tensor:

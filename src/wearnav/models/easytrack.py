@@ -23,6 +23,8 @@ the EasyTrack benchmark reads its output as the displacement of a segment.
 
 from __future__ import annotations
 
+from typing import cast
+
 import torch
 from torch import Tensor, nn
 from torch.nn import functional as F
@@ -33,6 +35,9 @@ from wearnav.recording import STANDARD_GRAVITY
 
 
 class BaseModel(OdometryModel):
+    mean: Tensor  # buffers (register_buffer), typed
+    std: Tensor
+
     default_lr, default_batch = 8e-4, 64  # §V-A (`wearnav train` picks these up)
 
     def __init__(self, n_devices: int = 1, window: int = 25, hidden: int = 64, channels: int = 6):
@@ -97,7 +102,8 @@ class DualBaseModel(nn.Module):
         self.models = nn.ModuleList([a, b])
 
     def displacement(self, s: Tensor) -> Tensor:
-        return 0.5 * (self.models[0].displacement(s) + self.models[1].displacement(s))
+        a, b = (cast(BaseModel, m) for m in self.models)  # an nn.ModuleList's items are typed nn.Module
+        return 0.5 * (a.displacement(s) + b.displacement(s))
 
     def forward(self, x: Tensor, mask: Tensor) -> Tensor:
         return self.displacement(first_present(x, mask)[0])

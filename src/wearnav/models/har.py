@@ -36,7 +36,7 @@ from wearnav.errors import ConfigError
 from wearnav.models.registry import register
 
 ACC, GYRO = (0, 1, 2), (3, 4, 5)
-HEAD_CHANNELS = {
+HEAD_CHANNELS: dict[int, list[tuple[int, ...]]] = {
     1: [ACC + GYRO],
     2: [ACC, GYRO],
     3: [(0, 3), (1, 4), (2, 5)],

@@ -26,6 +26,9 @@ from wearnav.recording import STANDARD_GRAVITY
 
 
 class IONet(OdometryModel):
+    shift: Tensor  # buffers (register_buffer), typed
+    scale: Tensor
+
     def __init__(
         self,
         n_devices: int = 3,

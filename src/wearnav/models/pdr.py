@@ -45,7 +45,6 @@ from wearnav.errors import ConfigError
 from wearnav.models.base import OdometryModel, first_present
 from wearnav.models.registry import register
 
-
 # Below this learned speed (m/s) the hybrid's direction is taken as is, not blown up to unit length.
 _MIN_SPEED_M_S = 1e-3
 

@@ -61,10 +61,9 @@ class ReWF(OdometryModel):
     ):
         super().__init__()
         self.n_devices, self.tau = n_devices, tau
-        self.encoders = nn.ModuleList(
-            ResNetEncoder(trans_planes=trans_planes, input_stride=input_stride) for _ in range(n_devices)
-        )
-        length = self.encoders[0].length(window)
+        encoders = [ResNetEncoder(trans_planes=trans_planes, input_stride=input_stride) for _ in range(n_devices)]
+        self.encoders = nn.ModuleList(encoders)
+        length = encoders[0].length(window)
         if length < 1 or window < 8:
             raise ConfigError(f"rewf: window {window} is too short")
         self.weight_lstm = nn.LSTM(trans_planes, lstm_hidden, batch_first=True)

@@ -91,7 +91,9 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import cast
 
 import torch
 from torch import Tensor, nn
@@ -224,6 +226,9 @@ class MaskedBatchNorm(nn.Module):
     is an affine map that :class:`GroupedExtractors` folds into the preceding convolution.
     """
 
+    running_mean: Tensor  # buffers (register_buffer), typed
+    running_var: Tensor
+
     def __init__(self, groups: int, channels: int, momentum: float = 0.1, eps: float = 1e-5):
         super().__init__()
         self.groups, self.channels, self.momentum, self.eps = groups, channels, momentum, eps
@@ -334,6 +339,16 @@ class GroupedExtractors(nn.Module):
         self.rows = cfg.sensor_rows
         self.out_channels = c_in * self.rows  # per extractor, rows flattened into channels
 
+    @property
+    def _convs(self) -> Sequence[nn.Conv2d]:
+        """``convs``, typed (an nn.ModuleList's items are typed nn.Module)."""
+        return cast("Sequence[nn.Conv2d]", self.convs)
+
+    @property
+    def _norms(self) -> Sequence[MaskedBatchNorm]:
+        """``norms``, typed."""
+        return cast("Sequence[MaskedBatchNorm]", self.norms)
+
     def _inputs(self, x: Tensor) -> Tensor:
         """x (B, D, L, 6) → (B, D·c_first, H, L) in channels-last memory."""
         B, D, L, _ = x.shape
@@ -366,7 +381,7 @@ class GroupedExtractors(nn.Module):
         """The six blocks on (B, D·c_in, H, L) channels-last input → (B, 1, T', groups·C·H')."""
         if self.training:
             group_mask = mask.repeat_interleave(self.branches, dim=1)
-            for conv, norm, pool, rows in zip(self.convs, self.norms, self.pools, self.row_pools):
+            for conv, norm, pool, rows in zip(self._convs, self._norms, self.pools, self.row_pools):
                 h = norm(conv(h), group_mask)
                 if pool > 1 or rows > 1:  # F.max_pool2d: its backward is 2× faster than max_pool_time's
                     h = F.max_pool2d(h, (rows, pool))
@@ -375,7 +390,8 @@ class GroupedExtractors(nn.Module):
         if self.separate:
             return self._features(self._separate(h))
         folded = []
-        for conv, norm in zip(self.convs, self.norms):
+        for conv, norm in zip(self._convs, self._norms):
+            assert conv.bias is not None  # built with bias=True
             scale, shift = norm.scale_shift()
             folded.append((conv.weight * scale.view(-1, 1, 1, 1), conv.bias * scale + shift))
         # On a CPU a chunk of windows keeps every block's activations in the core's cache; a
@@ -383,7 +399,7 @@ class GroupedExtractors(nn.Module):
         out = []
         chunks = h.split(self.chunk) if self.fused and h.device.type == "cpu" else (h,)
         for hc in chunks:
-            for conv, pool, rows, (w, b) in zip(self.convs, self.pools, self.row_pools, folded):
+            for conv, pool, rows, (w, b) in zip(self._convs, self.pools, self.row_pools, folded):
                 hc = max_pool_time(conv_relu(hc, w, b, conv, self.fused), pool, rows)
             out.append(self._features(hc))
         return out[0] if len(out) == 1 else torch.cat(out)
@@ -395,7 +411,8 @@ class GroupedExtractors(nn.Module):
         for g in range(self.groups):
             dev = g // self.branches
             y = x[:, dev * self.c_first : (dev + 1) * self.c_first]
-            for conv, norm, pool, rows_p in zip(self.convs, self.norms, self.pools, self.row_pools):
+            for conv, norm, pool, rows_p in zip(self._convs, self._norms, self.pools, self.row_pools):
+                assert conv.bias is not None  # built with bias=True
                 c = conv.out_channels // self.groups
                 rows = slice(g * c, (g + 1) * c)
                 y = F.conv2d(y, conv.weight[rows], conv.bias[rows], padding=conv.padding)
@@ -550,7 +567,7 @@ class SuiteIN(OdometryModel):
             with torch.no_grad():  # starts as v_glb + v_loc: v_loc corrects v_glb (eq. 22)
                 self.combine.weight.copy_(torch.cat([torch.eye(2), torch.eye(2)], 1))
                 self.combine.bias.zero_()
-        self.to(memory_format=torch.channels_last)
+        self.to(memory_format=torch.channels_last)  # type: ignore[call-overload]  # Module.to takes it (torch's docs); its stub omits it
 
     def features(self, x: Tensor, mask: Tensor) -> tuple[Tensor, Tensor | None]:
         """Global and local features H (B, T', D, C) (eqs. 1–2); local is None for one branch."""

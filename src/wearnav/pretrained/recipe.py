@@ -34,7 +34,7 @@ from wearnav.bench.user_protocol import ensure_calibration, site_calibration
 from wearnav.errors import MissingFileError
 from wearnav.fileio import atomic_path
 from wearnav.importers import import_dataset
-from wearnav.pretrained import ACTIVITY, MULTI, PHONE, SHIPPED, cards
+from wearnav.pretrained import ACTIVITY, CARD, MULTI, PHONE, SHIPPED, cards
 from wearnav.pretrained.mix import MIX_FRAME, Part, write_mix
 from wearnav.simulate import simulate_dataset
 from wearnav.textio import read_json
@@ -231,7 +231,7 @@ def cross_building_calibration(run: Path, suites: list[Path]) -> dict:
     return cal
 
 
-KEEP = ("config.yaml", TRAINING, "metrics.json", "fuse_calibration.json", cards.CARD)
+KEEP = ("config.yaml", TRAINING, "metrics.json", "fuse_calibration.json", CARD)
 
 
 def install_run(run: Path, dest: Path, which: str = BEST) -> Path:

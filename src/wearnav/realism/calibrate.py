@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -87,7 +88,7 @@ def compare(sim: SourceResult, real: list[SourceResult]) -> dict:
     for stat in STATS:
         s = sim.values(stat)
         r = [x.values(stat) for x in real]
-        entry = {
+        entry: dict[str, Any] = {
             "sim": summary(s),
             "real": summary(np.concatenate(r) if r else np.empty(0)),
             "per_source": {x.label: summary(x.values(stat)) for x in real},
@@ -161,7 +162,7 @@ def compute_realism(
         }
 
     # location fixes: IPIN's phone GNSS at its surveyed points vs the simulator's fixes
-    fix = None
+    fix: dict[str, dict[str, list[float]]] | None = None
     if fix_source is not None:
         ds, names = open_real(fix_source, data, work, limit)
         fix = {"sim fixes": {k: [] for k in FIX_STATS}, fix_source.label: {k: [] for k in FIX_STATS}}
@@ -198,7 +199,7 @@ def fix_compare(fix: dict) -> dict:
     out = {}
     for k in FIX_STATS:
         s, r = np.asarray(sim.get(k, []), float), np.asarray(real.get(k, []), float)
-        e = {"sim": summary(s), "real": summary(r)}
+        e: dict[str, Any] = {"sim": summary(s), "real": summary(r)}
         band = band_of([r])
         if band is not None and s.size:
             e.update(

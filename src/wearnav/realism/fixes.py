@@ -20,7 +20,7 @@ FIX_STATS = ("error_m", "acc_over_error", "fix_speed", "outage_s", "outage_share
 def fix_stats(rec: Recording) -> dict[str, list[float]]:
     """Fix error at the reference points, accuracy/error there, outage lengths and jump rate."""
     fx = rec.fixes
-    out = {k: [] for k in FIX_STATS}
+    out: dict[str, list[float]] = {k: [] for k in FIX_STATS}
     if fx is None or len(fx.t) < 2 or rec.truth is None:
         return out
     if rec.meta.get("source") == "simulator":

@@ -51,6 +51,7 @@ import json
 import os
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -151,7 +152,7 @@ def _plot_group(group: Group, results: list[SourceResult], freqs: np.ndarray, ou
 
 def _plot_fixes(res: dict[str, dict], out: Path) -> tuple[Path, dict]:
     fig = Figure(figsize=(12, 3.2))
-    data = {}
+    data: dict[str, Any] = {}
     for k, (stat, title, log) in enumerate(
         (
             ("error_m", "fix error at reference points (m)", False),

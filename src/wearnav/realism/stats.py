@@ -8,6 +8,8 @@ every walking segment of one device of a recording.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy.signal import butter, filtfilt, find_peaks, periodogram, welch
 
@@ -136,7 +138,7 @@ def recording_segments(rec: Recording, device: str) -> tuple[list[dict], list[np
         acc = resample(s.t, np.asarray(s.acc, float), a, b)
         gyro = None if s.gyro is None else resample(s.t, np.asarray(s.gyro, float), a, b)
         aw = None if s.quat is None else resample(s.t, acc_world, a, b)
-        st = segment_stats(acc, gyro, aw)
+        st: dict[str, Any] = segment_stats(acc, gyro, aw)
         st.update(recording=rec.name, start=round(a, 3), end=round(b, 3))
         rows.append(st)
         psds.append(spectrum(acc)[1])

@@ -8,6 +8,7 @@
 Metrics (ATE, fix errors, label noise ...) are defined in :mod:`wearnav.metrics`, not here.
 """
 
+from wearnav.metrics import FIX_MAX_GAP_S
 from wearnav.report.datasets_page import SHIPPED_DATASETS, write_datasets_report
 from wearnav.report.plots import (
     ACC_COLOR,
@@ -18,7 +19,7 @@ from wearnav.report.plots import (
     plot_recording,
     plot_trajectories,
 )
-from wearnav.report.stats import FIX_MAX_GAP_S, dataset_stats, stats_markdown, walk_tables
+from wearnav.report.stats import dataset_stats, stats_markdown, walk_tables
 
 __all__ = [
     "ACC_COLOR",

@@ -162,14 +162,15 @@ def plot_speed_ratio(panels: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]]
     fig = Figure(figsize=(5.0 * len(panels), 3.8), layout="constrained")
     for i, (name, curves) in enumerate(panels.items()):
         ax = fig.add_subplot(1, len(panels), i + 1)
-        for label, (speed, ratio) in curves.items():
+        for k, (label, (speed, ratio)) in enumerate(curves.items()):
             if not len(speed):
                 continue
-            dots = ax.scatter(speed, ratio, s=4, alpha=0.25)
+            color = f"C{k}"  # matplotlib's colour cycle: the dots and their binned median alike
+            ax.scatter(speed, ratio, s=4, alpha=0.25, color=color)
             edges = np.quantile(speed, np.linspace(0, 1, 7))
             mid = 0.5 * (edges[1:] + edges[:-1])
             med = [np.median(ratio[(speed >= a) & (speed <= b)]) for a, b in zip(edges[:-1], edges[1:])]
-            ax.plot(mid, med, lw=2, color=dots.get_facecolor()[0][:3], label=f"{label} (median {np.median(ratio):.2f})")
+            ax.plot(mid, med, lw=2, color=color, label=f"{label} (median {np.median(ratio):.2f})")
         ax.axhline(1.0, color="black", ls="--", lw=0.8)
         ax.set_ylim(0, 2)
         ax.set_xlabel("true speed between surveyed points (m/s)")

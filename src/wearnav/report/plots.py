@@ -16,6 +16,7 @@ from matplotlib.collections import EllipseCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
+from numpy.typing import ArrayLike
 
 from wearnav.dataset import Dataset
 from wearnav.errors import ValidationError
@@ -78,7 +79,8 @@ def decimate_minmax(t: np.ndarray, y: np.ndarray, max_points: int = MAX_PLOT_POI
     y = np.asarray(y, dtype=np.float64)
     span = float(t[-1] - t[0]) if t.size else 0.0
     segs = _segments(t, span)
-    out_t, out_y = [], []
+    out_t: list[ArrayLike] = []
+    out_y: list[ArrayLike] = []
     for k, sl in enumerate(segs):
         ts, ys = t[sl], y[sl]
         budget = max(4, int(max_points * ts.size / max(t.size, 1)))
@@ -111,7 +113,8 @@ def _label_colors(labels) -> dict[str, tuple]:
     annotations of one activity, shares it), drawn in order from one long qualitative palette."""
     from matplotlib import colormaps
 
-    palette = [c for name in LABEL_PALETTES for c in colormaps[name].colors]
+    # the LABEL_PALETTES are ListedColormaps (their colours a list); a Colormap in general has none
+    palette = [c for name in LABEL_PALETTES for c in colormaps[name].colors]  # type: ignore[attr-defined]
     values = sorted(set(labels["value"]))
     return {v: palette[i % len(palette)] for i, v in enumerate(values)}
 
@@ -244,6 +247,7 @@ def _map_panel(ax, rec: Recording, compact: bool = False) -> None:
             handles.append(Line2D([], [], color=TRUTH_COLOR, lw=1.0, label="truth trajectory"))
         start = p[0]
     else:
+        assert fixes is not None  # neither: returned above
         start = fixes.pos[0, :2]
     ax.plot(*start, marker="*", color="tab:green", ms=14, mec="black", mew=0.6, ls="none", zorder=5)
     handles.append(Line2D([], [], marker="*", color="tab:green", mec="black", ms=11, ls="none", label="start"))

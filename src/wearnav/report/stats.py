@@ -127,14 +127,14 @@ def walk_tables(ds: Dataset, by: Iterable[str] = ("mode",)) -> dict[str, pd.Data
     for col in by:
         rows = []
         for key, names in ds.manifest.groupby(col, sort=True)["name"]:
-            dur, dist, noise = zip(*(per_rec[n] for n in names))
-            n = np.concatenate(noise)
+            durs, dists, noises = zip(*(per_rec[n] for n in names))
+            n = np.concatenate(noises)
             rows.append(
                 {
                     col: key or "-",
                     "recordings": len(names),
-                    "minutes": round(sum(dur) / 60, 1),
-                    "distance_km": round(sum(dist) / 1000, 2),
+                    "minutes": round(sum(durs) / 60, 1),
+                    "distance_km": round(sum(dists) / 1000, 2),
                     "fix_label_noise_median_cm": round(100 * float(np.median(n)), 1) if n.size else None,
                 }
             )

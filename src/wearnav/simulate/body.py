@@ -130,6 +130,7 @@ class Body:
         out = {k: np.zeros_like(t) for k in ("drop", "back", "lean", "hip", "l_shoulder", "l_elbow", "head")}
         for e in self.episodes:
             p = POSTURES[e.kind]
+            assert e.down is not None and e.up is not None  # the body's episodes are sit or squat stops
             hold = plateau(t, e.down[0], e.down[1], e.up[0], e.up[1])
             moving = bump(t, *e.down) + bump(t, *e.up)
             out["drop"] += (self.hip_height - p["seat_m"]) * hold

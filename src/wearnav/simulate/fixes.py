@@ -165,7 +165,8 @@ class FixNoise:
 
     def _episodes(self, t0: float, t1: float, rate: float, length, rng) -> list[tuple[float, float]]:
         """Poisson-started intervals over [t0, t1] with lengths drawn by ``length()``."""
-        out, t = [], t0
+        out: list[tuple[float, float]] = []
+        t = t0
         while rate > 0:
             t += rng.exponential(1.0 / rate)
             if t >= t1:

@@ -22,6 +22,7 @@ smartphone accelerometer noise density ≈ 120–200 µg/√Hz and gyro ≈ 0.00
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -207,11 +208,11 @@ class ImuErrors:
     gyro_bias: np.ndarray
     acc_matrix: np.ndarray  # (I + scale) · misalignment
     gyro_matrix: np.ndarray
-    acc_drift: object
-    gyro_drift: object
+    acc_drift: Callable[[np.ndarray], np.ndarray]  # t (s) → (T, 3); signals.smooth_noise
+    gyro_drift: Callable[[np.ndarray], np.ndarray]
     yaw_offset: float
-    yaw_walk: object
-    tilt: object
+    yaw_walk: Callable[[np.ndarray], np.ndarray]
+    tilt: Callable[[np.ndarray], np.ndarray]
 
     @classmethod
     def draw(cls, spec: ImuSpec, rng: np.random.Generator, t0: float, t1: float) -> ImuErrors:

@@ -156,6 +156,7 @@ class Phone(PosePath):
             pos = st.r_hip + apply(R_seat, np.array([-0.11, 0.02, -0.07]))
             R = R_seat @ M
         elif placement == "bag":
+            assert self.bag is not None  # built whenever a hold is in the bag
             pos, R = self.bag.pose(st)
             pos = pos + (BAG_JOLT_GAIN * st.heel)[:, None] * np.array([0.0, 0.0, 1.0])  # knocks on each step
             R = R @ M
@@ -268,6 +269,7 @@ class Removed(PosePath):
         pos, R = self.inner.pose(t)
         if self.table_pos is None:
             return pos, R
+        assert self.table_R is not None  # set with table_pos
         m = t > self.removal.start
         if m.any():
             w = ramp(t[m], self.removal.start, self.removal.end)

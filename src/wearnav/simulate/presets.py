@@ -228,7 +228,8 @@ def plan_phone_only(
     tag = 2 if test else 1
     rng = np.random.default_rng(np.random.SeedSequence([seed, 40 + tag, NOISE_LEVELS.index(level)]))
     scenes = list(SCENES)
-    plan, dist = [], 0.0
+    plan: list[PlannedWalk] = []
+    dist = 0.0
     while (n is None and dist < km * 1000.0) or (n is not None and len(plan) < n):
         i = len(plan)
         mode, placement = PHONE_ONLY_KINDS[int(rng.integers(len(PHONE_ONLY_KINDS)))]

@@ -90,6 +90,7 @@ class Scenario:
             if ep is None or ep.kind == "stand":
                 rows.append((b, nxt, "activity", "stand"))
                 continue
+            assert ep.down is not None and ep.up is not None  # a sit or squat episode has both
             (d0, d1), (u0, u1) = ep.down, ep.up
             rows += [
                 (b, d0, "activity", "stand"),
@@ -139,7 +140,8 @@ def _walking(cfg: WalkConfig, rng, t0: float, t1: float):
         return [(t0, t1)], []
     min_bout = 7.0
     kinds = list(rng.permutation(["stand", "sit", "squat"]))
-    bouts, episodes = [], []
+    bouts: list[tuple[float, float]] = []
+    episodes: list[Episode] = []
     t = t0
     while True:
         bout = _u(rng, 8.0, max(9.0, min(25.0, cfg.duration_s / 4)))
@@ -162,8 +164,8 @@ def _phone_holds(cfg: WalkConfig, rng) -> list[Hold]:
         if hold is None:
             options = HOLDS_OF_PLACEMENT[cfg.placement]
             # Handheld is mostly texting-style; swinging in the hand is the less common variant.
-            p = [0.7, 0.3] if options == ("texting", "swinging") else None
-            hold = str(rng.choice(options, p=p))
+            probs = [0.7, 0.3] if options == ("texting", "swinging") else None
+            hold = str(rng.choice(options, p=probs))
         return [Hold(hold, 0.0, T)]
     holds = []
     t, p = 0.0, str(rng.choice(HAND_HOLDS))

@@ -144,8 +144,8 @@ def simulate_walk(cfg: WalkConfig, seed=0) -> SimulatedWalk:
     }
     if "phone" in poses:
         meta["phone_hand"] = getattr(poses["phone"], "hand", None)
-    if "phone" in poses and getattr(poses["phone"], "bag", None) is not None:
-        meta.update(poses["phone"].bag.meta)
+    if "phone" in poses and (bag := getattr(poses["phone"], "bag", None)) is not None:
+        meta.update(bag.meta)
     rec = Recording(
         name=cfg.name, devices=streams, truth=truth, fixes=fixes, labels=scenario.label_rows(cfg.mode), meta=meta
     )

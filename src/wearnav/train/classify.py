@@ -141,7 +141,8 @@ class ClassifyConfig:
         unknown = set(d) - names
         if unknown:
             raise ConfigError(f"unknown classification config keys: {sorted(unknown)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+        return cls(**kw)
 
     def preprocess_config(self) -> PreprocessConfig:
         # frame_align "none": the classifier sees each device in its own frame (or its own world
@@ -241,10 +242,11 @@ def _fit(cfg: ClassifyConfig, run: Path, progress: bool) -> dict:
     model = registry.build(
         cfg.model, n_devices=len(cfg.devices), window=cfg.window, n_classes=len(classes), **cfg.model_args
     )
-    lr = cfg.lr or getattr(model, "default_lr", 1e-3)
-    batch = cfg.batch or getattr(model, "default_batch", 64)
+    model_lr: float = getattr(model, "default_lr", 1e-3)
+    model_batch: int = getattr(model, "default_batch", 64)
+    lr, batch = cfg.lr or model_lr, cfg.batch or model_batch
     sigma = None
-    data = train_ds
+    data: WindowDataset | ExpandedWindows = train_ds
     if cfg.expand:
         copies = expansion_copies(cfg.expand)
         if "noise" in copies:
@@ -352,7 +354,7 @@ def evaluate_run(run: str | Path, training: dict | None = None, progress: bool =
     }
     counts = (training or {}).get("class_windows")
     if isinstance(counts, dict) and counts:  # did it learn: against always answering the majority class
-        majority = classes.index(max(counts, key=counts.get))
+        majority = classes.index(max(counts, key=lambda c: counts[c]))
         metrics.update(trust.classify_baseline(metrics["accuracy"], true, majority, classes))
     runs.write_metrics(run, metrics)
     return metrics
@@ -418,7 +420,7 @@ def label_recordings(recordings, run: str | Path, out: str | Path, classifier=No
             stage / CLASSIFY_JSON,
         )
     for w in found:
-        warnings.warn(WearnavWarning(w))
+        warnings.warn(WearnavWarning(w), stacklevel=2)
     return {"files": [Path(out) / f for f in files[:-1]], "classes": classes, "warnings": found}
 
 

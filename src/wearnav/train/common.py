@@ -20,6 +20,7 @@ import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import lightning as L
 import torch
@@ -101,7 +102,7 @@ class SeededModule(L.LightningModule):
         schedule: Schedule = Schedule(),
     ):
         super().__init__()
-        self.model = model
+        self.model: Any = model  # an OdometryModel or HARNet: loss(batch), an aux_scale where it has one
         self.lr = lr
         self.augment = tuple(augment)
         self.seed = seed
@@ -211,7 +212,7 @@ def make_trainer(
         enable_version_counter=False,
         save_top_k=1 if monitor else 0,
     )
-    callbacks = [checkpoint]
+    callbacks: list[Callback] = [checkpoint]
     if progress and not on_terminal():  # no bar can be drawn: periodic log lines instead
         callbacks.append(LogProgress(run.name, max_minutes))
     stopper = None

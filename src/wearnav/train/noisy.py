@@ -56,6 +56,7 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -243,7 +244,7 @@ def build_models(cfg: NoisyConfig, window: int) -> list[nn.Module]:
     if cfg.method == "ronin":
         return [Resampled(build("ronin", n_devices=1, window=max(window, MIN_WINDOW)), max(window, MIN_WINDOW))]
     n = 2 if cfg.method in DUAL else 1
-    models = []
+    models: list[nn.Module] = []
     for k in range(n):
         torch.manual_seed(cfg.seed * 7919 + 101 * (k + 1))  # dual models: different seeds
         models.append(BaseModel(n_devices=1, window=window))
@@ -315,7 +316,9 @@ def _fit_noisy(
     node0 = torch.as_tensor(train.node0, dtype=torch.long, device=dev)
     node1 = torch.as_tensor(train.node1, dtype=torch.long, device=dev)
     n = len(train)
-    models = [m.to(dev) for m in build_models(cfg, train.x.shape[1])]
+    # duck-typed: BaseModels (encode, reconstruction_loss, displacement(s, h)) where ``base``,
+    # else wrappers with displacement(s) only; the loop branches on ``base``
+    models: list[Any] = [m.to(dev) for m in build_models(cfg, train.x.shape[1])]
     for m in models:
         if isinstance(m, BaseModel):
             m.set_normalisation(x)
@@ -330,7 +333,7 @@ def _fit_noisy(
     opt_c = _adam([corr], cfg.lr_cnal, cfg) if (cnal or aux) else None
     ae_epochs = cfg.ae_epochs if base else 0
     total = ae_epochs + cfg.pre_epochs + cfg.joint_epochs
-    state = {"epoch": 0, "r_delta": 0.0, "history": [], "wall_s": 0.0}
+    state: dict[str, Any] = {"epoch": 0, "r_delta": 0.0, "history": [], "wall_s": 0.0}
     if (run / STATE).is_file():
         st = torch.load(run / STATE, map_location="cpu", weights_only=False)
         for m, sd in zip(models, st["models"]):
@@ -369,7 +372,7 @@ def _fit_noisy(
         for m in models:
             m.train()
         # running sums stay on the device (no host sync per batch); read once at the epoch's end
-        sums = {
+        sums: dict[str, Any] = {
             "loss": zero.clone(),
             "rec": zero.clone(),
             "r_s": 0.0,
@@ -411,7 +414,6 @@ def _fit_noisy(
                     target = yb
                 tgt_models = target if phase == "joint" else yb
                 losses = [instance_mse(p, tgt_models) for p in preds]
-                B = xb.shape[0]
                 total_loss = torch.zeros((), device=dev)
                 if dual and phase == "joint" and cfg.method in ("easytrack", "nocnal", "coteaching"):
                     if cfg.method == "coteaching":
@@ -443,9 +445,9 @@ def _fit_noisy(
                         total_loss = total_loss + l.mean()
                     sums["r_s"] += 1.0
                 if base:
-                    rec = sum(m.reconstruction_loss(xin, h) for m, h in zip(models, hs))
-                    total_loss = total_loss + cfg.lambda_r * rec
-                    sums["rec"] += rec.detach()
+                    rec_loss = sum(m.reconstruction_loss(xin, h) for m, h in zip(models, hs))
+                    total_loss = total_loss + cfg.lambda_r * rec_loss
+                    sums["rec"] += rec_loss.detach()
                 if (cnal or aux) and phase == "joint":
                     ens = torch.stack(preds).mean(0).detach()
                     if cnal:
@@ -542,7 +544,7 @@ def _fit_noisy(
 def load_predictor(cfg: NoisyConfig, run: str | Path, window: int):
     """The trained model(s) of a run: a function segments (N, L, 6) → displacements (N, 2) (the
     dual methods average their two models, eq. 11)."""
-    models = build_models(cfg, window)
+    models: list[Any] = build_models(cfg, window)  # each has displacement(s) (build_models)
     st = torch.load(Path(run) / STATE, map_location="cpu", weights_only=False)
     for m, sd in zip(models, st["models"]):
         m.load_state_dict(sd)

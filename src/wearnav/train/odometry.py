@@ -28,7 +28,7 @@ from wearnav import runs, trust
 from wearnav.dataset import Dataset, scorable_split, train_val_views
 from wearnav.errors import ConfigError, FormatError, ValidationError, check_field_types, check_names
 from wearnav.models import registry
-from wearnav.models.base import VEL_LOSSES, ScaledVelocity
+from wearnav.models.base import VEL_LOSSES, OdometryModel, ScaledVelocity
 from wearnav.models.pdr import PDR, PDRSpeed
 from wearnav.preprocess import (
     SPARSE_TRUTH_HZ,
@@ -145,7 +145,7 @@ class TrainConfig:
         unknown = set(d) - set(names)
         if unknown:
             raise ConfigError(f"unknown training config keys: {sorted(unknown)}")
-        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+        kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
         return cls(**kw)
 
     def preprocess_config(self) -> PreprocessConfig:
@@ -175,7 +175,8 @@ HASH_EXCLUDE = ("max_minutes",)
 
 def build_model(cfg: TrainConfig) -> torch.nn.Module:
     model = registry.build(cfg.model, n_devices=len(cfg.devices), window=cfg.window, **cfg.model_args)
-    model.vel_loss = cfg.vel_loss  # read by the model's own loss(); inference does not depend on it
+    if isinstance(model, OdometryModel):  # read by the model's own loss(); inference does not depend on it
+        model.vel_loss = cfg.vel_loss
     return model
 
 
@@ -247,8 +248,9 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
     if (done := finished(run, cfg)) is not None:  # a finished run is kept, not resumed (its patience would restart)
         log.info(f"{run.name}: finished earlier ({done['stopped_by']}, {done['epochs_run']} epochs), not resumed")
         return done
-    lr = cfg.lr or (getattr(model, "default_lr", DEFAULT_LR) if cfg.recipe == "paper" else DEFAULT_LR)
-    batch = cfg.batch or getattr(model, "default_batch", DEFAULT_BATCH)
+    model_lr: float = getattr(model, "default_lr", DEFAULT_LR) if cfg.recipe == "paper" else DEFAULT_LR
+    model_batch: int = getattr(model, "default_batch", DEFAULT_BATCH)
+    lr, batch = cfg.lr or model_lr, cfg.batch or model_batch
     train_view, val_view, val_note = train_val_views(Dataset.open(cfg.data), cfg.train_split, cfg.val_split)
     train_seqs = load_sequences(train_view, cfg, progress)
     if len(val_view) == 0:

@@ -54,6 +54,7 @@ def locate_model(
     if task not in TASKS and not (task is None and arg is not None):
         raise ValueError(f"task must be odometry or classify, got {task!r}")
     if arg is None:
+        assert task is not None  # the check above refuses a missing model of no task
         return pretrained.default_for(task, devices_in_recording).path
     p = Path(arg)
     if p.exists():
