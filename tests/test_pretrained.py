@@ -92,8 +92,11 @@ def test_an_installed_run_keeps_only_the_weights_and_predicts_the_same(tmp_path)
 
 def test_a_missing_shipped_model_is_one_clear_line(monkeypatch, tmp_path):
     monkeypatch.setattr(pretrained, "MODELS_DIR", tmp_path)
-    with pytest.raises(ConfigError, match="no shipped model 'phone'.*--model RUN"):
-        pretrained.model_path(None, "odometry", ("phone",))
+    with pytest.raises(ConfigError, match="no shipped model 'phone-watch-earbuds'.*--model RUN"):
+        pretrained.model_path(None, "odometry", ("phone", "watch"))
+    # a phone-only recording's default is PDR (issue 34: measured better than the learned phone model
+    # on both held-out buildings), which needs nothing installed
+    assert pretrained.model_path(None, "odometry", ("phone",)) == "pdr"
     with pytest.raises(ConfigError, match="a classify model, not odometry"):
         pretrained.model_path("activity", "odometry")
     assert pretrained.model_path("runs/x", "odometry") == "runs/x"
@@ -142,12 +145,21 @@ def test_track_without_model_lies_on_the_walks_own_fixes(stranger, monkeypatch, 
     at = np.stack([np.interp(fx["t"], table["t"], table[c]) for c in ("east", "north")], axis=1)
     gap = np.linalg.norm(at - fx[["east", "north"]].to_numpy(), axis=1)
     assert len(fx) > 100 and np.median(gap) < 5.0
-    # phone only: the phone model
+    assert "shipped model 'phone-watch-earbuds'" in summary["model_choice"]
+    # phone only: PDR, saying why (issue 34); `--model phone` takes the learned phone model
     phone_only = dataclasses.replace(rec, devices={"phone": rec.devices["phone"]})
     export2 = write_export(phone_only, tmp_path / "phone_walk")
     code, out, err = run_cli(monkeypatch, capsys, "track", str(export2), "--out", str(tmp_path / "t2"))
     assert code == 0, err
-    assert json.loads((tmp_path / "t2" / "track.json").read_text())["shipped_model"] == pretrained.PHONE
+    t2 = json.loads((tmp_path / "t2" / "track.json").read_text())
+    assert t2["model"] == "pdr" and t2["shipped_model"] is None
+    assert "PDR" in t2["model_choice"] and "--model phone" in t2["model_choice"]
+    code, out, err = run_cli(
+        monkeypatch, capsys, "track", str(export2), "--model", "phone", "--out", str(tmp_path / "t3")
+    )
+    assert code == 0, err
+    t3 = json.loads((tmp_path / "t3" / "track.json").read_text())
+    assert t3["shipped_model"] == pretrained.PHONE and t3["model_choice"] == "given with --model"
 
 
 @needs_shipped

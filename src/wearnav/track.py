@@ -356,8 +356,10 @@ def track(
         model_path = locate_model(model_path, "odometry")  # a run folder, checkpoint, file, shipped model, `pdr`
         model, cfg = resolve_model(model_path, "odometry")
     rec = load_input(src, name, platform)
-    if model_path is None:  # the shipped model for the devices the recording has
-        model_path = locate_model(None, "odometry", rec.devices)
+    choice = "given with --model"
+    if model_path is None:  # the default for the devices the recording has, and why (pretrained.default_model)
+        model_path, choice = pretrained.default_model("odometry", rec.devices)
+        model_path = locate_model(model_path, "odometry")
         model, cfg = resolve_model(model_path, "odometry")
     usable = [d for d in cfg.devices if d in rec.devices]
     if not usable:
@@ -389,6 +391,7 @@ def track(
         "model": cfg.model,
         "run": str(model_path),
         "shipped_model": pretrained.shipped_name(model_path),
+        "model_choice": choice,
         "runtime": getattr(model, "runtime", "pytorch"),  # onnxruntime / torchscript: a `wearnav export` file
         "model_devices": list(cfg.devices),
         "devices_in_recording": list(rec.devices),

@@ -55,7 +55,7 @@ def locate_model(
         raise ValueError(f"task must be odometry or classify, got {task!r}")
     if arg is None:
         assert task is not None  # the check above refuses a missing model of no task
-        return pretrained.default_for(task, devices_in_recording).path
+        return pretrained.default_model(task, devices_in_recording)[0]
     p = Path(arg)
     if p.exists():
         if is_exported(p):
