@@ -41,7 +41,7 @@ def eval_segments(eval_dir: Path, data: str | Path) -> pd.DataFrame:
         seg = pd.DataFrame(
             segment_speed_heading(est["t"].to_numpy(), est[["x", "y"]].to_numpy(), rec.truth.t, rec.truth.pos[:, :2])
         )
-        seg.insert(0, "device", str(rec.meta.get("device", "unknown")))
+        seg.insert(0, "device", str(rec.meta.get("device") or "unknown"))
         seg.insert(0, "walk", f.stem)
         frames.append(seg)
     cols = ["walk", "device", "t0_s", "t1_s", "true_speed_m_s", "speed_ratio", "heading_error_deg"]
