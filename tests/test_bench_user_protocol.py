@@ -24,7 +24,7 @@ def test_site_calibration_uses_walks_the_model_never_trained_on(tmp_path, monkey
 
     calls = []
 
-    def fake(run, data, split):
+    def fake(run, data, split, speed="model"):
         calls.append((str(data), split))
         return {"odometry_walk_m_per_sqrt_s": 0.5, "walks": 3, "sigma_scale": 1.2, "sigma_points": 40}
 
@@ -56,7 +56,7 @@ def test_user_protocol_keeps_each_walks_errors_and_pairs_the_smoother_by_walk(mo
         for k in range(3)
     ]
 
-    def paths(run, data, split):
+    def paths(run, data, split, speed="model"):
         for k, rec in enumerate(recs):
             t = rec.truth.t[::10]
             xy = rec.truth.pos[::10, :2] - rec.truth.pos[0, :2]
