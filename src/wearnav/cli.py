@@ -515,27 +515,39 @@ def classify_(
     # Refused before torch is imported: --out, --model (a shipped model's folder where none is
     # given or one is named), the input.
     check_out_folder_path(out)
-    model = locate_model(model, "classify")
+    given = model
+    if given is not None:
+        model = locate_model(given, "classify")
     check_input(input_)
     from wearnav.recording import Recording
     from wearnav.train.classify import label_recordings
     from wearnav.train.resolve import resolve_model
 
-    classifier = resolve_model(model, "classify")
     if input_.is_file() and input_.suffix == ".h5":
         recs = [Recording.load(input_)]
+        devices = set(recs[0].devices)
     elif (input_ / "manifest.csv").is_file():
         from wearnav.dataset import Dataset
 
-        recs = iter(Dataset.open(input_))
+        ds = Dataset.open(input_)
+        recs = iter(ds)
+        devices = {d for row in ds.manifest["devices"].astype(str) for d in row.split(";")}
     else:
         from wearnav.importers import sensorlogger
 
-        recs = sensorlogger.read(input_)
+        recs = list(sensorlogger.read(input_))
+        devices = {d for r in recs for d in r.devices}
+    if given is None:  # the shipped model for the devices the input has (phone, else watch)
+        model = locate_model(None, "classify", sorted(devices))
+        typer.echo(f"model: shipped {Path(model).name} (the input has {', '.join(sorted(devices))})")
+    classifier = resolve_model(model, "classify")
     labelled = label_recordings(recs, model, out, classifier)
     for path in labelled["files"]:
         typer.echo(str(path))
     typer.echo(f"labels the model knows: {', '.join(labelled['classes'])}")
+    thr = getattr(classifier[0], "unknown_threshold", None)
+    if thr is not None:
+        typer.echo(f"windows whose top probability is under {thr:.2f} are labelled unknown")
 
 
 @app.command("results")
