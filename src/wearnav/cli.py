@@ -523,6 +523,7 @@ def classify_(
     from wearnav.train.classify import label_recordings
     from wearnav.train.resolve import resolve_model
 
+    classifier = resolve_model(model, "classify") if given is not None else None  # refused before the input is read
     if input_.is_file() and input_.suffix == ".h5":
         recs = [Recording.load(input_)]
         devices = set(recs[0].devices)
@@ -540,7 +541,7 @@ def classify_(
     if given is None:  # the shipped model for the devices the input has (phone, else watch)
         model = locate_model(None, "classify", sorted(devices))
         typer.echo(f"model: shipped {Path(model).name} (the input has {', '.join(sorted(devices))})")
-    classifier = resolve_model(model, "classify")
+        classifier = resolve_model(model, "classify")
     labelled = label_recordings(recs, model, out, classifier)
     for path in labelled["files"]:
         typer.echo(str(path))
