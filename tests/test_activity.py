@@ -65,8 +65,11 @@ def test_sample_weights_balance_classes_and_sources():
     src = np.array(["a"] * 90 + ["b"] * 10 + ["a"] * 5)
     p = act.sample_weights(y, src)
     assert np.isclose(p.sum(), 1)
-    assert np.isclose(p[y == 1].sum(), 0.5)  # each class half
+    assert np.isclose(p[y == 1].sum(), 0.5)  # class_power 0: each class half
     assert np.isclose(p[(y == 0) & (src == "a")].sum(), p[(y == 0) & (src == "b")].sum())  # sources equal
+    p = act.sample_weights(y, src, class_power=0.5)  # class mass ∝ √windows: 10 : √5
+    assert np.isclose(p[y == 0].sum() / p[y == 1].sum(), 10 / np.sqrt(5))
+    assert np.isclose(p[(y == 0) & (src == "a")].sum(), p[(y == 0) & (src == "b")].sum())
     capped = act.cap_per_class(act.Windows(np.zeros((105, 2, 6)), y, src, np.zeros(105, bool)), 20, 0)
     assert len(capped) == 20 + 10 + 5
 
@@ -84,6 +87,16 @@ def test_whole_recording_labels_trim_edges_and_leave_out_floor_changes():
     assert np.all(lab[(t >= 10) & (t <= 20)] == -1)  # floor 0 → 1: how is not known
     assert np.all(lab[(t > 4) & (t < 9.9)] == walk) and np.all(lab[(t > 20.1) & (t < 36)] == walk)
     assert np.all(act.sample_labels("ilc2", rec, t)[(t > 4) & (t < 36)] == walk)  # ILC2: no floor rule
+
+
+def test_step_rate_tells_walking_from_standing():
+    """Whole-walk sources keep a window as walking only at walking cadence (PDR's step detector)."""
+    t = np.arange(128) / 50.0
+    walk = np.zeros((2, 128, 6), np.float32)
+    walk[..., 2] = 9.81
+    walk[0, :, 2] += 2.0 * np.sin(2 * np.pi * 1.8 * t)  # 1.8 steps/s, vertical bounce
+    rates = act.step_rate_hz(walk, 50.0)
+    assert abs(rates[0] - 1.8) < 0.2 and rates[1] == 0.0
 
 
 def test_unknown_threshold_keeps_95_percent_of_correct_windows():
@@ -135,6 +148,9 @@ def test_tiny_leave_one_dataset_out_suite(tiny_sources, tmp_path):
     # the ILC2-like whole-walk source trains in the other folds only
     assert "oxford" not in json.loads((act.Path(phone["runs"]["oxford"]) / "training.json").read_text())["sources"]
     assert 0 < phone["unknown"]["threshold"] <= 1 and phone["unknown"]["correct_kept"] >= 0.95
+    # stairs come from UCI HAPT alone here: a rare class, its prior cut by rare_factor
+    rec = json.loads((act.Path(phone["runs"]["oxford"]) / "training.json").read_text())
+    assert "stairs_up" in rec["rare_classes"] and rec["class_sources"]["walking"] == 2
     page = (out / "results.md").read_text()
     assert "| held-out source" in page and "unknown` threshold" in page
     # the final model carries the threshold classify reads

@@ -226,7 +226,7 @@ def page(results: dict, quick: bool = False) -> str:
         "",
         f"Model `har-gravity` (the paper 002 CNN+BiLSTM on gravity-aligned windows, random heading and "
         f"gyroscope dropout in training), 50 Hz, windows of 128 samples every 64. Each run: {r['epochs']} "
-        f"epochs of {r['steps']} batches of 64 drawn class- and source-balanced, at most "
+        f"epochs of {r['steps']} batches of 64 drawn source-balanced, class mass ∝ windows^{r['class_power']}, at most "
         f"{r['max_per_class']} windows per source and class, Adam lr {r['lr']}, seed {r['seed']}, one "
         f"torch thread; wall time {results['wall_s']:.0f} s for this invocation."
         + (" QUICK RUN: a few recordings per source, a pipeline check, not a result." if quick else ""),

@@ -31,7 +31,9 @@ gravity direction, :func:`gravity_rotation`) points along +z, acc and gyro alike
 z stays whatever the device's was, so in training every window is also turned by a random yaw
 (paper 002's rotation technique about the one axis left free, on the fly) and, with probability
 ``gyro_dropout``, its gyroscope channels are zeroed (sources and phones without a gyroscope give
-zeros there). A model trained this way sees the same input from a phone in the hand, the pocket
+zeros there), and each window's motion (acc and gyro about their window means) is scaled by a
+random factor within 1 ± ``amp_jitter``: a phone in the hand moves less than one in a pocket, and
+the walk is the same walk. A model trained this way sees the same input from a phone in the hand, the pocket
 or a bag held any way up.
 """
 
@@ -131,6 +133,7 @@ class HARNet(nn.Module):
         fc: int = 256,
         gravity_align: bool = False,
         gyro_dropout: float = 0.0,
+        amp_jitter: float = 0.0,
     ):
         super().__init__()
         if heads not in HEAD_CHANNELS:
@@ -142,7 +145,9 @@ class HARNet(nn.Module):
         if not 0.0 <= gyro_dropout < 1.0:
             raise ConfigError(f"gyro_dropout must be in [0, 1), got {gyro_dropout}")
         self.n_devices, self.window, self.n_classes, self.heads = n_devices, window, n_classes, heads
-        self.gravity_align, self.gyro_dropout = gravity_align, gyro_dropout
+        if not 0.0 <= amp_jitter < 1.0:
+            raise ConfigError(f"amp_jitter must be in [0, 1), got {amp_jitter}")
+        self.gravity_align, self.gyro_dropout, self.amp_jitter = gravity_align, gyro_dropout, amp_jitter
         # Input channel indices of each head in the (D·6)-channel concatenated input.
         self.head_channels = [[d * 6 + c for d in range(n_devices) for c in chans] for chans in HEAD_CHANNELS[heads]]
         self.branches = nn.ModuleList(Branch(len(ch), filters, kernel, pool, hidden) for ch in self.head_channels)
@@ -161,6 +166,10 @@ class HARNet(nn.Module):
             if self.training:  # a random heading per window (module docstring)
                 R = yaw_matrices(2 * torch.pi * torch.rand(B, D, dtype=x.dtype, device=x.device)) @ R
             x = rotate_windows(x, R)
+            if self.training and self.amp_jitter > 0:
+                s = 1.0 + self.amp_jitter * (2 * torch.rand(B, D, 1, 1, dtype=x.dtype, device=x.device) - 1)
+                mean = x.mean(dim=2, keepdim=True)
+                x = mean + s * (x - mean)
             if self.training and self.gyro_dropout > 0:
                 keep = (torch.rand(B, D, 1, 1, device=x.device) >= self.gyro_dropout).to(x.dtype)
                 x = torch.cat([x[..., :3], x[..., 3:6] * keep], dim=-1)
@@ -213,5 +222,9 @@ def har_head3(n_devices: int = 1, window: int = 128, **kw) -> HARNet:
     layout="concat",
     description="HAR baseline on gravity-aligned windows, random yaw and gyro dropout in training (issue 35)",
 )
-def har_gravity(n_devices: int = 1, window: int = 128, gyro_dropout: float = 0.1, **kw) -> HARNet:
-    return HARNet(n_devices, window, heads=1, gravity_align=True, gyro_dropout=gyro_dropout, **kw)
+def har_gravity(
+    n_devices: int = 1, window: int = 128, gyro_dropout: float = 0.1, amp_jitter: float = 0.4, **kw
+) -> HARNet:
+    return HARNet(
+        n_devices, window, heads=1, gravity_align=True, gyro_dropout=gyro_dropout, amp_jitter=amp_jitter, **kw
+    )

@@ -63,7 +63,7 @@ def card_text(device: str, results: dict) -> str:
             "",
             f"Task: classify. Device: {device}. Model: `har-gravity`. Trained by `wearnav bench har-lodo --final "
             f"--install` (wearnav {p['wearnav']}, commit {p['commit']}); {r['epochs']} epochs of {r['steps']} "
-            f"batches of 64, class- and source-balanced, at most {r['max_per_class']} windows per source and "
+            f"batches of 64, source-balanced with class mass ∝ windows^{r['class_power']}, at most {r['max_per_class']} windows per source and "
             f"class, Adam lr {r['lr']}, seed {r['seed']}, {rec['wall_s']:.0f} s on one CPU thread.",
             "",
             "## Data",
