@@ -12,7 +12,7 @@ The page (``results.md`` + ``results.json``) gives per held-out source macro-F1,
 walking recall beside the in-dataset numbers, and the ``unknown`` threshold calibrated on the
 held-out windows: the largest top probability that keeps ≥ :data:`KEEP_CORRECT` of the held-out
 windows the models got right (:func:`wearnav.train.activity.unknown_threshold`), with the share of
-wrong and of all held-out windows it turns to ``unknown``. With ``final`` the model of every source
+wrong and of all held-out windows it turns to ``unknown``, capped at :data:`MAX_THRESHOLD`. With ``final`` the model of every source
 is trained with that threshold (``<out>/final/<device>``), the one `wearnav pretrain` ships.
 """
 
@@ -40,6 +40,10 @@ from wearnav.train.activity import (
 )
 
 KEEP_CORRECT = 0.95  # issue 35 §3: the threshold keeps ≥ 95 % of the held-out correct windows
+# The threshold is capped here: above it the held-out models' top probabilities are saturated (a
+# float32 softmax gives exactly 1.0 for most windows of a model trained on one source, as the watch's
+# leave-one-out runs are), the 5 % quantile lands on 1.0 and would turn every window under 1.0 unknown.
+MAX_THRESHOLD = 0.9
 WALKING_RECALL_TARGET = 0.9  # issue 35 "Done when"
 SIM_PRESET = "default"  # the simulator's preset the simulated source is generated from (seed 0)
 SIM_QUICK_PRESET = "tiny"  # --quick: the smallest preset
@@ -104,10 +108,13 @@ def calibrate(folders) -> dict:
     parts = [read_heldout(f) for f in folders]
     conf = np.concatenate([p["conf"] for p in parts])
     correct = np.concatenate([p["pred"] == p["true"] for p in parts])
-    thr = unknown_threshold(conf, correct, KEEP_CORRECT)
+    quantile = unknown_threshold(conf, correct, KEEP_CORRECT)
+    thr = min(quantile, MAX_THRESHOLD)
     below = conf < thr
     return {
         "threshold": round(thr, 4),
+        "quantile": round(quantile, 4),
+        "capped": quantile > MAX_THRESHOLD,
         "keep_correct": KEEP_CORRECT,
         "held_out_windows": int(conf.size),
         "correct_kept": round(float(np.mean(~below[correct])), 4),
@@ -228,7 +235,9 @@ def page(results: dict, quick: bool = False) -> str:
         f"gyroscope dropout in training), 50 Hz, windows of 128 samples every 64. Each run: {r['epochs']} "
         f"epochs of {r['steps']} batches of 64 drawn source-balanced, class mass ∝ windows^{r['class_power']}, at most "
         f"{r['max_per_class']} windows per source and class, Adam lr {r['lr']}, seed {r['seed']}, one "
-        f"torch thread; wall time {results['wall_s']:.0f} s for this invocation."
+        f"torch thread; motion amplitude jitter ±{r['amp_jitter']}, gyro dropout {r['gyro_dropout']}; a class "
+        f"fewer than {r['rare_sources']} training sources have (stairs, running) has its prior × {r['rare_factor']} "
+        f"(wearnav.train.activity); wall time {results['wall_s']:.0f} s for this invocation."
         + (" QUICK RUN: a few recordings per source, a pipeline check, not a result." if quick else ""),
         "",
         "LODO: trained on every other source, scored on all of the held-out source's labelled windows. "
@@ -253,7 +262,13 @@ def page(results: dict, quick: bool = False) -> str:
             f"held-out windows (pooled over the leave-one-out runs, {cal['held_out_windows']} windows): it keeps "
             f"{100 * cal['correct_kept']:.1f} % of the correct ones, turns "
             + (f"{100 * cal['wrong_to_unknown']:.1f} %" if cal["wrong_to_unknown"] is not None else "—")
-            + f" of the wrong ones and {100 * cal['all_to_unknown']:.1f} % of all to unknown.",
+            + f" of the wrong ones and {100 * cal['all_to_unknown']:.1f} % of all to unknown."
+            + (
+                f" CAPPED: the 5 % quantile of the correct windows' top probability was {cal['quantile']:.4f} "
+                f"(saturated softmax), so the threshold is the cap {MAX_THRESHOLD}; it is not calibrated."
+                if cal.get("capped")
+                else ""
+            ),
             "",
         ]
     return "\n".join(lines)

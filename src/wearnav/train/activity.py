@@ -329,6 +329,9 @@ class ActivityRun:
     class_power: float = 1.0
     rare_sources: int = 3
     rare_factor: float = 0.03
+    # har-gravity's training-time augmentation (wearnav.models.har): random motion amplitude, gyro dropout
+    amp_jitter: float = 0.5
+    gyro_dropout: float = 0.1
     seed: int = 0
     lr: float = 1e-3
     unknown_threshold: float | None = None  # written into training.json for classify (shipped model)
@@ -388,7 +391,14 @@ def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
         {"activity_run": run.record()},
     )
     torch.manual_seed(run.seed)
-    model = registry.build(MODEL, n_devices=1, window=WINDOW, n_classes=len(classes))
+    model = registry.build(
+        MODEL,
+        n_devices=1,
+        window=WINDOW,
+        n_classes=len(classes),
+        amp_jitter=run.amp_jitter,
+        gyro_dropout=run.gyro_dropout,
+    )
     opt = torch.optim.Adam(model.parameters(), lr=run.lr)
     p = sample_weights(y, train.source, run.class_power)
     rng = np.random.default_rng(run.seed)
