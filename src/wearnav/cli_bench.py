@@ -384,10 +384,10 @@ def bench_har_lodo(
         data, out, names, base, _execution(jobs, executor, address, threads), quick, final, echo=typer.echo
     )
     if install:
-        from wearnav.pretrained.activity import install as install_model
+        from wearnav.pretrained.recipe import install_activity
 
         for device in names:
-            install_model(device, results, echo=typer.echo)
+            install_activity(device, results, echo=typer.echo)
     typer.echo(f"wrote {out / 'results.md'}")
 
 

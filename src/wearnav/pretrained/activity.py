@@ -1,5 +1,6 @@
 """The shipped activity models (issue 35): their cards, written from the leave-one-dataset-out
-suite's results (:mod:`wearnav.bench.har_lodo`), and their installation into the package.
+suite's results (:mod:`wearnav.bench.har_lodo`); :func:`wearnav.pretrained.recipe.install_activity`
+installs them into the package.
 
 Every figure in a card is read from the suite's results.json and the final run's training.json.
 """
@@ -10,11 +11,9 @@ from pathlib import Path
 
 from wearnav import activity_labels as al
 from wearnav.bench.har_lodo import WALKING_RECALL_TARGET, markdown_table, misses
-from wearnav.fileio import write_text_atomic
-from wearnav.pretrained import ACTIVITY, ACTIVITY_WATCH, CARD, SHIPPED
+from wearnav.pretrained import ACTIVITY, ACTIVITY_WATCH, SHIPPED
 from wearnav.provenance import provenance
 from wearnav.textio import read_json
-from wearnav.train.common import LAST
 
 SHIPPED_FOR_DEVICE = {"phone": ACTIVITY, "watch": ACTIVITY_WATCH}
 
@@ -129,15 +128,3 @@ def card_text(device: str, results: dict) -> str:
             "are not an independent test.",
         ]
     )
-
-
-def install(device: str, results: dict, echo=print) -> Path:
-    """Write the card into the final run and copy the run into the package's model folder."""
-    from wearnav.pretrained.recipe import install_run
-
-    res = results["devices"][device]
-    final = Path(res["final"])
-    write_text_atomic(card_text(device, results), final / CARD)
-    dest = install_run(final, SHIPPED[SHIPPED_FOR_DEVICE[device]].path, LAST)
-    echo(f"installed {dest.name}: {SHIPPED[dest.name].size_bytes() / 1e6:.1f} MB in {dest}")
-    return dest

@@ -38,7 +38,6 @@ from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.importers import import_dataset
 from wearnav.pretrained import MULTI, PHONE, SHIPPED, cards
 from wearnav.pretrained.activity import SHIPPED_FOR_DEVICE, card_text
-from wearnav.pretrained.activity import install as install_activity
 from wearnav.pretrained.mix import MIX_FRAME, Part, write_mix
 from wearnav.simulate import simulate_dataset
 from wearnav.textio import read_json
@@ -239,6 +238,17 @@ def cross_building_calibration(run: Path, suites: list[Path]) -> dict:
     }
     runs.write_json(run / fuse.CALIBRATION_JSON, cal)
     return cal
+
+
+def install_activity(device: str, results: dict, echo=print) -> Path:
+    """The activity model of ``device`` from the leave-one-dataset-out suite's ``results``
+    (:func:`wearnav.bench.har_lodo.run_lodo` with ``final``): its card written into the final run,
+    the run copied into the package's model folder."""
+    final = Path(results["devices"][device]["final"])
+    write_text_atomic(card_text(device, results), final / cards.CARD)
+    dest = install_run(final, SHIPPED[SHIPPED_FOR_DEVICE[device]].path, LAST)
+    echo(f"installed {dest.name}: {SHIPPED[dest.name].size_bytes() / 1e6:.1f} MB in {dest}")
+    return dest
 
 
 KEEP = ("config.yaml", TRAINING, "metrics.json", "fuse_calibration.json", cards.CARD)
