@@ -56,6 +56,7 @@ from wearnav import runs, trust
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.metrics import accuracy, confusion_matrix, macro_f1
 from wearnav.models import registry
+from wearnav.models.har import HARNet
 from wearnav.preprocess import align
 from wearnav.textio import read_json
 from wearnav.train.classify import TEST_SUBJECTS, TRAINING, ClassifyConfig, load_model, subject_number
@@ -399,6 +400,8 @@ def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
         amp_jitter=run.amp_jitter,
         gyro_dropout=run.gyro_dropout,
     )
+    if not isinstance(model, HARNet):
+        raise ConfigError(f"{MODEL} is not a HARNet")
     opt = torch.optim.Adam(model.parameters(), lr=run.lr)
     p = sample_weights(y, train.source, run.class_power)
     rng = np.random.default_rng(run.seed)
