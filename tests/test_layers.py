@@ -42,6 +42,8 @@ LAYERS: dict[str, int] = {
     "wearnav.fixcheck": 0,
     "wearnav.trajectory": 0,
     "wearnav.metrics": 0,
+    # the one activity label set and each source's mapping onto it (data only; issue 35)
+    "wearnav.activity_labels": 0,
     # an exported model file's header (format, names); train.classify and track read it, and it
     # imports only errors, so it sits far below the rest of export/
     "wearnav.export.header": 0,
@@ -82,6 +84,7 @@ LAYERS: dict[str, int] = {
     "wearnav.export.speed": 7,  # a benchmark of the export formats: times them with bench.efficiency
     "wearnav.pretrained.mix": 7,  # a training mix of the real sites that bench.real_sites prepares
     "wearnav.pretrained.recipe": 7,  # makes the shipped models by running the bench suites
+    "wearnav.pretrained.activity": 7,  # the shipped activity models' cards, from bench.har_lodo's results
     # 8 wearnav track: one recording to a path, its page and summary
     "wearnav.track": 8,
     "wearnav.track_files": 8,  # the names track writes, read by the CLI before torch is imported

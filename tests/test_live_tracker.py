@@ -133,7 +133,7 @@ def test_three_devices_live_against_track_and_truth(export):
     assert np.percentile(err_live, 95) < np.percentile(err_off, 95) + 1.0
     assert np.percentile(busy, 95) < 1000 and run["cpu_s"] / walk_s < 0.5
     state = tr.state()
-    assert state["activity"]["label"] in tr.classifier[2]
+    assert state["activity"]["label"] in [*tr.classifier[2], "unknown"]  # unknown: the model is unsure (issue 35)
     assert len(state["fixes"]) == len(run["buf"].recording().fixes)
     assert state["final_t_s"] == pytest.approx(t[-1], abs=1e-3)  # after the final update nothing is provisional
     step = int(round(tr.cfg.rate))

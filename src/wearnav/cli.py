@@ -520,27 +520,40 @@ def classify_(
     # Refused before torch is imported: --out, --model (a shipped model's folder where none is
     # given or one is named), the input.
     check_out_folder_path(out)
-    located = locate_model(model, "classify")
+    located = locate_model(model, "classify") if model is not None else None
     check_input(input_)
     from wearnav.recording import Recording
     from wearnav.train.classify import label_recordings
     from wearnav.train.resolve import resolve_model
 
-    classifier = resolve_model(located, "classify")
+    classifier = resolve_model(located, "classify") if located is not None else None  # refused before the input is read
+    recs: Iterable[Recording]
     if input_.is_file() and input_.suffix == ".h5":
-        recs: Iterable[Recording] = [Recording.load(input_)]
+        one = Recording.load(input_)
+        recs, devices = [one], set(one.devices)
     elif (input_ / "manifest.csv").is_file():
         from wearnav.dataset import Dataset
 
-        recs = iter(Dataset.open(input_))
+        ds = Dataset.open(input_)
+        recs = iter(ds)
+        devices = {d for row in ds.manifest["devices"].astype(str) for d in row.split(";")}
     else:
         from wearnav.importers import sensorlogger
 
-        recs = sensorlogger.read(input_)
+        read = list(sensorlogger.read(input_))
+        recs, devices = read, {d for r in read for d in r.devices}
+    if located is None:  # the shipped model for the devices the input has (phone, else watch)
+        located = locate_model(None, "classify", sorted(devices))
+        typer.echo(f"model: shipped {Path(located).name} (the input has {', '.join(sorted(devices))})")
+        classifier = resolve_model(located, "classify")
     labelled = label_recordings(recs, located, out, classifier)
     for path in labelled["files"]:
         typer.echo(str(path))
     typer.echo(f"labels the model knows: {', '.join(labelled['classes'])}")
+    assert classifier is not None  # resolved above, from --model or the input's devices
+    thr = getattr(classifier[0], "unknown_threshold", None)
+    if thr is not None:
+        typer.echo(f"windows whose top probability is under {thr:.2f} are labelled unknown")
 
 
 @app.command("results")

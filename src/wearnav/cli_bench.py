@@ -346,6 +346,64 @@ def bench_har(
     typer.echo(f"wrote {page}")
 
 
+@bench_app.command("har-lodo")
+def bench_har_lodo(
+    out: Path = typer.Option(
+        Path("runs/har-lodo"), "--out", help="Suite folder (imported data, run folders, results.md)."
+    ),
+    data: Path = typer.Option(Path("../shared/data"), "--data", help="Folder holding the public datasets."),
+    devices: str = typer.Option("phone,watch", help="Devices, comma-separated: phone, watch."),
+    epochs: int | None = typer.Option(None, min=1, help="Epochs per run (default 8; --quick 1)."),
+    steps: int | None = typer.Option(None, min=1, help="Batches of 64 per epoch (default 250; --quick 5)."),
+    max_per_class: int = typer.Option(1500, min=1, help="Training windows kept per source and class (at random)."),
+    seed: int = typer.Option(0, min=0, help=SEED_HELP),
+    final: bool = typer.Option(False, "--final", help="Also train each device's model on every source."),
+    install: bool = typer.Option(
+        False, "--install", help="With --final: write the cards and install the models into the package."
+    ),
+    quick: bool = typer.Option(
+        False, "--quick", help="A few recordings per source, 1 epoch: checks the pipeline only."
+    ),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
+    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
+    address: str | None = typer.Option(None, help=ADDRESS_HELP),
+    threads: int = typer.Option(1, min=1, help="Torch intra-op threads per run (1 is fastest for this small model)."),
+):
+    """Activity recognition, leave one dataset out: per held-out source macro-F1, accuracy and walking
+    recall beside the in-dataset numbers, and the calibrated `unknown` threshold; runs resume.
+
+    \b
+    Example:
+      wearnav bench har-lodo --out runs/har-lodo --final --install
+    """
+    from wearnav.bench.har_lodo import run_lodo
+    from wearnav.errors import ConfigError
+    from wearnav.train.activity import ActivityRun
+
+    if install and not final:
+        raise ConfigError("--install installs the --final models; give both")
+    suite_folder(out, "bench har-lodo")
+    base = ActivityRun(
+        device="phone",
+        sources=(),
+        data={},
+        epochs=epochs or (1 if quick else 8),
+        steps=steps or (5 if quick else 250),
+        max_per_class=max_per_class,
+        seed=seed,
+    )
+    names = split_list(devices)
+    results = run_lodo(
+        data, out, names, base, _execution(jobs, executor, address, threads), quick, final, echo=typer.echo
+    )
+    if install:
+        from wearnav.pretrained.recipe import install_activity
+
+        for device in names:
+            install_activity(device, results, echo=typer.echo)
+    typer.echo(f"wrote {out / 'results.md'}")
+
+
 @bench_app.command("easytrack")
 def bench_easytrack(
     out: Path = typer.Option(Path("runs/easytrack"), "--out", help="Suite folder (data, run folders, results.md)."),

@@ -49,7 +49,7 @@ from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.recording import DeviceStream, Recording
 from wearnav.report.trajectory_page import page_points
 from wearnav.track import input_warnings, odometry_preprocess, path_times
-from wearnav.train.classify import window_classes
+from wearnav.train.classify import UNKNOWN_INDEX, class_name, unknown_note, window_classes
 from wearnav.train.odometry import TrainConfig
 from wearnav.train.resolve import resolve_model
 from wearnav.trajectory import integrate_velocity
@@ -314,13 +314,19 @@ class LiveTracker:
         if not all(d in rec.devices for d in cfg.devices):
             return False
         try:
-            _, t, cls, _ = window_classes(model, cfg, rec)
+            _, t, cls, conf = window_classes(model, cfg, rec)
         except ValidationError:  # too little of a device yet (align's span checks)
             return False
         if len(cls) == 0:
             return False
         self._activity_at = covered
-        label = {"label": classes[int(cls[-1])], "t_s": round(float(t[-1, 1]), 3)}
+        label = {
+            "label": class_name(classes, int(cls[-1])),
+            "t_s": round(float(t[-1, 1]), 3),
+            "confidence": round(float(conf[-1]), 3),
+        }
+        if cls[-1] == UNKNOWN_INDEX:  # the page says why (issue 35 §3)
+            label["note"] = unknown_note(model, 1, 1).split(": ", 1)[1]
         changed = self.activity is None or label["label"] != self.activity["label"]
         self.activity = label
         return changed

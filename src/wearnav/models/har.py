@@ -24,6 +24,19 @@ Each head is a full conv → pool → Bi-LSTM branch; their summaries are concat
 dropout and FC layer. Input: x (B, D, L, 6) and mask (B, D), layout "concat": the devices'
 channels side by side, zeros where a device is absent, so a phone + watch input gives every
 head the same channels of both devices (e.g. Head2's acc head sees phone and watch acc).
+
+Placement- and orientation-agnostic input (issue 35; ``gravity_align``, the shipped activity
+model ``har-gravity``): each device's window is first turned so that its mean acceleration (the
+gravity direction, :func:`gravity_rotation`) points along +z, acc and gyro alike; its heading about
+z stays whatever the device's was, so in training every window is also turned by a random yaw
+(paper 002's rotation technique about the one axis left free, on the fly) and, with probability
+``gyro_dropout``, its gyroscope channels are zeroed (sources and phones without a gyroscope give
+zeros there), and each window's motion (acc and gyro about their window means) is scaled by a
+random factor within 1 ± ``amp_jitter``, one for the horizontal axes and one for the vertical: a
+phone in the hand moves less than one in a pocket and bounces more than it sways (median vertical
+/ horizontal acceleration std of walking: ILC2's flat-held phone 3.3 / 0.5 m/s², MotionSense's
+pocket 5.2 / 3.0, IPIN's hand-held 0.9 / 0.5), and the walk is the same walk. A model trained this way sees the same input from a phone in the hand, the pocket
+or a bag held any way up.
 """
 
 from __future__ import annotations
@@ -35,12 +48,56 @@ from torch.nn import functional as F
 from wearnav.errors import ConfigError
 from wearnav.models.registry import register
 
+# Below this cos(angle) between the window's gravity and +z the device is first turned by π about
+# x (the closed form of gravity_rotation divides by 1 + cos and is ill-conditioned near −1).
+FLIP_COS = -0.9
+
 ACC, GYRO = (0, 1, 2), (3, 4, 5)
 HEAD_CHANNELS: dict[int, list[tuple[int, ...]]] = {
     1: [ACC + GYRO],
     2: [ACC, GYRO],
     3: [(0, 3), (1, 4), (2, 5)],
 }
+
+
+def gravity_rotation(acc: Tensor) -> Tensor:
+    """Rotation matrices R (..., 3, 3) with R · ĝ = +z for ĝ the unit mean of ``acc`` (..., L, 3)
+    over its samples: the smallest rotation (Rodrigues, R = I + K + K²/(1 + c) with K = [ĝ × z]ₓ,
+    c = ĝ·z), after a turn by π about x where c < :data:`FLIP_COS`. A window with no mean
+    acceleration (all zeros: an absent device) gets the identity."""
+    g = acc.mean(dim=-2)
+    n = g.norm(dim=-1, keepdim=True)
+    u = torch.where(n > 1e-6, g / n.clamp_min(1e-6), torch.zeros_like(g))
+    u = torch.where(n > 1e-6, u, torch.tensor([0.0, 0.0, 1.0], dtype=acc.dtype, device=acc.device))
+    flip = (u[..., 2] < FLIP_COS)[..., None, None]
+    F_x = torch.diag(torch.tensor([1.0, -1.0, -1.0], dtype=acc.dtype, device=acc.device))
+    u = torch.where(flip[..., 0], u * torch.tensor([1.0, -1.0, -1.0], dtype=acc.dtype, device=acc.device), u)
+    z = torch.zeros_like(u)
+    z[..., 2] = 1.0
+    v = torch.cross(u, z, dim=-1)
+    c = u[..., 2]
+    K = torch.zeros(*u.shape[:-1], 3, 3, dtype=acc.dtype, device=acc.device)
+    K[..., 0, 1], K[..., 0, 2] = -v[..., 2], v[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = v[..., 2], -v[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -v[..., 1], v[..., 0]
+    eye = torch.eye(3, dtype=acc.dtype, device=acc.device).expand_as(K)
+    R = eye + K + K @ K / (1.0 + c)[..., None, None].clamp_min(1e-6)
+    return torch.where(flip, R @ F_x, R)
+
+
+def rotate_windows(x: Tensor, R: Tensor) -> Tensor:
+    """x (B, D, L, 6) with acc and gyro each turned by R (B, D, 3, 3)."""
+    acc = torch.einsum("bdij,bdlj->bdli", R, x[..., :3])
+    gyro = torch.einsum("bdij,bdlj->bdli", R, x[..., 3:6])
+    return torch.cat([acc, gyro], dim=-1)
+
+
+def yaw_matrices(theta: Tensor) -> Tensor:
+    """Rotations about z by ``theta`` (...,) rad → (..., 3, 3)."""
+    c, s = torch.cos(theta), torch.sin(theta)
+    R = torch.zeros(*theta.shape, 3, 3, dtype=theta.dtype, device=theta.device)
+    R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1], R[..., 2, 2] = c, -s, s, c, 1.0
+    return R
 
 
 class Branch(nn.Module):
@@ -76,6 +133,9 @@ class HARNet(nn.Module):
         hidden: int = 64,
         dropout: float = 0.25,
         fc: int = 256,
+        gravity_align: bool = False,
+        gyro_dropout: float = 0.0,
+        amp_jitter: float = 0.0,
     ):
         super().__init__()
         if heads not in HEAD_CHANNELS:
@@ -84,7 +144,12 @@ class HARNet(nn.Module):
             raise ConfigError(f"need ≥ 1 device and ≥ 2 classes, got {n_devices} and {n_classes}")
         if (window - kernel + 1) // pool < 1:
             raise ConfigError(f"window of {window} samples is too short for kernel {kernel} and pool {pool}")
+        if not 0.0 <= gyro_dropout < 1.0:
+            raise ConfigError(f"gyro_dropout must be in [0, 1), got {gyro_dropout}")
         self.n_devices, self.window, self.n_classes, self.heads = n_devices, window, n_classes, heads
+        if not 0.0 <= amp_jitter < 1.0:
+            raise ConfigError(f"amp_jitter must be in [0, 1), got {amp_jitter}")
+        self.gravity_align, self.gyro_dropout, self.amp_jitter = gravity_align, gyro_dropout, amp_jitter
         # Input channel indices of each head in the (D·6)-channel concatenated input.
         self.head_channels = [[d * 6 + c for d in range(n_devices) for c in chans] for chans in HEAD_CHANNELS[heads]]
         self.branches = nn.ModuleList(Branch(len(ch), filters, kernel, pool, hidden) for ch in self.head_channels)
@@ -98,6 +163,19 @@ class HARNet(nn.Module):
         if D != self.n_devices:
             raise ConfigError(f"model built for {self.n_devices} devices, got input with {D}")
         x = x * (mask > 0).to(x.dtype)[:, :, None, None]
+        if self.gravity_align:
+            R = gravity_rotation(x[..., :3])
+            if self.training:  # a random heading per window (module docstring)
+                R = yaw_matrices(2 * torch.pi * torch.rand(B, D, dtype=x.dtype, device=x.device)) @ R
+            x = rotate_windows(x, R)
+            if self.training and self.amp_jitter > 0:  # horizontal (x, y) and vertical (z) motion each its own factor
+                f = 1.0 + self.amp_jitter * (2 * torch.rand(B, D, 1, 2, dtype=x.dtype, device=x.device) - 1)
+                s = f[..., [0, 0, 1, 0, 0, 1]]
+                mean = x.mean(dim=2, keepdim=True)
+                x = mean + s * (x - mean)
+            if self.training and self.gyro_dropout > 0:
+                keep = (torch.rand(B, D, 1, 1, device=x.device) >= self.gyro_dropout).to(x.dtype)
+                x = torch.cat([x[..., :3], x[..., 3:6] * keep], dim=-1)
         flat = x.permute(0, 1, 3, 2).reshape(B, D * 6, L)
         return [flat[:, ch] for ch in self.head_channels]
 
@@ -139,3 +217,17 @@ def har_head2(n_devices: int = 1, window: int = 128, **kw) -> HARNet:
 )
 def har_head3(n_devices: int = 1, window: int = 128, **kw) -> HARNet:
     return HARNet(n_devices, window, heads=3, **kw)
+
+
+@register(
+    "har-gravity",
+    task="classify",
+    layout="concat",
+    description="HAR baseline on gravity-aligned windows, random yaw and gyro dropout in training (issue 35)",
+)
+def har_gravity(
+    n_devices: int = 1, window: int = 128, gyro_dropout: float = 0.1, amp_jitter: float = 0.5, **kw
+) -> HARNet:
+    return HARNet(
+        n_devices, window, heads=1, gravity_align=True, gyro_dropout=gyro_dropout, amp_jitter=amp_jitter, **kw
+    )

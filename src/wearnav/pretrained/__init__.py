@@ -8,7 +8,8 @@ only, ``training.json``, the smoother's ``fuse_calibration.json`` for odometry) 
 trained and installed by one command, ``wearnav pretrain`` (:mod:`wearnav.pretrained.recipe`).
 
 ``track`` without ``--model`` takes :data:`PHONE` for a phone-only recording and :data:`MULTI`
-when the recording also has a watch or earbuds; ``classify`` takes :data:`ACTIVITY`.
+when the recording also has a watch or earbuds; ``classify`` takes :data:`ACTIVITY` (the phone's)
+where the recording has a phone, else :data:`ACTIVITY_WATCH` where it has a watch.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from wearnav.errors import ConfigError
 
 MODELS_DIR = Path(__file__).parent / "models"
 CARD = "MODEL_CARD.md"
-PHONE, MULTI, ACTIVITY = "phone", "phone-watch-earbuds", "activity"
+PHONE, MULTI, ACTIVITY, ACTIVITY_WATCH = "phone", "phone-watch-earbuds", "activity", "activity-watch"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,8 +62,15 @@ SHIPPED = {
             ACTIVITY,
             "classify",
             ("phone",),
-            "CNN+BiLSTM activity baseline (paper 002) on MotionSense: downstairs, jogging, sitting, "
-            "standing, upstairs, walking",
+            "CNN+BiLSTM (paper 002) on gravity-aligned phone windows, trained on every labelled source "
+            "(MotionSense, UCI HAPT, UJI, Oxford, ILC2, IPIN, the simulator) in one label set; "
+            "unsure windows are labelled unknown",
+        ),
+        Shipped(
+            ACTIVITY_WATCH,
+            "classify",
+            ("watch",),
+            "the same recipe on the watch: UJI's smartwatch and the simulator's watch (walking, sitting, other)",
         ),
     )
 }
@@ -81,9 +89,16 @@ def installed(task: str | None = None) -> list[Shipped]:
 
 def default_for(task: str, devices_in_recording=()) -> Shipped:
     """The model a command uses without ``--model``: for odometry the multi-device one where the
-    recording has a watch or earbuds, else the phone one; for classify the activity model."""
+    recording has a watch or earbuds, else the phone one; for classify the phone's activity model
+    where the recording has a phone (or its devices are not known), else the watch's where it has
+    a watch and that model is installed."""
     if task == "classify":
-        name = ACTIVITY
+        devs = set(devices_in_recording)
+        name = (
+            ACTIVITY_WATCH
+            if "watch" in devs and "phone" not in devs and SHIPPED[ACTIVITY_WATCH].installed
+            else ACTIVITY
+        )
     else:
         name = MULTI if {"watch", "earbuds"} & set(devices_in_recording) else PHONE
     spec = SHIPPED[name]

@@ -1,15 +1,17 @@
 """`wearnav pretrain`: the one command that trains, measures and installs the shipped models.
 
 1. **Data** (under ``work``, reused when present): ILC2 site 1 (all floors) and IPIN 2023 Track 3
-   (all trials) imported from the shared data root, the simulator's ``default`` preset (seed 0),
-   MotionSense for the activity model.
+   (all trials) imported from the shared data root, the simulator's ``default`` preset (seed 0);
+   the activity models import every labelled source into ``out/har-lodo/data``.
 2. **Mixes** of the odometry sources (:mod:`wearnav.pretrained.mix`, each building's truth turned
    by its phones' axis yaw): everything, everything but IPIN, everything but ILC2.
 3. **Runs** (one executor job each, resumable run folders under ``out/runs``): Suite-IN++ on the
-   phone alone and on phone + watch + earbuds, both on the whole mix; the activity baseline on
-   MotionSense; and the leave-one-building-out measurement: the same phone recipe trained on a
+   phone alone and on phone + watch + earbuds, both on the whole mix; and the leave-one-building-out measurement: the same phone recipe trained on a
    mix without one building, scored at that building's held-out surveyed points beside PDR and
-   its raw GNSS (:mod:`wearnav.bench.real`, suites ``out/lobo-ipin`` and ``out/lobo-ilc2``).
+   its raw GNSS (:mod:`wearnav.bench.real`, suites ``out/lobo-ipin`` and ``out/lobo-ilc2``). The
+   activity models (phone, watch) come from the leave-one-dataset-out suite
+   (:mod:`wearnav.bench.har_lodo`, ``out/har-lodo``): its ``final`` runs, trained on every labelled
+   source with the ``unknown`` threshold calibrated there.
 4. **Cards and install**: a MODEL_CARD.md per model (:mod:`wearnav.pretrained.cards`), and with
    ``install`` the trimmed runs copied into the package (:data:`wearnav.pretrained.MODELS_DIR`).
 
@@ -26,19 +28,20 @@ from pathlib import Path
 import torch
 
 from wearnav import fuse, runs
-from wearnav.bench import har
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.bench.har_lodo import run_lodo
 from wearnav.bench.real import RealBench, plan_benchmark
 from wearnav.bench.real_sites import TRUTH_MAX_GAP_S
 from wearnav.bench.user_protocol import ensure_calibration, site_calibration
 from wearnav.errors import MissingFileError
-from wearnav.fileio import atomic_path
+from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.importers import import_dataset
-from wearnav.pretrained import ACTIVITY, CARD, MULTI, PHONE, SHIPPED, cards
+from wearnav.pretrained import CARD, MULTI, PHONE, SHIPPED, cards
+from wearnav.pretrained.activity import SHIPPED_FOR_DEVICE, card_text
 from wearnav.pretrained.mix import MIX_FRAME, Part, write_mix
 from wearnav.simulate import simulate_dataset
 from wearnav.textio import read_json
-from wearnav.train.classify import run_folder
+from wearnav.train.activity import ActivityRun
 from wearnav.train.common import BEST, CHECKPOINTS, LAST
 from wearnav.train.odometry import TRAINING, TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 
@@ -47,7 +50,6 @@ MODEL = "suitein++"
 SOURCES = {
     "ilc2": ("ilc2", "ilc2_indoor_location"),
     "ipin": ("ipin2023", "ipin2023_track3"),
-    "motionsense": ("motionsense", "motionsense"),
 }
 MIXES = {"mix-all": ("ilc2", "ipin", "sim"), "mix-noipin": ("ilc2", "sim"), "mix-noilc2": ("ipin", "sim")}
 # leave-one-building-out suite → (the building scored, the mix trained on)
@@ -62,7 +64,8 @@ class Recipe:
     patience: int = 10
     max_minutes: float | None = 45.0  # per odometry run: a cap for slow machines, the epochs decide
     lr: float = 1e-3
-    har_epochs: int = 5
+    har_epochs: int = 8  # activity models (wearnav.bench.har_lodo): epochs of har_steps batches
+    har_steps: int = 250
     seed: int = 0
     preset: str = "default"  # the simulator's
     augment: tuple[str, ...] = ("rotate_yaw",)
@@ -138,10 +141,6 @@ def shipped_jobs(folders: dict[str, Path], out: Path, recipe: Recipe) -> dict[st
         cfg = odometry_config(folders["mix-all"], SHIPPED[name].devices, recipe)
         run = runs.run_dir(out / "runs", name, run_hash_exclude(run_record(cfg)))
         jobs[name] = Job(run_odometry, cfg, run, cost=2 if name == MULTI else 1)
-    cfg = har.baseline_config(
-        har.DATASETS["motionsense"], folders["motionsense"], epochs=recipe.har_epochs, seed=recipe.seed
-    )
-    jobs[ACTIVITY] = Job(har.run_job, cfg, run_folder(out / "runs", ACTIVITY, cfg), cost=0)
     return jobs
 
 
@@ -183,6 +182,10 @@ def pretrain(
     }
     run_jobs(list(shipped.values()) + [j for p in plans.values() for j in p.jobs], execution, echo)
     lobo = {suite: plan.finish() for suite, plan in plans.items()}
+    base = ActivityRun(
+        device="phone", sources=(), data={}, epochs=recipe.har_epochs, steps=recipe.har_steps, seed=recipe.seed
+    )
+    activity = run_lodo(Path(data_root), out / "har-lodo", ("phone", "watch"), base, execution, final=True, echo=echo)
     runs.write_json(
         out / "recipe.json", {"recipe": dataclasses.asdict(recipe), "data_root": str(data_root), "work": str(work)}
     )
@@ -193,7 +196,13 @@ def pretrain(
         if install:
             install_run(job.folder, SHIPPED[name].path, BEST if SHIPPED[name].task == "odometry" else LAST)
             echo(f"installed {name}: {SHIPPED[name].size_bytes() / 1e6:.1f} MB in {SHIPPED[name].path}")
-    return cards.write_page(out, {n: j.folder for n, j in shipped.items()}, lobo, recipe)
+    for device in activity["devices"]:
+        if install:
+            install_activity(device, activity, echo)
+        else:
+            write_text_atomic(card_text(device, activity), Path(activity["devices"][device]["final"]) / CARD)
+    finals = {SHIPPED_FOR_DEVICE[d]: Path(r["final"]) for d, r in activity["devices"].items()}
+    return cards.write_page(out, {**{n: j.folder for n, j in shipped.items()}, **finals}, lobo, recipe)
 
 
 def cross_building_calibration(run: Path, suites: list[Path]) -> dict:
@@ -229,6 +238,17 @@ def cross_building_calibration(run: Path, suites: list[Path]) -> dict:
     }
     runs.write_json(run / fuse.CALIBRATION_JSON, cal)
     return cal
+
+
+def install_activity(device: str, results: dict, echo=print) -> Path:
+    """The activity model of ``device`` from the leave-one-dataset-out suite's ``results``
+    (:func:`wearnav.bench.har_lodo.run_lodo` with ``final``): its card written into the final run,
+    the run copied into the package's model folder."""
+    final = Path(results["devices"][device]["final"])
+    write_text_atomic(card_text(device, results), final / CARD)
+    dest = install_run(final, SHIPPED[SHIPPED_FOR_DEVICE[device]].path, LAST)
+    echo(f"installed {dest.name}: {SHIPPED[dest.name].size_bytes() / 1e6:.1f} MB in {dest}")
+    return dest
 
 
 KEEP = ("config.yaml", TRAINING, "metrics.json", "fuse_calibration.json", CARD)

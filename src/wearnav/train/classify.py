@@ -311,6 +311,14 @@ def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[s
     )
     load_weights(model, run / CHECKPOINTS / LAST)
     model.eval()
+    record = read_json(path)
+    thr = record.get("unknown_threshold")
+    if thr is not None and not (isinstance(thr, int | float) and 0.0 <= thr <= 1.0):
+        raise FormatError(f"'unknown_threshold' must be a probability, got {thr!r}", path)
+    model.unknown_threshold = thr  # type: ignore[assignment]  # a plain attribute window_classes reads (issue 35 §3)
+    model.training_gravity = (
+        ((record.get("training_data") or {}).get("devices") or {}).get(cfg.devices[0], {}).get("gravity_directions")
+    )
     return model, cfg, classes
 
 
@@ -360,13 +368,56 @@ def evaluate_run(run: str | Path, training: dict | None = None, progress: bool =
     return metrics
 
 
+UNKNOWN = "unknown"  # the label of a window the model is unsure of (issue 35 §3)
+UNKNOWN_INDEX = -1  # its class index in window_classes' output
+
+
+def class_name(classes, i: int) -> str:
+    """The name of class index ``i`` (:data:`UNKNOWN_INDEX`: :data:`UNKNOWN`)."""
+    return UNKNOWN if int(i) == UNKNOWN_INDEX else classes[int(i)]
+
+
+def unsure_windows(model, seq: Aligned, t: np.ndarray, conf: np.ndarray) -> np.ndarray:
+    """Which windows are labelled :data:`UNKNOWN` (issue 35 §3): the top probability is under the
+    model's calibrated ``unknown_threshold`` (training.json; the shipped activity model's comes from
+    its leave-one-dataset-out runs, :mod:`wearnav.bench.har_lodo`), or, for a model that takes the
+    device's own frame (not turned to gravity, ``gravity_align``), the window's gravity direction
+    lies further than :data:`wearnav.trust.GRAVITY_MATCH_DEG` from every training window's (the
+    trust check of :func:`trust.gravity_outside`, per window). A model without either record: none."""
+    out = np.zeros(len(conf), bool)
+    thr = getattr(model, "unknown_threshold", None)
+    if thr is not None:
+        out |= conf < thr
+    dirs = getattr(model, "training_gravity", None)
+    if dirs and not getattr(model, "gravity_align", False):
+        d = int(np.argmax(seq.mask.any(axis=1)))
+        i0 = np.clip(np.searchsorted(seq.t, t[:, 0]), 0, len(seq.t) - 1)
+        i1 = np.clip(np.searchsorted(seq.t, t[:, 1]), 1, len(seq.t))
+        g = np.stack([seq.imu[d, a:b, :3].mean(axis=0) for a, b in zip(i0, np.maximum(i1, i0 + 1))])
+        g /= np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-9)
+        out |= trust.angles_deg(g, np.asarray(dirs, float)).min(axis=1) > trust.GRAVITY_MATCH_DEG
+    return out
+
+
+def unknown_note(model, k: int, n: int) -> str:
+    """The sentence saying that ``k`` of ``n`` windows are :data:`UNKNOWN`, and why."""
+    thr = getattr(model, "unknown_threshold", None)
+    why = [f"the model's top probability is under {thr:.2f}"] if thr is not None else []
+    if getattr(model, "training_gravity", None) and not getattr(model, "gravity_align", False):
+        why.append("the device is held unlike any training window")
+    return (
+        f"{k} of {n} windows ({100 * k / n:.0f} %) labelled {UNKNOWN}: {' or '.join(why)}; "
+        "the model is not sure what the wearer did there"
+    )
+
+
 def intervals(t0: np.ndarray, t1: np.ndarray, cls: np.ndarray, conf: np.ndarray, classes) -> list[dict]:
     """Consecutive windows of one class merged into intervals. Windows overlap, so a boundary is
     put midway between the last window of one class and the first of the next."""
     out: list[dict] = []
     mid = (t0 + t1) / 2
     for i in range(len(cls)):
-        if out and out[-1]["label"] == classes[cls[i]]:
+        if out and out[-1]["label"] == class_name(classes, cls[i]):
             r = out[-1]
             r["end_s"], r["windows"], r["_c"] = float(t1[i]), r["windows"] + 1, r["_c"] + float(conf[i])
             continue
@@ -374,7 +425,13 @@ def intervals(t0: np.ndarray, t1: np.ndarray, cls: np.ndarray, conf: np.ndarray,
         if out:
             out[-1]["end_s"] = start
         out.append(
-            {"start_s": start, "end_s": float(t1[i]), "label": classes[cls[i]], "windows": 1, "_c": float(conf[i])}
+            {
+                "start_s": start,
+                "end_s": float(t1[i]),
+                "label": class_name(classes, cls[i]),
+                "windows": 1,
+                "_c": float(conf[i]),
+            }
         )
     for r in out:
         r["mean_confidence"] = round(r.pop("_c") / r["windows"], 4)
@@ -424,6 +481,12 @@ def label_recordings(recordings, run: str | Path, out: str | Path, classifier=No
     return {"files": [Path(out) / f for f in files[:-1]], "classes": classes, "warnings": found}
 
 
+def gravity_aligned(cfg: ClassifyConfig) -> bool:
+    """Whether the model turns every window to gravity (``har-gravity``, :mod:`wearnav.models.har`):
+    then the device's gravity direction, the trust check of how it is held, says nothing about it."""
+    return cfg.model == "har-gravity" or bool(cfg.model_args.get("gravity_align"))
+
+
 def trust_warnings(run: Path, cfg: ClassifyConfig, rec) -> list[str]:
     """Reasons not to trust a recording's labels (:mod:`wearnav.trust`), each with what to do:
     devices it lacks, a placement, rate or gravity direction unlike the training data's, a model
@@ -439,10 +502,11 @@ def trust_warnings(run: Path, cfg: ClassifyConfig, rec) -> list[str]:
         record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
         metrics = runs.read_metrics(run) if runs.is_complete(run) else {}
     facts = trust.recording_facts(rec, cfg.devices, cfg.window / cfg.rate)
-    out += [
-        f"{f}: {trust.CLASSIFY_DOMAIN_ADVICE}"
-        for f in trust.domain_findings(facts, record.get("training_data"), cfg.rate)
-    ]
+    training = record.get("training_data")
+    if training and gravity_aligned(cfg):  # how the device is held is not this model's input
+        devices = {d: {**v, "gravity_directions": []} for d, v in (training.get("devices") or {}).items()}
+        training = {**training, "devices": devices}
+    out += [f"{f}: {trust.CLASSIFY_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, training, cfg.rate)]
     if (m := trust.did_not_learn(metrics)) is not None:
         out.append(f"{m}: {trust.CLASSIFY_LEARN_ADVICE}")
     return [f"{rec.name}: {w}" for w in out]
@@ -453,7 +517,8 @@ def window_classes(model, cfg: ClassifyConfig, rec) -> tuple[Aligned, np.ndarray
     ``track``'s trajectory.html its path): ``rec`` aligned by the run's preprocessing (with eq. 13's
     moving average when ``cfg.denoise``), cut into windows of the run's length at half-window
     strides; returns the aligned input, each window's start and end time (N, 2) s, its class index
-    and softmax confidence (N,) (N = 0 when shorter than one window)."""
+    (:data:`UNKNOWN_INDEX` where :func:`unsure_windows`) and softmax confidence (N,) (N = 0 when
+    shorter than one window)."""
     from wearnav.augment import moving_average
 
     seq = align(rec, cfg.preprocess_config())
@@ -463,7 +528,9 @@ def window_classes(model, cfg: ClassifyConfig, rec) -> tuple[Aligned, np.ndarray
     if len(wds) == 0:
         return seq, np.empty((0, 2)), np.empty(0, np.int64), np.empty(0)
     cls, conf = predict(model, wds)
-    return seq, wds[np.arange(len(wds)).tolist()]["t"].numpy(), cls, conf
+    t = wds[np.arange(len(wds)).tolist()]["t"].numpy()
+    cls = np.where(unsure_windows(model, seq, t, conf), UNKNOWN_INDEX, cls)
+    return seq, t, cls, conf
 
 
 def _label_into(recordings, model, cfg, classes: list[str], out: Path, found: list[str], run: Path) -> list[str]:
@@ -475,12 +542,14 @@ def _label_into(recordings, model, cfg, classes: list[str], out: Path, found: li
     from wearnav.report.plots import save
 
     written = []
-    colours = {c: f"C{i % 10}" for i, c in enumerate(classes)}
+    colours = {c: f"C{i % 10}" for i, c in enumerate(classes)} | {UNKNOWN: "0.6"}
     for rec in recordings:
         found += trust_warnings(run, cfg, rec)
         seq, t, cls, conf = window_classes(model, cfg, rec)
         if len(cls) == 0:
             raise ValidationError(f"shorter than one window ({cfg.window / cfg.rate:g} s)", rec.name)
+        if (k := int(np.sum(cls == UNKNOWN_INDEX))) > 0:
+            found.append(f"{rec.name}: {unknown_note(model, k, len(cls))}")
         rows = intervals(t[:, 0], t[:, 1], cls, conf, classes)
         df = pd.DataFrame(rows, columns=["start_s", "end_s", "label", "windows", "mean_confidence"])
         if rec.name in written:
@@ -496,7 +565,7 @@ def _label_into(recordings, model, cfg, classes: list[str], out: Path, found: li
         from matplotlib.patches import Patch
 
         ax.legend(
-            handles=[Patch(color=colours[c], alpha=0.3, label=c) for c in classes if c in set(df["label"])],
+            handles=[Patch(color=colours[c], alpha=0.3, label=c) for c in [*classes, UNKNOWN] if c in set(df["label"])],
             fontsize=7,
             loc="upper right",
             ncol=3,

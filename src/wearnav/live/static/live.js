@@ -26,7 +26,9 @@
     // dashed after the last final point (all of it while nothing is final yet)
     WearnavDraw.draw(canvas, st, {redraw: render, provisionalFrom: st.final_t_s === null ? -Infinity : st.final_t_s});
     text($("session"), `session ${st.session || "?"} · ${st.messages || 0} messages`);
+    // "unknown": the model is unsure (issue 35); the page says so (and why, on hover) instead of a confident wrong word
     text($("activity"), st.activity ? st.activity.label : "–");
+    $("activity").title = st.activity && st.activity.note ? st.activity.note : "";
     $("activity").dataset.label = st.activity ? st.activity.label : "";
     text($("points"), (st.path || []).length);
     text($("length"), Math.round(length(st.path || [])));

