@@ -53,10 +53,12 @@ import torch
 
 from wearnav import activity_labels as al
 from wearnav import runs, trust
+from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.metrics import accuracy, confusion_matrix, macro_f1
 from wearnav.models import registry
 from wearnav.models.har import HARNet
+from wearnav.models.pdr import PDR
 from wearnav.preprocess import align
 from wearnav.textio import read_json
 from wearnav.train.classify import TEST_SUBJECTS, TRAINING, ClassifyConfig, load_model, subject_number
@@ -214,8 +216,6 @@ def recording_windows(source: str, rec, cfg: ClassifyConfig) -> tuple[np.ndarray
 def step_rate_hz(x: np.ndarray, rate: float) -> np.ndarray:
     """Steps per second in each window (N, L, 6) by PDR's step detector (:class:`wearnav.models.pdr.PDR`)
     on the acceleration along the window's mean (gravity) direction."""
-    from wearnav.models.pdr import PDR
-
     if len(x) == 0:
         return np.empty(0)
     acc = x[..., :3].astype(np.float64)
@@ -229,8 +229,6 @@ def step_rate_hz(x: np.ndarray, rate: float) -> np.ndarray:
 def source_windows(source: str, data: Path, cache: Path | None = None) -> tuple[Windows, dict]:
     """Every labelled window of ``source`` imported at ``data``, and its training-data facts
     (:func:`wearnav.trust.recording_facts` per recording, merged). Cached in ``cache``."""
-    from wearnav.dataset import Dataset
-
     spec = SOURCES[source]
     cfg = classify_config(spec.device, str(data))
     ds = Dataset.open(data)
