@@ -172,6 +172,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         f"{bench['patience']})"
         + (f", at most {bench['max_minutes']:g} min per model" if bench["max_minutes"] else "")
         + (f", Adam lr {bench['lr']:g}" if bench["lr"] else ", each model's paper learning rate")
+        + f", velocity loss `{bench.get('vel_loss', 'mse')}`"
         + f", seed {bench['seed']}, one run per row (the epochs and minutes each got are in its row).",
         "",
         "Sim-to-real: a row named `model · simulator ...` is that model trained on the simulated "

@@ -136,13 +136,13 @@ def known_start_table(seed_docs: dict[int, dict], seed_evals: dict[int, dict[str
             {
                 "path": label,
                 "seeds": len(got),
-                "median (m) per seed": " / ".join(f"{r['median (m)']:.2f}" for r in got),
                 "median (m)": _mean_sd([r["median (m)"] for r in got]),
                 "p75 (m)": _mean_sd([r["p75 (m)"] for r in got]),
                 "p95 (m)": _mean_sd([r["p95 (m)"] for r in got]),
                 "length ratio": _mean_sd([r["length ratio"] for r in got]),
                 "minus PDR, median (m)": "—" if label == REFERENCE else _interval(paired, 0),
                 "minus PDR, p75 (m)": "—" if label == REFERENCE else _interval(paired, 1),
+                "median (m) per seed": " / ".join(f"{r['median (m)']:.2f}" for r in got),
             }
         )
     return pd.DataFrame(rows)
@@ -190,7 +190,7 @@ def smoother_table(seed_docs: dict[int, dict], site: str) -> pd.DataFrame | None
 
 
 SEEDS_TEXT = (
-    "Each seed is a whole suite (its page: `seed-<s>/results.md`); *mean ± sd* over the seeds. *Minus "
+    "Each seed is a whole suite with its own page; *mean ± sd* over the seeds. *Minus "
     "PDR*: the path's error quantile minus PDR's on the same walks (below 0: better than PDR), in "
     "brackets a 90 % interval from resampling whole walks, each walk carrying its points of every "
     "seed (:func:`wearnav.stats.walk_bootstrap_difference`); an interval across 0 means these walks "
@@ -210,8 +210,8 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
     lines = [
         f"# Odometry in real buildings over {len(docs)} seeds: trained on `{trained}`, tested on {src}",
         "",
-        f"Seeds {', '.join(map(str, docs))}; every other setting as each seed's page says "
-        f"(at most {bench.epochs} epochs, velocity loss `{bench.vel_loss}`).",
+        f"Seeds {', '.join(map(str, docs))} (suites {', '.join(f'`{folders[s].name}`' for s in docs)}); every "
+        f"other setting as each seed's page says (at most {bench.epochs} epochs, velocity loss `{bench.vel_loss}`).",
         "",
         SEEDS_TEXT,
         "",
