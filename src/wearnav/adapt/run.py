@@ -91,6 +91,10 @@ class AdaptConfig:
     holdout: float = 0.2  # share of the user's recordings (or of one walk's segments) held out
     # fewer good segments than this: refused (None: the method's MIN_SEGMENTS)
     min_segments: int | None = None
+    # the speed factors a scale adaptation may set, and the widest relative standard error it may
+    # have (SCALE_RANGE, SCALE_MAX_RELATIVE_SE); outside them it is refused
+    scale_range: tuple[float, float] = SCALE_RANGE
+    max_relative_se: float = SCALE_MAX_RELATIVE_SE
 
     @property
     def least_segments(self) -> int:
@@ -198,7 +202,7 @@ def adapt(
             raise ValidationError(
                 f"the fixes give no usable speed factor (median {scale:.3g}): does the model move at all?"
             )
-        fit = scale_fit(factor)
+        fit = scale_fit(factor, cfg.scale_range, cfg.max_relative_se)
         check_scale(fit, s.segment_s)
         adapted: torch.nn.Module = ScaledVelocity(
             model.inner if isinstance(model, ScaledVelocity) else model, base_scale * scale
@@ -257,7 +261,9 @@ def adapt(
     return record
 
 
-def scale_fit(factor: np.ndarray) -> dict:
+def scale_fit(
+    factor: np.ndarray, scale_range: tuple[float, float] = SCALE_RANGE, max_relative_se: float = SCALE_MAX_RELATIVE_SE
+) -> dict:
     """What a scale adaptation's fit says (``adaptation.json`` ``scale_fit``): the ``factor`` (the
     median of the segments' speed factors), ``segments``, ``iqr``, ``relative_se`` (the median's
     standard error over it, :data:`MEDIAN_SE_FACTOR` · :data:`MAD_TO_SIGMA` · MAD / √n / factor),
@@ -272,8 +278,8 @@ def scale_fit(factor: np.ndarray) -> dict:
         "segments": int(factor.size),
         "iqr": [round(float(q), 4) for q in np.percentile(factor, [25, 75])],
         "relative_se": round(float(rel_se), 4),
-        "range": list(SCALE_RANGE),
-        "max_relative_se": SCALE_MAX_RELATIVE_SE,
+        "range": list(scale_range),
+        "max_relative_se": max_relative_se,
     }
 
 
