@@ -96,3 +96,38 @@ def test_corrupt_values_in_file_are_reported(tmp_path, small_recording):
 def test_label_at(small_recording):
     got = small_recording.label_at("activity", np.array([0.5, 1.5, 3.0]), default="-")
     assert list(got) == ["walk", "stand", "-"]
+
+
+def test_beacons_pressure_and_plans_roundtrip(tmp_path):
+    from wearnav.recording import BeaconReadings, FloorPlan, Pressure
+
+    outer = np.array([[0, 0], [20, 0], [20, 10], [0, 10]], float)
+    hole = np.array([[5, 3], [8, 3], [8, 6], [5, 6]], float)
+    rec = Recording(
+        "r",
+        {"phone": make_stream(1000)},
+        beacons=BeaconReadings([1.0, 2.0], ["BLE1", "BLE2"], [-70.0, -85.5]),
+        pressure=Pressure([0.5, 1.5], [976.2, 976.3]),
+        plans=[FloorPlan("site_F1", 1, [[outer, hole]])],
+        meta={"beacons": {"BLE1": [1.0, 2.0, 1], "BLE2": [3.0, 4.0, 1]}},
+    )
+    back = Recording.load(rec.save(tmp_path / "r.h5"))
+    assert back.beacons is not None and list(back.beacons.beacon) == ["BLE1", "BLE2"]
+    assert np.allclose(back.beacons.rssi_dbm, [-70.0, -85.5])
+    assert back.pressure is not None and np.allclose(back.pressure.hpa, [976.2, 976.3])
+    assert len(back.plans) == 1 and back.plans[0].floor == 1
+    assert np.allclose(back.plans[0].polygons[0][1], hole)
+    assert back.summary()["plans"] == ["site_F1"]
+
+
+@pytest.mark.parametrize(
+    "make, msg",
+    [
+        (lambda: __import__("wearnav.recording").recording.Pressure([0.0], [97.6]), "kPa"),
+        (lambda: __import__("wearnav.recording").recording.BeaconReadings([0.0], ["b"], [70.0]), "dBm"),
+        (lambda: __import__("wearnav.recording").recording.FloorPlan("p", 0, [[np.zeros((2, 2))]]), "K>=3"),
+    ],
+)
+def test_bad_beacons_pressure_plans_rejected(make, msg):
+    with pytest.raises(ValidationError, match=msg):
+        make()

@@ -58,6 +58,10 @@ MAX_TIME_OUTSIDE_S = 600.0
 # Longest recording / device name: it becomes a file name (``<name>.h5``, 255 bytes on most
 # file systems) and an HDF5 link name.
 MAX_NAME_BYTES = 200
+# Received power of a BLE beacon: -110 dBm is below any phone's sensitivity, 0 dBm at the antenna.
+RSSI_DBM_RANGE = (-130.0, 0.0)
+# Air pressure anywhere people walk: Dead Sea shore ~1070 hPa, 5000 m altitude ~540 hPa.
+PRESSURE_HPA_RANGE = (300.0, 1100.0)
 
 
 def check_text(text, what: str) -> int:
@@ -319,6 +323,131 @@ class Fixes:
         return int(self.t.size)
 
 
+@dataclass
+class BeaconReadings:
+    """Received signal strengths of radio beacons (BLE), one row per reading.
+
+    ``beacon`` names the beacon (the key of ``meta["beacons"]``, which gives its surveyed
+    position ``[x_m, y_m, floor]`` in the recording's local frame where the source has one);
+    ``rssi_dbm`` is the received power in dBm (negative; -100 is at the edge of reception).
+    """
+
+    t: np.ndarray
+    beacon: np.ndarray
+    rssi_dbm: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        self.t = _as_array(self.t, np.float64, "beacons.t")
+        self.rssi_dbm = _as_array(self.rssi_dbm, np.float64, "beacons.rssi_dbm")
+        self.beacon = np.asarray(self.beacon, dtype=object).astype(str).astype(object)
+        _check_time(self.t, "beacons.t")
+        for what, a in (("beacon", self.beacon), ("rssi_dbm", self.rssi_dbm)):
+            if a.shape != self.t.shape:
+                raise ValidationError(f"beacons.{what}: shape {a.shape}, expected {self.t.shape}")
+        bad = ~((self.rssi_dbm >= RSSI_DBM_RANGE[0]) & (self.rssi_dbm <= RSSI_DBM_RANGE[1]))
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise ValidationError(
+                f"beacons.rssi_dbm: {self.rssi_dbm[i]:.4g} at reading {i} is not a received power "
+                f"in {RSSI_DBM_RANGE[0]:g}..{RSSI_DBM_RANGE[1]:g} dBm"
+            )
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+@dataclass
+class Pressure:
+    """Barometer readings (hPa): a floor change moves it by ~0.4 hPa (≈ 3.5 m of air)."""
+
+    t: np.ndarray
+    hpa: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        self.t = _as_array(self.t, np.float64, "pressure.t")
+        self.hpa = _as_array(self.hpa, np.float64, "pressure.hpa")
+        _check_time(self.t, "pressure.t")
+        if self.hpa.shape != self.t.shape:
+            raise ValidationError(f"pressure.hpa: shape {self.hpa.shape}, expected {self.t.shape}")
+        bad = ~((self.hpa >= PRESSURE_HPA_RANGE[0]) & (self.hpa <= PRESSURE_HPA_RANGE[1]))
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise ValidationError(
+                f"pressure.hpa: {self.hpa[i]:.6g} at reading {i} is not an air pressure in "
+                f"{PRESSURE_HPA_RANGE[0]:g}..{PRESSURE_HPA_RANGE[1]:g} hPa (kPa or Pa?)"
+            )
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+@dataclass
+class FloorPlan:
+    """One floor's walkable space in the recording's own local frame (metres, as ``truth.pos``).
+
+    ``polygons`` is a list of polygons, each a list of rings: the outer boundary first, then its
+    holes (obstacles inside it: shops, walls, voids), each ring an (K, 2) array of x, y in metres.
+    ``floor`` is the floor index the recording's ``truth.floor`` uses (``None`` if unknown).
+    Geometry (inside tests, distances, rasters) lives in :mod:`wearnav.plans`.
+    """
+
+    name: str
+    floor: int | None
+    polygons: list[list[np.ndarray]]
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        check_name(self.name, "floor plan name")
+        if self.floor is not None and not isinstance(self.floor, (int, np.integer)):
+            raise ValidationError(f"floor plan {self.name!r}: floor {self.floor!r} is not an integer")
+        if not self.polygons:
+            raise ValidationError(f"floor plan {self.name!r} has no walkable polygon")
+        rings = []
+        for k, poly in enumerate(self.polygons):
+            if not poly:
+                raise ValidationError(f"floor plan {self.name!r}: polygon {k} has no ring")
+            out = []
+            for ring in poly:
+                r = _as_array(ring, np.float64, f"floor plan {self.name!r} ring")
+                if r.ndim != 2 or r.shape[1] != 2 or r.shape[0] < 3:
+                    raise ValidationError(
+                        f"floor plan {self.name!r}: polygon {k} has a ring of shape {r.shape}, expected (K>=3, 2)"
+                    )
+                _check_position(r, f"floor plan {self.name!r}")
+                out.append(r)
+            rings.append(out)
+        self.polygons = rings
+
+    def to_feature(self) -> dict[str, Any]:
+        """A GeoJSON-shaped Feature (MultiPolygon) in local metres: how it is stored."""
+        return {
+            "type": "Feature",
+            "properties": {"name": self.name, "floor": self.floor, "frame": "local metres"},
+            "geometry": {
+                "type": "MultiPolygon",
+                "coordinates": [[np.round(r, 3).tolist() for r in poly] for poly in self.polygons],
+            },
+        }
+
+    @classmethod
+    def from_feature(cls, feature: dict[str, Any]) -> FloorPlan:
+        props, geom = feature["properties"], feature["geometry"]
+        floor = props.get("floor")
+        return cls(
+            name=str(props["name"]),
+            floor=None if floor is None else int(floor),
+            polygons=[[np.asarray(r, dtype=np.float64) for r in poly] for poly in geom["coordinates"]],
+        )
+
+
 def make_labels(rows=None) -> pd.DataFrame:
     """A labels table (columns start, end, kind, value) from rows or records; validated."""
     if isinstance(rows, pd.DataFrame) and set(LABEL_COLUMNS) - set(rows.columns):
@@ -374,6 +503,9 @@ class Recording:
     fixes: Fixes | None = None
     labels: pd.DataFrame = field(default_factory=make_labels)
     meta: dict[str, Any] = field(default_factory=dict)
+    beacons: BeaconReadings | None = None
+    pressure: Pressure | None = None
+    plans: list[FloorPlan] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.validate()
@@ -388,7 +520,13 @@ class Recording:
             check_name(dev, "device name")
             if not isinstance(s, DeviceStream):
                 raise ValidationError(f"device {dev!r} is not a DeviceStream")
-        for what, part, kind in (("truth", self.truth, Trajectory), ("fixes", self.fixes, Fixes)):
+        parts: tuple[tuple[str, Any, type], ...] = (
+            ("truth", self.truth, Trajectory),
+            ("fixes", self.fixes, Fixes),
+            ("beacons", self.beacons, BeaconReadings),
+            ("pressure", self.pressure, Pressure),
+        )
+        for what, part, kind in parts:
             if part is not None and not isinstance(part, kind):
                 raise ValidationError(f"{what} is not a {kind.__name__}")
             if part is not None and len(part) and all(len(s) for s in self.devices.values()):
@@ -398,6 +536,8 @@ class Recording:
                         f"{what}.t spans {part.t[0]:.6g}..{part.t[-1]:.6g} s, far outside the devices' "
                         f"{self.t_start:.6g}..{self.t_end:.6g} s (another clock or a corrupt timestamp?)"
                     )
+        if not isinstance(self.plans, list) or not all(isinstance(p, FloorPlan) for p in self.plans):
+            raise ValidationError("plans is not a list of FloorPlan")
         self.labels = make_labels(self.labels)
         if not isinstance(self.meta, dict):
             raise ValidationError("meta is not a dict")
@@ -412,7 +552,7 @@ class Recording:
                 s.validate()
             except ValidationError as exc:
                 raise ValidationError(f"device {dev!r}: {exc.reason}") from None
-        for part in (self.truth, self.fixes):
+        for part in (self.truth, self.fixes, self.beacons, self.pressure, *self.plans):
             if part is not None:
                 part.validate()
 
@@ -478,8 +618,20 @@ class Recording:
                 arr = getattr(self.fixes, key)
                 if arr is not None:
                     fx.create_dataset(key, data=arr)
-        lab = f.create_group("labels")
         str_t = h5py.string_dtype("utf-8")
+        if self.beacons is not None:
+            b = f.create_group("beacons")
+            b.create_dataset("t", data=self.beacons.t)
+            b.create_dataset("beacon", data=self.beacons.beacon, dtype=str_t)
+            b.create_dataset("rssi_dbm", data=self.beacons.rssi_dbm)
+        if self.pressure is not None:
+            pr = f.create_group("pressure")
+            pr.create_dataset("t", data=self.pressure.t)
+            pr.create_dataset("hpa", data=self.pressure.hpa)
+        if self.plans:  # one GeoJSON-shaped Feature per floor, as text (readable with h5dump)
+            feats = [json.dumps(p.to_feature()) for p in self.plans]
+            f.create_dataset("plans", data=np.array(feats, dtype=object), dtype=str_t)
+        lab = f.create_group("labels")
         lab.create_dataset("start", data=self.labels["start"].to_numpy(np.float64))
         lab.create_dataset("end", data=self.labels["end"].to_numpy(np.float64))
         lab.create_dataset("kind", data=self.labels["kind"].to_numpy(object), dtype=str_t)
@@ -551,6 +703,18 @@ class Recording:
         if "fixes" in f:
             g = group(f, "fixes")
             fixes = Fixes(g["t"][()], g["pos"][()], g["accuracy"][()], opt(g, "floor"))
+        beacons = None
+        if "beacons" in f:
+            g = group(f, "beacons")
+            names = [v.decode() if isinstance(v, bytes) else v for v in g["beacon"][()]]
+            beacons = BeaconReadings(g["t"][()], np.array(names, dtype=object), g["rssi_dbm"][()])
+        pressure = None
+        if "pressure" in f:
+            g = group(f, "pressure")
+            pressure = Pressure(g["t"][()], g["hpa"][()])
+        plans = []
+        for text in f["plans"][()] if "plans" in f else []:
+            plans.append(FloorPlan.from_feature(json.loads(text.decode() if isinstance(text, bytes) else text)))
         lab = group(f, "labels")
         labels = pd.DataFrame(
             {
@@ -567,6 +731,9 @@ class Recording:
             fixes=fixes,
             labels=labels,
             meta=meta,
+            beacons=beacons,
+            pressure=pressure,
+            plans=plans,
         )
 
     def summary(self) -> dict[str, Any]:
@@ -586,6 +753,9 @@ class Recording:
             },
             "truth_points": 0 if self.truth is None else len(self.truth),
             "fixes": 0 if self.fixes is None else len(self.fixes),
+            "beacon_readings": 0 if self.beacons is None else len(self.beacons),
+            "pressure_readings": 0 if self.pressure is None else len(self.pressure),
+            "plans": [p.name for p in self.plans],
             "labels": {k: sorted(set(g["value"])) for k, g in self.labels.groupby("kind")},
             "meta": self.meta,
         }
