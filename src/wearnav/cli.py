@@ -8,6 +8,7 @@ failure into one line on stderr (see :func:`main`).
 from __future__ import annotations
 
 import logging
+import math
 import os
 import signal
 import sys
@@ -256,6 +257,20 @@ def track(
         "fixes: smooth (a robust smoother over every fix), rigid (one rotation + "
         "translation over every fix), first-fixes (over the first minute's).",
     ),
+    map_plan: str = typer.Option(
+        "auto",
+        "--map",
+        help="A floor plan keeps the path inside walkable space (a particle filter): auto (the plan the "
+        "recording carries, e.g. ILC2's), none, or a GeoJSON file (RFC 7946 lon/lat; polygons with "
+        "'kind': 'walkable' or 'obstacle').",
+    ),
+    start: str | None = typer.Option(
+        None,
+        "--start",
+        metavar="X,Y,HEADING_DEG",
+        help="A known start pose for the map-aware path where there are no fixes: X, Y (m) in the "
+        "recording's frame, the heading of travel in degrees counter-clockwise from +x.",
+    ),
 ):
     """The walking path of one recording: predict, integrate from (0, 0), place it on the location fixes.
 
@@ -273,6 +288,9 @@ def track(
     if model is not None:
         locate_model(model, "odometry")
     check_input(src)
+    start_pose = parse_start(start)
+    if map_plan not in ("auto", "none") and not Path(map_plan).is_file():
+        raise ConfigError(f"--map {map_plan}: not auto, none or a GeoJSON plan file")
     from wearnav.track import track as track_
 
     summary = track_(
@@ -283,6 +301,8 @@ def track(
         platform=choice_value(platform),
         progress=progress_enabled(),
         anchor=choice_value(anchor),
+        plan=map_plan,
+        start=start_pose,
     )
     shipped = f" (shipped model {summary['shipped_model']})" if summary.get("shipped_model") else ""
     typer.echo(
@@ -294,6 +314,20 @@ def track(
         {k: summary[k] for k in ("recording", "duration_s", "length_m", "end_xy_m", "files") if k in summary}
         | {"anchoring": summary.get("anchoring", "no location fixes")}
     )
+
+
+def parse_start(text: str | None) -> tuple[float, float, float] | None:
+    """``--start X,Y,HEADING_DEG`` as three finite numbers (a clear error otherwise)."""
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        vals = tuple(float(p) for p in parts)
+    except ValueError:
+        vals = ()
+    if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
+        raise ConfigError(f"--start {text!r}: expected X,Y,HEADING_DEG, three numbers (e.g. 12.5,3,90)")
+    return vals[0], vals[1], vals[2]
 
 
 @app.command("datasets-report")

@@ -82,17 +82,20 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
-from wearnav import fuse, geo, pretrained, trust
+from wearnav import fuse, geo, plans, pretrained, trust
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.evaluate import predict_sequence
 from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import atomic_path, write_text_atomic
-from wearnav.fixcheck import FixCheck
+from wearnav.fixcheck import FixCheck, check_fixes
+from wearnav.fuse.particles import MapConfig, map_filter, start_heading_offset
 from wearnav.models.pdr import PDR
 from wearnav.outputs import check_out_folder, staged_output
+from wearnav.plans import Walkable
 from wearnav.preprocess import PreprocessConfig, align
-from wearnav.recording import Recording
+from wearnav.recording import FloorPlan, Recording
 from wearnav.report.trajectory_page import activity_intervals, page_points, trajectory_html
 from wearnav.textio import read_json
 from wearnav.track_files import TRACK_FILES, TRACK_JSON
@@ -107,7 +110,10 @@ ANCHOR_TEXT = {
     "first-fixes": f"weighted (1/σ²) least-squares rotation + translation over the kept fixes of the first "
     f"{fuse.ANCHOR_S:g} s",
     "none": "not placed on the fixes",
+    "map": "map-aware particle filter (wearnav.fuse.particles): the odometry's moves kept inside the floor plan's "
+    "walkable space, heading offset and scale per particle, every kept fix weighed in (Student-t)",
 }
+MAP_CHOICES = ("auto", "none")  # or a GeoJSON plan file (wearnav.plans.read_geojson_plan)
 TRAJ_FORMAT = "%.4f"
 COORD_DIGITS = 7  # GeoJSON and fixes.csv lat/lon decimals: 1e-7° is 1.1 cm
 INDEX_LIST_MAX = 10  # track.json lists at most this many dropped fixes' indices per reason
@@ -334,6 +340,79 @@ def odometry(model, cfg, rec: Recording, progress: bool = False):
     return seq, t_c, vel, present, t, integrate_velocity(t_c, vel, t, np.zeros(2))
 
 
+# ---- the map-aware path (issue 36) -------------------------------------------------------------
+
+
+def map_plans(rec: Recording, plan: str | Path) -> tuple[list[FloorPlan], str]:
+    """The floor plans ``--map`` asks for and where they come from: ``auto`` the recording's own
+    (``rec.plans``, from its importer), ``none`` no plan, else a GeoJSON plan file placed in the
+    recording's local frame (:func:`wearnav.plans.read_geojson_plan`; its lat/lon origin, or the
+    plan's own centre where the recording has none)."""
+    if str(plan) == "none":
+        return [], "none"
+    if str(plan) == "auto":
+        return list(rec.plans), "the recording's own" if rec.plans else "none in the recording"
+    path = Path(plan)
+    lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
+    if lat0 is None or lon0 is None:
+        lat0, lon0 = plans.geojson_centre(path)
+        rec.meta["origin_lat"], rec.meta["origin_lon"] = lat0, lon0
+        how = f"{path.name}, about its own centre ({lat0:.7f}, {lon0:.7f}): the recording has no lat/lon origin"
+    else:
+        how = f"{path.name}, in the recording's local frame"
+    return plans.read_geojson_plan(path, float(lat0), float(lon0)), how
+
+
+def place_on_map(
+    rec: Recording,
+    t: np.ndarray,
+    xy: np.ndarray,
+    floor_plans: list[FloorPlan],
+    start: tuple[float, float, float] | None,
+    cfg: MapConfig = MapConfig(),
+    progress: bool = False,
+) -> fuse.FuseResult | None:
+    """The map-aware path (:func:`wearnav.fuse.particles.map_filter`) of the odometry path ``xy`` on
+    ``floor_plans``, as a FuseResult (method "map"), or None where there is no plan. The start is
+    ``start`` (x, y in the plan's frame, the heading of travel in degrees counter-clockwise from +x)
+    or the first kept fix (heading unknown)."""
+    if not floor_plans:
+        return None
+    grids: dict[int | None, Walkable] = {p.floor: Walkable.of(p) for p in floor_plans}
+    fx = rec.fixes
+    check = None
+    fixes = None
+    if fx is not None and len(fx):
+        check = check_fixes(float(t[0]), float(t[-1]), fx.t, fx.pos[:, :2], fx.accuracy, fuse.FuseConfig().wide_m)
+        k = check.kept
+        fixes = (fx.t[k], fx.pos[k, :2], fx.accuracy[k])
+    if start is None and (fixes is None or not len(fixes[0])):
+        raise ValidationError(
+            "a floor plan needs a start: give --start X,Y,HEADING_DEG (the recording has no usable location fix)"
+        )
+    start_xy = None if start is None else np.array(start[:2], np.float64)
+    offset = None if start is None else start_heading_offset(t, xy, np.radians(start[2]))
+    floor_at = None
+    if len(grids) > 1:
+        known = [p.floor for p in floor_plans if p.floor is not None]
+        first = int(rec.meta.get("floor_index", known[0])) if known else None
+        floor_at = lambda times: np.full(np.shape(times), np.nan if first is None else float(first))
+    with tqdm(total=100, desc="map-aware path", unit="%", disable=not progress, leave=False) as bar:
+
+        def tick(k: int, n: int) -> None:
+            bar.update(int(100 * k / n) - bar.n)
+
+        res = map_filter(t, xy, grids, start_xy, offset, floor_at, fixes, None, cfg, tick)
+    info = {
+        **res.info,
+        "plans": [p.name for p in floor_plans],
+        "start": "given (--start)" if start is not None else "the first kept fix, heading unknown",
+    }
+    if check is not None:
+        info.update(check.info())
+    return fuse.FuseResult(res.xy, res.sigma_m, "map", info, [], check)
+
+
 # ---- the command -------------------------------------------------------------------------------
 
 
@@ -345,12 +424,18 @@ def track(
     platform: str | None = None,
     progress: bool = False,
     anchor: str = "smooth",
+    plan: str | Path = "auto",
+    start: tuple[float, float, float] | None = None,
 ) -> dict:
     """Track one recording (see module docstring); ``anchor`` places the path on the fixes
-    (:data:`wearnav.fuse.ANCHORS`); returns what ``track.json`` holds."""
+    (:data:`wearnav.fuse.ANCHORS`); ``plan`` (``auto``, ``none`` or a GeoJSON plan file) and ``start``
+    (x, y, heading of travel in degrees) make the path map-aware (:func:`place_on_map`); returns what
+    ``track.json`` holds."""
     out = Path(out)
     if anchor not in fuse.ANCHORS:
         raise ConfigError(f"unknown anchoring {anchor!r}; one of {', '.join(fuse.ANCHORS)}")
+    if str(plan) not in MAP_CHOICES and not Path(plan).is_file():
+        raise ConfigError(f"--map {plan}: not auto, none or a GeoJSON plan file")
     check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")  # before any work
     if model_path is not None:  # a bad --model is said before the input is read
         model_path = locate_model(model_path, "odometry")  # a run folder, checkpoint, file, shipped model, `pdr`
@@ -412,10 +497,22 @@ def track(
     summary["warnings"] += [
         f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel, summary["length_m"])
     ]
+    floor_plans, plan_from = map_plans(rec, plan)
+    summary["map"] = {"requested": str(plan), "plans": [p.name for p in floor_plans], "from": plan_from}
+    placed = None
+    if floor_plans and start is None and (rec.fixes is None or not len(rec.fixes)):
+        summary["warnings"].append(
+            "the recording has a floor plan but no location fixes: give --start X,Y,HEADING_DEG to place the path on it"
+        )
+        summary["map"]["used"] = False
+    elif floor_plans:
+        placed = place_on_map(rec, t, xy, floor_plans, start, progress=progress)
+        summary["map"]["used"] = True
+        rec.plans = floor_plans  # what the page draws under the path
     for w in summary["warnings"]:
         warnings.warn(WearnavWarning(w), stacklevel=2)
     with staged_output(out, TRACK_JSON, "track") as stage:
-        _write_track(stage, out, table, t, xy, rec, cfg, seq, summary, anchor)
+        _write_track(stage, out, table, t, xy, rec, cfg, seq, summary, anchor, placed)
     return summary
 
 
@@ -430,12 +527,14 @@ def _write_track(
     seq,
     summary: dict,
     anchor: str = "smooth",
+    placed: fuse.FuseResult | None = None,
 ) -> None:
-    """Place the path on the fixes by ``anchor`` (:mod:`wearnav.fuse`) and write the files into
-    ``stage`` (moved to ``out`` afterwards)."""
-    anchored, res = None, None
+    """Place the path on the fixes by ``anchor`` (:mod:`wearnav.fuse`), or take the map-aware path
+    ``placed`` (:func:`place_on_map`), and write the files into ``stage`` (moved to ``out`` afterwards)."""
+    anchored, res = None, placed
     fx = rec.fixes
-    if fx is None or len(fx) == 0:
+    has_fixes = fx is not None and len(fx) > 0
+    if res is None and not has_fixes:
         summary["anchoring"] = {
             "method": "none",
             "requested": anchor,
@@ -443,7 +542,15 @@ def _write_track(
         }
         summary["warnings"].append(f"{rec.name}: no location fixes: the path is not placed on a map")
         warnings.warn(WearnavWarning(summary["warnings"][-1]), stacklevel=2)
+    elif res is not None:  # the map-aware path (place_on_map)
+        summary["anchoring"] = {
+            "requested": f"--map ({anchor} is not used with a plan)",
+            "method": res.method,
+            "description": ANCHOR_TEXT[res.method],
+            **{k: _rounded(v) for k, v in res.info.items() if k != "method"},
+        }
     else:
+        assert fx is not None
         fcfg, cal = fuse.config_for(
             summary["run"] if Path(summary["run"]).exists() else None,
             rec.meta,
@@ -461,15 +568,18 @@ def _write_track(
             "fixes_dropped_at_import": int(rec.meta.get("dropped_stale_fixes", 0)),
             "per_fix": "fixes.csv" + (" and trajectory.geojson" if res.method != "none" else ""),
         }
+    if res is not None:
         summary["warnings"] += [f"{rec.name}: {w}" for w in res.warnings]
         for w in res.warnings:
             warnings.warn(WearnavWarning(f"{rec.name}: {w}"), stacklevel=2)
         lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
         origin = (float(lat0), float(lon0)) if lat0 is not None and lon0 is not None else None
-        fix_ll = geo.local_to_latlon(fx.pos[:, :2], *origin) if origin is not None else None
+        fix_ll = geo.local_to_latlon(fx.pos[:, :2], *origin) if origin is not None and fx is not None else None
         t0_unix = rec.meta["t0_unix_ns"] * 1e-9 if "t0_unix_ns" in rec.meta else None
-        with atomic_path(stage / "fixes.csv") as tmp:
-            fix_table(fx, res.fixes, t0_unix, fix_ll).to_csv(tmp, index=False)
+        if has_fixes and res.fixes is not None:
+            assert fx is not None
+            with atomic_path(stage / "fixes.csv") as tmp:
+                fix_table(fx, res.fixes, t0_unix, fix_ll).to_csv(tmp, index=False)
         if res.method != "none":
             anchored = res.xy
             table["east"], table["north"] = anchored[:, 0], anchored[:, 1]
@@ -479,7 +589,8 @@ def _write_track(
             summary["length_m"] = round(float(np.sum(np.linalg.norm(np.diff(anchored, axis=0), axis=1))), 2)
             if np.isfinite(res.sigma_m).any():
                 table["sigma_m"] = res.sigma_m
-            if origin is not None and fix_ll is not None:
+            if origin is not None and has_fixes and fix_ll is not None and res.fixes is not None:
+                assert fx is not None
                 gj = geojson(
                     geo.local_to_latlon(anchored, *origin),
                     t,
@@ -494,11 +605,12 @@ def _write_track(
                 write_text_atomic(json.dumps(gj, allow_nan=False), stage / "trajectory.geojson")
                 summary["geojson"] = str(out / "trajectory.geojson")
             else:
-                summary["geojson"] = "not written: the recording's fixes have no lat/lon origin"
+                summary["geojson"] = "not written: the recording has no location fixes with a lat/lon origin"
     with atomic_path(stage / "trajectory.csv") as tmp:
         table.to_csv(tmp, index=False, float_format=TRAJ_FORMAT)
     kept = res.fixes.kept if res is not None and fx is not None and len(fx) and res.fixes is not None else None
-    plot_track(table, seq.devices, anchored, fx, summary, stage / "trajectory.png", kept)
+    drawn_plans = rec.plans if summary.get("map", {}).get("used") else None
+    plot_track(table, seq.devices, anchored, fx, summary, stage / "trajectory.png", kept, drawn_plans)
     write_text_atomic(
         page_html(t, xy, rec, cfg, summary, res if anchored is not None else None, kept), stage / "trajectory.html"
     )
@@ -518,9 +630,8 @@ def page_html(
     rows, note = activity_intervals(rec)
     summary["activity"] = note
     origin, fixes = None, []
-    if res is not None:
-        fx = rec.fixes
-        assert fx is not None  # res: the path was anchored on them
+    fx = rec.fixes
+    if res is not None and fx is not None and len(fx):
         k = np.ones(len(fx.t), dtype=np.bool_) if kept is None else kept
         fixes = [
             [round(float(a), 3), round(float(e), 3), round(float(n), 3), _num(acc, 2)]
@@ -528,17 +639,25 @@ def page_html(
         ]
         if rec.meta.get("origin_lat") is not None and rec.meta.get("origin_lon") is not None:
             origin = [float(rec.meta["origin_lat"]), float(rec.meta["origin_lon"])]
+    drawn = (
+        [[[np.round(r, 2).tolist() for r in poly] for poly in p.polygons] for p in rec.plans]
+        if summary.get("map", {}).get("used")
+        else []
+    )
     state = {
         "origin": origin,
         "path": page_points(t, res.xy if res is not None else xy, res.sigma_m if res is not None else None, cfg.rate),
         "anchor": res.method if res is not None else "none",
         "fixes": fixes,
         "activity": rows,
+        "plan": drawn,
         "warnings": summary["warnings"],
         "t_s": round(float(t[-1]), 3),
     }
     where = (
-        f"placed on the location fixes ({summary['anchoring']['method']})"
+        "the map-aware path on the floor plan"
+        if res is not None and res.method == "map"
+        else f"placed on the location fixes ({summary['anchoring']['method']})"
         if res is not None
         else "the odometry's own frame from (0, 0): not placed on the fixes"
     )
@@ -569,10 +688,11 @@ def plot_track(
     summary: dict,
     out: Path,
     kept: np.ndarray | None = None,
+    floor_plans: list[FloorPlan] | None = None,
 ) -> Path:
     """The path (anchored on the fixes where there are some) with start and end, and per-device
     presence over time; of the fixes only the ``kept`` ones (all if None) are drawn, so that a
-    cached fix far away does not shrink the map."""
+    cached fix far away does not shrink the map; the ``floor_plans`` the path was placed on under it."""
     from matplotlib.figure import Figure
 
     from wearnav.report.plots import save
@@ -580,7 +700,18 @@ def plot_track(
     fig = Figure(figsize=(7.5, 8.5), layout="constrained")
     ax, ax_dev = fig.subplots(2, 1, height_ratios=[5, 1])
     xy = anchored if anchored is not None else table[["x", "y"]].to_numpy()
-    if anchored is not None:
+    for k, plan in enumerate(floor_plans or []):
+        for poly in plan.polygons:
+            for j, ring in enumerate(poly):
+                ax.fill(
+                    *ring.T,
+                    color="0.88" if j == 0 else "white",
+                    lw=0.3,
+                    ec="0.6",
+                    zorder=0,
+                    label="walkable (floor plan)" if k == 0 and j == 0 and poly is plan.polygons[0] else None,
+                )
+    if anchored is not None and fixes is not None and len(fixes):
         shown = np.ones(len(fixes.t), bool) if kept is None else kept
         ax.scatter(
             fixes.pos[shown, 0],

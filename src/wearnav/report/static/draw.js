@@ -121,6 +121,19 @@ const WearnavDraw = (() => {
     const v = fitView(path.map(p => [p[1], p[2]]).concat(goodFixes.map(f => [f[1], f[2]])), w, h);
     const tiles = opts.tiles !== false && drawTiles(ctx, v, data.origin, opts.redraw);
     drawGrid(ctx, v, tiles);
+    // the floor plan under everything (issue 36): data.plan = [plan: [polygon: [ring: [[x, y], ...]]]],
+    // outer ring filled grey-blue, holes (obstacles) cut out with the even-odd rule
+    ctx.fillStyle = "rgba(120,140,170,0.22)"; ctx.strokeStyle = "rgba(90,100,120,0.5)"; ctx.lineWidth = 0.7;
+    for (const plan of data.plan || []) {
+      for (const poly of plan) {
+        ctx.beginPath();
+        for (const ring of poly) {
+          ring.forEach(([x, y], i) => { const [px, py] = toPx(v, x, y); if (i) ctx.lineTo(px, py); else ctx.moveTo(px, py); });
+          ctx.closePath();
+        }
+        ctx.fill("evenodd"); ctx.stroke();
+      }
+    }
     for (const [, x, y, acc] of goodFixes) {  // fixes: accuracy circle and centre
       const [px, py] = toPx(v, x, y);
       ctx.fillStyle = "rgba(214,39,40,0.05)"; ctx.strokeStyle = "rgba(214,39,40,0.25)"; ctx.lineWidth = 1;
