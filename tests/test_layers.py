@@ -51,6 +51,7 @@ LAYERS: dict[str, int] = {
     "wearnav.recording": 1,
     "wearnav.dataset": 1,
     "wearnav.outputs": 1,
+    "wearnav.plans": 1,  # floor plans' geometry (shapely): importers place plans with it, fuse and track use it
     "wearnav.runs": 1,
     "wearnav": 1,  # the root package: re-exports Dataset, Recording ... and __version__
     # 2 sources: importers (public datasets, Sensor Logger) and the simulator write Recordings

@@ -287,8 +287,8 @@ def track(
     check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")
     if model is not None:
         locate_model(model, "odometry")
-    check_input(src)
     start_pose = parse_start(start)
+    check_input(src)
     if map_plan not in ("auto", "none") and not Path(map_plan).is_file():
         raise ConfigError(f"--map {map_plan}: not auto, none or a GeoJSON plan file")
     from wearnav.track import track as track_

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Polygon, shape
+from shapely.geometry.base import BaseGeometry
 from shapely.ops import unary_union
 
 from wearnav import geo
@@ -41,13 +42,13 @@ CELL_M = 0.25
 PLAN_KINDS = ("walkable", "obstacle")
 
 
-def plan_geometry(plan: FloorPlan) -> shapely.Geometry:
+def plan_geometry(plan: FloorPlan) -> BaseGeometry:
     """The walkable space of ``plan`` as one shapely geometry (holes are obstacles)."""
     polys = [Polygon(poly[0], poly[1:]) for poly in plan.polygons]
     return shapely.make_valid(MultiPolygon(polys)) if len(polys) > 1 else shapely.make_valid(polys[0])
 
 
-def plan_from_geometry(name: str, floor: int | None, geom: shapely.Geometry) -> FloorPlan:
+def plan_from_geometry(name: str, floor: int | None, geom: BaseGeometry) -> FloorPlan:
     """A FloorPlan from a shapely (Multi)Polygon in local metres (other parts are dropped)."""
     polys = [g for g in getattr(geom, "geoms", [geom]) if isinstance(g, Polygon) and not g.is_empty]
     polys += [p for g in getattr(geom, "geoms", []) if isinstance(g, MultiPolygon) for p in g.geoms]
@@ -107,14 +108,14 @@ class Walkable:
 def plan_from_lonlat(
     name: str,
     floor: int | None,
-    walkable: list[shapely.Geometry],
-    obstacles: list[shapely.Geometry],
+    walkable: list[BaseGeometry],
+    obstacles: list[BaseGeometry],
     to_local: Callable[[np.ndarray, np.ndarray], np.ndarray],
 ) -> FloorPlan:
     """Walkable space (union of ``walkable`` minus ``obstacles``, lon/lat geometries) placed in local
     metres by ``to_local(lon, lat) -> (N, 2)``."""
 
-    def place(g: shapely.Geometry) -> shapely.Geometry:
+    def place(g: BaseGeometry) -> BaseGeometry:
         return shapely.transform(g, lambda c: to_local(c[:, 0], c[:, 1]))
 
     space = unary_union([place(shapely.make_valid(g)) for g in walkable])

@@ -527,7 +527,7 @@ class Recording:
             ("pressure", self.pressure, Pressure),
         )
         for what, part, kind in parts:
-            if part is not None and not isinstance(part, kind):
+            if part is not None and type(part) is not kind and not issubclass(type(part), kind):
                 raise ValidationError(f"{what} is not a {kind.__name__}")
             if part is not None and len(part) and all(len(s) for s in self.devices.values()):
                 lo, hi = self.t_start - MAX_TIME_OUTSIDE_S, self.t_end + MAX_TIME_OUTSIDE_S
