@@ -204,3 +204,45 @@ def test_recording_plans_survive_save(tmp_path, small_recording):
     small_recording.plans = [l_corridor()]
     back = Recording.load(small_recording.save(tmp_path / "r.h5"))
     assert plan_geometry(back.plans[0]).area == pytest.approx(plan_geometry(l_corridor()).area, rel=1e-4)
+
+
+def test_simulated_walk_carries_its_corridors(tmp_path, monkeypatch, capsys):
+    """`simulate --corridor-m`: the walk's own route as corridors; `track --map auto --start` keeps the
+    PDR path in them and nearer the truth than the same path without the plan."""
+    import pandas as pd
+
+    from wearnav.simulate import WalkConfig, simulate_recording
+
+    rec = simulate_recording(
+        WalkConfig(name="sim", mode="STW", placement="HD", phone_hold="texting", duration_s=90.0, corridor_m=3.0),
+        seed=0,
+    )
+    assert rec.truth is not None and rec.meta["plan"] == "sim_corridors"
+    w = Walkable.of(rec.plans[0])
+    pos = rec.truth.pos[:, :2]
+    assert w.inside(pos).mean() > 0.99
+    rec.fixes = None
+    src = rec.save(tmp_path / "sim.h5")
+    k = int(np.searchsorted(np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1)), 3.0))
+    head = np.degrees(np.arctan2(*(pos[k + 1] - pos[0])[::-1]))
+    start = f"{pos[0, 0]:.3f},{pos[0, 1]:.3f},{head:.2f}"
+    errs = {}
+    for plan in ("auto", "none"):
+        out = tmp_path / plan
+        code, _, err = run_cli(monkeypatch, capsys, "track", str(src), "--model", "pdr", "--out", str(out), "--map", plan, "--start", start)  # fmt: skip
+        assert code == 0, err
+        table = pd.read_csv(out / "trajectory.csv")
+        true_at = np.stack([np.interp(table.t, rec.truth.t, pos[:, i]) for i in range(2)], 1)
+        if plan == "auto":
+            placed = table[["east", "north"]].to_numpy()
+            assert w.inside(placed).mean() > 0.9
+        else:  # no plan, no fixes: the odometry from (0, 0); turned by the same start for comparison
+            summary = json.loads((out / "track.json").read_text())
+            assert summary["map"]["plans"] == [] and "east" not in table
+            xy = table[["x", "y"]].to_numpy()
+            from wearnav.fuse.particles import start_heading_offset
+
+            a = start_heading_offset(table.t.to_numpy(), xy, np.radians(head))
+            placed = xy @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) + pos[0]
+        errs[plan] = float(np.median(np.linalg.norm(placed - true_at, axis=1)))
+    assert errs["auto"] < 0.5 * errs["none"]  # measured: 0.62 against 3.60 m

@@ -103,6 +103,14 @@ def simulate(
         "track` or `wearnav import sensorlogger` on (--preset is not used).",
     ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace the dataset that --out already holds."),
+    corridor_m: float | None = typer.Option(
+        None,
+        "--corridor-m",
+        min=1.0,
+        max=20.0,
+        help="Give every walk a floor plan: corridors this wide (m) along its own route, to try the "
+        "map-aware path (`wearnav track --map auto`) on walks with known truth.",
+    ),
 ):
     """Simulate a flexiwear-bodynet dataset (phone, watch, earbuds) with truth and location fixes.
 
@@ -120,7 +128,7 @@ def simulate(
 
     check_new_dataset(out, overwrite, "simulate")
     on_interrupt(f"nothing was written to {out}; run the same command again")
-    ds = simulate_dataset(preset.value, out, seed=seed, progress=progress_enabled())
+    ds = simulate_dataset(preset.value, out, seed=seed, progress=progress_enabled(), corridor_m=corridor_m)
     echo_json(ds.summary())
 
 

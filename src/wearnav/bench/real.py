@@ -54,6 +54,7 @@ from typing import Any, TypedDict
 
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.bench.map_eval import has_plans, map_aware_eval, map_dir
 from wearnav.bench.real_page import HYBRID_SUFFIX, suite_runs, write_report
 from wearnav.bench.real_sites import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
 from wearnav.evaluate import evaluate_run
@@ -131,6 +132,7 @@ class RealEval:
     yaw_deg: float
     out_dir: Path
     own_yaw: bool = False
+    plans: bool = False  # the site's recordings carry floor plans: score the map-aware path too
 
     def yaw(self, run: Path) -> float:
         """The yaw the test input is turned by: PDR's, or the model's own (module docstring, step 3),
@@ -169,6 +171,8 @@ def run_job(job: RealJob, run: Path) -> Path:
                 out_dir=out_dir,
                 speed=speed,
             )
+            if e.plans:  # the same paths placed on the building's floor plans (issue 36)
+                map_aware_eval(out_dir, e.data, progress=job.progress)
     return run
 
 
@@ -230,6 +234,7 @@ def plan_benchmark(
         site["yaw"] = read_json(cached)
         echo(f"{name}: site yaw {site['yaw']['yaw_deg']:+.1f}° from {site['yaw']['segments']} segments")
         site["fixes"] = fix_errors(Path(site["data"]))
+        site["plans"] = has_plans(site["data"])
     yaw = sites["main"]["yaw"]["yaw_deg"]
     jobs = []
     for model in bench.models:
@@ -246,12 +251,14 @@ def plan_benchmark(
                 site["yaw"]["yaw_deg"],
                 run / f"eval_{s}",
                 own_yaw=get(model).learned and (elsewhere or s != "main"),
+                plans=site["plans"],
             )
             for s, site in sites.items()
         )
-        marks = tuple(e.out_dir for e in evals) + (
+        scored = tuple(e.out_dir for e in evals) + (
             tuple(hybrid_dir(e.out_dir) for e in evals) if get(model).learned else ()
         )
+        marks = scored + tuple(map_dir(d) for d, e in zip(scored, evals + evals) if e.plans)
         jobs.append(Job(run_job, RealJob(cfg, evals, progress and in_process), run, marks=marks))
     return Plan(out, sites, jobs, bench, t_start)
 

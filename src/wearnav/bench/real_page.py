@@ -14,6 +14,7 @@ import pandas as pd
 
 from wearnav import runs
 from wearnav.bench import decompose
+from wearnav.bench.map_eval import MAP_SUFFIX
 from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.bench.real_sites import fix_errors
 from wearnav.bench.user_protocol import PAIRED_TEXT, paired_rows, score_path, site_calibration, user_table
@@ -22,6 +23,7 @@ from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.models.registry import get
 from wearnav.pretrained.mix import is_mix
 from wearnav.report.odometry import plot_speed_ratio
+from wearnav.stats import walk_bootstrap_difference
 from wearnav.textio import read_json
 
 
@@ -53,6 +55,8 @@ def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
 # ``eval_<site>`` + this suffix; its row is the model's label + HYBRID_LABEL.
 HYBRID_SUFFIX = "_pdrspeed"
 HYBRID_LABEL = " · PDR speed"
+# and either one placed on the building's floor plans (wearnav.bench.map_eval, issue 36) + MAP_SUFFIX
+MAP_LABEL = " · map-aware"
 
 
 def evaluations(folders: dict[str, Path], site: str) -> dict[str, tuple[Path, Path]]:
@@ -61,8 +65,9 @@ def evaluations(folders: dict[str, Path], site: str) -> dict[str, tuple[Path, Pa
     out = {}
     for label, run in folders.items():
         for suffix, name in (("", label), (HYBRID_SUFFIX, label + HYBRID_LABEL)):
-            if runs.is_complete(run / f"eval_{site}{suffix}"):
-                out[name] = (run, run / f"eval_{site}{suffix}")
+            for more, more_label in (("", ""), (MAP_SUFFIX, MAP_LABEL)):
+                if runs.is_complete(run / f"eval_{site}{suffix}{more}"):
+                    out[name + more_label] = (run, run / f"eval_{site}{suffix}{more}")
     return out
 
 
@@ -123,6 +128,46 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
             }
         )
     return df, errors
+
+
+MAP_TEXT = (
+    "Map-aware rows (*· map-aware*, :mod:`wearnav.bench.map_eval`, issue 36): the same known-start path "
+    "placed on the trace's floor plan by the particle filter of :mod:`wearnav.fuse.particles` (walls as "
+    "constraints; start at the first surveyed point, heading offset 0 ± {h:g}°, log-scale ± {s:g}, "
+    "{n} particles, constants chosen on ILC2's training floors B1/F1/F3 with PDR), scored at the same points. "
+    "Below, each map-aware row minus its map-less row, paired by walk (90 % interval from resampling "
+    "whole walks; below 0: the plan helps):"
+)
+
+
+def _map_section(evals: dict[str, tuple[Path, Path]]) -> list[str]:
+    """The map-aware rows' note and their walk-paired difference from the map-less rows."""
+    rows, cfg = [], None
+    for label, (_, ev) in evals.items():
+        if not label.endswith(MAP_LABEL) or label[: -len(MAP_LABEL)] not in evals:
+            continue
+        m, base = runs.read_metrics(ev), runs.read_metrics(evals[label[: -len(MAP_LABEL)]][1])
+        cfg = m.get("map_aware", {}).get("config", cfg)
+        by = {r["name"]: r["point_errors"] for r in m["splits"]["test"]["sequences"] if r.get("point_errors")}
+        ref = {r["name"]: r["point_errors"] for r in base["splits"]["test"]["sequences"] if r.get("point_errors")}
+        names = [n for n in by if n in ref]
+        if len(names) < 2:
+            continue
+        d = walk_bootstrap_difference([by[n] for n in names], [ref[n] for n in names])
+        rows.append(
+            {
+                "map-aware minus map-less": label[: -len(MAP_LABEL)],
+                "walks": d["walks"],
+                **{
+                    f"{'median' if q == 50 else f'p{q}'} (m)": f"{p:+.2f} [{lo:+.2f}, {hi:+.2f}]"
+                    for q, p, lo, hi in zip(d["quantiles"], d["difference"], d["low"], d["high"])
+                },
+            }
+        )
+    if not rows or cfg is None:
+        return []
+    text = MAP_TEXT.format(h=cfg["start_heading_sigma_deg"], s=cfg["scale_log_sigma"], n=cfg["particles"])
+    return [text, "", pd.DataFrame(rows).to_markdown(index=False), ""]
 
 
 def length_ratio(eval_dir: Path, data: str) -> float:
@@ -228,9 +273,12 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
             table.to_markdown(index=False, floatfmt=".2f"),
             "",
         ]
+        lines += _map_section(evaluations(folders, site))
         lines += _decomposition(evaluations(folders, site), s["data"], out / f"{site}_speed_ratio.png", info["source"])
         if s.get("fixes"):
-            scored = {label: run for label, (run, _) in evaluations(folders, site).items()}
+            scored = {
+                label: run for label, (run, _) in evaluations(folders, site).items() if not label.endswith(MAP_LABEL)
+            }
             speeds = {label: "pdr" for label in scored if label.endswith(HYBRID_LABEL)}
             # each model's smoother is calibrated where it is used (user_protocol.site_calibration)
             cal = doc["sites"][site]["calibration"] = {

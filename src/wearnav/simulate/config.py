@@ -175,6 +175,7 @@ class WalkConfig:
     truth_rate_hz: float = 100.0
     fix_rate_hz: float = 1.0
     fix_correlation_s: float = 120.0
+    corridor_m: float | None = None  # a floor plan of corridors this wide (m) along the walker's own route
 
     def __post_init__(self) -> None:
         def bad(msg: str):
@@ -212,6 +213,8 @@ class WalkConfig:
             bad("DRW needs a watch or earbuds to remove")
         if self.area_m is not None and self.area_m < 16.0:
             bad(f"area_m must be at least 16 m, got {self.area_m}")
+        if self.corridor_m is not None and not 1.0 <= self.corridor_m <= 20.0:
+            bad(f"corridor_m must be within 1 … 20 m, got {self.corridor_m}")
         if not 0.0 <= self.speed_variation <= 0.3:
             bad(f"speed_variation must be within 0 … 0.3, got {self.speed_variation}")
 

@@ -129,12 +129,19 @@ def plan_dataset(preset: str | Preset, seed: int = 0) -> list[PlannedWalk]:
     ]
 
 
-def simulate_dataset(preset: str, out: str | Path, seed: int = 0, progress: bool = True) -> Dataset:
-    """Simulate a preset into the dataset folder ``out`` and open it."""
+def simulate_dataset(
+    preset: str, out: str | Path, seed: int = 0, progress: bool = True, corridor_m: float | None = None
+) -> Dataset:
+    """Simulate a preset into the dataset folder ``out`` and open it; ``corridor_m``: every walk carries
+    a floor plan of corridors that wide along its route (:func:`wearnav.simulate.walk.corridor_plan`)."""
     p = get_preset(preset)
     plan = plan_dataset(p, seed)
+    if corridor_m is not None:
+        plan = [dataclasses.replace(w, config=w.config.replace(corridor_m=corridor_m)) for w in plan]
     out = Path(out)
     made_by = {"generator": "wearnav.simulate", "preset": dataclasses.asdict(p), "seed": int(seed)}
+    if corridor_m is not None:
+        made_by["corridor_m"] = corridor_m
     with DatasetWriter(out, made_by) as writer:
         for item in report_progress(plan, desc=f"simulate {p.name}", unit="rec", enabled=progress):
             rec = simulate_walk(item.config, item.seed).recording

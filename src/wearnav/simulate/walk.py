@@ -11,8 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+from shapely.geometry import LineString
 
-from wearnav.recording import DeviceStream, Recording, Trajectory
+from wearnav.plans import plan_from_geometry
+from wearnav.recording import DeviceStream, FloorPlan, Recording, Trajectory
 from wearnav.rotations import matrix_to_wxyz
 from wearnav.simulate.body import Body
 from wearnav.simulate.config import REMOVABLE, SCENES, WalkConfig
@@ -146,10 +148,34 @@ def simulate_walk(cfg: WalkConfig, seed=0) -> SimulatedWalk:
         meta["phone_hand"] = getattr(poses["phone"], "hand", None)
     if "phone" in poses and (bag := getattr(poses["phone"], "bag", None)) is not None:
         meta.update(bag.meta)
+    plans = [] if cfg.corridor_m is None else [corridor_plan(cfg.name, truth.pos[:, :2], cfg.corridor_m)]
+    if plans:
+        meta["plan"] = plans[0].name
     rec = Recording(
-        name=cfg.name, devices=streams, truth=truth, fixes=fixes, labels=scenario.label_rows(cfg.mode), meta=meta
+        name=cfg.name,
+        devices=streams,
+        truth=truth,
+        fixes=fixes,
+        labels=scenario.label_rows(cfg.mode),
+        meta=meta,
+        plans=plans,
     )
     return SimulatedWalk(cfg, seed, rec, truths, poses, body, scenario, base.mean_cadence_hz)
+
+
+# The route a corridor plan follows: the true path thinned to a point every CORRIDOR_STEP_M metres
+# (a corridor's walls are straight over a step; the buffer rounds the corners).
+CORRIDOR_STEP_M = 0.5
+
+
+def corridor_plan(name: str, pos: np.ndarray, width_m: float) -> FloorPlan:
+    """A floor plan of corridors ``width_m`` wide along the walker's route ``pos`` (N, 2) m: the
+    walkable space of a building whose corridors this walk follows (issue 36: the map-aware path
+    tested on synthetic walks with known truth). Where the route crosses itself the corridors join."""
+    step = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))]
+    keep = np.unique(np.searchsorted(step, np.arange(0.0, step[-1], CORRIDOR_STEP_M)))
+    route = pos[np.r_[keep, len(pos) - 1]]
+    return plan_from_geometry(f"{name}_corridors", 0, LineString(route).buffer(width_m / 2.0).simplify(0.05))
 
 
 def simulate_recording(cfg: WalkConfig, seed=0) -> Recording:
