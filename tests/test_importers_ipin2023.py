@@ -150,6 +150,48 @@ def test_meta(rec):
     assert m["projection"] == PROJECTION
 
 
+def test_pressure(rec, log_lines):
+    pres = rows_of(log_lines, "PRES")
+    p = rec.pressure
+    assert len(p) == len(pres) > 500
+    np.testing.assert_array_equal(p.hpa, [float(r[3]) for r in pres])
+    # Sensor times on the app clock: never after the app's stamp, and within a second of it.
+    delay = np.array([float(r[1]) for r in pres]) - p.t
+    assert delay.min() == pytest.approx(0.0, abs=1e-6) and np.median(delay) < 1.0
+    assert 900 < np.median(p.hpa) < 1050 and np.ptp(p.hpa) < 2.0  # one floor (truth.floor is all 0)
+
+
+def test_beacon_readings_are_named_as_the_location_table(rec, log_lines):
+    ble = rows_of(log_lines, "BLE4")
+    b = rec.beacons
+    assert len(b) == len(ble) > 100
+    np.testing.assert_array_equal(b.t, [float(r[1]) for r in ble])
+    np.testing.assert_array_equal(b.rssi_dbm, [float(r[4]) for r in ble])
+    assert list(b.beacon) == [f"BLE{int(r[7])}" for r in ble]
+    # The .mat keeps only the MAC: its last two bytes are the minor on every row.
+    assert [ipin2023._venue_beacon_name(r[3]) for r in ble] == list(b.beacon)
+    assert set(b.beacon) <= set(rec.meta["beacons"])
+
+
+def test_beacon_positions(rec, ipin_root):
+    table = ipin_root / "02 Supplementary Materials/02 - BLE Locations/BLE_Locations.csv"
+    rows = [ln.split(",") for ln in table.read_text().splitlines()[1:]]
+    lat0, lon0 = rec.meta["origin_lat"], rec.meta["origin_lon"]
+    xy = latlon_to_local([float(r[1]) for r in rows], [float(r[2]) for r in rows], lat0, lon0)
+    beacons = rec.meta["beacons"]
+    assert list(beacons) == [f"BLE{k}" for k in range(1, 7)]
+    np.testing.assert_allclose([v[:2] for v in beacons.values()], xy, atol=1e-3)
+    assert [v[2] for v in beacons.values()] == [0, 0, -2, -2, -2, -2]
+    assert np.all(np.linalg.norm(xy, axis=1) < 60)  # inside the museum, about the venue origin
+
+
+def test_no_beacon_table_no_positions(tmp_path, log_path):
+    (tmp_path / log_path.name).write_bytes(log_path.read_bytes())
+    (r,) = list(ipin2023.read(tmp_path / log_path.name))
+    assert "beacons" not in r.meta and "BLE_Locations.csv not found" in r.meta["beacons_note"]
+    assert len(r.beacons) > 100  # the readings are still there
+
+
 # ---- the organisers' .mat and our own .mat round trips ----------------------------------------
 
 
@@ -165,6 +207,10 @@ def test_real_mat_conversion(ipin_root):
     np.testing.assert_array_equal(r.truth.floor, tra[:, 2])
     assert r.meta["floors"] == [-2, -1, 0]
     assert len(r.fixes) > 100 and np.all(np.diff(r.fixes.t) > 0)
+    mat = scipy.io.loadmat(ipin_root / LOGS / f"{MAT_LOG}.mat")
+    np.testing.assert_array_equal(r.pressure.hpa, mat["Pres"][:, 2])
+    assert len(r.beacons) == len(mat["Ble4"]) and set(r.beacons.beacon) <= set(r.meta["beacons"])
+    np.testing.assert_array_equal(r.beacons.rssi_dbm, [float(np.ravel(c[2])[0]) for c in mat["Ble4"]])
 
 
 def mat_arrays(log_path):
