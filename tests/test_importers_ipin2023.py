@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import scipy.io
 from scipy.spatial.transform import Rotation
+from scipy.stats import spearmanr
 
 from conftest import error_line
 from wearnav.errors import FormatError, MissingFileError, ValidationError
@@ -167,10 +168,39 @@ def test_beacon_readings_are_named_as_the_location_table(rec, log_lines):
     assert len(b) == len(ble) > 100
     np.testing.assert_array_equal(b.t, [float(r[1]) for r in ble])
     np.testing.assert_array_equal(b.rssi_dbm, [float(r[4]) for r in ble])
-    assert list(b.beacon) == [f"BLE{int(r[7])}" for r in ble]
+    swap = {"2": "BLE3", "3": "BLE2"}
+    assert list(b.beacon) == [swap.get(r[7], f"BLE{r[7]}") for r in ble]
     # The .mat keeps only the MAC: its last two bytes are the minor on every row.
-    assert [ipin2023._venue_beacon_name(r[3]) for r in ble] == list(b.beacon)
+    assert [ipin2023._venue_beacon_minor(r[3]) for r in ble] == [int(r[7]) for r in ble]
     assert set(b.beacon) <= set(rec.meta["beacons"])
+
+
+def test_each_beacon_fades_with_distance_from_its_own_surveyed_position(ipin_root):
+    """The evidence for VENUE_MINOR_TO_BLE_ID (minors 2 and 3 swapped against the table): over the
+    first repetition of every trial, with the walker's position interpolated between consecutive
+    surveyed points on one floor, each beacon's RSSI falls with the distance from its own surveyed
+    position (Spearman ρ < -0.5) more clearly than from any other beacon's position (readings on
+    that position's floor)."""
+    pairs: dict[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]] = {}
+    beacons: dict = {}
+    for path in sorted((ipin_root / LOGS).glob("*repetition01.*")):
+        (r,) = list(ipin2023.read(path))
+        beacons, tr, b = r.meta["beacons"], r.truth, r.beacons
+        i = np.clip(np.searchsorted(tr.t, b.t) - 1, 0, len(tr) - 2)
+        on_span = (b.t > tr.t[0]) & (b.t < tr.t[-1]) & (tr.floor[i] == tr.floor[i + 1])
+        pos = np.column_stack([np.interp(b.t, tr.t, tr.pos[:, k]) for k in range(2)])
+        for bid in beacons:
+            for at in beacons:
+                m = on_span & (b.beacon == bid) & (tr.floor[i] == beacons[at][2])
+                pairs.setdefault((bid, at), []).append(
+                    (np.linalg.norm(pos[m] - beacons[at][:2], axis=1), b.rssi_dbm[m])
+                )
+    for bid in beacons:
+        rho = {}
+        for at in beacons:
+            d, rssi = (np.concatenate(x) for x in zip(*pairs[bid, at]))
+            rho[at] = spearmanr(d, rssi)[0] if len(d) > 20 else np.nan
+        assert rho[bid] < -0.5 and rho[bid] == np.nanmin(list(rho.values())), (bid, rho)
 
 
 def test_beacon_positions(rec, ipin_root):

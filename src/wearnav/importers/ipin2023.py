@@ -28,10 +28,11 @@ Log format (the ``%`` header of each log documents it): ``;``-separated rows ``T
   own sensor-clock offset (as the fixes).
 * ``BLE4;App;iBeacon;MAC;RSSI(dBm);Power;MajorID;MinorID;UUID`` (and the Eddystone variant
   ``BLE4;App;Eddystone;MAC;RSSI(dBm);...``) → ``beacons``, at the app time of the row. A beacon of
-  the venue (iBeacon UUID :data:`VENUE_BEACON_UUID`) is named ``BLE<MinorID>``, the ``bleID`` of
-  ``BLE_Locations.csv``; the venue's MAC addresses end in the same number
-  (``BE:AC:20:23:00:0k`` for minor k, on every BLE4 row of the text logs), which is all the
-  .mat conversion keeps (its ``Ble4`` cells are time, MAC, RSSI), so there the name comes from the
+  the venue (iBeacon UUID :data:`VENUE_BEACON_UUID`) is named by the ``bleID`` of
+  ``BLE_Locations.csv`` that its MinorID k maps to in :data:`VENUE_MINOR_TO_BLE_ID`: ``BLE<k>``,
+  except that minors 2 and 3 are swapped (measured: see there). The venue's MAC addresses end in
+  the minor (``BE:AC:20:23:00:0k``, on every BLE4 row of the text logs), which is all the .mat
+  conversion keeps (its ``Ble4`` cells are time, MAC, RSSI), so there the minor comes from the
   MAC. Any other beacon is named by its MAC.
 * WIFI, MAGN, LIGH, SOUN ... are ignored.
 
@@ -134,6 +135,13 @@ MAT_VARS = {
 # addresses end in k (checked on every BLE4 row of the training logs).
 VENUE_BEACON_UUID = "11111111-1111-BEAC-2023-111111111111"
 VENUE_BEACON_MAC = re.compile(r"^BE:AC:20:23:([0-9A-F]{2}):([0-9A-F]{2})$", re.IGNORECASE)
+# iBeacon minor → bleID of BLE_Locations.csv. Minors 2 and 3 are swapped against the table's
+# numbering: over the 44 training walks (truth interpolated between surveyed points), minor 2's
+# strongest readings (-54 dBm) lie within 4 m of the table's BLE3 (floor -2) and 20+ m from its
+# BLE2, where it reads a median -89 dBm from 0-5 m; minor 3 likewise peaks at the table's BLE2
+# (floor 0). With the swap every beacon's RSSI falls with distance (fitted slopes -14 to -27 dB per
+# decade); without it minor 2's rises (+19 dB per decade). tests/test_importers_ipin2023.py checks it.
+VENUE_MINOR_TO_BLE_ID = {1: "BLE1", 2: "BLE3", 3: "BLE2", 4: "BLE4", 5: "BLE5", 6: "BLE6"}
 # Where the dataset keeps the beacons' surveyed positions, relative to its root folder.
 BLE_LOCATIONS = Path("02 Supplementary Materials") / "02 - BLE Locations" / "BLE_Locations.csv"
 # How many folders above a log's own folder the dataset root may be (root/01 Logfiles/<split>/log).
@@ -173,10 +181,16 @@ def _parse_block(rows: list[str], tag: str, path: Path) -> np.ndarray:
     return arr
 
 
-def _venue_beacon_name(mac: str) -> str | None:
-    """``BLE<k>`` for a MAC address of the venue's beacons (``BE:AC:20:23:00:0k``), else None."""
+def _venue_beacon_name(minor: int) -> str:
+    """The bleID of the venue's beacon with this iBeacon minor (:data:`VENUE_MINOR_TO_BLE_ID`;
+    ``BLE<minor>`` for a minor the table does not list)."""
+    return VENUE_MINOR_TO_BLE_ID.get(minor, f"BLE{minor}")
+
+
+def _venue_beacon_minor(mac: str) -> int | None:
+    """The iBeacon minor k in a MAC address of the venue's beacons (``BE:AC:20:23:00:0k``), else None."""
     m = VENUE_BEACON_MAC.match(mac.strip())
-    return f"BLE{int(m.group(1) + m.group(2), 16)}" if m else None
+    return int(m.group(1) + m.group(2), 16) if m else None
 
 
 def _parse_ble4(rows: list[str], path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -193,7 +207,7 @@ def _parse_ble4(rows: list[str], path: Path) -> tuple[np.ndarray, np.ndarray]:
             raise FormatError(f"BLE4 row {k}: not a number ({f[1]!r}, {f[4]!r})", path) from None
         mac = f[3].strip()
         if f[2] == "iBeacon" and len(f) > 8 and f[8].strip().upper() == VENUE_BEACON_UUID:
-            names.append(f"BLE{int(f[7])}")
+            names.append(_venue_beacon_name(int(f[7])))
         else:
             names.append(mac)
     arr = np.column_stack([times, rssi]) if times else np.zeros((0, 2))
@@ -308,7 +322,8 @@ def _mat_ble4(cells: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
     except (IndexError, TypeError, ValueError) as exc:
         raise FormatError(f"variable 'Ble4': not (time, MAC, RSSI) cells ({exc})", path) from None
     check_finite(arr, "variable 'Ble4'", path)
-    return arr, np.array([_venue_beacon_name(m) or m for m in macs], dtype=object)
+    minors = [_venue_beacon_minor(m) for m in macs]
+    return arr, np.array([m if k is None else _venue_beacon_name(k) for m, k in zip(macs, minors)], dtype=object)
 
 
 # ---- building the recording ----------------------------------------------------------------
