@@ -205,11 +205,13 @@ def _parse_ble4(rows: list[str], path: Path) -> tuple[np.ndarray, np.ndarray]:
             rssi.append(float(f[4]))
         except ValueError:
             raise FormatError(f"BLE4 row {k}: not a number ({f[1]!r}, {f[4]!r})", path) from None
-        mac = f[3].strip()
         if f[2] == "iBeacon" and len(f) > 8 and f[8].strip().upper() == VENUE_BEACON_UUID:
-            names.append(_venue_beacon_name(int(f[7])))
+            try:
+                names.append(_venue_beacon_name(int(f[7])))
+            except ValueError:
+                raise FormatError(f"BLE4 row {k}: MinorID {f[7]!r} is not an integer", path) from None
         else:
-            names.append(mac)
+            names.append(f[3].strip())
     arr = np.column_stack([times, rssi]) if times else np.zeros((0, 2))
     check_finite(arr, "BLE4 rows", path)
     return arr, np.array(names, dtype=object)
@@ -572,7 +574,7 @@ def _beacon_positions(path: Path, lat0: float, lon0: float, meta: dict) -> None:
     table = find_ble_locations(path)
     if table is None:
         meta["beacons_note"] = f"{BLE_LOCATIONS.name} not found beside the logs: beacon positions unknown"
-        log.info("%s: %s not found beside the log: no beacon positions", path.name, BLE_LOCATIONS.name)
+        log.debug("%s: %s not found beside the log: no beacon positions", path.name, BLE_LOCATIONS.name)
         return
     meta["beacons"] = read_ble_locations(table, lat0, lon0)
     meta["beacons_file"] = BLE_LOCATIONS.name
