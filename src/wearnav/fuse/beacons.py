@@ -46,6 +46,7 @@ TRUTH_MARGIN_S = 2.0  # a reading this close to a surveyed point outside a span 
 TRUTH_MAX_SPAN_S = 40.0  # longer gaps between surveyed points are not interpolated across
 # Student-t instead of Gaussian noise when it lowers the AIC by more than this (one more parameter).
 T_NOISE_MIN_AIC_GAIN = 10.0
+STUDENT_T_NU_GAUSS = 1000.0  # a fitted ν above this is reported as this
 
 
 @dataclasses.dataclass(frozen=True)
@@ -235,7 +236,8 @@ def fit_path_loss(
         "residual_sd_db": round(sigma, 3),
         "residual_mad_sigma_db": round(float(1.4826 * np.median(np.abs(residual - np.median(residual)))), 3),
         "residual_p5_p95_db": [round(float(v), 2) for v in np.percentile(residual, [5, 95])],
-        "student_t": {"nu": round(float(t_nu), 3), "scale_db": round(float(t_scale), 3)},
+        # ν beyond STUDENT_T_NU_GAUSS is Gaussian for any purpose (the fit can run off to 1e13)
+        "student_t": {"nu": round(min(float(t_nu), STUDENT_T_NU_GAUSS), 3), "scale_db": round(float(t_scale), 3)},
         "aic_gauss_minus_t": round(float(aic_gauss - aic_t), 1),
         "noise": "student-t" if use_t else "gaussian",
     }
