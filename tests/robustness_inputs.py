@@ -89,7 +89,7 @@ def build_seed(fmt: str, data: Path | None) -> dict[str, str]:
         for ln in _text(log).splitlines():
             if ln.startswith("%"):
                 keep.append(ln)
-            elif ln[:4] in ("ACCE", "GYRO", "AHRS", "GNSS", "POSI"):
+            elif ln[:4] in ("ACCE", "GYRO", "AHRS", "GNSS", "POSI", "PRES", "BLE4"):
                 app_t = float(ln.split(";")[1])
                 if 60.0 <= app_t <= 69.0:
                     keep.append(ln)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import scipy.io
 from scipy.spatial.transform import Rotation
+from scipy.stats import spearmanr
 
 from conftest import error_line
 from wearnav.errors import FormatError, MissingFileError, ValidationError
@@ -150,6 +151,77 @@ def test_meta(rec):
     assert m["projection"] == PROJECTION
 
 
+def test_pressure(rec, log_lines):
+    pres = rows_of(log_lines, "PRES")
+    p = rec.pressure
+    assert len(p) == len(pres) > 500
+    np.testing.assert_array_equal(p.hpa, [float(r[3]) for r in pres])
+    # Sensor times on the app clock: never after the app's stamp, and within a second of it.
+    delay = np.array([float(r[1]) for r in pres]) - p.t
+    assert delay.min() == pytest.approx(0.0, abs=1e-6) and np.median(delay) < 1.0
+    assert 900 < np.median(p.hpa) < 1050 and np.ptp(p.hpa) < 2.0  # one floor (truth.floor is all 0)
+
+
+def test_beacon_readings_are_named_as_the_location_table(rec, log_lines):
+    ble = rows_of(log_lines, "BLE4")
+    b = rec.beacons
+    assert len(b) == len(ble) > 100
+    np.testing.assert_array_equal(b.t, [float(r[1]) for r in ble])
+    np.testing.assert_array_equal(b.rssi_dbm, [float(r[4]) for r in ble])
+    swap = {"2": "BLE3", "3": "BLE2"}
+    assert list(b.beacon) == [swap.get(r[7], f"BLE{r[7]}") for r in ble]
+    # The .mat keeps only the MAC: its last two bytes are the minor on every row.
+    assert [ipin2023._venue_beacon_minor(r[3]) for r in ble] == [int(r[7]) for r in ble]
+    assert set(b.beacon) <= set(rec.meta["beacons"])
+
+
+def test_each_beacon_fades_with_distance_from_its_own_surveyed_position(ipin_root):
+    """The evidence for VENUE_MINOR_TO_BLE_ID (minors 2 and 3 swapped against the table): over the
+    first repetition of every trial, with the walker's position interpolated between consecutive
+    surveyed points on one floor, each beacon's RSSI falls with the distance from its own surveyed
+    position (Spearman ρ < -0.5) more clearly than from any other beacon's position (readings on
+    that position's floor)."""
+    pairs: dict[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]] = {}
+    beacons: dict = {}
+    for path in sorted((ipin_root / LOGS).glob("*repetition01.*")):
+        (r,) = list(ipin2023.read(path))
+        beacons, tr, b = r.meta["beacons"], r.truth, r.beacons
+        i = np.clip(np.searchsorted(tr.t, b.t) - 1, 0, len(tr) - 2)
+        on_span = (b.t > tr.t[0]) & (b.t < tr.t[-1]) & (tr.floor[i] == tr.floor[i + 1])
+        pos = np.column_stack([np.interp(b.t, tr.t, tr.pos[:, k]) for k in range(2)])
+        for bid in beacons:
+            for at in beacons:
+                m = on_span & (b.beacon == bid) & (tr.floor[i] == beacons[at][2])
+                pairs.setdefault((bid, at), []).append(
+                    (np.linalg.norm(pos[m] - beacons[at][:2], axis=1), b.rssi_dbm[m])
+                )
+    for bid in beacons:
+        rho = {}
+        for at in beacons:
+            d, rssi = (np.concatenate(x) for x in zip(*pairs[bid, at]))
+            rho[at] = spearmanr(d, rssi)[0] if len(d) > 20 else np.nan
+        assert rho[bid] < -0.5 and rho[bid] == np.nanmin(list(rho.values())), (bid, rho)
+
+
+def test_beacon_positions(rec, ipin_root):
+    table = ipin_root / "02 Supplementary Materials/02 - BLE Locations/BLE_Locations.csv"
+    rows = [ln.split(",") for ln in table.read_text().splitlines()[1:]]
+    lat0, lon0 = rec.meta["origin_lat"], rec.meta["origin_lon"]
+    xy = latlon_to_local([float(r[1]) for r in rows], [float(r[2]) for r in rows], lat0, lon0)
+    beacons = rec.meta["beacons"]
+    assert list(beacons) == [f"BLE{k}" for k in range(1, 7)]
+    np.testing.assert_allclose([v[:2] for v in beacons.values()], xy, atol=1e-3)
+    assert [v[2] for v in beacons.values()] == [0, 0, -2, -2, -2, -2]
+    assert np.all(np.linalg.norm(xy, axis=1) < 60)  # inside the museum, about the venue origin
+
+
+def test_no_beacon_table_no_positions(tmp_path, log_path):
+    (tmp_path / log_path.name).write_bytes(log_path.read_bytes())
+    (r,) = list(ipin2023.read(tmp_path / log_path.name))
+    assert "beacons" not in r.meta and "BLE_Locations.csv not found" in r.meta["beacons_note"]
+    assert len(r.beacons) > 100  # the readings are still there
+
+
 # ---- the organisers' .mat and our own .mat round trips ----------------------------------------
 
 
@@ -165,6 +237,10 @@ def test_real_mat_conversion(ipin_root):
     np.testing.assert_array_equal(r.truth.floor, tra[:, 2])
     assert r.meta["floors"] == [-2, -1, 0]
     assert len(r.fixes) > 100 and np.all(np.diff(r.fixes.t) > 0)
+    mat = scipy.io.loadmat(ipin_root / LOGS / f"{MAT_LOG}.mat")
+    np.testing.assert_array_equal(r.pressure.hpa, mat["Pres"][:, 2])
+    assert len(r.beacons) == len(mat["Ble4"]) and set(r.beacons.beacon) <= set(r.meta["beacons"])
+    np.testing.assert_array_equal(r.beacons.rssi_dbm, [float(np.ravel(c[2])[0]) for c in mat["Ble4"]])
 
 
 def mat_arrays(log_path):

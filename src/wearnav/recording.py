@@ -520,7 +520,7 @@ class Recording:
             check_name(dev, "device name")
             if not isinstance(s, DeviceStream):
                 raise ValidationError(f"device {dev!r} is not a DeviceStream")
-        parts: tuple[tuple[str, Any, type], ...] = (
+        parts: tuple[tuple[str, Any, Any], ...] = (
             ("truth", self.truth, Trajectory),
             ("fixes", self.fixes, Fixes),
             ("beacons", self.beacons, BeaconReadings),
