@@ -89,11 +89,11 @@ from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWar
 from wearnav.evaluate import predict_sequence
 from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import atomic_path, write_text_atomic
-from wearnav.fixcheck import FixCheck, check_fixes
-from wearnav.fuse.particles import MapConfig, map_filter, start_heading_offset
+from wearnav.fixcheck import FixCheck
+from wearnav.fuse import placement
+from wearnav.fuse.particles import MapConfig
 from wearnav.models.pdr import PDR
 from wearnav.outputs import check_out_folder, staged_output
-from wearnav.plans import Walkable
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import FloorPlan, Recording
 from wearnav.report.trajectory_page import activity_intervals, page_points, trajectory_html
@@ -372,45 +372,19 @@ def place_on_map(
     cfg: MapConfig = MapConfig(),
     progress: bool = False,
 ) -> fuse.FuseResult | None:
-    """The map-aware path (:func:`wearnav.fuse.particles.map_filter`) of the odometry path ``xy`` on
-    ``floor_plans``, as a FuseResult (method "map"), or None where there is no plan. The start is
-    ``start`` (x, y in the plan's frame, the heading of travel in degrees counter-clockwise from +x)
-    or the first kept fix (heading unknown)."""
+    """The map-aware path (:func:`wearnav.fuse.placement.place`: the particle filter with the plan's
+    walls and the recording's fixes) of the odometry path ``xy`` on ``floor_plans``, as a FuseResult
+    (method "map"), or None where there is no plan. The start is ``start`` (x, y in the plan's frame,
+    the heading of travel in degrees counter-clockwise from +x) or the first kept fix."""
     if not floor_plans:
         return None
-    grids: dict[int | None, Walkable] = {p.floor: Walkable.of(p) for p in floor_plans}
-    fx = rec.fixes
-    check = None
-    fixes = None
-    if fx is not None and len(fx):
-        check = check_fixes(float(t[0]), float(t[-1]), fx.t, fx.pos[:, :2], fx.accuracy, fuse.FuseConfig().wide_m)
-        k = check.kept
-        fixes = (fx.t[k], fx.pos[k, :2], fx.accuracy[k])
-    if start is None and (fixes is None or not len(fixes[0])):
-        raise ValidationError(
-            "a floor plan needs a start: give --start X,Y,HEADING_DEG (the recording has no usable location fix)"
-        )
-    start_xy = None if start is None else np.array(start[:2], np.float64)
-    offset = None if start is None else start_heading_offset(t, xy, np.radians(start[2]))
-    floor_at = None
-    if len(grids) > 1:
-        known = [p.floor for p in floor_plans if p.floor is not None]
-        first = int(rec.meta.get("floor_index", known[0])) if known else None
-        floor_at = lambda times: np.full(np.shape(times), np.nan if first is None else float(first))
     with tqdm(total=100, desc="map-aware path", unit="%", disable=not progress, leave=False) as bar:
 
         def tick(k: int, n: int) -> None:
             bar.update(int(100 * k / n) - bar.n)
 
-        res = map_filter(t, xy, grids, start_xy, offset, floor_at, fixes, None, cfg, tick)
-    info = {
-        **res.info,
-        "plans": [p.name for p in floor_plans],
-        "start": "given (--start)" if start is not None else "the first kept fix, heading unknown",
-    }
-    if check is not None:
-        info.update(check.info())
-    return fuse.FuseResult(res.xy, res.sigma_m, "map", info, [], check)
+        res, check = placement.place(rec, t, xy, None, floor_plans, start, cfg, tick)
+    return fuse.FuseResult(res.xy, res.sigma_m, "map", res.info, [], check)
 
 
 # ---- the command -------------------------------------------------------------------------------

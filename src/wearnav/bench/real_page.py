@@ -17,9 +17,17 @@ from wearnav.bench import decompose
 from wearnav.bench.map_eval import MAP_SUFFIX
 from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.bench.real_sites import fix_errors
-from wearnav.bench.user_protocol import PAIRED_TEXT, paired_rows, score_path, site_calibration, user_table
+from wearnav.bench.user_protocol import (
+    PAIRED_TEXT,
+    paired_rows,
+    particle_paired_rows,
+    score_path,
+    site_calibration,
+    user_table,
+)
 from wearnav.dataset import Dataset
 from wearnav.fileio import shown_path, write_text_atomic
+from wearnav.fuse.placement import SiteModels, fit_site_models
 from wearnav.models.registry import get
 from wearnav.pretrained.mix import is_mix
 from wearnav.report.odometry import plot_speed_ratio
@@ -285,18 +293,51 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
                 label: site_calibration(run, site, s["data"], _trained_on(run), speeds.get(label, "model"))
                 for label, run in scored.items()
             }
-            rows, raw = user_table(scored, s["data"], s["fixes"], calibration=cal, speeds=speeds)
+            models = site_models(s["data"])
+            rows, raw = user_table(scored, s["data"], s["fixes"], calibration=cal, speeds=speeds, site=models)
             paired = paired_rows(raw)
             doc["sites"][site]["user_protocol"] = {"table": rows, "paired": paired, "runs": raw}
             lines += [USER_PROTOCOL_TEXT, "", pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), ""]
             if paired:
                 lines += [PAIRED_TEXT, "", pd.DataFrame(paired).to_markdown(index=False), ""]
+            if particle := particle_paired_rows(raw):
+                doc["sites"][site]["user_protocol"]["particle_paired"] = particle
+                doc["sites"][site]["site_models"] = models.to_dict() if models is not None else None
+                lines += [PARTICLE_TEXT, "", pd.DataFrame(particle).to_markdown(index=False), ""]
             lines += _user_protocol_elsewhere(scored, s["data"], cal, doc["sites"][site]["user_protocol"], speeds)
         cdf = plot_cdf(errors, out / f"{site}_error_cdf.png", f"error at surveyed points, {info['source']} test")
         traj = _plot_examples(folders, site, out / f"{site}_trajectories.png", info["source"])
         lines += [f"![{q.stem}]({q.name})" for q in (cdf, traj) if q] + [""]
     runs.write_json(out / "results.json", doc)
     return write_text_atomic("\n".join(lines), out / "results.md")
+
+
+PARTICLE_TEXT = (
+    "The particle filter (:func:`wearnav.fuse.placement.place`, issue 36) places the same odometry by the "
+    "walk's fixes (Student-t), its BLE beacon readings (a log-distance path-loss model with a floor loss "
+    "and per-phone gains, :mod:`wearnav.fuse.beacons`) and its floor from the barometer "
+    "(:mod:`wearnav.fuse.floors`, the start floor chosen without truth), all fitted on the site's "
+    "training walks only (*floor right*: its share of surveyed points on the right floor). Its "
+    "difference from the raw fixes and from the smoother, paired by walk (below 0: it is better):"
+)
+
+
+def site_models(data: str) -> SiteModels | None:
+    """The site's beacon and floor models fitted on its training walks (:func:`wearnav.fuse.placement.fit_site_models`),
+    cached beside the prepared data as ``site_models.json``; None where its recordings have neither
+    beacons nor a barometer."""
+    cached = Path(data) / "site_models.json"
+    if cached.is_file():
+        d = read_json(cached)
+        return None if d.get("none") else SiteModels.from_dict(d)
+    ds = Dataset.open(data).split("train")
+    first = ds.load(ds.names[0]) if ds.names else None
+    if first is None or (first.beacons is None and first.pressure is None):
+        runs.write_json(cached, {"none": "no beacon readings and no barometer in the site's recordings"})
+        return None
+    models = fit_site_models(ds)
+    runs.write_json(cached, models.to_dict())
+    return models
 
 
 DECOMPOSITION_TEXT = (

@@ -27,6 +27,7 @@ import numpy as np
 from wearnav import fuse, metrics, runs
 from wearnav.dataset import Dataset
 from wearnav.evaluate import predict_sequence
+from wearnav.fuse.placement import SiteModels, floors_over_time, place
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
 from wearnav.stats import walk_bootstrap_difference
 from wearnav.textio import read_json
@@ -35,6 +36,10 @@ from wearnav.train.odometry import load_model
 from wearnav.trajectory import integrate_velocity
 
 RAW_FIXES = "raw phone fixes"
+# The particle filter with every observation the walk has (wearnav.fuse.placement, issue 36): its key
+# in user_protocol's result and its label in the table
+PARTICLES = "particles"
+PARTICLES_LABEL = "particle filter: fixes + beacons + barometer (+ plan)"
 
 
 def _length(p: np.ndarray) -> float:
@@ -111,15 +116,19 @@ def user_protocol(
     cfg: fuse.FuseConfig | None = None,
     calibration: dict | None = None,
     speed: str = "model",
+    site: SiteModels | None = None,
 ) -> dict:
-    """Per anchoring of :data:`wearnav.fuse.ANCHORS`: the errors at the surveyed points of
+    """Per anchoring of :data:`wearnav.fuse.ANCHORS` (and, with ``site``, the particle filter of
+    :func:`wearnav.fuse.placement.place` with the site's beacon and floor models, key :data:`PARTICLES`,
+    its floor right at the surveyed points in ``floor_right``): the errors at the surveyed points of
     ``split`` of ``data`` for the model of ``run`` (a run folder) under the user protocol, the
     path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk.
     ``cfg``: the smoother's; default the run's own for each recording (:func:`wearnav.fuse.config_for`:
     its calibration, and a heading prior where the recording's frame is north-referenced); ``calibration``
     replaces its calibration (:func:`site_calibration`); ``speed`` "pdr": the model's direction at
     PDR's speed (:func:`wearnav.train.odometry.load_model`)."""
-    out: dict = {a: {"errors": [], "length_ratio": [], "by_trace": {}} for a in fuse.ANCHORS}
+    paths = (*fuse.ANCHORS, PARTICLES) if site is not None else tuple(fuse.ANCHORS)
+    out: dict = {a: {"errors": [], "length_ratio": [], "by_trace": {}} for a in paths}
     out["smooth"]["traces"] = {}
     out[RAW_FIXES] = {"by_trace": {}}
     smooth_s, walk_s = 0.0, 0.0
@@ -151,7 +160,18 @@ def user_protocol(
             out[anchor]["errors"].append(err)
             out[anchor]["by_trace"][rec.name] = _rounded(err)
             out[anchor]["length_ratio"].append(ratio)
-    for a in fuse.ANCHORS:
+        if site is not None:
+            placed, _ = place(rec, t, xy, site)
+            err, ratio = score_path(t, placed.xy, rec.truth.t, rec.truth.pos[:, :2])
+            out[PARTICLES]["errors"].append(err)
+            out[PARTICLES]["by_trace"][rec.name] = _rounded(err)
+            out[PARTICLES]["length_ratio"].append(ratio)
+            floor_at, _ = floors_over_time(rec, site)
+            if floor_at is not None and rec.truth.floor is not None:
+                out[PARTICLES].setdefault("floor_right", []).extend(
+                    (floor_at(rec.truth.t) == rec.truth.floor).astype(int).tolist()
+                )
+    for a in paths:
         e = np.concatenate(out[a]["errors"]) if out[a]["errors"] else np.empty(0)
         out[a]["errors"] = _rounded(e)
     out["smooth_s_per_hour"] = round(smooth_s / walk_s * 3600.0, 3) if walk_s else None
@@ -211,6 +231,7 @@ def user_table(
     cfg: fuse.FuseConfig | None = None,
     calibration: dict[str, dict] | None = None,
     speeds: dict[str, str] | None = None,
+    site: SiteModels | None = None,
 ) -> tuple[list[dict], dict]:
     """The user-protocol rows (raw fixes, then each model × anchoring) and the raw per-run results;
     ``cfg`` None: each run's own calibrated config, or ``calibration[label]`` where given;
@@ -231,13 +252,15 @@ def user_table(
         )
     for label, run in folders.items():
         speed = (speeds or {}).get(label, "model")
-        r = raw[label] = user_protocol(run, data, split, cfg, (calibration or {}).get(label), speed)
-        for anchor in fuse.ANCHORS:
+        r = raw[label] = user_protocol(run, data, split, cfg, (calibration or {}).get(label), speed, site)
+        for anchor in (*fuse.ANCHORS, PARTICLES) if PARTICLES in r else fuse.ANCHORS:
             e = np.asarray(r[anchor]["errors"])
             inside = r[anchor].get("inside_68")
+            floor = r[anchor].get("floor_right")
             rows.append(
                 {
                     "path": f"{label} · {ANCHOR_LABEL[anchor]}",
+                    **({FLOOR_COLUMN: round(float(np.mean(floor)), 3)} if floor else {}),
                     "traces": len(r[anchor]["length_ratio"]),
                     "points": int(e.size),
                     **error_stats(e),
@@ -308,7 +331,37 @@ ANCHOR_LABEL = {
     "first-fixes": "first-fix anchoring (`track` before)",
     "rigid": "rigid fit to all fixes",
     "smooth": "smoother (`track` now)",
+    PARTICLES: PARTICLES_LABEL,
 }
+FLOOR_COLUMN = "floor right"  # the particle filter's share of surveyed points on the right floor (barometer)
+
+
+def particle_paired_rows(raw: dict) -> list[dict]:
+    """Per model with a particle-filter path: it minus the raw fixes and minus the smoother, paired
+    by walk (:func:`wearnav.stats.walk_bootstrap_difference`)."""
+    rows = []
+    for label, r in raw.items():
+        if PARTICLES not in r:
+            continue
+        for other, name in ((RAW_FIXES, RAW_FIXES), ("smooth", ANCHOR_LABEL["smooth"])):
+            names = [n for n in r[PARTICLES]["by_trace"] if n in r.get(other, {}).get("by_trace", {})]
+            if len(names) < 2:
+                continue
+            d = walk_bootstrap_difference(
+                [r[PARTICLES]["by_trace"][n] for n in names], [r[other]["by_trace"][n] for n in names]
+            )
+            rows.append(
+                {
+                    "model": label,
+                    "particle filter minus": name,
+                    "walks": d["walks"],
+                    **{
+                        f"{'median' if q == 50 else f'p{q}'} (m)": f"{p:+.2f} [{lo:+.2f}, {hi:+.2f}]"
+                        for q, p, lo, hi in zip(d["quantiles"], d["difference"], d["low"], d["high"])
+                    },
+                }
+            )
+    return rows
 
 
 def median_ratio(x) -> float:

@@ -50,7 +50,12 @@ START_DIR_M = 3.0
 
 
 class PathLossModel(Protocol):
-    def loglik(self, rssi_dbm: np.ndarray, dist_m: np.ndarray) -> np.ndarray: ...
+    """log p(rssi | 3-D distance, floors between) (:class:`wearnav.fuse.beacons.PathLoss`)."""
+
+    @property
+    def floor_height_m(self) -> float: ...
+
+    def loglik(self, rssi_dbm, dist_m, floors=0) -> np.ndarray: ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,7 +76,6 @@ class MapConfig:
     resample_ess: float = 0.5  # resample when the effective sample size falls below this share
     fix_sigma_scale: float = 1.0  # each fix's σ (from its reported accuracy) times this
     fix_dof: float = 3.0  # Student-t degrees of freedom of a fix's distance over its σ
-    floor_height_m: float = 4.0  # between floors, for a beacon's 3-D distance
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -235,10 +239,10 @@ def map_filter(
         if beacons is not None:
             while bi < beacons.t.size and beacons.t[bi] <= tk[k + 1]:
                 b = beacons.pos[bi]
-                f = floors[k + 1] if np.isfinite(floors[k + 1]) else b[2]
-                dz = (f - b[2]) * cfg.floor_height_m
+                between = abs((floors[k + 1] if np.isfinite(floors[k + 1]) else b[2]) - b[2])
+                dz = between * beacons.model.floor_height_m
                 dist = np.sqrt(np.sum((pos - b[:2]) ** 2, axis=1) + dz * dz)
-                logw = logw + beacons.model.loglik(np.full(n, beacons.rssi_dbm[bi]), dist)
+                logw = logw + beacons.model.loglik(beacons.rssi_dbm[bi], dist, between)
                 bi += 1
         hist[k + 1] = pos
         if progress is not None:
