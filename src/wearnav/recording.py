@@ -116,7 +116,9 @@ def _as_flags(x, name: str) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=bool)
 
 
-def _check_time(t: np.ndarray, name: str) -> None:
+def _check_time(t: np.ndarray, name: str, repeats: bool = False) -> None:
+    """1-D, finite, increasing times; ``repeats``: equal times allowed (readings of several sources
+    at one instant, e.g. beacons), going backwards never."""
     if t.ndim != 1:
         raise ValidationError(f"{name}: time must be 1-D, got shape {t.shape}")
     if t.size == 0:
@@ -124,8 +126,8 @@ def _check_time(t: np.ndarray, name: str) -> None:
     if not np.all(np.isfinite(t)):
         raise ValidationError(f"{name}: time has non-finite values")
     dt = np.diff(t)
-    if np.any(dt <= 0):
-        i = int(np.argmax(dt <= 0))
+    if np.any(dt < 0) or (not repeats and np.any(dt == 0)):
+        i = int(np.argmax(dt < 0)) if repeats else int(np.argmax(dt <= 0))
         what = "duplicated" if dt[i] == 0 else "unsorted"
         raise ValidationError(f"{name}: {what} timestamps at sample {i + 1} (t={t[i + 1]:.6f})")
 
@@ -343,7 +345,7 @@ class BeaconReadings:
         self.t = _as_array(self.t, np.float64, "beacons.t")
         self.rssi_dbm = _as_array(self.rssi_dbm, np.float64, "beacons.rssi_dbm")
         self.beacon = np.asarray(self.beacon, dtype=object).astype(str).astype(object)
-        _check_time(self.t, "beacons.t")
+        _check_time(self.t, "beacons.t", repeats=True)  # several beacons heard at one instant
         for what, a in (("beacon", self.beacon), ("rssi_dbm", self.rssi_dbm)):
             if a.shape != self.t.shape:
                 raise ValidationError(f"beacons.{what}: shape {a.shape}, expected {self.t.shape}")

@@ -216,9 +216,12 @@ def fit_path_loss(
     cols = [np.ones(len(s)), -10.0 * np.log10(d), -s.floors.astype(np.float64)]
     cols += [(s.device == dev).astype(np.float64) for dev in devices[1:]]
     x = np.column_stack(cols)
-    if np.linalg.matrix_rank(x) < x.shape[1]:
+    same_floor = not np.any(s.floors)  # every beacon heard on the walker's floor: no floor loss to fit
+    if same_floor:
+        x[:, 2] = 0.0
+    if np.linalg.matrix_rank(x) < x.shape[1] - same_floor:
         raise ValidationError("fit_path_loss: the readings do not separate p0, n and the floor loss")
-    coef, *_ = np.linalg.lstsq(x, s.rssi_dbm, rcond=None)
+    coef, *_ = np.linalg.lstsq(x, s.rssi_dbm, rcond=None)  # a zero column gets a zero coefficient
     residual = s.rssi_dbm - x @ coef
     gains = {dev: (0.0 if k == 0 else float(coef[2 + k])) for k, dev in enumerate(devices)}
     centre = float(np.mean([gains[dev] for dev in named])) if named else gains[devices[0]]
