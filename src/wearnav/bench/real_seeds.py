@@ -29,6 +29,7 @@ from wearnav import runs
 from wearnav.bench.executor import Execution, run_jobs
 from wearnav.bench.real import RealBench, plan_benchmark
 from wearnav.bench.real_page import evaluations, suite_runs
+from wearnav.bench.user_protocol import FLOOR_COLUMN, PARTICLES, PARTICLES_LABEL, RAW_FIXES
 from wearnav.errors import ValidationError
 from wearnav.fileio import write_text_atomic
 from wearnav.provenance import provenance
@@ -100,7 +101,7 @@ def _paired(a: dict[int, dict[str, np.ndarray]], b: dict[int, dict[str, np.ndarr
     pick = lambda d, s: d.get(s, next(iter(d.values())))
     xa = [np.concatenate([a[s][w] for s in a]) for w in walks]
     xb = [np.concatenate([pick(b, s)[w] for s in a]) for w in walks]
-    return walk_bootstrap_difference(xa, xb, quantiles=(50, 75))
+    return walk_bootstrap_difference(xa, xb, quantiles=(50, 75, 95))
 
 
 def _interval(d: dict | None, k: int) -> str:
@@ -150,35 +151,44 @@ def known_start_table(seed_docs: dict[int, dict], seed_evals: dict[int, dict[str
     return pd.DataFrame(rows)
 
 
-def smoother_table(seed_docs: dict[int, dict], site: str) -> pd.DataFrame | None:
-    """The user protocol's smoother per path over the seeds, and minus PDR's smoother paired by walk."""
+def smoother_table(
+    seed_docs: dict[int, dict],
+    site: str,
+    key: str = "smooth",
+    suffix: str = SMOOTH_SUFFIX,
+    column: str = "smoother of",
+) -> pd.DataFrame | None:
+    """The user protocol's smoother (or, by ``key``/``suffix``, another of its paths: the particle filter)
+    per model over the seeds, minus PDR's same path and minus the raw fixes, paired by walk."""
     ups = {s: d["sites"][site].get("user_protocol") for s, d in seed_docs.items()}
-    ups = {s: u for s, u in ups.items() if u}
+    ups = {s: u for s, u in ups.items() if u and any(key in r for r in u["runs"].values())}
     if not ups:
         return None
     labels: list[str] = []
     for u in ups.values():
-        labels += [k for k in u["runs"] if k not in labels]
-    by_trace = {
-        label: {
-            s: {w: np.asarray(e, float) for w, e in u["runs"][label]["smooth"]["by_trace"].items()}
+        labels += [k for k in u["runs"] if k not in labels and key in u["runs"][k]]
+
+    def walks(label: str, path: str) -> dict[int, dict[str, np.ndarray]]:
+        return {
+            s: {w: np.asarray(e, float) for w, e in u["runs"][label][path]["by_trace"].items()}
             for s, u in ups.items()
-            if label in u["runs"]
+            if label in u["runs"] and path in u["runs"][label]
         }
-        for label in labels
-    }
+
+    by_trace = {label: walks(label, key) for label in labels}
     rows = []
     for label in labels:
         found = [
-            next((r for r in u["table"] if r["path"] == label + SMOOTH_SUFFIX), None)
+            next((r for r in u["table"] if r["path"] == label + suffix), None)
             for u in ups.values()
             if label in u["runs"]
         ]
         stats = [r for r in found if r is not None]
         paired = _paired(by_trace[label], by_trace[REFERENCE]) if REFERENCE in by_trace else None
+        raw = _paired(by_trace[label], walks(label, RAW_FIXES))
         rows.append(
             {
-                "smoother of": label,
+                column: label,
                 "seeds": len(stats),
                 "median (m)": _mean_sd([r["median (m)"] for r in stats]),
                 "p75 (m)": _mean_sd([r["p75 (m)"] for r in stats]),
@@ -186,6 +196,13 @@ def smoother_table(seed_docs: dict[int, dict], site: str) -> pd.DataFrame | None
                 "length ratio": _mean_sd([r["length ratio"] for r in stats]),
                 "minus PDR's, median (m)": "—" if label == REFERENCE else _interval(paired, 0),
                 "minus PDR's, p75 (m)": "—" if label == REFERENCE else _interval(paired, 1),
+                "minus raw fixes, median (m)": _interval(raw, 0),
+                "minus raw fixes, p95 (m)": _interval(raw, 2),
+                **(
+                    {FLOOR_COLUMN: _mean_sd([r[FLOOR_COLUMN] for r in stats if FLOOR_COLUMN in r])}
+                    if any(FLOOR_COLUMN in r for r in stats)
+                    else {}
+                ),
             }
         )
     return pd.DataFrame(rows)
@@ -235,9 +252,11 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
         }
         ks = known_start_table(docs, evals, site)
         sm = smoother_table(docs, site)
+        pf = smoother_table(docs, site, PARTICLES, " · " + PARTICLES_LABEL, "particle filter of")
         doc["sites"][site] = {
             "known_start": ks.to_dict(orient="records"),
             "smoother": None if sm is None else sm.to_dict(orient="records"),
+            "particle_filter": None if pf is None else pf.to_dict(orient="records"),
         }
         where = "held-out groups" if site == "main" else "another building, never trained on"
         lines += [f"## {first['sites'][site]['split']['source']} ({where})", "", "Known start:", ""]
@@ -247,6 +266,14 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
                 "User protocol (no truth), the smoother (`track`'s default):",
                 "",
                 sm.to_markdown(index=False),
+                "",
+            ]
+        if pf is not None:
+            lines += [
+                "User protocol, the particle filter with fixes, beacons and the barometer (issue 36; *floor "
+                "right*: share of surveyed points on the right floor):",
+                "",
+                pf.to_markdown(index=False),
                 "",
             ]
     runs.write_json(out / "results.json", doc)
