@@ -281,3 +281,28 @@ def test_seeds_suite_pairs_each_path_with_pdr_by_walk(building, tmp_path):
     smoother = {r["smoother of"]: r for r in doc["sites"]["main"]["smoother"]}
     assert {"ronin", "pdr"} <= set(smoother)
     assert "over 2 seeds" in page.read_text()
+
+
+def test_map_aware_rows_where_the_site_has_floor_plans(tmp_path):
+    """A site whose recordings carry floor plans (here: the simulator's corridors along each route)
+    scores every path also map-aware, at the same points, with the walk-paired difference on the page."""
+    sim = simulate_dataset("tiny", tmp_path / "sim", seed=3, progress=False, corridor_m=3.0)
+    recs = [sim.load(n) for n in sim.filter(mode=["STW"]).names]
+    built = _building(recs, 40.0)
+    for rec, _ in built:
+        assert rec.plans  # the corridors survive the stand-in's rewrite
+    write_dataset(tmp_path / "building", built)
+    out = tmp_path / "bench"
+    bench = RealBench(models=("pdr",), epochs=1, stride=25)
+    run_benchmark(
+        tmp_path / "building", out, group_by="floor_name", test_groups=("F9", "F1"), bench=bench, progress=False
+    )
+    doc = json.loads((out / "results.json").read_text())
+    table = {r["method"]: r for r in doc["sites"]["main"]["table"]}
+    assert {"pdr", "pdr · map-aware"} <= set(table)
+    assert table["pdr · map-aware"]["points"] == table["pdr"]["points"] > 0
+    assert table["pdr · map-aware"]["median (m)"] < table["pdr"]["median (m)"]
+    text = (out / "results.md").read_text()
+    assert "map-aware minus map-less" in text
+    m = runs.read_metrics(next((out / "runs").glob("pdr-*")) / "eval_main_map")
+    assert m["map_aware"]["of"] == "eval_main" and m["map_aware"]["config"]["particles"] > 0
