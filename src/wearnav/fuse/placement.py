@@ -61,7 +61,7 @@ def fit_site_models(recordings: Iterable[Recording]) -> SiteModels:
     return SiteModels(path_loss, levels)
 
 
-def _beacons(rec: Recording, model: PathLoss) -> Beacons | None:
+def _beacons(rec: Recording, model: PathLoss, sigma_scale: float = 1.0) -> Beacons | None:
     b, where = rec.beacons, rec.meta.get("beacons") or {}
     if b is None or not len(b) or not where:
         return None
@@ -69,7 +69,10 @@ def _beacons(rec: Recording, model: PathLoss) -> Beacons | None:
     if not known.any():
         return None
     pos = np.array([where[str(name)] for name in b.beacon[known]], np.float64)
-    return Beacons(b.t[known], pos, b.rssi_dbm[known], model.for_device(str(rec.meta.get("device", ""))))
+    model = dataclasses.replace(
+        model.for_device(str(rec.meta.get("device", ""))), sigma_db=model.sigma_db * sigma_scale
+    )
+    return Beacons(b.t[known], pos, b.rssi_dbm[known], model)
 
 
 def floors_over_time(rec: Recording, site: SiteModels) -> tuple[Callable[[np.ndarray], np.ndarray] | None, dict]:
@@ -124,7 +127,7 @@ def place(
     if floor_at is None and len(grids) > 1:  # several plans and no barometer: the recording's own floor
         f = rec.meta.get("floor_index")
         floor_at = None if f is None else (lambda times: np.full(np.shape(times), float(f)))
-    beacons = _beacons(rec, site.path_loss) if site.path_loss is not None else None
+    beacons = _beacons(rec, site.path_loss, cfg.beacon_sigma_scale) if site.path_loss is not None else None
     res = map_filter(t, xy, grids, start_xy, offset, floor_at, fixes, beacons, cfg, progress)
     res.info.update(
         plans=[p.name for p in plans],
