@@ -95,3 +95,12 @@ def walk_bootstrap_difference(
         "walks": len(a),
         "confidence": confidence,
     }
+
+
+def difference_cells(d: dict) -> dict[str, str]:
+    """A table's cells of a :func:`walk_bootstrap_difference` result: one per quantile, e.g.
+    ``{"median (m)": "-1.35 [-1.70, -0.94]", "p95 (m)": ...}`` (difference and its interval, m)."""
+    return {
+        f"{'median' if q == 50 else f'p{q}'} (m)": f"{p:+.2f} [{lo:+.2f}, {hi:+.2f}]"
+        for q, p, lo, hi in zip(d["quantiles"], d["difference"], d["low"], d["high"])
+    }

@@ -31,7 +31,7 @@ from wearnav.fuse.placement import SiteModels, fit_site_models
 from wearnav.models.registry import get
 from wearnav.pretrained.mix import is_mix
 from wearnav.report.odometry import plot_speed_ratio
-from wearnav.stats import walk_bootstrap_difference
+from wearnav.stats import difference_cells, walk_bootstrap_difference
 from wearnav.textio import read_json
 
 
@@ -166,10 +166,7 @@ def _map_section(evals: dict[str, tuple[Path, Path]]) -> list[str]:
             {
                 "map-aware minus map-less": label[: -len(MAP_LABEL)],
                 "walks": d["walks"],
-                **{
-                    f"{'median' if q == 50 else f'p{q}'} (m)": f"{p:+.2f} [{lo:+.2f}, {hi:+.2f}]"
-                    for q, p, lo, hi in zip(d["quantiles"], d["difference"], d["low"], d["high"])
-                },
+                **difference_cells(d),
             }
         )
     if not rows or cfg is None:

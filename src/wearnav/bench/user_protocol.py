@@ -29,7 +29,7 @@ from wearnav.dataset import Dataset
 from wearnav.evaluate import predict_sequence
 from wearnav.fuse.placement import SiteModels, floors_over_time, place
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
-from wearnav.stats import walk_bootstrap_difference
+from wearnav.stats import difference_cells, walk_bootstrap_difference
 from wearnav.textio import read_json
 from wearnav.timeseries import interp_onto
 from wearnav.train.odometry import load_model
@@ -301,10 +301,7 @@ def paired_rows(raw: dict) -> list[dict]:
                     "model": label,
                     "smoother minus": name,
                     "walks": d["walks"],
-                    **{
-                        f"{'median' if q == 50 else f'p{q}'} (m)": f"{p:+.2f} [{lo:+.2f}, {hi:+.2f}]"
-                        for q, p, lo, hi in zip(d["quantiles"], d["difference"], d["low"], d["high"])
-                    },
+                    **difference_cells(d),
                 }
             )
     return rows
@@ -355,10 +352,7 @@ def particle_paired_rows(raw: dict) -> list[dict]:
                     "model": label,
                     "particle filter minus": name,
                     "walks": d["walks"],
-                    **{
-                        f"{'median' if q == 50 else f'p{q}'} (m)": f"{p:+.2f} [{lo:+.2f}, {hi:+.2f}]"
-                        for q, p, lo, hi in zip(d["quantiles"], d["difference"], d["low"], d["high"])
-                    },
+                    **difference_cells(d),
                 }
             )
     return rows
