@@ -246,3 +246,32 @@ def test_simulated_walk_carries_its_corridors(tmp_path, monkeypatch, capsys):
             placed = xy @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) + pos[0]
         errs[plan] = float(np.median(np.linalg.norm(placed - true_at, axis=1)))
     assert errs["auto"] < 0.5 * errs["none"]  # measured: 0.62 against 3.60 m
+
+
+def test_the_path_changes_plan_where_the_floor_changes():
+    """Floor 0: a corridor east to a stair hall; floor 1: the stair hall and a corridor north. The walker
+    goes east, changes floor in the hall, then north; the odometry is turned by 12°. With the floor over
+    time given (as the barometer gives it), each part is kept in its own floor's corridor."""
+    f0 = FloorPlan("F0", 0, [[square(0, 0, 20, 2)], [square(18, 0, 24, 6)]])
+    f1 = FloorPlan("F1", 1, [[square(18, 0, 24, 6)], [square(19, 6, 21, 40)]])
+    t = np.arange(0, 60, 0.1)
+    east = np.stack([1 + 1.0 * t, np.full_like(t, 1.0)], 1)
+    north = np.stack([np.full_like(t, 20.0), 1 + 1.0 * (t - 19)], 1)
+    true = np.where((t < 19)[:, None], east, north)
+    a = np.radians(12.0)
+    odo = (true - true[0]) @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
+    grids = {0: Walkable.of(f0), 1: Walkable.of(f1)}
+    res = map_filter(
+        t,
+        odo,
+        grids,
+        true[0],
+        0.0,
+        floor_at=lambda ts: np.where(np.asarray(ts) < 20, 0.0, 1.0),
+        cfg=MapConfig(particles=500),
+    )
+    assert res.floor[0] == 0 and res.floor[-1] == 1
+    upper = t >= 21
+    assert grids[1].inside(res.xy[upper]).mean() > 0.95
+    assert np.median(np.linalg.norm(res.xy - true, axis=1)) < 1.5
+    assert np.linalg.norm(res.xy[-1] - true[-1]) < 0.5 * np.linalg.norm(odo[-1] + true[0] - true[-1])
