@@ -183,6 +183,11 @@ def live_bench(
     speed: float = typer.Option(10.0, min=1.0, help="Replay speed of the load phase (× real time)."),
     cpu_s: float = typer.Option(30.0, "--cpu-s", min=2.0, help="Seconds of each real-time walkers phase."),
     walkers: str = typer.Option("1,2,4,8", help="Walkers (sessions at once, real time) to try, comma-separated."),
+    devices: str = typer.Option(
+        "all",
+        "--devices",
+        help="Walkers' devices, comma-separated: phone (phone-only walkers, PDR) and/or all (phone, watch, earbuds).",
+    ),
     track: bool = typer.Option(
         True, "--track/--no-track", help="Run the live tracker in the CPU phase (where this installation has one)."
     ),
@@ -200,8 +205,13 @@ def live_bench(
         counts = tuple(int(x) for x in split_list(walkers))
     except ValueError:
         raise typer.BadParameter("--walkers: whole numbers, comma-separated") from None
+    kinds = tuple(split_list(devices))
+    if not kinds or set(kinds) - {"phone", "all"}:
+        raise typer.BadParameter("--devices: phone and/or all, comma-separated")
     check_suite_folder(out, "live bench")
-    typer.echo(str(run_bench(out, duration_s=duration, speed=speed, cpu_s=cpu_s, track=track, walkers=counts)))
+    typer.echo(
+        str(run_bench(out, duration_s=duration, speed=speed, cpu_s=cpu_s, track=track, walkers=counts, devices=kinds))
+    )
 
 
 def replay(
