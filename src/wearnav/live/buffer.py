@@ -16,6 +16,7 @@ so every slice lies in one frame.
 
 from __future__ import annotations
 
+import copy
 import json
 import threading
 import time
@@ -128,6 +129,7 @@ class SessionBuffer:
         self._lock = threading.Lock()
         self._quat_inverted: list[str] | None = None
         self._cache: tuple | None = None
+        self._snap: tuple[int, dict[str, tuple]] | None = None  # the latest _snapshot, by version
 
     @classmethod
     def from_store(cls, store, session_id: str) -> SessionBuffer:
@@ -178,6 +180,8 @@ class SessionBuffer:
 
     def _snapshot(self) -> tuple[int, dict[str, tuple]]:
         with self._lock:
+            if self._snap is not None and self._snap[0] == self.version:  # nothing added since
+                return self._snap
             for s in self._sensors.values():
                 s.consolidate()
             snap = {
@@ -193,6 +197,7 @@ class SessionBuffer:
             }
             version = self.version
         self.t0_unix_ns = self._t0(snap)
+        self._snap = (version, snap)
         return version, snap
 
     @staticmethod
@@ -383,7 +388,16 @@ def cut(rec: Recording, t_from: float) -> Recording:
         fixes = Fixes(t=rec.fixes.t[k], pos=rec.fixes.pos[k], accuracy=rec.fixes.accuracy[k])
     if not devices:
         raise FormatError(f"no samples after t = {t_from:g} s yet", rec.meta.get("file"))
-    return Recording(name=rec.name, devices=devices, fixes=fixes, meta=rec.meta)
+    return derived(rec, devices, fixes)
 
 
-__all__ = ["AUTO", "CONVENTIONS", "DECIDE_S", "SessionBuffer", "cut"]
+def derived(rec: Recording, devices: dict[str, DeviceStream], fixes: Fixes | None) -> Recording:
+    """``rec`` with other ``devices`` and ``fixes`` cut from its own: a shallow copy, not validated
+    again (a Recording's checks, its labels table's above all, cost milliseconds, and a slice of a
+    valid recording is valid)."""
+    out = copy.copy(rec)
+    out.devices, out.fixes = devices, fixes
+    return out
+
+
+__all__ = ["AUTO", "CONVENTIONS", "DECIDE_S", "SessionBuffer", "cut", "derived"]
