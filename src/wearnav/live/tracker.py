@@ -313,7 +313,8 @@ class LiveTracker:
     def _grow(self, step: Step, vel: np.ndarray) -> bool:
         """The windows inside ``step.g_final`` for good (the path and the smoother grow by them),
         the rest as the provisional tail (predicted again at the next update)."""
-        assert self.cfg is not None and self.fuser is not None and step.t_c is not None  # set by _start, begin
+        assert self.cfg is not None and self.fuser is not None  # set by _start
+        assert step.t_c is not None and step.clock_t is not None  # set by _windows
         L, S, t_c = self.cfg.window, self.cfg.stride, step.t_c
         n = int(np.clip((step.g_final - self._next - L + 1) // S + 1, 0, t_c.size))  # windows ending by g_final
         o = self.odo
