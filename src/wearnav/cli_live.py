@@ -37,9 +37,11 @@ def _lan_address() -> str:
 
 
 def _tracker_factory(model: Path | None):
-    from wearnav.live.tracker import LiveTracker
+    """Trackers sharing one set of models (loaded once, on CUDA where there is one)."""
+    from wearnav.live.tracker import LiveTracker, SharedModels
 
-    return lambda: LiveTracker(model=model)
+    models = SharedModels()
+    return lambda: LiveTracker(model=model, models=models)
 
 
 def _needs_live_extra() -> None:
