@@ -142,7 +142,7 @@ class Store:
                 raise
         return new
 
-    def messages_after(self, rowid: int, limit: int = 10_000) -> list[tuple[int, str, str, str, bool, int, str]]:
+    def messages_after(self, rowid: int, limit: int = 10_000) -> list[tuple[int, str, str, bool, int, str]]:
         """Messages stored after row ``rowid``, oldest first, at most ``limit``: (rowid, session,
         platform, standardised, received_ns, body); a tracker process reads on from the last rowid."""
         with self._lock:
