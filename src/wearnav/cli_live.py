@@ -192,6 +192,9 @@ def live_track(
     ),
     address: str | None = typer.Option(None, "--address", help="The Ray cluster (as ray.init's; --executor ray)."),
     trackers: int = typer.Option(2, "--trackers", min=1, help="Tracker processes to place (--executor ray)."),
+    stats: Path | None = typer.Option(
+        None, "--stats", help="Write what this tracker did (sessions, update latency) to this JSON file, every second."
+    ),
 ):
     """Track the sessions a receiver stores, in a process of its own (the receiver runs --no-track).
 
@@ -211,7 +214,12 @@ def live_track(
         raise ConfigError(f"no session store at {store} (start `wearnav live --no-track --store {store}` first)")
     on_interrupt("tracker stopped; the store keeps every session (a tracker started again resumes them)")
     if executor == "local":
-        run_tracker(str(store), parse_shard(shard), None if model is None else str(model))
+        run_tracker(
+            str(store),
+            parse_shard(shard),
+            None if model is None else str(model),
+            stats=None if stats is None else str(stats),
+        )
         return
     import ray
 
@@ -258,6 +266,9 @@ def live_bench(
     track: bool = typer.Option(
         True, "--track/--no-track", help="Run the live tracker in the CPU phase (where this installation has one)."
     ),
+    trackers: int = typer.Option(
+        0, "--trackers", min=0, help="Track in this many `wearnav live track` processes beside the receiver (0: in it)."
+    ),
 ):
     """Load the receiver (3 devices × 100 Hz at SPEED× for DURATION s) and measure ack latency,
     lost / duplicated samples, then walkers at once at real time: CPU share, update latency, capacity.
@@ -277,7 +288,18 @@ def live_bench(
         raise typer.BadParameter("--devices: phone and/or all, comma-separated")
     check_suite_folder(out, "live bench")
     typer.echo(
-        str(run_bench(out, duration_s=duration, speed=speed, cpu_s=cpu_s, track=track, walkers=counts, devices=kinds))
+        str(
+            run_bench(
+                out,
+                duration_s=duration,
+                speed=speed,
+                cpu_s=cpu_s,
+                track=track,
+                walkers=counts,
+                devices=kinds,
+                trackers=trackers,
+            )
+        )
     )
 
 

@@ -52,8 +52,9 @@ from wearnav.importers.sensorlogger_map import DEVICE_FILES, Table
 from wearnav.live import replay
 from wearnav.live.badinputs import body, catalogue, enc
 from wearnav.live.export import export_session
-from wearnav.live.process import LiveServer
+from wearnav.live.process import LiveServer, cpu_s, start_tracker
 from wearnav.live.tracker import STEP_S
+from wearnav.live.trackers import STATS_EVERY_S
 from wearnav.provenance import provenance
 
 log = logging.getLogger(__name__)
@@ -206,10 +207,13 @@ def walker_export(export: Path, devices: str) -> Path:
     return folder
 
 
-def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track: bool, devices: str = "all") -> dict:
+def walkers_phase(
+    work: Path, export: Path, walkers: int, seconds: float, track: bool, devices: str = "all", trackers: int = 0
+) -> dict:
     """``walkers`` sessions of ``devices`` (:data:`WALKER_DEVICES`) replayed at once at real time into
-    one server (with the live tracker where there is one): its CPU share, ack latency, tracker update
-    latency, and whether it kept up."""
+    one server (with the live tracker where there is one; ``trackers`` > 0: the server stores only and
+    that many ``wearnav live track`` processes track, sharing its store): the CPU share of the server
+    (and trackers), ack latency, tracker update latency, and whether it kept up."""
     tracking = track and importlib.util.find_spec("wearnav.live.tracker") is not None
     base = replay.build(walker_export(export, devices), batch_s=BATCH_S, session_id="walker-0")
     n = min(len(base.messages), int(round(seconds / BATCH_S)))
@@ -223,24 +227,51 @@ def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track:
     # every walker pushes from 127.0.0.1 here, where real ones have an address each: the per-client
     # rate limit is raised to ten times what they send together (else it caps them at 100 messages a second)
     limit = ["--rate-limit", f"{max(100.0, 10 * walkers / BATCH_S):g}"]
-    with LiveServer(work / f"walkers-{devices}-{walkers}.db", *limit, *([] if tracking else ["--no-track"])) as srv:
-        time.sleep(1.0)  # start-up work done
-        c0, w0 = srv.cpu_s(), time.perf_counter()
-        url = replay.push_url(f"{srv.url}/push", base)
-        # the walkers' pushes spread over one batch period, as walkers who did not start together
-        threads = [
-            threading.Thread(
-                target=lambda i=i: results.__setitem__(i, send_lean(url, bodies[i], due, w0 + i * BATCH_S / walkers))
-            )
-            for i in range(walkers)
-        ]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
-        c1, w1 = srv.cpu_s(), time.perf_counter()
-        time.sleep(1.0)  # the trackers' last updates
-        stats = httpx.get(f"{srv.url}/stats").json()
+    db = work / f"walkers-{devices}-{walkers}{f'-t{trackers}' if trackers else ''}.db"
+    for old in work.glob(f"{db.name}*"):
+        old.unlink()
+    procs: list = []
+    stats_files = [db.with_suffix(f".tracker{i}.json") for i in range(trackers if tracking else 0)]
+    for f in stats_files:
+        f.unlink(missing_ok=True)
+    with LiveServer(db, *limit, *([] if tracking and not trackers else ["--no-track"])) as srv:
+        procs = [start_tracker(db, (i, len(stats_files)), f, f.with_suffix(".log")) for i, f in enumerate(stats_files)]
+        try:
+            deadline = time.monotonic() + 60.0
+            while not all(f.is_file() for f in stats_files) and time.monotonic() < deadline:
+                time.sleep(0.2)  # the trackers have started (torch imported)
+            time.sleep(1.0)  # start-up work done
+
+            def used() -> float | None:
+                parts = [srv.cpu_s(), *(cpu_s(p.pid) for p in procs)]
+                return None if any(c is None for c in parts) else sum(c for c in parts if c is not None)
+
+            c0, w0 = used(), time.perf_counter()
+            url = replay.push_url(f"{srv.url}/push", base)
+            # the walkers' pushes spread over one batch period, as walkers who did not start together
+            threads = [
+                threading.Thread(
+                    target=lambda i=i: results.__setitem__(
+                        i, send_lean(url, bodies[i], due, w0 + i * BATCH_S / walkers)
+                    )
+                )
+                for i in range(walkers)
+            ]
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+            c1, w1 = used(), time.perf_counter()
+            time.sleep(1.0 + 2 * STATS_EVERY_S)  # the trackers' last updates, and their summaries written
+            stats = httpx.get(f"{srv.url}/stats").json()
+        finally:
+            for p in procs:
+                p.terminate()
+                p.wait(10)
+    if stats_files:
+        stats = {"update_latency_s": {}}
+        for f in stats_files:
+            stats["update_latency_s"].update(json.loads(f.read_text())["update_latency_s"])
     acks = [x for r in results if r is not None for x in r.ack_latency_s]
     upd = [x for v in stats.get("update_latency_s", {}).values() for x in v]
     behind = max((r.late_s for r in results if r is not None), default=float("inf"))
@@ -250,6 +281,7 @@ def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track:
     return {
         "walkers": walkers,
         "devices": devices,
+        "tracker_processes": len(stats_files),
         "seconds": round(w1 - w0, 1),
         "messages": n * walkers,
         "tracking": tracking,
@@ -377,9 +409,11 @@ def run_bench(
     fuzz: int = 200,
     seed: int = 0,
     devices: tuple[str, ...] = ("all",),
+    trackers: int = 0,
 ) -> Path:
     """Every phase (module docstring) into ``out``; the walkers phase once per kind of walker in
-    ``devices`` (keys of :data:`WALKER_DEVICES`), each up to the first count that does not keep up."""
+    ``devices`` (keys of :data:`WALKER_DEVICES`), each up to the first count that does not keep up;
+    ``trackers`` > 0: tracked by that many ``wearnav live track`` processes beside a storing receiver."""
     for d in devices:
         if d not in WALKER_DEVICES:
             raise ConfigError(f"--devices {d!r}: one of {', '.join(WALKER_DEVICES)}")
@@ -396,7 +430,7 @@ def run_bench(
     rows = []
     for kind in devices:
         for k in sorted(set(walkers) | {1}):
-            rows.append(walkers_phase(work, export, k, cpu_s, track, kind))
+            rows.append(walkers_phase(work, export, k, cpu_s, track, kind, trackers))
             log.info("%s", {key: rows[-1][key] for key in ("walkers", "devices", "kept_up", "update_ms")})
             if not rows[-1]["kept_up"]:
                 break  # more walkers will not keep up either

@@ -66,15 +66,16 @@ class Crowd:
         self.thread = threading.Thread(target=self._run, name="live-crowd", daemon=True)
         self.thread.start()
 
-    def poke(self, sid: str, buf) -> None:
-        """Session ``sid`` (its buffer ``buf``) has new data, acknowledged now."""
+    def poke(self, sid: str, buf, since: float | None = None) -> None:
+        """Session ``sid`` (its buffer ``buf``) has new data, acknowledged at ``since``
+        (``time.perf_counter()``; None: now)."""
         now = time.perf_counter()
+        since = now if since is None else min(since, now)
         with self._lock:
             s = self.sessions.get(sid)
             if s is None:
                 s = self.sessions[sid] = _Session(buf)
-            if s.pending_since is None:
-                s.pending_since = now
+            s.pending_since = since if s.pending_since is None else min(s.pending_since, since)
             s.last_push, s.ended = now, False
         self._wake.set()
 

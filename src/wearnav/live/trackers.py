@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from wearnav.errors import ConfigError
+from wearnav.fileio import write_text_atomic
 from wearnav.live.buffer import NS, SessionBuffer
 from wearnav.live.crowd import Crowd
 from wearnav.live.store import Store
@@ -36,6 +37,7 @@ from wearnav.live.store import Store
 log = logging.getLogger("wearnav.live")
 POLL_S = 0.1  # the store is read for new messages this often (s)
 STATE_EVERY_S = 0.25  # each session's changed state is written at most this often (the page's /events rate)
+STATS_EVERY_S = 1.0  # a tracker's summary (--stats) is rewritten this often
 
 
 def shard_of(session_id: str, shards: int) -> int:
@@ -60,9 +62,16 @@ def parse_shard(text: str) -> tuple[int, int]:
 class TrackerProcess:
     """One tracker over ``store`` for shard ``shard`` = (i, n); :meth:`run` until ``stop`` is set."""
 
-    def __init__(self, store: str | Path, tracker_factory: Callable[[], Any], shard: tuple[int, int] = (0, 1)):
+    def __init__(
+        self,
+        store: str | Path,
+        tracker_factory: Callable[[], Any],
+        shard: tuple[int, int] = (0, 1),
+        stats: str | Path | None = None,
+    ):
         self.store = Store(store)
         self.shard = shard
+        self.stats = None if stats is None else Path(stats)
         self.crowd = Crowd(tracker_factory)
         self.buffers: dict[str, SessionBuffer] = {}
         self.last_rowid = 0
@@ -72,7 +81,8 @@ class TrackerProcess:
     def poll(self) -> int:
         """Read the messages committed since the last poll; poke their sessions. How many were this shard's."""
         i, n = self.shard
-        taken, touched = 0, set()
+        taken = 0
+        touched: dict[str, int] = {}  # session → receive time of its oldest new message, ns
         while rows := self.store.messages_after(self.last_rowid):
             for rowid, sid, platform, standardised, received_ns, body in rows:
                 self.last_rowid = rowid
@@ -83,9 +93,11 @@ class TrackerProcess:
                     buf = self.buffers[sid] = SessionBuffer(sid, platform, bool(standardised))
                 buf.add(json.loads(body)["payload"], received_unix_s=received_ns / NS)
                 taken += 1
-                touched.add(sid)
-        for sid in touched:
-            self.crowd.poke(sid, self.buffers[sid])
+                touched.setdefault(sid, received_ns)  # the oldest new message of the session
+        # its latency runs from when the receiver stored it (just before its 200; one clock on one machine)
+        wall_ns, now = time.time_ns(), time.perf_counter()
+        for sid, received_ns in touched.items():
+            self.crowd.poke(sid, self.buffers[sid], since=now - max(0, wall_ns - received_ns) / NS)
         self.messages += taken
         return taken
 
@@ -103,31 +115,54 @@ class TrackerProcess:
         self._written.update(changed)
         return len(changed)
 
+    def summary(self) -> dict:
+        """What this tracker did: its shard, sessions, messages, and each session's update latency
+        (s, from the receiver storing a message to the update that put it on the page)."""
+        return {
+            "shard": list(self.shard),
+            "sessions": len(self.buffers),
+            "messages": self.messages,
+            "ticks": self.crowd.ticks,
+            "update_latency_s": self.crowd.latency_s(),
+        }
+
     def run(self, stop: threading.Event | None = None, max_s: float | None = None) -> dict:
-        """Poll, track and write states until ``stop`` is set (or ``max_s`` has passed)."""
+        """Poll, track and write states until ``stop`` is set (or ``max_s`` has passed); the
+        :meth:`summary` also to ``stats`` (JSON) every ``STATS_EVERY_S`` and at the end."""
         stop = stop or threading.Event()
         t_end = None if max_s is None else time.monotonic() + max_s
-        next_write = 0.0
+        next_write = next_stats = 0.0
         try:
             while not stop.is_set() and (t_end is None or time.monotonic() < t_end):
                 self.poll()
                 if time.monotonic() >= next_write:
                     self.write_states()
                     next_write = time.monotonic() + STATE_EVERY_S
+                if self.stats is not None and time.monotonic() >= next_stats:
+                    write_text_atomic(json.dumps(self.summary()), self.stats)
+                    next_stats = time.monotonic() + STATS_EVERY_S
                 stop.wait(POLL_S)
             self.write_states()
         finally:
             self.crowd.stop()
-        return {"shard": list(self.shard), "sessions": len(self.buffers), "messages": self.messages}
+        if self.stats is not None:
+            write_text_atomic(json.dumps(self.summary()), self.stats)
+        return self.summary()
 
 
-def run_tracker(store: str, shard: tuple[int, int], model: str | None = None, max_s: float | None = None) -> dict:
+def run_tracker(
+    store: str,
+    shard: tuple[int, int],
+    model: str | None = None,
+    max_s: float | None = None,
+    stats: str | None = None,
+) -> dict:
     """One tracker process's work (the CLI's and a Ray task's): LiveTrackers sharing one set of
     models (:class:`wearnav.live.tracker.SharedModels`, on CUDA where there is one)."""
     from wearnav.live.tracker import LiveTracker, SharedModels
 
     models = SharedModels()
-    proc = TrackerProcess(store, lambda: LiveTracker(model=model, models=models), shard)
+    proc = TrackerProcess(store, lambda: LiveTracker(model=model, models=models), shard, stats)
     log.info("tracker %d/%d on %s", *shard, store)
     return proc.run(max_s=max_s)
 
