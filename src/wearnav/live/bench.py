@@ -262,7 +262,7 @@ def walkers_phase(
             for t in threads:
                 t.join()
             c1, w1 = used(), time.perf_counter()
-            time.sleep(1.0 + 2 * STATS_EVERY_S)  # the trackers' last updates, and their summaries written
+            time.sleep(1.0 + (2 * STATS_EVERY_S if procs else 0.0))  # the last updates (and the trackers' summaries)
             stats = httpx.get(f"{srv.url}/stats").json()
         finally:
             for p in procs:
@@ -537,10 +537,18 @@ def page(r: dict) -> str:
             "",
             "Each walker is one session pushing in real time (phone-only: the phone's four motion sensors and fixes, "
             "tracked by the default phone-only model, PDR; three devices: phone, watch, earbuds, tracked by the shipped "
-            "three-device model); all at once into one server. "
-            "CPU: the server process's user + system time over the wall time, as a share of one core. "
+            "three-device model); all at once into one server"
             + (
-                "Update: from the oldest 200 whose samples are not yet on the page to the tracker update that put them "
+                f", which only stores: {one['tracker_processes']} `wearnav live track` processes beside it track the "
+                "sessions (sharded), reading its store. CPU: the user + system time of the server and the trackers "
+                "together over the wall time, as a share of one core. "
+                if one.get("tracker_processes")
+                else ", which tracks every session in batched ticks (one forward pass per tick for all sessions). CPU: "
+                "the server process's user + system time over the wall time, as a share of one core. "
+            )
+            + (
+                "Update: from the oldest 200 whose samples are not yet on the page (with tracker processes: from the "
+                "receiver storing it, just before its 200) to the tracker update that put them "
                 "there (an update that changed the path, fixes or activity; the tracker reads the buffer once "
                 f"{STEP_S:g} s of new data have arrived). "
                 if tracking
