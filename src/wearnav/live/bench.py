@@ -221,6 +221,7 @@ def walkers_phase(
         replace(base, session_id=f"walker-{i}", messages=[{**m, "sessionId": f"walker-{i}"} for m in base.messages[:n]])
         for i in range(walkers)
     ]
+    load_before = os.getloadavg()[0]  # the machine is shared: its load beside every figure
     bodies = [[json.dumps({k: v for k, v in m.items() if k[0] != "_"}).encode() for m in rp.messages] for rp in plays]
     due = [m["_due_s"] for m in base.messages[:n]]
     results: list = [None] * walkers
@@ -282,6 +283,7 @@ def walkers_phase(
         "walkers": walkers,
         "devices": devices,
         "tracker_processes": len(stats_files),
+        "load_1min": [round(load_before, 2), round(os.getloadavg()[0], 2)],
         "seconds": round(w1 - w0, 1),
         "messages": n * walkers,
         "tracking": tracking,
@@ -489,7 +491,8 @@ def page(r: dict) -> str:
         f"| {WALKER_NAMES[w.get('devices', 'all')]} | {w['walkers']} | {pc(w['cpu_share_of_one_core'])} | "
         f"{w['ack_ms']['p50']} | {w['ack_ms']['p99']} | "
         f"{w['update_ms']['p50'] if tracking else '–'} | {w['update_ms']['p95'] if tracking else '–'} | "
-        f"{w['behind_at_end_s']} | {'yes' if w['kept_up'] else 'no'} | {_yes(w.get('latency_goal_met'))} |"
+        f"{w['behind_at_end_s']} | {'yes' if w['kept_up'] else 'no'} | {_yes(w.get('latency_goal_met'))} | "
+        f"{' → '.join(f'{x:g}' for x in w['load_1min']) if 'load_1min' in w else '?'} |"
         for w in rows
     )
     kinds = list(dict.fromkeys(w.get("devices", "all") for w in rows))
@@ -563,8 +566,8 @@ def page(r: dict) -> str:
             ),
             "",
             "| walker | walkers | server CPU | ack p50 ms | ack p99 ms | update p50 ms | update p95 ms | behind at end s "
-            f"| kept up | p95 under {LATENCY_GOAL_S:g} s |",
-            "|---|---|---|---|---|---|---|---|---|---|",
+            f"| kept up | p95 under {LATENCY_GOAL_S:g} s | machine load (1 min, before → after) |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
             table,
             "",
             f"CPU share at one walker ({WALKER_NAMES[one.get('devices', 'all')]}): {pc(one['cpu_share_of_one_core'])} "
