@@ -14,8 +14,10 @@ both sides); the path grows by the final windows' velocities, integrated on from
 predicted again at each update as the path's provisional end. So each window is predicted once (one
 device) or about ``FRAME_LAG_S / (STEP_S)`` times (several), never the whole session again.
 
-With one device the preprocessing is local in time: each window sees the input it sees offline and
-the path is ``track``'s to round-off (the tests: 1e-6 m). With several, a final window's common frame
+With one device present the preprocessing is local in time (also for a model whose layout lists
+more, as PDR's lists all three: the common frame of one device is its own): each window sees the
+input it sees offline, is final ``LAG_S`` after it, and the path is ``track``'s to round-off (the
+tests: 1e-6 m). With several, a final window's common frame
 comes from ``CONTEXT_S`` before it to ``FRAME_LAG_S`` after it instead of the whole walk, so the path
 differs slightly from ``track``'s (measured in tests/test_live_tracker.py).
 
@@ -195,6 +197,7 @@ class LiveTracker:
         self.timings: list[float] = []  # seconds per update that changed something
         self._state: dict | None = None
         self._tail = (np.empty(0), np.empty((0, 2)))  # the provisional path after the final one: t, xy
+        self._multi = False  # the session has shown several of the model's devices (_several)
         self._seen_s = self._fused_s = -np.inf  # session time of the last update's data, of the last fusion
 
     # ---- setup -------------------------------------------------------------------------------
@@ -254,17 +257,18 @@ class LiveTracker:
         self._seen_s = covered
         pcfg = odometry_preprocess(self.cfg)
         rate, L = pcfg.rate, self.cfg.window
-        t_from = self.clock0 + max(0, self._next - self._context(pcfg)) / rate
+        g_a = max(0, self._next - self._context(pcfg))  # the first clock sample aligned
+        t_from = self.clock0 + g_a / rate
         # a second more than the clock needs: the interpolation's samples before its start
         rec = whole if whole is not None else buf.recording(t_from - 1.0)
         changed = self._take_fixes(rec)
         end = common_span(rec, pcfg.devices, pcfg.edge_tolerance)[1] if final else covered
         g_end = int(np.floor((end - self.clock0) * rate + 1e-9))  # the clock's last sample (align's clock())
         g_last = g_end if final else g_end - int(np.ceil(self.lag_s * rate))  # last sample a window may use
-        lag = 0.0 if final else max(self.lag_s, self.frame_lag_s if len(pcfg.devices) > 1 else 0.0)
+        lag = 0.0 if final else max(self.lag_s, self.frame_lag_s if self._several(rec, pcfg) else 0.0)
         step = Step(tic, final, rec, covered, changed, g_final=g_end - int(np.ceil(lag * rate)))
         if g_last - self._next + 1 >= L:
-            self._windows(step, pcfg, g_end, g_last)
+            self._windows(step, pcfg, g_a, g_end, g_last)
         return step
 
     def finish(self, step: Step, vel: np.ndarray | None) -> bool:
@@ -288,18 +292,25 @@ class LiveTracker:
             self.timings.append(time.perf_counter() - step.tic)
         return changed
 
+    def _several(self, rec, pcfg) -> bool:
+        """Whether the session has shown more than one of the model's devices so far (once it has,
+        for good). A model's layout may list more devices than the session has (PDR's lists all
+        three and reads the first present): with one present its common frame is that device's own,
+        so each window's input is local in time, as with a one-device model."""
+        self._multi = self._multi or len(set(rec.devices) & set(pcfg.devices)) > 1
+        return self._multi
+
     def _context(self, pcfg) -> int:
         """Clock samples aligned before the first window not yet final (``CONTEXT_S``;
-        ``ONE_DEVICE_CONTEXT_S`` at most for one device)."""
-        ctx = self.context_s if len(pcfg.devices) > 1 else min(self.context_s, ONE_DEVICE_CONTEXT_S)
+        ``ONE_DEVICE_CONTEXT_S`` at most while the session has shown one device: :meth:`_several`)."""
+        ctx = self.context_s if self._multi else min(self.context_s, ONE_DEVICE_CONTEXT_S)
         return int(round(ctx * pcfg.rate))
 
-    def _windows(self, step: Step, pcfg, g_end: int, g_last: int) -> None:
-        """Align the clock from the context to ``g_end`` and cut the windows inside ``g_last`` (as
-        :func:`wearnav.evaluate.predict_sequence` cuts them) into ``step``."""
+    def _windows(self, step: Step, pcfg, g_a: int, g_end: int, g_last: int) -> None:
+        """Align the clock from ``g_a`` (the context) to ``g_end`` and cut the windows inside
+        ``g_last`` (as :func:`wearnav.evaluate.predict_sequence` cuts them) into ``step``."""
         assert self.clock0 is not None and self.cfg is not None  # set by _start
         rate, L, S = pcfg.rate, self.cfg.window, self.cfg.stride
-        g_a = max(0, self._next - self._context(pcfg))
         clock = self.clock0 + np.arange(g_a, g_end + 1) / rate  # align's clock(): t0 + k / rate
         seq = align(step.rec, pcfg, clock)
         part = slice(self._next - g_a, g_last - g_a + 1)
