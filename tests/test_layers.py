@@ -91,6 +91,8 @@ LAYERS: dict[str, int] = {
     "wearnav.track_files": 8,  # the names track writes, read by the CLI before torch is imported
     # 9 wearnav live: the receiver; its tracker runs track's steps as data arrives
     "wearnav.live": 9,
+    "wearnav.live.crowd": 9,  # every session's tracker in batched ticks: imports live.tracker
+    "wearnav.live.trackers": 9,  # tracker processes beside a receiver: live.crowd, live.store, bench.executor
     # 10 the command line
     "wearnav.cli": 10,
     "wearnav.cli_bench": 10,

@@ -213,9 +213,10 @@ class SlowTracker:
         }
 
 
-def test_tracker_runs_after_acks_one_thread_per_session_coalesced(tmp_path):
+def test_tracker_runs_after_acks_coalesced(tmp_path):
     """Ten pushes while the tracker is busy make it run once more, not ten times; never two
-    updates of one session at once; the state merges the tracker's with the server's fields."""
+    updates of one session at once (one crowd thread updates every session); the state merges
+    the tracker's with the server's fields."""
     trackers = []
 
     def factory():
@@ -229,20 +230,22 @@ def test_tracker_runs_after_acks_one_thread_per_session_coalesced(tmp_path):
     rx.accept(enc(body(sessionId="other")), "ios", False)
     deadline = time.monotonic() + 5
 
+    sessions = rx.crowd.sessions
+
     def done():  # the last update saw all ten messages and has finished
-        t = rx.workers["s-1"].tracker
-        return t is not None and t.seen and t.seen[-1] == 10 and len(rx.workers["s-1"].latency_s) == len(t.seen)
+        t = sessions["s-1"].tracker
+        return t is not None and t.seen and t.seen[-1] == 10 and len(sessions["s-1"].latency_s) == len(t.seen)
 
     while not done() and time.monotonic() < deadline:
         time.sleep(0.05)
-    t = rx.workers["s-1"].tracker
-    assert len(trackers) == 2 and rx.workers["other"].tracker is not None and not t.overlap
+    t = sessions["s-1"].tracker
+    assert len(trackers) == 2 and sessions["other"].tracker is not None and not t.overlap
     assert t.seen[-1] == 10 and len(t.seen) <= 3  # coalesced: the last update saw every message
     st = rx.state("s-1")
     assert st["session"] == "s-1" and st["messages"] == 10 and st["path"] == [[0.0, 0.0, 0.0, None]]
     assert set(st["devices"]["phone"]) == {"rate_hz", "last_seen_unix_s", "samples", "stopped"}
     assert not st["devices"]["phone"]["stopped"]
-    assert len(rx.workers["s-1"].latency_s) == len(t.seen)
+    assert len(sessions["s-1"].latency_s) == len(t.seen)
 
 
 def test_a_tracker_that_cannot_start_is_a_warning_not_a_failed_push(tmp_path):
@@ -251,7 +254,9 @@ def test_a_tracker_that_cannot_start_is_a_warning_not_a_failed_push(tmp_path):
 
     rx = Receiver(Store(tmp_path / "live.db"), None, 1 << 20, 1000.0, factory, "ios", False, 120, 7 * DAY)
     assert rx.accept(enc(body()), "ios", False) == "s-1"
-    rx.workers["s-1"].thread.join(5)
+    deadline = time.monotonic() + 5
+    while rx.crowd.state("s-1") is None and time.monotonic() < deadline:
+        time.sleep(0.05)
     st = rx.state("s-1")
     assert st["messages"] == 1 and st["path"] == []
     assert any("could not start" in w and "no shipped model" in w for w in st["warnings"])
@@ -354,8 +359,8 @@ def test_update_latency_runs_from_the_oldest_ack_to_the_update_that_changed_the_
     for k in range(3):
         rx.accept(enc(body(messageId=k)), "ios", False)
         deadline = time.monotonic() + 5
-        while len(getattr(rx.workers["s-1"].tracker, "seen", [])) < k + 1 and time.monotonic() < deadline:
+        while len(getattr(rx.crowd.sessions["s-1"].tracker, "seen", [])) < k + 1 and time.monotonic() < deadline:
             time.sleep(0.01)
         time.sleep(0.1)
-    lat = rx.workers["s-1"].latency_s
+    lat = rx.crowd.sessions["s-1"].latency_s
     assert len(lat) == 1 and lat[0] >= 0.2 and lat[0] <= time.perf_counter() - t0  # from the first push's ack

@@ -241,11 +241,11 @@ def test_sigkill_mid_replay_loses_nothing(tmp_path, export60, imported):
 
 
 def test_a_session_quiet_for_a_while_is_made_final_once(monkeypatch):
-    """The worker makes the tracker's last windows final (``update(final=True)``) once no push has
+    """The crowd makes a tracker's last windows final (``update(final=True)``) once no push has
     come for ``SESSION_END_S``, once only; a push after it tracks on as before."""
-    from wearnav.live import app as live_app
+    from wearnav.live import crowd as live_crowd
 
-    monkeypatch.setattr(live_app, "SESSION_END_S", 0.3)
+    monkeypatch.setattr(live_crowd, "SESSION_END_S", 0.3)
     calls = []
 
     class Tracker:
@@ -259,16 +259,19 @@ def test_a_session_quiet_for_a_while_is_made_final_once(monkeypatch):
     class Buf:
         session_id = "s"
 
-    worker = live_app.SessionWorker(Buf(), Tracker)
-    worker.poke()
-    deadline = time.monotonic() + 5.0
-    while calls.count(True) < 1 and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert calls[:2] == [False, True]
-    time.sleep(1.0)
-    assert calls.count(True) == 1  # quiet on: not again
-    worker.poke()
-    deadline = time.monotonic() + 5.0
-    while calls.count(True) < 2 and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert calls == [False, True, False, True]
+    crowd = live_crowd.Crowd(Tracker)
+    try:
+        crowd.poke("s", Buf())
+        deadline = time.monotonic() + 5.0
+        while calls.count(True) < 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert calls[:2] == [False, True]
+        time.sleep(1.0)
+        assert calls.count(True) == 1  # quiet on: not again
+        crowd.poke("s", Buf())
+        deadline = time.monotonic() + 5.0
+        while calls.count(True) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert calls == [False, True, False, True]
+    finally:
+        crowd.stop()

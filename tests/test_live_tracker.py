@@ -16,6 +16,7 @@ import pytest
 
 from wearnav import geo
 from wearnav.importers.sensorlogger_export import ORIGIN, T0_NS, simulated_export, time_origin
+from wearnav.live.bench import walker_export
 from wearnav.live.buffer import SessionBuffer
 from wearnav.live.replay import build
 from wearnav.live.tracker import LiveTracker
@@ -86,6 +87,33 @@ def test_phone_model_live_odometry_is_tracks_to_round_off(short_export):
     dev = np.linalg.norm(fused - table[["east", "north"]].to_numpy(), axis=1)
     print(f"phone model, fused live vs track: max {dev.max():.4f} m, p95 {np.percentile(dev, 95):.4f} m ({anchor})")
     assert anchor == "smooth-fixed-lag" and dev.max() < 0.01
+
+
+def test_pdr_on_a_phone_only_session_is_tracks_to_round_off(short_export):
+    """The default model of a phone-only session is PDR, whose layout lists all three devices: with
+    only the phone present the common frame is the phone's own, so windows are final 1 s after them
+    and aligned with ONE_DEVICE_CONTEXT_S, as for a one-device model (issue 37: it had waited
+    FRAME_LAG_S, re-predicting a minute of windows at every update); the live odometry is still
+    track's to round-off and the fused path within 1 cm of track's."""
+    phone = walker_export(short_export / "export", "phone")
+    tr = LiveTracker(activity_model=None)
+    run = replay_into(tr, phone)
+    assert str(tr.model_path) == "pdr" and len(tr.cfg.devices) == 3 and not tr._multi
+    track(phone, None, short_export / "track_pdr")
+    table = pd.read_csv(short_export / "track_pdr" / "trajectory.csv")
+    t, xy = np.asarray(tr.odo.t), np.asarray(tr.odo.xy)
+    *_, t_off, xy_off = odometry(tr.model, tr.cfg, run["buf"].recording())
+    assert np.array_equal(t, t_off) and len(t) == len(table)
+    gap = np.linalg.norm(xy - xy_off, axis=1)
+    _, fused, _, anchor = tr.path()
+    dev = np.linalg.norm(fused - table[["east", "north"]].to_numpy(), axis=1)
+    busy = np.asarray(tr.timings) * 1e3
+    print(
+        f"\nPDR, phone only: live vs offline odometry max {gap.max():.2e} m; fused vs track max {dev.max():.4f} m "
+        f"({anchor}); updates p50 {np.median(busy):.0f} ms, p95 {np.percentile(busy, 95):.0f} ms; "
+        f"CPU {run['cpu_s'] / float(t[-1] - t[0]):.3f} s per s of walk"
+    )
+    assert gap.max() < 1e-4 and anchor == "smooth-fixed-lag" and dev.max() < 0.01
 
 
 def truth_on(run: dict, t: np.ndarray) -> np.ndarray:

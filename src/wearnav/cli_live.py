@@ -37,9 +37,11 @@ def _lan_address() -> str:
 
 
 def _tracker_factory(model: Path | None):
-    from wearnav.live.tracker import LiveTracker
+    """Trackers sharing one set of models (loaded once, on CUDA where there is one)."""
+    from wearnav.live.tracker import LiveTracker, SharedModels
 
-    return lambda: LiveTracker(model=model)
+    models = SharedModels()
+    return lambda: LiveTracker(model=model, models=models)
 
 
 def _needs_live_extra() -> None:
@@ -89,6 +91,14 @@ def live(
     mqtt: str | None = typer.Option(
         None, "--mqtt", help="Also subscribe to ws://broker:port/topic (Sensor Logger's MQTT publishing)."
     ),
+    executor: str = typer.Option(
+        "local",
+        "--executor",
+        help="Where sessions are tracked: local (in this process) or ray (--trackers processes on a Ray cluster, "
+        "sharing --store; this process only stores and serves).",
+    ),
+    address: str | None = typer.Option(None, "--address", help="The Ray cluster (as ray.init's; --executor ray)."),
+    trackers: int = typer.Option(2, "--trackers", min=1, help="Tracker processes to place (--executor ray)."),
 ):
     """Receive Sensor Logger's HTTP Push: every message stored before its 200, a live path on a page.
 
@@ -115,7 +125,11 @@ def live(
     made = False
     if token is None and (require_token or host not in LOCAL_HOSTS):
         token, made = secrets.token_urlsafe(18), True
-    factory = None if no_track else _tracker_factory(model)
+    if executor not in ("local", "ray"):
+        raise typer.BadParameter("--executor: local or ray")
+    if address is not None and executor != "ray":
+        raise ConfigError("--address is for --executor ray only")
+    factory = None if no_track or executor == "ray" else _tracker_factory(model)
     app = create_app(
         store,
         token=token,
@@ -129,6 +143,12 @@ def live(
         from wearnav.live.mqtt import subscribe
 
         subscribe(mqtt, app.state.receiver)
+    placed: list = []
+    if executor == "ray" and not no_track:
+        from wearnav.live.trackers import place_on_ray
+
+        placed = place_on_ray(store, trackers, model, address)
+        typer.echo(f"{trackers} tracker processes placed on Ray (sharing {store})")
     shown = _lan_address() if host in ("0.0.0.0", "::") else host
     query = "" if token is None else (f"?token={token}" if made else "?token=<your token>")
     typer.echo(f"push URL (Sensor Logger > HTTP Push): http://{shown}:{port}/push{query}")
@@ -148,6 +168,11 @@ def live(
     finally:
         for s, handler in noted.items():
             signal.signal(s, handler)
+        if placed:
+            import ray
+
+            for ref in placed:
+                ray.cancel(ref, force=True)
     if stopped:
         n = len(app.state.receiver.store.sessions())
         typer.echo(
@@ -155,6 +180,56 @@ def live(
             "(`wearnav live` resumes them)",
             err=True,
         )
+
+
+@live_app.command("track")
+def live_track(
+    store: Path = typer.Option(Path("runs/live/live.db"), "--store", help="The receiver's SQLite session store."),
+    shard: str = typer.Option("0/1", "--shard", help="i/n: track the sessions of shard i of n (a hash of the id)."),
+    model: Path | None = typer.Option(None, "--model", help="Odometry model (as for `wearnav track`)."),
+    executor: str = typer.Option(
+        "local", "--executor", help="local (this process tracks --shard) or ray (--trackers processes on Ray)."
+    ),
+    address: str | None = typer.Option(None, "--address", help="The Ray cluster (as ray.init's; --executor ray)."),
+    trackers: int = typer.Option(2, "--trackers", min=1, help="Tracker processes to place (--executor ray)."),
+    stats: Path | None = typer.Option(
+        None, "--stats", help="Write what this tracker did (sessions, update latency) to this JSON file, every second."
+    ),
+):
+    """Track the sessions a receiver stores, in a process of its own (the receiver runs --no-track).
+
+    \b
+    Example (two trackers beside one receiver):
+      wearnav live --no-track --store runs/live/live.db &
+      wearnav live track --store runs/live/live.db --shard 0/2 &
+      wearnav live track --store runs/live/live.db --shard 1/2
+    """
+    from wearnav.live.trackers import parse_shard, place_on_ray, run_tracker
+
+    if executor not in ("local", "ray"):
+        raise typer.BadParameter("--executor: local or ray")
+    if address is not None and executor != "ray":
+        raise ConfigError("--address is for --executor ray only")
+    if not store.is_file():
+        raise ConfigError(f"no session store at {store} (start `wearnav live --no-track --store {store}` first)")
+    on_interrupt("tracker stopped; the store keeps every session (a tracker started again resumes them)")
+    if executor == "local":
+        run_tracker(
+            str(store),
+            parse_shard(shard),
+            None if model is None else str(model),
+            stats=None if stats is None else str(stats),
+        )
+        return
+    import ray
+
+    refs = place_on_ray(store, trackers, model, address)
+    typer.echo(f"{trackers} tracker processes placed on Ray (sharing {store}); Ctrl-C stops them")
+    try:
+        ray.get(refs)
+    finally:
+        for ref in refs:
+            ray.cancel(ref, force=True)
 
 
 @live_app.command("export")
@@ -183,8 +258,16 @@ def live_bench(
     speed: float = typer.Option(10.0, min=1.0, help="Replay speed of the load phase (× real time)."),
     cpu_s: float = typer.Option(30.0, "--cpu-s", min=2.0, help="Seconds of each real-time walkers phase."),
     walkers: str = typer.Option("1,2,4,8", help="Walkers (sessions at once, real time) to try, comma-separated."),
+    devices: str = typer.Option(
+        "all",
+        "--devices",
+        help="Walkers' devices, comma-separated: phone (phone-only walkers, PDR) and/or all (phone, watch, earbuds).",
+    ),
     track: bool = typer.Option(
         True, "--track/--no-track", help="Run the live tracker in the CPU phase (where this installation has one)."
+    ),
+    trackers: int = typer.Option(
+        0, "--trackers", min=0, help="Track in this many `wearnav live track` processes beside the receiver (0: in it)."
     ),
 ):
     """Load the receiver (3 devices × 100 Hz at SPEED× for DURATION s) and measure ack latency,
@@ -200,8 +283,24 @@ def live_bench(
         counts = tuple(int(x) for x in split_list(walkers))
     except ValueError:
         raise typer.BadParameter("--walkers: whole numbers, comma-separated") from None
+    kinds = tuple(split_list(devices))
+    if not kinds or set(kinds) - {"phone", "all"}:
+        raise typer.BadParameter("--devices: phone and/or all, comma-separated")
     check_suite_folder(out, "live bench")
-    typer.echo(str(run_bench(out, duration_s=duration, speed=speed, cpu_s=cpu_s, track=track, walkers=counts)))
+    typer.echo(
+        str(
+            run_bench(
+                out,
+                duration_s=duration,
+                speed=speed,
+                cpu_s=cpu_s,
+                track=track,
+                walkers=counts,
+                devices=kinds,
+                trackers=trackers,
+            )
+        )
+    )
 
 
 def replay(

@@ -19,11 +19,12 @@ with a 4xx: 401, 413 (body over ``max_body``), 429 (over ``rate_limit`` messages
 client, bursts of twice that), 400 / 422 (:mod:`wearnav.live.push`). The token is never logged:
 uvicorn's access log is off and this module logs paths without their query.
 
-Tracking: one worker thread per session runs ``tracker.update(buffer)`` once a push's 200 has
-been sent; pushes arriving while it runs make it run once more when done (coalesced). A session
-without a push for ``SESSION_END_S`` has ended: its worker runs ``update(buffer, final=True)``
-once, so the path's provisional end becomes final, as ``track`` would give it. The
-tracker comes from ``tracker_factory`` (None: no tracking, ``wearnav live --no-track``).
+Tracking: one :class:`wearnav.live.crowd.Crowd` updates every session's tracker in ticks, the
+model run once per tick for all of them; a session is poked once its push's 200 has been sent.
+A session without a push for ``wearnav.live.crowd.SESSION_END_S`` has ended: its path's
+provisional end is made final once, as ``track`` would give it. The trackers come from
+``tracker_factory`` (None: no tracking here, ``wearnav live --no-track``; the page's state then
+comes from the store, where tracker processes write it: ``wearnav live track``).
 
 A session's platform and standardisation (which the app does not push) come from the push URL's
 query (``?platform=android&standardisation=true``), else from ``wearnav live --platform``, else
@@ -52,8 +53,9 @@ from starlette.staticfiles import StaticFiles
 
 from wearnav.importers.sensorlogger_map import PLATFORMS
 from wearnav.live.buffer import AUTO, SessionBuffer
+from wearnav.live.crowd import Crowd
 from wearnav.live.push import BadPush, check_id, parse
-from wearnav.live.store import Store
+from wearnav.live.store import GroupCommit, Store
 
 log = logging.getLogger("wearnav.live")
 STATIC = Path(__file__).parent / "static"
@@ -65,7 +67,6 @@ RATE_LIMIT = 100.0  # messages per second per client (burst: twice that)
 MAX_FUTURE_S = 120.0  # sample times this far ahead of the server's clock are refused
 MAX_AGE_S = 7 * 86400.0  # ... and this far behind it
 STOPPED_S = 5.0  # a device silent this long is shown as stopped
-SESSION_END_S = 30.0  # a session without a push this long has ended: its last windows made final
 EVENT_PERIOD_S = 0.25  # /events sends at most 4 states a second
 KEEPALIVE_S = 15.0
 
@@ -90,78 +91,14 @@ class RateLimiter:
         return ok
 
 
-class SessionWorker:
-    """One thread running the session's tracker: ``poke`` after each acknowledged push, and a final
-    update once the session has been quiet for ``SESSION_END_S``. The tracker is made in that
-    thread (loading a model must not hold up a 200); one that cannot be made, or fails, is a
-    warning on the page, never a failed push."""
-
-    def __init__(self, buf: SessionBuffer, tracker_factory: Callable[[], Any]):
-        self.buf = buf
-        self.tracker: Any = None  # a LiveTracker, or what tracker_factory makes (tests: a stand-in)
-        self.error: str | None = None
-        self.latency_s: list[float] = []  # the oldest ack not yet on the page → the update that put it there
-        self._factory = tracker_factory
-        self._event = threading.Event()
-        self._pending_since: float | None = None
-        self._lock = threading.Lock()
-        self.thread = threading.Thread(target=self._run, name=f"track-{buf.session_id}", daemon=True)
-        self.thread.start()
-
-    def poke(self) -> None:
-        with self._lock:
-            if self._pending_since is None:
-                self._pending_since = time.perf_counter()
-        self._event.set()
-
-    def _run(self) -> None:
-        try:
-            self.tracker = self._factory()
-        except Exception as exc:
-            self.error = f"live tracking could not start: {type(exc).__name__}: {exc}"
-            log.warning("session %s: %s", self.buf.session_id, self.error)
-            return
-        ended = False
-        while True:
-            if not self._event.wait(timeout=None if ended else SESSION_END_S):
-                ended = True  # quiet for SESSION_END_S: make the last windows final, once
-                self._update(final=True)
-                continue
-            ended = False
-            self._event.clear()
-            with self._lock:
-                since, self._pending_since = self._pending_since, None
-            changed = self._update()
-            if since is None:
-                continue
-            if changed:  # the page's path now holds every push acknowledged since ``since``
-                self.latency_s.append(time.perf_counter() - since)
-                del self.latency_s[:-10_000]
-            else:  # nothing new on the page yet (the tracker waits for more): still pending
-                with self._lock:
-                    self._pending_since = since if self._pending_since is None else min(since, self._pending_since)
-
-    def _update(self, final: bool = False) -> bool:
-        """One tracker update; a failure is shown on the page and the next push tries again."""
-        changed = False
-        try:
-            changed = bool(self.tracker.update(self.buf, final=final))
-            self.error = None
-        except Exception as exc:
-            self.error = f"live tracking failed: {type(exc).__name__}: {exc}"
-            log.warning("session %s: %s", self.buf.session_id, self.error)
-        return changed
-
-    def state(self) -> dict:
-        st = dict(self.tracker.state()) if self.tracker is not None else untracked_state(self.buf, "starting")
-        if self.error:
-            st["warnings"] = [*st.get("warnings", []), self.error]
-        return st
-
-
 def untracked_state(buf: SessionBuffer, why: str = "off") -> dict:
     """The state without a tracker: ``why`` "off" (``--no-track``) or "starting"."""
-    note = "tracking is off (wearnav live --no-track)" if why == "off" else "live tracking is starting"
+    note = (
+        "tracking is off here (wearnav live --no-track); a tracker process (wearnav live track) puts the path "
+        "in the store"
+        if why == "off"
+        else "live tracking is starting"
+    )
     return {
         "origin": None,
         "path": [],
@@ -194,10 +131,10 @@ class Receiver:
         self.platform, self.standardised = platform, standardised
         self.max_future_s, self.max_age_s = max_future_s, max_age_s
         self.buffers: dict[str, SessionBuffer] = {}
-        self.workers: dict[str, SessionWorker] = {}
-        self._workers_lock = threading.Lock()
+        self.crowd = Crowd(tracker_factory) if tracker_factory is not None else None
         self.counts: dict[str, Any] = {"accepted": 0, "repeats": 0, "refused": {}}
         self._lock = threading.Lock()  # store + buffer in one order
+        self.commits = GroupCommit(self._flush)
         for sid in store.sessions():  # resumed: what a restart finds in the store
             self.buffers[sid] = SessionBuffer.from_store(store, sid)
             self.poke(sid)
@@ -208,12 +145,8 @@ class Receiver:
         return self.buffers[sid]
 
     def poke(self, sid: str) -> None:
-        if self.tracker_factory is None:
-            return
-        with self._workers_lock:
-            if sid not in self.workers:
-                self.workers[sid] = SessionWorker(self.buffers[sid], self.tracker_factory)
-        self.workers[sid].poke()
+        if self.crowd is not None:
+            self.crowd.poke(sid, self.buffers[sid])
 
     def settings(self, request: Request) -> tuple[str, bool]:
         """The session's platform and standardisation: the push URL's ``?platform=`` /
@@ -222,25 +155,35 @@ class Receiver:
 
     def accept(self, body: bytes, platform: str, standardised: bool, track: bool = True) -> str | None:
         """Parse, store (committed), buffer: the session id when new, None for a repeat. Runs in
-        a worker thread. ``track`` False leaves waking the tracker to the caller (:meth:`poke`),
-        which the HTTP route does once its 200 is sent."""
+        a worker thread; messages arriving together are committed together (the store's group
+        commit), each on disk before this returns. ``track`` False leaves waking the tracker to the
+        caller (:meth:`poke`), which the HTTP route does once its 200 is sent."""
         push = parse(body, time.time_ns(), self.max_future_s, self.max_age_s)
-        with self._lock:
-            new = self.store.add(
-                push.session_id, push.device_id, push.message_id, body.decode("utf-8"), platform, standardised
-            )
-            if new:
-                # a session's settings are its first message's (the store keeps those)
-                self._buffer(push.session_id, platform, standardised).add(push.payload)
-            self.counts["accepted" if new else "repeats"] += 1
+        new = self.commits.submit((push, body.decode("utf-8"), platform, standardised))
         if new and track:
             self.poke(push.session_id)
         return push.session_id if new else None
 
+    def _flush(self, items: list) -> list[bool]:
+        """One transaction for ``items`` (push, body, platform, standardised), then their payloads
+        into the buffers in the same order (a session's settings are its first message's)."""
+        with self._lock:
+            new = self.store.add_many([(p.session_id, p.device_id, p.message_id, b, pl, st) for p, b, pl, st in items])
+            for (p, _, pl, st), fresh in zip(items, new):
+                if fresh:
+                    self._buffer(p.session_id, pl, st).add(p.payload)
+                self.counts["accepted" if fresh else "repeats"] += 1
+        return new
+
     def state(self, sid: str) -> dict:
         buf = self.buffers[sid]
-        worker = self.workers.get(sid)
-        st = worker.state() if worker is not None else untracked_state(buf)
+        if self.crowd is not None:
+            st = self.crowd.state(sid) or {}
+            if "path" not in st:  # no tracker yet, or it could not be made: its error stays a warning
+                base = untracked_state(buf, "starting")
+                st = {**base, "warnings": base["warnings"] + st.get("warnings", [])}
+        else:
+            st = self.store.state(sid) or untracked_state(buf)
         now = time.time()
         devices = {d: {**v, "stopped": now - v["last_seen_unix_s"] > STOPPED_S} for d, v in buf.devices().items()}
         return {**st, "session": sid, "devices": devices, "messages": buf.messages}
@@ -396,12 +339,13 @@ def create_app(
     async def stats(request: Request) -> Response:
         if not authorized(request):
             return refuse(request, 401, "a valid token is required")
-        lat = {sid: w.latency_s[-1000:] for sid, w in rx.workers.items()}
+        lat = rx.crowd.latency_s() if rx.crowd is not None else {}
         return JSONResponse(
             {
                 **rx.counts,
                 "sessions": len(rx.buffers),
                 "tracking": rx.tracker_factory is not None,
+                "commits": {"transactions": rx.commits.batches, "messages": rx.commits.items},
                 "update_latency_s": lat,
             }
         )

@@ -26,8 +26,10 @@ docs/results.md).
 
 from __future__ import annotations
 
+import http.client
 import importlib.util
 import json
+import logging
 import os
 import platform
 import shutil
@@ -36,23 +38,31 @@ import threading
 import time
 from dataclasses import replace
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import httpx
 import numpy as np
 
+from wearnav.errors import ConfigError
 from wearnav.fileio import write_text_atomic
 from wearnav.importers import sensorlogger
 from wearnav.importers.sensorlogger_build import build_recording
 from wearnav.importers.sensorlogger_export import simulated_export
-from wearnav.importers.sensorlogger_map import Table
+from wearnav.importers.sensorlogger_map import DEVICE_FILES, Table
 from wearnav.live import replay
 from wearnav.live.badinputs import body, catalogue, enc
 from wearnav.live.export import export_session
-from wearnav.live.process import LiveServer
+from wearnav.live.process import LiveServer, cpu_s, start_tracker
 from wearnav.live.tracker import STEP_S
+from wearnav.live.trackers import STATS_EVERY_S
 from wearnav.provenance import provenance
 
+log = logging.getLogger(__name__)
+
 BATCH_S = 0.2
+# The walkers a walkers phase replays: phone-only (the default model is then PDR, wearnav.pretrained's
+# PHONE_ONLY_WHY) or phone, watch and earbuds (the shipped three-device model).
+WALKER_DEVICES = {"phone": ("phone",), "all": ("phone", "watch", "earbuds")}
 LATENCY_GOAL_S = 1.0  # issue 23: a push's 200 → the updated path, p95
 # Keeping up with real time: the path trails the pushes by a bounded time, not a growing one. The
 # tracker reads the buffer once per STEP_S of new data (live/tracker.py), so even an idle server
@@ -134,31 +144,135 @@ def load_phase(work: Path, export: Path, duration_s: float, speed: float) -> dic
     }
 
 
-def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track: bool) -> dict:
-    """``walkers`` sessions replayed at once at real time into one server (with the live tracker
-    where there is one): its CPU share, ack latency, tracker update latency, and whether it kept up."""
+def send_lean(url: str, bodies: list[bytes], due_s: list[float], t_start: float) -> replay.Result:
+    """One walker's messages (``bodies``, encoded beforehand) each at ``t_start + due_s`` (perf_counter
+    s) over one keep-alive connection, as :func:`wearnav.live.replay.send` sends them but with
+    little of the sender's own CPU (``http.client``, no encoding on the way): on this 2-core machine
+    a hundred httpx senders used more of it than the server measured. A failed request is retried
+    on a new connection every 0.1 s, for at most 60 s."""
+    parts = urlsplit(url)
+    target = f"{parts.path}?{parts.query}" if parts.query else parts.path
+    headers = {"content-type": "application/json"}
+    res = replay.Result()
+
+    def connect() -> http.client.HTTPConnection:
+        return http.client.HTTPConnection(parts.hostname or "127.0.0.1", parts.port, timeout=10.0)
+
+    conn = connect()
+    for k, (raw, due) in enumerate(zip(bodies, due_s)):
+        wait = t_start + due - time.perf_counter()
+        if wait > 0:
+            time.sleep(wait)
+        res.late_s = max(0.0, -wait)
+        give_up = time.perf_counter() + 60.0
+        while True:
+            t0 = time.perf_counter()
+            status: int | None
+            try:
+                conn.request("POST", target, raw, headers)
+                answer = conn.getresponse()
+                text = answer.read()
+                status = answer.status
+            except (OSError, http.client.HTTPException):
+                conn.close()
+                conn, status, text = connect(), None, b""
+            res.sent += 1
+            if status == 200:
+                res.ack_latency_s.append(time.perf_counter() - t0)
+                res.acknowledged.append(k)
+                break
+            if status is not None and status < 500 and status != 429:
+                raise ConfigError(f"the receiver refused message {k}: {status} {text[:200]!r}")
+            if time.perf_counter() > give_up:
+                raise ConfigError(f"no answer from {url} for 60 s (message {k})")
+            res.retries += 1
+            time.sleep(0.1)
+    conn.close()
+    res.wall_s = time.perf_counter() - t_start
+    return res
+
+
+def walker_export(export: Path, devices: str) -> Path:
+    """The export a walker of ``devices`` (a key of :data:`WALKER_DEVICES`) replays: ``export``
+    itself, or beside it a copy without the wearables' files (phone-only)."""
+    if devices == "all":
+        return export
+    if devices not in WALKER_DEVICES:
+        raise ConfigError(f"walker devices {devices!r}: one of {', '.join(WALKER_DEVICES)}")
+    folder = export.with_name(f"{export.name}-{devices}")
+    if not (folder / "Metadata.csv").is_file():
+        if folder.exists():
+            shutil.rmtree(folder)
+        shutil.copytree(export, folder, ignore=shutil.ignore_patterns(*DEVICE_FILES.values()))
+    return folder
+
+
+def walkers_phase(
+    work: Path, export: Path, walkers: int, seconds: float, track: bool, devices: str = "all", trackers: int = 0
+) -> dict:
+    """``walkers`` sessions of ``devices`` (:data:`WALKER_DEVICES`) replayed at once at real time into
+    one server (with the live tracker where there is one; ``trackers`` > 0: the server stores only and
+    that many ``wearnav live track`` processes track, sharing its store): the CPU share of the server
+    (and trackers), ack latency, tracker update latency, and whether it kept up."""
     tracking = track and importlib.util.find_spec("wearnav.live.tracker") is not None
-    base = replay.build(export, batch_s=BATCH_S, session_id="walker-0")
+    base = replay.build(walker_export(export, devices), batch_s=BATCH_S, session_id="walker-0")
     n = min(len(base.messages), int(round(seconds / BATCH_S)))
     plays = [
         replace(base, session_id=f"walker-{i}", messages=[{**m, "sessionId": f"walker-{i}"} for m in base.messages[:n]])
         for i in range(walkers)
     ]
+    load_before = os.getloadavg()[0]  # the machine is shared: its load beside every figure
+    bodies = [[json.dumps({k: v for k, v in m.items() if k[0] != "_"}).encode() for m in rp.messages] for rp in plays]
+    due = [m["_due_s"] for m in base.messages[:n]]
     results: list = [None] * walkers
-    with LiveServer(work / f"walkers-{walkers}.db", *([] if tracking else ["--no-track"])) as srv:
-        time.sleep(1.0)  # start-up work done
-        c0, w0 = srv.cpu_s(), time.perf_counter()
-        threads = [
-            threading.Thread(target=lambda i=i: results.__setitem__(i, replay.send(plays[i], f"{srv.url}/push")))
-            for i in range(walkers)
-        ]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
-        c1, w1 = srv.cpu_s(), time.perf_counter()
-        time.sleep(1.0)  # the trackers' last updates
-        stats = httpx.get(f"{srv.url}/stats").json()
+    # every walker pushes from 127.0.0.1 here, where real ones have an address each: the per-client
+    # rate limit is raised to ten times what they send together (else it caps them at 100 messages a second)
+    limit = ["--rate-limit", f"{max(100.0, 10 * walkers / BATCH_S):g}"]
+    db = work / f"walkers-{devices}-{walkers}{f'-t{trackers}' if trackers else ''}.db"
+    for old in work.glob(f"{db.name}*"):
+        old.unlink()
+    procs: list = []
+    stats_files = [db.with_suffix(f".tracker{i}.json") for i in range(trackers if tracking else 0)]
+    for f in stats_files:
+        f.unlink(missing_ok=True)
+    with LiveServer(db, *limit, *([] if tracking and not trackers else ["--no-track"])) as srv:
+        procs = [start_tracker(db, (i, len(stats_files)), f, f.with_suffix(".log")) for i, f in enumerate(stats_files)]
+        try:
+            deadline = time.monotonic() + 60.0
+            while not all(f.is_file() for f in stats_files) and time.monotonic() < deadline:
+                time.sleep(0.2)  # the trackers have started (torch imported)
+            time.sleep(1.0)  # start-up work done
+
+            def used() -> float | None:
+                parts = [srv.cpu_s(), *(cpu_s(p.pid) for p in procs)]
+                return None if any(c is None for c in parts) else sum(c for c in parts if c is not None)
+
+            c0, w0 = used(), time.perf_counter()
+            url = replay.push_url(f"{srv.url}/push", base)
+            # the walkers' pushes spread over one batch period, as walkers who did not start together
+            threads = [
+                threading.Thread(
+                    target=lambda i=i: results.__setitem__(
+                        i, send_lean(url, bodies[i], due, w0 + i * BATCH_S / walkers)
+                    )
+                )
+                for i in range(walkers)
+            ]
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+            c1, w1 = used(), time.perf_counter()
+            time.sleep(1.0 + (2 * STATS_EVERY_S if procs else 0.0))  # the last updates (and the trackers' summaries)
+            stats = httpx.get(f"{srv.url}/stats").json()
+        finally:
+            for p in procs:
+                p.terminate()
+                p.wait(10)
+    if stats_files:
+        stats = {"update_latency_s": {}}
+        for f in stats_files:
+            stats["update_latency_s"].update(json.loads(f.read_text())["update_latency_s"])
     acks = [x for r in results if r is not None for x in r.ack_latency_s]
     upd = [x for v in stats.get("update_latency_s", {}).values() for x in v]
     behind = max((r.late_s for r in results if r is not None), default=float("inf"))
@@ -167,6 +281,9 @@ def walkers_phase(work: Path, export: Path, walkers: int, seconds: float, track:
     kept_up = complete and behind < 1.0 and (not tracking or (upd_p95 is not None and upd_p95 < 1e3 * KEPT_UP_UPDATE_S))
     return {
         "walkers": walkers,
+        "devices": devices,
+        "tracker_processes": len(stats_files),
+        "load_1min": [round(load_before, 2), round(os.getloadavg()[0], 2)],
         "seconds": round(w1 - w0, 1),
         "messages": n * walkers,
         "tracking": tracking,
@@ -293,7 +410,15 @@ def run_bench(
     walkers: tuple[int, ...] = (1, 2, 4, 8),
     fuzz: int = 200,
     seed: int = 0,
+    devices: tuple[str, ...] = ("all",),
+    trackers: int = 0,
 ) -> Path:
+    """Every phase (module docstring) into ``out``; the walkers phase once per kind of walker in
+    ``devices`` (keys of :data:`WALKER_DEVICES`), each up to the first count that does not keep up;
+    ``trackers`` > 0: tracked by that many ``wearnav live track`` processes beside a storing receiver."""
+    for d in devices:
+        if d not in WALKER_DEVICES:
+            raise ConfigError(f"--devices {d!r}: one of {', '.join(WALKER_DEVICES)}")
     out = Path(out)
     work = out / "work"
     for db in work.glob("*.db*"):
@@ -305,10 +430,12 @@ def run_bench(
         if (work / folder).exists():
             shutil.rmtree(work / folder)
     rows = []
-    for k in sorted(set(walkers) | {1}):
-        rows.append(walkers_phase(work, export, k, cpu_s, track))
-        if not rows[-1]["kept_up"]:
-            break  # more walkers will not keep up either
+    for kind in devices:
+        for k in sorted(set(walkers) | {1}):
+            rows.append(walkers_phase(work, export, k, cpu_s, track, kind, trackers))
+            log.info("%s", {key: rows[-1][key] for key in ("walkers", "devices", "kept_up", "update_ms")})
+            if not rows[-1]["kept_up"]:
+                break  # more walkers will not keep up either
     result = {
         "load": load_phase(work, export, duration_s, speed),
         "walkers": rows,
@@ -319,6 +446,30 @@ def run_bench(
     }
     write_text_atomic(json.dumps(result, indent=1, default=str), out / "results.json")
     return write_text_atomic(page(result), out / "results.md")
+
+
+WALKER_NAMES = {"phone": "phone-only", "all": "three-device"}
+
+
+def _yes(x) -> str:
+    return "–" if x is None else ("yes" if x else "no")
+
+
+def capacity_line(rows: list[dict]) -> str:
+    """The largest count of ``rows`` (one kind of walker, counts in increasing order) that kept up,
+    and the first that did not."""
+    kept = [w["walkers"] for w in rows if w["kept_up"]]
+    goal = [w["walkers"] for w in rows if w.get("latency_goal_met")]
+    tried = ", ".join(str(w["walkers"]) for w in rows)
+    if not kept:
+        line = f"none of {tried} walkers kept up"
+    elif len(kept) == len(rows):
+        line = f"at least {max(kept)} walkers (all of {tried} kept up)"
+    else:
+        line = f"{max(kept)} walkers kept up, {rows[-1]['walkers']} did not (tried {tried})"
+    if rows and rows[0]["tracking"]:
+        line += f", {max(goal) if goal else 'none'} within the {LATENCY_GOAL_S:g}-s p95 goal"
+    return line
 
 
 def page(r: dict) -> str:
@@ -337,19 +488,18 @@ def page(r: dict) -> str:
         return "?" if x is None else f"{100 * x:.1f} %"
 
     table = "\n".join(
-        f"| {w['walkers']} | {pc(w['cpu_share_of_one_core'])} | {w['ack_ms']['p50']} | {w['ack_ms']['p99']} | "
+        f"| {WALKER_NAMES[w.get('devices', 'all')]} | {w['walkers']} | {pc(w['cpu_share_of_one_core'])} | "
+        f"{w['ack_ms']['p50']} | {w['ack_ms']['p99']} | "
         f"{w['update_ms']['p50'] if tracking else '–'} | {w['update_ms']['p95'] if tracking else '–'} | "
-        f"{w['behind_at_end_s']} | {'yes' if w['kept_up'] else 'no'} |"
+        f"{w['behind_at_end_s']} | {'yes' if w['kept_up'] else 'no'} | {_yes(w.get('latency_goal_met'))} | "
+        f"{' → '.join(f'{x:g}' for x in w['load_1min']) if 'load_1min' in w else '?'} |"
         for w in rows
     )
-    kept = [w["walkers"] for w in rows if w["kept_up"]]
-    tried = ", ".join(str(w["walkers"]) for w in rows)
-    if not kept:
-        capacity = f"none of {tried} walkers kept up"
-    elif len(kept) == len(rows):
-        capacity = f"at least {max(kept)} walkers (all of {tried} kept up)"
-    else:
-        capacity = f"{max(kept)} walkers kept up, {rows[-1]['walkers']} did not (tried {tried})"
+    kinds = list(dict.fromkeys(w.get("devices", "all") for w in rows))
+    kept = {k: [w["walkers"] for w in rows if w.get("devices", "all") == k and w["kept_up"]] for k in kinds}
+    capacity = "; ".join(
+        f"{WALKER_NAMES[k]}: {capacity_line([w for w in rows if w.get('devices', 'all') == k])}" for k in kinds
+    )
     return "\n".join(
         [
             "# Live receiver (wearnav live)",
@@ -368,7 +518,7 @@ def page(r: dict) -> str:
             f"| duplicated samples at {ld['speed']:g}× | {dup} |",
             f"| server CPU, one walker (% of one core) | {'?' if one['cpu_share_of_one_core'] is None else round(100 * one['cpu_share_of_one_core'], 1)} |",
             *([f"| tracker update p95, one walker (ms) | {one['update_ms']['p95']} |"] if tracking else []),
-            f"| walkers kept up at real time | {max(kept) if kept else 0} |",
+            *[f"| {WALKER_NAMES[k]} walkers kept up at real time | {max(kept[k]) if kept[k] else 0} |" for k in kinds],
             f"| bad inputs refused as expected | {bad['catalogue'] - len(bad['catalogue_wrong'])} |",
             f"| acknowledged messages lost in {fl['kills']} SIGKILLs | {fl['acknowledged_missing']} |",
             "",
@@ -388,10 +538,20 @@ def page(r: dict) -> str:
             "",
             f"## Walkers at real time ({one['seconds']} s each, {'with' if tracking else 'without'} live tracking)",
             "",
-            "Each walker is one session (phone, watch, earbuds) pushing in real time; all at once into one server. "
-            "CPU: the server process's user + system time over the wall time, as a share of one core. "
+            "Each walker is one session pushing in real time (phone-only: the phone's four motion sensors and fixes, "
+            "tracked by the default phone-only model, PDR; three devices: phone, watch, earbuds, tracked by the shipped "
+            "three-device model); all at once into one server"
             + (
-                "Update: from the oldest 200 whose samples are not yet on the page to the tracker update that put them "
+                f", which only stores: {one['tracker_processes']} `wearnav live track` processes beside it track the "
+                "sessions (sharded), reading its store. CPU: the user + system time of the server and the trackers "
+                "together over the wall time, as a share of one core. "
+                if one.get("tracker_processes")
+                else ", which tracks every session in batched ticks (one forward pass per tick for all sessions). CPU: "
+                "the server process's user + system time over the wall time, as a share of one core. "
+            )
+            + (
+                "Update: from the oldest 200 whose samples are not yet on the page (with tracker processes: from the "
+                "receiver storing it, just before its 200) to the tracker update that put them "
                 "there (an update that changed the path, fixes or activity; the tracker reads the buffer once "
                 f"{STEP_S:g} s of new data have arrived). "
                 if tracking
@@ -405,11 +565,13 @@ def page(r: dict) -> str:
                 else "."
             ),
             "",
-            "| walkers | server CPU | ack p50 ms | ack p99 ms | update p50 ms | update p95 ms | behind at end s | kept up |",
-            "|---|---|---|---|---|---|---|---|",
+            "| walker | walkers | server CPU | ack p50 ms | ack p99 ms | update p50 ms | update p95 ms | behind at end s "
+            f"| kept up | p95 under {LATENCY_GOAL_S:g} s | machine load (1 min, before → after) |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
             table,
             "",
-            f"CPU share at one walker (3 devices): {pc(one['cpu_share_of_one_core'])} of one core. Capacity: {capacity}."
+            f"CPU share at one walker ({WALKER_NAMES[one.get('devices', 'all')]}): {pc(one['cpu_share_of_one_core'])} "
+            f"of one core. Capacity (the largest count kept up): {capacity}."
             + (
                 ""
                 if not tracking or one["update_ms"]["p95"] is None

@@ -22,6 +22,29 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def env() -> dict[str, str]:
+    """The environment a ``wearnav`` child process runs in: this package first on its path, one
+    torch thread."""
+    path = os.pathsep.join(p for p in (str(SRC), os.environ.get("PYTHONPATH", "")) if p)
+    return {**os.environ, "PYTHONPATH": path, "OMP_NUM_THREADS": "1"}
+
+
+def cpu_s(pid: int) -> float | None:
+    """CPU seconds (user + system) process ``pid`` has used so far (Linux /proc), or None."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, AttributeError, IndexError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def start_tracker(store: Path, shard: tuple[int, int], stats: Path, log: Path) -> subprocess.Popen:
+    """``wearnav live track --store STORE --shard i/n --stats STATS`` beside a receiver on ``store``."""
+    cmd = [sys.executable, "-m", "wearnav", "live", "track", "--store", str(store), "--shard", f"{shard[0]}/{shard[1]}"]
+    with open(log, "ab") as out:
+        return subprocess.Popen([*cmd, "--stats", str(stats)], stdout=out, stderr=subprocess.STDOUT, env=env())
+
+
 class LiveServer:
     """``wearnav live --host 127.0.0.1 --port P --store DB ARGS``; stdout and stderr to ``log``."""
 
@@ -33,8 +56,6 @@ class LiveServer:
         self.proc: subprocess.Popen | None = None
 
     def start(self, timeout_s: float = 30.0) -> LiveServer:
-        path = os.pathsep.join(p for p in (str(SRC), os.environ.get("PYTHONPATH", "")) if p)
-        env = {**os.environ, "PYTHONPATH": path, "OMP_NUM_THREADS": "1"}
         cmd = [
             sys.executable,
             "-m",
@@ -49,7 +70,7 @@ class LiveServer:
             *self.args,
         ]
         with open(self.log, "ab") as log:
-            self.proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
+            self.proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env())
         headers = {"authorization": f"Bearer {self.token}"} if self.token else {}
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
@@ -82,13 +103,7 @@ class LiveServer:
 
     def cpu_s(self) -> float | None:
         """CPU seconds (user + system) the server process has used so far (Linux /proc), or None."""
-        if self.proc is None:  # not started
-            return None
-        try:
-            fields = Path(f"/proc/{self.proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
-        except (OSError, AttributeError, IndexError):
-            return None
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        return None if self.proc is None else cpu_s(self.proc.pid)
 
     def output(self) -> str:
         return self.log.read_text(errors="replace")
@@ -100,4 +115,4 @@ class LiveServer:
         self.stop()
 
 
-__all__ = ["LiveServer", "free_port"]
+__all__ = ["LiveServer", "cpu_s", "env", "free_port", "start_tracker"]

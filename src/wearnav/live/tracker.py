@@ -14,8 +14,10 @@ both sides); the path grows by the final windows' velocities, integrated on from
 predicted again at each update as the path's provisional end. So each window is predicted once (one
 device) or about ``FRAME_LAG_S / (STEP_S)`` times (several), never the whole session again.
 
-With one device the preprocessing is local in time: each window sees the input it sees offline and
-the path is ``track``'s to round-off (the tests: 1e-6 m). With several, a final window's common frame
+With one device present the preprocessing is local in time (also for a model whose layout lists
+more, as PDR's lists all three: the common frame of one device is its own): each window sees the
+input it sees offline, is final ``LAG_S`` after it, and the path is ``track``'s to round-off (the
+tests: 1e-6 m). With several, a final window's common frame
 comes from ``CONTEXT_S`` before it to ``FRAME_LAG_S`` after it instead of the whole walk, so the path
 differs slightly from ``track``'s (measured in tests/test_live_tracker.py).
 
@@ -33,18 +35,20 @@ the smoother's; the walk-plausibility check of ``track`` needs the whole walk an
 from __future__ import annotations
 
 import dataclasses
+import threading
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
 from wearnav import fuse, geo, pretrained
 from wearnav.errors import ValidationError
-from wearnav.evaluate import predict_sequence
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
+from wearnav.live.buffer import derived
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.recording import DeviceStream, Recording
 from wearnav.report.trajectory_page import page_points
@@ -53,11 +57,18 @@ from wearnav.train.classify import UNKNOWN_INDEX, class_name, unknown_note, wind
 from wearnav.train.odometry import TrainConfig
 from wearnav.train.resolve import resolve_model
 from wearnav.trajectory import integrate_velocity
+from wearnav.windows import WindowConfig, WindowDataset
 
 # Input aligned before the first window not yet final: the common frame's Gaussian kernel (σ 20 s,
 # wearnav.frames) reaches 4 σ = 80 s back. Measured on a 300-s simulated walk (3 devices), the fused
 # live path vs track's: 30 s → 24.6 m max (the frame's estimate goes astray), 60 s → 0.37 m, 90 s → 0.11 m.
 CONTEXT_S = 90.0
+# One device: no common frame, so the input before a window matters only through the zero-phase
+# low-pass's edge (wearnav.preprocess: 4th-order Butterworth at 0.4 × the model rate, 10 Hz for 25 Hz:
+# its transient is gone within a second) and the stream's interpolation. Aligning 90 s for every
+# update was most of a phone-only session's cost; 10 s keeps each window's input track's to round-off
+# (tests/test_live_tracker.py, 1e-4 m).
+ONE_DEVICE_CONTEXT_S = 10.0
 LAG_S = 1.0  # a window is predicted once the data reaches this far past its end (zero-phase filters)
 # Several devices: a window is final once the data reaches this far past it (the common frame's yaw,
 # wearnav.frames, is a 20-s Gaussian kernel estimate: 3 σ); until then it is predicted again at
@@ -88,6 +99,52 @@ class _Odometry:
     xy: list = dataclasses.field(default_factory=list)  # (2,) m, from (0, 0) at the first
 
 
+@dataclasses.dataclass
+class Step:
+    """One update between :meth:`LiveTracker.begin` and :meth:`LiveTracker.finish`: the session's
+    input, and the windows the model is to see (``x`` (N, D, L, 6) float32 world-frame acc + gyro,
+    ``mask`` (N, D); None: no window this time)."""
+
+    tic: float  # perf_counter at begin
+    final: bool
+    rec: Recording  # the session from the context on
+    covered: float  # s since t0 (SessionBuffer.covered_until)
+    changed: bool  # the fixes changed
+    g_final: int  # the last clock sample a final window may use
+    clock_t: np.ndarray | None = None  # the aligned clock's times, s
+    t_c: np.ndarray | None = None  # window centres, s
+    x: Any = None  # torch.Tensor
+    mask: Any = None  # torch.Tensor
+
+
+class SharedModels:
+    """The models of every session of one process, each loaded once (sessions only read them), the
+    odometry models on one ``device`` chosen once: CUDA where there is one (None), else the CPU. The
+    activity classifiers stay on the CPU (:func:`wearnav.train.classify.window_classes` feeds them there)."""
+
+    def __init__(self, device: str | None = None):
+        self.device = torch.device(device or ("cuda" if torch.cuda.is_available() else "cpu"))
+        self._loaded: dict[tuple[str, str], Any] = {}
+        self._lock = threading.Lock()
+
+    def resolve(self, path, task: str):
+        """:func:`wearnav.train.resolve.resolve_model` of ``path`` for ``task``, loaded once."""
+        key = (str(path), task)
+        with self._lock:
+            if key not in self._loaded:
+                got = resolve_model(path, task)
+                if task == "odometry" and isinstance(got[0], torch.nn.Module):
+                    got = (got[0].to(self.device), *got[1:])
+                self._loaded[key] = got
+            return self._loaded[key]
+
+
+def predict_windows(model, x, mask) -> np.ndarray:
+    """Velocities (N, 2) m/s of windows ``x`` (N, D, L, 6), ``mask`` (N, D), on the model's device."""
+    device = next((p.device for p in model.parameters()), torch.device("cpu"))
+    return model.predict(x.to(device), mask.to(device)).float().cpu().numpy()
+
+
 class LiveTracker:
     """One session's live path (see module docstring); :meth:`update` from one thread at a time.
 
@@ -95,7 +152,8 @@ class LiveTracker:
     devices the session starts with (as ``track``). ``activity_model``: a classifier (None: no
     activity). ``context_s``, ``lag_s``, ``frame_lag_s``, ``step_s``: the module's ``CONTEXT_S``,
     ``LAG_S``, ``FRAME_LAG_S``, ``STEP_S``; ``fuse_lag_s`` / ``fuse_step_s``: the fixed-lag
-    smoother's window and step."""
+    smoother's window and step. ``models``: where the models come from (:class:`SharedModels`;
+    None: loaded for this tracker alone, on the CPU)."""
 
     def __init__(
         self,
@@ -107,8 +165,10 @@ class LiveTracker:
         step_s: float = STEP_S,
         fuse_lag_s: float = 300.0,
         fuse_step_s: float = 30.0,
+        models: SharedModels | None = None,
     ):
         self._model_arg = model
+        self._models = models if models is not None else SharedModels("cpu")
         self.context_s, self.lag_s, self.step_s = float(context_s), float(lag_s), float(step_s)
         self.frame_lag_s = float(frame_lag_s)
         self._fuse_lag = (float(fuse_lag_s), float(fuse_step_s))
@@ -119,7 +179,7 @@ class LiveTracker:
         self.classifier = None
         if activity_model is not None:
             path = pretrained.model_path(activity_model, "classify")
-            self.classifier = resolve_model(path, "classify")  # (model, config, classes)
+            self.classifier = self._models.resolve(path, "classify")  # (model, config, classes)
         self.clock0: float | None = None  # the model clock's t = 0 sample, s since the session's t0
         self._next = 0  # clock index of the next window's start
         self.odo = _Odometry()
@@ -137,6 +197,7 @@ class LiveTracker:
         self.timings: list[float] = []  # seconds per update that changed something
         self._state: dict | None = None
         self._tail = (np.empty(0), np.empty((0, 2)))  # the provisional path after the final one: t, xy
+        self._multi = False  # the session has shown several of the model's devices (_several)
         self._seen_s = self._fused_s = -np.inf  # session time of the last update's data, of the last fusion
 
     # ---- setup -------------------------------------------------------------------------------
@@ -153,7 +214,7 @@ class LiveTracker:
             return False
         if self.model is None:
             path = pretrained.model_path(self._model_arg, "odometry", tuple(rec.devices))
-            self.model, self.cfg = resolve_model(path, "odometry")
+            self.model, self.cfg = self._models.resolve(path, "odometry")
             self.model_path = path
             # a heading prior only for a phone-only walk (the frame's reference is the phone's)
             fcfg = fuse.config_for(
@@ -172,31 +233,52 @@ class LiveTracker:
         """Process what is new in ``buf`` (a :class:`wearnav.live.buffer.SessionBuffer`) since the
         last call, once ``step_s`` more of the session has arrived; ``final``: the session has ended,
         predict up to its last sample as ``track`` does. True when the path, the fixes or the
-        activity changed."""
+        activity changed. :meth:`begin`, the model on the new windows, then :meth:`finish`: a
+        :class:`wearnav.live.crowd.Crowd` runs the middle step once for many sessions."""
+        step = self.begin(buf, final)
+        if step is None:
+            return False
+        vel = predict_windows(self.model, step.x, step.mask) if step.x is not None else None
+        return self.finish(step, vel)
+
+    def begin(self, buf, final: bool = False) -> Step | None:
+        """The first half of :meth:`update`: the session's new input and its windows (``Step.x``,
+        None when no window is due); None when there is nothing to do yet."""
         tic = time.perf_counter()
         whole = None
         if self.clock0 is None:
             whole = buf.recording()  # the session so far (short): the clock's start, and every fix so far
             if not self._start(whole):
-                return False
+                return None
         assert self.clock0 is not None and self.cfg is not None  # set by _start
         covered = float(buf.covered_until())
         if not final and covered - self._seen_s < self.step_s:
-            return False
+            return None
         self._seen_s = covered
         pcfg = odometry_preprocess(self.cfg)
         rate, L = pcfg.rate, self.cfg.window
-        t_from = self.clock0 + max(0, self._next - int(round(self.context_s * rate))) / rate
+        g_a = max(0, self._next - self._context(pcfg))  # the first clock sample aligned
+        t_from = self.clock0 + g_a / rate
         # a second more than the clock needs: the interpolation's samples before its start
         rec = whole if whole is not None else buf.recording(t_from - 1.0)
         changed = self._take_fixes(rec)
         end = common_span(rec, pcfg.devices, pcfg.edge_tolerance)[1] if final else covered
         g_end = int(np.floor((end - self.clock0) * rate + 1e-9))  # the clock's last sample (align's clock())
         g_last = g_end if final else g_end - int(np.ceil(self.lag_s * rate))  # last sample a window may use
-        lag = 0.0 if final else max(self.lag_s, self.frame_lag_s if len(pcfg.devices) > 1 else 0.0)
-        g_final = g_end - int(np.ceil(lag * rate))  # the last sample a final window may use
+        lag = 0.0 if final else max(self.lag_s, self.frame_lag_s if self._several(rec, pcfg) else 0.0)
+        step = Step(tic, final, rec, covered, changed, g_final=g_end - int(np.ceil(lag * rate)))
         if g_last - self._next + 1 >= L:
-            changed |= self._predict(rec, pcfg, g_end, g_last, g_final)
+            self._windows(step, pcfg, g_a, g_end, g_last)
+        return step
+
+    def finish(self, step: Step, vel: np.ndarray | None) -> bool:
+        """The second half of :meth:`update`: the path grown by ``vel`` (N, 2) m/s, the velocities
+        of ``step``'s windows; fusion, activity, warnings, the page's state."""
+        changed = step.changed
+        if step.t_c is not None:
+            assert vel is not None and len(vel) == len(step.t_c)  # one velocity per window
+            changed |= self._grow(step, vel)
+        covered, rec, final = step.covered, step.rec, step.final
         if changed and (final or covered - self._fused_s >= FUSE_EVERY_S):
             self._fuse()
             self._fused_s = covered
@@ -207,24 +289,45 @@ class LiveTracker:
         self.t_s = max(self.t_s, covered)
         if changed or self._state is None:
             self._state = self._snapshot()  # one assignment: state() may be read from another thread
-            self.timings.append(time.perf_counter() - tic)
+            self.timings.append(time.perf_counter() - step.tic)
         return changed
 
-    def _predict(self, rec, pcfg, g_end: int, g_last: int, g_final: int) -> bool:
-        """Align the clock from the context to ``g_end`` and predict the windows inside ``g_last``:
-        those inside ``g_final`` for good (the path and the smoother grow by them), the rest as the
-        provisional tail (predicted again at the next update)."""
-        assert self.clock0 is not None and self.cfg is not None and self.fuser is not None  # set by _start
+    def _several(self, rec, pcfg) -> bool:
+        """Whether the session has shown more than one of the model's devices so far (once it has,
+        for good). A model's layout may list more devices than the session has (PDR's lists all
+        three and reads the first present): with one present its common frame is that device's own,
+        so each window's input is local in time, as with a one-device model."""
+        self._multi = self._multi or len(set(rec.devices) & set(pcfg.devices)) > 1
+        return self._multi
+
+    def _context(self, pcfg) -> int:
+        """Clock samples aligned before the first window not yet final (``CONTEXT_S``;
+        ``ONE_DEVICE_CONTEXT_S`` at most while the session has shown one device: :meth:`_several`)."""
+        ctx = self.context_s if self._multi else min(self.context_s, ONE_DEVICE_CONTEXT_S)
+        return int(round(ctx * pcfg.rate))
+
+    def _windows(self, step: Step, pcfg, g_a: int, g_end: int, g_last: int) -> None:
+        """Align the clock from ``g_a`` (the context) to ``g_end`` and cut the windows inside
+        ``g_last`` (as :func:`wearnav.evaluate.predict_sequence` cuts them) into ``step``."""
+        assert self.clock0 is not None and self.cfg is not None  # set by _start
         rate, L, S = pcfg.rate, self.cfg.window, self.cfg.stride
-        g_a = max(0, self._next - int(round(self.context_s * rate)))
         clock = self.clock0 + np.arange(g_a, g_end + 1) / rate  # align's clock(): t0 + k / rate
-        seq = align(rec, pcfg, clock)
+        seq = align(step.rec, pcfg, clock)
         part = slice(self._next - g_a, g_last - g_a + 1)
         seq = Aligned(seq.name, seq.t[part], seq.devices, seq.imu[:, part], seq.mask[:, part], None, seq.meta)
-        t_c, vel, _ = predict_sequence(self.model, seq, L, S)
-        if t_c.size == 0:
-            return False
-        n = int(np.clip((g_final - self._next - L + 1) // S + 1, 0, t_c.size))  # windows ending by g_final
+        wds = WindowDataset([seq], WindowConfig(window=L, stride=S, target=None))
+        if len(wds) == 0:
+            return
+        b = wds[np.arange(len(wds))]
+        step.clock_t, step.t_c, step.x, step.mask = seq.t, b["t"].mean(dim=1).numpy(), b["x"], b["mask"]
+
+    def _grow(self, step: Step, vel: np.ndarray) -> bool:
+        """The windows inside ``step.g_final`` for good (the path and the smoother grow by them),
+        the rest as the provisional tail (predicted again at the next update)."""
+        assert self.cfg is not None and self.fuser is not None  # set by _start
+        assert step.t_c is not None and step.clock_t is not None  # set by _windows
+        L, S, t_c = self.cfg.window, self.cfg.stride, step.t_c
+        n = int(np.clip((step.g_final - self._next - L + 1) // S + 1, 0, t_c.size))  # windows ending by g_final
         o = self.odo
         if n:
             n_old = len(o.t_c)
@@ -232,7 +335,7 @@ class LiveTracker:
             o.vel += vel[:n].tolist()
             self._next += n * S
             if len(o.t_c) >= 2:
-                t, xy = _integrate_on(seq.t, np.asarray(o.t_c), np.asarray(o.vel), n_old, o.t, o.xy)
+                t, xy = _integrate_on(step.clock_t, np.asarray(o.t_c), np.asarray(o.vel), n_old, o.t, o.xy)
                 for ti, p in zip(t, xy):
                     self.fuser.add_odometry(float(ti), p)
                 o.t += t.tolist()
@@ -241,7 +344,7 @@ class LiveTracker:
         if n < t_c.size and len(o.t_c) + t_c.size - n >= 2:
             tc = np.concatenate([o.t_c, t_c[n:]]) if o.t_c else t_c[n:]
             v = np.concatenate([np.reshape(o.vel, (-1, 2)), vel[n:]])
-            self._tail = _integrate_on(seq.t, tc, v, len(o.t_c), o.t, o.xy)
+            self._tail = _integrate_on(step.clock_t, tc, v, len(o.t_c), o.t, o.xy)
         return True
 
     # ---- fixes and fusion ----------------------------------------------------------------------
@@ -405,12 +508,9 @@ def _tail(rec: Recording, t_from: float) -> Recording:
                 None if s.gyro is None else s.gyro[k],
                 None if s.quat is None else s.quat[k],
                 None if s.worn is None else s.worn[k],
+                check_units=False,  # a slice of a checked stream
             )
-    return (
-        Recording(rec.name, devices, meta=rec.meta)
-        if devices
-        else Recording(rec.name, dict(rec.devices), meta=rec.meta)
-    )
+    return derived(rec, devices, None) if devices else derived(rec, dict(rec.devices), None)
 
 
-__all__ = ["LiveTracker", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]
+__all__ = ["LiveTracker", "SharedModels", "Step", "predict_windows", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]

@@ -1,0 +1,193 @@
+"""Trackers as processes of their own beside one receiver (issue 37 §2): a real ``wearnav live
+--no-track`` process on 127.0.0.1, real HTTP pushes, and two ``wearnav live track --shard i/2``
+processes (or two Ray tasks) sharing its store. Nothing acknowledged is lost: every session ends
+up tracked by exactly one tracker, whose buffer holds every message the receiver acknowledged,
+and the receiver serves the tracker's path."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import httpx
+import pytest
+
+from wearnav.importers.sensorlogger_export import simulated_export
+from wearnav.live import replay
+from wearnav.live.bench import walker_export
+from wearnav.live.process import SRC, LiveServer
+from wearnav.live.store import Store
+from wearnav.live.trackers import parse_shard, shard_of
+
+WALK_S = 30.0
+SPEED = 5.0
+SESSIONS = ("walker-a", "walker-b", "walker-c")  # in both of two shards (checked below)
+
+
+@pytest.fixture(scope="module")
+def phone_export(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("trackers") / "walk"
+    simulated_export(folder, seed=7, duration_s=WALK_S)
+    return walker_export(folder, "phone")
+
+
+def push_sessions(url: str, export: Path) -> dict[str, list[int]]:
+    """Every session of SESSIONS replayed at once at SPEED × real time; the acknowledged ids."""
+    base = replay.build(export, batch_s=0.2, session_id=SESSIONS[0])
+    plays = [replace(base, session_id=s, messages=[{**m, "sessionId": s} for m in base.messages]) for s in SESSIONS]
+    acked: dict[str, list[int]] = {}
+
+    def send(rp):
+        acked[rp.session_id] = replay.send(rp, url, speed=SPEED).acknowledged
+
+    threads = [threading.Thread(target=send, args=(rp,)) for rp in plays]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return acked
+
+
+def stored_states(db: Path) -> dict[str, dict]:
+    with sqlite3.connect(db) as c:
+        return {sid: json.loads(st) for sid, st in c.execute("SELECT session_id, state FROM states")}
+
+
+def wait_for_states(db: Path, acked: dict[str, list[int]], timeout_s: float) -> dict[str, dict]:
+    """The store's states once every session's tracker holds all its acknowledged messages and a path."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        states = stored_states(db)
+        if all(
+            sid in states and states[sid]["tracked_messages"] == len(ids) and states[sid]["path"]
+            for sid, ids in acked.items()
+        ):
+            return states
+        if time.monotonic() > deadline:
+            return states
+        time.sleep(0.25)
+
+
+def test_shards_split_the_sessions_and_parse():
+    assert {shard_of(s, 2) for s in SESSIONS} == {0, 1}
+    assert all(shard_of(s, 1) == 0 for s in SESSIONS)
+    assert parse_shard("1/2") == (1, 2)
+    for bad in ("2/2", "x", "1/0", "-1/2"):
+        with pytest.raises(Exception, match="--shard"):
+            parse_shard(bad)
+
+
+def test_group_commit_many_threads_each_durable_and_counted_once(tmp_path):
+    """Twenty threads adding at once: every message stored once (a repeat is a no-op), committed in
+    fewer transactions than messages, each call returning only once its row is in the file."""
+    from wearnav.live.app import Receiver
+    from wearnav.live.badinputs import body, enc
+
+    rx = Receiver(Store(tmp_path / "live.db"), None, 1 << 20, 1e6, None, "ios", False, 120, 7 * 86400)
+    seen_in_file = []
+
+    def push(k):
+        rx.accept(enc(body(messageId=k % 40)), "ios", False)
+        with sqlite3.connect(tmp_path / "live.db") as c:  # another connection sees it: committed
+            seen_in_file.append(
+                c.execute("SELECT COUNT(*) FROM messages WHERE message_id = ?", (k % 40,)).fetchone()[0]
+            )
+
+    threads = [threading.Thread(target=push, args=(k,)) for k in range(80)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert seen_in_file == [1] * 80
+    assert rx.counts["accepted"] == 40 and rx.counts["repeats"] == 40
+    assert rx.commits.items == 80 and rx.commits.batches < 80
+    assert rx.buffers["s-1"].messages == 40
+
+
+@pytest.mark.slow  # ~35 s on 2 cores: three processes start and load torch
+def test_two_tracker_processes_beside_one_receiver_lose_nothing(tmp_path, phone_export):
+    db = tmp_path / "live.db"
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")]),
+        "OMP_NUM_THREADS": "1",
+    }
+    with LiveServer(db, "--no-track") as srv:
+        log = (tmp_path / "trackers.log").open("wb")
+        procs = [
+            subprocess.Popen(
+                [sys.executable, "-m", "wearnav", "live", "track", "--store", str(db), "--shard", f"{i}/2"],
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                env=env,
+            )
+            for i in range(2)
+        ]
+        try:
+            acked = push_sessions(f"{srv.url}/push", phone_export)
+            n = len(replay.build(phone_export).messages)
+            assert all(ids == list(range(n)) for ids in acked.values())
+            states = wait_for_states(db, acked, timeout_s=90.0)
+            assert all(p.poll() is None for p in procs), (tmp_path / "trackers.log").read_text()
+            served = httpx.get(f"{srv.url}/state", params={"session": SESSIONS[0]}).json()
+        finally:
+            for p in procs:
+                p.send_signal(signal.SIGTERM)
+                p.wait(10)
+            log.close()
+    assert set(states) == set(SESSIONS), (tmp_path / "trackers.log").read_text()
+    for sid in SESSIONS:  # each session tracked by the one tracker of its shard, every message in its buffer
+        assert states[sid]["tracker"] == f"{shard_of(sid, 2)}/2"
+        assert states[sid]["tracked_messages"] == n and len(states[sid]["path"]) > 5
+    assert {states[s]["tracker"] for s in SESSIONS} == {"0/2", "1/2"}
+    assert served["path"] and served["messages"] == n and served["tracker"] == states[SESSIONS[0]]["tracker"]
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    """A Ray instance on this machine with 2 CPUs (as a CI runner has)."""
+    ray = pytest.importorskip("ray")
+    ray.init(
+        num_cpus=2,
+        include_dashboard=False,
+        logging_level="WARNING",
+        runtime_env={
+            "env_vars": {
+                "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")]),
+                "OMP_NUM_THREADS": "1",
+            }
+        },
+    )
+    yield ray
+    ray.shutdown()
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_trackers_placed_on_ray_lose_nothing(local_ray, tmp_path, phone_export):
+    """``wearnav live track --executor ray``'s placement: two Ray tasks (shards 0/2, 1/2) beside a
+    real receiver; every session tracked once with every acknowledged message."""
+    from wearnav.live.trackers import place_on_ray
+
+    db = tmp_path / "live.db"
+    with LiveServer(db, "--no-track") as srv:
+        refs = place_on_ray(db, 2, max_s=120.0)
+        try:
+            acked = push_sessions(f"{srv.url}/push", phone_export)
+            states = wait_for_states(db, acked, timeout_s=120.0)
+        finally:
+            for ref in refs:
+                local_ray.cancel(ref, force=True)
+    n = len(replay.build(phone_export).messages)
+    assert set(states) == set(SESSIONS)
+    for sid in SESSIONS:
+        assert states[sid]["tracker"] == f"{shard_of(sid, 2)}/2"
+        assert states[sid]["tracked_messages"] == n and states[sid]["path"]
