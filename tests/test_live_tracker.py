@@ -168,3 +168,40 @@ def test_three_devices_live_against_track_and_truth(export):
     assert [p[0] for p in state["path"]] == pytest.approx(
         np.append(t[::step], t[-1]) if (len(t) - 1) % step else t[::step], abs=6e-4
     )
+
+
+def test_live_page_state_carries_a_users_floor_plan(short_export, tmp_path):
+    """`wearnav live --map PLAN`: once the session has its origin (first fix), the page's state holds the
+    plan's walkable polygons in the session's own frame, where its path is (issue 36)."""
+    import json
+
+    lat, lon = geo.local_to_latlon(
+        np.array([[-400.0, -400.0], [400.0, -400.0], [400.0, 400.0], [-400.0, 400.0]]), *ORIGIN
+    )
+    ring = np.stack([lon, lat], 1).tolist()
+    plan = tmp_path / "plan.geojson"
+    plan.write_text(
+        json.dumps(
+            {
+                "type": "FeatureCollection",
+                "features": [
+                    {
+                        "type": "Feature",
+                        "properties": {"kind": "walkable"},
+                        "geometry": {"type": "Polygon", "coordinates": [ring + ring[:1]]},
+                    }
+                ],
+            }
+        )
+    )
+    phone = walker_export(short_export / "export", "phone")
+    tr = LiveTracker(activity_model=None, plan=plan)
+    replay_into(tr, phone)
+    st = tr.state()
+    assert st["origin"] is not None and len(st["plan"]) == 1
+    outer = np.asarray(st["plan"][0][0][0])
+    path = np.asarray([p[1:3] for p in st["path"]])
+    lo, hi = outer.min(axis=0), outer.max(axis=0)
+    assert np.all((path >= lo) & (path <= hi))  # the path lies inside the 800-m square drawn about the walk
+    assert 790 < hi[0] - lo[0] < 810
+    assert LiveTracker(activity_model=None).state()["plan"] == []

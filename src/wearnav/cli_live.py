@@ -36,12 +36,21 @@ def _lan_address() -> str:
         return "<this machine's address>"
 
 
-def _tracker_factory(model: Path | None):
-    """Trackers sharing one set of models (loaded once, on CUDA where there is one)."""
+def _tracker_factory(model: Path | None, plan: Path | None = None):
+    """Trackers sharing one set of models (loaded once, on CUDA where there is one); ``plan``: a GeoJSON
+    floor plan every session's page draws under its path."""
     from wearnav.live.tracker import LiveTracker, SharedModels
 
     models = SharedModels()
-    return lambda: LiveTracker(model=model, models=models)
+    return lambda: LiveTracker(model=model, models=models, plan=plan)
+
+
+def _check_plan(plan: Path | None) -> None:
+    """A bad ``--map`` file is said in one line before the server starts (read about a dummy origin)."""
+    if plan is not None:
+        from wearnav.plans import read_geojson_plan
+
+        read_geojson_plan(plan, 0.0, 0.0)
 
 
 def _needs_live_extra() -> None:
@@ -87,6 +96,11 @@ def live(
         help='"Standardise Units & Frames" is on in the app, when the push URL does not say (?standardisation=true).',
     ),
     model: Path | None = typer.Option(None, "--model", help="Odometry model (as for `wearnav track`)."),
+    plan: Path | None = typer.Option(
+        None,
+        "--map",
+        help="A GeoJSON floor plan (as `wearnav track --map`) drawn under every session's path once it has a fix.",
+    ),
     no_track: bool = typer.Option(False, "--no-track", help="Store and serve only; no live path."),
     mqtt: str | None = typer.Option(
         None, "--mqtt", help="Also subscribe to ws://broker:port/topic (Sensor Logger's MQTT publishing)."
@@ -129,7 +143,10 @@ def live(
         raise typer.BadParameter("--executor: local or ray")
     if address is not None and executor != "ray":
         raise ConfigError("--address is for --executor ray only")
-    factory = None if no_track or executor == "ray" else _tracker_factory(model)
+    _check_plan(plan)
+    if plan is not None and executor == "ray":
+        raise ConfigError("--map is drawn by trackers in this process: not with --executor ray")
+    factory = None if no_track or executor == "ray" else _tracker_factory(model, plan)
     app = create_app(
         store,
         token=token,
@@ -195,6 +212,9 @@ def live_track(
     stats: Path | None = typer.Option(
         None, "--stats", help="Write what this tracker did (sessions, update latency) to this JSON file, every second."
     ),
+    plan: Path | None = typer.Option(
+        None, "--map", help="A GeoJSON floor plan drawn under every session's path (as `wearnav live --map`)."
+    ),
 ):
     """Track the sessions a receiver stores, in a process of its own (the receiver runs --no-track).
 
@@ -213,12 +233,16 @@ def live_track(
     if not store.is_file():
         raise ConfigError(f"no session store at {store} (start `wearnav live --no-track --store {store}` first)")
     on_interrupt("tracker stopped; the store keeps every session (a tracker started again resumes them)")
+    _check_plan(plan)
+    if plan is not None and executor == "ray":
+        raise ConfigError("--map is for --executor local (a Ray task may not see the file)")
     if executor == "local":
         run_tracker(
             str(store),
             parse_shard(shard),
             None if model is None else str(model),
             stats=None if stats is None else str(stats),
+            plan=None if plan is None else str(plan),
         )
         return
     import ray

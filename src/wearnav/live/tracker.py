@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from wearnav import fuse, geo, pretrained
+from wearnav import fuse, geo, plans, pretrained
 from wearnav.errors import ValidationError
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
@@ -166,8 +166,13 @@ class LiveTracker:
         fuse_lag_s: float = 300.0,
         fuse_step_s: float = 30.0,
         models: SharedModels | None = None,
+        plan: str | Path | None = None,
     ):
         self._model_arg = model
+        # a GeoJSON floor plan (wearnav.plans.read_geojson_plan) drawn under the path once the session
+        # has a lat/lon origin (its first fix); placed in that origin's frame once
+        self._plan_file = None if plan is None else Path(plan)
+        self._plan_rings: tuple[tuple[float, float], list] | None = None
         self._models = models if models is not None else SharedModels("cpu")
         self.context_s, self.lag_s, self.step_s = float(context_s), float(lag_s), float(step_s)
         self.frame_lag_s = float(frame_lag_s)
@@ -458,6 +463,14 @@ class LiveTracker:
         """The JSON-able state the page renders (the live contract), as of the latest update."""
         return self._state if self._state is not None else self._snapshot()
 
+    def _plan_drawn(self) -> list:
+        """The plan's rings in the session's frame (empty without a plan or before the first fix)."""
+        if self._plan_file is None or self.origin is None:
+            return []
+        if self._plan_rings is None or self._plan_rings[0] != self.origin:
+            self._plan_rings = (self.origin, _plan_state(self._plan_file, self.origin))
+        return self._plan_rings[1]
+
     def _snapshot(self) -> dict:
         t, xy, sig, anchor = self.path()
         return {
@@ -471,6 +484,7 @@ class LiveTracker:
                 for t, e, n, a in self.fixes
             ],
             "activity": self.activity,
+            "plan": self._plan_drawn(),
             "warnings": self.warnings
             + (self._fused.warnings if self._fused is not None else [])
             + (
@@ -480,6 +494,13 @@ class LiveTracker:
             ),
             "t_s": round(float(self.t_s), 3),
         }
+
+
+def _plan_state(path: Path, origin: tuple[float, float]) -> list:
+    """A GeoJSON plan's walkable polygons in the local frame at ``origin``, as the page draws them."""
+    return [
+        [[np.round(r, 2).tolist() for r in poly] for poly in p.polygons] for p in plans.read_geojson_plan(path, *origin)
+    ]
 
 
 def _integrate_on(clock_t: np.ndarray, tc: np.ndarray, v: np.ndarray, n_old: int, t_prev: list, xy_prev: list):

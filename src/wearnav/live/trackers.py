@@ -156,13 +156,15 @@ def run_tracker(
     model: str | None = None,
     max_s: float | None = None,
     stats: str | None = None,
+    plan: str | None = None,
 ) -> dict:
     """One tracker process's work (the CLI's and a Ray task's): LiveTrackers sharing one set of
-    models (:class:`wearnav.live.tracker.SharedModels`, on CUDA where there is one)."""
+    models (:class:`wearnav.live.tracker.SharedModels`, on CUDA where there is one); ``plan``: a
+    GeoJSON floor plan each session's page draws."""
     from wearnav.live.tracker import LiveTracker, SharedModels
 
     models = SharedModels()
-    proc = TrackerProcess(store, lambda: LiveTracker(model=model, models=models), shard, stats)
+    proc = TrackerProcess(store, lambda: LiveTracker(model=model, models=models, plan=plan), shard, stats)
     log.info("tracker %d/%d on %s", *shard, store)
     return proc.run(max_s=max_s)
 
