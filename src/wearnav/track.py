@@ -70,6 +70,15 @@ cached, hundreds of metres away, or 100–2000 m wide). ``track.json`` says what
 and heading offset; the per-fix detail is in ``fixes.csv`` and the GeoJSON. A recording without
 fixes keeps the path from (0, 0) and says so; fixes that all disagree fall back to first-fix
 anchoring, with a warning.
+
+Map-aware path (issue 36): where there is a floor plan (``--map auto``, the default: the plan the
+recording carries, e.g. ILC2's; or a user's GeoJSON file, :func:`wearnav.plans.read_geojson_plan`)
+and a start (``--start X,Y,HEADING_DEG``, or the first kept fix), the path is placed by
+:func:`wearnav.fuse.placement.place` instead of the smoother: a particle filter keeping the
+odometry inside walkable space, weighing in every kept fix. ``track.json`` ``map`` says which plans
+and whether they were used; ``anchoring.method`` is then "map"; the plan is drawn under the path in
+``trajectory.png`` and ``trajectory.html``. A plan without fixes or ``--start`` is not used (a warning
+says to give ``--start``).
 """
 
 from __future__ import annotations
