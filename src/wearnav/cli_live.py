@@ -219,10 +219,10 @@ def live_track(
     """Track the sessions a receiver stores, in a process of its own (the receiver runs --no-track).
 
     \b
-    Example (two trackers beside one receiver):
-      wearnav live --no-track --store runs/live/live.db &
-      wearnav live track --store runs/live/live.db --shard 0/2 &
-      wearnav live track --store runs/live/live.db --shard 1/2
+    Example:
+      wearnav live track --store runs/live/live.db --shard 0/2
+      (two trackers beside one receiver: `wearnav live --no-track --store runs/live/live.db`, this,
+      and the same with --shard 1/2)
     """
     from wearnav.live.trackers import parse_shard, place_on_ray, run_tracker
 
