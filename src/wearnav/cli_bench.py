@@ -22,6 +22,7 @@ from wearnav.cli_common import (
     split_list,
     suite_folder,
 )
+from wearnav.errors import ConfigError
 
 
 class Clock(str, Enum):  # wearnav.bench.efficiency.CLOCKS
@@ -92,7 +93,6 @@ def bench_odometry(
     """
     from wearnav.bench.odometry import GRIDS, run_folder, run_suite, suite_configs
     from wearnav.bench.odometry_tables import write_grid_report
-    from wearnav.errors import ConfigError
 
     try:
         seed_list = [int(s) for s in split_list(seeds)]
@@ -377,7 +377,6 @@ def bench_har_lodo(
       wearnav bench har-lodo --out runs/har-lodo --final --install
     """
     from wearnav.bench.har_lodo import run_lodo
-    from wearnav.errors import ConfigError
     from wearnav.train.activity import ActivityRun
 
     if install and not final:

@@ -28,11 +28,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from wearnav.bench.executor import RAY_MISSING
 from wearnav.errors import ConfigError
 from wearnav.fileio import write_text_atomic
 from wearnav.live.buffer import NS, SessionBuffer
 from wearnav.live.crowd import Crowd
 from wearnav.live.store import Store
+from wearnav.live.tracker import LiveTracker, SharedModels
 
 log = logging.getLogger("wearnav.live")
 POLL_S = 0.1  # the store is read for new messages this often (s)
@@ -161,8 +163,6 @@ def run_tracker(
     """One tracker process's work (the CLI's and a Ray task's): LiveTrackers sharing one set of
     models (:class:`wearnav.live.tracker.SharedModels`, on CUDA where there is one); ``plan``: a
     GeoJSON floor plan each session's page draws."""
-    from wearnav.live.tracker import LiveTracker, SharedModels
-
     models = SharedModels()
     proc = TrackerProcess(store, lambda: LiveTracker(model=model, models=models, plan=plan), shard, stats)
     log.info("tracker %d/%d on %s", *shard, store)
@@ -182,8 +182,6 @@ def place_on_ray(
     try:
         import ray
     except ImportError:
-        from wearnav.bench.executor import RAY_MISSING
-
         raise ConfigError(RAY_MISSING) from None
     if not ray.is_initialized():
         ray.init(address=address, include_dashboard=False, logging_level=logging.WARNING)
