@@ -404,6 +404,12 @@ def train(
         help="ddp: one process per device (Lightning re-runs this "
         "command in each). The run and its folder are the same on any number.",
     ),
+    data_on_device: bool | None = typer.Option(
+        None,
+        "--data-on-device/--data-on-host",
+        help="Keep every training window in the device's memory and gather batches there (default: on a "
+        "single GPU). The batches are the same either way.",
+    ),
 ):
     """Train an odometry model into a run folder (config.yaml, checkpoints/, training.json).
 
@@ -440,7 +446,9 @@ def train(
     evaluate = bool(eval_splits)
     on_interrupt(f"{run} keeps the last finished epoch; run the same command again to resume")
     with locked(run):  # one process per run folder, from training through its metrics
-        record = fit(cfg, run, progress=progress_enabled(), devices=num_devices, strategy=strategy.value)
+        record = fit(
+            cfg, run, progress=progress_enabled(), devices=num_devices, strategy=strategy.value, resident=data_on_device
+        )
         echo_json({"run": str(run), "training": {k: v for k, v in record.items() if k != "training_data"}})
         if (unlearned := did_not_learn(record)) is not None:  # wearnav.trust
             warnings.warn(WearnavWarning(f"{run}: {unlearned}: {LEARN_ADVICE}"), stacklevel=1)

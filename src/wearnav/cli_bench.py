@@ -245,6 +245,11 @@ def bench_efficiency(
     ),
     min_run_time: float = typer.Option(0.2, min=0.001, help="Seconds each timing runs (torch's blocked_autorange)."),
     odometry_suite: Path | None = typer.Option(None, help="Odometry suite folder: adds its training s/epoch."),
+    device: str = typer.Option("cpu", help="Where the models run: cpu, or cuda (a GPU; wall clock only)."),
+    batches: str = typer.Option("1,256", help="Inference batch sizes, comma-separated."),
+    faster_b1: bool = typer.Option(
+        False, "--faster-b1", help="Also batch 1 through torch.compile and, on a GPU, as a replayed CUDA graph."
+    ),
 ):
     """Parameters, FLOPs per window, inference windows/s at batch 1 and 256, fraction of the FLOP-bound limit.
 
@@ -252,6 +257,16 @@ def bench_efficiency(
     Example:
       wearnav bench efficiency --out runs/efficiency --models pdr,ronin
     """
+    try:
+        sizes = tuple(int(b) for b in split_list(batches))
+    except ValueError:
+        raise typer.BadParameter("--batches: whole numbers, comma-separated") from None
+    if not sizes or min(sizes) < 1:
+        raise typer.BadParameter("--batches: whole numbers ≥ 1, comma-separated")
+    if device not in ("cpu", "cuda") and not device.startswith("cuda:"):
+        raise typer.BadParameter(f"--device: cpu or cuda, got {device!r}")
+    if device != "cpu" and clock is not Clock.wall:
+        raise typer.BadParameter("--clock: a GPU is timed with the wall clock")
     from wearnav.bench.efficiency import measure, write_report
     from wearnav.models.registry import check_models
     from wearnav.outputs import check_suite_folder
@@ -260,7 +275,17 @@ def bench_efficiency(
     rows = []
     for m in check_models(split_list(models)):  # every name before the first is measured
         typer.echo(f"measuring {m} ...")
-        rows.append(measure(m, threads=threads, clock=clock.value, min_run_time_s=min_run_time))
+        rows.append(
+            measure(
+                m,
+                threads=threads,
+                clock=clock.value,
+                min_run_time_s=min_run_time,
+                batches=sizes,
+                device=device,
+                faster_b1=faster_b1,
+            )
+        )
     typer.echo(str(write_report(rows, out, odometry_suite)))
 
 

@@ -77,6 +77,7 @@ class WindowDataset(TorchDataset):
                 lab = np.array([class_index.get(n, -1) for n in names], np.int64)
             self._labels.append(lab)
         self.index = self._build_index()
+        self._resident: _Resident | None = None  # a copy on a device (:meth:`to`)
 
     def _collect_classes(self) -> list[str]:
         if not self.cfg.label_kind:
@@ -109,11 +110,27 @@ class WindowDataset(TorchDataset):
     def __getitem__(self, k) -> dict[str, torch.Tensor]:
         """One window (``k`` an int) or a batch of windows (``k`` a sequence of ints; every tensor
         then gains a leading batch axis). Batched fetching is the training data path: one call per
-        batch instead of one per window and a collate (see :class:`BatchSampler`)."""
+        batch instead of one per window and a collate (see :class:`BatchSampler`). After
+        :meth:`to` the batch is gathered from the copy on that device instead."""
         if np.ndim(k) == 0:
             b = self[[int(k)]]
             return {key: v[0] for key, v in b.items()}
-        idx = self.index[np.asarray(k, np.int64)]
+        if self._resident is not None:
+            return self._resident.fetch(k)
+        return self._fetch(np.asarray(k, np.int64))
+
+    def to(self, device: str | torch.device, chunk: int = 4096) -> WindowDataset:
+        """Keep a copy of every window on ``device`` (a GPU's memory) and fetch batches there: one
+        gather per batch, no per-window Python and no host-to-device copy per step, so that the GPU
+        is not left waiting on the data path (issue 37). The batches are the ones :meth:`_fetch`
+        makes, bit for bit: every field but ``x`` is made by it once, here; ``x`` is gathered from
+        the sequences' samples, with an absent device's window zeroed as there. Returns self."""
+        self._resident = None  # built from the host copy, not from an older device copy
+        self._resident = _Resident(self, torch.device(device), chunk)
+        return self
+
+    def _fetch(self, k: np.ndarray) -> dict[str, torch.Tensor]:
+        idx = self.index[k]
         L = self.cfg.window
         D = len(self.sequences[0].devices) if self.sequences else 0
         x = np.empty((len(idx), D, L, 6), np.float32)
@@ -165,6 +182,33 @@ class WindowDataset(TorchDataset):
     ) -> WindowDataset:
         """Align each recording (a Dataset view or any iterable of Recordings) and window them."""
         return cls([align(r, pcfg) for r in recordings], wcfg, classes)
+
+
+class _Resident:
+    """A :class:`WindowDataset`'s windows on one device (:meth:`WindowDataset.to`): the samples of
+    every sequence end to end (devices × samples × 6) and each window's other fields."""
+
+    def __init__(self, ds: WindowDataset, device: torch.device, chunk: int):
+        n = len(ds)
+        parts = [ds._fetch(np.arange(i, min(i + chunk, n))) for i in range(0, n, chunk)]
+        self.fields = {
+            key: torch.cat([p[key] for p in parts]).to(device) if parts else torch.empty(0)
+            for key in ("mask", "vel", "disp", "label", "seq", "t")
+        }
+        lengths = [len(s) for s in ds.sequences]
+        offset = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+        imu = np.concatenate([s.imu for s in ds.sequences], axis=1) if ds.sequences else np.zeros((0, 0, 6))
+        self.imu = torch.from_numpy(np.ascontiguousarray(imu, np.float32)).to(device)
+        self.start = torch.from_numpy(offset[ds.index[:, 0]] + ds.index[:, 1]).to(device)
+        self.steps = torch.arange(ds.cfg.window, device=device)
+
+    def fetch(self, k) -> dict[str, torch.Tensor]:
+        k = torch.as_tensor(np.asarray(k, np.int64)).to(self.start.device)
+        rows = self.start[k][:, None] + self.steps  # (batch, L) sample indices
+        x = self.imu[:, rows].permute(1, 0, 2, 3)  # (batch, devices, L, 6)
+        out = {key: v[k] for key, v in self.fields.items()}
+        x = torch.where(out["mask"][:, :, None, None] > 0, x, torch.zeros((), dtype=x.dtype, device=x.device))
+        return {"x": x, **out}
 
 
 class BatchSampler(torch.utils.data.Sampler):

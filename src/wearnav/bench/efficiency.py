@@ -71,10 +71,23 @@ class Timing:
         return per_call / self.median_s, per_call / self.q25_s - per_call / self.q75_s
 
 
-def time_call(fn: Callable[[], object], min_run_time_s: float = MIN_RUN_TIME_S, clock: str = "wall") -> Timing:
+def time_call(
+    fn: Callable[[], object], min_run_time_s: float = MIN_RUN_TIME_S, clock: str = "wall", device: str = "cpu"
+) -> Timing:
     """Time ``fn`` with ``torch.utils.benchmark.Timer.blocked_autorange`` on the current number of
-    torch threads (Timer's default would be one), counting ``clock`` (:data:`CLOCKS`)."""
-    timer = benchmark.Timer(stmt="fn()", globals={"fn": fn}, num_threads=torch.get_num_threads(), timer=CLOCKS[clock])
+    torch threads (Timer's default would be one), counting ``clock`` (:data:`CLOCKS`). On a CUDA
+    ``device`` each clock reading waits for the GPU's queued work first (the wall clock only: the
+    process's CPU time says nothing of a GPU's)."""
+    read = CLOCKS[clock]
+    if torch.device(device).type == "cuda":
+        if clock != "wall":
+            raise ValueError("a GPU is timed with the wall clock")
+
+        def read() -> float:
+            torch.cuda.synchronize(device)
+            return time.perf_counter()
+
+    timer = benchmark.Timer(stmt="fn()", globals={"fn": fn}, num_threads=torch.get_num_threads(), timer=read)
     m = timer.blocked_autorange(min_run_time=min_run_time_s)
     q25, q50, q75 = (max(float(v), 1e-12) for v in np.percentile(m.times, [25, 50, 75]))
     return Timing(q50, q25, q75, len(m.times), int(m.number_per_run))
@@ -91,12 +104,15 @@ def torch_threads(n: int | None):
         torch.set_num_threads(old)
 
 
-def dense_gflops(n: int = 2048, min_run_time_s: float = MIN_RUN_TIME_S, clock: str = "wall") -> float:
-    """Measured dense fp32 matmul rate of this CPU in GFLOP/s (2·n³ FLOPs per n×n product; the
-    median time)."""
-    a, b = torch.randn(n, n), torch.randn(n, n)
+def dense_gflops(
+    n: int = 2048, min_run_time_s: float = MIN_RUN_TIME_S, clock: str = "wall", device: str = "cpu"
+) -> float:
+    """Measured dense fp32 matmul rate of this CPU (or ``device``) in GFLOP/s (2·n³ FLOPs per n×n
+    product; the median time; on a GPU with torch's default of no TF32, so true fp32 as the models
+    run)."""
+    a, b = torch.randn(n, n, device=device), torch.randn(n, n, device=device)
     with torch.inference_mode():
-        t = time_call(lambda: a @ b, min_run_time_s, clock)
+        t = time_call(lambda: a @ b, min_run_time_s, clock, device)
     return 2 * n**3 / t.median_s / 1e9
 
 
@@ -186,12 +202,44 @@ def windows_per_second(
     n_devices: int = DEVICES,
     window: int = WINDOW,
     clock: str = "wall",
+    device: str = "cpu",
+    graph: bool = False,
 ) -> tuple[float, float]:
-    """Inference throughput at a batch size (eval mode, inference_mode): (median, IQR) windows/s."""
-    x, mask = window_batch(batch, n_devices, window)
+    """Inference throughput at a batch size (eval mode, inference_mode): (median, IQR) windows/s.
+    The model must be on ``device``. ``graph``: on a GPU, the forward pass captured once as a CUDA
+    graph and replayed (:class:`torch.cuda.CUDAGraph`: one launch instead of one per kernel, what
+    batch 1 is bound by), on inputs of a fixed shape, as a live tracker's would be."""
+    x, mask = (v.to(device) for v in window_batch(batch, n_devices, window))
     model.eval()
     with torch.inference_mode():
-        t = time_call(lambda: model(x, mask), min_run_time_s, clock)
+        if not graph:
+            t = time_call(lambda: model(x, mask), min_run_time_s, clock, device)
+            return t.rate(batch)
+        side = torch.cuda.Stream(device)
+        side.wait_stream(torch.cuda.current_stream(device))
+        with torch.cuda.stream(side):  # warm-up on a side stream, as capture requires
+            for _ in range(3):
+                model(x, mask)
+        torch.cuda.current_stream(device).wait_stream(side)
+        g = torch.cuda.CUDAGraph()
+        with torch.cuda.graph(g):
+            model(x, mask)
+        t = time_call(g.replay, min_run_time_s, clock, device)
+    return t.rate(batch)
+
+
+def compiled_windows_per_second(
+    model: torch.nn.Module, batch: int, min_run_time_s: float = MIN_RUN_TIME_S, device: str = "cpu"
+) -> tuple[float, float]:
+    """Windows/s of ``torch.compile(model, mode="reduce-overhead")`` (kernels fused by Inductor and,
+    on a GPU, replayed as CUDA graphs) at one batch size, after its compilation (not timed)."""
+    x, mask = (v.to(device) for v in window_batch(batch))
+    model.eval()
+    fast = torch.compile(model, mode="reduce-overhead", dynamic=False)
+    with torch.inference_mode():
+        for _ in range(3):  # compiles, then records its graphs
+            fast(x, mask)
+        t = time_call(lambda: fast(x, mask), min_run_time_s, "wall", device)
     return t.rate(batch)
 
 
@@ -202,6 +250,7 @@ def train_step_seconds(
     n_devices: int = DEVICES,
     window: int = WINDOW,
     clock: str = "wall",
+    device: str = "cpu",
 ) -> Timing:
     """Seconds of one Adam step on ``model.loss`` (forward, backward, update) at a batch size:
     the model's share of a training epoch, without the data path. Works on a copy, so the
@@ -210,7 +259,8 @@ def train_step_seconds(
 
     model = cast(OdometryModel, copy.deepcopy(model).train())  # an odometry model: loss(batch)
     x, mask = window_batch(batch, n_devices, window)
-    b = {"x": x, "mask": mask, "vel": torch.randn(batch, 2, generator=torch.Generator().manual_seed(1))}
+    vel = torch.randn(batch, 2, generator=torch.Generator().manual_seed(1))
+    b = {"x": x.to(device), "mask": mask.to(device), "vel": vel.to(device)}
     opt = torch.optim.Adam(model.parameters(), lr=1e-4)
 
     def step():
@@ -218,7 +268,7 @@ def train_step_seconds(
         model.loss(b)[0].backward()
         opt.step()
 
-    return time_call(step, min_run_time_s, clock)
+    return time_call(step, min_run_time_s, clock, device)
 
 
 def measure(
@@ -231,18 +281,26 @@ def measure(
     threads: int | None = None,
     clock: str = "wall",
     train_batch: int | None = 128,
+    device: str = "cpu",
+    faster_b1: bool = False,
     **build_kw,
 ) -> dict:
     """One row of the efficiency table for a model (an instance or a registered name), with
     ``threads`` intra-op threads (default: torch's current setting); ``train_batch`` None skips
-    the training-step timing. Each timing runs for at least ``min_run_time_s``."""
+    the training-step timing. Each timing runs for at least ``min_run_time_s``. ``device``: where
+    the model runs (a GPU: ``cuda``); ``faster_b1``: also batch 1 as a CUDA graph (on a GPU) and
+    through ``torch.compile`` (each a column, or the first line of its error where it fails)."""
     if clock not in CLOCKS:
         raise ValueError(f"clock must be one of {sorted(CLOCKS)}, got {clock!r}")
     with torch_threads(threads):
-        return _measure(model, name, batches, min_run_time_s, n_devices, window, clock, train_batch, build_kw)
+        return _measure(
+            model, name, batches, min_run_time_s, n_devices, window, clock, train_batch, device, faster_b1, build_kw
+        )
 
 
-def _measure(model, name, batches, min_run_time_s, n_devices, window, clock, train_batch, build_kw) -> dict:
+def _measure(
+    model, name, batches, min_run_time_s, n_devices, window, clock, train_batch, device, faster_b1, build_kw
+) -> dict:
     if isinstance(model, str):
         name = name or model
         if get(model).task != "odometry":
@@ -256,19 +314,35 @@ def _measure(model, name, batches, min_run_time_s, n_devices, window, clock, tra
         "mflops_per_window": flops / 1e6,
         "mmacs_per_window": macs_per_window(model, n_devices, window) / 1e6,
     }
+    model = model.to(device)
+    gpu = torch.device(device).type == "cuda"
     dense = []
     for b in batches:
-        dense.append(dense_gflops(min_run_time_s=min_run_time_s, clock=clock))
+        dense.append(dense_gflops(min_run_time_s=min_run_time_s, clock=clock, device=device))
         row[f"win_per_s_b{b}"], row[f"win_per_s_b{b}_iqr"] = windows_per_second(
-            model, b, min_run_time_s, n_devices, window, clock
+            model, b, min_run_time_s, n_devices, window, clock, device
         )
-    dense.append(dense_gflops(min_run_time_s=min_run_time_s, clock=clock))
+    dense.append(dense_gflops(min_run_time_s=min_run_time_s, clock=clock, device=device))
     row["dense_gflops"] = statistics.median(dense)
     for b in batches:
         row[f"fraction_b{b}"] = flops * row[f"win_per_s_b{b}"] / (row["dense_gflops"] * 1e9)
+    if faster_b1:  # the launch-bound batch 1 (a live tracker's one walker), two ways round it
+        tries: dict[str, Callable[[], tuple[float, float]]] = {
+            "compiled": lambda: compiled_windows_per_second(model, 1, min_run_time_s, device)
+        }
+        if gpu:
+            tries["graph"] = lambda: windows_per_second(
+                model, 1, min_run_time_s, n_devices, window, clock, device, True
+            )
+        for how, run in tries.items():
+            try:
+                row[f"win_per_s_b1_{how}"], row[f"win_per_s_b1_{how}_iqr"] = run()
+            except Exception as exc:  # a model that cannot be captured or compiled: say why, go on
+                row[f"win_per_s_b1_{how}"] = f"failed: {(str(exc).splitlines() or [type(exc).__name__])[0][:120]}"
     if train_batch and getattr(model, "learned", True) and any(p.requires_grad for p in model.parameters()):
-        t = train_step_seconds(model, train_batch, min_run_time_s, n_devices, window, clock)
+        t = train_step_seconds(model, train_batch, min_run_time_s, n_devices, window, clock, device)
         row[f"train_step_s_b{train_batch}"], row[f"train_step_s_b{train_batch}_iqr"] = t.median_s, t.iqr_s
+    row["device"] = torch.cuda.get_device_name(device) if gpu else "cpu"
     row["threads"] = torch.get_num_threads()
     row["clock"] = clock
     row["min_run_time_s"] = min_run_time_s
@@ -318,8 +392,15 @@ def write_report(rows, out, odometry_suite=None) -> Path:
         "analytically (4 resp. 3 gates × (in·h + h·h) per step, direction and layer). Timings: "
         "`torch.utils.benchmark.Timer.blocked_autorange` (warm-up, then blocks of calls for at least "
         f"{df['min_run_time_s'].iloc[0]:g} s per timing); each column gives the median over blocks and, in its `_iqr` column, the "
-        "interquartile range (75th − 25th percentile). Windows/s: inference. "
-        "Fraction = FLOPs/window × median windows/s ÷ the dense fp32 matmul rate measured in the same run "
+        "interquartile range (75th − 25th percentile). Windows/s: inference, on the `device` column's "
+        "processor (a GPU's timings wait for its queued work at every clock reading). "
+        + (
+            "`_graph`: batch 1 captured once as a CUDA graph and replayed; `_compiled`: batch 1 through "
+            '`torch.compile(mode="reduce-overhead")`, compilation not timed. '
+            if any(c.endswith(("_graph", "_compiled")) for c in df.columns)
+            else ""
+        )
+        + "Fraction = FLOPs/window × median windows/s ÷ the dense fp32 matmul rate measured in the same run "
         "(the FLOP-bound limit). Train step: one Adam step at batch 128, seconds. "
         + ("Train s/epoch: measured by the odometry suite's runs. " if odometry_suite else "")
         + "The machine is shared: timings vary with load.",

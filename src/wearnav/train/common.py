@@ -16,6 +16,7 @@ from __future__ import annotations
 import datetime as dt
 import logging
 import math
+import threading
 import time
 import warnings
 from dataclasses import dataclass
@@ -23,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import lightning as L
+import numpy as np
 import torch
 from lightning.pytorch.callbacks import Callback, Timer
 from lightning.pytorch.plugins import TorchCheckpointIO
@@ -173,6 +175,45 @@ class LogProgress(Callback):
         log.info(line)
 
 
+class GpuBusy(Callback):
+    """How busy the GPU was while training: NVML's utilisation (``torch.cuda.utilization``: the
+    share of the last sample period in which at least one kernel ran; it says nothing of how many
+    of the SMs a kernel kept busy), sampled every ``every_s`` seconds through every training epoch
+    (validation excluded). :attr:`busy_pct` is the mean, or None where no sample could be read
+    (no GPU, or no NVML binding: the ``nvidia-ml-py`` package)."""
+
+    def __init__(self, every_s: float = 0.1):
+        self.every_s = every_s
+        self.samples: list[float] = []
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def _sample(self, device: torch.device) -> None:
+        while not self._stop.wait(self.every_s):
+            try:
+                self.samples.append(float(torch.cuda.utilization(device)))
+            except Exception:  # no NVML binding (or a driver without it): nothing to report
+                return
+
+    def on_train_epoch_start(self, trainer, pl_module) -> None:
+        device = trainer.strategy.root_device
+        if device.type != "cuda":
+            return
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._sample, args=(device,), daemon=True)
+        self._thread.start()
+
+    def on_train_epoch_end(self, trainer, pl_module) -> None:
+        if self._thread is not None:
+            self._stop.set()
+            self._thread.join()
+            self._thread = None
+
+    @property
+    def busy_pct(self) -> float | None:
+        return round(float(np.mean(self.samples)), 1) if self.samples else None
+
+
 def make_trainer(
     run: Path,
     epochs: int,
@@ -212,7 +253,7 @@ def make_trainer(
         enable_version_counter=False,
         save_top_k=1 if monitor else 0,
     )
-    callbacks: list[Callback] = [checkpoint]
+    callbacks: list[Callback] = [checkpoint, GpuBusy()]
     if progress and not on_terminal():  # no bar can be drawn: periodic log lines instead
         callbacks.append(LogProgress(run.name, max_minutes))
     stopper = None

@@ -43,6 +43,7 @@ from wearnav.train.common import (
     BEST,
     CHECKPOINTS,
     LAST,
+    GpuBusy,
     Schedule,
     SeededModule,
     check_run_kind,
@@ -204,13 +205,23 @@ def _check_windows(ds: WindowDataset, what: str, data: str) -> None:
         )
 
 
-def fit(cfg: TrainConfig, run: str | Path, progress: bool = True, devices: int = 1, strategy: str = "auto") -> dict:
+def fit(
+    cfg: TrainConfig,
+    run: str | Path,
+    progress: bool = True,
+    devices: int = 1,
+    strategy: str = "auto",
+    resident: bool | None = None,
+) -> dict:
     """Train ``cfg.model`` into run folder ``run`` (resuming from its last.ckpt if present).
 
     ``devices``/``strategy``: one training spread over several GPUs or CPU processes (Lightning's
     DDP, :func:`wearnav.train.common.make_trainer`); ``cfg.batch`` stays the global batch, so the
     run (and its folder) is the same on one device or many. With ``strategy="ddp"`` Lightning
     starts the other processes by re-running this command; they end here, after training.
+    ``resident``: keep every window on the training device (:meth:`WindowDataset.to`); None: on a
+    single GPU, where the host data path would keep it waiting (issue 37). The batches are the same
+    bit for bit either way, so it never enters the run's config.
 
     Returns the training record that :func:`wearnav.evaluate.evaluate_run` merges into
     metrics.json: epochs run, best epoch and validation MSE, wall time, seconds per epoch, what
@@ -220,7 +231,7 @@ def fit(cfg: TrainConfig, run: str | Path, progress: bool = True, devices: int =
     lock while it runs (:func:`wearnav.runs.locked`): a second process is refused.
     """
     with runs.locked(run):
-        return _fit(cfg, Path(run), progress, devices, strategy)
+        return _fit(cfg, Path(run), progress, devices, strategy, resident)
 
 
 def finished(run: Path, cfg: TrainConfig) -> dict | None:
@@ -238,7 +249,7 @@ def finished(run: Path, cfg: TrainConfig) -> dict | None:
     return None
 
 
-def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: str) -> dict:
+def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: str, resident: bool | None) -> dict:
     L.seed_everything(cfg.seed, workers=True, verbose=False)  # before the weights are drawn
     model = build_model(cfg)
     spec = registry.get(cfg.model)
@@ -280,6 +291,12 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
         devices=devices,
         strategy=strategy,
     )
+    device = trainer.strategy.root_device
+    if resident is None:
+        resident = device.type == "cuda" and trainer.world_size == 1
+    if resident:  # every window on the device: one gather per batch (WindowDataset.to)
+        train_ds.to(device)
+        val_ds.to(device)
     last = ckpt_dir / LAST
     resumed = last.is_file()
     # A resumed run adds to what earlier attempts measured: epochs already done, wall time spent.
@@ -324,6 +341,8 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
         "resumed": resumed,
         "attempts": earlier.get("attempts", 1) + 1 if resumed else 1,
         "accelerator": str(trainer.strategy.root_device),
+        "data_on_device": bool(resident),  # how it ran (not hashed): WindowDataset.to
+        "gpu_busy_pct": next((c.busy_pct for c in trainer.callbacks if isinstance(c, GpuBusy)), None),
         "processes": trainer.world_size,  # how it ran (not hashed): DDP processes
         # did it learn: its best validation MSE against standing still's on the same windows
         **trust.odometry_baseline(None if best is None else float(best), zero_velocity_mse(val_ds)),
