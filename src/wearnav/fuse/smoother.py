@@ -491,6 +491,4 @@ def build_problem(t, xy, ft, fz, sigma, t0, t1, cfg, prior=None) -> Problem:
 
 
 def solve(prob: Problem, x0: np.ndarray):
-    return least_squares(
-        prob.residuals, x0, jac_sparsity=prob.sparsity(), method="trf", x_scale="jac", ftol=1e-6, xtol=1e-6
-    )
+    return least_squares(prob.residuals, x0, jac=prob.jacobian, method="trf", x_scale="jac", ftol=1e-6, xtol=1e-6)
