@@ -30,8 +30,15 @@ through these few slow unknowns, and the scale has a tight prior (the fixes indo
 than the walker: their path-length ratio on IPIN's walks is 0.67, and a loose scale shrinks the
 path with them). The defaults were chosen on IPIN 2023's training walks (PDR and Suite-IN++)
 and the simulator, never on the benchmark's held-out routes (:mod:`wearnav.bench.user_protocol`).
-The Jacobian is by finite differences over a sparsity pattern; a one-hour walk (3600 fixes)
-takes about 3 s on one core.
+The Jacobian is analytic (:meth:`Problem.jacobian`: the globals and the heading knots move every
+later position through cumulative sums; the Cauchy scaling is differentiated with its residual).
+Against the sparse finite-difference Jacobian it replaced (same solver, ``x_scale`` and
+tolerances), on simulated walks with 1-Hz fixes from the rigid fit's start, one core of a shared
+2-core machine: a 2-min walk 57 → 16 ms a solve, 5.5 min (the live window) 131 → 35 ms, one hour
+(3435 fixes, 610 unknowns) 6.7 → 1.7 s; the paths within 0.14 and 0.45 mm of the old solve's on
+the two short walks. On the hour the old solve stopped at a cost 2e-4 higher, 0.85 m from the new
+path and 1.1 m from the converged optimum (the new one: 0.26 m): on long walks the stopping rule
+(``ftol`` where the cost is flat), not the Jacobian, sets the last centimetres to decimetres.
 """
 
 from __future__ import annotations
