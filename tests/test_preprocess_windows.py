@@ -185,3 +185,75 @@ def test_gap_rules_of_streams_and_truth():
     # between the waypoints nothing is interpolated; on one (t = 14 s exactly) the truth is known
     assert np.isfinite(a.pos[a.t < 11.9]).all() and np.isnan(a.pos[(a.t > 12.0) & (a.t != 14.0)]).all()
     assert np.isfinite(a.pos[a.t == 14.0]).all() and (a.t == 14.0).sum() == 1
+
+
+def phone_pointing(yaw: float, pitch: float, rate: float = 50.0, duration: float = 20.0):
+    """A phone whose top edge points at ``yaw`` (rad, counter-clockwise from +x), pitched up by
+    ``pitch`` (0: flat, screen up; π/2: upright, screen to the walker)."""
+    t = np.arange(0, duration, 1.0 / rate)
+    # body y forward: about z by yaw − π/2 takes +y to the yaw; about x by pitch tilts +y up
+    rot = Rotation.from_euler("z", yaw - np.pi / 2) * Rotation.from_euler("x", pitch)
+    rots = Rotation.from_quat(np.tile(rot.as_quat(), (t.size, 1)))
+    acc = rots.inv().apply(np.tile([0.0, 0.0, GRAVITY], (t.size, 1)))
+    return DeviceStream(t=t, acc=acc, gyro=np.zeros_like(acc), quat=rots.as_quat(scalar_first=True))
+
+
+@pytest.mark.parametrize("pitch", [0.0, 0.6, np.pi / 2])
+def test_device_heading_is_where_the_phone_points_flat_or_upright(pitch):
+    from wearnav.preprocess import device_heading
+
+    for yaw in (0.3, 2.0, -2.5):
+        phone = phone_pointing(yaw, pitch)
+        h = device_heading(phone, np.arange(1.0, 19.0, 0.04))
+        np.testing.assert_allclose(np.angle(h * np.exp(-1j * yaw)), 0.0, atol=1e-6)
+
+
+def test_heading_frame_windows_see_travel_ahead_and_predictions_turn_back():
+    """issue 34: a phone pointing where its walker goes gives targets (speed, 0) in the heading frame
+    whatever the direction of travel; predict_sequence turns a model's velocity back by ψ."""
+    import torch
+
+    from wearnav.evaluate import predict_sequence
+
+    direction = np.arctan2(0.3, 1.2)
+    rec = walk({"phone": phone_pointing(direction, 0.5)})
+    cfg = PreprocessConfig(devices=("phone",), frame_align="none", heading_frame=True)
+    a = align(rec, cfg)
+    assert a.yaw is not None and np.allclose(a.yaw, direction, atol=1e-6)
+    plain = WindowDataset([align(rec, PreprocessConfig(devices=("phone",), frame_align="none"))], WindowConfig(20, 10))
+    heading = WindowDataset([a], WindowConfig(20, 10))
+    assert heading.heading and not plain.heading and "yaw" not in plain[[0]]
+    b, w = heading[list(range(len(heading)))], plain[list(range(len(plain)))]
+    speed = np.hypot(1.2, 0.3)
+    np.testing.assert_allclose(b["vel"].numpy(), np.tile([speed, 0.0], (len(heading), 1)), atol=1e-4)
+    np.testing.assert_allclose(b["yaw"].numpy(), direction, atol=1e-6)
+    # the input turned by −ψ: the horizontal acceleration is that of the world frame turned back
+    hx = w["x"][..., 0].numpy() + 1j * w["x"][..., 1].numpy()
+    np.testing.assert_allclose(
+        b["x"][..., 0].numpy() + 1j * b["x"][..., 1].numpy(), hx * np.exp(-1j * direction), atol=1e-4
+    )
+    np.testing.assert_allclose(b["x"][..., 2].numpy(), w["x"][..., 2].numpy())
+
+    class Ahead(torch.nn.Module):  # says "straight ahead at 1 m/s" for every window
+        def predict(self, x, mask):
+            return torch.tensor([[1.0, 0.0]]).repeat(x.shape[0], 1)
+
+    _, vel, _ = predict_sequence(Ahead(), a, 20, 10)
+    np.testing.assert_allclose(vel, np.tile([np.cos(direction), np.sin(direction)], (len(vel), 1)), atol=1e-6)
+
+
+def test_heading_frame_is_left_out_of_configs_until_used_and_refuses_random_yaw():
+    from wearnav import runs
+    from wearnav.train.odometry import TrainConfig, run_record
+
+    old = run_record(TrainConfig(model="suitein++", data="d"))
+    assert "heading_frame" not in old["train"] and "heading_frame" not in old["preprocess"]
+    new = run_record(TrainConfig(model="suitein++", data="d", heading_frame=True, augment=()))
+    assert (
+        new["train"]["heading_frame"] and new["preprocess"]["heading_frame"] and new["eval_preprocess"]["heading_frame"]
+    )
+    assert runs.config_hash(old) != runs.config_hash(new)
+    with pytest.raises(ConfigError, match="rotate_yaw"):
+        TrainConfig(model="suitein++", data="d", heading_frame=True)
+    with pytest.raises(ConfigError, match="frame='world'"):
+        PreprocessConfig(frame="device", heading_frame=True)

@@ -22,6 +22,7 @@ import typer
 
 from wearnav.cli_bench import bench_app
 from wearnav.cli_common import (
+    HEADING_FRAME_HELP,
     KEPT,
     NOTHING_KEPT,
     RECIPE_HELP,
@@ -385,6 +386,7 @@ def train(
     ),
     recipe: Recipe = typer.Option(Recipe.fast, help=RECIPE_HELP),
     vel_loss: VelLoss = typer.Option(VelLoss.mse, "--vel-loss", help=VEL_LOSS_HELP),
+    heading_frame: bool = typer.Option(False, "--heading-frame", help=HEADING_FRAME_HELP),
     lr: float | None = typer.Option(None, help="Learning rate (default: the recipe's)."),
     batch: int | None = typer.Option(None, help="Batch size (default: the model's paper value)."),
     patience: int = typer.Option(10, help="Early-stopping patience in epochs."),
@@ -436,6 +438,7 @@ def train(
         lr=lr,
         recipe=recipe.value,
         vel_loss=vel_loss.value,
+        **({"heading_frame": True, "augment": ()} if heading_frame else {}),
         batch=batch,
         patience=patience,
         max_minutes=max_time,

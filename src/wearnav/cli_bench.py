@@ -12,6 +12,7 @@ import typer
 
 from wearnav.bench.executor import Backend
 from wearnav.cli_common import (
+    HEADING_FRAME_HELP,
     RECIPE_HELP,
     VEL_LOSS_HELP,
     ImportFormat,
@@ -191,6 +192,7 @@ def bench_real_odometry(
         "over them with walk-paired intervals against PDR (replaces --seed).",
     ),
     vel_loss: VelLoss = typer.Option(VelLoss.mse, "--vel-loss", help=VEL_LOSS_HELP),
+    heading_frame: bool = typer.Option(False, "--heading-frame", help=HEADING_FRAME_HELP),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
     address: str | None = typer.Option(None, help=ADDRESS_HELP),
@@ -215,6 +217,7 @@ def bench_real_odometry(
         lr=lr,
         train_data=str(train_data) if train_data else None,
         vel_loss=vel_loss.value,
+        heading_frame=heading_frame,
     )
     where = PlanPlace(
         test_data=test_data,

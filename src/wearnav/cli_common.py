@@ -42,6 +42,10 @@ VEL_LOSS_HELP = (
     "mse: the papers' squared error of the velocity vector (shortens a velocity whose direction is "
     "uncertain); polar: L1 on log speed plus a speed-weighted direction term (keeps the length)."
 )
+HEADING_FRAME_HELP = (
+    "Each window of the learned model in the phone's heading frame (turned by the device's own heading, "
+    "its velocity turned back), without random yaw in training."
+)
 
 
 # What an interrupted command keeps and how to resume, said on the one line that ends it (exit

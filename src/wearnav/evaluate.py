@@ -30,7 +30,7 @@ from wearnav.progress import progress as report_progress
 from wearnav.textio import read_json
 from wearnav.train.odometry import TRAINING, load_model
 from wearnav.trajectory import integrate_velocity
-from wearnav.windows import WindowConfig, WindowDataset
+from wearnav.windows import WindowConfig, WindowDataset, turn
 
 # Truth sampled at least this densely counts as dense (ATE/RTE); sparser truth is scored at its points.
 DENSE_TRUTH_MAX_DT = 1.0
@@ -50,7 +50,10 @@ def predict_sequence(
     device = next((p.device for p in model.parameters()), torch.device("cpu"))
     ts, vs, ms = [], [], []
     for b in report_progress(wds.loader(batch), desc="predict", unit="batch", enabled=progress, leave=False):
-        vs.append(model.predict(b["x"].to(device), b["mask"].to(device)).float().cpu().numpy())
+        v = model.predict(b["x"].to(device), b["mask"].to(device)).float().cpu().numpy()
+        if "yaw" in b:  # the window's heading frame (PreprocessConfig.heading_frame) back to the world's
+            v = turn(v, b["yaw"].numpy())
+        vs.append(v)
         ts.append(b["t"].mean(dim=1).numpy())
         ms.append(b["mask"].numpy())
     return np.concatenate(ts), np.concatenate(vs), np.concatenate(ms)

@@ -464,23 +464,42 @@ def align_frames(
     mode: str = "truth",
     cfg: FrameConfig = FrameConfig(),
 ) -> tuple[np.ndarray, dict]:
-    """Rotate world-frame ``imu`` (D, T, 6) of an aligned recording into one frame.
+    """:func:`frame_yaws` applied: ``imu`` rotated by −yaw, device by device, and the record."""
+    yaw, record = frame_yaws(imu, mask, devices, rate, pos, mode, cfg)
+    if yaw is None:
+        return imu, record
+    out = np.stack([rotate_stacked(imu[d], -yaw[d]) for d in range(len(devices))])
+    out[~mask] = 0.0
+    return out.astype(imu.dtype), record
+
+
+def frame_yaws(
+    imu: np.ndarray,
+    mask: np.ndarray,
+    devices: tuple[str, ...],
+    rate: float,
+    pos: np.ndarray | None,
+    mode: str = "truth",
+    cfg: FrameConfig = FrameConfig(),
+) -> tuple[np.ndarray | None, dict]:
+    """The yaw that turns world-frame ``imu`` (D, T, 6) of an aligned recording into one frame.
 
     ``mode`` "common": every device into the reference device's frame; "truth": then the common
     frame onto the truth's over time (only where ``pos`` gives usable truth, else it stays "common");
     "initial": the common frame turned by one constant yaw onto the truth, estimated from the first
     ``cfg.initial_s`` seconds of ``pos`` only (no truth after them is read).
-    Returns the rotated IMU and a plain-dict record of what was done (for ``Aligned.meta``):
+    Returns each device's yaw (D, T; rad; None: nothing to turn), by whose negative
+    :func:`align_frames` rotates it, and a plain-dict record of what was done (for ``Aligned.meta``):
     the frame reached, the reference, and per device its yaw relative to the reference with its
     uncertainty and coherence; for "truth" the common frame's yaw relative to the truth."""
     if mode not in FRAME_ALIGN_MODES:
         raise ConfigError(f"frame_align must be one of {', '.join(FRAME_ALIGN_MODES)}, got {mode!r}")
     record: dict = {"frame": "none"}
     if mode == "none":
-        return imu, record
+        return None, record
     cf = common_frame(imu, mask, devices, rate, cfg)
     if cf.reference < 0:
-        return imu, record
+        return None, record
     total = cf.yaw.copy()
     record = {"frame": "common", "reference": devices[cf.reference], "devices": {}, "truth": None}
     for d, name in enumerate(devices):
@@ -509,6 +528,4 @@ def align_frames(
                 total = total + tr.yaw[None, :]
                 record["frame"] = "truth"
                 record["truth"] = tr.summary()
-    out = np.stack([rotate_stacked(imu[d], -total[d]) for d in range(len(devices))])
-    out[~mask] = 0.0
-    return out.astype(imu.dtype), record
+    return total, record

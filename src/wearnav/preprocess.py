@@ -19,10 +19,11 @@ import numpy as np
 from scipy import signal
 
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.frames import FRAME_ALIGN_MODES, align_frames, rotate_stacked
+from wearnav.frames import FRAME_ALIGN_MODES, frame_yaws, rotate_stacked
 from wearnav.progress import progress as report_progress
 from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Recording
 from wearnav.rotations import from_wxyz
+from wearnav.runs import OMIT_AT_DEFAULT
 from wearnav.timeseries import interp_onto, periods, rate
 
 # Gap rules (wearnav.timeseries): a device stream is trusted across a hole of up to this many of
@@ -72,8 +73,18 @@ class PreprocessConfig:
     # convention); world-frame input is rotated by −yaw_deg into the truth frame, after any
     # frame alignment. Estimated from a site's training traces (wearnav.bench.real).
     yaw_deg: float = 0.0
+    # Issue 34: the odometry's windows in the heading frame of the device that carries them (the
+    # first present device of the layout): each window of world-frame input, and its target, turned
+    # by −ψ, ψ the device's heading over the window (:func:`device_heading`); the model's velocity is
+    # turned back by +ψ (:func:`wearnav.evaluate.predict_sequence`). A phone held in the hand points
+    # where its walker goes, so the direction of travel becomes nearly constant in the window's
+    # frame, whatever the building's orientation: what a step counter's heading uses, given to the
+    # model. Left out of configs while False (runs made before it keep their names).
+    heading_frame: bool = field(default=False, metadata={OMIT_AT_DEFAULT: True})
 
     def __post_init__(self) -> None:
+        if self.heading_frame and self.frame != "world":
+            raise ConfigError("heading_frame turns world-frame input; it needs frame='world'")
         if not MIN_RATE_HZ <= self.rate <= MAX_RATE_HZ:
             raise ConfigError(f"rate must be {MIN_RATE_HZ:g}..{MAX_RATE_HZ:g} Hz, got {self.rate}")
         if self.frame not in ("world", "device"):
@@ -103,6 +114,9 @@ class Aligned:
     pos: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
     recording: Recording | None = field(default=None, repr=False)
+    # with ``heading_frame``: the carrying device's heading ψ (T,; rad, in the frame of ``imu``;
+    # NaN where no device is present or its heading is undefined), else None
+    yaw: np.ndarray | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -187,6 +201,31 @@ def stream_to_clock(
     return out.astype(np.float32), mask
 
 
+# The device axis whose horizontal direction is its heading: +y (the top edge) minus +z (out of
+# the screen). A phone held flat in front points +y forward; held upright (screen to the face) it
+# points −z forward; tilted between, y − z still points forward. It is vertical only when the phone
+# lies tilted back by 45° (screen up and towards the walker), not a way phones are carried.
+HEADING_AXIS = np.array([0.0, 1.0, -1.0])
+MIN_HEADING_NORM = 0.2  # |horizontal part of HEADING_AXIS| (of √2) below which ψ is undefined
+
+
+def device_heading(s: DeviceStream, t: np.ndarray) -> np.ndarray:
+    """The device's heading on clock ``t`` as a unit complex number (east + i·north of its world
+    frame): the horizontal direction of :data:`HEADING_AXIS` rotated by its orientation,
+    interpolated (as a vector) inside its stream's span across holes up to
+    ``STREAM_MAX_GAP_PERIODS`` samples; NaN elsewhere and where the axis is near vertical."""
+    if s.quat is None:
+        raise ConfigError("heading_frame needs each device's orientation")
+    a = from_wxyz(s.quat).apply(HEADING_AXIS)
+    h = a[:, 0] + 1j * a[:, 1]
+    h = np.where(np.abs(h) >= MIN_HEADING_NORM, h, np.nan)
+    out, ok = interp_onto(t, s.t, np.stack([h.real, h.imag], 1), max_gap=periods(STREAM_MAX_GAP_PERIODS, s.rate))
+    v = np.asarray(out)[:, 0] + 1j * np.asarray(out)[:, 1]
+    v = np.where(ok & (np.abs(v) > 0), v, np.nan)
+    with np.errstate(invalid="ignore"):  # NaN where undefined, as said
+        return v / np.abs(v)
+
+
 def interpolate_position(
     truth_t: np.ndarray, truth_pos: np.ndarray, t: np.ndarray, max_gap: float = TRUTH_MAX_GAP_S
 ) -> np.ndarray:
@@ -217,11 +256,34 @@ def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig(), t: np.ndar
     if rec.truth is not None:
         pos = interpolate_position(rec.truth.t, rec.truth.pos, t, cfg.truth_max_gap)
     meta = dict(rec.meta)
+    turned = None  # each device's yaw, by whose negative it was turned (D, T)
     if cfg.frame == "world" and cfg.frame_align != "none":
-        imu, meta["frame"] = align_frames(imu, mask, tuple(cfg.devices), cfg.rate, pos, cfg.frame_align)
+        turned, meta["frame"] = frame_yaws(imu, mask, tuple(cfg.devices), cfg.rate, pos, cfg.frame_align)
+        if turned is not None:
+            imu = np.stack([rotate_stacked(imu[d], -turned[d]) for d in range(len(cfg.devices))])
+            imu[~mask] = 0.0
+            imu = imu.astype(np.float32)
     if cfg.yaw_deg:
         imu = np.stack([rotate_stacked(x, -np.deg2rad(cfg.yaw_deg)) for x in imu]).astype(np.float32)
-    return Aligned(rec.name, t, tuple(cfg.devices), imu, mask, pos, meta, rec)
+    yaw = _carrier_heading(rec, cfg, t, mask, turned) if cfg.heading_frame else None
+    return Aligned(rec.name, t, tuple(cfg.devices), imu, mask, pos, meta, rec, yaw)
+
+
+def _carrier_heading(rec: Recording, cfg: PreprocessConfig, t, mask, turned) -> np.ndarray:
+    """ψ (T,) of :attr:`Aligned.yaw`: at each sample the heading of the first device of the layout
+    present there, in the frame the IMU was turned into (its frame alignment and ``yaw_deg``)."""
+    yaw = np.full(t.size, np.nan)
+    for d in reversed(range(len(cfg.devices))):  # the first present device wins
+        dev = cfg.devices[d]
+        if dev not in rec.devices or not mask[d].any():
+            continue
+        psi = np.angle(device_heading(rec.devices[dev], t))
+        if turned is not None:
+            psi = psi - turned[d]
+        psi = psi - np.deg2rad(cfg.yaw_deg)
+        here = mask[d] & np.isfinite(psi)
+        yaw[here] = np.angle(np.exp(1j * psi[here]))
+    return yaw
 
 
 class BoundedCache(OrderedDict):

@@ -42,12 +42,22 @@ METRICS = "metrics.json"
 LOCK = ".wearnav.lock"
 
 
+# A config field added after runs were made: left out of the dict (so of config.yaml and of the
+# run's hash) while it holds its default, so that those runs keep their folders' names.
+OMIT_AT_DEFAULT = "omit_at_default"
+
+
 def to_dict(cfg: Any) -> dict:
-    """A (nested) dataclass as plain YAML-safe data (tuples become lists)."""
+    """A (nested) dataclass as plain YAML-safe data (tuples become lists); a field whose metadata
+    has :data:`OMIT_AT_DEFAULT` is left out while it holds its default."""
 
     def plain(v):
         if dataclasses.is_dataclass(v):
-            return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
+            return {
+                f.name: plain(getattr(v, f.name))
+                for f in dataclasses.fields(v)
+                if not (f.metadata.get(OMIT_AT_DEFAULT) and getattr(v, f.name) == f.default)
+            }
         if isinstance(v, (list, tuple)):
             return [plain(x) for x in v]
         if isinstance(v, dict):

@@ -78,6 +78,11 @@ class WindowDataset(TorchDataset):
             self._labels.append(lab)
         self.index = self._build_index()
         self._resident: _Resident | None = None  # a copy on a device (:meth:`to`)
+        # in the carrying device's heading frame (PreprocessConfig.heading_frame): each window and its
+        # target turned by −ψ, ψ in the batch's ``yaw`` (every sequence the same way, or none)
+        self.heading = any(seq.yaw is not None for seq in self.sequences)
+        if self.heading and not all(seq.yaw is not None for seq in self.sequences):
+            raise ConfigError("sequences with and without heading_frame cannot share a window dataset")
 
     def _collect_classes(self) -> list[str]:
         if not self.cfg.label_kind:
@@ -126,6 +131,8 @@ class WindowDataset(TorchDataset):
         makes, bit for bit: every field but ``x`` is made by it once, here; ``x`` is gathered from
         the sequences' samples, with an absent device's window zeroed as there. Returns self."""
         self._resident = None  # built from the host copy, not from an older device copy
+        if self.heading:  # each window is turned by its own ψ on the host: kept there
+            return self
         self._resident = _Resident(self, torch.device(device), chunk)
         return self
 
@@ -149,6 +156,16 @@ class WindowDataset(TorchDataset):
             t[j] = seq.t[s], seq.t[e]
             dt[j] = seq.t[e] - seq.t[s]
             label[j] = _majority(self._labels[i][s : s + L])
+        extra = {}
+        if self.heading:
+            psi = np.array([window_heading(self.sequences[i].yaw, s, L) for i, s in idx])
+            turn = np.exp(-1j * psi)
+            for c in (0, 3):  # acc and gyro: (x, y) turned by −ψ, z kept
+                h = (x[..., c] + 1j * x[..., c + 1]) * turn[:, None, None]
+                x[..., c], x[..., c + 1] = h.real, h.imag
+            d = (disp[:, 0] + 1j * disp[:, 1]) * turn
+            disp = np.stack([d.real, d.imag], 1)
+            extra["yaw"] = torch.from_numpy(psi.astype(np.float32))
         return {
             "x": torch.from_numpy(x),
             "mask": torch.from_numpy(present.astype(np.float32)),
@@ -157,6 +174,7 @@ class WindowDataset(TorchDataset):
             "label": torch.from_numpy(label),
             "seq": torch.from_numpy(idx[:, 0].copy()),
             "t": torch.from_numpy(t),
+            **extra,
         }
 
     def loader(self, batch: int, shuffle_seed: int | None = None, shard: bool = False) -> torch.utils.data.DataLoader:
@@ -182,6 +200,23 @@ class WindowDataset(TorchDataset):
     ) -> WindowDataset:
         """Align each recording (a Dataset view or any iterable of Recordings) and window them."""
         return cls([align(r, pcfg) for r in recordings], wcfg, classes)
+
+
+def turn(v: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """Horizontal vectors ``v`` (N, 2) turned by ``psi`` (N,) rad, counter-clockwise: a heading-frame
+    window's velocity back into the world frame."""
+    z = (v[:, 0] + 1j * v[:, 1]) * np.exp(1j * np.asarray(psi, np.float64))
+    return np.stack([z.real, z.imag], 1).astype(v.dtype)
+
+
+def window_heading(yaw: np.ndarray | None, start: int, length: int) -> float:
+    """ψ of one window: the circular mean of the carrying device's heading over its samples (0 where
+    no sample has one: the window then stays in the world frame)."""
+    if yaw is None:
+        return 0.0
+    v = np.exp(1j * yaw[start : start + length])
+    v = v[np.isfinite(v)]
+    return float(np.angle(v.mean())) if v.size and abs(v.mean()) > 0 else 0.0
 
 
 class _Resident:

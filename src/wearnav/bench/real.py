@@ -84,6 +84,9 @@ class RealBench:
     train_data: str | None = None  # a simulated dataset or a mix (wearnav.pretrained.mix) to train on instead
     augment: tuple[str, ...] = ("rotate_yaw",)  # the learned models' batch augmentations (wearnav.augment)
     vel_loss: str = "mse"  # the learned models' velocity loss (wearnav.models.base.velocity_loss)
+    # the learned models' windows in the phone's heading frame (PreprocessConfig.heading_frame; issue
+    # 34), without the random yaw of ``augment``
+    heading_frame: bool = False
 
     def __post_init__(self) -> None:
         check_models(self.models, "odometry")  # before any data is prepared
@@ -104,6 +107,8 @@ def _train_config(model: str, data: str, yaw: float, bench: RealBench, elsewhere
         augment=bench.augment,
         vel_loss=bench.vel_loss,
     )
+    if bench.heading_frame and get(model).learned:
+        kw.update(heading_frame=True, augment=tuple(a for a in bench.augment if a != "rotate_yaw"))
     if elsewhere and is_mix(data):  # several sources, truth turned into each input's common frame
         return TrainConfig(**kw, frame_align=MIX_FRAME, truth_max_gap=TRUTH_MAX_GAP_S)
     if elsewhere:  # the simulator's own truth frame and dense truth

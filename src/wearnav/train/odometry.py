@@ -117,9 +117,14 @@ class TrainConfig:
     # the loss on the velocity (wearnav.models.base.velocity_loss): "mse", the papers' (which
     # shortens a velocity whose direction is uncertain), or "polar" (log speed + direction apart)
     vel_loss: str = "mse"
+    # each window in the carrying device's heading frame (PreprocessConfig.heading_frame); no random
+    # yaw then (it would turn away what the frame gives). Left out of configs while False.
+    heading_frame: bool = field(default=False, metadata={runs.OMIT_AT_DEFAULT: True})
 
     def __post_init__(self) -> None:
         check_field_types(self)
+        if self.heading_frame and "rotate_yaw" in self.augment:
+            raise ConfigError("heading_frame keeps the device's heading as the window's frame: drop rotate_yaw")
         if self.vel_loss not in VEL_LOSSES:
             raise ConfigError(f"velocity loss must be one of {', '.join(VEL_LOSSES)}, got {self.vel_loss!r}")
         if self.epochs < 1:
@@ -156,6 +161,7 @@ class TrainConfig:
             frame_align=self.frame_align,
             truth_max_gap=self.truth_max_gap,
             yaw_deg=self.yaw_deg,
+            heading_frame=self.heading_frame,
         )
 
     def eval_config(self) -> TrainConfig:
