@@ -66,7 +66,6 @@ from collections.abc import Collection
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from wearnav import geo
@@ -158,7 +157,7 @@ def build_recording(
         )
     stale = stale_fixes(loc, min(int(x.t_ns[0]) for x in motion)) if loc is not None else None
     if loc is not None and stale is not None and stale.any():
-        loc = Table(loc.path, loc.t_ns[~stale], loc.df[~stale].reset_index(drop=True), loc.duplicates)
+        loc = loc.rows(~stale)
     used = [*motion, *([loc] if loc is not None and len(loc.t_ns) else [])]
     t0 = min(int(x.t_ns[0]) for x in used) if t0_ns is None else int(t0_ns)
 
@@ -306,8 +305,8 @@ def build_recording(
         meta["gaps"] = gaps
     if stale is not None and stale.any():
         meta["dropped_stale_fixes"] = int(stale.sum())
-    if "earbuds" in devices and head is not None and "devicelocation" in head.df.columns:
-        sides = head.df["devicelocation"].dropna().astype(str)
+    if "earbuds" in devices and head is not None and head.has("devicelocation"):
+        sides = head.text("devicelocation").dropna().astype(str)
         if len(sides):
             meta["earbud_side"] = str(sides.mode().iloc[0])
     fixes = None
@@ -347,8 +346,8 @@ def stale_fixes(loc: Table, t_motion_ns: int) -> np.ndarray:
     away and with a huge accuracy. Without that column, fixes more than 1 s before the first motion
     sample. They are dropped (count in ``meta["dropped_stale_fixes"]``) so they neither start the
     recording's clock nor set the local origin."""
-    if "seconds_elapsed" in loc.df.columns:
-        se = pd.to_numeric(loc.df["seconds_elapsed"], errors="coerce").to_numpy(np.float64)
+    if loc.has("seconds_elapsed"):
+        se = loc.numeric("seconds_elapsed")
         return np.isfinite(se) & (se < 0)
     return loc.t_ns < t_motion_ns - 1_000_000_000
 
@@ -475,10 +474,10 @@ def _gyro_residual(rot: Rotation, gyro: np.ndarray | None, t: np.ndarray) -> flo
 
 
 def _fixes(loc: Table, t: np.ndarray, origin: tuple[float, float] | None = None) -> tuple[Fixes, dict]:
-    lat, lon = loc.df["latitude"].to_numpy(np.float64), loc.df["longitude"].to_numpy(np.float64)
+    lat, lon = loc.column("latitude"), loc.column("longitude")
     check_latlon(lat, lon, "Location", loc.path)
-    if "horizontalAccuracy" in loc.df.columns:
-        accuracy = loc.df["horizontalAccuracy"].to_numpy(np.float64)
+    if loc.has("horizontalAccuracy"):
+        accuracy = loc.column("horizontalAccuracy")
         accuracy = np.where(accuracy >= 0, accuracy, np.nan)  # negative = invalid (UNITS.md)
     else:
         accuracy = np.full(len(t), np.nan)

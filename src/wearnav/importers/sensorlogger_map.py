@@ -148,6 +148,23 @@ class Table:
     def values(self, cols: list[str]) -> np.ndarray:
         return self.df[cols].to_numpy(np.float64)
 
+    def has(self, col: str) -> bool:
+        return col in self.df.columns
+
+    def column(self, col: str) -> np.ndarray:
+        return self.df[col].to_numpy(np.float64)
+
+    def numeric(self, col: str) -> np.ndarray:
+        """``col`` as float64, NaN where a value is not a number."""
+        return pd.to_numeric(self.df[col], errors="coerce").to_numpy(np.float64)
+
+    def text(self, col: str) -> pd.Series:
+        return self.df[col]
+
+    def rows(self, keep: np.ndarray) -> Table:
+        """The rows where ``keep`` (bool) is True."""
+        return Table(self.path, self.t_ns[keep], self.df[keep].reset_index(drop=True), self.duplicates)
+
 
 __all__ = [
     "APPLE",

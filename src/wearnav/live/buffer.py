@@ -130,7 +130,7 @@ class SessionBuffer:
         self._quat_inverted: list[str] | None = None
         self._cache: tuple | None = None
         self._snap: tuple[int, dict[str, tuple]] | None = None  # the latest _snapshot, by version
-        self._fresh_cache: tuple[int, np.ndarray, int] | None = None  # _first_fresh_fix's last answer
+        self._fresh_cache: tuple[tuple, np.ndarray] | None = None  # _first_fresh_row's last answer
 
     @classmethod
     def from_store(cls, store, session_id: str) -> SessionBuffer:
@@ -217,17 +217,22 @@ class SessionBuffer:
         judges each fix by its own row, so once found it stays the first while the rows up to it are
         the same (checked on their times) and the motion start is too: kept, not recomputed (a pandas
         table per push was 8 % of a session's tracking)."""
-        t = entry[0]
+        k = self._first_fresh_row(entry, t_motion_ns)
+        return None if k is None else int(entry[0][k])
+
+    def _first_fresh_row(self, entry: tuple, t_motion_ns: int) -> int | None:
+        """:meth:`_first_fresh_fix`'s row in ``entry`` (the Location snapshot), or None."""
+        t, key = entry[0], (t_motion_ns, tuple(entry[2]))  # the columns decide stale_fixes' rule
         c = self._fresh_cache
-        if c is not None and c[0] == t_motion_ns and t.size >= c[1].size and np.array_equal(t[: c[1].size], c[1]):
-            return c[2]
+        if c is not None and c[0] == key and t.size >= c[1].size and np.array_equal(t[: c[1].size], c[1]):
+            return c[1].size - 1
         loc = _table("", "Location.csv", entry, 0)
         fresh = np.flatnonzero(~stale_fixes(loc, t_motion_ns))
         if not fresh.size:
             return None
         k = int(fresh[0])
-        self._fresh_cache = (t_motion_ns, t[: k + 1].copy(), int(t[k]))
-        return int(t[k])
+        self._fresh_cache = (key, t[: k + 1].copy())
+        return k
 
     def _tables(self, snap: dict, lo_ns: int | None) -> dict[str, Table]:
         out = {}
@@ -271,13 +276,12 @@ class SessionBuffer:
         else:
             full_loc = snap.get("Location.csv")
             origin = None
-            if full_loc is not None:
-                loc = _table(self.session_id, "Location.csv", full_loc, 0)
+            if full_loc is not None:  # the first fresh fix (kept, not recomputed: _first_fresh_row)
                 motion0 = min(v[0][0] for f, v in snap.items() if SENSORS[f].device is not None)
-                fresh = ~stale_fixes(loc, int(motion0))
-                if fresh.any():
-                    k = int(np.argmax(fresh))
-                    origin = (float(loc.df["latitude"].iloc[k]), float(loc.df["longitude"].iloc[k]))
+                k = self._first_fresh_row(full_loc, int(motion0))
+                if k is not None:
+                    lat, lon = (full_loc[2].index(c) for c in ("latitude", "longitude"))
+                    origin = (float(full_loc[1][k, lat]), float(full_loc[1][k, lon]))
             lo = self.t0_unix_ns + int(round((t_from - MARGIN_S) * NS))
             rec = cut(self._build(self._tables(snap, lo), quat_inverted=self._quat_inverted, origin=origin), t_from)
         self._cache = (key, rec)
@@ -375,15 +379,77 @@ def _num(x) -> float:
 
 
 def _table(session_id: str, fname: str, entry: tuple, i: int) -> Table:
+    """The rows of ``entry`` (a :meth:`SessionBuffer._snapshot` entry) from row ``i`` on, as the
+    importer's Table (:class:`_ArrayTable`: its numbers read from the buffer's arrays)."""
     t, vals, cols, text, dups = entry
-    df = (
-        pd.DataFrame(vals[i:, : len(cols)], columns=cols)
-        if len(cols) == vals.shape[1]
-        else pd.DataFrame(vals[i:], columns=SENSORS[fname].cols + SENSORS[fname].optional)[cols]
+    return _ArrayTable(
+        Path(f"live:{session_id}/{fname}"),
+        t[i:],
+        vals[i:],
+        cols,
+        [*SENSORS[fname].cols, *SENSORS[fname].optional],
+        None if text is None else (TEXT_COLS[fname], text[i:]),
+        dups,
     )
-    if text is not None:
-        df[TEXT_COLS[fname]] = text[i:]
-    return Table(Path(f"live:{session_id}/{fname}"), t[i:], df, dups)
+
+
+class _ArrayTable(Table):
+    """A :class:`~wearnav.importers.sensorlogger_map.Table` over the buffer's arrays: ``values``
+    reads the columns from them, the same numbers the DataFrame holds (float64, as the buffer keeps
+    them), and the DataFrame is made only where something asks for it (Location's, Headphone's side):
+    a DataFrame per sensor and update, and pandas' column lookup, were a third of an update's build."""
+
+    def __init__(
+        self,
+        path: Path,
+        t_ns: np.ndarray,
+        vals: np.ndarray,
+        cols: list[str],
+        all_cols: list[str],
+        text: tuple[str, np.ndarray] | None,
+        duplicates: int,
+    ):
+        self.path, self.t_ns, self.duplicates = path, t_ns, duplicates
+        self._vals, self._cols, self._all, self._text = vals, cols, all_cols, text
+        self._df: pd.DataFrame | None = None
+
+    @property
+    def df(self) -> pd.DataFrame:
+        if self._df is None:
+            vals, cols = self._vals, self._cols
+            df = (
+                pd.DataFrame(vals[:, : len(cols)], columns=cols)
+                if len(cols) == vals.shape[1]
+                else pd.DataFrame(vals, columns=self._all)[cols]
+            )
+            if self._text is not None:
+                df[self._text[0]] = self._text[1]
+            self._df = df
+        return self._df
+
+    def values(self, cols: list[str]) -> np.ndarray:
+        missing = [c for c in cols if c not in self._cols]
+        if missing:  # as pandas says it
+            raise KeyError(f"{missing} not in index")
+        return self._vals[:, [self._all.index(c) for c in cols]]
+
+    def has(self, col: str) -> bool:
+        return col in self._cols or (self._text is not None and col == self._text[0])
+
+    def column(self, col: str) -> np.ndarray:
+        return self.values([col])[:, 0]
+
+    def numeric(self, col: str) -> np.ndarray:  # the buffer keeps numbers, NaN for anything else (_num)
+        return self.column(col)
+
+    def text(self, col: str) -> pd.Series:
+        if self._text is None or col != self._text[0]:
+            return super().text(col)
+        return pd.Series(self._text[1])
+
+    def rows(self, keep: np.ndarray) -> Table:
+        text = None if self._text is None else (self._text[0], self._text[1][keep])
+        return _ArrayTable(self.path, self.t_ns[keep], self._vals[keep], self._cols, self._all, text, self.duplicates)
 
 
 def cut(rec: Recording, t_from: float) -> Recording:
