@@ -12,6 +12,7 @@ each IMU into the world frame with the device's orientation; these are the defau
 
 from __future__ import annotations
 
+import functools
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
@@ -164,8 +165,15 @@ def _lowpass(x: np.ndarray, fs: float, target_rate: float) -> np.ndarray:
     cutoff = 0.4 * target_rate
     if fs < 2.5 * cutoff or len(x) < 30:
         return x
-    sos = signal.butter(4, cutoff, fs=fs, output="sos")
-    return signal.sosfiltfilt(sos, x, axis=0)
+    return signal.sosfiltfilt(_butter(cutoff, fs), x, axis=0)
+
+
+@functools.lru_cache(maxsize=64)
+def _butter(cutoff: float, fs: float) -> np.ndarray:
+    """The 4th-order low-pass's sections, designed once per (cutoff, rate): rates are nominal
+    (:func:`nominal_rate`), so there are few, and designing it was a third of the live tracker's
+    aligning (an update aligns a few seconds, issue 37)."""
+    return signal.butter(4, cutoff, fs=fs, output="sos")  # shared: scipy's filters only read it
 
 
 def stream_to_clock(

@@ -97,6 +97,20 @@ class _Odometry:
     vel: list = dataclasses.field(default_factory=list)  # (2,) m/s
     t: list = dataclasses.field(default_factory=list)  # path times (clock samples), s
     xy: list = dataclasses.field(default_factory=list)  # (2,) m, from (0, 0) at the first
+    _arrays: dict = dataclasses.field(default_factory=dict, repr=False)
+
+    def array(self, name: str) -> np.ndarray:
+        """The list ``name`` as a float64 array ((N, 2) for ``vel`` and ``xy``), made from its new
+        items only: the lists only grow, and making the whole of them an array at every update
+        grew with the session."""
+        items = getattr(self, name)
+        got = self._arrays.get(name)
+        if got is None or len(got) > len(items):
+            got = np.zeros((0, 2) if name in ("vel", "xy") else 0)
+        if len(got) < len(items):
+            new = np.asarray(items[len(got) :], dtype=np.float64).reshape((-1, *got.shape[1:]))
+            got = self._arrays[name] = np.concatenate([got, new])
+        return got
 
 
 @dataclasses.dataclass
@@ -340,15 +354,15 @@ class LiveTracker:
             o.vel += vel[:n].tolist()
             self._next += n * S
             if len(o.t_c) >= 2:
-                t, xy = _integrate_on(step.clock_t, np.asarray(o.t_c), np.asarray(o.vel), n_old, o.t, o.xy)
+                t, xy = _integrate_on(step.clock_t, o.array("t_c"), o.array("vel"), n_old, o.t, o.xy)
                 for ti, p in zip(t, xy):
                     self.fuser.add_odometry(float(ti), p)
                 o.t += t.tolist()
                 o.xy += xy.tolist()
         self._tail = (np.empty(0), np.empty((0, 2)))
         if n < t_c.size and len(o.t_c) + t_c.size - n >= 2:
-            tc = np.concatenate([o.t_c, t_c[n:]]) if o.t_c else t_c[n:]
-            v = np.concatenate([np.reshape(o.vel, (-1, 2)), vel[n:]])
+            tc = np.concatenate([o.array("t_c"), t_c[n:]]) if o.t_c else t_c[n:]
+            v = np.concatenate([o.array("vel"), vel[n:]])
             self._tail = _integrate_on(step.clock_t, tc, v, len(o.t_c), o.t, o.xy)
         return True
 
@@ -444,8 +458,8 @@ class LiveTracker:
     def path(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
         """Every path sample: times (s), east/north (m; the odometry's own frame where not fused),
         1-σ (m, NaN unknown) and what placed it."""
-        t = np.concatenate([self.odo.t, self._tail[0]])
-        xy = np.concatenate([np.reshape(self.odo.xy, (-1, 2)), self._tail[1]])
+        t = np.concatenate([self.odo.array("t"), self._tail[0]])
+        xy = np.concatenate([self.odo.array("xy"), self._tail[1]])
         res = self._fused
         if res is None or res.method == "none" or len(res.xy) < 2:
             return t, xy, np.full(len(t), np.nan), "none"
