@@ -1,11 +1,12 @@
 """A live update, made cheaper, gives what it gave before (issue 37: "what one walker costs").
 
-The buffer now hands the importer's build its arrays (no DataFrame per sensor and update) and keeps
-the session's origin fix instead of reading the whole Location history at every update; the
-tracker keeps its path as arrays grown by the new samples, and the low-pass is designed once per
-rate. The way each was done before is kept here (:class:`BeforeBuffer`: main's
-``SessionBuffer.recording`` as it was, pandas tables through ``build_recording``;
-:class:`BeforeOdometry`; the filter designed at every call), and a simulated walk goes through both:
+The buffer now hands the importer's build its arrays (no DataFrame per sensor and update), keeps
+the session's origin fix instead of reading the whole Location history at every update, and slices
+streams without checking them again; the tracker keeps its path as arrays grown by the new samples,
+and the low-pass is designed once per rate. The way each was done before is kept here
+(:class:`BeforeBuffer`: main's ``SessionBuffer.recording`` as it was, pandas tables through
+``build_recording``, ``cut`` checking every slice; :class:`BeforeOdometry`; ``tail_before``; the
+filter designed at every call), and a simulated walk goes through both:
 every slice the tracker reads is the same array for array, and the trackers give the same page
 state after every message, bit for bit.
 """
@@ -27,10 +28,12 @@ from wearnav.errors import FormatError
 from wearnav.importers.sensorlogger_build import stale_fixes
 from wearnav.importers.sensorlogger_export import simulated_export, write_export
 from wearnav.importers.sensorlogger_map import SENSORS, Table
+from wearnav.live import tracker as live_tracker
 from wearnav.live.bench import walker_export
-from wearnav.live.buffer import MARGIN_S, TEXT_COLS, SessionBuffer, cut
+from wearnav.live.buffer import MARGIN_S, TEXT_COLS, SessionBuffer, derived
 from wearnav.live.replay import build
 from wearnav.live.tracker import LiveTracker, _Odometry
+from wearnav.recording import DeviceStream, Fixes
 from wearnav.simulate import WalkConfig, simulate_recording
 
 
@@ -45,6 +48,27 @@ def _pandas_table(session_id: str, fname: str, entry: tuple, i: int) -> Table:
     if text is not None:
         df[TEXT_COLS[fname]] = text[i:]
     return Table(Path(f"live:{session_id}/{fname}"), t[i:], df, dups)
+
+
+def cut(rec, t_from):
+    """buffer.cut as it was: every slice's streams checked again."""
+    devices = {}
+    for dev, s in rec.devices.items():
+        k = s.t >= t_from
+        if k.any():
+            devices[dev] = DeviceStream(
+                t=s.t[k],
+                acc=s.acc[k],
+                gyro=None if s.gyro is None else s.gyro[k],
+                quat=None if s.quat is None else s.quat[k],
+                check_units=False,
+            )
+    fixes = None
+    if rec.fixes is not None and (k := rec.fixes.t >= t_from).any():
+        fixes = Fixes(t=rec.fixes.t[k], pos=rec.fixes.pos[k], accuracy=rec.fixes.accuracy[k])
+    if not devices:
+        raise FormatError(f"no samples after t = {t_from:g} s yet", rec.meta.get("file"))
+    return derived(rec, devices, fixes)
 
 
 class BeforeBuffer(SessionBuffer):
@@ -102,6 +126,29 @@ def butter_every_time(cutoff, fs):
     return signal.butter(4, cutoff, fs=fs, output="sos")
 
 
+def tail_before(rec, t_from):
+    """tracker._tail as it was: the slices checked again."""
+    devices = {}
+    for name, s in rec.devices.items():
+        k = s.t >= t_from
+        if k.sum() >= 2:
+            devices[name] = DeviceStream(
+                s.t[k],
+                s.acc[k],
+                None if s.gyro is None else s.gyro[k],
+                None if s.quat is None else s.quat[k],
+                None if s.worn is None else s.worn[k],
+                check_units=False,
+            )
+    return derived(rec, devices, None) if devices else derived(rec, dict(rec.devices), None)
+
+
+def as_before(m) -> None:
+    """Inside ``monkeypatch.context()`` ``m``: the tracker's helpers as they were."""
+    m.setattr(preprocess, "_butter", butter_every_time)
+    m.setattr(live_tracker, "_tail", tail_before)
+
+
 def assert_same_recording(a, b) -> None:
     """Bit for bit: every stream's arrays, the fixes, the meta."""
     assert list(a.devices) == list(b.devices)
@@ -153,12 +200,12 @@ def test_a_phone_only_walk_tracks_as_before(walk, monkeypatch):
             old.add(json.loads(json.dumps(payload)))
             changed = tr_new.update(new)
             with monkeypatch.context() as m:
-                m.setattr(preprocess, "_butter", butter_every_time)
+                as_before(m)
                 assert tr_old.update(old) == changed
             assert tr_new.state() == tr_old.state()
         tr_new.update(new, final=True)
         with monkeypatch.context() as m:
-            m.setattr(preprocess, "_butter", butter_every_time)
+            as_before(m)
             tr_old.update(old, final=True)
     finally:
         SessionBuffer.recording = recording  # type: ignore[method-assign]

@@ -48,9 +48,9 @@ from wearnav.errors import ValidationError
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
-from wearnav.live.buffer import derived
+from wearnav.live.buffer import derived, sliced
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
-from wearnav.recording import DeviceStream, Recording
+from wearnav.recording import Recording
 from wearnav.report.trajectory_page import page_points
 from wearnav.track import input_warnings, odometry_preprocess, path_times
 from wearnav.train.classify import UNKNOWN_INDEX, class_name, unknown_note, window_classes
@@ -537,14 +537,7 @@ def _tail(rec: Recording, t_from: float) -> Recording:
     for name, s in rec.devices.items():
         k = s.t >= t_from
         if k.sum() >= 2:
-            devices[name] = DeviceStream(
-                s.t[k],
-                s.acc[k],
-                None if s.gyro is None else s.gyro[k],
-                None if s.quat is None else s.quat[k],
-                None if s.worn is None else s.worn[k],
-                check_units=False,  # a slice of a checked stream
-            )
+            devices[name] = sliced(s, k)  # a slice of a checked stream, not checked again
     return derived(rec, devices, None) if devices else derived(rec, dict(rec.devices), None)
 
 
