@@ -395,9 +395,10 @@ def _table(session_id: str, fname: str, entry: tuple, i: int) -> Table:
 
 class _ArrayTable(Table):
     """A :class:`~wearnav.importers.sensorlogger_map.Table` over the buffer's arrays: ``values``
-    reads the columns from them, the same numbers the DataFrame holds (float64, as the buffer keeps
-    them), and the DataFrame is made only where something asks for it (Location's, Headphone's side):
-    a DataFrame per sensor and update, and pandas' column lookup, were a third of an update's build."""
+    reads the columns from them (``has``, ``column``, ``numeric``, ``text``, ``rows`` too), the same
+    numbers the DataFrame holds (float64, as the buffer keeps them), and the DataFrame is made only
+    where something asks for it (nothing in the importer's step does): a DataFrame per sensor and
+    update, and pandas' column lookups, were a third of an update's build (issue 37)."""
 
     def __init__(
         self,
