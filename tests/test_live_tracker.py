@@ -205,3 +205,31 @@ def test_live_page_state_carries_a_users_floor_plan(short_export, tmp_path):
     assert np.all((path >= lo) & (path <= hi))  # the path lies inside the 800-m square drawn about the walk
     assert 790 < hi[0] - lo[0] < 810
     assert LiveTracker(activity_model=None).state()["plan"] == []
+
+
+@pytest.mark.slow
+def test_a_heading_frame_model_live_is_tracks_to_round_off(short_export, tmp_path, monkeypatch, capsys):
+    """Issue 34's heading frame through `wearnav train --heading-frame` (a phone-only model, one
+    epoch on the tiny simulator), then live against offline: each window turned by the phone's own
+    heading and its velocity turned back the same way in both, so the live path is track's to 1e-4 m
+    (the turn itself is checked in test_preprocess_windows)."""
+    from conftest import run_cli
+
+    data, run = tmp_path / "sim", tmp_path / "run"
+    assert run_cli(monkeypatch, capsys, "simulate", "--preset", "tiny", "--out", str(data))[0] == 0
+    code, out, err = run_cli(
+        monkeypatch, capsys, "train", "ronin", "--data", str(data), "--out", str(run), "--devices", "phone",
+        "--epochs", "1", "--heading-frame", "--no-evaluate",
+    )  # fmt: skip
+    assert code == 0, err
+    tr = LiveTracker(model=str(run), activity_model=None)
+    assert tr.cfg is None or tr.cfg.heading_frame
+    live = replay_into(tr, short_export / "export")
+    assert tr.cfg is not None and tr.cfg.heading_frame
+    rec = live["buf"].recording()
+    *_, t_off, xy_off = odometry(tr.model, tr.cfg, rec)
+    t, xy = np.asarray(tr.odo.t), np.asarray(tr.odo.xy)
+    assert np.array_equal(t, t_off)
+    gap = np.linalg.norm(xy - xy_off, axis=1)
+    print(f"\nheading-frame model, live vs offline odometry: max {gap.max():.2e} m over {len(t)} samples")
+    assert gap.max() < 1e-4 and np.ptp(xy_off, axis=0).max() > 1.0  # a path that moved, the same live

@@ -57,7 +57,7 @@ from wearnav.train.classify import UNKNOWN_INDEX, class_name, unknown_note, wind
 from wearnav.train.odometry import TrainConfig
 from wearnav.train.resolve import resolve_model
 from wearnav.trajectory import integrate_velocity
-from wearnav.windows import WindowConfig, WindowDataset
+from wearnav.windows import WindowConfig, WindowDataset, turn
 
 # Input aligned before the first window not yet final: the common frame's Gaussian kernel (σ 20 s,
 # wearnav.frames) reaches 4 σ = 80 s back. Measured on a 300-s simulated walk (3 devices), the fused
@@ -129,6 +129,7 @@ class Step:
     t_c: np.ndarray | None = None  # window centres, s
     x: Any = None  # torch.Tensor
     mask: Any = None  # torch.Tensor
+    yaw: np.ndarray | None = None  # each window's heading ψ where the model has a heading frame
 
 
 class SharedModels:
@@ -296,6 +297,8 @@ class LiveTracker:
         changed = step.changed
         if step.t_c is not None:
             assert vel is not None and len(vel) == len(step.t_c)  # one velocity per window
+            if step.yaw is not None:  # the windows' heading frame back to the world's (as predict_sequence)
+                vel = turn(vel, step.yaw)
             changed |= self._grow(step, vel)
         covered, rec, final = step.covered, step.rec, step.final
         if changed and (final or covered - self._fused_s >= FUSE_EVERY_S):
@@ -333,12 +336,14 @@ class LiveTracker:
         clock = self.clock0 + np.arange(g_a, g_end + 1) / rate  # align's clock(): t0 + k / rate
         seq = align(step.rec, pcfg, clock)
         part = slice(self._next - g_a, g_last - g_a + 1)
-        seq = Aligned(seq.name, seq.t[part], seq.devices, seq.imu[:, part], seq.mask[:, part], None, seq.meta)
+        yaw = seq.yaw[part] if seq.yaw is not None else None  # PreprocessConfig.heading_frame
+        seq = Aligned(seq.name, seq.t[part], seq.devices, seq.imu[:, part], seq.mask[:, part], None, seq.meta, yaw=yaw)
         wds = WindowDataset([seq], WindowConfig(window=L, stride=S, target=None))
         if len(wds) == 0:
             return
         b = wds[np.arange(len(wds))]
         step.clock_t, step.t_c, step.x, step.mask = seq.t, b["t"].mean(dim=1).numpy(), b["x"], b["mask"]
+        step.yaw = b["yaw"].numpy() if "yaw" in b else None
 
     def _grow(self, step: Step, vel: np.ndarray) -> bool:
         """The windows inside ``step.g_final`` for good (the path and the smoother grow by them),
