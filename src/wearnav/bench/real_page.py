@@ -203,7 +203,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         f"Odometry in real buildings: trained on {src}"
         if not bench["train_data"]
         else f"Odometry in real buildings: trained on `{Path(bench['train_data']).name}`, tested on {src}"
-    )
+    ) + (", the learned models in the phone's heading frame" if bench.get("heading_frame") else "")
     lines = [
         f"# {title}",
         "",
@@ -223,6 +223,11 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         + (f", at most {bench['max_minutes']:g} min per model" if bench["max_minutes"] else "")
         + (f", Adam lr {bench['lr']:g}" if bench["lr"] else ", each model's paper learning rate")
         + f", velocity loss `{bench.get('vel_loss', 'mse')}`"
+        + (
+            ", the learned models' windows in the phone's heading frame (`--heading-frame`) without random yaw"
+            if bench.get("heading_frame")
+            else ""
+        )
         + f", seed {bench['seed']}, one run per row (the epochs and minutes each got are in its row).",
         "",
         "Sim-to-real: a row named `model · simulator ...` is that model trained on the simulated "
