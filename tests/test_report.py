@@ -320,6 +320,14 @@ def test_results_keep_updates_suite_by_suite(tmp_path):
     # two suites may share a title: their folders tell them apart
     collect([suite("d", "Gamma", "body-d-one")], out, keep=True)
     assert "body-c-two" in out.read_text() and "body-d-one" in out.read_text()
+    # a suite retitled since replaces its own section in place (no stale copy under the old title)
+    collect([suite("c", "Gamma, retitled", "body-c-three")], out, keep=True)
+    text = out.read_text()
+    assert [l for l in text.splitlines() if "<!-- suite:" in l] == [
+        "## Gamma, retitled <!-- suite: c -->",
+        "## Gamma <!-- suite: d -->",
+    ]
+    assert "body-c-two" not in text and "body-c-three" in text
 
 
 def test_results_page_starts_with_a_headline_and_a_glossary_and_shows_no_absolute_path(tmp_path):

@@ -218,13 +218,20 @@ def _sections(text: str) -> list[tuple[str, str]]:
     return [(p.splitlines()[0], p.strip()) for p in parts if p.startswith("## ")]
 
 
+def _tag(heading: str) -> str | None:
+    """The suite folder a section's heading is marked with (``<!-- suite: TAG -->``), if any."""
+    m = re.search(r"<!-- suite: ([A-Za-z0-9_-]+) -->$", heading)
+    return m.group(1) if m else None
+
+
 def collect(
     suites: list[Path], out: Path, title: str = "Measured results", keep: bool = False, drop: tuple[str, ...] = ()
 ) -> Path:
     """Write ``out`` from each suite's results.md (headings demoted one level) and copy the PNGs
     each page links into ``out.parent/img/<suite>_<file>``. With ``keep``, the sections of the
     existing ``out`` (each one a suite's generated page) stay, in their order, unless a suite given
-    now has the same heading (its title and folder name): results measured on another machine or session are updated suite by
+    now has the same heading or the same folder name (a suite retitled since: its old section would
+    otherwise stay beside the new): results measured on another machine or session are updated suite by
     suite instead of being lost. ``drop``: suite folder names (or, for a section from before
     sections were marked, its heading text) whose kept sections are removed (superseded). A page linking a figure its suite does not hold is refused."""
     out = Path(out)
@@ -267,7 +274,15 @@ def collect(
     tags = {re.sub(r"[^A-Za-z0-9_-]+", "_", d) for d in drop}
     old = [(h, t) for h, t in old if not any(h.endswith(f"<!-- suite: {d} -->") for d in tags) and h[3:] not in drop]
     fresh = dict(new)
-    merged = [(h, fresh.pop(h) if h in fresh else t) for h, t in old] + [(h, t) for h, t in new if h in fresh]
+    by_tag = {_tag(h): h for h, _ in new if _tag(h)}  # a suite given again replaces its section, retitled or not
+    merged: list[tuple[str, str]] = []
+    for h, t in old:
+        h_new = h if h in fresh else by_tag.get(_tag(h) or "")
+        if h_new is None:
+            merged.append((h, t))
+        elif h_new in fresh:
+            merged.append((h_new, fresh.pop(h_new)))
+    merged += [(h, t) for h, t in new if h in fresh]
     merged = [(h, _relative_paths(t)) for h, t in merged if h not in (HEADLINE, GLOSSARY_HEADING)]
     body = "\n".join(t for _, t in merged)
     parts += headline(merged) + glossary(body)
