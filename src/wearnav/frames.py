@@ -466,11 +466,14 @@ def align_frames(
 ) -> tuple[np.ndarray, dict]:
     """:func:`frame_yaws` applied: ``imu`` rotated by −yaw, device by device, and the record."""
     yaw, record = frame_yaws(imu, mask, devices, rate, pos, mode, cfg)
-    if yaw is None:
-        return imu, record
-    out = np.stack([rotate_stacked(imu[d], -yaw[d]) for d in range(len(devices))])
+    return (imu if yaw is None else turn_devices(imu, mask, yaw)), record
+
+
+def turn_devices(imu: np.ndarray, mask: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """``imu`` (D, T, 6) with each device rotated by −``yaw`` (D, T), absent samples zero."""
+    out = np.stack([rotate_stacked(imu[d], -yaw[d]) for d in range(len(imu))])
     out[~mask] = 0.0
-    return out.astype(imu.dtype), record
+    return out.astype(imu.dtype)
 
 
 def frame_yaws(

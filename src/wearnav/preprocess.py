@@ -20,7 +20,7 @@ import numpy as np
 from scipy import signal
 
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.frames import FRAME_ALIGN_MODES, frame_yaws, rotate_stacked
+from wearnav.frames import FRAME_ALIGN_MODES, frame_yaws, rotate_stacked, turn_devices
 from wearnav.progress import progress as report_progress
 from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Recording
 from wearnav.rotations import from_wxyz
@@ -268,9 +268,7 @@ def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig(), t: np.ndar
     if cfg.frame == "world" and cfg.frame_align != "none":
         turned, meta["frame"] = frame_yaws(imu, mask, tuple(cfg.devices), cfg.rate, pos, cfg.frame_align)
         if turned is not None:
-            imu = np.stack([rotate_stacked(imu[d], -turned[d]) for d in range(len(cfg.devices))])
-            imu[~mask] = 0.0
-            imu = imu.astype(np.float32)
+            imu = turn_devices(imu, mask, turned)
     if cfg.yaw_deg:
         imu = np.stack([rotate_stacked(x, -np.deg2rad(cfg.yaw_deg)) for x in imu]).astype(np.float32)
     yaw = _carrier_heading(rec, cfg, t, mask, turned) if cfg.heading_frame else None
