@@ -89,6 +89,7 @@ LAYERS: dict[str, int] = {
     # 8 wearnav track: one recording to a path, its page and summary
     "wearnav.track": 8,
     "wearnav.track_files": 8,  # the names track writes, read by the CLI before torch is imported
+    "wearnav.track_map": 8,  # track's map-aware path (--map, --start): the plans and the particle filter
     # 9 wearnav live: the receiver; its tracker runs track's steps as data arrives
     "wearnav.live": 9,
     "wearnav.live.crowd": 9,  # every session's tracker in batched ticks: imports live.tracker

@@ -74,11 +74,11 @@ anchoring, with a warning.
 Map-aware path (issue 36): where there is a floor plan (``--map auto``, the default: the plan the
 recording carries, e.g. ILC2's; or a user's GeoJSON file, :func:`wearnav.plans.read_geojson_plan`)
 and a start (``--start X,Y,HEADING_DEG``, or the first kept fix), the path is placed by
-:func:`wearnav.fuse.placement.place` instead of the smoother: a particle filter keeping the
-odometry inside walkable space, weighing in every kept fix. ``track.json`` ``map`` says which plans
-and whether they were used; ``anchoring.method`` is then "map"; the plan is drawn under the path in
-``trajectory.png`` and ``trajectory.html``. A plan without fixes or ``--start`` is not used (a warning
-says to give ``--start``).
+:func:`wearnav.fuse.placement.place` instead of the smoother (:mod:`wearnav.track_map`): a particle
+filter keeping the odometry inside walkable space, weighing in every kept fix. ``track.json``
+``map`` says which plans and whether they were used; ``anchoring.method`` is then "map"; the plan is
+drawn under the path in ``trajectory.png`` and ``trajectory.html``. A plan without fixes or
+``--start`` is not used (a warning says to give ``--start``).
 """
 
 from __future__ import annotations
@@ -91,16 +91,13 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
-from wearnav import fuse, geo, plans, pretrained, trust
+from wearnav import fuse, geo, pretrained, trust
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.evaluate import predict_sequence
 from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.fixcheck import FixCheck
-from wearnav.fuse import placement
-from wearnav.fuse.particles import MapConfig
 from wearnav.models.pdr import PDR
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.preprocess import PreprocessConfig, align
@@ -108,6 +105,7 @@ from wearnav.recording import FloorPlan, Recording
 from wearnav.report.trajectory_page import activity_intervals, page_points, trajectory_html
 from wearnav.textio import read_json
 from wearnav.track_files import TRACK_FILES, TRACK_JSON
+from wearnav.track_map import MAP_CHOICES, map_path
 from wearnav.train.resolve import locate_model, resolve_model
 from wearnav.trajectory import integrate_velocity
 
@@ -122,7 +120,6 @@ ANCHOR_TEXT = {
     "map": "map-aware particle filter (wearnav.fuse.particles): the odometry's moves kept inside the floor plan's "
     "walkable space, heading offset and scale per particle, every kept fix weighed in (Student-t)",
 }
-MAP_CHOICES = ("auto", "none")  # or a GeoJSON plan file (wearnav.plans.read_geojson_plan)
 TRAJ_FORMAT = "%.4f"
 COORD_DIGITS = 7  # GeoJSON and fixes.csv lat/lon decimals: 1e-7° is 1.1 cm
 INDEX_LIST_MAX = 10  # track.json lists at most this many dropped fixes' indices per reason
@@ -349,53 +346,6 @@ def odometry(model, cfg, rec: Recording, progress: bool = False):
     return seq, t_c, vel, present, t, integrate_velocity(t_c, vel, t, np.zeros(2))
 
 
-# ---- the map-aware path (issue 36) -------------------------------------------------------------
-
-
-def map_plans(rec: Recording, plan: str | Path) -> tuple[list[FloorPlan], str]:
-    """The floor plans ``--map`` asks for and where they come from: ``auto`` the recording's own
-    (``rec.plans``, from its importer), ``none`` no plan, else a GeoJSON plan file placed in the
-    recording's local frame (:func:`wearnav.plans.read_geojson_plan`; its lat/lon origin, or the
-    plan's own centre where the recording has none)."""
-    if str(plan) == "none":
-        return [], "none"
-    if str(plan) == "auto":
-        return list(rec.plans), "the recording's own" if rec.plans else "none in the recording"
-    path = Path(plan)
-    lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
-    if lat0 is None or lon0 is None:
-        lat0, lon0 = plans.geojson_centre(path)
-        rec.meta["origin_lat"], rec.meta["origin_lon"] = lat0, lon0
-        how = f"{path.name}, about its own centre ({lat0:.7f}, {lon0:.7f}): the recording has no lat/lon origin"
-    else:
-        how = f"{path.name}, in the recording's local frame"
-    return plans.read_geojson_plan(path, float(lat0), float(lon0)), how
-
-
-def place_on_map(
-    rec: Recording,
-    t: np.ndarray,
-    xy: np.ndarray,
-    floor_plans: list[FloorPlan],
-    start: tuple[float, float, float] | None,
-    cfg: MapConfig = MapConfig(),
-    progress: bool = False,
-) -> fuse.FuseResult | None:
-    """The map-aware path (:func:`wearnav.fuse.placement.place`: the particle filter with the plan's
-    walls and the recording's fixes) of the odometry path ``xy`` on ``floor_plans``, as a FuseResult
-    (method "map"), or None where there is no plan. The start is ``start`` (x, y in the plan's frame,
-    the heading of travel in degrees counter-clockwise from +x) or the first kept fix."""
-    if not floor_plans:
-        return None
-    with tqdm(total=100, desc="map-aware path", unit="%", disable=not progress, leave=False) as bar:
-
-        def tick(k: int, n: int) -> None:
-            bar.update(int(100 * k / n) - bar.n)
-
-        res, check = placement.place(rec, t, xy, None, floor_plans, start, cfg, tick)
-    return fuse.FuseResult(res.xy, res.sigma_m, "map", res.info, [], check)
-
-
 # ---- the command -------------------------------------------------------------------------------
 
 
@@ -412,8 +362,8 @@ def track(
 ) -> dict:
     """Track one recording (see module docstring); ``anchor`` places the path on the fixes
     (:data:`wearnav.fuse.ANCHORS`); ``plan`` (``auto``, ``none`` or a GeoJSON plan file) and ``start``
-    (x, y, heading of travel in degrees) make the path map-aware (:func:`place_on_map`); returns what
-    ``track.json`` holds."""
+    (x, y, heading of travel in degrees) make the path map-aware (:func:`wearnav.track_map.map_path`);
+    returns what ``track.json`` holds."""
     out = Path(out)
     if anchor not in fuse.ANCHORS:
         raise ConfigError(f"unknown anchoring {anchor!r}; one of {', '.join(fuse.ANCHORS)}")
@@ -480,18 +430,8 @@ def track(
     summary["warnings"] += [
         f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel, summary["length_m"])
     ]
-    floor_plans, plan_from = map_plans(rec, plan)
-    summary["map"] = {"requested": str(plan), "plans": [p.name for p in floor_plans], "from": plan_from}
-    placed = None
-    if floor_plans and start is None and (rec.fixes is None or not len(rec.fixes)):
-        summary["warnings"].append(
-            "the recording has a floor plan but no location fixes: give --start X,Y,HEADING_DEG to place the path on it"
-        )
-        summary["map"]["used"] = False
-    elif floor_plans:
-        placed = place_on_map(rec, t, xy, floor_plans, start, progress=progress)
-        summary["map"]["used"] = True
-        rec.plans = floor_plans  # what the page draws under the path
+    placed, summary["map"], map_warnings = map_path(rec, t, xy, plan, start, progress)
+    summary["warnings"] += map_warnings
     for w in summary["warnings"]:
         warnings.warn(WearnavWarning(w), stacklevel=2)
     with staged_output(out, TRACK_JSON, "track") as stage:
@@ -513,7 +453,8 @@ def _write_track(
     placed: fuse.FuseResult | None = None,
 ) -> None:
     """Place the path on the fixes by ``anchor`` (:mod:`wearnav.fuse`), or take the map-aware path
-    ``placed`` (:func:`place_on_map`), and write the files into ``stage`` (moved to ``out`` afterwards)."""
+    ``placed`` (:func:`wearnav.track_map.place_on_map`), and write the files into ``stage`` (moved to
+    ``out`` afterwards)."""
     anchored, res = None, placed
     fx = rec.fixes
     has_fixes = fx is not None and len(fx) > 0
@@ -525,7 +466,7 @@ def _write_track(
         }
         summary["warnings"].append(f"{rec.name}: no location fixes: the path is not placed on a map")
         warnings.warn(WearnavWarning(summary["warnings"][-1]), stacklevel=2)
-    elif res is not None:  # the map-aware path (place_on_map)
+    elif res is not None:  # the map-aware path (wearnav.track_map.place_on_map)
         summary["anchoring"] = {
             "requested": f"--map ({anchor} is not used with a plan)",
             "method": res.method,

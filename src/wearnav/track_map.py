@@ -1,0 +1,90 @@
+"""The map-aware path of `wearnav track` (issue 36): the floor plans ``--map`` asks for, and the path
+placed on them from ``--start`` or the first kept fix by the particle filter of
+:func:`wearnav.fuse.placement.place` (walls of the plan, every kept fix weighed in), in place of
+the smoother's anchoring. :mod:`wearnav.track` calls :func:`map_path` and writes what it returns."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from wearnav import fuse, plans
+from wearnav.fuse import placement
+from wearnav.fuse.particles import MapConfig
+from wearnav.recording import FloorPlan, Recording
+
+MAP_CHOICES = ("auto", "none")  # or a GeoJSON plan file (wearnav.plans.read_geojson_plan)
+
+
+def map_plans(rec: Recording, plan: str | Path) -> tuple[list[FloorPlan], str]:
+    """The floor plans ``--map`` asks for and where they come from: ``auto`` the recording's own
+    (``rec.plans``, from its importer), ``none`` no plan, else a GeoJSON plan file placed in the
+    recording's local frame (:func:`wearnav.plans.read_geojson_plan`; its lat/lon origin, or the
+    plan's own centre where the recording has none)."""
+    if str(plan) == "none":
+        return [], "none"
+    if str(plan) == "auto":
+        return list(rec.plans), "the recording's own" if rec.plans else "none in the recording"
+    path = Path(plan)
+    lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
+    if lat0 is None or lon0 is None:
+        lat0, lon0 = plans.geojson_centre(path)
+        rec.meta["origin_lat"], rec.meta["origin_lon"] = lat0, lon0
+        how = f"{path.name}, about its own centre ({lat0:.7f}, {lon0:.7f}): the recording has no lat/lon origin"
+    else:
+        how = f"{path.name}, in the recording's local frame"
+    return plans.read_geojson_plan(path, float(lat0), float(lon0)), how
+
+
+def place_on_map(
+    rec: Recording,
+    t: np.ndarray,
+    xy: np.ndarray,
+    floor_plans: list[FloorPlan],
+    start: tuple[float, float, float] | None,
+    cfg: MapConfig = MapConfig(),
+    progress: bool = False,
+) -> fuse.FuseResult | None:
+    """The map-aware path (:func:`wearnav.fuse.placement.place`: the particle filter with the plan's
+    walls and the recording's fixes) of the odometry path ``xy`` on ``floor_plans``, as a FuseResult
+    (method "map"), or None where there is no plan. The start is ``start`` (x, y in the plan's frame,
+    the heading of travel in degrees counter-clockwise from +x) or the first kept fix."""
+    if not floor_plans:
+        return None
+    with tqdm(total=100, desc="map-aware path", unit="%", disable=not progress, leave=False) as bar:
+
+        def tick(k: int, n: int) -> None:
+            bar.update(int(100 * k / n) - bar.n)
+
+        res, check = placement.place(rec, t, xy, None, floor_plans, start, cfg, tick)
+    return fuse.FuseResult(res.xy, res.sigma_m, "map", res.info, [], check)
+
+
+def map_path(
+    rec: Recording,
+    t: np.ndarray,
+    xy: np.ndarray,
+    plan: str | Path,
+    start: tuple[float, float, float] | None,
+    progress: bool = False,
+) -> tuple[fuse.FuseResult | None, dict, list[str]]:
+    """The map-aware path of the odometry path ``xy`` (times ``t``) for ``--map plan`` and ``--start``:
+    the placed path (:func:`place_on_map`; None where no plan is used), ``track.json``'s ``map`` (the
+    plans requested and found, and whether they were ``used``) and the warnings to add. A plan is not
+    used where the recording has no fixes and no ``start`` is given; where it is used it becomes
+    ``rec.plans`` (what the page draws under the path)."""
+    floor_plans, plan_from = map_plans(rec, plan)
+    info: dict = {"requested": str(plan), "plans": [p.name for p in floor_plans], "from": plan_from}
+    placed, warns = None, []
+    if floor_plans and start is None and (rec.fixes is None or not len(rec.fixes)):
+        warns.append(
+            "the recording has a floor plan but no location fixes: give --start X,Y,HEADING_DEG to place the path on it"
+        )
+        info["used"] = False
+    elif floor_plans:
+        placed = place_on_map(rec, t, xy, floor_plans, start, progress=progress)
+        info["used"] = True
+        rec.plans = floor_plans  # what the page draws under the path
+    return placed, info, warns
