@@ -49,6 +49,8 @@ LAYERS: dict[str, int] = {
     "wearnav.export.header": 0,
     # 1 the data model: one Recording, a Dataset folder of them, run and output folders
     "wearnav.recording": 1,
+    "wearnav.recording_checks": 1,  # the checks Recording's parts run on construction
+    "wearnav.recording_radio": 1,  # a Recording's beacons, pressure and floor plans (recording re-exports them)
     "wearnav.dataset": 1,
     "wearnav.outputs": 1,
     "wearnav.plans": 1,  # floor plans' geometry (shapely): importers place plans with it, fuse and track use it

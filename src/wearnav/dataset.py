@@ -33,7 +33,8 @@ from wearnav.errors import FormatError, MissingFileError, Terminated, Validation
 from wearnav.fileio import fsync_dir, fsync_file, host_tag, pid_alive, require_regular_file
 from wearnav.interrupts import noting_lost_interrupts, raise_lost_interrupt
 from wearnav.provenance import provenance
-from wearnav.recording import Recording, check_name, check_text
+from wearnav.recording import Recording
+from wearnav.recording_checks import check_name, check_text
 from wearnav.textio import read_yaml
 
 MANIFEST = "manifest.csv"

@@ -2,14 +2,16 @@
 
 A :class:`Recording` holds what one walk produced: the IMU stream of each worn device
 (:class:`DeviceStream`), optionally the true body trajectory (:class:`Trajectory`), noisy location
-fixes (:class:`Fixes`), interval labels and free metadata. Streams keep their own rates and clocks;
-resampling to a common clock is :mod:`wearnav.preprocess`'s job.
+fixes (:class:`Fixes`), interval labels and free metadata; where the source has them, BLE beacon
+readings, barometer pressure and floor plans (:mod:`wearnav.recording_radio`, re-exported here).
+Streams keep their own rates and clocks; resampling to a common clock is :mod:`wearnav.preprocess`'s
+job.
 
 Units are SI: seconds, metres, m/s² (accelerometer *including* gravity, device frame), rad/s.
 Quaternions are (w, x, y, z) and rotate device-frame vectors into the world frame (z up).
 
-Everything is validated on construction, so a Recording that exists is well-formed; loading a
-file re-validates and names the file in any error.
+Everything is validated on construction (the checks: :mod:`wearnav.recording_checks`), so a
+Recording that exists is well-formed; loading a file re-validates and names the file in any error.
 """
 
 from __future__ import annotations
@@ -25,6 +27,20 @@ import pandas as pd
 
 from wearnav.errors import FormatError, ValidationError
 from wearnav.fileio import atomic_path, require_regular_file
+from wearnav.recording_checks import (
+    POS_ABS_MAX,
+    _as_array,
+    _as_flags,
+    _check_position,
+    _check_range,
+    _check_rows,
+    _check_time,
+    check_name,
+    check_text,
+)
+from wearnav.recording_radio import BeaconReadings as BeaconReadings
+from wearnav.recording_radio import FloorPlan as FloorPlan
+from wearnav.recording_radio import Pressure as Pressure
 from wearnav.timeseries import rate
 
 FORMAT_NAME = "wearnav.recording"
@@ -49,122 +65,14 @@ GYRO_NORM_MEDIAN_MAX = 15.0
 # beyond them was not measured by such a sensor: a corrupt file, a wrong unit or a sentinel.
 ACC_AXIS_MAX = 16 * STANDARD_GRAVITY  # m/s²
 GYRO_AXIS_MAX = float(np.deg2rad(2000.0))  # rad/s
-# Positions are metres in a local frame about the recording's own origin: nothing on Earth is
-# farther than half its circumference (~2e7 m), so a larger coordinate is a corrupt value.
-POS_ABS_MAX = 2.0e7
 # Truth and fixes describe the same walk as the devices: times farther than this outside the
 # devices' span are on another clock or corrupt.
 MAX_TIME_OUTSIDE_S = 600.0
-# Longest recording / device name: it becomes a file name (``<name>.h5``, 255 bytes on most
-# file systems) and an HDF5 link name.
-MAX_NAME_BYTES = 200
-# Received power of a BLE beacon: -110 dBm is below any phone's sensitivity, 0 dBm at the antenna.
-RSSI_DBM_RANGE = (-130.0, 0.0)
-# Air pressure anywhere people walk: Dead Sea shore ~1070 hPa, 5000 m altitude ~540 hPa.
-PRESSURE_HPA_RANGE = (300.0, 1100.0)
-
-
-def check_text(text, what: str) -> int:
-    """Refuse text that HDF5 and CSV cannot store and give back: not a string, holding NUL, not
-    UTF-8-encodable (lone surrogates). Returns its UTF-8 size in bytes."""
-    if not isinstance(text, str):
-        raise ValidationError(f"{what} {text!r} is not a string")
-    if "\x00" in text:
-        raise ValidationError(f"{what} {text!r} contains NUL")
-    try:
-        return len(text.encode("utf-8"))
-    except UnicodeEncodeError:
-        raise ValidationError(f"{what} {text!r} cannot be encoded as UTF-8") from None
-
-
-def check_name(name, what: str) -> None:
-    """Refuse a recording / device name that cannot round-trip through HDF5 and a file name:
-    what :func:`check_text` refuses, empty, '.', '..', containing '/', too long."""
-    size = check_text(name, what)
-    if name in ("", ".", "..") or "/" in name:
-        raise ValidationError(f"{what} {name!r} is empty, '.', '..' or contains '/'")
-    if size > MAX_NAME_BYTES:
-        raise ValidationError(f"{what} is {size} bytes long (at most {MAX_NAME_BYTES})")
 
 
 def device_order(name: str) -> tuple[int, str]:
     """Sort key: phone, watch, earbuds first (HDF5 hands devices back alphabetically), then the rest."""
     return (CANONICAL_DEVICES.index(name) if name in CANONICAL_DEVICES else len(CANONICAL_DEVICES), name)
-
-
-def _as_array(x, dtype, name: str) -> np.ndarray:
-    try:
-        return np.ascontiguousarray(np.asarray(x, dtype=dtype))
-    except (TypeError, ValueError) as exc:
-        raise ValidationError(f"{name}: cannot be read as {np.dtype(dtype).name} ({exc})") from None
-
-
-def _as_flags(x, name: str) -> np.ndarray:
-    """Booleans, or numbers that are all 0 or 1, as a bool array (anything else is refused: NumPy
-    would read 0.5, 2 or the text "no" as True)."""
-    a = np.asarray(x)
-    if a.dtype != bool:
-        if a.dtype.kind not in "iuf" or not np.all((a == 0) | (a == 1)):
-            raise ValidationError(
-                f"{name}: not booleans (True/False or 0/1), got dtype {a.dtype.name}"
-                + (
-                    f" with value {a.flat[int(np.argmax(~((a == 0) | (a == 1))))].item()!r}"
-                    if a.dtype.kind in "iuf" and a.size
-                    else ""
-                )
-            )
-    return np.ascontiguousarray(a, dtype=bool)
-
-
-def _check_time(t: np.ndarray, name: str, repeats: bool = False) -> None:
-    """1-D, finite, increasing times; ``repeats``: equal times allowed (readings of several sources
-    at one instant, e.g. beacons), going backwards never."""
-    if t.ndim != 1:
-        raise ValidationError(f"{name}: time must be 1-D, got shape {t.shape}")
-    if t.size == 0:
-        raise ValidationError(f"{name}: is empty")
-    if not np.all(np.isfinite(t)):
-        raise ValidationError(f"{name}: time has non-finite values")
-    dt = np.diff(t)
-    if np.any(dt < 0) or (not repeats and np.any(dt == 0)):
-        i = int(np.argmax(dt < 0)) if repeats else int(np.argmax(dt <= 0))
-        what = "duplicated" if dt[i] == 0 else "unsorted"
-        raise ValidationError(f"{name}: {what} timestamps at sample {i + 1} (t={t[i + 1]:.6f})")
-
-
-def _check_range(a: np.ndarray | None, limit: float, unit: str, name: str) -> None:
-    if a is None or a.size == 0:
-        return
-    over = np.abs(a) > limit
-    if np.any(over):
-        i = int(np.argmax(over.any(axis=1)))
-        n_bad = int(over.any(axis=1).sum())
-        raise ValidationError(
-            f"{name}: {n_bad} of {len(a)} samples beyond ±{limit:.4g} {unit} per axis (first at "
-            f"sample {i}: {float(a[i][over[i]][0]):.4g}), the full-scale range of a consumer IMU: "
-            "corrupt values or wrong unit?"
-        )
-
-
-def _check_position(pos: np.ndarray, name: str) -> None:
-    if pos.size and np.any(np.abs(pos) > POS_ABS_MAX):
-        i = int(np.argmax(np.any(np.abs(pos) > POS_ABS_MAX, axis=1)))
-        raise ValidationError(
-            f"{name}: coordinate {float(np.max(np.abs(pos[i]))):.4g} m at point {i} "
-            f"is farther than anything on Earth ({POS_ABS_MAX:.0e} m)"
-        )
-
-
-def _check_rows(a: np.ndarray | None, n: int, width: tuple[int, ...] | int, name: str) -> None:
-    if a is None:
-        return
-    widths = (width,) if isinstance(width, int) else width
-    if a.ndim != 2 or a.shape[0] != n or a.shape[1] not in widths:
-        want = " or ".join(f"({n},{w})" for w in widths)
-        raise ValidationError(f"{name}: shape {a.shape}, expected {want}")
-    if not np.all(np.isfinite(a)):
-        bad = int(np.argmax(~np.all(np.isfinite(a), axis=1)))
-        raise ValidationError(f"{name}: non-finite values (first at sample {bad})")
 
 
 @dataclass
@@ -323,131 +231,6 @@ class Fixes:
 
     def __len__(self) -> int:
         return int(self.t.size)
-
-
-@dataclass
-class BeaconReadings:
-    """Received signal strengths of radio beacons (BLE), one row per reading.
-
-    ``beacon`` names the beacon (the key of ``meta["beacons"]``, which gives its surveyed
-    position ``[x_m, y_m, floor]`` in the recording's local frame where the source has one);
-    ``rssi_dbm`` is the received power in dBm (negative; -100 is at the edge of reception).
-    """
-
-    t: np.ndarray
-    beacon: np.ndarray
-    rssi_dbm: np.ndarray
-
-    def __post_init__(self) -> None:
-        self.validate()
-
-    def validate(self) -> None:
-        self.t = _as_array(self.t, np.float64, "beacons.t")
-        self.rssi_dbm = _as_array(self.rssi_dbm, np.float64, "beacons.rssi_dbm")
-        self.beacon = np.asarray(self.beacon, dtype=object).astype(str).astype(object)
-        _check_time(self.t, "beacons.t", repeats=True)  # several beacons heard at one instant
-        for what, a in (("beacon", self.beacon), ("rssi_dbm", self.rssi_dbm)):
-            if a.shape != self.t.shape:
-                raise ValidationError(f"beacons.{what}: shape {a.shape}, expected {self.t.shape}")
-        bad = ~((self.rssi_dbm >= RSSI_DBM_RANGE[0]) & (self.rssi_dbm <= RSSI_DBM_RANGE[1]))
-        if np.any(bad):
-            i = int(np.argmax(bad))
-            raise ValidationError(
-                f"beacons.rssi_dbm: {self.rssi_dbm[i]:.4g} at reading {i} is not a received power "
-                f"in {RSSI_DBM_RANGE[0]:g}..{RSSI_DBM_RANGE[1]:g} dBm"
-            )
-
-    def __len__(self) -> int:
-        return int(self.t.size)
-
-
-@dataclass
-class Pressure:
-    """Barometer readings (hPa): a floor change moves it by ~0.4 hPa (≈ 3.5 m of air)."""
-
-    t: np.ndarray
-    hpa: np.ndarray
-
-    def __post_init__(self) -> None:
-        self.validate()
-
-    def validate(self) -> None:
-        self.t = _as_array(self.t, np.float64, "pressure.t")
-        self.hpa = _as_array(self.hpa, np.float64, "pressure.hpa")
-        _check_time(self.t, "pressure.t")
-        if self.hpa.shape != self.t.shape:
-            raise ValidationError(f"pressure.hpa: shape {self.hpa.shape}, expected {self.t.shape}")
-        bad = ~((self.hpa >= PRESSURE_HPA_RANGE[0]) & (self.hpa <= PRESSURE_HPA_RANGE[1]))
-        if np.any(bad):
-            i = int(np.argmax(bad))
-            raise ValidationError(
-                f"pressure.hpa: {self.hpa[i]:.6g} at reading {i} is not an air pressure in "
-                f"{PRESSURE_HPA_RANGE[0]:g}..{PRESSURE_HPA_RANGE[1]:g} hPa (kPa or Pa?)"
-            )
-
-    def __len__(self) -> int:
-        return int(self.t.size)
-
-
-@dataclass
-class FloorPlan:
-    """One floor's walkable space in the recording's own local frame (metres, as ``truth.pos``).
-
-    ``polygons`` is a list of polygons, each a list of rings: the outer boundary first, then its
-    holes (obstacles inside it: shops, walls, voids), each ring an (K, 2) array of x, y in metres.
-    ``floor`` is the floor index the recording's ``truth.floor`` uses (``None`` if unknown).
-    Geometry (inside tests, distances, rasters) lives in :mod:`wearnav.plans`.
-    """
-
-    name: str
-    floor: int | None
-    polygons: list[list[np.ndarray]]
-
-    def __post_init__(self) -> None:
-        self.validate()
-
-    def validate(self) -> None:
-        check_name(self.name, "floor plan name")
-        if self.floor is not None and not isinstance(self.floor, (int, np.integer)):
-            raise ValidationError(f"floor plan {self.name!r}: floor {self.floor!r} is not an integer")
-        if not self.polygons:
-            raise ValidationError(f"floor plan {self.name!r} has no walkable polygon")
-        rings = []
-        for k, poly in enumerate(self.polygons):
-            if not poly:
-                raise ValidationError(f"floor plan {self.name!r}: polygon {k} has no ring")
-            out = []
-            for ring in poly:
-                r = _as_array(ring, np.float64, f"floor plan {self.name!r} ring")
-                if r.ndim != 2 or r.shape[1] != 2 or r.shape[0] < 3:
-                    raise ValidationError(
-                        f"floor plan {self.name!r}: polygon {k} has a ring of shape {r.shape}, expected (K>=3, 2)"
-                    )
-                _check_position(r, f"floor plan {self.name!r}")
-                out.append(r)
-            rings.append(out)
-        self.polygons = rings
-
-    def to_feature(self) -> dict[str, Any]:
-        """A GeoJSON-shaped Feature (MultiPolygon) in local metres: how it is stored."""
-        return {
-            "type": "Feature",
-            "properties": {"name": self.name, "floor": self.floor, "frame": "local metres"},
-            "geometry": {
-                "type": "MultiPolygon",
-                "coordinates": [[np.round(r, 3).tolist() for r in poly] for poly in self.polygons],
-            },
-        }
-
-    @classmethod
-    def from_feature(cls, feature: dict[str, Any]) -> FloorPlan:
-        props, geom = feature["properties"], feature["geometry"]
-        floor = props.get("floor")
-        return cls(
-            name=str(props["name"]),
-            floor=None if floor is None else int(floor),
-            polygons=[[np.asarray(r, dtype=np.float64) for r in poly] for poly in geom["coordinates"]],
-        )
 
 
 _EMPTY_LABELS: pd.DataFrame | None = None  # the validated empty table, built once (make_labels)
