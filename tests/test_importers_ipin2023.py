@@ -14,7 +14,7 @@ from scipy.stats import spearmanr
 from conftest import error_line
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.geo import PROJECTION, latlon_to_local
-from wearnav.importers import ipin2023
+from wearnav.importers import ipin2023, ipin2023_radio
 
 LOGS = "01 Logfiles/01 IPIN2023_T3_TrainingTrials (training)"
 TRA = "02 Supplementary Materials/03 - Files for Matlab Tools/Trajectories"
@@ -171,7 +171,7 @@ def test_beacon_readings_are_named_as_the_location_table(rec, log_lines):
     swap = {"2": "BLE3", "3": "BLE2"}
     assert list(b.beacon) == [swap.get(r[7], f"BLE{r[7]}") for r in ble]
     # The .mat keeps only the MAC: its last two bytes are the minor on every row.
-    assert [ipin2023._venue_beacon_minor(r[3]) for r in ble] == [int(r[7]) for r in ble]
+    assert [ipin2023_radio._venue_beacon_minor(r[3]) for r in ble] == [int(r[7]) for r in ble]
     assert set(b.beacon) <= set(rec.meta["beacons"])
 
 
