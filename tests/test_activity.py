@@ -17,13 +17,15 @@ from wearnav import activity_labels as al
 from wearnav import pretrained
 from wearnav.bench.executor import Execution
 from wearnav.bench.har_lodo import IN_DATASET, run_lodo
+from wearnav.errors import FormatError
 from wearnav.importers import import_dataset, sensorlogger
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.models import registry
 from wearnav.models.har import gravity_rotation, rotate_windows
+from wearnav.outputs import check_suite_folder
 from wearnav.recording import Recording, Trajectory
 from wearnav.train import activity as act
-from wearnav.train.classify import UNKNOWN, label_recordings, load_model, window_classes
+from wearnav.train.classify import UNKNOWN, context_probs, label_recordings, load_model, window_classes
 
 
 def test_gravity_rotation_turns_the_mean_acceleration_up():
@@ -71,8 +73,18 @@ def test_sample_weights_balance_classes_and_sources():
     p = act.sample_weights(y, src, class_power=0.5)  # class mass ∝ √windows: 10 : √5
     assert np.isclose(p[y == 0].sum() / p[y == 1].sum(), 10 / np.sqrt(5))
     assert np.isclose(p[(y == 0) & (src == "a")].sum(), p[(y == 0) & (src == "b")].sum())
-    capped = act.cap_per_class(act.Windows(np.zeros((105, 2, 6)), y, src, np.zeros(105, bool)), 20, 0)
+    capped = act.cap_per_class(
+        act.Windows(np.zeros((105, 2, 6)), y, src, np.zeros(105, bool), np.zeros(105, int)), 20, 0
+    )
     assert len(capped) == 20 + 10 + 5
+
+
+def test_windows_runs_are_each_recordings_consecutive_windows():
+    src = np.array(["a", "a", "a", "b", "b", "a"])
+    rec = np.array([0, 0, 1, 0, 0, 0])
+    w = act.Windows(np.zeros((6, 2, 6)), np.zeros(6, np.int64), src, np.zeros(6, bool), rec)
+    assert [r.tolist() for r in w.runs()] == [[0, 1], [2], [3, 4], [5]]
+    assert act.Windows.concat([]).runs() == []
 
 
 def test_whole_recording_labels_trim_edges_and_leave_out_floor_changes():
@@ -107,6 +119,28 @@ def test_unknown_threshold_keeps_95_percent_of_correct_windows():
     thr = act.unknown_threshold(conf, correct)
     assert np.mean(conf[correct] >= thr) >= 0.95
     assert np.mean(conf[correct] >= np.nextafter(thr, 1)) < 0.95  # the largest such threshold
+
+
+def test_context_probs_is_the_normalised_geometric_mean_of_the_neighbours():
+    rng = np.random.default_rng(2)
+    prob = rng.dirichlet(np.ones(4), size=9).astype(np.float32)
+    assert np.allclose(context_probs(prob, 1), prob, atol=1e-6)  # no context: the window's own
+    ctx = context_probs(prob, 5)
+    assert ctx.shape == prob.shape and np.allclose(ctx.sum(1), 1.0, atol=1e-6)
+    for i, (a, b) in {0: (0, 3), 1: (0, 4), 2: (0, 5), 3: (1, 6), 6: (4, 9), 7: (5, 9), 8: (6, 9)}.items():
+        g = np.exp(np.log(prob[a:b]).mean(axis=0))
+        assert np.allclose(ctx[i], g / g.sum(), atol=1e-5), i
+    # one stray window among walking ones is outvoted; a run of 3 of 5 is not
+    walk = np.tile([[0.9, 0.05, 0.05]], (7, 1))
+    stray = walk.copy()
+    stray[3] = [0.1, 0.85, 0.05]
+    assert context_probs(stray, 5).argmax(1).tolist() == [0] * 7
+    run = walk.copy()
+    run[2:5] = [0.02, 0.96, 0.02]
+    assert context_probs(run, 5)[3].argmax() == 1
+    assert np.all(np.isfinite(context_probs(np.eye(3)[[0, 1, 0]], 3)))  # zero probabilities
+    with pytest.raises(ValueError, match="odd"):
+        context_probs(prob, 4)
 
 
 @pytest.fixture(scope="module")
@@ -146,6 +180,8 @@ def test_tiny_leave_one_dataset_out_suite(tiny_sources, tmp_path):
         assert r["LODO walking recall"] is not None  # every slice has walking
     ho = act.read_heldout(phone["runs"]["oxford"])
     assert set(ho["source"]) == {"oxford"} and len(ho["true"]) == phone["rows"][1]["windows"]
+    assert np.all(ho["true"] >= 0) and ho["pred_window"].shape == ho["pred"].shape  # labelled windows only
+    assert all(0 <= r["LODO walking recall, window alone"] <= 1 for r in phone["rows"])
     # the ILC2-like whole-walk source trains in the other folds only
     assert "oxford" not in json.loads((act.Path(phone["runs"]["oxford"]) / "training.json").read_text())["sources"]
     assert 0 < phone["unknown"]["threshold"] <= 1 and phone["unknown"]["correct_kept"] >= 0.95
@@ -154,9 +190,11 @@ def test_tiny_leave_one_dataset_out_suite(tiny_sources, tmp_path):
     assert "stairs_up" in rec["rare_classes"] and rec["class_sources"]["walking"] == 2
     page = (out / "results.md").read_text()
     assert "| held-out source" in page and "unknown` threshold" in page
+    check_suite_folder(out, "bench har-lodo")  # its own page: the suite resumes (e.g. to add --final)
     # the final model carries the threshold classify reads
     model, cfg, classes = load_model(phone["final"])
     assert model.unknown_threshold == phone["unknown"]["threshold"] and cfg.model == "har-gravity"
+    assert model.context_windows == act.CONTEXT_WINDOWS == 5  # and the context it was scored with
     # resumable: a second invocation trains nothing
     said = []
     run_lodo(
@@ -200,6 +238,12 @@ def test_classify_labels_unsure_windows_unknown(tiny_sources, tmp_path):
     model.unknown_threshold = 0.0  # none below it: the model's own classes
     _, _, cls, _ = window_classes(model, cfg, rec)
     assert np.all(cls >= 0)
+    # each window decided over the context training.json names; an even one is refused on reading
+    record = json.loads((run / "training.json").read_text())
+    assert model.context_windows == record["context_windows"] == act.CONTEXT_WINDOWS
+    (run / "training.json").write_text(json.dumps({**record, "context_windows": 4}))
+    with pytest.raises(FormatError, match="odd"):
+        load_model(run)
 
 
 def test_classify_default_picks_the_model_by_devices(monkeypatch):

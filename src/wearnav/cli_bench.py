@@ -385,6 +385,9 @@ def bench_har_lodo(
     steps: int | None = typer.Option(None, min=1, help="Batches of 64 per epoch (default 250; --quick 5)."),
     max_per_class: int = typer.Option(1500, min=1, help="Training windows kept per source and class (at random)."),
     seed: int = typer.Option(0, min=0, help=SEED_HELP),
+    context: int = typer.Option(
+        5, min=1, help="Windows each label is decided over (odd; 1: each window alone), as classify will."
+    ),
     final: bool = typer.Option(False, "--final", help="Also train each device's model on every source."),
     install: bool = typer.Option(
         False, "--install", help="With --final: write the cards and install the models into the package."
@@ -409,6 +412,8 @@ def bench_har_lodo(
 
     if install and not final:
         raise ConfigError("--install installs the --final models; give both")
+    if context % 2 == 0:
+        raise ConfigError(f"--context must be odd (the window and as many on each side), got {context}")
     suite_folder(out, "bench har-lodo")
     base = ActivityRun(
         device="phone",
@@ -418,6 +423,7 @@ def bench_har_lodo(
         steps=steps or (5 if quick else 250),
         max_per_class=max_per_class,
         seed=seed,
+        context_windows=context,
     )
     names = split_list(devices)
     results = run_lodo(

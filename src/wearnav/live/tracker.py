@@ -437,7 +437,9 @@ class LiveTracker:
         if self.classifier is None or covered - self._activity_at < ACTIVITY_EVERY_S:
             return False
         model, cfg, classes = self.classifier
-        rec = _tail(rec, covered - cfg.window / cfg.rate - 2.0)  # one window and the filters' edges
+        k = getattr(model, "context_windows", 1)  # the last window's label is decided over its context
+        span = (cfg.window + (k - 1) * max(1, cfg.window // 2)) / cfg.rate
+        rec = _tail(rec, covered - span - 2.0)  # the context's windows and the filters' edges
         if not all(d in rec.devices for d in cfg.devices):
             return False
         try:

@@ -88,6 +88,11 @@ def card_text(device: str, results: dict) -> str:
             f"with probability {r['gyro_dropout']}, zeroed gyroscope channels (sources without a gyroscope, "
             "Oxford, give zeros there).",
             "",
+            f"Each window's label is decided over {rec.get('context_windows', 1)} consecutive windows "
+            "(wearnav.train.classify.context_probs: the normalised geometric mean of their probabilities), "
+            "by `classify`, the live page and the scores below alike; the live page, which has no future "
+            "windows, decides the latest one over those before it.",
+            "",
             "## Measured: leave one dataset out",
             "",
             "A user's phone is always a new dataset, so the model is measured on sources it did not train on: "
@@ -124,6 +129,7 @@ def card_text(device: str, results: dict) -> str:
             f"one placement; held out, their windows took strangers' walking, so their prior is cut "
             f"(× {r['rare_factor']}): the model says stairs or running only on strong evidence and most stairs "
             "and runs come out walking (see the MotionSense and UCI HAPT rows).",
+            "- An activity bout shorter than the context (about 7 s) is outvoted by its neighbours.",
             "- The simulator is a training source, so the simulated Sensor Logger walks `classify` was checked on "
             "are not an independent test.",
         ]

@@ -34,6 +34,13 @@ rows of the leave-one-dataset-out table are not independent of the choice.
 weights, one torch thread; the run folder is one ``classify`` reads (config.yaml with a
 :class:`ClassifyConfig`, ``training.json`` with the classes, ``checkpoints/last.ckpt``).
 
+**Context** (``context_windows``, :data:`CONTEXT_WINDOWS`): ``classify``, the live page and the
+scores here decide each window's label over its neighbours as well
+(:func:`wearnav.train.classify.context_probs`: the normalised geometric mean of the probabilities
+of 5 consecutive windows, 7.7 s), written into training.json. A window alone mistook a stranger's
+walking for stairs at random moments; a walk rarely looks like stairs for 7 s on end, and a flight
+of stairs between floors lasts about that long. 5 was chosen for that span, before scoring it.
+
 **Leave one dataset out** (:mod:`wearnav.bench.har_lodo`): a run trains on every source but
 ``held_out`` and is scored on all of ``held_out``'s windows; the ``in-dataset`` run trains on
 every source's training subjects and is scored on each source's test subjects.
@@ -44,6 +51,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,7 +69,14 @@ from wearnav.models.har import HARNet
 from wearnav.models.pdr import PDR
 from wearnav.preprocess import align
 from wearnav.textio import read_json
-from wearnav.train.classify import TEST_SUBJECTS, TRAINING, ClassifyConfig, load_model, subject_number
+from wearnav.train.classify import (
+    TEST_SUBJECTS,
+    TRAINING,
+    ClassifyConfig,
+    context_probs,
+    load_model,
+    subject_number,
+)
 from wearnav.train.common import CHECKPOINTS, LAST
 
 MODEL = "har-gravity"
@@ -69,7 +84,8 @@ RATE_HZ = 50.0  # the benchmark's HAR rate (paper 002; MotionSense's and UCI HAP
 WINDOW, STRIDE = 128, 64  # paper 002's windows: 2.56 s at 50 Hz, half overlapping
 LABEL_SHARE = 0.8  # a window's label must cover this share of its samples (else: a boundary, left out)
 BATCH = 64  # paper 002's batch size
-CACHE_VERSION = 2  # of the cached windows: raise when what a source's windows are changes
+CACHE_VERSION = 3  # of the cached windows: raise when what a source's windows are changes
+CONTEXT_WINDOWS = 5  # a window's label is decided over 5 windows, 7.7 s (wearnav.train.classify.context_probs)
 
 
 @dataclass(frozen=True)
@@ -114,27 +130,39 @@ def label_source(source: str) -> str:
 @dataclass
 class Windows:
     """Windows of one or more sources: ``x`` (N, L, 6) float32 device-frame acc (m/s²) + gyro
-    (rad/s), ``y`` (N,) index into :data:`wearnav.activity_labels.LABELS`, ``source`` (N,) str,
-    ``test`` (N,) bool: on the source's in-dataset test side."""
+    (rad/s), ``y`` (N,) index into :data:`wearnav.activity_labels.LABELS` (−1: unlabelled),
+    ``source`` (N,) str, ``test`` (N,) bool: on the source's in-dataset test side, ``rec`` (N,) the
+    recording's number within its source; a recording's windows are consecutive, in time order."""
 
     x: np.ndarray
     y: np.ndarray
     source: np.ndarray
     test: np.ndarray
+    rec: np.ndarray
 
     def __len__(self) -> int:
         return len(self.y)
 
     def take(self, keep) -> Windows:
-        return Windows(self.x[keep], self.y[keep], self.source[keep], self.test[keep])
+        return Windows(self.x[keep], self.y[keep], self.source[keep], self.test[keep], self.rec[keep])
 
     @staticmethod
     def concat(parts: list[Windows]) -> Windows:
         if not parts:
             return Windows(
-                np.empty((0, WINDOW, 6), np.float32), np.empty(0, np.int64), np.empty(0, str), np.empty(0, bool)
+                np.empty((0, WINDOW, 6), np.float32),
+                np.empty(0, np.int64),
+                np.empty(0, str),
+                np.empty(0, bool),
+                np.empty(0, np.int64),
             )
-        return Windows(*(np.concatenate([getattr(p, f) for p in parts]) for f in ("x", "y", "source", "test")))
+        return Windows(*(np.concatenate([getattr(p, f) for p in parts]) for f in ("x", "y", "source", "test", "rec")))
+
+    def runs(self) -> list[np.ndarray]:
+        """The indices of each recording's windows (one source's recording after another)."""
+        key = np.char.add(self.source.astype(str), np.char.mod("/%d", self.rec))
+        change = np.flatnonzero(key[1:] != key[:-1]) + 1
+        return np.split(np.arange(len(self.y)), change) if len(self.y) else []
 
 
 def classify_config(device: str, data: str, classes=(), epochs: int = 1, seed: int = 0) -> ClassifyConfig:
@@ -191,7 +219,8 @@ def sample_labels(source: str, rec, t: np.ndarray) -> np.ndarray:
 
 
 def recording_windows(source: str, rec, cfg: ClassifyConfig) -> tuple[np.ndarray, np.ndarray]:
-    """(x (N, L, 6), y (N,)) of one recording: aligned as inference aligns it, labelled windows only."""
+    """(x (N, L, 6), y (N,)) of one recording: aligned as inference aligns it, every window
+    ``classify`` would cut (y −1 where unlabelled: a label boundary, or a stop in a whole-walk source)."""
     dev = cfg.devices[0]
     if dev not in rec.devices or len(rec.devices[dev]) < 2:
         return np.empty((0, cfg.window, 6), np.float32), np.empty(0, np.int64)
@@ -201,15 +230,13 @@ def recording_windows(source: str, rec, cfg: ClassifyConfig) -> tuple[np.ndarray
     for s in range(0, len(seq.t) - cfg.window + 1, cfg.stride):
         w = lab[s : s + cfg.window]
         vals, counts = np.unique(w[w >= 0], return_counts=True)
-        if len(vals) and counts.max() >= LABEL_SHARE * cfg.window:
-            xs.append(seq.imu[0, s : s + cfg.window])
-            ys.append(vals[np.argmax(counts)])
+        xs.append(seq.imu[0, s : s + cfg.window])
+        ys.append(vals[np.argmax(counts)] if len(vals) and counts.max() >= LABEL_SHARE * cfg.window else -1)
     if not xs:
         return np.empty((0, cfg.window, 6), np.float32), np.empty(0, np.int64)
     x, y = np.stack(xs).astype(np.float32), np.asarray(ys, np.int64)
     if label_source(source) in al.WHOLE_RECORDING:  # the walker's stops are not walking
-        keep = step_rate_hz(x, cfg.rate) >= trust.WALKING_STEP_RATE_HZ
-        x, y = x[keep], y[keep]
+        y[step_rate_hz(x, cfg.rate) < trust.WALKING_STEP_RATE_HZ] = -1
     return x, y
 
 
@@ -227,7 +254,7 @@ def step_rate_hz(x: np.ndarray, rate: float) -> np.ndarray:
 
 
 def source_windows(source: str, data: Path, cache: Path | None = None) -> tuple[Windows, dict]:
-    """Every labelled window of ``source`` imported at ``data``, and its training-data facts
+    """Every window of ``source`` imported at ``data`` (:func:`recording_windows`), and its training-data facts
     (:func:`wearnav.trust.recording_facts` per recording, merged). Cached in ``cache``."""
     spec = SOURCES[source]
     cfg = classify_config(spec.device, str(data))
@@ -240,15 +267,15 @@ def source_windows(source: str, data: Path, cache: Path | None = None) -> tuple[
     path = cache / f"{source}-{key}.npz" if cache else None
     if path is not None and path.is_file():
         z = np.load(path, allow_pickle=False)
-        w = Windows(z["x"], z["y"], np.full(len(z["y"]), source), z["test"])
+        w = Windows(z["x"], z["y"], np.full(len(z["y"]), source), z["test"], z["rec"])
         return w, json.loads(str(z["facts"]))
     parts, rates, dirs, placements = [], [], [], set()
     m = ds.manifest.set_index("name")
-    for rec in ds:
+    for number, rec in enumerate(ds):
         x, y = recording_windows(source, rec, cfg)
         row = m.loc[rec.name]
         test = _is_test(spec, rec.name, str(row.get("subject", "")), str(row.get("split", "")))
-        parts.append(Windows(x, y, np.full(len(y), source), np.full(len(y), test)))
+        parts.append(Windows(x, y, np.full(len(y), source), np.full(len(y), test), np.full(len(y), number)))
         f = trust.recording_facts(rec, (spec.device,), WINDOW / RATE_HZ)
         if f["placement"]:
             placements.add(f["placement"])
@@ -260,9 +287,9 @@ def source_windows(source: str, data: Path, cache: Path | None = None) -> tuple[
     facts = {"recordings": len(ds), "placements": sorted(placements), "rates": rates, "directions": g.tolist()}
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".partial.npz")
-        np.savez(tmp, x=w.x, y=w.y, test=w.test, facts=json.dumps(facts))
-        tmp.rename(path)
+        tmp = path.with_name(f"{path.stem}.{os.getpid()}.partial.npz")  # runs side by side may both write it
+        np.savez(tmp, x=w.x, y=w.y, test=w.test, rec=w.rec, facts=json.dumps(facts))
+        os.replace(tmp, path)
     return w, facts
 
 
@@ -334,6 +361,7 @@ class ActivityRun:
     seed: int = 0
     lr: float = 1e-3
     unknown_threshold: float | None = None  # written into training.json for classify (shipped model)
+    context_windows: int = CONTEXT_WINDOWS  # ditto: classify decides a window's label over this many
     cache: str | None = None
 
     def __post_init__(self) -> None:
@@ -342,6 +370,8 @@ class ActivityRun:
         unknown = [s for s in self.sources if s not in SOURCES]
         if unknown:
             raise ConfigError(f"unknown activity sources: {', '.join(unknown)}")
+        if self.context_windows < 1 or self.context_windows % 2 == 0:
+            raise ConfigError(f"context_windows must be an odd count, got {self.context_windows}")
 
     @property
     def train_sources(self) -> tuple[str, ...]:
@@ -367,7 +397,9 @@ def _windows_of(run: ActivityRun, sources) -> tuple[Windows, list[dict]]:
 def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
     """Train ``run`` into ``folder`` (config.yaml, training.json, checkpoints/last.ckpt), score it
     (metrics.json, ``heldout.npz``: per scored window its source, true and predicted class (LABELS
-    indices), top probability and every class's, ``prob``, in the order of training.json's classes) and return the metrics."""
+    indices), top probability and every class's, ``prob``, in the order of training.json's classes,
+    all decided over the context (:func:`score_run`), and ``pred_window`` / ``conf_window`` decided
+    alone) and return the metrics."""
     folder = Path(folder)
     torch.set_num_threads(1)
     train, facts = _windows_of(run, run.train_sources)
@@ -446,6 +478,7 @@ def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
         "class_sources": sources_of,
         "rare_classes": rare,
         "rare_factor": run.rare_factor,
+        "context_windows": run.context_windows,
     }
     if run.unknown_threshold is not None:
         record["unknown_threshold"] = run.unknown_threshold
@@ -480,31 +513,45 @@ def predict_windows(model, x: np.ndarray, chunk: int = 1024) -> np.ndarray:
 
 
 def score_run(run: ActivityRun, folder: Path, record: dict) -> dict:
-    """Score the trained model on the run's held-out windows (see :class:`ActivityRun`)."""
+    """Score the trained model on the run's held-out windows (see :class:`ActivityRun`) as
+    ``classify`` labels them: every window of a recording predicted, each decided over its
+    ``context_windows`` (:func:`wearnav.train.classify.context_probs`), the labelled ones scored;
+    ``per_window`` in each source's metrics: the same windows decided alone."""
     model, _, classes = load_model(folder)
     n = len(al.LABELS)
     if run.in_dataset:
         test, _ = _windows_of(run, run.sources)
-        test = test.take(test.test & (test.y >= 0))
+        test = test.take(test.test)
     elif run.held_out is not None:
         test, _ = _windows_of(run, (run.held_out,))
-        test = test.take(test.y >= 0)
     else:
         return {"per_source": {}, "training": record, "measured_by": "the leave-one-dataset-out suite"}
-    if len(test) == 0:  # e.g. a slice without test subjects: nothing to score
+    if not np.any(test.y >= 0):  # e.g. a slice without test subjects: nothing to score
         return {"per_source": {}, "labels": list(al.LABELS), "classes": classes, "training": record}
-    prob = predict_windows(model, test.x)
-    top = prob.argmax(1)
+    alone = predict_windows(model, test.x)
+    prob = np.empty_like(alone)
+    for idx in test.runs():
+        prob[idx] = context_probs(alone[idx], run.context_windows)
     to_label = np.asarray([al.LABELS.index(c) for c in classes])
-    pred = to_label[top]
-    conf = prob.max(1)
+    keep = test.y >= 0
+    test, prob, alone = test.take(keep), prob[keep], alone[keep]
+    pred, pred_alone = to_label[prob.argmax(1)], to_label[alone.argmax(1)]
     np.savez(
-        folder / "heldout.npz", source=test.source, true=test.y, pred=pred, conf=conf, prob=prob.astype(np.float32)
+        folder / "heldout.npz",
+        source=test.source,
+        true=test.y,
+        pred=pred,
+        conf=prob.max(1),
+        prob=prob.astype(np.float32),
+        pred_window=pred_alone,
+        conf_window=alone.max(1),
     )
-    per = {s: score(test.y[test.source == s], pred[test.source == s], n) for s in np.unique(test.source)}
-    for s in per:
+    per = {}
+    for s in np.unique(test.source):
         m = test.source == s
+        per[s] = score(test.y[m], pred[m], n)
         per[s]["confusion"] = confusion_matrix(test.y[m], pred[m], n).tolist()
+        per[s]["per_window"] = score(test.y[m], pred_alone[m], n)
     return {"per_source": per, "labels": list(al.LABELS), "classes": classes, "training": record}
 
 

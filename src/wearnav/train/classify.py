@@ -316,6 +316,10 @@ def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[s
     if thr is not None and not (isinstance(thr, int | float) and 0.0 <= thr <= 1.0):
         raise FormatError(f"'unknown_threshold' must be a probability, got {thr!r}", path)
     model.unknown_threshold = thr  # type: ignore[assignment]  # a plain attribute window_classes reads (issue 35 §3)
+    k = record.get("context_windows", 1)
+    if not (isinstance(k, int) and k >= 1 and k % 2 == 1):
+        raise FormatError(f"'context_windows' must be an odd count of windows, got {k!r}", path)
+    model.context_windows = k  # type: ignore[assignment]  # read by window_classes (context_probs)
     model.training_gravity = (
         ((record.get("training_data") or {}).get("devices") or {}).get(cfg.devices[0], {}).get("gravity_directions")
     )
@@ -323,15 +327,37 @@ def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[s
 
 
 @torch.no_grad()
+def predict_probs(model, wds: WindowDataset, batch: int = 512) -> np.ndarray:
+    """Softmax probabilities (N, classes) of every window of ``wds``."""
+    out = [torch.softmax(model(b["x"], b["mask"]), dim=1).numpy() for b in wds.loader(batch)]
+    return np.concatenate(out) if out else np.empty((0, 0), np.float32)
+
+
 def predict(model, wds: WindowDataset, batch: int = 512) -> tuple[np.ndarray, np.ndarray]:
     """Predicted class index and softmax confidence per window of ``wds``."""
-    out_c, out_p = [], []
-    for b in wds.loader(batch):
-        p = torch.softmax(model(b["x"], b["mask"]), dim=1)
-        conf, c = p.max(dim=1)
-        out_c.append(c.numpy())
-        out_p.append(conf.numpy())
-    return (np.concatenate(out_c), np.concatenate(out_p)) if out_c else (np.empty(0, int), np.empty(0))
+    p = predict_probs(model, wds, batch)
+    return (p.argmax(1), p.max(1)) if len(p) else (np.empty(0, int), np.empty(0))
+
+
+def context_probs(prob: np.ndarray, k: int) -> np.ndarray:
+    """Each window's class probabilities decided over its context (issue 35): the normalised
+    geometric mean of the probabilities (N, C) of the windows at most (k − 1) / 2 away from it in a
+    run of consecutive windows (at the ends, those that exist), softmax of their mean log
+    probability. It multiplies the neighbours' evidence, tempered by their count, so a stray window
+    in a walk is outvoted by its neighbours while a bout as long as the context keeps its label.
+    ``k`` = 1: the window alone."""
+    if k < 1 or k % 2 == 0:
+        raise ValueError(f"the context is an odd number of windows, got {k}")
+    prob = np.asarray(prob, np.float64)
+    if k == 1 or len(prob) == 0:
+        return prob / np.maximum(prob.sum(axis=1, keepdims=True), 1e-300)
+    h = k // 2
+    c = np.vstack([np.zeros((1, prob.shape[1])), np.cumsum(np.log(np.clip(prob, 1e-12, 1.0)), axis=0)])
+    i = np.arange(len(prob))
+    lo, hi = np.maximum(i - h, 0), np.minimum(i + h + 1, len(prob))
+    mean = (c[hi] - c[lo]) / (hi - lo)[:, None]
+    e = np.exp(mean - mean.max(axis=1, keepdims=True))
+    return e / e.sum(axis=1, keepdims=True)
 
 
 def evaluate_run(run: str | Path, training: dict | None = None, progress: bool = False) -> dict:
@@ -518,7 +544,8 @@ def window_classes(model, cfg: ClassifyConfig, rec) -> tuple[Aligned, np.ndarray
     moving average when ``cfg.denoise``), cut into windows of the run's length at half-window
     strides; returns the aligned input, each window's start and end time (N, 2) s, its class index
     (:data:`UNKNOWN_INDEX` where :func:`unsure_windows`) and softmax confidence (N,) (N = 0 when
-    shorter than one window)."""
+    shorter than one window), both decided over the model's ``context_windows`` (training.json;
+    :func:`context_probs`; 1 where it has none)."""
     from wearnav.augment import moving_average
 
     seq = align(rec, cfg.preprocess_config())
@@ -527,7 +554,8 @@ def window_classes(model, cfg: ClassifyConfig, rec) -> tuple[Aligned, np.ndarray
     wds = WindowDataset([seq], WindowConfig(window=cfg.window, stride=max(1, cfg.window // 2), target=None))
     if len(wds) == 0:
         return seq, np.empty((0, 2)), np.empty(0, np.int64), np.empty(0)
-    cls, conf = predict(model, wds)
+    prob = context_probs(predict_probs(model, wds), getattr(model, "context_windows", 1))
+    cls, conf = prob.argmax(1), prob.max(1)
     t = wds[np.arange(len(wds)).tolist()]["t"].numpy()
     cls = np.where(unsure_windows(model, seq, t, conf), UNKNOWN_INDEX, cls)
     return seq, t, cls, conf
