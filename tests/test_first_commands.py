@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from conftest import run_cli
@@ -70,6 +71,14 @@ def test_simulated_sensorlogger_export_imports_and_tracks_with_pdr_by_name(tmp_p
     summary = json.loads((tmp_path / "t" / "track.json").read_text())
     assert summary["model"] == "pdr" and summary["length_m"] > 50 and "heading_offset_deg" in summary["anchoring"]
     assert (tmp_path / "t" / "trajectory.geojson").is_file()  # lat/lon made it there and back
+    # the same steps along where the phone points (its heading frame): another path, the same length
+    p = wearnav("track", tmp_path / "walk", "--model", "pdr-pointing", "--out", tmp_path / "p")
+    assert p.returncode == 0, p.stderr
+    assert json.loads((tmp_path / "p" / "track.json").read_text())["model"] == "pdr-pointing"
+    odometry = [pd.read_csv(tmp_path / d / "trajectory.csv")[["x", "y"]].to_numpy() for d in ("t", "p")]
+    lengths = [np.linalg.norm(np.diff(xy, axis=0), axis=1).sum() for xy in odometry]  # before any anchoring
+    # (rel: the velocity is interpolated between windows, and the two turn differently between them)
+    assert lengths[1] == pytest.approx(lengths[0], rel=0.02) and np.abs(odometry[1] - odometry[0]).max() > 1.0
 
 
 def test_model_names_that_are_not_untrained_baselines_are_refused_with_what_works(tmp_path):
@@ -78,7 +87,7 @@ def test_model_names_that_are_not_untrained_baselines_are_refused_with_what_work
     assert p.stderr == (
         "error: ronin: is a model that must be trained first (wearnav train ronin --data DATA "
         "--out RUN, then --model RUN); shipped models: phone, phone-watch-earbuds; untrained baselines "
-        "usable by name: pdr\n"
+        "usable by name: pdr, pdr-pointing\n"
     )
     p = wearnav("track", "x.h5", "--model", "pdx", "--out", tmp_path / "t")
     assert p.returncode == 2 and "nor a model name (shipped models: phone, phone-watch-earbuds; untrained" in p.stderr

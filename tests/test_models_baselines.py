@@ -197,6 +197,25 @@ def test_pdr_synthetic_walk_steps_speed_and_direction(L, cadence, heading):
         assert abs(err) < 5.0
 
 
+def test_pdr_pointing_walks_ahead_of_the_phone_at_pdrs_speed():
+    """pdr-pointing (issue 34): PDR's speed along +x of the window's frame, which is the phone's
+    heading frame: a TrainConfig of it is one (without random yaw), as `track --model pdr-pointing`
+    builds it; standing gives zero."""
+    from wearnav.train.odometry import TrainConfig
+
+    cfg = TrainConfig(model="pdr-pointing", data="")
+    assert cfg.heading_frame and "rotate_yaw" not in cfg.augment and get("pdr-pointing").heading_frame
+    assert not TrainConfig(model="pdr", data="").heading_frame
+    pointing, pdr = build("pdr-pointing", n_devices=1, window=100), PDR(n_devices=1, window=100)
+    for heading in (40.0, -120.0):
+        x, _ = synthetic_walk(100, 1.8, heading)
+        v = pointing(x, torch.ones(1, 1))[0].numpy()
+        assert v[1] == 0.0 and v[0] == pytest.approx(float(pdr(x, torch.ones(1, 1))[0].norm()), rel=1e-6)
+        assert v[0] == pytest.approx(0.67 * 1.8, rel=0.05)
+    x, _ = synthetic_walk(100, standing=True)
+    assert torch.all(pointing(x, torch.ones(1, 1)) == 0)
+
+
 def test_pdr_direction_sign_follows_the_gait_phase_and_standing_gives_zero():
     model = PDR(n_devices=1, window=100)
     x, _ = synthetic_walk(heading_deg=30.0, lead_deg=-90.0)  # fore-aft lagging: read as backwards

@@ -5,6 +5,7 @@ PDR from its training traces (step 3), and the phone's own fixes' error at its s
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -188,9 +189,6 @@ def estimate_site_yaw(
     frame alignment), by PDR or by the model of ``run`` (a run folder: its rate, window and stride);
     ``progress``: report the traces' loading (:mod:`wearnav.progress`)."""
     model, window, stride = None, 100, 10
-    if run is not None:
-        model, tcfg = load_model(run)
-        devices, rate, window, stride = tcfg.devices, tcfg.rate, tcfg.window, tcfg.stride
     cfg = TrainConfig(
         model="pdr",
         data=str(data),
@@ -199,6 +197,10 @@ def estimate_site_yaw(
         frame_align="none",
         truth_max_gap=TRUTH_MAX_GAP_S,
     )
+    if run is not None:  # the model's own preprocessing (its heading frame too), no yaw
+        model, tcfg = load_model(run)
+        window, stride = tcfg.window, tcfg.stride
+        cfg = dataclasses.replace(tcfg, data=str(data), frame_align="none", truth_max_gap=TRUTH_MAX_GAP_S, yaw_deg=0.0)
     ds = Dataset.open(data)
     found = site_yaw(load_sequences(ds.split(split) if split else ds, cfg, progress), window, stride, model)
     return {**found, "by": "pdr" if run is None else "the model itself"}

@@ -48,13 +48,14 @@ class ModelSpec:
     build: Callable[..., nn.Module]
     description: str
     learned: bool = True
+    heading_frame: bool = False  # its input must be in the device's heading frame (PreprocessConfig.heading_frame)
 
 
 _REGISTRY: dict[str, ModelSpec] = {}
 _loaded = False
 
 
-def register(name: str, task: str, layout: str, description: str, learned: bool = True):
+def register(name: str, task: str, layout: str, description: str, learned: bool = True, heading_frame: bool = False):
     """Decorator: register a constructor (a class or a function returning an ``nn.Module``)."""
     if task not in TASKS:
         raise ValueError(f"task must be one of {TASKS}, got {task!r}")
@@ -64,7 +65,7 @@ def register(name: str, task: str, layout: str, description: str, learned: bool 
     def deco(fn):
         if name in _REGISTRY and _REGISTRY[name].build is not fn:
             raise ValueError(f"model {name!r} registered twice")
-        _REGISTRY[name] = ModelSpec(name, task, layout, fn, description, learned)
+        _REGISTRY[name] = ModelSpec(name, task, layout, fn, description, learned, heading_frame)
         return fn
 
     return deco

@@ -76,6 +76,15 @@ RECIPES = ("fast", "paper")
 FAST_HOLD = 0.5  # share of the epochs at the full lr before the cosine decay ("fast")
 
 
+def _needs_heading_frame(model: str) -> bool:
+    """Whether ``model`` only runs on windows in the device's heading frame (a registry flag; an
+    unknown name: no, it is refused where it is built)."""
+    try:
+        return registry.get(model).heading_frame
+    except ConfigError:
+        return False
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     """Everything that decides a trained odometry model. Saved as YAML in the run folder.
@@ -123,6 +132,9 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         check_field_types(self)
+        if not self.heading_frame and _needs_heading_frame(self.model):  # e.g. pdr-pointing: its input is that frame
+            object.__setattr__(self, "heading_frame", True)
+            object.__setattr__(self, "augment", tuple(a for a in self.augment if a != "rotate_yaw"))
         if self.heading_frame and "rotate_yaw" in self.augment:
             raise ConfigError("heading_frame keeps the device's heading as the window's frame: drop rotate_yaw")
         if self.vel_loss not in VEL_LOSSES:
