@@ -246,6 +246,32 @@ def test_classify_labels_unsure_windows_unknown(tiny_sources, tmp_path):
         load_model(run)
 
 
+@pytest.mark.real_data
+@pytest.mark.slow
+def test_an_ensembles_first_member_is_the_single_run_and_it_decides_by_their_mean(tiny_sources, tmp_path):
+    kw = dict(
+        device="phone",
+        sources=("oxford", "uji-phone"),
+        data={k: tiny_sources[k] for k in ("oxford", "uji-phone")},
+        epochs=1,
+        steps=2,
+    )
+    act.train_run(act.ActivityRun(**kw), tmp_path / "one")
+    act.train_run(act.ActivityRun(**kw, members=2), tmp_path / "two")
+    one, _, _ = load_model(tmp_path / "one")
+    two, cfg, _ = load_model(tmp_path / "two")
+    assert cfg.model_args == {"members": 2} and len(two.members) == 2 and two.gravity_align
+    first = two.members[0].state_dict()
+    assert all(torch.equal(v, first[k]) for k, v in one.state_dict().items())  # seed + 0: the single run
+    assert not torch.equal(first["fc.weight"], two.members[1].state_dict()["fc.weight"])
+    x = torch.randn(5, 1, 128, 6)
+    x[..., 2] += 9.8
+    mask = torch.ones(5, 1)
+    mean = torch.stack([torch.softmax(m(x, mask), dim=1) for m in two.members]).mean(dim=0)
+    assert torch.allclose(torch.softmax(two(x, mask), dim=1), mean, atol=1e-6)
+    assert "members" not in act.ActivityRun(**kw).record()  # runs from before it keep their folders
+
+
 def test_classify_default_picks_the_model_by_devices(monkeypatch):
     monkeypatch.setattr(pretrained.Shipped, "installed", property(lambda self: True))
     assert pretrained.default_for("classify", ["phone"]).name == pretrained.ACTIVITY

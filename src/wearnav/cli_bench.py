@@ -388,6 +388,9 @@ def bench_har_lodo(
     context: int = typer.Option(
         5, min=1, help="Windows each label is decided over (odd; 1: each window alone), as classify will."
     ),
+    members: int = typer.Option(
+        3, min=1, help="Networks per model, each from its own seed (seed, seed + 1, ...); their mean decides."
+    ),
     final: bool = typer.Option(False, "--final", help="Also train each device's model on every source."),
     install: bool = typer.Option(
         False, "--install", help="With --final: write the cards and install the models into the package."
@@ -424,6 +427,7 @@ def bench_har_lodo(
         max_per_class=max_per_class,
         seed=seed,
         context_windows=context,
+        members=members,
     )
     names = split_list(devices)
     results = run_lodo(

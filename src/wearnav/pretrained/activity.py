@@ -61,7 +61,13 @@ def card_text(device: str, results: dict) -> str:
             spec.summary + ".",
             "",
             f"Task: classify. Device: {device}. Model: `har-gravity`. Trained by `wearnav bench har-lodo --final "
-            f"--install` (wearnav.bench.har_lodo.run_lodo) (wearnav {p['wearnav']}, commit {p['commit']}); {r['epochs']} epochs of {r['steps']} "
+            f"--install` (wearnav.bench.har_lodo.run_lodo) (wearnav {p['wearnav']}, commit {p['commit']}); "
+            + (
+                f"an ensemble of {r['members']} networks, each from its own seed, their mean probability deciding; each "
+                if r.get("members", 1) > 1
+                else ""
+            )
+            + f"{r['epochs']} epochs of {r['steps']} "
             f"batches of 64, source-balanced with class mass ∝ windows^{r['class_power']}, at most {r['max_per_class']} windows per source and "
             f"class, Adam lr {r['lr']}, seed {r['seed']}, {rec['wall_s']:.0f} s on one CPU thread.",
             "",

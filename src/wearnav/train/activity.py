@@ -69,7 +69,7 @@ from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.metrics import accuracy, confusion_matrix, macro_f1
 from wearnav.models import registry
-from wearnav.models.har import HARNet
+from wearnav.models.har import HAREnsemble, HARNet
 from wearnav.models.pdr import PDR
 from wearnav.preprocess import align
 from wearnav.textio import read_json
@@ -169,9 +169,13 @@ class Windows:
         return np.split(np.arange(len(self.y)), change) if len(self.y) else []
 
 
-def classify_config(device: str, data: str, classes=(), epochs: int = 1, seed: int = 0) -> ClassifyConfig:
-    """The :class:`ClassifyConfig` ``classify`` reads back: the preprocessing inference repeats."""
+def classify_config(
+    device: str, data: str, classes=(), epochs: int = 1, seed: int = 0, members: int = 1
+) -> ClassifyConfig:
+    """The :class:`ClassifyConfig` ``classify`` reads back: the preprocessing inference repeats, and
+    with ``members`` > 1 the ensemble it builds (:class:`wearnav.models.har.HAREnsemble`)."""
     return ClassifyConfig(
+        model_args={"members": members} if members > 1 else {},
         model=MODEL,
         data=str(data),
         label_kind="activity",
@@ -366,6 +370,7 @@ class ActivityRun:
     lr: float = 1e-3
     unknown_threshold: float | None = None  # written into training.json for classify (shipped model)
     context_windows: int = CONTEXT_WINDOWS  # ditto: classify decides a window's label over this many
+    members: int = 1  # networks in the model, each from its own seed (wearnav.models.har.HAREnsemble)
     cache: str | None = None
 
     def __post_init__(self) -> None:
@@ -374,6 +379,8 @@ class ActivityRun:
         unknown = [s for s in self.sources if s not in SOURCES]
         if unknown:
             raise ConfigError(f"unknown activity sources: {', '.join(unknown)}")
+        if self.members < 1:
+            raise ConfigError(f"members must be ≥ 1, got {self.members}")
         if self.context_windows < 1 or self.context_windows % 2 == 0:
             raise ConfigError(f"context_windows must be an odd count, got {self.context_windows}")
 
@@ -385,6 +392,8 @@ class ActivityRun:
         """What decides the run (its folder's hash): everything but the cache folder."""
         d = dataclasses.asdict(self)
         d.pop("cache")
+        if self.members == 1:  # left out at its default: runs from before it keep their folders
+            d.pop("members")
         return d
 
 
@@ -412,57 +421,48 @@ def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
     train = train.take(train.y >= 0)
     if len(train) == 0:
         raise ValidationError("no labelled training windows")
-    train = cap_per_class(train, run.max_per_class, run.seed)
-    present = sorted(set(train.y.tolist()))
+    present = sorted(set(train.y.tolist()))  # every (source, class) keeps windows under the cap
     classes = [al.LABELS[i] for i in present]
     remap = np.full(len(al.LABELS), -1, np.int64)
     remap[present] = np.arange(len(present))
-    y = remap[train.y]
-    cfg = classify_config(run.device, str(run.data[run.train_sources[0]]), classes, run.epochs, run.seed)
+    cfg = classify_config(run.device, str(run.data[run.train_sources[0]]), classes, run.epochs, run.seed, run.members)
     folder.mkdir(parents=True, exist_ok=True)
     runs.write_config(
         folder,
         {"train": runs.to_dict(cfg), "preprocess": runs.to_dict(cfg.preprocess_config())},
         {"activity_run": run.record()},
     )
-    torch.manual_seed(run.seed)
-    model = registry.build(
-        MODEL,
-        n_devices=1,
-        window=WINDOW,
-        n_classes=len(classes),
-        amp_jitter=run.amp_jitter,
-        gyro_dropout=run.gyro_dropout,
-    )
-    if not isinstance(model, HARNet):
-        raise ConfigError(f"{MODEL} is not a HARNet")
-    opt = torch.optim.Adam(model.parameters(), lr=run.lr)
-    p = sample_weights(y, train.source, run.class_power)
-    rng = np.random.default_rng(run.seed)
-    x_all = torch.from_numpy(train.x)
-    y_all = torch.from_numpy(y)
-    mask = torch.ones(BATCH, 1)
-    t0 = time.perf_counter()
-    losses = []
-    model.train()
-    for epoch in range(run.epochs):
-        total = 0.0
-        for _ in range(run.steps):
-            idx = torch.from_numpy(rng.choice(len(y), BATCH, p=p))
-            loss, _ = model.loss({"x": x_all[idx][:, None], "mask": mask, "label": y_all[idx]})
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            total += float(loss.detach())
-        losses.append(round(total / run.steps, 4))
-        if echo:
-            echo(f"{folder.name}: epoch {epoch + 1}/{run.epochs} loss {losses[-1]:.3f}")
+    nets, losses, t0 = [], [], time.perf_counter()
+    uncapped = train
+    for k in range(run.members):  # member k: seed + k for its weights, its windows and its batches
+        seed = run.seed + k
+        train = cap_per_class(uncapped, run.max_per_class, seed)
+        y = remap[train.y]
+        torch.manual_seed(seed)
+        net = registry.build(
+            MODEL,
+            n_devices=1,
+            window=WINDOW,
+            n_classes=len(classes),
+            amp_jitter=run.amp_jitter,
+            gyro_dropout=run.gyro_dropout,
+        )
+        if not isinstance(net, HARNet):
+            raise ConfigError(f"{MODEL} is not a HARNet")
+        losses.append(
+            _fit(net, train, y, run, seed, folder.name + (f" member {k + 1}" if run.members > 1 else ""), echo)
+        )
+        nets.append(net)
     wall = time.perf_counter() - t0
+    train = cap_per_class(uncapped, run.max_per_class, run.seed)  # the first member's windows, for the record
+    y = remap[train.y]
     sources_of = {c: len(set(train.source[y == i].tolist())) for i, c in enumerate(classes)}
     rare = [c for c in classes if sources_of[c] < run.rare_sources]
     with torch.no_grad():  # the prior of a class few sources have, times rare_factor (module docstring)
-        for c in rare:
-            model.classifier.bias[classes.index(c)] += float(np.log(run.rare_factor))
+        for net in nets:
+            for c in rare:
+                net.classifier.bias[classes.index(c)] += float(np.log(run.rare_factor))
+    model = nets[0] if run.members == 1 else HAREnsemble(nets)
     (folder / CHECKPOINTS).mkdir(exist_ok=True)
     torch.save({"state_dict": {f"model.{k}": v for k, v in model.state_dict().items()}}, folder / CHECKPOINTS / LAST)
     record = {
@@ -471,7 +471,7 @@ def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
         "batch": BATCH,
         "epochs_run": run.epochs,
         "steps_per_epoch": run.steps,
-        "loss_per_epoch": losses,
+        "loss_per_epoch": losses[0] if run.members == 1 else losses,
         "wall_s": round(wall, 2),
         "s_per_epoch": round(wall / run.epochs, 2),
         "train_windows": int(len(y)),
@@ -483,6 +483,7 @@ def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
         "rare_classes": rare,
         "rare_factor": run.rare_factor,
         "context_windows": run.context_windows,
+        "members": run.members,
     }
     if run.unknown_threshold is not None:
         record["unknown_threshold"] = run.unknown_threshold
@@ -490,6 +491,31 @@ def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
     metrics = score_run(run, folder, record)
     runs.write_metrics(folder, metrics)
     return metrics
+
+
+def _fit(net: HARNet, train: Windows, y: np.ndarray, run: ActivityRun, seed: int, name: str, echo=None) -> list[float]:
+    """Train one network: Adam, ``run.epochs`` × ``run.steps`` batches drawn with
+    :func:`sample_weights` from a generator seeded ``seed``; returns the mean loss per epoch."""
+    opt = torch.optim.Adam(net.parameters(), lr=run.lr)
+    p = sample_weights(y, train.source, run.class_power)
+    rng = np.random.default_rng(seed)
+    x_all, y_all = torch.from_numpy(train.x), torch.from_numpy(y)
+    mask = torch.ones(BATCH, 1)
+    losses = []
+    net.train()
+    for epoch in range(run.epochs):
+        total = 0.0
+        for _ in range(run.steps):
+            idx = torch.from_numpy(rng.choice(len(y), BATCH, p=p))
+            loss, _ = net.loss({"x": x_all[idx][:, None], "mask": mask, "label": y_all[idx]})
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            total += float(loss.detach())
+        losses.append(round(total / run.steps, 4))
+        if echo:
+            echo(f"{name}: epoch {epoch + 1}/{run.epochs} loss {losses[-1]:.3f}")
+    return losses
 
 
 def score(true: np.ndarray, pred: np.ndarray, n: int) -> dict:
