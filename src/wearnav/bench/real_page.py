@@ -204,6 +204,8 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         if not bench["train_data"]
         else f"Odometry in real buildings: trained on `{Path(bench['train_data']).name}`, tested on {src}"
     ) + (", the learned models in the phone's heading frame" if bench.get("heading_frame") else "")
+    if bench.get("models") and not any(get(m).learned for m in bench["models"]):  # nothing was trained
+        title = f"Odometry in real buildings, untrained baselines only ({', '.join(bench['models'])}): {src}"
     lines = [
         f"# {title}",
         "",
