@@ -138,11 +138,11 @@ def table(device: str, sources, jobs: dict[str, Job]) -> list[dict]:
             {
                 "held-out source": s,
                 "windows": lo.get("windows"),
+                "LODO walking recall": lo.get("walking_recall"),  # first: issue 35's target
+                "LODO walking recall, window alone": (lo.get("per_window") or {}).get("walking_recall"),
+                "LODO accuracy": lo.get("accuracy"),
                 "LODO macro-F1": lo.get("macro_f1"),
                 "LODO macro-F1, window alone": (lo.get("per_window") or {}).get("macro_f1"),
-                "LODO accuracy": lo.get("accuracy"),
-                "LODO walking recall": lo.get("walking_recall"),
-                "LODO walking recall, window alone": (lo.get("per_window") or {}).get("walking_recall"),
                 "in-dataset macro-F1": i.get("macro_f1"),
                 "in-dataset macro-F1, window alone": (i.get("per_window") or {}).get("macro_f1"),
                 "in-dataset accuracy": i.get("accuracy"),
