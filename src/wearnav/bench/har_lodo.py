@@ -134,17 +134,18 @@ def table(device: str, sources, jobs: dict[str, Job]) -> list[dict]:
     for s in sources:
         lo = runs.read_metrics(jobs[s].folder)["per_source"].get(s, {})
         i = ind.get(s, {})
+        lo_alone, i_alone = lo.get("per_window") or {}, i.get("per_window") or {}
         rows.append(
             {
                 "held-out source": s,
                 "windows": lo.get("windows"),
                 "LODO walking recall": lo.get("walking_recall"),  # first: issue 35's target
-                "LODO walking recall, window alone": (lo.get("per_window") or {}).get("walking_recall"),
+                "LODO walking recall, window alone": lo_alone.get("walking_recall"),
                 "LODO accuracy": lo.get("accuracy"),
                 "LODO macro-F1": lo.get("macro_f1"),
-                "LODO macro-F1, window alone": (lo.get("per_window") or {}).get("macro_f1"),
+                "LODO macro-F1, window alone": lo_alone.get("macro_f1"),
                 "in-dataset macro-F1": i.get("macro_f1"),
-                "in-dataset macro-F1, window alone": (i.get("per_window") or {}).get("macro_f1"),
+                "in-dataset macro-F1, window alone": i_alone.get("macro_f1"),
                 "in-dataset accuracy": i.get("accuracy"),
                 "in-dataset walking recall": i.get("walking_recall"),
                 "labels": ", ".join(

@@ -453,9 +453,10 @@ def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
             _fit(net, train, y, run, seed, folder.name + (f" member {k + 1}" if run.members > 1 else ""), echo)
         )
         nets.append(net)
+        if k == 0:
+            first = train, y  # the first member's windows, for the record
     wall = time.perf_counter() - t0
-    train = cap_per_class(uncapped, run.max_per_class, run.seed)  # the first member's windows, for the record
-    y = remap[train.y]
+    train, y = first
     sources_of = {c: len(set(train.source[y == i].tolist())) for i, c in enumerate(classes)}
     rare = [c for c in classes if sources_of[c] < run.rare_sources]
     with torch.no_grad():  # the prior of a class few sources have, times rare_factor (module docstring)
