@@ -25,6 +25,7 @@ from wearnav.models.har import gravity_rotation, rotate_windows
 from wearnav.outputs import check_suite_folder
 from wearnav.recording import Recording, Trajectory
 from wearnav.train import activity as act
+from wearnav.train import activity_data as actd
 from wearnav.train.classify import UNKNOWN, context_probs, label_recordings, load_model, window_classes
 
 
@@ -74,7 +75,7 @@ def test_sample_weights_balance_classes_and_sources():
     assert np.isclose(p[y == 0].sum() / p[y == 1].sum(), 10 / np.sqrt(5))
     assert np.isclose(p[(y == 0) & (src == "a")].sum(), p[(y == 0) & (src == "b")].sum())
     capped = act.cap_per_class(
-        act.Windows(np.zeros((105, 2, 6)), y, src, np.zeros(105, bool), np.zeros(105, int)), 20, 0
+        actd.Windows(np.zeros((105, 2, 6)), y, src, np.zeros(105, bool), np.zeros(105, int)), 20, 0
     )
     assert len(capped) == 20 + 10 + 5
 
@@ -82,9 +83,9 @@ def test_sample_weights_balance_classes_and_sources():
 def test_windows_runs_are_each_recordings_consecutive_windows():
     src = np.array(["a", "a", "a", "b", "b", "a"])
     rec = np.array([0, 0, 1, 0, 0, 0])
-    w = act.Windows(np.zeros((6, 2, 6)), np.zeros(6, np.int64), src, np.zeros(6, bool), rec)
+    w = actd.Windows(np.zeros((6, 2, 6)), np.zeros(6, np.int64), src, np.zeros(6, bool), rec)
     assert [r.tolist() for r in w.runs()] == [[0, 1], [2], [3, 4], [5]]
-    assert act.Windows.concat([]).runs() == []
+    assert actd.Windows.concat([]).runs() == []
 
 
 def test_whole_recording_labels_trim_edges_and_leave_out_floor_changes():
@@ -94,12 +95,12 @@ def test_whole_recording_labels_trim_edges_and_leave_out_floor_changes():
         truth=Trajectory(np.array([0.0, 10.0, 20.0, 39.0]), np.zeros((4, 2)), floor=np.array([0.0, 0.0, 1.0, 1.0])),
     )
     t = np.arange(0, 40, 0.02)
-    lab = act.sample_labels("ipin", rec, t)
+    lab = actd.sample_labels("ipin", rec, t)
     walk = al.LABELS.index(al.WALKING)
     assert np.all(lab[t < al.EDGE_TRIM_S] == -1) and np.all(lab[t > t[-1] - al.EDGE_TRIM_S] == -1)
     assert np.all(lab[(t >= 10) & (t <= 20)] == -1)  # floor 0 → 1: how is not known
     assert np.all(lab[(t > 4) & (t < 9.9)] == walk) and np.all(lab[(t > 20.1) & (t < 36)] == walk)
-    assert np.all(act.sample_labels("ilc2", rec, t)[(t > 4) & (t < 36)] == walk)  # ILC2: no floor rule
+    assert np.all(actd.sample_labels("ilc2", rec, t)[(t > 4) & (t < 36)] == walk)  # ILC2: no floor rule
 
 
 def test_step_rate_tells_walking_from_standing():
@@ -108,7 +109,7 @@ def test_step_rate_tells_walking_from_standing():
     walk = np.zeros((2, 128, 6), np.float32)
     walk[..., 2] = 9.81
     walk[0, :, 2] += 2.0 * np.sin(2 * np.pi * 1.8 * t)  # 1.8 steps/s, vertical bounce
-    rates = act.step_rate_hz(walk, 50.0)
+    rates = actd.step_rate_hz(walk, 50.0)
     assert abs(rates[0] - 1.8) < 0.2 and rates[1] == 0.0
 
 
@@ -149,7 +150,7 @@ def tiny_sources(shared_data, tmp_path_factory):
     root = tmp_path_factory.mktemp("lodo-data")
     data = {}
     for source, limit in (("uci-hapt", 1), ("oxford", 2), ("uji-phone", 4)):
-        spec = act.SOURCES[source]
+        spec = actd.SOURCES[source]
         data[source] = str(root / source)
         import_dataset(spec.fmt, shared_data / spec.src, root / source, limit=limit, progress=False)
     return data

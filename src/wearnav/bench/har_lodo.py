@@ -30,15 +30,8 @@ from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.errors import MissingFileError, check_names
 from wearnav.fileio import write_text_atomic
 from wearnav.provenance import provenance
-from wearnav.train.activity import (
-    PHONE_SOURCES,
-    SOURCES,
-    WATCH_SOURCES,
-    ActivityRun,
-    read_heldout,
-    train_run,
-    unknown_threshold,
-)
+from wearnav.train.activity import ActivityRun, read_heldout, train_run, unknown_threshold
+from wearnav.train.activity_data import PHONE_SOURCES, SOURCES, WATCH_SOURCES
 
 KEEP_CORRECT = 0.95  # issue 35 §3: the threshold keeps ≥ 95 % of the held-out correct windows
 # The threshold is capped here: above it the held-out models' top probabilities are saturated (a
