@@ -24,7 +24,7 @@ from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live.buffer import SessionBuffer
 from wearnav.live.replay import build
 from wearnav.live.tracker import LiveTracker
-from wearnav.train.classify import label_recordings
+from wearnav.train.labelling import label_recordings
 
 
 def live_labels(folder: Path) -> list[str]:

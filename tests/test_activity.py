@@ -26,7 +26,8 @@ from wearnav.outputs import check_suite_folder
 from wearnav.recording import Recording, Trajectory
 from wearnav.train import activity as act
 from wearnav.train import activity_data as actd
-from wearnav.train.classify import UNKNOWN, context_probs, label_recordings, load_model, window_classes
+from wearnav.train.classify import context_probs, load_model
+from wearnav.train.labelling import UNKNOWN, label_recordings, window_classes
 
 
 def test_gravity_rotation_turns_the_mean_acceleration_up():

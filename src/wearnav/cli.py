@@ -429,7 +429,7 @@ def classify_(
     located = locate_model(model, "classify") if model is not None else None
     check_input(input_)
     from wearnav.recording import Recording
-    from wearnav.train.classify import label_recordings
+    from wearnav.train.labelling import label_recordings
     from wearnav.train.resolve import resolve_model
 
     classifier = resolve_model(located, "classify") if located is not None else None  # refused before the input is read

@@ -27,7 +27,7 @@ fixed-lag smoother; before the first final window the provisional path is smooth
 placed by a rigid fit (:func:`wearnav.fuse.rigid_fit`) on the last ``PLACE_S`` of the smoothed one.
 Everything is in the east/north frame of the first good fix (:mod:`wearnav.fixcheck`; fixes converted
 by :mod:`wearnav.geo`). Activity: the phone's latest window classified by the shipped activity model
-as ``classify`` runs it (:func:`wearnav.train.classify.window_classes`). Warnings: those the input
+as ``classify`` runs it (:func:`wearnav.train.labelling.window_classes`). Warnings: those the input
 gives (:func:`wearnav.track.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
 the smoother's; the walk-plausibility check of ``track`` needs the whole walk and is left to it.
 """
@@ -53,7 +53,7 @@ from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.recording import Recording
 from wearnav.report.trajectory_page import page_points
 from wearnav.track import input_warnings, odometry_preprocess, path_times
-from wearnav.train.classify import UNKNOWN_INDEX, class_name, unknown_note, window_classes
+from wearnav.train.labelling import UNKNOWN_INDEX, class_name, unknown_note, window_classes
 from wearnav.train.odometry import TrainConfig
 from wearnav.train.resolve import resolve_model
 from wearnav.trajectory import integrate_velocity
@@ -135,7 +135,7 @@ class Step:
 class SharedModels:
     """The models of every session of one process, each loaded once (sessions only read them), the
     odometry models on one ``device`` chosen once: CUDA where there is one (None), else the CPU. The
-    activity classifiers stay on the CPU (:func:`wearnav.train.classify.window_classes` feeds them there)."""
+    activity classifiers stay on the CPU (:func:`wearnav.train.labelling.window_classes` feeds them there)."""
 
     def __init__(self, device: str | None = None):
         self.device = torch.device(device or ("cuda" if torch.cuda.is_available() else "cpu"))

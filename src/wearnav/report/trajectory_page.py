@@ -9,7 +9,7 @@ inline, and the path as data in the live state's form (:meth:`wearnav.live.track
 ``origin``, ``path`` [t, east, north, σ] at ``POINT_S``, ``fixes`` [t, east, north, accuracy]), so it
 opens from the file with no network (map tiles only when online). A time slider draws the path up
 to a moment; the path is coloured by the activity that ``classify`` finds (the shipped activity
-model, :func:`wearnav.train.classify.window_classes`), where the recording has the phone it needs.
+model, :func:`wearnav.train.labelling.window_classes`), where the recording has the phone it needs.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 
 from wearnav import pretrained
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.train.classify import intervals, window_classes
+from wearnav.train.labelling import intervals, window_classes
 from wearnav.train.resolve import resolve_model
 
 STATIC = Path(__file__).parent / "static"
