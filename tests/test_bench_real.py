@@ -248,6 +248,41 @@ def test_cli_real_odometry_reports_progress_without_a_terminal(building, tmp_pat
     assert "\r" not in res.stderr
 
 
+def test_a_heading_frame_model_is_also_scored_as_its_speed_along_the_phones_pointing(building, tmp_path):
+    """issue 34: a learned heading-frame model's path, its PDR-speed hybrid, and its own speed along
+    where the phone points, the last with its own site yaw (as pdr-pointing's) from the training
+    traces; a world-frame run cannot be loaded that way."""
+    from wearnav.train.odometry import load_model
+
+    out = tmp_path / "bench"
+    bench = RealBench(models=("ronin",), epochs=1, stride=25, heading_frame=True)
+    run_benchmark(
+        building / "building", out, group_by="floor_name", test_groups=("F9",), bench=bench, progress=False, echo=print
+    )
+    doc = json.loads((out / "results.json").read_text())
+    table = {r["method"]: r for r in doc["sites"]["main"]["table"]}
+    assert {"ronin", "ronin · PDR speed", "ronin · its speed, pointing"} <= set(table)
+    run = next((out / "runs").glob("ronin-*"))
+    own = json.loads((run / "site_yaw_eval_main_pointing.json").read_text())
+    assert own["by"] == "the model itself, speed pointing"
+    assert table["ronin · its speed, pointing"]["site yaw (°)"] == own["yaw_deg"]
+    assert table["ronin"]["site yaw (°)"] == doc["sites"]["main"]["yaw"]["yaw_deg"]  # trained under PDR's
+    pointing = runs.read_metrics(run / "eval_main_pointing")
+    assert pointing["speed"] == "pointing" and pointing["preprocess"]["yaw_deg"] == own["yaw_deg"]
+    # the same speed, a different direction: the lengths of the two paths agree
+    assert table["ronin · its speed, pointing"]["length ratio"] == pytest.approx(
+        table["ronin"]["length ratio"], rel=1e-6
+    )
+    world = RealBench(models=("ronin",), epochs=1, stride=25)
+    run_benchmark(
+        building / "building", out, group_by="floor_name", test_groups=("F9",), bench=world, progress=False, echo=print
+    )
+    world_run = next(p for p in (out / "runs").glob("ronin-*") if p != run)
+    assert not (world_run / "eval_main_pointing").exists()
+    with pytest.raises(ConfigError, match="heading frame"):
+        load_model(world_run, speed="pointing")
+
+
 def test_seeds_suite_pairs_each_path_with_pdr_by_walk(building, tmp_path):
     """`bench real-odometry --seeds`: a suite per seed sharing one prepared data folder, and one page
     with each path's statistics over the seeds and its difference from PDR, paired by walk."""

@@ -351,3 +351,17 @@ def test_pdr_speed_hybrid_keeps_the_models_direction_at_pdrs_speed():
     assert np.rad2deg(np.arctan2(vel[1], vel[0])) == pytest.approx(100.0, abs=1e-3)
     still, _ = synthetic_walk(100, standing=True)
     assert np.linalg.norm(hybrid(still, torch.ones(1, 1))[0].numpy()) < 0.05
+
+
+def test_along_pointing_keeps_the_models_speed_along_the_heading_frames_x():
+    """wearnav.models.base.AlongPointing: a heading-frame model's speed (here 0.4 m/s at 100°, the
+    direction it guessed) put along +x, where the phone points; its direction is thrown away."""
+    from wearnav.models.base import AlongPointing
+
+    class Guess(torch.nn.Module):
+        def forward(self, x, mask):
+            a = np.deg2rad(100.0)
+            return torch.tensor([[0.4 * np.cos(a), 0.4 * np.sin(a)], [0.0, 0.0]], dtype=x.dtype)
+
+    vel = AlongPointing(Guess())(torch.zeros(2, 1, 100, 6), torch.ones(2, 1)).numpy()
+    np.testing.assert_allclose(vel, [[0.4, 0.0], [0.0, 0.0]], atol=1e-6)

@@ -218,7 +218,8 @@ def evaluate_run(
     write metrics.json, trajectories/<split>/<name>.csv and plots/ into ``out_dir`` (default: the
     run folder). ``preprocess`` replaces preprocessing fields of the run's config for this data
     (e.g. another site's ``yaw_deg``); it is recorded in the metrics. ``speed`` "pdr": the model's
-    direction at PDR's speed (:func:`wearnav.train.odometry.load_model`). Returns the metrics."""
+    direction at PDR's speed; "pointing": its speed along where the phone points
+    (:func:`wearnav.train.odometry.load_model`). Returns the metrics."""
     run = Path(run)
     model, cfg = load_model(run, speed=speed)
     if preprocess:

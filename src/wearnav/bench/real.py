@@ -58,7 +58,7 @@ from typing import Any, TypedDict
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.bench.map_eval import has_plans, map_aware_eval, map_dir
-from wearnav.bench.real_page import HYBRID_SUFFIX, suite_runs, write_report
+from wearnav.bench.real_page import VARIANTS, suite_runs, write_report
 from wearnav.bench.real_sites import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
 from wearnav.evaluate import evaluate_run
 from wearnav.models.registry import check_models, get
@@ -142,14 +142,17 @@ class RealEval:
     own_yaw: bool = False
     plans: bool = False  # the site's recordings carry floor plans: score the map-aware path too
 
-    def yaw(self, run: Path) -> float:
+    def yaw(self, run: Path, speed: str = "model") -> float:
         """The yaw the test input is turned by: PDR's, or the model's own (module docstring, step 3),
-        estimated once on the site's training traces and kept beside the evaluation."""
-        if not self.own_yaw:
+        estimated once on the site's training traces and kept beside the evaluation. A path along
+        where the phone points (``speed`` "pointing") always takes its own, as ``pdr-pointing`` does:
+        the heading frame's windows do not depend on the yaw, so what the model learned under PDR's
+        is its speed only."""
+        if not self.own_yaw and speed != "pointing":
             return self.yaw_deg
-        f = run / f"site_yaw_{self.out_dir.name}.json"
+        f = run / f"site_yaw_{variant_dir(self.out_dir, speed).name}.json"
         if not f.is_file():
-            runs.write_json(f, {**estimate_site_yaw(Path(self.data), run=run), "data": self.data})
+            runs.write_json(f, {**estimate_site_yaw(Path(self.data), run=run, speed=speed), "data": self.data})
         return float(read_json(f)["yaw_deg"])
 
 
@@ -164,11 +167,12 @@ def run_job(job: RealJob, run: Path) -> Path:
     """Train one model (or resume) and score it on every site's test traces (an executor job)."""
     prepare_run(job.cfg, run)
     training = fit(job.cfg, run, progress=job.progress)
-    learned = get(job.cfg.model).learned
     for e in job.evals:
-        pre = {"frame_align": "none", "truth_max_gap": TRUTH_MAX_GAP_S, "yaw_deg": e.yaw(run)}
-        # a learned model is scored as trained, and as the hybrid with PDR's speed (issue 34)
-        for speed, out_dir in (("model", e.out_dir), ("pdr", hybrid_dir(e.out_dir)))[: 2 if learned else 1]:
+        for speed in scored_as(job.cfg):
+            out_dir = variant_dir(e.out_dir, speed)
+            if runs.is_complete(out_dir) and (not e.plans or runs.is_complete(map_dir(out_dir))):
+                continue  # scored by an earlier run of the suite (a resumed one that adds a path)
+            pre = {"frame_align": "none", "truth_max_gap": TRUTH_MAX_GAP_S, "yaw_deg": e.yaw(run, speed)}
             evaluate_run(
                 run,
                 data=e.data,
@@ -184,10 +188,18 @@ def run_job(job: RealJob, run: Path) -> Path:
     return run
 
 
-def hybrid_dir(eval_dir: Path) -> Path:
-    """Where a learned model's evaluation as the PDR-speed hybrid (:class:`wearnav.models.pdr.PDRSpeed`)
-    goes, beside its own ``eval_<site>``."""
-    return eval_dir.with_name(eval_dir.name + HYBRID_SUFFIX)
+def scored_as(cfg: TrainConfig) -> tuple[str, ...]:
+    """Where the speeds of a model's scored paths come from (issue 34; ``load_model``'s ``speed``):
+    as trained; a learned model also as the hybrid with PDR's speed, and one in the heading frame
+    also as its speed along where the phone points."""
+    if not get(cfg.model).learned:
+        return ("model",)
+    return ("model", "pdr", "pointing") if cfg.heading_frame else ("model", "pdr")
+
+
+def variant_dir(eval_dir: Path, speed: str) -> Path:
+    """Where a model's evaluation with the speed source ``speed`` goes, beside its own ``eval_<site>``."""
+    return eval_dir.with_name(eval_dir.name + VARIANTS[speed][0])
 
 
 @dataclasses.dataclass
@@ -263,10 +275,8 @@ def plan_benchmark(
             )
             for s, site in sites.items()
         )
-        scored = tuple(e.out_dir for e in evals) + (
-            tuple(hybrid_dir(e.out_dir) for e in evals) if get(model).learned else ()
-        )
-        marks = scored + tuple(map_dir(d) for d, e in zip(scored, evals + evals) if e.plans)
+        scored = [(variant_dir(e.out_dir, speed), e) for speed in scored_as(cfg) for e in evals]
+        marks = tuple(d for d, _ in scored) + tuple(map_dir(d) for d, e in scored if e.plans)
         jobs.append(Job(run_job, RealJob(cfg, evals, progress and in_process), run, marks=marks))
     return Plan(out, sites, jobs, bench, t_start)
 

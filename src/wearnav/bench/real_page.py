@@ -63,19 +63,24 @@ def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
 # ``eval_<site>`` + this suffix; its row is the model's label + HYBRID_LABEL.
 HYBRID_SUFFIX = "_pdrspeed"
 HYBRID_LABEL = " · PDR speed"
+# A heading-frame model's speed along where the phone points (wearnav.models.base.AlongPointing), likewise.
+POINTING_SUFFIX = "_pointing"
+POINTING_LABEL = " · its speed, pointing"
+# Where a scored path's speed comes from (wearnav.train.odometry.SPEED_SOURCES) → (folder suffix, label suffix).
+VARIANTS = {"model": ("", ""), "pdr": (HYBRID_SUFFIX, HYBRID_LABEL), "pointing": (POINTING_SUFFIX, POINTING_LABEL)}
 # and either one placed on the building's floor plans (wearnav.bench.map_eval, issue 36) + MAP_SUFFIX
 MAP_LABEL = " · map-aware"
 
 
 def evaluations(folders: dict[str, Path], site: str) -> dict[str, tuple[Path, Path]]:
     """Every scored path of ``site`` by its row label: (run folder, evaluation folder); a learned
-    model's hybrid with PDR's speed follows the model's own row."""
+    model's hybrids (:data:`VARIANTS`) follow the model's own row."""
     out = {}
     for label, run in folders.items():
-        for suffix, name in (("", label), (HYBRID_SUFFIX, label + HYBRID_LABEL)):
+        for suffix, name in VARIANTS.values():
             for more, more_label in (("", ""), (MAP_SUFFIX, MAP_LABEL)):
                 if runs.is_complete(run / f"eval_{site}{suffix}{more}"):
-                    out[name + more_label] = (run, run / f"eval_{site}{suffix}{more}")
+                    out[label + name + more_label] = (run, run / f"eval_{site}{suffix}{more}")
     return out
 
 
@@ -94,8 +99,9 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
         )
         summary = res["summary"]
         tr = m.get("training", {})
-        own = run / f"site_yaw_eval_{site}.json"
-        yaw = read_json(own)["yaw_deg"] if own.is_file() else sites[site]["yaw"]["yaw_deg"]
+        # the path's own site yaw (a pointing path's is its own), else the model's, else PDR's
+        own = [run / f"site_yaw_{ev.name.removesuffix(MAP_SUFFIX)}.json", run / f"site_yaw_eval_{site}.json"]
+        yaw = next((read_json(f)["yaw_deg"] for f in own if f.is_file()), sites[site]["yaw"]["yaw_deg"])
         rows.append(
             {
                 "method": label,
@@ -291,7 +297,9 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
             scored = {
                 label: run for label, (run, _) in evaluations(folders, site).items() if not label.endswith(MAP_LABEL)
             }
-            speeds = {label: "pdr" for label in scored if label.endswith(HYBRID_LABEL)}
+            speeds = {
+                label: src for label in scored for src, (_, end) in VARIANTS.items() if end and label.endswith(end)
+            }
             # each model's smoother is calibrated where it is used (user_protocol.site_calibration)
             cal = doc["sites"][site]["calibration"] = {
                 label: site_calibration(run, site, s["data"], _trained_on(run), speeds.get(label, "model"))

@@ -184,10 +184,12 @@ def estimate_site_yaw(
     rate: float = 25.0,
     progress: bool = False,
     run: Path | None = None,
+    speed: str = "model",
 ) -> dict:
     """:func:`site_yaw` of the ``split`` traces (None: all) of dataset ``data`` (no yaw applied, no
-    frame alignment), by PDR or by the model of ``run`` (a run folder: its rate, window and stride);
-    ``progress``: report the traces' loading (:mod:`wearnav.progress`)."""
+    frame alignment), by PDR or by the model of ``run`` (a run folder: its rate, window and stride;
+    ``speed`` as :func:`wearnav.train.odometry.load_model`'s); ``progress``: report the traces' loading
+    (:mod:`wearnav.progress`)."""
     model, window, stride = None, 100, 10
     cfg = TrainConfig(
         model="pdr",
@@ -198,12 +200,13 @@ def estimate_site_yaw(
         truth_max_gap=TRUTH_MAX_GAP_S,
     )
     if run is not None:  # the model's own preprocessing (its heading frame too), no yaw
-        model, tcfg = load_model(run)
+        model, tcfg = load_model(run, speed=speed)
         window, stride = tcfg.window, tcfg.stride
         cfg = dataclasses.replace(tcfg, data=str(data), frame_align="none", truth_max_gap=TRUTH_MAX_GAP_S, yaw_deg=0.0)
     ds = Dataset.open(data)
     found = site_yaw(load_sequences(ds.split(split) if split else ds, cfg, progress), window, stride, model)
-    return {**found, "by": "pdr" if run is None else "the model itself"}
+    by = "pdr" if run is None else "the model itself" if speed == "model" else f"the model itself, speed {speed}"
+    return {**found, "by": by}
 
 
 # ---- the phone's own fixes --------------------------------------------------------------------

@@ -28,7 +28,7 @@ from wearnav import runs, trust
 from wearnav.dataset import Dataset, scorable_split, train_val_views
 from wearnav.errors import ConfigError, FormatError, ValidationError, check_field_types, check_names
 from wearnav.models import registry
-from wearnav.models.base import VEL_LOSSES, OdometryModel, ScaledVelocity
+from wearnav.models.base import VEL_LOSSES, AlongPointing, OdometryModel, ScaledVelocity
 from wearnav.models.pdr import PDR, PDRSpeed
 from wearnav.preprocess import (
     SPARSE_TRUTH_HZ,
@@ -385,20 +385,26 @@ def zero_velocity_mse(ds: WindowDataset) -> float:
     return float(np.mean(np.concatenate(sq))) if sq else float("nan")
 
 
-# Where a loaded model's speed comes from (:func:`load_model`): the model itself, or PDR's step
-# counter with the model's direction (wearnav.models.pdr.PDRSpeed, issue 34's hybrid).
-SPEED_SOURCES = ("model", "pdr")
+# Where a loaded model's speed comes from (:func:`load_model`): the model itself; PDR's step
+# counter with the model's direction (wearnav.models.pdr.PDRSpeed, issue 34's hybrid); or the
+# model's speed alone, along where the phone points (wearnav.models.base.AlongPointing; a model in
+# the heading frame only).
+SPEED_SOURCES = ("model", "pdr", "pointing")
 
 
 def load_model(run: str | Path, which: str = BEST, speed: str = "model") -> tuple[torch.nn.Module, TrainConfig]:
     """The model of a run folder with its ``best`` (or ``last``) weights, in eval mode; where the
     run was adapted with a speed scale (:func:`velocity_scale`), wrapped to apply it. ``speed``
-    "pdr": its direction at PDR's speed in the same window (:class:`wearnav.models.pdr.PDRSpeed`)."""
+    "pdr": its direction at PDR's speed in the same window (:class:`wearnav.models.pdr.PDRSpeed`);
+    "pointing": its speed along where the phone points (:class:`wearnav.models.base.AlongPointing`),
+    for a run trained in the heading frame."""
     if speed not in SPEED_SOURCES:
         raise ConfigError(f"speed must come from one of {', '.join(SPEED_SOURCES)}, got {speed!r}")
     run = Path(run)
     check_run_kind(run, "odometry")  # a classifier's run: say so, not "unknown config keys"
     cfg = runs.read_run_config(run, TrainConfig)
+    if speed == "pointing" and not cfg.heading_frame:
+        raise ConfigError(f"{run}: only a model trained in the heading frame has the phone's pointing as +x")
     model = build_model(cfg)
     if registry.get(cfg.model).learned:
         load_weights(model, run / CHECKPOINTS / which)
@@ -407,6 +413,8 @@ def load_model(run: str | Path, which: str = BEST, speed: str = "model") -> tupl
         model = ScaledVelocity(model, scale)
     if speed == "pdr":
         model = PDRSpeed(model, PDR(len(cfg.devices), cfg.window, rate=cfg.rate))
+    if speed == "pointing":
+        model = AlongPointing(model)
     model.eval()
     return model, cfg
 
