@@ -249,22 +249,26 @@ def walkers_phase(
 
             c0, w0 = used(), time.perf_counter()
             url = replay.push_url(f"{srv.url}/push", base)
+
+            def walk(i: int) -> None:
+                try:
+                    results[i] = send_lean(url, bodies[i], due, w0 + i * BATCH_S / walkers)
+                except ConfigError as e:  # the receiver refused it, or stopped answering: not kept up
+                    gave_up.append(str(e))
+
+            gave_up: list[str] = []
             # the walkers' pushes spread over one batch period, as walkers who did not start together
-            threads = [
-                threading.Thread(
-                    target=lambda i=i: results.__setitem__(
-                        i, send_lean(url, bodies[i], due, w0 + i * BATCH_S / walkers)
-                    )
-                )
-                for i in range(walkers)
-            ]
+            threads = [threading.Thread(target=walk, args=(i,)) for i in range(walkers)]
             for t in threads:
                 t.start()
             for t in threads:
                 t.join()
             c1, w1 = used(), time.perf_counter()
             time.sleep(1.0 + (2 * STATS_EVERY_S if procs else 0.0))  # the last updates (and the trackers' summaries)
-            stats = httpx.get(f"{srv.url}/stats").json()
+            try:  # a receiver that fell far behind may answer late, or not at all: then nothing is known of its updates
+                stats = httpx.get(f"{srv.url}/stats", timeout=60.0).json()
+            except httpx.HTTPError:
+                stats = {}
         finally:
             for p in procs:
                 p.terminate()
@@ -292,6 +296,8 @@ def walkers_phase(
         "behind_at_end_s": round(behind, 3),
         "update_ms": {"p50": _pct(upd, 50), "p95": upd_p95, "n": len(upd)},
         "kept_up": kept_up,
+        # walkers that gave up, and why (the first reason): they count as not kept up
+        **({"gave_up": {"walkers": len(gave_up), "first": gave_up[0]}} if gave_up else {}),
         "latency_goal_met": None if not tracking or upd_p95 is None else upd_p95 < 1e3 * LATENCY_GOAL_S,
     }
 
@@ -487,11 +493,15 @@ def page(r: dict) -> str:
     def pc(x):
         return "?" if x is None else f"{100 * x:.1f} %"
 
+    def _kept(w: dict) -> str:
+        gave = w.get("gave_up")
+        return "yes" if w["kept_up"] else f"no ({gave['walkers']} gave up: {gave['first']})" if gave else "no"
+
     table = "\n".join(
         f"| {WALKER_NAMES[w.get('devices', 'all')]} | {w['walkers']} | {pc(w['cpu_share_of_one_core'])} | "
         f"{w['ack_ms']['p50']} | {w['ack_ms']['p99']} | "
         f"{w['update_ms']['p50'] if tracking else '–'} | {w['update_ms']['p95'] if tracking else '–'} | "
-        f"{w['behind_at_end_s']} | {'yes' if w['kept_up'] else 'no'} | {_yes(w.get('latency_goal_met'))} | "
+        f"{w['behind_at_end_s']} | {_kept(w)} | {_yes(w.get('latency_goal_met'))} | "
         f"{' → '.join(f'{x:g}' for x in w['load_1min']) if 'load_1min' in w else '?'} |"
         for w in rows
     )
