@@ -319,6 +319,8 @@ def test_seeds_suite_pairs_each_path_with_pdr_by_walk(building, tmp_path):
     smoother = {r["smoother of"]: r for r in doc["sites"]["main"]["smoother"]}
     assert {"ronin", "pdr"} <= set(smoother)
     assert "over 2 seeds" in page.read_text()
+    # the title says what sets the suite apart: where it was scored, and how long it trained
+    assert page.read_text().splitlines()[0].endswith("tested on standin (1 epoch at most)")
 
 
 def test_map_aware_rows_where_the_site_has_floor_plans(tmp_path):
