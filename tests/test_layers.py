@@ -103,6 +103,7 @@ LAYERS: dict[str, int] = {
     "wearnav.cli_live": 10,
     "wearnav.cli_models": 10,
     "wearnav.cli_train": 10,
+    "wearnav.cli_label": 10,
     "wearnav.__main__": 10,
 }
 
