@@ -59,15 +59,15 @@ def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
     return {label: run for *_, label, run in sorted(labelled, key=lambda x: x[:3])}
 
 
-# A learned model's evaluation as the PDR-speed hybrid (wearnav.models.pdr.PDRSpeed) is the folder
-# ``eval_<site>`` + this suffix; its row is the model's label + HYBRID_LABEL.
-HYBRID_SUFFIX = "_pdrspeed"
-HYBRID_LABEL = " · PDR speed"
-# A heading-frame model's speed along where the phone points (wearnav.models.base.AlongPointing), likewise.
-POINTING_SUFFIX = "_pointing"
-POINTING_LABEL = " · its speed, pointing"
-# Where a scored path's speed comes from (wearnav.train.odometry.SPEED_SOURCES) → (folder suffix, label suffix).
-VARIANTS = {"model": ("", ""), "pdr": (HYBRID_SUFFIX, HYBRID_LABEL), "pointing": (POINTING_SUFFIX, POINTING_LABEL)}
+# Where a scored path's speed comes from (wearnav.train.odometry.SPEED_SOURCES) → (suffix of its
+# evaluation folder ``eval_<site>``, suffix of its row label): the model as trained; its direction at
+# PDR's speed (wearnav.models.pdr.PDRSpeed); a heading-frame model's speed along where the phone
+# points (wearnav.models.base.AlongPointing).
+VARIANTS = {
+    "model": ("", ""),
+    "pdr": ("_pdrspeed", " · PDR speed"),
+    "pointing": ("_pointing", " · its speed, pointing"),
+}
 # and either one placed on the building's floor plans (wearnav.bench.map_eval, issue 36) + MAP_SUFFIX
 MAP_LABEL = " · map-aware"
 
