@@ -20,7 +20,9 @@ does not chase the model), from the fixes' displacement d̃_i and the *un-adapte
 Huber, because a fix jump the jump filter lets
 through (~5 m over 10 s, 0.5 m/s) must not dominate the mean. Each walk's windows (and vector
 labels) of a batch are turned by one random yaw, as training's ``rotate_yaw`` does, so the model
-stays yaw-equivariant.
+stays yaw-equivariant. A heading-frame model (``PreprocessConfig.heading_frame``) gets no random
+yaw (its windows carry none); its window velocities are turned back by each window's heading
+before they are integrated, as :func:`wearnav.evaluate.predict_sequence` does.
 
 The network stays in eval mode while its weights move (batch-norm statistics frozen, no
 dropout): a few hundred noisy segments are not enough to re-estimate them, and a low learning
@@ -79,13 +81,15 @@ class FinetuneConfig:
 @dataclass
 class _Walk:
     """A walk's tensors: windows ``x`` (K, D, L, 6), ``mask`` (K, D), ``A`` (n, K), the labels
-    (n, 2) in the phone's world frame and the segments' durations (n,)."""
+    (n, 2) in the phone's world frame, the segments' durations (n,) and, in the heading frame, each
+    window's heading ``yaw`` (K,)."""
 
     x: torch.Tensor
     mask: torch.Tensor
     A: torch.Tensor
     label: torch.Tensor
     duration: torch.Tensor
+    yaw: torch.Tensor | None = None
 
 
 def _prepare(model, seg: WalkSegments, window: int, stride: int, loss: str) -> _Walk | None:
@@ -103,7 +107,14 @@ def _prepare(model, seg: WalkSegments, window: int, stride: int, loss: str) -> _
             seg.d_fix, axis=1, keepdims=True
         )
     f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)
-    return _Walk(b["x"], b["mask"], f32(integration_weights(c, seg.t0, seg.t1)), f32(label), f32(seg.t1 - seg.t0))
+    A = f32(integration_weights(c, seg.t0, seg.t1))
+    return _Walk(b["x"], b["mask"], A, f32(label), f32(seg.t1 - seg.t0), b["yaw"].double() if "yaw" in b else None)
+
+
+def _turned(v: torch.Tensor, psi: torch.Tensor) -> torch.Tensor:
+    """Velocities (N, 2) turned counter-clockwise by ``psi`` (N,) rad (:func:`wearnav.windows.turn`)."""
+    c, s = torch.cos(psi).to(v.dtype), torch.sin(psi).to(v.dtype)
+    return torch.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]], dim=1)
 
 
 def _loss(
@@ -111,13 +122,15 @@ def _loss(
 ) -> torch.Tensor:
     """Mean Huber loss over the segments ``batch`` ((walk, segment indices) pairs); ``gen``: draw
     one random yaw per walk (training), None: no rotation."""
-    xs, masks, parts = [], [], []
+    xs, masks, yaws, parts = [], [], [], []
     for w, idx in batch:
         walk = walks[w]
         A = walk.A[idx]
         cols = torch.nonzero(A.abs().sum(dim=0) > 0).flatten()
         x, label = walk.x[cols], walk.label[idx]
-        if gen is not None:
+        if walk.yaw is not None:
+            yaws.append(walk.yaw[cols])
+        elif gen is not None:
             angle = float(torch.rand(1, generator=gen)) * 2 * math.pi
             x = rotate_batch({"x": x}, torch.full((x.shape[0],), angle))["x"]
             c, s = math.cos(angle), math.sin(angle)
@@ -126,6 +139,8 @@ def _loss(
         masks.append(walk.mask[cols])
         parts.append((A[:, cols], label, walk.duration[idx], x.shape[0]))
     vel = model(torch.cat(xs), torch.cat(masks))
+    if yaws:  # heading-frame windows: every walk has them (one model, one preprocessing)
+        vel = _turned(vel, torch.cat(yaws))
     pred, target, k = [], [], 0
     for A, label, T, n in parts:
         pred.append((A @ vel[k : k + n]) / T[:, None])

@@ -168,8 +168,6 @@ def adapt(
     base_scale = float(model.scale) if isinstance(model, ScaledVelocity) else 1.0
     if cfg.method == "finetune" and not getattr(model, "learned", True):
         raise ConfigError(f"{tcfg.model} has no weights to fine-tune; use --method scale", model_run)
-    if cfg.method == "finetune" and tcfg.heading_frame:  # its labels are world-frame segments
-        raise ConfigError("fine-tuning a heading-frame model is not built; use --method scale", model_run)
     n_rec, n_fix_rec, walks = 0, 0, []
     for rec in recordings:
         n_rec += 1
