@@ -94,12 +94,87 @@ def test_a_missing_shipped_model_is_one_clear_line(monkeypatch, tmp_path):
     monkeypatch.setattr(pretrained, "MODELS_DIR", tmp_path)
     with pytest.raises(ConfigError, match="no shipped model 'phone-watch-earbuds'.*--model RUN"):
         pretrained.model_path(None, "odometry", ("phone", "watch"))
-    # a phone-only recording's default is PDR (issue 34: measured better than the learned phone model
-    # on both held-out buildings), which needs nothing installed
+    # a phone-only recording without an installed phone model takes PDR, which needs nothing installed
     assert pretrained.model_path(None, "odometry", ("phone",)) == "pdr"
     with pytest.raises(ConfigError, match="a classify model, not odometry"):
         pretrained.model_path("activity", "odometry")
     assert pretrained.model_path("runs/x", "odometry") == "runs/x"
+
+
+def _suite_page(root, rows_by_site: dict) -> object:
+    """A suite folder whose results.json holds these known-start tables (what bench.real writes)."""
+    root.mkdir(parents=True)
+    sites = {site: {"table": table} for site, table in rows_by_site.items()}
+    (root / "results.json").write_text(json.dumps({"sites": sites}))
+    return root / "results.md"
+
+
+def _row(method, median, length):
+    return {
+        "method": method,
+        "median (m)": median,
+        "p75 (m)": median + 2,
+        "p95 (m)": median + 6,
+        "length ratio": length,
+        "traces": 10,
+        "points": 134,
+    }
+
+
+def test_phone_only_choice_is_the_shipped_models_own_measurement_against_pdr(tmp_path, monkeypatch):
+    """Issue 34: without --model a phone-only recording takes the shipped phone model only where its
+    held_out.json shows it below PDR in every building it never trained in; the reason names them."""
+    from wearnav.pretrained.recipe import held_out_record
+
+    monkeypatch.setattr(pretrained, "MODELS_DIR", tmp_path / "models")
+    phone = pretrained.SHIPPED[pretrained.PHONE].path
+    (phone / "checkpoints").mkdir(parents=True)
+    (phone / "checkpoints" / "best.ckpt").write_bytes(b"")
+    (phone / "config.yaml").write_text("config: {}\n")
+    assert pretrained.phone_only_choice()[0] == "pdr"  # installed, but measured nowhere
+    learned = "suitein++ · simulator `sim` (commit abc)"
+
+    def measured(ilc2_median):
+        page = _suite_page(
+            tmp_path / f"sim-to-real-{ilc2_median}" / "sim-to-real",
+            {
+                "main": [
+                    _row(learned, 3.69, 1.03),
+                    _row(learned + " · its speed, pointing", 1.0, 1.0),
+                    _row("pdr", 4.77, 1.11),
+                    _row("raw phone fixes", 5.72, float("nan")),
+                ],
+                "other": [_row(learned, ilc2_median, 0.83), _row("pdr", 3.75, 0.94)],
+            },
+        )
+        return held_out_record(phone, page)
+
+    record = measured(3.37)
+    ipin, ilc2 = record["buildings"].values()
+    assert (ipin["model_median_m"], ipin["pdr_median_m"], ipin["model_length_ratio"]) == (3.69, 4.77, 1.03)
+    assert (ilc2["model_median_m"], ilc2["pdr_length_ratio"]) == (3.37, 0.94)  # the model's own row, not a variant
+    path, why = pretrained.phone_only_choice()
+    assert path == phone and "every building" in why and "3.37 against PDR's 3.75" in why
+    assert pretrained.default_model("odometry", ("phone",))[0] == phone
+    measured(4.19)  # worse than PDR in ILC2
+    path, why = pretrained.phone_only_choice()
+    assert path == "pdr" and "4.19 against PDR's 3.75" in why and "--model phone" in why
+
+
+def test_cards_name_the_recipes_rows_and_each_building(tmp_path):
+    from wearnav.pretrained.cards import RECIPE_ROW, measured_rows
+
+    learned = "suitein++ · simulator `sim` (commit abc)"
+    page = _suite_page(
+        tmp_path / "sim-to-real",
+        {
+            "main": [_row(learned, 3.7, 1.0), _row(learned + " · PDR speed", 4.2, 1.1), _row("pdr", 4.8, 1.1)],
+            "other": [_row(learned, 3.4, 0.8)],
+        },
+    )
+    rows = measured_rows({"sim-to-real": page})
+    assert [r["path"] for r in rows] == [RECIPE_ROW, f"{RECIPE_ROW} · PDR speed", "pdr", RECIPE_ROW]
+    assert rows[0]["building"].startswith("IPIN") and rows[-1]["building"].startswith("ILC2")
 
 
 # ---- the shipped models themselves (issue 18, "done when") ------------------------------------
@@ -146,14 +221,16 @@ def test_track_without_model_lies_on_the_walks_own_fixes(stranger, monkeypatch, 
     gap = np.linalg.norm(at - fx[["east", "north"]].to_numpy(), axis=1)
     assert len(fx) > 100 and np.median(gap) < 5.0
     assert "shipped model 'phone-watch-earbuds'" in summary["model_choice"]
-    # phone only: PDR, saying why (issue 34); `--model phone` takes the learned phone model
+    # phone only: what the shipped phone model's own measurement chose, saying why (issue 34); both
+    # ways the choice can go are tested above
     phone_only = dataclasses.replace(rec, devices={"phone": rec.devices["phone"]})
     export2 = write_export(phone_only, tmp_path / "phone_walk")
     code, out, err = run_cli(monkeypatch, capsys, "track", str(export2), "--out", str(tmp_path / "t2"))
     assert code == 0, err
     t2 = json.loads((tmp_path / "t2" / "track.json").read_text())
-    assert t2["model"] == "pdr" and t2["shipped_model"] is None
-    assert "PDR" in t2["model_choice"] and "--model phone" in t2["model_choice"]
+    chosen, why = pretrained.phone_only_choice()
+    assert t2["model_choice"] == why and "PDR" in why
+    assert t2["shipped_model"] == (None if chosen == "pdr" else pretrained.PHONE)
     code, out, err = run_cli(
         monkeypatch, capsys, "track", str(export2), "--model", "phone", "--out", str(tmp_path / "t3")
     )
@@ -176,7 +253,7 @@ def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch
     odometry random walk the leave-one-building-out models show on their held-out buildings, and
     the largest σ scale of those with fixes."""
     from wearnav import fuse
-    from wearnav.pretrained import recipe
+    from wearnav.pretrained import cards, recipe
     from wearnav.textio import read_json
 
     got = {"lobo-ipin": 0.56, "lobo-ilc2": 0.83}
@@ -199,6 +276,7 @@ def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch
     shipped.mkdir()
     cal = recipe.cross_building_calibration(shipped, suites)
     assert cal["odometry_walk_m_per_sqrt_s"] == 0.83 and cal["walks"] == 20
-    assert read_json(shipped / fuse.CALIBRATION_JSON)["per_building"] == got
+    named = {cards.site_name(suite, "main"): v for suite, v in got.items()}  # the buildings' names
+    assert read_json(shipped / fuse.CALIBRATION_JSON)["per_building"] == named
     assert fuse.config_for(shipped)[0].odometry_walk_m_per_sqrt_s == 0.83
     assert cal["sigma_scale"] == 1.6 and fuse.config_for(shipped)[0].sigma_scale == 1.6

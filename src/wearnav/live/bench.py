@@ -59,8 +59,9 @@ from wearnav.provenance import provenance
 
 log = logging.getLogger(__name__)
 
-# The walkers a walkers phase replays: phone-only (the default model is then PDR, wearnav.pretrained's
-# PHONE_ONLY_WHY) or phone, watch and earbuds (the shipped three-device model).
+# The walkers a walkers phase replays: phone-only (the default model is then wearnav.pretrained's
+# phone_only_choice: PDR or the shipped phone model) or phone, watch and earbuds (the shipped
+# three-device model).
 WALKER_DEVICES = {"phone": ("phone",), "all": ("phone", "watch", "earbuds")}
 
 

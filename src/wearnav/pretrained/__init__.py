@@ -18,9 +18,13 @@ import dataclasses
 from pathlib import Path
 
 from wearnav.errors import ConfigError
+from wearnav.textio import read_json
 
 MODELS_DIR = Path(__file__).parent / "models"
 CARD = "MODEL_CARD.md"
+# in a shipped odometry model's folder: its known-start errors in buildings it never trained in,
+# beside PDR's (wearnav.pretrained.recipe.held_out_record); what the phone-only choice reads
+HELD_OUT_JSON = "held_out.json"
 PHONE, MULTI, ACTIVITY, ACTIVITY_WATCH = "phone", "phone-watch-earbuds", "activity", "activity-watch"
 
 
@@ -50,13 +54,15 @@ SHIPPED = {
             PHONE,
             "odometry",
             ("phone",),
-            "Suite-IN++ on the phone alone: ILC2 site 1, IPIN 2023 Track 3 and the simulator",
+            "Suite-IN++ on the phone alone, in the phone's heading frame, trained on the simulator only "
+            "(ILC2 and IPIN 2023 are the buildings it is measured in)",
         ),
         Shipped(
             MULTI,
             "odometry",
             ("phone", "watch", "earbuds"),
-            "Suite-IN++ on phone, watch and earbuds (any of them absent): the same data",
+            "Suite-IN++ on phone, watch and earbuds (any of them absent): ILC2 site 1, IPIN 2023 Track 3 and "
+            "the simulator",
         ),
         Shipped(
             ACTIVITY,
@@ -110,27 +116,43 @@ def default_for(task: str, devices_in_recording=()) -> Shipped:
     return spec
 
 
-# What `track` and `live` use without --model for a recording with the phone alone (issue 34): PDR,
-# because the shipped phone recipe measured worse than it in both buildings it never trained in
-# (docs/results.md, "Shipped models and leave-one-building-out": known start, median error at the
-# surveyed points and path-length ratio). A recording with a watch or earbuds keeps the learned
-# multi-device model: there is no real multi-device walk here to measure PDR against it on, and on
-# the simulator the multi-device Suite-IN++ is far ahead of PDR (Table III).
-PHONE_ONLY_DEFAULT = "pdr"
-PHONE_ONLY_WHY = (
-    "a phone-only recording: step-and-heading PDR, which measured better than the shipped phone model in "
-    "both buildings that model's recipe never trained in (known start, median at surveyed points: IPIN "
-    "4.77 vs 6.75 m, ILC2 3.75 vs 5.92 m; path length / truth 1.11 and 0.94 vs 0.64 and 0.68); "
-    "`--model phone` takes the learned model"
-)
+def phone_only_choice() -> tuple[Path | str, str]:
+    """What `track` and `live` use without ``--model`` for a recording with the phone alone, and why
+    (issue 34): the shipped phone model where its :data:`HELD_OUT_JSON` shows its known-start median
+    below PDR's in every building it never trained in, else step-and-heading PDR. A recording with a
+    watch or earbuds keeps the learned multi-device model: no real multi-device walk here measures
+    PDR against it, and on the simulator the multi-device Suite-IN++ is far ahead of PDR (Table III)."""
+    spec = SHIPPED[PHONE]
+    record = spec.path / HELD_OUT_JSON
+    if not (spec.installed and record.is_file()):
+        return "pdr", (
+            "a phone-only recording: step-and-heading PDR (this installation's phone model carries no "
+            "measurement in buildings it never saw); `--model phone` takes the learned model"
+        )
+    buildings = read_json(record)["buildings"]
+    said = "; ".join(
+        f"{name}: {b['model_median_m']:.2f} against PDR's {b['pdr_median_m']:.2f} m "
+        f"(path length / truth {b['model_length_ratio']:.2f} against {b['pdr_length_ratio']:.2f})"
+        for name, b in buildings.items()
+    )
+    how = "known start, median error at the surveyed points"
+    if buildings and all(b["model_median_m"] < b["pdr_median_m"] for b in buildings.values()):
+        return spec.path, (
+            f"a phone-only recording: the shipped model {PHONE!r}, which measured better than step-and-heading "
+            f"PDR in every building it never trained in ({how}; {said}); `--model pdr` takes PDR"
+        )
+    return "pdr", (
+        f"a phone-only recording: step-and-heading PDR, which measured better than the shipped phone model in "
+        f"a building that model never trained in ({how}; {said}); `--model phone` takes the learned model"
+    )
 
 
 def default_model(task: str, devices_in_recording=()) -> tuple[Path | str, str]:
     """What a command uses without ``--model`` for a recording with ``devices_in_recording``, and
-    why: for odometry PDR on a phone-only recording (:data:`PHONE_ONLY_WHY`), else the shipped model
+    why: for odometry on a phone-only recording :func:`phone_only_choice`, else the shipped model
     of :func:`default_for`."""
     if task == "odometry" and not {"watch", "earbuds"} & set(devices_in_recording):
-        return PHONE_ONLY_DEFAULT, PHONE_ONLY_WHY
+        return phone_only_choice()
     spec = default_for(task, devices_in_recording)
     return (
         spec.path,
