@@ -257,3 +257,49 @@ def test_heading_frame_is_left_out_of_configs_until_used_and_refuses_random_yaw(
         TrainConfig(model="suitein++", data="d", heading_frame=True)
     with pytest.raises(ConfigError, match="frame='world'"):
         PreprocessConfig(frame="device", heading_frame=True)
+
+
+def test_time_warp_plays_a_walk_faster_along_the_same_path():
+    """issue 34, the speed time-warp expansion: k times faster, the same path (positions at t' are
+    the original's at k·t'), window speeds × k, gyroscope × k, linear acceleration × k², the
+    heading frame's ψ carried along; k = 1 changes nothing."""
+    from wearnav.preprocess import time_warped
+    from wearnav.simulate import WalkConfig, simulate_recording
+
+    rec = simulate_recording(WalkConfig(mode="STW", placement="HD", duration_s=60), seed=4)
+    a = align(rec, PreprocessConfig(devices=("phone",), frame_align="none", heading_frame=True))
+    same = time_warped(a, 1.0)
+    np.testing.assert_allclose(same.imu, a.imu, atol=1e-4)
+    np.testing.assert_allclose(same.pos, a.pos, atol=1e-9)
+    k = 1.25
+    f = time_warped(a, k)
+    assert abs((f.t[-1] - f.t[0]) - (a.t[-1] - a.t[0]) / k) < 1.0 / a.rate and f.rate == pytest.approx(a.rate)
+    src = a.t[0] + k * (f.t - f.t[0])
+    for c in (0, 1):
+        np.testing.assert_allclose(f.pos[:, c], np.interp(src, a.t, a.pos[:, c]), atol=1e-9)
+    ok = np.isfinite(f.yaw)
+    turned = np.exp(1j * f.yaw[ok]) * np.exp(-1j * np.interp(src[ok], a.t, np.unwrap(a.yaw)))
+    assert np.abs(np.angle(turned)).max() < 0.05
+
+    def rms(x):
+        return float(np.sqrt(np.mean((x - x.mean(axis=0)) ** 2)))
+
+    assert rms(f.imu[0, :, 3:]) == pytest.approx(k * rms(a.imu[0, :, 3:]), rel=0.05)
+    assert rms(f.imu[0, :, 2]) == pytest.approx(k * k * rms(a.imu[0, :, 2]), rel=0.05)
+    windows = [WindowDataset([s], WindowConfig(100, 10)) for s in (a, f)]
+    speed = [np.median(np.linalg.norm(w[list(range(len(w)))]["vel"].numpy(), axis=1)) for w in windows]
+    assert speed[1] == pytest.approx(k * speed[0], rel=0.03)
+    with pytest.raises(ConfigError, match="factor > 0"):
+        time_warped(a, 0.0)
+    # in a training config: left out of its record (and hash) while empty, bounded when given
+    from wearnav.bench.real import RealBench
+    from wearnav.train.odometry import TrainConfig, run_record
+
+    assert "speed_warp" not in run_record(TrainConfig(model="suitein++", data="d"))["train"]
+    assert run_record(TrainConfig(model="suitein++", data="d", speed_warp=(0.8, 1.25)))["train"]["speed_warp"]
+    for make in (
+        lambda: TrainConfig(model="suitein++", data="d", speed_warp=(9.0,)),
+        lambda: RealBench(speed_warp=(0.1,)),
+    ):
+        with pytest.raises(ConfigError, match="speed-warp factors"):
+            make()

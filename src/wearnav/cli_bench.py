@@ -20,6 +20,7 @@ from wearnav.cli_common import (
     VelLoss,
     choice_value,
     progress_enabled,
+    split_floats,
     split_list,
     suite_folder,
 )
@@ -193,6 +194,12 @@ def bench_real_odometry(
     ),
     vel_loss: VelLoss = typer.Option(VelLoss.mse, "--vel-loss", help=VEL_LOSS_HELP),
     heading_frame: bool = typer.Option(False, "--heading-frame", help=HEADING_FRAME_HELP),
+    speed_warp: str | None = typer.Option(
+        None,
+        "--speed-warp",
+        help="Also train the learned models on the walks played this many times as fast, comma-separated "
+        "(e.g. 0.8,1.25; one more copy each, wearnav.preprocess.time_warped).",
+    ),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
     address: str | None = typer.Option(None, help=ADDRESS_HELP),
@@ -218,6 +225,7 @@ def bench_real_odometry(
         train_data=str(train_data) if train_data else None,
         vel_loss=vel_loss.value,
         heading_frame=heading_frame,
+        speed_warp=split_floats(speed_warp, "--speed-warp") if speed_warp else (),
     )
     where = PlanPlace(
         test_data=test_data,

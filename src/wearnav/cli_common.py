@@ -10,7 +10,7 @@ from typing import overload
 
 import typer
 
-from wearnav.errors import FormatError
+from wearnav.errors import ConfigError, FormatError
 from wearnav.importers import FORMATS
 
 # Options with a fixed set of values that both modules take (wearnav.cli explains the enums).
@@ -89,6 +89,14 @@ def progress_enabled() -> bool:
 def split_list(text: str) -> tuple[str, ...]:
     """A comma-separated option (devices, splits, methods) as its items."""
     return tuple(d.strip() for d in text.split(",") if d.strip())
+
+
+def split_floats(text: str, option: str) -> tuple[float, ...]:
+    """A comma-separated option of numbers; a word that is not one is a one-line ConfigError."""
+    try:
+        return tuple(float(d) for d in split_list(text))
+    except ValueError:
+        raise ConfigError(f"{option}: numbers separated by commas, got {text!r}") from None
 
 
 # The files a command reads a recording from: a wearnav recording, a Sensor Logger export zip

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import signal
+from scipy.interpolate import CubicSpline
 
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.frames import FRAME_ALIGN_MODES, frame_yaws, rotate_stacked, turn_devices
@@ -319,6 +320,65 @@ class BoundedCache(OrderedDict):
 # many datasets and preprocessing variants does not keep them all.
 MAX_CACHED_SEQUENCES = 1024
 _CACHE: BoundedCache = BoundedCache(MAX_CACHED_SEQUENCES)
+
+
+SPEED_WARP_RANGE = (0.25, 4.0)  # the time-warp factors a training config accepts
+
+
+def check_speed_warp(factors: tuple[float, ...]) -> None:
+    lo, hi = SPEED_WARP_RANGE
+    if any(not lo <= k <= hi for k in factors):
+        raise ConfigError(f"speed-warp factors must lie in [{lo:g}, {hi:g}], got {', '.join(map(str, factors))}")
+
+
+def time_warped(seq: Aligned, k: float) -> Aligned:
+    """``seq`` played ``k`` times faster (issue 34's "speed time-warp" lead, a training expansion):
+    at each time t' of a clock at ``seq``'s rate the input of time k·t' (a cubic spline for the IMU,
+    which a straight line would smooth: −5 % of the vertical acceleration's swing at k = 1.25;
+    linear for positions and heading). The
+    walker then covers the same path k times faster: positions keep their places, so the velocity
+    target scales by k; the gyroscope by k; the linear acceleration by k² (world-frame acc with
+    gravity: k²(a − g ẑ) + g ẑ, g each device's median vertical reading). Cadence scales by k with
+    the step length kept, an approximation of walking faster (which lengthens steps too)."""
+    if not k > 0:
+        raise ConfigError(f"a time warp needs a factor > 0, got {k}")
+    t, dt = seq.t, float(np.median(np.diff(seq.t)))
+    n = int(np.floor((t[-1] - t[0]) / (k * dt) + 1e-9)) + 1
+    src = t[0] + k * dt * np.arange(n)
+    i = np.clip(np.searchsorted(t, src, side="right") - 1, 0, len(t) - 2)
+    w = np.clip((src - t[i]) / (t[i + 1] - t[i]), 0.0, 1.0)
+
+    def lerp(a: np.ndarray, axis: int) -> np.ndarray:
+        shape = [1] * a.ndim
+        shape[axis] = n
+        ww = w.reshape(shape)
+        return np.take(a, i, axis=axis) * (1 - ww) + np.take(a, i + 1, axis=axis) * ww
+
+    imu = CubicSpline(t, seq.imu.astype(np.float64), axis=1)(np.clip(src, t[0], t[-1]))
+    mask = seq.mask[:, i] & seq.mask[:, i + 1]
+    for d in range(imu.shape[0]):
+        g = float(np.median(imu[d, mask[d], 2])) if mask[d].any() else 0.0
+        imu[d, :, :2] *= k * k
+        imu[d, :, 2] = k * k * (imu[d, :, 2] - g) + g
+        imu[d, :, 3:] *= k
+    imu[~mask] = 0.0
+    yaw = None
+    if seq.yaw is not None:
+        y = seq.yaw.astype(np.float64).copy()
+        fin = np.isfinite(y)
+        y[fin] = np.unwrap(y[fin])
+        yaw = np.angle(np.exp(1j * lerp(y, 0)))  # NaN where either neighbour is
+    return Aligned(
+        name=f"{seq.name}@x{k:g}",
+        t=t[0] + dt * np.arange(n),
+        devices=seq.devices,
+        imu=imu.astype(seq.imu.dtype),
+        mask=mask,
+        pos=lerp(seq.pos, 0) if seq.pos is not None else None,
+        meta={**seq.meta, "time_warp": k},
+        recording=None,
+        yaw=yaw,
+    )
 
 
 def load_sequences(view, cfg, progress: bool = False) -> list[Aligned]:

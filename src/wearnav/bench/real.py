@@ -62,6 +62,7 @@ from wearnav.bench.real_page import VARIANTS, suite_runs, write_report
 from wearnav.bench.real_sites import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
 from wearnav.evaluate import evaluate_run
 from wearnav.models.registry import check_models, get
+from wearnav.preprocess import check_speed_warp
 from wearnav.pretrained.mix import MIX_FRAME, is_mix
 from wearnav.textio import read_json
 from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
@@ -90,9 +91,11 @@ class RealBench:
     # the learned models' windows in the phone's heading frame (PreprocessConfig.heading_frame; issue
     # 34), without the random yaw of ``augment``
     heading_frame: bool = False
+    speed_warp: tuple[float, ...] = ()  # the learned models' training also played this much faster (TrainConfig)
 
     def __post_init__(self) -> None:
-        check_models(self.models, "odometry")  # before any data is prepared
+        check_models(self.models, "odometry")
+        check_speed_warp(self.speed_warp)  # before any data is prepared
 
 
 def _train_config(model: str, data: str, yaw: float, bench: RealBench, elsewhere: bool):
@@ -112,6 +115,8 @@ def _train_config(model: str, data: str, yaw: float, bench: RealBench, elsewhere
     )
     if bench.heading_frame and get(model).learned:
         kw.update(heading_frame=True, augment=tuple(a for a in bench.augment if a != "rotate_yaw"))
+    if bench.speed_warp and get(model).learned:
+        kw.update(speed_warp=bench.speed_warp)
     if elsewhere and is_mix(data):  # several sources, truth turned into each input's common frame
         return TrainConfig(**kw, frame_align=MIX_FRAME, truth_max_gap=TRUTH_MAX_GAP_S)
     if elsewhere:  # the simulator's own truth frame and dense truth

@@ -195,6 +195,13 @@ def length_ratio(eval_dir: Path, data: str) -> float:
     return round(float(np.nanmedian(ratios)), 3) if np.isfinite(ratios).any() else float("nan")
 
 
+def warp_text(speed_warp) -> str:
+    """The speed time-warp expansion (RealBench.speed_warp) as a page says it, or nothing."""
+    if not speed_warp:
+        return ""
+    return ", trained also on the walks played " + " and ".join(f"{k:g}×" for k in speed_warp) + " as fast"
+
+
 def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, wall_s: float) -> Path:
     """results.md and results.json; ``bench`` is the suite's config as plain data (``dataclasses.asdict`` of
     :class:`wearnav.bench.real.RealBench`: train_data, epochs, patience, max_minutes, lr, seed are read)."""
@@ -210,6 +217,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         if not bench["train_data"]
         else f"Odometry in real buildings: trained on `{Path(bench['train_data']).name}`, tested on {src}"
     ) + (", the learned models in the phone's heading frame" if bench.get("heading_frame") else "")
+    title += warp_text(bench.get("speed_warp"))
     if bench.get("models") and not any(get(m).learned for m in bench["models"]):  # nothing was trained
         title = f"Odometry in real buildings, untrained baselines only ({', '.join(bench['models'])}): {src}"
     lines = [
@@ -236,6 +244,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
             if bench.get("heading_frame")
             else ""
         )
+        + warp_text(bench.get("speed_warp"))
         + f", seed {bench['seed']}, one run per row (the epochs and minutes each got are in its row).",
         "",
         "Sim-to-real: a row named `model · simulator ...` is that model trained on the simulated "

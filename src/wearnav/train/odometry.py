@@ -35,7 +35,9 @@ from wearnav.preprocess import (
     SURVEYED_TRUTH_MAX_GAP_S,
     TRUTH_MAX_GAP_S,
     PreprocessConfig,
+    check_speed_warp,
     load_sequences,
+    time_warped,
 )
 from wearnav.recording import CANONICAL_DEVICES
 from wearnav.textio import read_json
@@ -129,6 +131,9 @@ class TrainConfig:
     # each window in the carrying device's heading frame (PreprocessConfig.heading_frame); no random
     # yaw then (it would turn away what the frame gives). Left out of configs while False.
     heading_frame: bool = field(default=False, metadata={runs.OMIT_AT_DEFAULT: True})
+    # the training sequences also played this many times faster (wearnav.preprocess.time_warped),
+    # each factor one more copy; left out of configs while empty
+    speed_warp: tuple[float, ...] = field(default=(), metadata={runs.OMIT_AT_DEFAULT: True})
 
     def __post_init__(self) -> None:
         check_field_types(self)
@@ -139,6 +144,7 @@ class TrainConfig:
             raise ConfigError("heading_frame keeps the device's heading as the window's frame: drop rotate_yaw")
         if self.vel_loss not in VEL_LOSSES:
             raise ConfigError(f"velocity loss must be one of {', '.join(VEL_LOSSES)}, got {self.vel_loss!r}")
+        check_speed_warp(self.speed_warp)
         if self.epochs < 1:
             raise ConfigError(f"epochs must be ≥ 1, got {self.epochs}")
         if self.seed < 0:
@@ -282,6 +288,7 @@ def _fit(cfg: TrainConfig, run: Path, progress: bool, devices: int, strategy: st
     lr, batch = cfg.lr or model_lr, cfg.batch or model_batch
     train_view, val_view, val_note = train_val_views(Dataset.open(cfg.data), cfg.train_split, cfg.val_split)
     train_seqs = load_sequences(train_view, cfg, progress)
+    train_seqs += [time_warped(s, k) for k in cfg.speed_warp for s in train_seqs]
     if len(val_view) == 0:
         raise ValidationError(f"split {cfg.val_split!r} is empty; name a validation split with --val-split", cfg.data)
     val_seqs = load_sequences(val_view, cfg.eval_config(), progress)
