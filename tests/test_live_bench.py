@@ -8,6 +8,7 @@ import json
 import pytest
 
 from wearnav.bench.results import collect
+from wearnav.live import bench
 from wearnav.live.badinputs import catalogue
 from wearnav.live.bench import run_bench
 
@@ -45,7 +46,6 @@ def test_a_walker_that_gives_up_is_not_kept_up_and_says_why(tmp_path, monkeypatc
     of silence) leaves the phase measured, not crashed: the row is not kept up and names why."""
     from wearnav.errors import ConfigError
     from wearnav.importers.sensorlogger_export import simulated_export
-    from wearnav.live import bench
 
     export = tmp_path / "export"
     simulated_export(export, seed=0, duration_s=20.0)
@@ -60,3 +60,13 @@ def test_a_walker_that_gives_up_is_not_kept_up_and_says_why(tmp_path, monkeypatc
     row = bench.walkers_phase(tmp_path, export, 2, 2.0, track=False, devices="phone")
     assert not row["kept_up"] and row["gave_up"]["walkers"] == 1
     assert "no answer" in row["gave_up"]["first"]
+
+
+def test_walker_rows_name_the_odometry_each_kind_was_tracked_by():
+    """Phone-only walkers take the default phone-only model (the shipped phone model or PDR, by its
+    own measurement), three-device ones the shipped three-device model; rows and page say which."""
+    from wearnav import pretrained
+
+    phone_only = pretrained.phone_only_choice()[0]
+    assert bench.odometry_name(("phone",)) == (pretrained.shipped_name(phone_only) or "pdr")
+    assert bench.odometry_name(("phone", "watch", "earbuds")) == pretrained.MULTI

@@ -285,7 +285,7 @@ def live_bench(
     devices: str = typer.Option(
         "all",
         "--devices",
-        help="Walkers' devices, comma-separated: phone (phone-only walkers, PDR) and/or all (phone, watch, earbuds).",
+        help="Walkers' devices, comma-separated: phone (phone-only walkers: the default phone-only model, PDR or the shipped phone model) and/or all (phone, watch, earbuds).",
     ),
     track: bool = typer.Option(
         True, "--track/--no-track", help="Run the live tracker in the CPU phase (where this installation has one)."

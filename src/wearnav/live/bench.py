@@ -43,6 +43,7 @@ from urllib.parse import urlsplit
 import httpx
 import numpy as np
 
+from wearnav import pretrained
 from wearnav.errors import ConfigError
 from wearnav.fileio import write_text_atomic
 from wearnav.importers import sensorlogger
@@ -281,6 +282,7 @@ def walkers_phase(
     return {
         "walkers": walkers,
         "devices": devices,
+        "model": odometry_name(WALKER_DEVICES[devices]) if tracking else None,
         "tracker_processes": len(stats_files),
         "load_1min": [round(load_before, 2), round(os.getloadavg()[0], 2)],
         "seconds": round(w1 - w0, 1),
@@ -295,6 +297,12 @@ def walkers_phase(
         **({"gave_up": {"walkers": len(gave_up), "first": gave_up[0]}} if gave_up else {}),
         "latency_goal_met": None if not tracking or upd_p95 is None else upd_p95 < 1e3 * LATENCY_GOAL_S,
     }
+
+
+def odometry_name(devices: tuple[str, ...]) -> str:
+    """The odometry a session with ``devices`` is tracked by without ``--model`` (shipped name or pdr)."""
+    path, _ = pretrained.default_model("odometry", devices)
+    return pretrained.shipped_name(path) or str(path)
 
 
 def stored_rows(db: Path) -> int:

@@ -47,6 +47,8 @@ def page(r: dict) -> str:
     )
     one = rows[0]
     tracking = one["tracking"]
+    # the odometry each kind of walker was tracked by (recorded since the phone-only default became a choice)
+    models = {w["devices"]: f" (`{w['model']}`)" for w in rows if w.get("model")}
 
     def pc(x):
         return "?" if x is None else f"{100 * x:.1f} %"
@@ -107,8 +109,8 @@ def page(r: dict) -> str:
             f"## Walkers at real time ({one['seconds']} s each, {'with' if tracking else 'without'} live tracking)",
             "",
             "Each walker is one session pushing in real time (phone-only: the phone's four motion sensors and fixes, "
-            "tracked by the default phone-only model, PDR; three devices: phone, watch, earbuds, tracked by the shipped "
-            "three-device model); all at once into one server"
+            f"tracked by the default phone-only model{models.get('phone', '')}; three devices: phone, watch, earbuds, "
+            f"tracked by the shipped three-device model{models.get('all', '')}); all at once into one server"
             + (
                 f", which only stores: {one['tracker_processes']} `wearnav live track` processes beside it track the "
                 "sessions (sharded), reading its store. CPU: the user + system time of the server and the trackers "

@@ -4,7 +4,7 @@ One thread runs ticks. A tick takes every session poked since the last one (a pu
 and every session quiet for ``SESSION_END_S`` (its last windows made final, once), runs the first
 half of each tracker's update (:meth:`wearnav.live.tracker.LiveTracker.begin`: the new input and
 its windows), then the model **once** for all the windows of all those sessions (one forward pass
-per model: phone-only sessions share the PDR, three-device ones the shipped model; on the device
+per model: phone-only sessions share their default model, three-device ones the shipped one; on the device
 :class:`wearnav.live.tracker.SharedModels` chose), and hands each session its velocities
 (:meth:`~wearnav.live.tracker.LiveTracker.finish`: path, fusion, activity, page). Ticks start at
 most every ``TICK_S``, so that a busy server batches more sessions per forward pass, and a slow
