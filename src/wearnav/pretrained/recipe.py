@@ -133,8 +133,10 @@ def odometry_config(mix: Path, devices: tuple[str, ...], recipe: Recipe) -> Trai
     )
 
 
-def phone_bench(sim: Path, recipe: Recipe) -> RealBench:
-    """The phone model's suite (module docstring, step 2): its Suite-IN++ run is the shipped model."""
+def recipe_bench(train_data: Path, recipe: Recipe, phone: bool) -> RealBench:
+    """A suite of the recipe's Suite-IN++ beside PDR, trained on ``train_data``: the phone model's
+    (``phone``; module docstring, step 2: its Suite-IN++ run is the shipped model) or the
+    multi-device recipe's on the phone (step 3)."""
     return RealBench(
         models=(MODEL, "pdr"),
         epochs=recipe.epochs,
@@ -142,10 +144,10 @@ def phone_bench(sim: Path, recipe: Recipe) -> RealBench:
         max_minutes=recipe.max_minutes,
         lr=recipe.lr,
         seed=recipe.seed,
-        train_data=str(sim),
-        augment=(),
-        vel_loss=recipe.phone_vel_loss,
-        heading_frame=recipe.phone_heading_frame,
+        train_data=str(train_data),
+        augment=() if phone else recipe.augment,
+        vel_loss=recipe.phone_vel_loss if phone else recipe.vel_loss,
+        heading_frame=phone and recipe.phone_heading_frame,
     )
 
 
@@ -198,7 +200,7 @@ def pretrain(
             folders["ipin"],
             out / PHONE_SUITE,
             test_data=folders["ilc2"],
-            bench=phone_bench(folders["sim"], recipe),
+            bench=recipe_bench(folders["sim"], recipe, phone=True),
             **suite_kw,
         )
     if MULTI in models:
@@ -207,17 +209,7 @@ def pretrain(
             Job(run_odometry, cfg, runs.run_dir(out / "runs", MULTI, run_hash_exclude(run_record(cfg))), cost=2)
         )
         for suite, (site, mix) in LOBO.items():
-            bench = RealBench(
-                models=(MODEL, "pdr"),
-                epochs=recipe.epochs,
-                patience=recipe.patience,
-                max_minutes=recipe.max_minutes,
-                lr=recipe.lr,
-                seed=recipe.seed,
-                train_data=str(folders[mix]),
-                augment=recipe.augment,
-                vel_loss=recipe.vel_loss,
-            )
+            bench = recipe_bench(folders[mix], recipe, phone=False)
             plans[suite] = plan_benchmark(folders[site], out / suite, bench=bench, **suite_kw)
     run_jobs(jobs + [j for p in plans.values() for j in p.jobs], execution, echo)
     pages = {suite: plan.finish() for suite, plan in plans.items()}
