@@ -26,6 +26,7 @@ from wearnav.outputs import check_suite_folder
 from wearnav.recording import Recording, Trajectory
 from wearnav.train import activity as act
 from wearnav.train import activity_data as actd
+from wearnav.train import labelling
 from wearnav.train.classify import context_probs, load_model
 from wearnav.train.labelling import UNKNOWN, label_recordings, window_classes
 
@@ -286,6 +287,50 @@ def test_classify_default_picks_the_model_by_devices(monkeypatch):
 def _shipped_is_multi_source() -> bool:
     spec = pretrained.SHIPPED[pretrained.ACTIVITY]
     return spec.installed and "har-gravity" in (spec.path / "config.yaml").read_text()
+
+
+def test_the_last_windows_alone_are_labelled_as_the_whole_labels_them():
+    """window_classes(last=n), what the live page calls every second: the model sees only the windows
+    the last n need (their contexts), and each comes out as in the whole recording's labelling."""
+    from wearnav.simulate import WalkConfig, simulate_recording
+
+    model, cfg, _ = load_model(pretrained.SHIPPED[pretrained.ACTIVITY].path)
+    assert model.context_windows > 1  # otherwise the context would not be tested
+    rec = simulate_recording(WalkConfig(mode="STW", placement="HD", duration_s=30), seed=5)
+    _, t, cls, conf = window_classes(model, cfg, rec)
+    seen = []
+    real = labelling.predict_probs
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(labelling, "predict_probs", lambda m, w, **kw: seen.append(len(kw["index"])) or real(m, w, **kw))
+        for n in (1, 3):
+            _, t_n, cls_n, conf_n = window_classes(model, cfg, rec, last=n)
+            np.testing.assert_array_equal(t_n, t[-n:])
+            np.testing.assert_array_equal(cls_n, cls[-n:])
+            np.testing.assert_allclose(conf_n, conf[-n:], rtol=1e-6)
+    assert seen == [1 + model.context_windows // 2, 3 + model.context_windows // 2] and len(t) > seen[-1]
+
+
+def test_several_sessions_windows_classified_in_one_pass_are_labelled_as_alone():
+    """The live receiver's batched activity (issue 37): the windows of several sessions through the
+    classifier at once give each the probabilities, and the label, it gets alone."""
+    from wearnav.live.tracker import classify_windows
+    from wearnav.simulate import WalkConfig, simulate_recording
+
+    model, cfg, _ = load_model(pretrained.SHIPPED[pretrained.ACTIVITY].path)
+    recs = [
+        simulate_recording(WalkConfig(mode=m, placement=p, duration_s=20), seed=k)
+        for k, (m, p) in enumerate((("STW", "HD"), ("PVW", "MP"), ("STW", "PK")))
+    ]
+    ws = [labelling.class_windows(model, cfg, r, last=1) for r in recs]
+    together = classify_windows(model, ws)
+    assert [len(p) for p in together] == [len(w.index) for w in ws]
+    for rec, w, prob in zip(recs, ws, together):
+        np.testing.assert_allclose(prob, labelling.predict_probs(model, w.wds, index=w.index), atol=1e-5)
+        _, t, cls, conf = window_classes(model, cfg, rec, last=1)
+        t_b, cls_b, conf_b = labelling.decide_classes(model, w, prob)
+        np.testing.assert_array_equal(t_b, t)
+        np.testing.assert_array_equal(cls_b, cls)
+        np.testing.assert_allclose(conf_b, conf, atol=1e-5)
 
 
 @pytest.mark.slow

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from wearnav.live.tracker import predict_windows
+from wearnav.live.tracker import classify_windows, predict_windows
 
 log = logging.getLogger("wearnav.live")
 SESSION_END_S = 30.0  # a session without a push this long has ended: its last windows made final
@@ -148,9 +148,10 @@ class Crowd:
             else:
                 steps.append((s, step, since))
         vels = self._forward([(s.tracker.model, step) for s, step, _ in steps])
-        for (s, step, since), vel in zip(steps, vels):
+        acts = self._activities([(s, step) for s, step, _ in steps])
+        for (s, step, since), vel, act in zip(steps, vels, acts):
             try:
-                changed = bool(s.tracker.finish(step, vel))
+                changed = bool(s.tracker.finish(step, vel, act))
                 s.error = None
             except Exception as exc:
                 self._failed(s, exc)
@@ -188,6 +189,26 @@ class Crowd:
             ends = np.cumsum([len(work[i][1].x) for i in idx])
             for i, part in zip(idx, np.split(vel, ends[:-1])):
                 out[i] = part
+        return out
+
+    @staticmethod
+    def _activities(work: list[tuple[_Session, Any]]) -> list[tuple[Any, np.ndarray] | None]:
+        """Each step's activity windows and their probabilities (None: no label due): one forward
+        pass per classifier over every step's windows (:func:`wearnav.live.tracker.classify_windows`)."""
+        out: list[tuple[Any, np.ndarray] | None] = [None] * len(work)
+        groups: dict[int, list[tuple[int, Any]]] = {}
+        for i, (s, step) in enumerate(work):
+            try:
+                w = s.tracker.activity_windows(step)
+            except Exception as exc:  # this session's label is skipped, its path still finishes
+                log.warning("session %s: activity failed: %s: %s", s.buf.session_id, type(exc).__name__, exc)
+                continue
+            if w is not None:
+                groups.setdefault(id(s.tracker.classifier[0]), []).append((i, w))
+        for members in groups.values():
+            model = work[members[0][0]][0].tracker.classifier[0]
+            for (i, w), prob in zip(members, classify_windows(model, [w for _, w in members])):
+                out[i] = (w, prob)
         return out
 
     def _ensure_tracker(self, s: _Session) -> bool:

@@ -53,7 +53,7 @@ from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.recording import Recording
 from wearnav.report.trajectory_page import page_points
 from wearnav.track import input_warnings, odometry_preprocess, path_times
-from wearnav.train.labelling import UNKNOWN_INDEX, class_name, unknown_note, window_classes
+from wearnav.train.labelling import UNKNOWN_INDEX, Windows, class_name, class_windows, decide_classes, unknown_note
 from wearnav.train.odometry import TrainConfig
 from wearnav.train.resolve import resolve_model
 from wearnav.trajectory import integrate_velocity
@@ -81,6 +81,7 @@ STEP_S = 0.5
 FUSE_EVERY_S = 3.0  # the smoother is solved at most this often; the path since is placed rigidly
 PLACE_S = 10.0  # ... on the last this many seconds of the smoothed path (wearnav.fuse.rigid_fit)
 ACTIVITY_EVERY_S = 1.0  # the activity label is refreshed at most this often (s of session time)
+MAX_ACTIVITY_BATCH = 512  # activity windows per forward pass
 TRUST_AFTER_S = 30.0  # the input's warnings once this much of the session has arrived
 # The model and the clock are chosen once the data reaches this far past align's edge tolerance
 # (a device starting later than that after the first counts as put on mid-walk), for the devices'
@@ -130,6 +131,23 @@ class Step:
     x: Any = None  # torch.Tensor
     mask: Any = None  # torch.Tensor
     yaw: np.ndarray | None = None  # each window's heading ψ where the model has a heading frame
+
+
+def classify_windows(model, windows: list[Windows]) -> list[np.ndarray]:
+    """The activity classifier's softmax probabilities of each of ``windows`` (several sessions'),
+    in one forward pass (in chunks of ``MAX_ACTIVITY_BATCH``), split back in order."""
+    if not windows:
+        return []
+    parts = [w.inputs() for w in windows]
+    x, mask = torch.cat([p["x"] for p in parts]), torch.cat([p["mask"] for p in parts])
+    with torch.no_grad():
+        prob = np.concatenate(
+            [
+                torch.softmax(model(x[k : k + MAX_ACTIVITY_BATCH], mask[k : k + MAX_ACTIVITY_BATCH]), dim=1).numpy()
+                for k in range(0, len(x), MAX_ACTIVITY_BATCH)
+            ]
+        )
+    return np.split(prob, np.cumsum([len(p["x"]) for p in parts])[:-1])
 
 
 class SharedModels:
@@ -259,7 +277,9 @@ class LiveTracker:
         if step is None:
             return False
         vel = predict_windows(self.model, step.x, step.mask) if step.x is not None else None
-        return self.finish(step, vel)
+        w = self.activity_windows(step)
+        act = None if w is None or self.classifier is None else (w, classify_windows(self.classifier[0], [w])[0])
+        return self.finish(step, vel, act)
 
     def begin(self, buf, final: bool = False) -> Step | None:
         """The first half of :meth:`update`: the session's new input and its windows (``Step.x``,
@@ -291,9 +311,11 @@ class LiveTracker:
             self._windows(step, pcfg, g_a, g_end, g_last)
         return step
 
-    def finish(self, step: Step, vel: np.ndarray | None) -> bool:
+    def finish(self, step: Step, vel: np.ndarray | None, activity: tuple[Windows, np.ndarray] | None = None) -> bool:
         """The second half of :meth:`update`: the path grown by ``vel`` (N, 2) m/s, the velocities
-        of ``step``'s windows; fusion, activity, warnings, the page's state."""
+        of ``step``'s windows; fusion, activity (``activity``: :meth:`activity_windows` of this
+        step and the classifier's probabilities of them; None: no label due), warnings, the page's
+        state."""
         changed = step.changed
         if step.t_c is not None:
             assert vel is not None and len(vel) == len(step.t_c)  # one velocity per window
@@ -304,7 +326,8 @@ class LiveTracker:
         if changed and (final or covered - self._fused_s >= FUSE_EVERY_S):
             self._fuse()
             self._fused_s = covered
-        changed |= self._classify(rec, covered)
+        if activity is not None:
+            changed |= self._label(*activity, covered)
         if not self._trusted and covered >= TRUST_AFTER_S:
             self.warnings += input_warnings(self.model_path, self.cfg, rec)
             self._trusted, changed = True, True
@@ -432,22 +455,31 @@ class LiveTracker:
 
     # ---- activity ----------------------------------------------------------------------------
 
-    def _classify(self, rec, covered: float) -> bool:
-        """The latest window's activity (at most every ``ACTIVITY_EVERY_S``)."""
-        if self.classifier is None or covered - self._activity_at < ACTIVITY_EVERY_S:
-            return False
-        model, cfg, classes = self.classifier
-        k = getattr(model, "context_windows", 1)  # the last window's label is decided over its context
-        span = (cfg.window + (k - 1) * max(1, cfg.window // 2)) / cfg.rate
-        rec = _tail(rec, covered - span - 2.0)  # the context's windows and the filters' edges
+    def activity_windows(self, step: Step) -> Windows | None:
+        """The windows the activity classifier is to see at ``step`` (the latest window and its
+        context, :func:`wearnav.train.labelling.class_windows`): at most every ``ACTIVITY_EVERY_S``;
+        None when no label is due. A :class:`wearnav.live.crowd.Crowd` runs the classifier once for
+        many sessions' windows (:func:`classify_windows`)."""
+        if self.classifier is None or step.covered - self._activity_at < ACTIVITY_EVERY_S:
+            return None
+        model, cfg, _ = self.classifier
+        # the last window's label is decided over its context: itself and the k // 2 before it
+        k = getattr(model, "context_windows", 1)
+        span = (cfg.window + (k // 2) * max(1, cfg.window // 2)) / cfg.rate
+        rec = _tail(step.rec, step.covered - span - 2.0)  # those windows and the filters' edges
         if not all(d in rec.devices for d in cfg.devices):
-            return False
+            return None
         try:
-            _, t, cls, conf = window_classes(model, cfg, rec)
+            w = class_windows(model, cfg, rec, last=1)
         except ValidationError:  # too little of a device yet (align's span checks)
-            return False
-        if len(cls) == 0:
-            return False
+            return None
+        return w if w.keep else None
+
+    def _label(self, w: Windows, prob: np.ndarray, covered: float) -> bool:
+        """The latest window's activity from the classifier's probabilities ``prob`` of ``w``."""
+        assert self.classifier is not None  # w came from activity_windows
+        model, _, classes = self.classifier
+        t, cls, conf = decide_classes(model, w, prob)
         self._activity_at = covered
         label = {
             "label": class_name(classes, int(cls[-1])),

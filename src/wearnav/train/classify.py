@@ -26,6 +26,7 @@ import dataclasses
 import logging
 import re
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -324,9 +325,15 @@ def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[s
 
 
 @torch.no_grad()
-def predict_probs(model, wds: WindowDataset, batch: int = 512) -> np.ndarray:
-    """Softmax probabilities (N, classes) of every window of ``wds``."""
-    out = [torch.softmax(model(b["x"], b["mask"]), dim=1).numpy() for b in wds.loader(batch)]
+def predict_probs(model, wds: WindowDataset, batch: int = 512, index=None) -> np.ndarray:
+    """Softmax probabilities (N, classes) of every window of ``wds`` (of those at ``index`` only, in
+    its order, where given)."""
+    parts: Iterable[dict[str, torch.Tensor]] = (
+        wds.loader(batch)
+        if index is None
+        else [wds[np.asarray(index[k : k + batch], np.int64).tolist()] for k in range(0, len(index), batch)]
+    )
+    out = [torch.softmax(model(b["x"], b["mask"]), dim=1).numpy() for b in parts]
     return np.concatenate(out) if out else np.empty((0, 0), np.float32)
 
 

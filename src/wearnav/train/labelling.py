@@ -166,27 +166,63 @@ def trust_warnings(run: Path, cfg: ClassifyConfig, rec) -> list[str]:
     return [f"{rec.name}: {w}" for w in out]
 
 
-def window_classes(model, cfg: ClassifyConfig, rec) -> tuple[Aligned, np.ndarray, np.ndarray, np.ndarray]:
-    """How ``classify`` labels a recording (and the live receiver its latest seconds, and
-    ``track``'s trajectory.html its path): ``rec`` aligned by the run's preprocessing (with eq. 13's
-    moving average when ``cfg.denoise``), cut into windows of the run's length at half-window
-    strides; returns the aligned input, each window's start and end time (N, 2) s, its class index
-    (:data:`UNKNOWN_INDEX` where :func:`unsure_windows`) and softmax confidence (N,) (N = 0 when
-    shorter than one window), both decided over the model's ``context_windows`` (training.json;
-    :func:`context_probs`; 1 where it has none)."""
+@dataclasses.dataclass
+class Windows:
+    """A recording's windows as :func:`window_classes` cuts them, before the model: the aligned input
+    ``seq``, the windows ``wds``, the ``index`` of those the model is to see (``x``, ``mask``), and
+    how many of them, the last, are labelled (``keep``)."""
+
+    seq: Aligned
+    wds: WindowDataset
+    index: np.ndarray
+    keep: int
+
+    def inputs(self) -> dict:
+        return self.wds[self.index.tolist()]
+
+
+def class_windows(model, cfg: ClassifyConfig, rec, last: int | None = None) -> Windows:
+    """The first half of :func:`window_classes` (the model's input); a caller may run the model
+    on many recordings' windows at once (the live receiver, one batch per tick)."""
     from wearnav.augment import moving_average
 
     seq = align(rec, cfg.preprocess_config())
     if cfg.denoise > 1:
         seq = dataclasses.replace(seq, imu=moving_average(seq.imu, cfg.denoise, axis=1).astype(seq.imu.dtype))
     wds = WindowDataset([seq], WindowConfig(window=cfg.window, stride=max(1, cfg.window // 2), target=None))
-    if len(wds) == 0:
-        return seq, np.empty((0, 2)), np.empty(0, np.int64), np.empty(0)
-    prob = context_probs(predict_probs(model, wds), getattr(model, "context_windows", 1))
+    k = getattr(model, "context_windows", 1)
+    index = np.arange(0 if last is None else max(0, len(wds) - last - k // 2), len(wds))
+    return Windows(seq, wds, index, len(index) if last is None else min(last, len(wds)))
+
+
+def decide_classes(model, w: Windows, prob: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The second half of :func:`window_classes`: from the softmax probabilities ``prob`` of
+    ``w``'s windows, each labelled window's times, class and confidence."""
+    if w.keep == 0:
+        return np.empty((0, 2)), np.empty(0, np.int64), np.empty(0)
+    prob = context_probs(prob, getattr(model, "context_windows", 1))[-w.keep :]
     cls, conf = prob.argmax(1), prob.max(1)
-    t = wds[np.arange(len(wds)).tolist()]["t"].numpy()
-    cls = np.where(unsure_windows(model, seq, t, conf), UNKNOWN_INDEX, cls)
-    return seq, t, cls, conf
+    t = w.wds[w.index[-w.keep :].tolist()]["t"].numpy()
+    cls = np.where(unsure_windows(model, w.seq, t, conf), UNKNOWN_INDEX, cls)
+    return t, cls, conf
+
+
+def window_classes(
+    model, cfg: ClassifyConfig, rec, last: int | None = None
+) -> tuple[Aligned, np.ndarray, np.ndarray, np.ndarray]:
+    """How ``classify`` labels a recording (and the live receiver its latest seconds, and
+    ``track``'s trajectory.html its path): ``rec`` aligned by the run's preprocessing (with eq. 13's
+    moving average when ``cfg.denoise``), cut into windows of the run's length at half-window
+    strides; returns the aligned input, each window's start and end time (N, 2) s, its class index
+    (:data:`UNKNOWN_INDEX` where :func:`unsure_windows`) and softmax confidence (N,) (N = 0 when
+    shorter than one window), both decided over the model's ``context_windows`` (training.json;
+    :func:`context_probs`; 1 where it has none). ``last``: only the last ``last`` windows, each decided
+    as the whole would decide it; the model sees only the windows their contexts hold (the live
+    page labels its latest window every second). :func:`class_windows`, the model, then
+    :func:`decide_classes`."""
+    w = class_windows(model, cfg, rec, last)
+    prob = predict_probs(model, w.wds, index=w.index) if w.keep else np.empty((0, 0))
+    return (w.seq, *decide_classes(model, w, prob))
 
 
 def _label_into(recordings, model, cfg, classes: list[str], out: Path, found: list[str], run: Path) -> list[str]:
