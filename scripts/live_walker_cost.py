@@ -34,11 +34,12 @@ from wearnav.live.replay import build
 STAGES = [  # (owner, method, what the docs call it)
     (live_buffer.SessionBuffer, "recording", "the update's Recording from the buffer"),
     (live_tracker.LiveTracker, "_windows", "aligning and windowing"),
-    (live_crowd.Crowd, "_forward", "the model (PDR)"),
+    (live_crowd.Crowd, "_forward", "the odometry model (batched)"),
     (live_tracker.LiveTracker, "_grow", "growing the path"),
     (live_tracker.LiveTracker, "_take_fixes", "taking the fixes"),
     (live_tracker.LiveTracker, "_fuse", "the fixed-lag smoother"),
-    (live_tracker.LiveTracker, "_classify", "the activity classifier"),
+    (live_crowd.Crowd, "_activities", "the activity classifier"),  # its windows and one batched pass
+    (live_tracker.LiveTracker, "_label", "the activity classifier"),  # each session's label from it
     (live_tracker.LiveTracker, "_snapshot", "the page's state"),
 ]
 
