@@ -8,8 +8,8 @@
    :mod:`wearnav.bench.real`): both real buildings are then ones it never saw, and the suite scores
    it at IPIN's held-out routes and ILC2's held-out floors beside PDR. The shipped model *is* that
    suite's run, so its card's numbers are its own; :data:`HELD_OUT_JSON` keeps them against PDR's
-   for `track`'s phone-only choice (:func:`wearnav.pretrained.default_model`). Trained on a mix
-   of the buildings, the same model came out 14–36 % short in a building it had not seen.
+   for `track`'s phone-only choice (:func:`wearnav.pretrained.phone_only_choice`). Trained on a
+   mix of the buildings, the same model came out 32–36 % short in the building left out.
 3. **The multi-device model**: mixes of the odometry sources (:mod:`wearnav.pretrained.mix`, each
    building's truth turned by its phones' axis yaw): everything, everything but IPIN, everything
    but ILC2; Suite-IN++ on phone + watch + earbuds on the whole mix, and the leave-one-building-out
