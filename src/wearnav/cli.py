@@ -246,8 +246,9 @@ def track(
         "--model",
         help="A run folder of `wearnav train`, one of its "
         "checkpoints, a file of `wearnav export` (.onnx, .pt), a shipped model or "
-        "an untrained baseline by name (pdr); default: the shipped phone model, or "
-        "phone-watch-earbuds where the recording has a watch or earbuds (`wearnav models`).",
+        "an untrained baseline by name (pdr); default: phone-watch-earbuds where the recording has a "
+        "watch or earbuds, else the shipped phone model where it measured better than PDR in every "
+        "building it never saw, else pdr (track.json's model_choice says which; `wearnav models`).",
     ),
     out: Path = typer.Option(..., "--out", help="Folder for trajectory.csv / .png / .geojson and track.json."),
     name: str | None = typer.Option(

@@ -1,7 +1,8 @@
 """The ``wearnav`` commands about models themselves: ``models`` (what is registered and what
 ships), ``pretrain`` (train, measure and install the shipped models), ``adapt`` (a model to the
 user's own walks, from their fixes) and ``export`` (a run as one ONNX or TorchScript file). Registered on the main
-app by :mod:`wearnav.cli`; imports stay inside the commands so that ``--help`` stays fast."""
+app by :mod:`wearnav.cli`; heavy imports (torch and what loads it) stay inside the commands so that
+``--help`` stays fast."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import typer
 
+from wearnav import pretrained  # light (no torch): names and folders of the shipped models
 from wearnav.cli_common import choice_value, echo_json, progress_enabled, suite_folder
 from wearnav.errors import ConfigError
 
@@ -32,7 +34,6 @@ def models_():
     Example:
       wearnav models
     """
-    from wearnav import pretrained
     from wearnav.models.registry import available, n_parameters
 
     typer.echo(f"{'model':15s} {'task':9s} {'layout':7s} {'parameters':>12s}  description")
@@ -88,7 +89,6 @@ def pretrain(
       wearnav pretrain --data ../shared/data --out runs/pretrained --jobs 2 --install
       wearnav pretrain --models phone --out runs/pretrained --install
     """
-    from wearnav import pretrained
     from wearnav.bench.executor import Execution
 
     chosen = tuple(pretrained.get(m.strip()).name for m in models.split(",") if m.strip())  # before torch loads
