@@ -53,6 +53,7 @@ from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.recording import Recording
 from wearnav.report.trajectory_page import page_points
 from wearnav.track import input_warnings, odometry_preprocess, path_times
+from wearnav.train.classify import window_probs
 from wearnav.train.labelling import UNKNOWN_INDEX, Windows, class_name, class_windows, decide_classes, unknown_note
 from wearnav.train.odometry import TrainConfig
 from wearnav.train.resolve import resolve_model
@@ -81,7 +82,6 @@ STEP_S = 0.5
 FUSE_EVERY_S = 3.0  # the smoother is solved at most this often; the path since is placed rigidly
 PLACE_S = 10.0  # ... on the last this many seconds of the smoothed path (wearnav.fuse.rigid_fit)
 ACTIVITY_EVERY_S = 1.0  # the activity label is refreshed at most this often (s of session time)
-MAX_ACTIVITY_BATCH = 512  # activity windows per forward pass
 TRUST_AFTER_S = 30.0  # the input's warnings once this much of the session has arrived
 # The model and the clock are chosen once the data reaches this far past align's edge tolerance
 # (a device starting later than that after the first counts as put on mid-walk), for the devices'
@@ -135,18 +135,11 @@ class Step:
 
 def classify_windows(model, windows: list[Windows]) -> list[np.ndarray]:
     """The activity classifier's softmax probabilities of each of ``windows`` (several sessions'),
-    in one forward pass (in chunks of ``MAX_ACTIVITY_BATCH``), split back in order."""
+    in one pass (:func:`wearnav.train.classify.window_probs`), split back in order."""
     if not windows:
         return []
     parts = [w.inputs() for w in windows]
-    x, mask = torch.cat([p["x"] for p in parts]), torch.cat([p["mask"] for p in parts])
-    with torch.no_grad():
-        prob = np.concatenate(
-            [
-                torch.softmax(model(x[k : k + MAX_ACTIVITY_BATCH], mask[k : k + MAX_ACTIVITY_BATCH]), dim=1).numpy()
-                for k in range(0, len(x), MAX_ACTIVITY_BATCH)
-            ]
-        )
+    prob = window_probs(model, torch.cat([p["x"] for p in parts]), torch.cat([p["mask"] for p in parts]))
     return np.split(prob, np.cumsum([len(p["x"]) for p in parts])[:-1])
 
 

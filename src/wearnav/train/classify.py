@@ -26,7 +26,6 @@ import dataclasses
 import logging
 import re
 import time
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -325,15 +324,22 @@ def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[s
 
 
 @torch.no_grad()
+def window_probs(model, x: torch.Tensor, mask: torch.Tensor, batch: int = 512) -> np.ndarray:
+    """Softmax probabilities (N, classes) of windows ``x`` (N, D, L, 6) with ``mask`` (N, D), in
+    chunks of ``batch`` (the live receiver passes several sessions' windows at once)."""
+    out = [torch.softmax(model(x[k : k + batch], mask[k : k + batch]), dim=1).numpy() for k in range(0, len(x), batch)]
+    return np.concatenate(out) if out else np.empty((0, 0), np.float32)
+
+
 def predict_probs(model, wds: WindowDataset, batch: int = 512, index=None) -> np.ndarray:
     """Softmax probabilities (N, classes) of every window of ``wds`` (of those at ``index`` only, in
     its order, where given)."""
-    parts: Iterable[dict[str, torch.Tensor]] = (
-        wds.loader(batch)
-        if index is None
-        else [wds[np.asarray(index[k : k + batch], np.int64).tolist()] for k in range(0, len(index), batch)]
-    )
-    out = [torch.softmax(model(b["x"], b["mask"]), dim=1).numpy() for b in parts]
+    if index is not None:
+        if len(index) == 0:
+            return np.empty((0, 0), np.float32)
+        b = wds[np.asarray(index, np.int64).tolist()]
+        return window_probs(model, b["x"], b["mask"], batch)
+    out = [window_probs(model, b["x"], b["mask"], batch) for b in wds.loader(batch)]
     return np.concatenate(out) if out else np.empty((0, 0), np.float32)
 
 
