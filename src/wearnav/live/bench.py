@@ -410,6 +410,16 @@ def kill_phase(work: Path, export: Path, kills: int = 2, speed: float = 10.0, da
     }
 
 
+def models_on() -> str:
+    """Where the trackers' odometry models run: the choice :class:`wearnav.live.tracker.SharedModels`
+    makes in every process of this machine (CUDA where there is one, else the CPU)."""
+    if importlib.util.find_spec("torch") is None:
+        return "cpu"
+    import torch  # heavy: only to read the accelerator, once per bench
+
+    return f"cuda ({torch.cuda.get_device_name(0)})" if torch.cuda.is_available() else "cpu"
+
+
 def run_bench(
     out: str | Path,
     duration_s: float = 60.0,
@@ -450,7 +460,11 @@ def run_bench(
         "walkers": rows,
         "bad_inputs": bad_input_phase(work, fuzz=fuzz),
         "faults": kill_phase(work, export, speed=speed),
-        "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count()},
+        "machine": {
+            "cpu": platform.processor() or platform.machine(),
+            "cores": os.cpu_count(),
+            "models_on": models_on(),
+        },
         "provenance": provenance(),
     }
     write_text_atomic(json.dumps(result, indent=1, default=str), out / "results.json")
