@@ -234,3 +234,27 @@ def test_a_heading_frame_model_live_is_tracks_to_round_off(short_export, tmp_pat
     gap = np.linalg.norm(xy - xy_off, axis=1)
     print(f"\nheading-frame model, live vs offline odometry: max {gap.max():.2e} m over {len(t)} samples")
     assert gap.max() < 1e-4 and np.ptp(xy_off, axis=0).max() > 1.0  # a path that moved, the same live
+
+
+def test_preload_loads_what_the_first_sessions_ask_for(short_export, tmp_path, caplog):
+    """SharedModels.preload loads the phone-only and three-device odometry models and the activity
+    classifier before any session; the sessions then get those very objects (nothing loaded twice).
+    A model that cannot be loaded is a warning there, left to the session to report."""
+    from wearnav import pretrained
+    from wearnav.live.tracker import SharedModels
+
+    models = SharedModels("cpu")
+    models.preload()
+    keys = set(models._loaded)
+    phone = (str(pretrained.model_path(None, "odometry", ("phone",))), "odometry")
+    three = (str(pretrained.model_path(None, "odometry", ("phone", "watch", "earbuds"))), "odometry")
+    assert {phone, three, (str(pretrained.model_path("activity", "classify")), "classify")} <= keys
+    loaded = models._loaded[three][0]
+    tracker = LiveTracker(models=models)
+    replay_into(tracker, short_export / "export")
+    assert tracker.model is loaded and set(models._loaded) == keys
+
+    broken = SharedModels("cpu")
+    with caplog.at_level("WARNING", logger="wearnav.live"):
+        broken.preload(model=tmp_path / "no-such-model", activity_model=None)
+    assert "preloading" in caplog.text and not broken._loaded

@@ -37,11 +37,12 @@ def _lan_address() -> str:
 
 
 def _tracker_factory(model: Path | None, plan: Path | None = None):
-    """Trackers sharing one set of models (loaded once, on CUDA where there is one); ``plan``: a GeoJSON
-    floor plan every session's page draws under its path."""
+    """Trackers sharing one set of models (loaded once, on CUDA where there is one, while the server
+    starts: ``SharedModels.preload``); ``plan``: a GeoJSON floor plan every session's page draws under its path."""
     from wearnav.live.tracker import LiveTracker, SharedModels
 
     models = SharedModels()
+    threading.Thread(target=models.preload, args=(model,), name="live-preload", daemon=True).start()
     return lambda: LiveTracker(model=model, models=models, plan=plan)
 
 

@@ -35,6 +35,7 @@ the smoother's; the walk-plausibility check of ``track`` needs the whole walk an
 from __future__ import annotations
 
 import dataclasses
+import logging
 import threading
 import time
 from pathlib import Path
@@ -50,7 +51,7 @@ from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
 from wearnav.live.buffer import derived, sliced
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
-from wearnav.recording import Recording
+from wearnav.recording import CANONICAL_DEVICES, Recording
 from wearnav.report.trajectory_page import page_points
 from wearnav.track import input_warnings, odometry_preprocess, path_times
 from wearnav.train.classify import window_probs
@@ -59,6 +60,8 @@ from wearnav.train.odometry import TrainConfig
 from wearnav.train.resolve import resolve_model
 from wearnav.trajectory import integrate_velocity
 from wearnav.windows import WindowConfig, WindowDataset, turn
+
+log = logging.getLogger("wearnav.live")
 
 # Input aligned before the first window not yet final: the common frame's Gaussian kernel (σ 20 s,
 # wearnav.frames) reaches 4 σ = 80 s back. Measured on a 300-s simulated walk (3 devices), the fused
@@ -163,6 +166,27 @@ class SharedModels:
                     got = (got[0].to(self.device), *got[1:])
                 self._loaded[key] = got
             return self._loaded[key]
+
+    def preload(self, model=None, activity_model: str | Path | None = "activity") -> None:
+        """Load, before any session asks, what sessions will: the odometry model of a phone-only and
+        of a three-device session (``model``, or the shipped defaults, as :meth:`LiveTracker._start`
+        picks them), each run once on a window of zeros on its device, and the activity classifier.
+        On a GPU the first pass pays CUDA's start-up, which would otherwise land in the first
+        session's first update. A model that cannot be loaded here is left to that session (whose
+        page then says why)."""
+        for devices in (("phone",), CANONICAL_DEVICES):
+            try:
+                net, cfg = self.resolve(pretrained.model_path(model, "odometry", devices), "odometry")
+                if isinstance(net, torch.nn.Module):
+                    d = len(odometry_preprocess(cfg).devices)
+                    predict_windows(net, torch.zeros(1, d, cfg.window, 6), torch.ones(1, d))
+            except Exception as e:  # any failure is the first session's to report, on its page
+                log.warning("preloading the %s model: %s", "+".join(devices), e)
+        if activity_model is not None:
+            try:
+                self.resolve(pretrained.model_path(activity_model, "classify"), "classify")
+            except Exception as e:  # as above
+                log.warning("preloading the activity model: %s", e)
 
 
 def predict_windows(model, x, mask) -> np.ndarray:

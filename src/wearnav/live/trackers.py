@@ -164,6 +164,7 @@ def run_tracker(
     models (:class:`wearnav.live.tracker.SharedModels`, on CUDA where there is one); ``plan``: a
     GeoJSON floor plan each session's page draws."""
     models = SharedModels()
+    models.preload(model)  # before the first session, which would otherwise wait for it
     proc = TrackerProcess(store, lambda: LiveTracker(model=model, models=models, plan=plan), shard, stats)
     log.info("tracker %d/%d on %s", *shard, store)
     return proc.run(max_s=max_s)
