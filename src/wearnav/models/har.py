@@ -229,7 +229,7 @@ def har_gravity(
     n_devices: int = 1,
     window: int = 128,
     gyro_dropout: float = 0.1,
-    amp_jitter: float = 0.5,
+    amp_jitter: float = 0.8,
     members: int = 1,
     **kw,
 ) -> HARNet | HAREnsemble:
