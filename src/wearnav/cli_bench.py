@@ -3,6 +3,7 @@ thin layer over its :mod:`wearnav.bench` module, imported when it runs so that `
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from enum import Enum
 from pathlib import Path
@@ -399,6 +400,12 @@ def bench_har_lodo(
     members: int = typer.Option(
         3, min=1, help="Networks per model, each from its own seed (seed, seed + 1, ...); their mean decides."
     ),
+    amp_jitter: float | None = typer.Option(
+        None,
+        min=0.0,
+        max=0.99,
+        help="Training windows' motion scaled by a random factor within 1 ± this (0: none; default: the shipped recipe's).",
+    ),
     final: bool = typer.Option(False, "--final", help="Also train each device's model on every source."),
     install: bool = typer.Option(
         False, "--install", help="With --final: write the cards and install the models into the package."
@@ -437,6 +444,8 @@ def bench_har_lodo(
         context_windows=context,
         members=members,
     )
+    if amp_jitter is not None:
+        base = dataclasses.replace(base, amp_jitter=amp_jitter)
     names = split_list(devices)
     results = run_lodo(
         data, out, names, base, _execution(jobs, executor, address, threads), quick, final, echo=typer.echo

@@ -53,6 +53,9 @@ from wearnav.models.registry import register
 FLIP_COS = -0.9
 
 ACC, GYRO = (0, 1, 2), (3, 4, 5)
+# har-gravity's motion-amplitude jitter: each training window's motion scaled within 1 ± this
+# (wearnav.train.activity says why 0.8)
+AMP_JITTER = 0.8
 HEAD_CHANNELS: dict[int, list[tuple[int, ...]]] = {
     1: [ACC + GYRO],
     2: [ACC, GYRO],
@@ -229,7 +232,7 @@ def har_gravity(
     n_devices: int = 1,
     window: int = 128,
     gyro_dropout: float = 0.1,
-    amp_jitter: float = 0.8,
+    amp_jitter: float = AMP_JITTER,
     members: int = 1,
     **kw,
 ) -> HARNet | HAREnsemble:

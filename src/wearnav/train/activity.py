@@ -69,7 +69,7 @@ from wearnav import runs
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.metrics import accuracy, confusion_matrix, macro_f1
 from wearnav.models import registry
-from wearnav.models.har import HAREnsemble, HARNet
+from wearnav.models.har import AMP_JITTER, HAREnsemble, HARNet
 from wearnav.textio import read_json
 from wearnav.train.activity_data import (
     MODEL,
@@ -134,7 +134,7 @@ class ActivityRun:
     rare_sources: int = 3
     rare_factor: float = 0.03
     # har-gravity's training-time augmentation (wearnav.models.har): random motion amplitude, gyro dropout
-    amp_jitter: float = 0.8
+    amp_jitter: float = AMP_JITTER
     gyro_dropout: float = 0.1
     seed: int = 0
     lr: float = 1e-3
