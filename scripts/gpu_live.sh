@@ -1,28 +1,31 @@
 #!/usr/bin/env bash
-# Issue 37's batched live tracker on a GPU machine, in one device call (about 8 minutes with 16 cores):
+# Issue 37's batched live tracker on a GPU machine, in one device call (about 7 minutes with 16 cores):
+# three-device walkers tracked in the receiver (one `Crowd` thread, one batched forward pass of the
+# shipped Suite-IN++ per tick for every session), with the models on the GPU (`--model-device cuda`)
+# and then on the same machine's CPU (`--model-device cpu`): what the host pays for a crowd's small
+# batches on each. `trackers` as a third argument adds 12 `wearnav live track` processes (models on
+# the GPU) as a last step (about 4 minutes more).
 #
-#   1. three-device walkers tracked in the receiver: one `Crowd` thread, one batched forward pass of
-#      the shipped Suite-IN++ per tick for every session, on the GPU (`SharedModels` picks CUDA);
-#   2. three-device walkers tracked by 12 `wearnav live track` processes beside a storing receiver,
-#      each batching its own sessions on the same GPU.
-#
-#   scripts/gpu_live.sh OUT [quick]
+#   scripts/gpu_live.sh OUT [quick|full] [trackers]
 #
 # OUT gets log.txt, nvidia-smi's utilisation each second (gpu.csv) and one page per step
-# (in-process/, trackers/: results.md and results.json). `quick` shrinks both steps so that the
-# script can be checked on a CPU-only machine in a few minutes. Each step has its own time limit.
+# (in-process-cuda/, in-process-cpu/, trackers/: results.md and results.json). `quick` shrinks every
+# step so that the script can be checked on a CPU-only machine in a few minutes (the cuda step is
+# then skipped). Each step has its own time limit: a step cut short writes no page, only its log lines.
 set -u
-out=${1:?usage: scripts/gpu_live.sh OUT [quick]}
+out=${1:?usage: scripts/gpu_live.sh OUT [quick|full] [trackers]}
 quick=${2:-}
+[ "$quick" = full ] && quick=
+with_trackers=${3:-}
 mkdir -p "$out"
 export PYTHONUNBUFFERED=1 PYTHONPATH=${PYTHONPATH:+$PYTHONPATH:}src
 py=${PYTHON:-python3}
 step() { echo "== $(date -u +%T) $*"; }
 
 if [ -n "$quick" ]; then
-    w_in=2 w_tr=2 trackers=1 cpu_s=4 dur=3
+    w_in=2 w_tr=2 trackers=1 cpu_s=4 dur=3 on=cpu
 else
-    w_in=8,16,32 w_tr=32,64 trackers=12 cpu_s=20 dur=10
+    w_in=8,16 w_tr=16,32 trackers=12 cpu_s=20 dur=5 on="cuda cpu"
 fi
 {
     step machine
@@ -34,12 +37,16 @@ fi
         smi=$!
     fi
 
-    step "three-device walkers, tracked in the receiver"
-    timeout 250 "$py" -m wearnav live bench --walkers "$w_in" --devices all --cpu-s "$cpu_s" --duration "$dur" \
-        --out "$out/in-process"
-    step "three-device walkers, $trackers tracker processes"
-    timeout 270 "$py" -m wearnav live bench --walkers "$w_tr" --devices all --trackers "$trackers" --cpu-s "$cpu_s" \
-        --duration "$dur" --out "$out/trackers"
+    for dev in $on; do
+        step "three-device walkers, tracked in the receiver, models on $dev"
+        timeout 210 "$py" -m wearnav live bench --walkers "$w_in" --devices all --cpu-s "$cpu_s" --duration "$dur" \
+            --model-device "$dev" --out "$out/in-process-$dev"
+    done
+    if [ -n "$with_trackers" ]; then
+        step "three-device walkers, $trackers tracker processes"
+        timeout 270 "$py" -m wearnav live bench --walkers "$w_tr" --devices all --trackers "$trackers" \
+            --cpu-s "$cpu_s" --duration "$dur" --out "$out/trackers"
+    fi
     [ -n "${smi:-}" ] && kill "$smi"
     rm -rf "$out"/*/work
     step done

@@ -258,3 +258,21 @@ def test_preload_loads_what_the_first_sessions_ask_for(short_export, tmp_path, c
     with caplog.at_level("WARNING", logger="wearnav.live"):
         broken.preload(model=tmp_path / "no-such-model", activity_model=None)
     assert "preloading" in caplog.text and not broken._loaded
+
+
+def test_model_device_is_checked_and_cpu_is_kept():
+    """`--model-device`: cpu stays on the CPU, auto picks CUDA only where there is one, anything else
+    (or cuda without a GPU) is one clear error before a model loads."""
+    import torch
+
+    from wearnav.errors import ConfigError
+    from wearnav.live.bench import models_on
+    from wearnav.live.tracker import SharedModels
+
+    assert SharedModels("cpu").device.type == "cpu" and models_on("cpu") == "cpu"
+    assert SharedModels("auto").device.type == ("cuda" if torch.cuda.is_available() else "cpu")
+    with pytest.raises(ConfigError, match="auto, cpu or cuda"):
+        SharedModels("tpu")
+    if not torch.cuda.is_available():
+        with pytest.raises(ConfigError, match="no CUDA device"):
+            SharedModels("cuda")

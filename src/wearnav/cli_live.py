@@ -36,12 +36,18 @@ def _lan_address() -> str:
         return "<this machine's address>"
 
 
-def _tracker_factory(model: Path | None, plan: Path | None = None):
+MODEL_DEVICE_HELP = (
+    "Where the odometry models run: auto (CUDA where there is one), cpu or cuda. A crowd's small batches "
+    "may cost the host more CPU on a GPU than on the CPU (docs/live-scaling.md)."
+)
+
+
+def _tracker_factory(model: Path | None, plan: Path | None = None, model_device: str = "auto"):
     """Trackers sharing one set of models (loaded once, on CUDA where there is one, while the server
     starts: ``SharedModels.preload``); ``plan``: a GeoJSON floor plan every session's page draws under its path."""
     from wearnav.live.tracker import LiveTracker, SharedModels
 
-    models = SharedModels()
+    models = SharedModels(model_device)
     threading.Thread(target=models.preload, args=(model,), name="live-preload", daemon=True).start()
     return lambda: LiveTracker(model=model, models=models, plan=plan)
 
@@ -103,6 +109,7 @@ def live(
         help="A GeoJSON floor plan (as `wearnav track --map`) drawn under every session's path once it has a fix.",
     ),
     no_track: bool = typer.Option(False, "--no-track", help="Store and serve only; no live path."),
+    model_device: str = typer.Option("auto", "--model-device", help=MODEL_DEVICE_HELP),
     mqtt: str | None = typer.Option(
         None, "--mqtt", help="Also subscribe to ws://broker:port/topic (Sensor Logger's MQTT publishing)."
     ),
@@ -147,7 +154,7 @@ def live(
     _check_plan(plan)
     if plan is not None and executor == "ray":
         raise ConfigError("--map is drawn by trackers in this process: not with --executor ray")
-    factory = None if no_track or executor == "ray" else _tracker_factory(model, plan)
+    factory = None if no_track or executor == "ray" else _tracker_factory(model, plan, model_device)
     app = create_app(
         store,
         token=token,
@@ -165,7 +172,7 @@ def live(
     if executor == "ray" and not no_track:
         from wearnav.live.trackers import place_on_ray
 
-        placed = place_on_ray(store, trackers, model, address)
+        placed = place_on_ray(store, trackers, model, address, model_device=model_device)
         typer.echo(f"{trackers} tracker processes placed on Ray (sharing {store})")
     shown = _lan_address() if host in ("0.0.0.0", "::") else host
     query = "" if token is None else (f"?token={token}" if made else "?token=<your token>")
@@ -216,6 +223,7 @@ def live_track(
     plan: Path | None = typer.Option(
         None, "--map", help="A GeoJSON floor plan drawn under every session's path (as `wearnav live --map`)."
     ),
+    model_device: str = typer.Option("auto", "--model-device", help=MODEL_DEVICE_HELP),
 ):
     """Track the sessions a receiver stores, in a process of its own (the receiver runs --no-track).
 
@@ -244,11 +252,12 @@ def live_track(
             None if model is None else str(model),
             stats=None if stats is None else str(stats),
             plan=None if plan is None else str(plan),
+            model_device=model_device,
         )
         return
     import ray
 
-    refs = place_on_ray(store, trackers, model, address)
+    refs = place_on_ray(store, trackers, model, address, model_device=model_device)
     typer.echo(f"{trackers} tracker processes placed on Ray (sharing {store}); Ctrl-C stops them")
     try:
         ray.get(refs)
@@ -294,6 +303,7 @@ def live_bench(
     trackers: int = typer.Option(
         0, "--trackers", min=0, help="Track in this many `wearnav live track` processes beside the receiver (0: in it)."
     ),
+    model_device: str = typer.Option("auto", "--model-device", help=MODEL_DEVICE_HELP),
 ):
     """Load the receiver (3 devices × 100 Hz at SPEED× for DURATION s) and measure ack latency,
     lost / duplicated samples, then walkers at once at real time: CPU share, update latency, capacity.
@@ -323,6 +333,7 @@ def live_bench(
                 walkers=counts,
                 devices=kinds,
                 trackers=trackers,
+                model_device=model_device,
             )
         )
     )

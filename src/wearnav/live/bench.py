@@ -204,7 +204,14 @@ def walker_export(export: Path, devices: str) -> Path:
 
 
 def walkers_phase(
-    work: Path, export: Path, walkers: int, seconds: float, track: bool, devices: str = "all", trackers: int = 0
+    work: Path,
+    export: Path,
+    walkers: int,
+    seconds: float,
+    track: bool,
+    devices: str = "all",
+    trackers: int = 0,
+    model_device: str = "auto",
 ) -> dict:
     """``walkers`` sessions of ``devices`` (:data:`WALKER_DEVICES`) replayed at once at real time into
     one server (with the live tracker where there is one; ``trackers`` > 0: the server stores only and
@@ -231,8 +238,11 @@ def walkers_phase(
     stats_files = [db.with_suffix(f".tracker{i}.json") for i in range(trackers if tracking else 0)]
     for f in stats_files:
         f.unlink(missing_ok=True)
-    with LiveServer(db, *limit, *([] if tracking and not trackers else ["--no-track"])) as srv:
-        procs = [start_tracker(db, (i, len(stats_files)), f, f.with_suffix(".log")) for i, f in enumerate(stats_files)]
+    on = ["--model-device", model_device]
+    with LiveServer(db, *limit, *(on if tracking and not trackers else ["--no-track"])) as srv:
+        procs = [
+            start_tracker(db, (i, len(stats_files)), f, f.with_suffix(".log"), *on) for i, f in enumerate(stats_files)
+        ]
         try:
             deadline = time.monotonic() + 60.0
             while not all(f.is_file() for f in stats_files) and time.monotonic() < deadline:
@@ -410,10 +420,11 @@ def kill_phase(work: Path, export: Path, kills: int = 2, speed: float = 10.0, da
     }
 
 
-def models_on() -> str:
-    """Where the trackers' odometry models run: the choice :class:`wearnav.live.tracker.SharedModels`
-    makes in every process of this machine (CUDA where there is one, else the CPU)."""
-    if importlib.util.find_spec("torch") is None:
+def models_on(model_device: str = "auto") -> str:
+    """Where the trackers' odometry models run: ``model_device``, or for ``auto`` the choice
+    :class:`wearnav.live.tracker.SharedModels` makes in every process of this machine (CUDA where
+    there is one, else the CPU)."""
+    if model_device == "cpu" or importlib.util.find_spec("torch") is None:
         return "cpu"
     import torch  # heavy: only to read the accelerator, once per bench
 
@@ -431,10 +442,12 @@ def run_bench(
     seed: int = 0,
     devices: tuple[str, ...] = ("all",),
     trackers: int = 0,
+    model_device: str = "auto",
 ) -> Path:
     """Every phase (module docstring) into ``out``; the walkers phase once per kind of walker in
     ``devices`` (keys of :data:`WALKER_DEVICES`), each up to the first count that does not keep up;
-    ``trackers`` > 0: tracked by that many ``wearnav live track`` processes beside a storing receiver."""
+    ``trackers`` > 0: tracked by that many ``wearnav live track`` processes beside a storing receiver;
+    ``model_device``: where their odometry models run (``wearnav live --model-device``)."""
     for d in devices:
         if d not in WALKER_DEVICES:
             raise ConfigError(f"--devices {d!r}: one of {', '.join(WALKER_DEVICES)}")
@@ -451,7 +464,7 @@ def run_bench(
     rows = []
     for kind in devices:
         for k in sorted(set(walkers) | {1}):
-            rows.append(walkers_phase(work, export, k, cpu_s, track, kind, trackers))
+            rows.append(walkers_phase(work, export, k, cpu_s, track, kind, trackers, model_device))
             log.info("%s", {key: rows[-1][key] for key in ("walkers", "devices", "kept_up", "update_ms")})
             if not rows[-1]["kept_up"]:
                 break  # more walkers will not keep up either
@@ -463,7 +476,7 @@ def run_bench(
         "machine": {
             "cpu": platform.processor() or platform.machine(),
             "cores": os.cpu_count(),
-            "models_on": models_on(),
+            "models_on": models_on(model_device),
         },
         "provenance": provenance(),
     }

@@ -38,9 +38,10 @@ def cpu_s(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def start_tracker(store: Path, shard: tuple[int, int], stats: Path, log: Path) -> subprocess.Popen:
-    """``wearnav live track --store STORE --shard i/n --stats STATS`` beside a receiver on ``store``."""
+def start_tracker(store: Path, shard: tuple[int, int], stats: Path, log: Path, *args: str) -> subprocess.Popen:
+    """``wearnav live track --store STORE --shard i/n --stats STATS ARGS`` beside a receiver on ``store``."""
     cmd = [sys.executable, "-m", "wearnav", "live", "track", "--store", str(store), "--shard", f"{shard[0]}/{shard[1]}"]
+    cmd += list(args)
     with open(log, "ab") as out:
         return subprocess.Popen([*cmd, "--stats", str(stats)], stdout=out, stderr=subprocess.STDOUT, env=env())
 

@@ -45,7 +45,7 @@ import numpy as np
 import torch
 
 from wearnav import fuse, geo, plans, pretrained
-from wearnav.errors import ValidationError
+from wearnav.errors import ConfigError, ValidationError
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
@@ -152,7 +152,13 @@ class SharedModels:
     activity classifiers stay on the CPU (:func:`wearnav.train.labelling.window_classes` feeds them there)."""
 
     def __init__(self, device: str | None = None):
-        self.device = torch.device(device or ("cuda" if torch.cuda.is_available() else "cpu"))
+        if device not in (None, "auto", "cpu", "cuda") and not str(device).startswith("cuda:"):
+            raise ConfigError(f"model device: auto, cpu or cuda, got {device!r}")
+        if device in (None, "auto"):
+            device = "cuda" if torch.cuda.is_available() else "cpu"
+        elif device != "cpu" and not torch.cuda.is_available():
+            raise ConfigError(f"model device {device}: this machine's torch sees no CUDA device")
+        self.device = torch.device(device)
         self._loaded: dict[tuple[str, str], Any] = {}
         self._lock = threading.Lock()
 

@@ -159,11 +159,12 @@ def run_tracker(
     max_s: float | None = None,
     stats: str | None = None,
     plan: str | None = None,
+    model_device: str | None = None,
 ) -> dict:
     """One tracker process's work (the CLI's and a Ray task's): LiveTrackers sharing one set of
-    models (:class:`wearnav.live.tracker.SharedModels`, on CUDA where there is one); ``plan``: a
-    GeoJSON floor plan each session's page draws."""
-    models = SharedModels()
+    models (:class:`wearnav.live.tracker.SharedModels`, on ``model_device``: None, CUDA where there
+    is one); ``plan``: a GeoJSON floor plan each session's page draws."""
+    models = SharedModels(model_device)
     models.preload(model)  # before the first session, which would otherwise wait for it
     proc = TrackerProcess(store, lambda: LiveTracker(model=model, models=models, plan=plan), shard, stats)
     log.info("tracker %d/%d on %s", *shard, store)
@@ -176,6 +177,7 @@ def place_on_ray(
     model: str | Path | None = None,
     address: str | None = None,
     max_s: float | None = None,
+    model_device: str | None = None,
 ) -> list:
     """``trackers`` tracker processes as Ray tasks of one CPU each, shards 0/n .. n−1/n, on the
     cluster at ``address`` (as ``ray.init``'s; a Ray instance already started in this process is
@@ -188,7 +190,8 @@ def place_on_ray(
         ray.init(address=address, include_dashboard=False, logging_level=logging.WARNING)
     task = ray.remote(run_tracker).options(num_cpus=1, max_retries=0)
     path = str(Path(store).resolve())
-    return [task.remote(path, (i, trackers), None if model is None else str(model), max_s) for i in range(trackers)]
+    model_arg = None if model is None else str(model)
+    return [task.remote(path, (i, trackers), model_arg, max_s, model_device=model_device) for i in range(trackers)]
 
 
 __all__ = ["TrackerProcess", "parse_shard", "place_on_ray", "run_tracker", "shard_of"]
