@@ -29,6 +29,7 @@ from wearnav.live import buffer as live_buffer
 from wearnav.live import crowd as live_crowd
 from wearnav.live import tracker as live_tracker
 from wearnav.live.bench import walker_export
+from wearnav.live.models import SharedModels
 from wearnav.live.replay import build
 
 STAGES = [  # (owner, method, what the docs call it)
@@ -79,7 +80,7 @@ def main() -> None:
     if args.profile is None:
         for owner, name, label in STAGES:
             timed(owner, name, label, spent)
-    models = live_tracker.SharedModels("cpu")
+    models = SharedModels("cpu")
     crowd = live_crowd.Crowd(lambda: live_tracker.LiveTracker(models=models))
     crowd.stop()  # its thread ends: the ticks run here
     bufs = {f"w{i}": live_buffer.SessionBuffer(f"w{i}", rp.platform, rp.standardised) for i in range(args.walkers)}

@@ -313,7 +313,7 @@ def test_the_last_windows_alone_are_labelled_as_the_whole_labels_them():
 def test_several_sessions_windows_classified_in_one_pass_are_labelled_as_alone():
     """The live receiver's batched activity (issue 37): the windows of several sessions through the
     classifier at once give each the probabilities, and the label, it gets alone."""
-    from wearnav.live.tracker import classify_windows
+    from wearnav.live.models import classify_windows
     from wearnav.simulate import WalkConfig, simulate_recording
 
     model, cfg, _ = load_model(pretrained.SHIPPED[pretrained.ACTIVITY].path)

@@ -241,7 +241,7 @@ def test_preload_loads_what_the_first_sessions_ask_for(short_export, tmp_path, c
     classifier before any session; the sessions then get those very objects (nothing loaded twice).
     A model that cannot be loaded is a warning there, left to the session to report."""
     from wearnav import pretrained
-    from wearnav.live.tracker import SharedModels
+    from wearnav.live.models import SharedModels
 
     models = SharedModels("cpu")
     models.preload()
@@ -267,7 +267,7 @@ def test_model_device_is_checked_and_cpu_is_kept():
 
     from wearnav.errors import ConfigError
     from wearnav.live.bench import models_on
-    from wearnav.live.tracker import SharedModels
+    from wearnav.live.models import SharedModels
 
     assert SharedModels("cpu").device.type == "cpu" and models_on("cpu") == "cpu"
     assert SharedModels("auto").device.type == ("cuda" if torch.cuda.is_available() else "cpu")

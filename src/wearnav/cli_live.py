@@ -45,7 +45,8 @@ MODEL_DEVICE_HELP = (
 def _tracker_factory(model: Path | None, plan: Path | None = None, model_device: str = "auto"):
     """Trackers sharing one set of models (loaded once, on CUDA where there is one, while the server
     starts: ``SharedModels.preload``); ``plan``: a GeoJSON floor plan every session's page draws under its path."""
-    from wearnav.live.tracker import LiveTracker, SharedModels
+    from wearnav.live.models import SharedModels
+    from wearnav.live.tracker import LiveTracker
 
     models = SharedModels(model_device)
     threading.Thread(target=models.preload, args=(model,), name="live-preload", daemon=True).start()

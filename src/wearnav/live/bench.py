@@ -422,7 +422,7 @@ def kill_phase(work: Path, export: Path, kills: int = 2, speed: float = 10.0, da
 
 def models_on(model_device: str = "auto") -> str:
     """Where the trackers' odometry models run: ``model_device``, or for ``auto`` the choice
-    :class:`wearnav.live.tracker.SharedModels` makes in every process of this machine (CUDA where
+    :class:`wearnav.live.models.SharedModels` makes in every process of this machine (CUDA where
     there is one, else the CPU)."""
     if model_device == "cpu" or importlib.util.find_spec("torch") is None:
         return "cpu"

@@ -5,7 +5,7 @@ and every session quiet for ``SESSION_END_S`` (its last windows made final, once
 half of each tracker's update (:meth:`wearnav.live.tracker.LiveTracker.begin`: the new input and
 its windows), then the model **once** for all the windows of all those sessions (one forward pass
 per model: phone-only sessions share their default model, three-device ones the shipped one; on the device
-:class:`wearnav.live.tracker.SharedModels` chose), and hands each session its velocities
+:class:`wearnav.live.models.SharedModels` chose), and hands each session its velocities
 (:meth:`~wearnav.live.tracker.LiveTracker.finish`: path, fusion, activity, page). Ticks start at
 most every ``TICK_S``, so that a busy server batches more sessions per forward pass, and a slow
 tick makes the next one take more: the path of every session trails its pushes by about one tick
@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from wearnav.live.tracker import classify_windows, predict_windows
+from wearnav.live.models import classify_windows, predict_windows
 
 log = logging.getLogger("wearnav.live")
 SESSION_END_S = 30.0  # a session without a push this long has ended: its last windows made final
@@ -194,7 +194,7 @@ class Crowd:
     @staticmethod
     def _activities(work: list[tuple[_Session, Any]]) -> list[tuple[Any, np.ndarray] | None]:
         """Each step's activity windows and their probabilities (None: no label due): one forward
-        pass per classifier over every step's windows (:func:`wearnav.live.tracker.classify_windows`)."""
+        pass per classifier over every step's windows (:func:`wearnav.live.models.classify_windows`)."""
         out: list[tuple[Any, np.ndarray] | None] = [None] * len(work)
         groups: dict[int, list[tuple[int, Any]]] = {}
         for i, (s, step) in enumerate(work):

@@ -36,28 +36,25 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import threading
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 
 from wearnav import fuse, geo, plans, pretrained
-from wearnav.errors import ConfigError, ValidationError
+from wearnav.errors import ValidationError
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
 from wearnav.live.buffer import derived, sliced
+from wearnav.live.models import SharedModels, classify_windows, predict_windows
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
-from wearnav.recording import CANONICAL_DEVICES, Recording
+from wearnav.recording import Recording
 from wearnav.report.trajectory_page import page_points
 from wearnav.track import input_warnings, odometry_preprocess, path_times
-from wearnav.train.classify import window_probs
 from wearnav.train.labelling import UNKNOWN_INDEX, Windows, class_name, class_windows, decide_classes, unknown_note
 from wearnav.train.odometry import TrainConfig
-from wearnav.train.resolve import resolve_model
 from wearnav.trajectory import integrate_velocity
 from wearnav.windows import WindowConfig, WindowDataset, turn
 
@@ -134,71 +131,6 @@ class Step:
     x: Any = None  # torch.Tensor
     mask: Any = None  # torch.Tensor
     yaw: np.ndarray | None = None  # each window's heading ψ where the model has a heading frame
-
-
-def classify_windows(model, windows: list[Windows]) -> list[np.ndarray]:
-    """The activity classifier's softmax probabilities of each of ``windows`` (several sessions'),
-    in one pass (:func:`wearnav.train.classify.window_probs`), split back in order."""
-    if not windows:
-        return []
-    parts = [w.inputs() for w in windows]
-    prob = window_probs(model, torch.cat([p["x"] for p in parts]), torch.cat([p["mask"] for p in parts]))
-    return np.split(prob, np.cumsum([len(p["x"]) for p in parts])[:-1])
-
-
-class SharedModels:
-    """The models of every session of one process, each loaded once (sessions only read them), the
-    odometry models on one ``device`` chosen once: CUDA where there is one (None), else the CPU. The
-    activity classifiers stay on the CPU (:func:`wearnav.train.labelling.window_classes` feeds them there)."""
-
-    def __init__(self, device: str | None = None):
-        if device not in (None, "auto", "cpu", "cuda") and not str(device).startswith("cuda:"):
-            raise ConfigError(f"model device: auto, cpu or cuda, got {device!r}")
-        if device in (None, "auto"):
-            device = "cuda" if torch.cuda.is_available() else "cpu"
-        elif device != "cpu" and not torch.cuda.is_available():
-            raise ConfigError(f"model device {device}: this machine's torch sees no CUDA device")
-        self.device = torch.device(device)
-        self._loaded: dict[tuple[str, str], Any] = {}
-        self._lock = threading.Lock()
-
-    def resolve(self, path, task: str):
-        """:func:`wearnav.train.resolve.resolve_model` of ``path`` for ``task``, loaded once."""
-        key = (str(path), task)
-        with self._lock:
-            if key not in self._loaded:
-                got = resolve_model(path, task)
-                if task == "odometry" and isinstance(got[0], torch.nn.Module):
-                    got = (got[0].to(self.device), *got[1:])
-                self._loaded[key] = got
-            return self._loaded[key]
-
-    def preload(self, model=None, activity_model: str | Path | None = "activity") -> None:
-        """Load, before any session asks, what sessions will: the odometry model of a phone-only and
-        of a three-device session (``model``, or the shipped defaults, as :meth:`LiveTracker._start`
-        picks them), each run once on a window of zeros on its device, and the activity classifier.
-        On a GPU the first pass pays CUDA's start-up, which would otherwise land in the first
-        session's first update. A model that cannot be loaded here is left to that session (whose
-        page then says why)."""
-        for devices in (("phone",), CANONICAL_DEVICES):
-            try:
-                net, cfg = self.resolve(pretrained.model_path(model, "odometry", devices), "odometry")
-                if isinstance(net, torch.nn.Module):
-                    d = len(odometry_preprocess(cfg).devices)
-                    predict_windows(net, torch.zeros(1, d, cfg.window, 6), torch.ones(1, d))
-            except Exception as e:  # any failure is the first session's to report, on its page
-                log.warning("preloading the %s model: %s", "+".join(devices), e)
-        if activity_model is not None:
-            try:
-                self.resolve(pretrained.model_path(activity_model, "classify"), "classify")
-            except Exception as e:  # as above
-                log.warning("preloading the activity model: %s", e)
-
-
-def predict_windows(model, x, mask) -> np.ndarray:
-    """Velocities (N, 2) m/s of windows ``x`` (N, D, L, 6), ``mask`` (N, D), on the model's device."""
-    device = next((p.device for p in model.parameters()), torch.device("cpu"))
-    return model.predict(x.to(device), mask.to(device)).float().cpu().numpy()
 
 
 class LiveTracker:
@@ -603,4 +535,4 @@ def _tail(rec: Recording, t_from: float) -> Recording:
     return derived(rec, devices, None) if devices else derived(rec, dict(rec.devices), None)
 
 
-__all__ = ["LiveTracker", "SharedModels", "Step", "predict_windows", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]
+__all__ = ["LiveTracker", "Step", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]

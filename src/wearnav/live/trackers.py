@@ -33,8 +33,9 @@ from wearnav.errors import ConfigError
 from wearnav.fileio import write_text_atomic
 from wearnav.live.buffer import NS, SessionBuffer
 from wearnav.live.crowd import Crowd
+from wearnav.live.models import SharedModels
 from wearnav.live.store import Store
-from wearnav.live.tracker import LiveTracker, SharedModels
+from wearnav.live.tracker import LiveTracker
 
 log = logging.getLogger("wearnav.live")
 POLL_S = 0.1  # the store is read for new messages this often (s)
@@ -162,7 +163,7 @@ def run_tracker(
     model_device: str | None = None,
 ) -> dict:
     """One tracker process's work (the CLI's and a Ray task's): LiveTrackers sharing one set of
-    models (:class:`wearnav.live.tracker.SharedModels`, on ``model_device``: None, CUDA where there
+    models (:class:`wearnav.live.models.SharedModels`, on ``model_device``: None, CUDA where there
     is one); ``plan``: a GeoJSON floor plan each session's page draws."""
     models = SharedModels(model_device)
     models.preload(model)  # before the first session, which would otherwise wait for it
