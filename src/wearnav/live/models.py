@@ -38,8 +38,9 @@ def classify_windows(model, windows: list[Windows]) -> list[np.ndarray]:
 
 class SharedModels:
     """The models of every session of one process, each loaded once (sessions only read them), the
-    odometry models on one ``device`` chosen once: CUDA where there is one (None), else the CPU. The
-    activity classifiers stay on the CPU (:func:`wearnav.train.labelling.window_classes` feeds them there)."""
+    odometry models on one ``device`` chosen once: ``cpu``, ``cuda`` (``cuda:N``), or ``auto`` / None:
+    CUDA where there is one, else the CPU. The activity classifiers stay on the CPU
+    (:func:`wearnav.train.labelling.window_classes` feeds them there)."""
 
     def __init__(self, device: str | None = None):
         if device not in (None, "auto", "cpu", "cuda") and not str(device).startswith("cuda:"):

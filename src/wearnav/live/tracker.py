@@ -35,7 +35,6 @@ the smoother's; the walk-plausibility check of ``track`` needs the whole walk an
 from __future__ import annotations
 
 import dataclasses
-import logging
 import time
 from pathlib import Path
 from typing import Any
@@ -57,8 +56,6 @@ from wearnav.train.labelling import UNKNOWN_INDEX, Windows, class_name, class_wi
 from wearnav.train.odometry import TrainConfig
 from wearnav.trajectory import integrate_velocity
 from wearnav.windows import WindowConfig, WindowDataset, turn
-
-log = logging.getLogger("wearnav.live")
 
 # Input aligned before the first window not yet final: the common frame's Gaussian kernel (σ 20 s,
 # wearnav.frames) reaches 4 σ = 80 s back. Measured on a 300-s simulated walk (3 devices), the fused
