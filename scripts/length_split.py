@@ -1,12 +1,10 @@
 """Why a learned path comes out short (issue 34): slow, or wandering?
 
 ``arcs SUITE``: for each known-start path a `wearnav bench real-odometry` suite evaluated (the
-learned run and PDR, each site), the pages' length ratio (the path's length through its positions
-at the surveyed times over the truth's: chords, :func:`wearnav.bench.user_protocol.score_path`)
-beside the path's own arc length over the truth's polyline between the same surveyed points (a
-lower bound of the walked distance: below 1 the path is slow, whatever its direction), medians over
-walks; and, per segment between consecutive surveyed points, the arc over the segment by how long
-the segment took.
+learned run and PDR, each site), the pages' length ratio (chords) beside the arc ratio
+(:func:`wearnav.bench.user_protocol.arc_ratio`: below 1 the path is slow, whatever its direction),
+medians over walks, as the pages now show them; and, per segment between consecutive surveyed
+points, the arc over the segment by how long the segment took.
 
 ``sensitivity DATA [DATA ...]``: the shipped phone model's speed on a dataset's windows, and how it
 moves when one part of the input is scaled about the window's mean (vertical or horizontal
@@ -27,7 +25,7 @@ import pandas as pd
 import torch
 
 from wearnav import pretrained
-from wearnav.bench.user_protocol import score_path
+from wearnav.bench.user_protocol import arc_ratio, score_path
 from wearnav.dataset import Dataset
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, align
 from wearnav.train.odometry import load_model
@@ -48,10 +46,9 @@ def _at(t: np.ndarray, p: np.ndarray, ts: float) -> np.ndarray:
     return np.array([np.interp(ts, t, p[:, 0]), np.interp(ts, t, p[:, 1])])
 
 
-def walk_arcs(t: np.ndarray, p: np.ndarray, truth) -> tuple[float, list[tuple[float, float, float]]]:
-    """The page's chord ratio of one walk, and per surveyed segment inside the path its duration (s),
-    the truth's length (m) and the path's arc over it (m)."""
-    chord = score_path(t, p, truth.t, truth.pos[:, :2])[1]
+def segment_arcs(t: np.ndarray, p: np.ndarray, truth) -> list[tuple[float, float, float]]:
+    """Per surveyed segment inside the path: its duration (s), the truth's length (m) and the
+    path's arc over it (m)."""
     segs = []
     for a in range(len(truth.t) - 1):
         ta, tb = float(truth.t[a]), float(truth.t[a + 1])
@@ -61,7 +58,7 @@ def walk_arcs(t: np.ndarray, p: np.ndarray, truth) -> tuple[float, list[tuple[fl
         pts = np.vstack([_at(t, p, ta), p[inner], _at(t, p, tb)])
         arc = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
         segs.append((tb - ta, float(np.linalg.norm(truth.pos[a + 1, :2] - truth.pos[a, :2])), arc))
-    return chord, segs
+    return segs
 
 
 def arcs(suite: Path) -> None:
@@ -74,15 +71,14 @@ def arcs(suite: Path) -> None:
                     continue
                 df = pd.read_csv(f)
                 truth = ds.load(f.stem).truth
-                chord, s = walk_arcs(df["t"].to_numpy(), df[["x", "y"]].to_numpy(), truth)
-                if s:
-                    chords.append(chord)
-                    ratios.append(sum(x[2] for x in s) / max(sum(x[1] for x in s), 1e-9))
-                    segs += s
+                t, p = df["t"].to_numpy(), df[["x", "y"]].to_numpy()
+                chords.append(score_path(t, p, truth.t, truth.pos[:, :2])[1])
+                ratios.append(arc_ratio(t, p, truth.t, truth.pos[:, :2]))
+                segs += segment_arcs(t, p, truth)
             S = np.asarray(segs)
             print(
                 f"{site} {ev.parent.name}: {len(ratios)} walks, {len(S)} segments; length ratio (chords) "
-                f"{np.nanmedian(chords):.3f}, arc / truth polyline {np.median(ratios):.3f}"
+                f"{np.nanmedian(chords):.3f}, arc ratio {np.nanmedian(ratios):.3f}"
             )
             for lo, hi in SEGMENT_BINS_S:
                 k = (S[:, 0] >= lo) & (S[:, 0] < hi)

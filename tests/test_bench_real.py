@@ -139,6 +139,8 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
         assert {"pdr", "suitein++", "suitein++ · PDR speed", "raw phone fixes"} <= set(table)
         for r in table.values():
             assert r["points"] > 0 and 0 <= r["median (m)"] <= r["p95 (m)"] < 1e3
+        # a path's own arc is never shorter than its chords between the same surveyed times
+        assert table["pdr"]["arc ratio"] >= table["pdr"]["length ratio"] - 1e-9 > 0
         # whether each learned run beat standing still on validation (PDR is not learned)
         assert table["pdr"]["beats standing still"] == "not learned"
         assert table["suitein++"]["beats standing still"] in ("yes", "NO")
@@ -310,7 +312,7 @@ def test_seeds_suite_pairs_each_path_with_pdr_by_walk(building, tmp_path):
     doc = json.loads((out / "results.json").read_text())
     rows = {r["path"]: r for r in doc["sites"]["main"]["known_start"]}
     assert set(rows) >= {"ronin", "ronin · PDR speed", "pdr", "raw phone fixes"}
-    assert rows["ronin"]["seeds"] == 2 and "±" in rows["ronin"]["median (m)"]
+    assert rows["ronin"]["seeds"] == 2 and "±" in rows["ronin"]["median (m)"] and "±" in rows["ronin"]["arc ratio"]
     assert rows["pdr"]["minus PDR, median (m)"] == "—"
     # PDR's speed with ronin's direction, paired by walk with PDR: a difference and its interval
     d = rows["ronin · PDR speed"]["minus PDR, median (m)"]

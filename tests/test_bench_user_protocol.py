@@ -4,7 +4,7 @@ the walk-paired comparison."""
 import numpy as np
 import pytest
 
-from wearnav.bench.user_protocol import score_path
+from wearnav.bench.user_protocol import arc_ratio, score_path
 
 
 def test_score_path_errors_and_length_ratio():
@@ -15,6 +15,28 @@ def test_score_path_errors_and_length_ratio():
     err, ratio = score_path(t, path, truth_t, truth)
     np.testing.assert_allclose(err, [np.hypot(2.5, 1), np.hypot(4.5, 1)])  # from the second point on
     assert abs(ratio - 0.5) < 1e-9
+
+
+def test_arc_ratio_tells_a_slow_path_from_a_wandering_one():
+    """The chord ratio (score_path's) counts a path that zigzags between the surveyed points as
+    short; the arc ratio (the path's own length over the truth's polyline) does not, and a path
+    that is truly slow is short by both."""
+    t = np.arange(0.0, 10.0 + 1e-9, 0.05)
+    truth_t = np.array([0.0, 5.0, 10.0])
+    truth = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0]])
+    # at the truth's speed (1 m/s) along a zigzag of ±30° (half a second each way): the arc is the
+    # walked distance, the chords between surveyed times cos 30° of it
+    heading = np.where(np.floor(t / 0.5) % 2 == 0, np.pi / 6, -np.pi / 6)
+    v = np.stack([np.cos(heading), np.sin(heading)], 1)
+    zig = np.vstack([[0.0, 0.0], np.cumsum(v[:-1] * 0.05, axis=0)])
+    assert abs(arc_ratio(t, zig, truth_t, truth) - 1.0) < 0.01
+    assert abs(score_path(t, zig, truth_t, truth)[1] - np.cos(np.pi / 6)) < 0.02
+    slow = np.stack([0.8 * t, np.zeros_like(t)], 1)
+    assert (
+        abs(arc_ratio(t, slow, truth_t, truth) - 0.8) < 1e-9
+        and abs(score_path(t, slow, truth_t, truth)[1] - 0.8) < 1e-9
+    )
+    assert np.isnan(arc_ratio(t, slow, truth_t, np.zeros((3, 2))))  # a truth that does not move
 
 
 def test_site_calibration_uses_walks_the_model_never_trained_on(tmp_path, monkeypatch):

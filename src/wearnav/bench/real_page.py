@@ -19,6 +19,7 @@ from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.bench.real_sites import fix_errors
 from wearnav.bench.user_protocol import (
     PAIRED_TEXT,
+    arc_ratio,
     paired_rows,
     particle_paired_rows,
     score_path,
@@ -109,7 +110,7 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
                 "traces": summary["sequences"],
                 "points": summary.get("points", 0),
                 **{k: summary.get(k, float("nan")) for k in ("error_mean", "error_p50", "error_p75", "error_p95")},
-                "length ratio": length_ratio(ev, sites[site]["data"]),
+                **dict(zip(("length ratio", "arc ratio"), length_ratios(ev, sites[site]["data"]))),
                 "epochs": tr.get("epochs_run", "—"),
                 "train min": round(tr["wall_s"] / 60, 1) if tr.get("wall_s") else "—",
                 BEATS_STILL: beats_text(tr),
@@ -126,6 +127,7 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
                 "points": fx["points"],
                 **{k: v for k, v in fx.items() if k.startswith("error_")},
                 "length ratio": float("nan"),
+                "arc ratio": float("nan"),
                 "epochs": "—",
                 "train min": "—",
                 BEATS_STILL: "—",
@@ -181,18 +183,25 @@ def _map_section(evals: dict[str, tuple[Path, Path]]) -> list[str]:
     return [text, "", pd.DataFrame(rows).to_markdown(index=False), ""]
 
 
-def length_ratio(eval_dir: Path, data: str) -> float:
-    """Median over the test traces of the path's length through its positions at the surveyed
-    times over the truth's (:func:`wearnav.bench.user_protocol.score_path`; 1 is right, below 1 the
-    path is short), from the trajectories an evaluation wrote."""
-    ds, ratios = Dataset.open(data), []
+def length_ratios(eval_dir: Path, data: str) -> tuple[float, float]:
+    """Medians over the test traces of the path's length ratio through its positions at the
+    surveyed times (:func:`wearnav.bench.user_protocol.score_path`: chords) and of its own arc over
+    the truth's polyline (:func:`wearnav.bench.user_protocol.arc_ratio`: below 1 the path is slow,
+    however it wanders), from the trajectories an evaluation wrote; 1 is right."""
+    ds, chords, arcs = Dataset.open(data), [], []
     for f in sorted((eval_dir / "trajectories" / "test").glob("*.csv")):
         df = pd.read_csv(f)
         if f.stem in ds.names and len(df) > 1:
             truth = ds.load(f.stem).truth
             assert truth is not None  # a scored test recording has truth
-            ratios.append(score_path(df["t"].to_numpy(), df[["x", "y"]].to_numpy(), truth.t, truth.pos[:, :2])[1])
-    return round(float(np.nanmedian(ratios)), 3) if np.isfinite(ratios).any() else float("nan")
+            t, xy = df["t"].to_numpy(), df[["x", "y"]].to_numpy()
+            chords.append(score_path(t, xy, truth.t, truth.pos[:, :2])[1])
+            arcs.append(arc_ratio(t, xy, truth.t, truth.pos[:, :2]))
+
+    def median(v: list[float]) -> float:
+        return round(float(np.nanmedian(v)), 3) if np.isfinite(v).any() else float("nan")
+
+    return median(chords), median(arcs)
 
 
 def warp_text(speed_warp) -> str:
@@ -295,7 +304,11 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         lines += [
             "Known-start protocol (each trace starts at its true first point, input turned by the site "
             "yaw: a floor, not available to a user). A learned row scored where it did not train under "
-            "PDR's yaw uses its own estimate from the same training traces (*site yaw* column):",
+            "PDR's yaw uses its own estimate from the same training traces (*site yaw* column). *Length "
+            "ratio*: median over walks of the path's length through its positions at the surveyed times "
+            "over the truth's (1 is right; a path that wanders between the points also comes out short); "
+            "*arc ratio*: of the path's own length over the truth's polyline through the same points (a "
+            "lower bound of the walked distance: below 1 the path is slow, however it wanders):",
             "",
             table.to_markdown(index=False, floatfmt=".2f"),
             "",

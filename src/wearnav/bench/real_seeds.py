@@ -143,6 +143,7 @@ def known_start_table(seed_docs: dict[int, dict], seed_evals: dict[int, dict[str
                 "p75 (m)": _mean_sd([r["p75 (m)"] for r in got]),
                 "p95 (m)": _mean_sd([r["p95 (m)"] for r in got]),
                 "length ratio": _mean_sd([r["length ratio"] for r in got]),
+                "arc ratio": _mean_sd([r["arc ratio"] for r in got if "arc ratio" in r]),
                 "minus PDR, median (m)": "—" if label == REFERENCE else _interval(paired, 0),
                 "minus PDR, p75 (m)": "—" if label == REFERENCE else _interval(paired, 1),
                 "median (m) per seed": " / ".join(f"{r['median (m)']:.2f}" for r in got),
@@ -214,7 +215,8 @@ SEEDS_TEXT = (
     "brackets a 90 % interval from resampling whole walks, each walk carrying its points of every "
     "seed (:func:`wearnav.stats.walk_bootstrap_difference`); an interval across 0 means these walks "
     "cannot tell the two apart. *Length ratio*: the median over walks of the path's length through "
-    "the surveyed times over the truth's (1 is right)."
+    "the surveyed times over the truth's (1 is right); *arc ratio*: of the path's own length over the "
+    "truth's polyline (below 1 the path is slow, however it wanders; — on pages made before it)."
 )
 
 

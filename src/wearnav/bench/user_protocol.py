@@ -56,6 +56,22 @@ def score_path(t: np.ndarray, xy: np.ndarray, truth_t: np.ndarray, truth_xy: np.
     return err, (_length(at) / true_len if true_len > 0 else float("nan"))
 
 
+def arc_ratio(t: np.ndarray, xy: np.ndarray, truth_t: np.ndarray, truth_xy: np.ndarray) -> float:
+    """The path's own length (every sample) from the first to the last surveyed time inside its span,
+    over the truth's polyline through those surveyed points (NaN when the truth does not move).
+    The truth's polyline is a lower bound of the walked distance, so below 1 the path is slow,
+    whatever its direction; :func:`score_path`'s ratio (through the path's positions at the
+    surveyed times) also comes out short for a path that wanders between them (issue 34)."""
+    k = (truth_t >= t[0]) & (truth_t <= t[-1])
+    true_len = _length(truth_xy[k])
+    if k.sum() < 2 or true_len <= 0:
+        return float("nan")
+    ta, tb = truth_t[k][0], truth_t[k][-1]
+    inner = (t > ta) & (t < tb)
+    ends = np.stack([np.interp([ta, tb], t, xy[:, j]) for j in range(2)], axis=1)
+    return _length(np.vstack([ends[:1], xy[inner], ends[1:]])) / true_len
+
+
 def fix_point_errors(rec) -> np.ndarray:
     """The raw fixes' error (m) at the recording's surveyed points from the second on: the latest
     fix within :data:`wearnav.metrics.FIX_MAX_GAP_S` (NaN where none is)."""
