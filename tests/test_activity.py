@@ -299,9 +299,9 @@ def test_the_last_windows_alone_are_labelled_as_the_whole_labels_them():
     rec = simulate_recording(WalkConfig(mode="STW", placement="HD", duration_s=30), seed=5)
     _, t, cls, conf = window_classes(model, cfg, rec)
     seen = []
-    real = labelling.predict_probs
+    real = labelling.window_probs
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(labelling, "predict_probs", lambda m, w, **kw: seen.append(len(kw["index"])) or real(m, w, **kw))
+        mp.setattr(labelling, "window_probs", lambda m, x, mask, **kw: seen.append(len(x)) or real(m, x, mask, **kw))
         for n in (1, 3):
             _, t_n, cls_n, conf_n = window_classes(model, cfg, rec, last=n)
             np.testing.assert_array_equal(t_n, t[-n:])
@@ -325,7 +325,7 @@ def test_several_sessions_windows_classified_in_one_pass_are_labelled_as_alone()
     together = classify_windows(model, ws)
     assert [len(p) for p in together] == [len(w.index) for w in ws]
     for rec, w, prob in zip(recs, ws, together):
-        np.testing.assert_allclose(prob, labelling.predict_probs(model, w.wds, index=w.index), atol=1e-5)
+        np.testing.assert_allclose(prob, w.probs(model), atol=1e-5)
         _, t, cls, conf = window_classes(model, cfg, rec, last=1)
         t_b, cls_b, conf_b = labelling.decide_classes(model, w, prob)
         np.testing.assert_array_equal(t_b, t)

@@ -428,7 +428,10 @@ def models_on(model_device: str = "auto") -> str:
         return "cpu"
     import torch  # heavy: only to read the accelerator, once per bench
 
-    return f"cuda ({torch.cuda.get_device_name(0)})" if torch.cuda.is_available() else "cpu"
+    from wearnav.live.models import SharedModels  # its choice, made as every tracker process makes it
+
+    device = SharedModels(model_device).device
+    return f"cuda ({torch.cuda.get_device_name(device)})" if device.type == "cuda" else "cpu"
 
 
 def run_bench(

@@ -331,14 +331,8 @@ def window_probs(model, x: torch.Tensor, mask: torch.Tensor, batch: int = 512) -
     return np.concatenate(out) if out else np.empty((0, 0), np.float32)
 
 
-def predict_probs(model, wds: WindowDataset, batch: int = 512, index=None) -> np.ndarray:
-    """Softmax probabilities (N, classes) of every window of ``wds`` (of those at ``index`` only, in
-    its order, where given)."""
-    if index is not None:
-        if len(index) == 0:
-            return np.empty((0, 0), np.float32)
-        b = wds[np.asarray(index, np.int64).tolist()]
-        return window_probs(model, b["x"], b["mask"], batch)
+def predict_probs(model, wds: WindowDataset, batch: int = 512) -> np.ndarray:
+    """Softmax probabilities (N, classes) of every window of ``wds``."""
     out = [window_probs(model, b["x"], b["mask"], batch) for b in wds.loader(batch)]
     return np.concatenate(out) if out else np.empty((0, 0), np.float32)
 

@@ -19,7 +19,7 @@ from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import write_text_atomic
 from wearnav.preprocess import Aligned, align
 from wearnav.textio import read_json
-from wearnav.train.classify import TRAINING, ClassifyConfig, context_probs, load_model, predict_probs
+from wearnav.train.classify import TRAINING, ClassifyConfig, context_probs, load_model, window_probs
 from wearnav.windows import WindowConfig, WindowDataset
 
 UNKNOWN = "unknown"  # the label of a window the model is unsure of (issue 35 §3)
@@ -180,6 +180,14 @@ class Windows:
     def inputs(self) -> dict:
         return self.wds[self.index.tolist()]
 
+    def probs(self, model) -> np.ndarray:
+        """The classifier's softmax probabilities of the windows at ``index`` (this recording alone;
+        :func:`wearnav.live.models.classify_windows` runs many recordings' windows in one pass)."""
+        if len(self.index) == 0:
+            return np.empty((0, 0), np.float32)
+        b = self.inputs()
+        return window_probs(model, b["x"], b["mask"])
+
 
 def class_windows(model, cfg: ClassifyConfig, rec, last: int | None = None) -> Windows:
     """The first half of :func:`window_classes` (the model's input); a caller may run the model
@@ -221,7 +229,7 @@ def window_classes(
     page labels its latest window every second). :func:`class_windows`, the model, then
     :func:`decide_classes`."""
     w = class_windows(model, cfg, rec, last)
-    prob = predict_probs(model, w.wds, index=w.index) if w.keep else np.empty((0, 0))
+    prob = w.probs(model) if w.keep else np.empty((0, 0))
     return (w.seq, *decide_classes(model, w, prob))
 
 
