@@ -291,6 +291,14 @@ except Terminated:
 """
 
 
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 def test_sigterm_stops_a_multi_process_suite_at_once(tmp_path):
     """SIGTERM (or Ctrl-C) to a suite running jobs in worker processes ends it within seconds,
     workers included, instead of waiting for the runs still training (they resume later)."""
@@ -309,7 +317,8 @@ def test_sigterm_stops_a_multi_process_suite_at_once(tmp_path):
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=30) == 143
     assert time.monotonic() - t0 < 30  # not the jobs' 120 s
-    time.sleep(0.5)
-    for m in marks:  # no worker left running
-        with pytest.raises(ProcessLookupError):
-            os.kill(int(m.read_text()), 0)
+    for m in marks:  # no worker left running (given a few seconds to exit on a loaded machine)
+        deadline = time.monotonic() + 10
+        while _alive(int(m.read_text())):
+            assert time.monotonic() < deadline, f"worker {m.read_text()} still runs"
+            time.sleep(0.1)
