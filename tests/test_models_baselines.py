@@ -197,6 +197,30 @@ def test_pdr_synthetic_walk_steps_speed_and_direction(L, cadence, heading):
         assert abs(err) < 5.0
 
 
+@pytest.mark.parametrize("cadence", [1.5, 1.8, 2.1])
+def test_pdr_cadence_steps_grow_with_the_cadence(cadence):
+    """With ``step_per_cadence`` c a step is c·f long (f steps/s in the window): speed c·f², so a
+    walker at 1.5 steps/s covers (1.5/2.1)² of the distance one at 2.1 does in the same time, where
+    fixed steps give 1.5/2.1; the direction is PDR's as before."""
+    from wearnav.models.pdr import STEP_PER_CADENCE_M_S
+
+    fixed = PDR(n_devices=1, window=100)
+    model = PDR(n_devices=1, window=100, step_per_cadence=STEP_PER_CADENCE_M_S)
+    for seed in range(3):
+        x, _ = synthetic_walk(100, cadence, 40.0, seed=seed)
+        vel = model(x, torch.ones(1, 1))[0].numpy()
+        assert np.linalg.norm(vel) == pytest.approx(STEP_PER_CADENCE_M_S * cadence**2, rel=0.1)
+        measured = np.linalg.norm(fixed(x, torch.ones(1, 1))[0].numpy()) / 0.67  # the window's steps/s
+        assert measured == pytest.approx(cadence, rel=0.05)
+        ratio = np.linalg.norm(vel) / (0.67 * measured)
+        assert ratio == pytest.approx(STEP_PER_CADENCE_M_S * measured / 0.67, rel=1e-5)  # the steps' length alone
+        assert np.rad2deg(np.arctan2(vel[1], vel[0])) == pytest.approx(40.0, abs=5.0)
+    still, _ = synthetic_walk(100, standing=True)
+    assert np.linalg.norm(model(still, torch.ones(1, 1))[0].numpy()) < 0.05
+    with pytest.raises(ConfigError, match="step_per_cadence"):
+        PDR(n_devices=1, window=100, step_per_cadence=0.0)
+
+
 def test_pdr_pointing_walks_ahead_of_the_phone_at_pdrs_speed():
     """pdr-pointing (issue 34): PDR's speed along +x of the window's frame, which is the phone's
     heading frame: a TrainConfig of it is one (without random yaw), as `track --model pdr-pointing`

@@ -195,11 +195,12 @@ def run_job(job: RealJob, run: Path) -> Path:
 
 def scored_as(cfg: TrainConfig) -> tuple[str, ...]:
     """Where the speeds of a model's scored paths come from (issue 34; ``load_model``'s ``speed``):
-    as trained; a learned model also as the hybrid with PDR's speed, and one in the heading frame
-    also as its speed along where the phone points."""
+    as trained; a learned model also as the hybrids with PDR's speed (0.67-m steps, and steps as
+    long as the cadence makes them), and one in the heading frame also as its speed along where the
+    phone points."""
     if not get(cfg.model).learned:
         return ("model",)
-    return ("model", "pdr", "pointing") if cfg.heading_frame else ("model", "pdr")
+    return ("model", "pdr", "cadence", "pointing") if cfg.heading_frame else ("model", "pdr", "cadence")
 
 
 def variant_dir(eval_dir: Path, speed: str) -> Path:

@@ -62,11 +62,12 @@ def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
 
 # Where a scored path's speed comes from (wearnav.train.odometry.SPEED_SOURCES) → (suffix of its
 # evaluation folder ``eval_<site>``, suffix of its row label): the model as trained; its direction at
-# PDR's speed (wearnav.models.pdr.PDRSpeed); a heading-frame model's speed along where the phone
+# PDR's speed (wearnav.models.pdr.PDRSpeed), with 0.67-m steps or cadence-long ones; a heading-frame model's speed along where the phone
 # points (wearnav.models.base.AlongPointing).
 VARIANTS = {
     "model": ("", ""),
     "pdr": ("_pdrspeed", " · PDR speed"),
+    "cadence": ("_cadence", " · cadence speed"),
     "pointing": ("_pointing", " · its speed, pointing"),
 }
 # and either one placed on the building's floor plans (wearnav.bench.map_eval, issue 36) + MAP_SUFFIX

@@ -48,9 +48,21 @@ from wearnav.models.registry import register
 # Below this learned speed (m/s) the hybrid's direction is taken as is, not blown up to unit length.
 _MIN_SPEED_M_S = 1e-3
 
+# The step length per unit cadence c (m per step/s) of a step length that grows with cadence,
+# L = c·f (issue 34, "Hybrids"): measured on the simulator's training walks (the `default` preset,
+# seed 0: train and val, 2,985 windows of 4 s; this detector's f and the truth's speed v,
+# c = Σv / Σf²; `scripts/cadence_step.py`), so nothing real went into it. L ∝ f is the simulator's
+# gait within one walker (cadence ∝ speed^0.5; windows' log-log slope of v/f on f: 0.8–1.1) and
+# gives 0.66 m at 1.8 steps/s, the fixed step length's 0.67 m at about that cadence. On real walks
+# with surveyed truth the fixed 0.67 m errs by building: IPIN's walkers step at a median 1.63
+# steps/s and 0.43–0.52 m per step, ILC2's at 1.80–1.83 and 0.59–0.61 m.
+STEP_PER_CADENCE_M_S = 0.367
+
 
 class PDR(OdometryModel):
-    """Step counting × fixed step length along the acceleration-derived walking direction."""
+    """Step counting × step length along the acceleration-derived walking direction. The step
+    length is ``step_length`` (m), or with ``step_per_cadence`` (m per step/s) that times the
+    window's cadence f = steps / duration (L = c·f: speed c·f², :data:`STEP_PER_CADENCE_M_S`)."""
 
     learned = False
 
@@ -65,11 +77,15 @@ class PDR(OdometryModel):
         min_peak: float = 0.6,
         phase_lead_deg: float = 90.0,
         filter_order: int = 2,
+        step_per_cadence: float | None = None,
     ):
         super().__init__()
         if window < 32 or rate <= 0 or not 0 < band[0] < band[1] < rate / 2:
             raise ConfigError(f"PDR needs window ≥ 32, rate > 0 and 0 < band < rate/2, got {window}, {rate}, {band}")
+        if step_per_cadence is not None and not step_per_cadence > 0:
+            raise ConfigError(f"step_per_cadence must be a positive number of m per step/s, got {step_per_cadence}")
         self.n_devices, self.window, self.rate = n_devices, window, rate
+        self.step_per_cadence = step_per_cadence
         self.step_length, self.min_peak, self.phase_lead = step_length, min_peak, np.deg2rad(phase_lead_deg)
         self.half_gap = max(1, int(round(min_step_s * rate)))
         self.sos = signal.butter(filter_order, band, btype="band", fs=rate, output="sos")
@@ -94,6 +110,13 @@ class PDR(OdometryModel):
         frac = np.where(n >= 2, (n - 1) + edge, n).astype(np.float64)
         return n, frac
 
+    def speed(self, steps: np.ndarray, length: int) -> np.ndarray:
+        """Speed (m/s) of windows of ``length`` samples holding ``steps`` (fractional) steps."""
+        duration = (length - 1) / self.rate
+        if self.step_per_cadence is None:
+            return steps * self.step_length / duration
+        return self.step_per_cadence * (steps / duration) ** 2
+
     def heading(self, acc_bp: np.ndarray) -> np.ndarray:
         """Unit walking direction (B, 2) from band-passed world acc (B, L, 3) (module docstring)."""
         h, v = acc_bp[..., :2], acc_bp[..., 2]
@@ -111,8 +134,7 @@ class PDR(OdometryModel):
         L = acc.shape[1]
         acc_bp = self.bandpass(acc)
         _, steps = self.steps(acc_bp[..., 2])
-        speed = steps * self.step_length / ((L - 1) / self.rate)
-        vel = self.heading(acc_bp) * speed[:, None]
+        vel = self.heading(acc_bp) * self.speed(steps, L)[:, None]
         return torch.from_numpy(vel).to(device=x.device, dtype=x.dtype)
 
 
@@ -140,7 +162,7 @@ class PDRPointing(PDR):
         sel, _ = first_present(x, mask)
         acc = sel[..., :3].detach().to("cpu", torch.float64).numpy()
         _, steps = self.steps(self.bandpass(acc)[..., 2])
-        speed = torch.from_numpy(steps * self.step_length / ((acc.shape[1] - 1) / self.rate))
+        speed = torch.from_numpy(self.speed(steps, acc.shape[1]))
         return torch.stack([speed, torch.zeros_like(speed)], dim=1).to(device=x.device, dtype=x.dtype)
 
 

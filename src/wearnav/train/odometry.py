@@ -29,7 +29,7 @@ from wearnav.dataset import Dataset, scorable_split, train_val_views
 from wearnav.errors import ConfigError, FormatError, ValidationError, check_field_types, check_names
 from wearnav.models import registry
 from wearnav.models.base import VEL_LOSSES, AlongPointing, OdometryModel, ScaledVelocity
-from wearnav.models.pdr import PDR, PDRSpeed
+from wearnav.models.pdr import PDR, STEP_PER_CADENCE_M_S, PDRSpeed
 from wearnav.preprocess import (
     SPARSE_TRUTH_HZ,
     SURVEYED_TRUTH_MAX_GAP_S,
@@ -393,16 +393,18 @@ def zero_velocity_mse(ds: WindowDataset) -> float:
 
 
 # Where a loaded model's speed comes from (:func:`load_model`): the model itself; PDR's step
-# counter with the model's direction (wearnav.models.pdr.PDRSpeed, issue 34's hybrid); or the
+# counter with the model's direction (wearnav.models.pdr.PDRSpeed, issue 34's hybrid), its steps
+# 0.67 m long or ("cadence") as long as the cadence makes them (pdr.STEP_PER_CADENCE_M_S); or the
 # model's speed alone, along where the phone points (wearnav.models.base.AlongPointing; a model in
 # the heading frame only).
-SPEED_SOURCES = ("model", "pdr", "pointing")
+SPEED_SOURCES = ("model", "pdr", "cadence", "pointing")
 
 
 def load_model(run: str | Path, which: str = BEST, speed: str = "model") -> tuple[torch.nn.Module, TrainConfig]:
     """The model of a run folder with its ``best`` (or ``last``) weights, in eval mode; where the
     run was adapted with a speed scale (:func:`velocity_scale`), wrapped to apply it. ``speed``
     "pdr": its direction at PDR's speed in the same window (:class:`wearnav.models.pdr.PDRSpeed`);
+    "cadence": the same with steps as long as the window's cadence makes them;
     "pointing": its speed along where the phone points (:class:`wearnav.models.base.AlongPointing`),
     for a run trained in the heading frame."""
     if speed not in SPEED_SOURCES:
@@ -420,6 +422,8 @@ def load_model(run: str | Path, which: str = BEST, speed: str = "model") -> tupl
         model = ScaledVelocity(model, scale)
     if speed == "pdr":
         model = PDRSpeed(model, PDR(len(cfg.devices), cfg.window, rate=cfg.rate))
+    if speed == "cadence":
+        model = PDRSpeed(model, PDR(len(cfg.devices), cfg.window, rate=cfg.rate, step_per_cadence=STEP_PER_CADENCE_M_S))
     if speed == "pointing":
         model = AlongPointing(model)
     model.eval()
