@@ -176,9 +176,15 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
     run_benchmark(building / "building", out, building / "other", echo=msgs.append, **{**kw, "bench": sim_bench})
     doc = json.loads((out / "results.json").read_text())
     methods = [r["method"] for r in doc["sites"]["main"]["table"]]
-    sim_label = "suitein++ · simulator `sim` (commit " + methods[2].split("(commit ")[1]
-    assert methods[:4] == ["suitein++", "suitein++ · PDR speed", sim_label, sim_label + " · PDR speed"]
-    assert methods[4:] == ["pdr", "raw phone fixes"]
+    sim_label = "suitein++ · simulator `sim` (commit " + methods[3].split("(commit ")[1]
+    hybrids = (" · PDR speed", " · cadence speed")
+    assert methods[:6] == [
+        "suitein++",
+        *("suitein++" + h for h in hybrids),
+        sim_label,
+        *(sim_label + h for h in hybrids),
+    ]
+    assert methods[6:] == ["pdr", "raw phone fixes"]
     sim_run = [p for p in (out / "runs").glob("suitein++-*") if "sim" in runs.read_config(p)["config"]["train"]["data"]]
     assert len(sim_run) == 1 and runs.read_config(sim_run[0])["config"]["preprocess"]["frame_align"] == "truth"
 

@@ -120,6 +120,39 @@ def test_track_with_a_learned_checkpoint_matches_its_eval(setup, learned_run, tm
     assert abs(ate_track - row["ate"]) <= 0.3 + 0.1 * row["ate"]
 
 
+def test_track_speed_cadence_keeps_the_models_direction_at_cadence_steps(
+    setup, learned_run, tmp_path, monkeypatch, capsys
+):
+    """``track --speed cadence``: the learned model's path with PDR's cadence-long steps, exactly
+    what ``load_model(run, speed="cadence")`` integrates, pointing where the model's own path
+    points wherever both move, and ``track.json`` says which speed; PDR has no speed to take."""
+    from wearnav.track import load_input, odometry
+
+    _, rec, _ = setup
+    export = write_export(rec, tmp_path / EXPORT, platform="android")
+    own = track(export, learned_run, tmp_path / "own")
+    hybrid = track(export, learned_run, tmp_path / "cadence", speed="cadence")
+    assert own["speed"] == "model" and hybrid["speed"] == "cadence"
+    a = pd.read_csv(tmp_path / "own" / "trajectory.csv")[["x", "y"]].to_numpy()
+    b = pd.read_csv(tmp_path / "cadence" / "trajectory.csv")[["x", "y"]].to_numpy()
+    model, cfg = load_model(learned_run, speed="cadence")
+    _, _, _, _, _, xy = odometry(model, cfg, load_input(export))
+    np.testing.assert_allclose(b, xy, atol=1e-4)  # trajectory.csv keeps 4 decimals
+    da, db = a[10:] - a[:-10], b[10:] - b[:-10]  # 10 samples apart: the file's rounding is small there
+    moving = (np.linalg.norm(da, axis=1) > 0.05) & (np.linalg.norm(db, axis=1) > 0.05)
+    cos = np.sum(da * db, axis=1)[moving] / (np.linalg.norm(da, axis=1) * np.linalg.norm(db, axis=1))[moving]
+    assert moving.mean() > 0.5 and np.min(cos) > 0.99
+    assert abs(hybrid["length_m"] / own["length_m"] - 1) > 0.01  # the speed did change
+    code, _, err = run_cli(
+        monkeypatch, capsys, "track", export, "--model", "pdr", "--speed", "cadence", "--out", tmp_path / "pdr"
+    )
+    assert code == 2 and err.startswith("error: ") and "needs a learned model" in err and len(err.splitlines()) == 1
+    from wearnav.cli import Speed
+    from wearnav.train.odometry import SPEED_SOURCES
+
+    assert [s.value for s in Speed] == list(SPEED_SOURCES)  # the option offers every source, in order
+
+
 def test_geojson_lies_on_the_fixes(setup, tmp_path):
     """The anchored path at the fix times lies a median of under 5 m from the fixes. Why 5 m: the
     simulated fixes scatter about the truth by a median 2.4 m (printed), the path's own error is

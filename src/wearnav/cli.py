@@ -74,6 +74,13 @@ class Anchor(str, Enum):  # wearnav.fuse.ANCHORS
     first_fixes = "first-fixes"
 
 
+class Speed(str, Enum):  # wearnav.train.odometry.SPEED_SOURCES
+    model = "model"
+    pdr = "pdr"
+    cadence = "cadence"
+    pointing = "pointing"
+
+
 class Preset(str, Enum):  # wearnav.simulate.presets.PRESETS
     tiny = "tiny"
     small = "small"
@@ -275,6 +282,13 @@ def track(
         help="A known start pose for the map-aware path where there are no fixes: X, Y (m) in the "
         "recording's frame, the heading of travel in degrees counter-clockwise from +x.",
     ),
+    speed: Speed = typer.Option(
+        Speed.model,
+        help="Where a learned model's speed comes from: model (its own), pdr (its direction, detected "
+        "steps × 0.67 m), cadence (its direction, steps as long as the cadence makes them: the "
+        "hybrid that measured best in both real buildings, docs/design.md), pointing (its speed "
+        "along where the phone points; a heading-frame model).",
+    ),
 ):
     """The walking path of one recording: predict, integrate from (0, 0), place it on the location fixes.
 
@@ -307,6 +321,7 @@ def track(
         anchor=choice_value(anchor),
         plan=map_plan,
         start=start_pose,
+        speed=choice_value(speed),
     )
     shipped = f" (shipped model {summary['shipped_model']})" if summary.get("shipped_model") else ""
     typer.echo(

@@ -420,14 +420,27 @@ def load_model(run: str | Path, which: str = BEST, speed: str = "model") -> tupl
     scale = velocity_scale(run)
     if scale != 1.0:
         model = ScaledVelocity(model, scale)
-    if speed == "pdr":
-        model = PDRSpeed(model, PDR(len(cfg.devices), cfg.window, rate=cfg.rate))
-    if speed == "cadence":
-        model = PDRSpeed(model, PDR(len(cfg.devices), cfg.window, rate=cfg.rate, step_per_cadence=STEP_PER_CADENCE_M_S))
-    if speed == "pointing":
-        model = AlongPointing(model)
+    model = with_speed(model, cfg, speed)
     model.eval()
     return model, cfg
+
+
+def with_speed(model: torch.nn.Module, cfg: TrainConfig, speed: str) -> torch.nn.Module:
+    """``model`` (of ``cfg``) with its speed taken from ``speed`` (:data:`SPEED_SOURCES`): itself
+    unchanged for "model", else wrapped as :func:`load_model` describes (a learned model only: PDR's
+    speed is its own; "pointing" only for one trained in the heading frame)."""
+    if speed not in SPEED_SOURCES:
+        raise ConfigError(f"speed must come from one of {', '.join(SPEED_SOURCES)}, got {speed!r}")
+    if speed == "model":
+        return model
+    if not registry.get(cfg.model).learned:
+        raise ConfigError(f"a speed from {speed!r} needs a learned model: {cfg.model}'s speed is its own")
+    if speed == "pointing" and not cfg.heading_frame:
+        raise ConfigError(f"{cfg.model}: only a model trained in the heading frame has the phone's pointing as +x")
+    if speed == "pointing":
+        return AlongPointing(model)
+    cadence = STEP_PER_CADENCE_M_S if speed == "cadence" else None
+    return PDRSpeed(model, PDR(len(cfg.devices), cfg.window, rate=cfg.rate, step_per_cadence=cadence))
 
 
 def velocity_scale(run: str | Path) -> float:
