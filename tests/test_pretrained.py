@@ -159,6 +159,42 @@ def test_phone_only_choice_is_the_shipped_models_own_measurement_against_pdr(tmp
     measured(4.19)  # worse than PDR in ILC2
     path, why = pretrained.phone_only_choice()
     assert path == "pdr" and "4.19 against PDR's 3.75" in why and "--model phone" in why
+    assert pretrained.recorded_speed(phone) == "model"
+
+
+def test_the_recipes_speed_is_recorded_and_taken_by_default(tmp_path, monkeypatch):
+    """Recipe.phone_speed: held_out.json records the numbers of the model's path with that speed (its
+    hybrid's row, not the model's own) and the speed itself, which resolve_model then takes for the
+    shipped model by default (an explicit speed wins); a page without that row is refused."""
+    from wearnav.errors import ConfigError
+    from wearnav.pretrained.recipe import held_out_record
+    from wearnav.train.odometry import SPEED_SOURCES
+
+    assert list(pretrained.SPEED_WORDS) == list(SPEED_SOURCES)
+    monkeypatch.setattr(pretrained, "MODELS_DIR", tmp_path / "models")
+    phone = pretrained.SHIPPED[pretrained.PHONE].path
+    phone.mkdir(parents=True)
+    learned = "suitein++ · simulator `sim` (commit abc)"
+    page = _suite_page(
+        tmp_path / "s" / "sim-to-real",
+        {
+            "main": [_row(learned, 3.69, 1.0), _row(learned + " · cadence speed", 2.86, 0.96), _row("pdr", 4.77, 1.11)],
+            "other": [
+                _row(learned, 3.37, 0.88),
+                _row(learned + " · cadence speed", 3.13, 0.94),
+                _row("pdr", 3.75, 0.94),
+            ],
+        },
+    )
+    record = held_out_record(phone, page, "cadence")
+    assert record["speed"] == "cadence" == pretrained.recorded_speed(phone)
+    assert [b["model_median_m"] for b in record["buildings"].values()] == [2.86, 3.13]
+    (phone / "checkpoints").mkdir()
+    (phone / "checkpoints" / "best.ckpt").write_bytes(b"")
+    assert pretrained.recorded_speed(phone / "checkpoints" / "best.ckpt") == "cadence"  # a checkpoint: its run's
+    assert pretrained.recorded_speed("pdr") == pretrained.recorded_speed(tmp_path) == "model"
+    with pytest.raises(ConfigError, match="pointing"):
+        held_out_record(phone, page, "pointing")
 
 
 def test_cards_name_the_recipes_rows_and_each_building(tmp_path):
@@ -237,6 +273,24 @@ def test_track_without_model_lies_on_the_walks_own_fixes(stranger, monkeypatch, 
     assert code == 0, err
     t3 = json.loads((tmp_path / "t3" / "track.json").read_text())
     assert t3["shipped_model"] == pretrained.PHONE and t3["model_choice"] == "given with --model"
+    # its speed: what its recipe recorded (cadence-long steps), unless --speed says otherwise
+    assert summary["speed"] == "model" and t3["speed"] == pretrained.recorded_speed(pretrained.SHIPPED["phone"].path)
+    assert t3["speed"] == "cadence" and "cadence" in pretrained.phone_only_choice()[1]
+    code, out, err = run_cli(
+        monkeypatch,
+        capsys,
+        "track",
+        str(export2),
+        "--model",
+        "phone",
+        "--speed",
+        "model",
+        "--out",
+        str(tmp_path / "t4"),
+    )
+    assert code == 0, err
+    t4 = json.loads((tmp_path / "t4" / "track.json").read_text())
+    assert t4["speed"] == "model" and t4["length_m"] != t3["length_m"]
 
 
 @needs_shipped
@@ -261,8 +315,8 @@ def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch
     monkeypatch.setattr(
         recipe,
         "site_calibration",
-        lambda run, site, data, trained: {
-            "odometry_walk_m_per_sqrt_s": got[run.parent.parent.name],
+        lambda run, site, data, trained, speed: {
+            "odometry_walk_m_per_sqrt_s": got[run.parent.parent.name] * (1 if speed == "cadence" else 9),
             "sigma_scale": scale[run.parent.parent.name],
             "walks": 10,
         },
@@ -274,7 +328,7 @@ def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch
         suites.append(tmp_path / name)
     shipped = tmp_path / "shipped"
     shipped.mkdir()
-    cal = recipe.cross_building_calibration(shipped, suites)
+    cal = recipe.cross_building_calibration(shipped, suites, "cadence")  # the path with the speed `track` takes
     assert cal["odometry_walk_m_per_sqrt_s"] == 0.83 and cal["walks"] == 20
     named = {cards.site_name(suite, "main"): v for suite, v in got.items()}  # the buildings' names
     assert read_json(shipped / fuse.CALIBRATION_JSON)["per_building"] == named

@@ -282,12 +282,12 @@ def track(
         help="A known start pose for the map-aware path where there are no fixes: X, Y (m) in the "
         "recording's frame, the heading of travel in degrees counter-clockwise from +x.",
     ),
-    speed: Speed = typer.Option(
-        Speed.model,
+    speed: Speed | None = typer.Option(
+        None,
         help="Where a learned model's speed comes from: model (its own), pdr (its direction, detected "
-        "steps × 0.67 m), cadence (its direction, steps as long as the cadence makes them: the "
-        "hybrid that measured best in both real buildings, docs/design.md), pointing (its speed "
-        "along where the phone points; a heading-frame model).",
+        "steps × 0.67 m), cadence (its direction, steps as long as the cadence makes them), pointing "
+        "(its speed along where the phone points; a heading-frame model). Default: what the model "
+        "records (the shipped phone model: cadence, docs/design.md), else model.",
     ),
 ):
     """The walking path of one recording: predict, integrate from (0, 0), place it on the location fixes.

@@ -106,7 +106,7 @@ from wearnav.report.trajectory_page import activity_intervals, page_points, traj
 from wearnav.textio import read_json
 from wearnav.track_files import TRACK_FILES, TRACK_JSON
 from wearnav.track_map import MAP_CHOICES, map_path
-from wearnav.train.odometry import SPEED_SOURCES, with_speed
+from wearnav.train.odometry import SPEED_SOURCES
 from wearnav.train.resolve import locate_model, resolve_model
 from wearnav.trajectory import integrate_velocity
 
@@ -360,31 +360,33 @@ def track(
     anchor: str = "smooth",
     plan: str | Path = "auto",
     start: tuple[float, float, float] | None = None,
-    speed: str = "model",
+    speed: str | None = None,
 ) -> dict:
     """Track one recording (see module docstring); ``anchor`` places the path on the fixes
     (:data:`wearnav.fuse.ANCHORS`); ``plan`` (``auto``, ``none`` or a GeoJSON plan file) and ``start``
     (x, y, heading of travel in degrees) make the path map-aware (:func:`wearnav.track_map.map_path`);
     ``speed``: where a learned model's speed comes from (:func:`wearnav.train.odometry.with_speed`:
-    itself, or its direction with PDR's steps, 0.67 m or cadence-long); returns what ``track.json`` holds."""
+    itself, or its direction with PDR's steps, 0.67 m or cadence-long; default what the model's run
+    records, :func:`wearnav.pretrained.recorded_speed`); returns what ``track.json`` holds."""
     out = Path(out)
     if anchor not in fuse.ANCHORS:
         raise ConfigError(f"unknown anchoring {anchor!r}; one of {', '.join(fuse.ANCHORS)}")
-    if speed not in SPEED_SOURCES:
+    if speed is not None and speed not in SPEED_SOURCES:
         raise ConfigError(f"--speed {speed}: not one of {', '.join(SPEED_SOURCES)}")
     if str(plan) not in MAP_CHOICES and not Path(plan).is_file():
         raise ConfigError(f"--map {plan}: not auto, none or a GeoJSON plan file")
     check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")  # before any work
     if model_path is not None:  # a bad --model is said before the input is read
         model_path = locate_model(model_path, "odometry")  # a run folder, checkpoint, file, shipped model, `pdr`
-        model, cfg = resolve_model(model_path, "odometry")
+        speed = speed if speed is not None else pretrained.recorded_speed(model_path)
+        model, cfg = resolve_model(model_path, "odometry", speed=speed)
     rec = load_input(src, name, platform)
     choice = "given with --model"
     if model_path is None:  # the default for the devices the recording has, and why (pretrained.default_model)
         model_path, choice = pretrained.default_model("odometry", rec.devices)
         model_path = locate_model(model_path, "odometry")
-        model, cfg = resolve_model(model_path, "odometry")
-    model = with_speed(model, cfg, speed)
+        speed = speed if speed is not None else pretrained.recorded_speed(model_path)
+        model, cfg = resolve_model(model_path, "odometry", speed=speed)
     usable = [d for d in cfg.devices if d in rec.devices]
     if not usable:
         raise ValidationError(

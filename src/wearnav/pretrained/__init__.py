@@ -23,8 +23,16 @@ from wearnav.textio import read_json
 MODELS_DIR = Path(__file__).parent / "models"
 CARD = "MODEL_CARD.md"
 # in a shipped odometry model's folder: its known-start errors in buildings it never trained in,
-# beside PDR's (wearnav.pretrained.recipe.held_out_record); what the phone-only choice reads
+# beside PDR's (wearnav.pretrained.recipe.held_out_record), and where its speed comes from ("speed",
+# wearnav.train.odometry.SPEED_SOURCES); what the phone-only choice and the commands' default speed read
 HELD_OUT_JSON = "held_out.json"
+# how each speed source is said in a sentence (the choice's reason, the card)
+SPEED_WORDS = {
+    "model": "its own speed",
+    "pdr": "its direction at detected steps × 0.67 m",
+    "cadence": "its direction at detected steps as long as the cadence makes them",
+    "pointing": "its speed along where the phone points",
+}
 PHONE, MULTI, ACTIVITY, ACTIVITY_WATCH = "phone", "phone-watch-earbuds", "activity", "activity-watch"
 
 
@@ -116,6 +124,19 @@ def default_for(task: str, devices_in_recording=()) -> Shipped:
     return spec
 
 
+def recorded_speed(model: str | Path) -> str:
+    """Where the speed of the model at ``model`` (a run folder or one of its checkpoints) comes from
+    by default: what its :data:`HELD_OUT_JSON` records (``wearnav pretrain`` writes the recipe's
+    ``phone_speed`` there), else the model's own ("model"); a name or an exported file: "model"."""
+    p = Path(model)
+    run = p.parent.parent if p.is_file() and p.parent.name == "checkpoints" else p
+    record = run / HELD_OUT_JSON
+    if not record.is_file():
+        return "model"
+    speed = read_json(record).get("speed", "model")
+    return speed if isinstance(speed, str) and speed in SPEED_WORDS else "model"
+
+
 def phone_only_choice() -> tuple[Path | str, str]:
     """What `track` and `live` use without ``--model`` for a recording with the phone alone, and why
     (issue 34): the shipped phone model where its :data:`HELD_OUT_JSON` shows its known-start median
@@ -136,10 +157,12 @@ def phone_only_choice() -> tuple[Path | str, str]:
         for name, b in buildings.items()
     )
     how = "known start, median error at the surveyed points"
+    speed = recorded_speed(spec.path)
+    with_speed = "" if speed == "model" else f" with {SPEED_WORDS[speed]} (`--speed model` takes its own)"
     if buildings and all(b["model_median_m"] < b["pdr_median_m"] for b in buildings.values()):
         return spec.path, (
-            f"a phone-only recording: the shipped model {PHONE!r}, which measured better than step-and-heading "
-            f"PDR in every building it never trained in ({how}; {said}); `--model pdr` takes PDR"
+            f"a phone-only recording: the shipped model {PHONE!r}{with_speed}, which measured better than "
+            f"step-and-heading PDR in every building it never trained in ({how}; {said}); `--model pdr` takes PDR"
         )
     return "pdr", (
         f"a phone-only recording: step-and-heading PDR, which measured better than the shipped phone model in "

@@ -17,7 +17,7 @@ import pandas as pd
 from wearnav import runs
 from wearnav.dataset import Dataset
 from wearnav.fileio import write_text_atomic
-from wearnav.pretrained import CARD, MULTI, PHONE, Shipped
+from wearnav.pretrained import CARD, MULTI, PHONE, SPEED_WORDS, Shipped, recorded_speed
 from wearnav.provenance import provenance
 from wearnav.textio import read_json
 
@@ -175,6 +175,13 @@ def write_card(spec: Shipped, run: Path, recipe, suites: dict[str, Path]) -> Pat
         _table(measured_rows(suites)),
         "",
     ]
+    speed = recorded_speed(run)
+    if speed != "model":
+        lines += [
+            f"`track` and `live` take {SPEED_WORDS[speed]} (the recipe's `phone_speed`: the rows "
+            f"with that speed above, docs/design.md); `--speed model` takes its own.",
+            "",
+        ]
     lines += ["## Known limits", ""] + [f"- {x}" for x in LIMITS[spec.name]] + [""]
     return write_text_atomic("\n".join(lines), run / CARD)
 
@@ -188,8 +195,10 @@ LIMITS = {  # per shipped odometry model
     PHONE: _LIMITS_ALL
     + [
         "Trained on one simulated walker's phone (in the hand, a pocket, a bag); the table above is where it "
-        "meets real phones. Its path-length ratio there says how far its speed is off (ILC2's walkers, faster "
-        "and holding the phone flat and still, come out short); where the recording has location fixes, "
+        "meets real phones. Its own speed comes out short where walkers are faster than that one (ILC2's, "
+        "holding the phone flat); the cadence-long steps `track` takes instead rest on one constant "
+        "measured on the simulator (0.367 m per step/s), so a walker whose steps are unusually long or "
+        "short for their cadence comes out long or short. Where the recording has location fixes, "
         "`track`'s smoother estimates the scale, and `wearnav adapt` fits it to the user's own walks.",
         "One seed's run: the recipe's spread over seeds is on docs/results.md's seeds pages (the model's "
         "direction in ILC2 varied most).",

@@ -38,9 +38,10 @@ from wearnav import fuse, runs
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.bench.har_lodo import run_lodo
 from wearnav.bench.real import RealBench, plan_benchmark
+from wearnav.bench.real_page import VARIANTS
 from wearnav.bench.real_sites import TRUTH_MAX_GAP_S
 from wearnav.bench.user_protocol import ensure_calibration, site_calibration
-from wearnav.errors import MissingFileError
+from wearnav.errors import ConfigError, MissingFileError
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.importers import import_dataset
 from wearnav.pretrained import ACTIVITY, ACTIVITY_WATCH, CARD, HELD_OUT_JSON, MULTI, PHONE, SHIPPED, cards, get
@@ -84,6 +85,10 @@ class Recipe:
     # frame (PreprocessConfig.heading_frame), without random yaw
     phone_vel_loss: str = "polar"
     phone_heading_frame: bool = True
+    # where the shipped phone model's speed comes from in `track` and `live` (SPEED_SOURCES): its
+    # direction at detected steps as long as the cadence makes them (docs/design.md, "Steps as long
+    # as the cadence makes them"; its held-out numbers are that path's)
+    phone_speed: str = "cadence"
 
 
 def prepare_data(
@@ -220,8 +225,8 @@ def pretrain(
     made: dict[str, Path] = {}
     if PHONE in models:
         made[PHONE] = suite_model_run(out / PHONE_SUITE)
-        cross_building_calibration(made[PHONE], [out / PHONE_SUITE])
-        held_out_record(made[PHONE], pages[PHONE_SUITE])
+        cross_building_calibration(made[PHONE], [out / PHONE_SUITE], recipe.phone_speed)
+        held_out_record(made[PHONE], pages[PHONE_SUITE], recipe.phone_speed)
         cards.write_card(SHIPPED[PHONE], made[PHONE], recipe, {PHONE_SUITE: pages[PHONE_SUITE]})
     if MULTI in models:
         made[MULTI] = jobs[0].folder
@@ -246,14 +251,20 @@ def pretrain(
     return cards.write_page(out, made, pages, recipe)
 
 
-def held_out_record(run: Path, page: Path) -> dict:
-    """``run``/:data:`HELD_OUT_JSON`: per building its suite scored, the model's known-start median
-    error and length ratio beside PDR's (the suite's own paths: the model's direction, not a variant)."""
+def held_out_record(run: Path, page: Path, speed: str = "model") -> dict:
+    """``run``/:data:`HELD_OUT_JSON`: per building its suite scored, the known-start median error and
+    length ratio of the model's path with its speed from ``speed`` (its own row, or that hybrid's:
+    :data:`wearnav.bench.real_page.VARIANTS`) beside PDR's, and ``speed`` itself, which `track` and
+    `live` then take by default (:func:`wearnav.pretrained.recorded_speed`)."""
     doc = read_json(Path(page).parent / "results.json")
     buildings = {}
     for site, result in doc["sites"].items():
         rows = {r["method"]: r for r in result["table"]}
-        model = next(r for m, r in rows.items() if m.startswith(MODEL + " ·") and m.count(" · ") == 1)
+        own = next(m for m in rows if m.startswith(MODEL + " ·") and m.count(" · ") == 1)
+        label = own + VARIANTS[speed][1]
+        if label not in rows:
+            raise ConfigError(f"{page}: no row {label!r} to record the shipped model's {speed} speed by")
+        model = rows[label]
         buildings[cards.site_name(Path(page).parent.name, site)] = {
             "model_median_m": model["median (m)"],
             "pdr_median_m": rows["pdr"]["median (m)"],
@@ -265,15 +276,17 @@ def held_out_record(run: Path, page: Path) -> dict:
     record = {
         "protocol": "known start + site yaw, median error at the surveyed points (wearnav bench real-odometry)",
         "suite": str(Path(page).parent),
+        "speed": speed,
         "buildings": buildings,
     }
     runs.write_json(run / HELD_OUT_JSON, record)
     return record
 
 
-def cross_building_calibration(run: Path, suites: list[Path]) -> dict:
+def cross_building_calibration(run: Path, suites: list[Path], speed: str = "model") -> dict:
     """Replace a shipped odometry run's smoother calibration (``fuse.CALIBRATION_JSON``, which
-    `track` reads) by what the recipe shows where it did not train: each suite's model on every
+    `track` reads) by what the recipe shows where it did not train (its path with the speed from
+    ``speed``, as `track` runs it): each suite's model on every
     held-out building's training walks (``fuse_calibration_<site>.json``; a leave-one-building-out
     suite has the one site ``main``, the phone's suite ``main`` and ``other``), the largest of
     them, and the largest σ scale. The multi-device recipe's validation walks (mostly simulated)
@@ -286,7 +299,7 @@ def cross_building_calibration(run: Path, suites: list[Path]) -> dict:
             for site in ("main", "other"):
                 if site == "main" or (suite / "data" / site).is_dir():
                     per[cards.site_name(suite.name, site)] = site_calibration(
-                        lobo, site, suite / "data" / site, trained
+                        lobo, site, suite / "data" / site, trained, speed
                     )
     per = {k: c for k, c in per.items() if c.get("odometry_walk_m_per_sqrt_s")}
     if not per:

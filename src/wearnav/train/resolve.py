@@ -121,7 +121,7 @@ def locate_model(
     )
 
 
-def resolve_model(arg: str | Path | None, task: str, devices_in_recording=()):
+def resolve_model(arg: str | Path | None, task: str, devices_in_recording=(), speed: str | None = None):
     """The model behind ``arg`` (:func:`locate_model`) for a command of ``task``.
 
     Odometry: ``(model, TrainConfig)``; classify: ``(model, ClassifyConfig, class names)``. A run
@@ -129,22 +129,27 @@ def resolve_model(arg: str | Path | None, task: str, devices_in_recording=()):
     run by ONNX Runtime or TorchScript with its config from the file's header
     (:func:`wearnav.export.runtime.load_exported`); an untrained baseline is built with the
     default :class:`wearnav.train.odometry.TrainConfig` (25 Hz, 100-sample windows, the first of
-    phone, watch, earbuds that the recording has)."""
+    phone, watch, earbuds that the recording has). An odometry model's speed comes from ``speed``
+    (:func:`wearnav.train.odometry.with_speed`), by default from what its run records
+    (:func:`wearnav.pretrained.recorded_speed`: the shipped phone model's recipe says "cadence")."""
     from wearnav.export.runtime import load_exported
     from wearnav.train import classify, odometry
     from wearnav.train.common import BEST, check_run_kind
 
     where = locate_model(arg, task, devices_in_recording)
+    if task == "odometry":
+        speed = speed if speed is not None else pretrained.recorded_speed(where)
     if isinstance(where, str):  # an untrained baseline's name
         cfg = odometry.TrainConfig(model=where, data="")  # untrained: no data behind it
-        model = odometry.build_model(cfg)
+        model = odometry.with_speed(odometry.build_model(cfg), cfg, speed or "model")
         model.eval()
         return model, cfg
     if is_exported(where):
-        return load_exported(where, task)
+        got = load_exported(where, task)
+        return (odometry.with_speed(got[0], got[1], speed or "model"), got[1]) if task == "odometry" else got
     if where.is_file():  # a checkpoint inside its run folder
         check_run_kind(where.parent.parent, task)
-        return odometry.load_model(where.parent.parent, which=where.name)
+        return odometry.load_model(where.parent.parent, which=where.name, speed=speed or "model")
     if task == "odometry":
-        return odometry.load_model(where, which=BEST)
+        return odometry.load_model(where, which=BEST, speed=speed or "model")
     return classify.load_model(where)
