@@ -54,8 +54,8 @@ _MIN_SPEED_M_S = 1e-3
 # c = Σv / Σf²; `scripts/cadence_step.py`), so nothing real went into it. L ∝ f is the simulator's
 # gait within one walker (cadence ∝ speed^0.5; windows' log-log slope of v/f on f: 0.8–1.1) and
 # gives 0.66 m at 1.8 steps/s, the fixed step length's 0.67 m at about that cadence. On real walks
-# with surveyed truth the fixed 0.67 m errs by building: IPIN's walkers step at a median 1.63
-# steps/s and 0.43–0.52 m per step, ILC2's at 1.80–1.83 and 0.59–0.61 m.
+# with surveyed truth the fixed 0.67 m errs by building: PDR's paths are 1.19 long in IPIN's test
+# walks (steps of about 0.56 m at a median 1.63 steps/s) and 1.01 in ILC2's (0.66 m at 1.83).
 STEP_PER_CADENCE_M_S = 0.367
 
 
