@@ -87,7 +87,7 @@ def test_model_names_that_are_not_untrained_baselines_are_refused_with_what_work
     assert p.stderr == (
         "error: ronin: is a model that must be trained first (wearnav train ronin --data DATA "
         "--out RUN, then --model RUN); shipped models: phone, phone-watch-earbuds; untrained baselines "
-        "usable by name: pdr, pdr-pointing\n"
+        "usable by name: pdr, pdr-cadence, pdr-pointing, pdr-pointing-cadence\n"
     )
     p = wearnav("track", "x.h5", "--model", "pdx", "--out", tmp_path / "t")
     assert p.returncode == 2 and "nor a model name (shipped models: phone, phone-watch-earbuds; untrained" in p.stderr

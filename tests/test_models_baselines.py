@@ -219,6 +219,9 @@ def test_pdr_cadence_steps_grow_with_the_cadence(cadence):
     assert np.linalg.norm(model(still, torch.ones(1, 1))[0].numpy()) < 0.05
     with pytest.raises(ConfigError, match="step_per_cadence"):
         PDR(n_devices=1, window=100, step_per_cadence=0.0)
+    for name in ("pdr-cadence", "pdr-pointing-cadence"):  # the baselines by name: not learned, these steps
+        assert build(name, n_devices=1, window=100).step_per_cadence == STEP_PER_CADENCE_M_S
+        assert not get(name).learned and get(name).heading_frame == name.startswith("pdr-pointing")
 
 
 def test_pdr_pointing_walks_ahead_of_the_phone_at_pdrs_speed():

@@ -85,7 +85,7 @@ def test_a_typo_lists_the_shipped_names_and_suggests_the_nearest(command, monkey
     want = "activity" if command == "classify" else "phone"
     assert err.rstrip().endswith(f"did you mean {want!r}?"), err
     if command == "track":
-        assert "untrained baselines usable by name: pdr, pdr-pointing" in err
+        assert "untrained baselines usable by name: pdr, pdr-cadence, pdr-pointing, pdr-pointing-cadence" in err
 
 
 # ---- warnings that mean something for the model ---------------------------------------------

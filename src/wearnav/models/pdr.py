@@ -178,6 +178,31 @@ def pdr_pointing(n_devices: int = 3, window: int = 100, **kw) -> PDRPointing:
     return PDRPointing(n_devices, window, **kw)
 
 
+@register(
+    "pdr-cadence",
+    task="odometry",
+    layout="single",
+    learned=False,
+    description="step detection × a step as long as the cadence makes it (0.367 m per step/s) along the "
+    "gait-derived walking direction (not learned)",
+)
+def pdr_cadence(n_devices: int = 3, window: int = 100, **kw) -> PDR:
+    return PDR(n_devices, window, **{"step_per_cadence": STEP_PER_CADENCE_M_S, **kw})
+
+
+@register(
+    "pdr-pointing-cadence",
+    task="odometry",
+    layout="single",
+    learned=False,
+    heading_frame=True,
+    description="step detection × a step as long as the cadence makes it, along where the phone points "
+    "(its heading frame; not learned)",
+)
+def pdr_pointing_cadence(n_devices: int = 3, window: int = 100, **kw) -> PDRPointing:
+    return PDRPointing(n_devices, window, **{"step_per_cadence": STEP_PER_CADENCE_M_S, **kw})
+
+
 class PDRSpeed(OdometryModel):
     """A hybrid (issue 34 §2, "Hybrids"): ``inner``'s walking direction at PDR's speed (detected
     steps × step length, :class:`PDR`) in the same window. The learned model keeps what it is good
