@@ -257,6 +257,8 @@ def test_models_tables_have_column_headers():
     header, first = registered.splitlines()[:2]
     assert header.split()[:5] == ["model", "task", "layout", "parameters", "description"]
     assert header.index("description") == first.index(first.split("  ")[-1].strip())  # same column
+    task_at = header.index("task")  # every row's task in the header's column, the longest name's too
+    assert all(row[task_at:].split()[0] in ("odometry", "classify") for row in registered.splitlines()[1:])
     header = shipped.splitlines()[1]
     assert header.split()[:3] == ["name", "task", "devices"], shipped
 

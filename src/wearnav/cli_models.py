@@ -36,13 +36,15 @@ def models_():
     """
     from wearnav.models.registry import available, n_parameters
 
-    typer.echo(f"{'model':15s} {'task':9s} {'layout':7s} {'parameters':>12s}  description")
-    for spec in available():
+    specs = available()
+    w = max(15, *(len(spec.name) for spec in specs))  # the name column as wide as the longest name
+    typer.echo(f"{'model':{w}s} {'task':9s} {'layout':7s} {'parameters':>12s}  description")
+    for spec in specs:
         try:
             n = f"{n_parameters(spec.build(n_devices=3, window=100)):,}"
         except Exception as exc:  # a model that cannot be built with defaults still gets listed
             n = f"? ({type(exc).__name__})"
-        typer.echo(f"{spec.name:15s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
+        typer.echo(f"{spec.name:{w}s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
     typer.echo("\nshipped (pretrained; `wearnav track`/`classify` use them without --model, card: MODEL_CARD.md):")
     typer.echo(f"{'name':20s} {'task':9s} {'devices':22s} size and card")
     for s in pretrained.SHIPPED.values():
@@ -53,6 +55,9 @@ def models_():
         )
         typer.echo(f"{s.name:20s} {s.task:9s} {','.join(s.devices):22s} {where}")
         typer.echo(f"{'':20s} {s.summary}")
+        speed = pretrained.recorded_speed(s.path) if s.task == "odometry" else "model"
+        if speed != "model":  # what `track` and `live` take from it by default (`--speed` to change)
+            typer.echo(f"{'':20s} speed: {pretrained.SPEED_WORDS[speed]} (`--speed {speed}`)")
 
 
 def pretrain(
