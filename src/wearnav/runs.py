@@ -182,6 +182,13 @@ class _FromDict(Protocol):
 _ConfigT = TypeVar("_ConfigT", bound=_FromDict)
 
 
+def run_folder(model: str | Path) -> Path:
+    """The run folder of a model given as its run folder or one of its checkpoints
+    (``RUN/checkpoints/NAME``): the commands take either."""
+    p = Path(model)
+    return p.parent.parent if p.is_file() else p
+
+
 def read_run_config(run: str | Path, cls: type[_ConfigT]) -> _ConfigT:
     """The run's training config (``config.train`` of config.yaml) as ``cls`` (a config dataclass
     with ``from_dict``); a missing, mistyped or invalid entry is a FormatError naming the file."""

@@ -92,7 +92,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav import fuse, geo, pretrained, trust
+from wearnav import fuse, geo, pretrained, runs, trust
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.evaluate import predict_sequence
 from wearnav.export.header import is_exported, read_header
@@ -265,7 +265,7 @@ def run_training_record(model_path: str | Path) -> dict:
     if is_exported(p):
         record = read_header(p).get("training")
         return record if isinstance(record, dict) else {}
-    run = p.parent.parent if p.is_file() else p
+    run = runs.run_folder(p)
     try:
         record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
     except FormatError:

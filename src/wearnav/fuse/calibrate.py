@@ -14,6 +14,7 @@ from wearnav.errors import FormatError
 from wearnav.export.header import is_exported, read_header
 from wearnav.fuse.config import CALIBRATION_JSON, RAYLEIGH_MEDIAN, FuseConfig
 from wearnav.recording import ANDROID_ENU_FRAME
+from wearnav.runs import run_folder
 from wearnav.textio import read_json
 
 log = logging.getLogger(__name__)
@@ -99,7 +100,7 @@ def config_for(run, meta: dict | None = None, reference: str | None = "phone") -
         if isinstance(c, dict) and calibrated(cfg, c) != cfg:
             cfg, cal = calibrated(cfg, c), c
         p = None
-    folder = (p.parent.parent if p.is_file() else p) if p is not None else None
+    folder = run_folder(p) if p is not None else None
     f = folder / CALIBRATION_JSON if folder is not None else None
     if f is not None and f.is_file():
         try:

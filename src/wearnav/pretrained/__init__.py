@@ -18,6 +18,8 @@ import dataclasses
 from pathlib import Path
 
 from wearnav.errors import ConfigError
+from wearnav.export.header import is_exported
+from wearnav.runs import run_folder
 from wearnav.textio import read_json
 
 MODELS_DIR = Path(__file__).parent / "models"
@@ -128,9 +130,9 @@ def recorded_speed(model: str | Path) -> str:
     """Where the speed of the model at ``model`` (a run folder or one of its checkpoints) comes from
     by default: what its :data:`HELD_OUT_JSON` records (``wearnav pretrain`` writes the recipe's
     ``phone_speed`` there), else the model's own ("model"); a name or an exported file: "model"."""
-    p = Path(model)
-    run = p.parent.parent if p.is_file() and p.parent.name == "checkpoints" else p
-    record = run / HELD_OUT_JSON
+    if is_exported(model):
+        return "model"
+    record = run_folder(model) / HELD_OUT_JSON
     if not record.is_file():
         return "model"
     speed = read_json(record).get("speed", "model")

@@ -406,14 +406,10 @@ def load_model(run: str | Path, which: str = BEST, speed: str = "model") -> tupl
     "pdr": its direction at PDR's speed in the same window (:class:`wearnav.models.pdr.PDRSpeed`);
     "cadence": the same with steps as long as the window's cadence makes them;
     "pointing": its speed along where the phone points (:class:`wearnav.models.base.AlongPointing`),
-    for a run trained in the heading frame."""
-    if speed not in SPEED_SOURCES:
-        raise ConfigError(f"speed must come from one of {', '.join(SPEED_SOURCES)}, got {speed!r}")
+    for a run trained in the heading frame (:func:`with_speed`)."""
     run = Path(run)
     check_run_kind(run, "odometry")  # a classifier's run: say so, not "unknown config keys"
     cfg = runs.read_run_config(run, TrainConfig)
-    if speed == "pointing" and not cfg.heading_frame:
-        raise ConfigError(f"{run}: only a model trained in the heading frame has the phone's pointing as +x")
     model = build_model(cfg)
     if registry.get(cfg.model).learned:
         load_weights(model, run / CHECKPOINTS / which)
