@@ -49,7 +49,7 @@ and write into the output folder:
     for a file of `wearnav export`), devices used and present, frame reference, anchoring fit, and
     ``warnings`` (one line each; also shown on the console), e.g. a recording imported with an
     older lat/lon projection (:func:`wearnav.geo.needs_reimport`), or a reason not to trust the
-    path (:func:`trust_warnings`, :mod:`wearnav.trust`): devices the recording lacks, a rate,
+    path (:func:`wearnav.track_trust.trust_warnings`, :mod:`wearnav.trust`): devices the recording lacks, a rate,
     placement or gravity direction unlike the model's training data, a model that did not beat
     standing still, a path implausible for walking.
 
@@ -92,20 +92,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav import fuse, geo, pretrained, runs, trust
+from wearnav import fuse, geo, pretrained
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.evaluate import predict_sequence
-from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.fixcheck import FixCheck
-from wearnav.models.pdr import PDR
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import FloorPlan, Recording
 from wearnav.report.trajectory_page import activity_intervals, page_points, trajectory_html
-from wearnav.textio import read_json
 from wearnav.track_files import TRACK_FILES, TRACK_JSON
 from wearnav.track_map import MAP_CHOICES, map_path
+from wearnav.track_trust import trust_warnings
 from wearnav.train.odometry import SPEED_SOURCES
 from wearnav.train.resolve import locate_model, resolve_model
 from wearnav.trajectory import integrate_velocity
@@ -250,74 +248,6 @@ def fix_table(fx, fixes: FixCheck, t0_unix_s: float | None, latlon: tuple | None
     table["accuracy_m"] = np.round(fx.accuracy, 2)
     table["status"], table["reason"], table["weight"] = fixes.status, fixes.reason, np.round(fixes.weight, 3)
     return table
-
-
-# ---- can the path be trusted? (wearnav.trust) --------------------------------------------------
-
-
-def run_training_record(model_path: str | Path) -> dict:
-    """The run's ``training.json`` for a run folder or its checkpoint, or the copy an exported model
-    file carries in its header; ``{}`` where it has none or cannot be read (the warnings then say
-    that the training data is unknown: tracking goes on)."""
-    from wearnav.train.odometry import TRAINING
-
-    p = Path(model_path)
-    if is_exported(p):
-        record = read_header(p).get("training")
-        return record if isinstance(record, dict) else {}
-    run = runs.run_folder(p)
-    try:
-        record = read_json(run / TRAINING) if (run / TRAINING).is_file() else {}
-    except FormatError:
-        return {}
-    return record if isinstance(record, dict) else {}
-
-
-def input_warnings(model_path, cfg, rec: Recording) -> list[str]:
-    """The reasons not to trust a path that the input alone gives (one line each, with what to do),
-    for learned models only (an untrained baseline such as PDR has no training data, and uses the
-    first device the recording has): devices the recording lacks, a rate / placement / gravity
-    direction unlike the training data's (a rate only where the recording is slower than the
-    model's, :func:`wearnav.trust.rate_outside`), or a model that did not beat standing still. The live receiver
-    gives these as the session's first half minute arrives (:mod:`wearnav.live.tracker`)."""
-    from wearnav.models import registry
-
-    out: list[str] = []
-    if not registry.get(cfg.model).learned:  # PDR: no training data, any one device will do
-        return out
-    if (m := trust.missing_devices(cfg.devices, rec.devices)) is not None:
-        out.append(f"{m}: {trust.TRACK_DEVICES_ADVICE}")
-    record = run_training_record(model_path)
-    facts = trust.recording_facts(rec, cfg.devices, cfg.window / cfg.rate)
-    known = record.get("training_data")
-    known = known if isinstance(known, dict) else None
-    out += [f"{f}: {trust.TRACK_DOMAIN_ADVICE}" for f in trust.domain_findings(facts, known, cfg.rate)]
-    if (m := trust.did_not_learn(record)) is not None:
-        out.append(f"{m}: {trust.LEARN_ADVICE}")
-    return out
-
-
-def walk_warnings(cfg, seq, vel: np.ndarray, length_m: float) -> list[str]:
-    """A result implausible for walking: PDR's step detector on the same windows as the model's
-    velocities ``vel`` over the whole walk of ``length_m`` (none where the window is too short for
-    PDR)."""
-    try:
-        pdr = PDR(n_devices=len(cfg.devices), window=cfg.window, rate=cfg.rate)
-    except ConfigError:  # a window too short for PDR's step detector: no walking check
-        return []
-    _, pdr_vel, _ = predict_sequence(pdr, seq, cfg.window, cfg.stride)
-    step_rate_hz = np.linalg.norm(pdr_vel, axis=1) / pdr.step_length
-    steps = float(np.sum(step_rate_hz) * cfg.stride / cfg.rate)  # windows tile time at the stride
-    findings = trust.implausible_walk(np.linalg.norm(vel, axis=1), step_rate_hz, length_m, steps)
-    return [f"{f}: {trust.TRACK_RESULT_ADVICE}" for f in findings]
-
-
-def trust_warnings(
-    model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: np.ndarray, length_m: float
-) -> list[str]:
-    """One line per reason not to trust the path, each with what to do: :func:`input_warnings`
-    (devices, domain, did the model learn) and :func:`walk_warnings` (implausible for walking)."""
-    return input_warnings(model_path, cfg, rec) + walk_warnings(cfg, seq, vel, length_m)
 
 
 # ---- one way to window and run the odometry model (track and the live receiver) ----------------
@@ -684,7 +614,5 @@ __all__ = [
     "odometry",
     "odometry_preprocess",
     "path_times",
-    "input_warnings",
-    "walk_warnings",
     "ANCHOR_S",
 ]

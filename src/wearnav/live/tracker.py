@@ -28,7 +28,7 @@ placed by a rigid fit (:func:`wearnav.fuse.rigid_fit`) on the last ``PLACE_S`` o
 Everything is in the east/north frame of the first good fix (:mod:`wearnav.fixcheck`; fixes converted
 by :mod:`wearnav.geo`). Activity: the phone's latest window classified by the shipped activity model
 as ``classify`` runs it (:func:`wearnav.train.labelling.window_classes`). Warnings: those the input
-gives (:func:`wearnav.track.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
+gives (:func:`wearnav.track_trust.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
 the smoother's; the walk-plausibility check of ``track`` needs the whole walk and is left to it.
 """
 
@@ -51,7 +51,8 @@ from wearnav.live.models import SharedModels, classify_windows, predict_windows
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.recording import Recording
 from wearnav.report.trajectory_page import page_points
-from wearnav.track import input_warnings, odometry_preprocess, path_times
+from wearnav.track import odometry_preprocess, path_times
+from wearnav.track_trust import input_warnings
 from wearnav.train.labelling import UNKNOWN_INDEX, Windows, class_name, class_windows, decide_classes, unknown_note
 from wearnav.train.odometry import TrainConfig
 from wearnav.trajectory import integrate_velocity
