@@ -45,12 +45,11 @@ MODEL_DEVICE_HELP = (
 def _tracker_factory(model: Path | None, plan: Path | None = None, model_device: str = "auto"):
     """Trackers sharing one set of models (loaded once, on CUDA where there is one, while the server
     starts: ``SharedModels.preload``); ``plan``: a GeoJSON floor plan every session's page draws under its path."""
-    from wearnav.live.models import SharedModels
-    from wearnav.live.tracker import LiveTracker
+    from wearnav.live import models, tracker  # torch: only where the server tracks
 
-    models = SharedModels(model_device)
-    threading.Thread(target=models.preload, args=(model,), name="live-preload", daemon=True).start()
-    return lambda: LiveTracker(model=model, models=models, plan=plan)
+    shared = models.SharedModels(model_device)
+    threading.Thread(target=shared.preload, args=(model,), name="live-preload", daemon=True).start()
+    return lambda: tracker.LiveTracker(model=model, models=shared, plan=plan)
 
 
 def _check_plan(plan: Path | None) -> None:
