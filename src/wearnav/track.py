@@ -308,14 +308,12 @@ def track(
     check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")  # before any work
     if model_path is not None:  # a bad --model is said before the input is read
         model_path = locate_model(model_path, "odometry")  # a run folder, checkpoint, file, shipped model, `pdr`
-        speed = speed if speed is not None else pretrained.recorded_speed(model_path)
         model, cfg = resolve_model(model_path, "odometry", speed=speed)
     rec = load_input(src, name, platform)
     choice = "given with --model"
     if model_path is None:  # the default for the devices the recording has, and why (pretrained.default_model)
         model_path, choice = pretrained.default_model("odometry", rec.devices)
         model_path = locate_model(model_path, "odometry")
-        speed = speed if speed is not None else pretrained.recorded_speed(model_path)
         model, cfg = resolve_model(model_path, "odometry", speed=speed)
     usable = [d for d in cfg.devices if d in rec.devices]
     if not usable:
@@ -348,7 +346,7 @@ def track(
         "run": str(model_path),
         "shipped_model": pretrained.shipped_name(model_path),
         "model_choice": choice,
-        "speed": speed,
+        "speed": speed or pretrained.recorded_speed(model_path),  # resolve_model's default
         "runtime": getattr(model, "runtime", "pytorch"),  # onnxruntime / torchscript: a `wearnav export` file
         "model_devices": list(cfg.devices),
         "devices_in_recording": list(rec.devices),

@@ -62,8 +62,8 @@ def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
 
 # Where a scored path's speed comes from (wearnav.train.odometry.SPEED_SOURCES) → (suffix of its
 # evaluation folder ``eval_<site>``, suffix of its row label): the model as trained; its direction at
-# PDR's speed (wearnav.models.pdr.PDRSpeed), with 0.67-m steps or cadence-long ones; a heading-frame model's speed along where the phone
-# points (wearnav.models.base.AlongPointing).
+# PDR's speed (wearnav.models.pdr.PDRSpeed), with 0.67-m steps or cadence-long ones; a heading-frame
+# model's speed along where the phone points (wearnav.models.base.AlongPointing).
 VARIANTS = {
     "model": ("", ""),
     "pdr": ("_pdrspeed", " · PDR speed"),
