@@ -3,10 +3,12 @@ its page is one that ``wearnav results`` stitches."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 
 import pytest
 
+from conftest import run_cli
 from wearnav.bench.results import collect
 from wearnav.live import bench
 from wearnav.live.badinputs import catalogue
@@ -71,3 +73,14 @@ def test_walker_rows_name_the_odometry_each_kind_was_tracked_by():
     phone_only = pretrained.phone_only_choice()[0]
     assert bench.odometry_name(("phone",)) == (pretrained.shipped_name(phone_only) or "pdr")
     assert bench.odometry_name(("phone", "watch", "earbuds")) == pretrained.MULTI
+
+
+def test_live_bench_without_the_live_extra_is_one_line_before_any_work(tmp_path, monkeypatch, capsys):
+    """The bench starts `wearnav live` processes: without starlette/uvicorn it says so in one line and
+    creates nothing (a lent GPU machine once answered with the child's exit 2 as an internal error)."""
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "uvicorn" else real(name, *a))
+    out = tmp_path / "bench"
+    code, _, err = run_cli(monkeypatch, capsys, "live", "bench", "--out", out, "--walkers", "1")
+    assert code == 2 and "needs uvicorn: pip install 'wearnav[live]'" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()

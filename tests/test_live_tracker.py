@@ -261,8 +261,8 @@ def test_preload_loads_what_the_first_sessions_ask_for(short_export, tmp_path, c
 
 
 def test_model_device_is_checked_and_cpu_is_kept():
-    """`--model-device`: cpu stays on the CPU, auto picks CUDA only where there is one, anything else
-    (or cuda without a GPU) is one clear error before a model loads."""
+    """`--model-device`: cpu (and no choice: the default) stays on the CPU, auto picks CUDA only where
+    there is one, anything else (or cuda without a GPU) is one clear error before a model loads."""
     import torch
 
     from wearnav.errors import ConfigError
@@ -270,6 +270,7 @@ def test_model_device_is_checked_and_cpu_is_kept():
     from wearnav.live.models import SharedModels
 
     assert SharedModels("cpu").device.type == "cpu" and models_on("cpu") == "cpu"
+    assert SharedModels().device.type == "cpu" and models_on() == "cpu"
     assert SharedModels("auto").device.type == ("cuda" if torch.cuda.is_available() else "cpu")
     with pytest.raises(ConfigError, match="auto, cpu or cuda"):
         SharedModels("tpu")

@@ -211,7 +211,7 @@ def walkers_phase(
     track: bool,
     devices: str = "all",
     trackers: int = 0,
-    model_device: str = "auto",
+    model_device: str = "cpu",
 ) -> dict:
     """``walkers`` sessions of ``devices`` (:data:`WALKER_DEVICES`) replayed at once at real time into
     one server (with the live tracker where there is one; ``trackers`` > 0: the server stores only and
@@ -420,7 +420,7 @@ def kill_phase(work: Path, export: Path, kills: int = 2, speed: float = 10.0, da
     }
 
 
-def models_on(model_device: str = "auto") -> str:
+def models_on(model_device: str = "cpu") -> str:
     """Where the trackers' odometry models run: ``model_device``, or for ``auto`` the choice
     :class:`wearnav.live.models.SharedModels` makes in every process of this machine (CUDA where
     there is one, else the CPU)."""
@@ -445,7 +445,7 @@ def run_bench(
     seed: int = 0,
     devices: tuple[str, ...] = ("all",),
     trackers: int = 0,
-    model_device: str = "auto",
+    model_device: str = "cpu",
 ) -> Path:
     """Every phase (module docstring) into ``out``; the walkers phase once per kind of walker in
     ``devices`` (keys of :data:`WALKER_DEVICES`), each up to the first count that does not keep up;

@@ -38,14 +38,19 @@ def classify_windows(model, windows: list[Windows]) -> list[np.ndarray]:
 
 class SharedModels:
     """The models of every session of one process, each loaded once (sessions only read them), the
-    odometry models on one ``device`` chosen once: ``cpu``, ``cuda`` (``cuda:N``), or ``auto`` / None:
-    CUDA where there is one, else the CPU. The activity classifiers stay on the CPU
+    odometry models on one ``device`` chosen once: ``cpu`` (None: the default), ``cuda`` (``cuda:N``),
+    or ``auto``: CUDA where there is one, else the CPU. The CPU is the default because on the one GPU
+    machine where both were measured (an H100 with 16 cores), the receiver kept up 8 three-device
+    walkers with the models on its CPU and only 1 with them on the GPU (docs/live-scaling.md): a
+    tick's batch is a few windows. The activity classifiers stay on the CPU
     (:func:`wearnav.train.labelling.window_classes` feeds them there)."""
 
     def __init__(self, device: str | None = None):
         if device not in (None, "auto", "cpu", "cuda") and not str(device).startswith("cuda:"):
             raise ConfigError(f"model device: auto, cpu or cuda, got {device!r}")
-        if device in (None, "auto"):
+        if device is None:
+            device = "cpu"
+        elif device == "auto":
             device = "cuda" if torch.cuda.is_available() else "cpu"
         elif device != "cpu" and not torch.cuda.is_available():
             raise ConfigError(f"model device {device}: this machine's torch sees no CUDA device")

@@ -163,8 +163,8 @@ def run_tracker(
     model_device: str | None = None,
 ) -> dict:
     """One tracker process's work (the CLI's and a Ray task's): LiveTrackers sharing one set of
-    models (:class:`wearnav.live.models.SharedModels`, on ``model_device``: None, CUDA where there
-    is one); ``plan``: a GeoJSON floor plan each session's page draws."""
+    models (:class:`wearnav.live.models.SharedModels`, on ``model_device``: None, the
+    CPU); ``plan``: a GeoJSON floor plan each session's page draws."""
     models = SharedModels(model_device)
     models.preload(model)  # before the first session, which would otherwise wait for it
     proc = TrackerProcess(store, lambda: LiveTracker(model=model, models=models, plan=plan), shard, stats)
