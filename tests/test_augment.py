@@ -81,3 +81,23 @@ def test_scale_motion_scales_each_windows_motion_about_its_mean_and_keeps_the_ta
     torch.testing.assert_close(out["x"] - mean, factor.view(-1, 1, 1, 1) * (x - mean))
     lo, hi = augment.MOTION_SCALE
     assert lo <= float(factor.min()) < 0.8 and 1.3 < float(factor.max()) <= hi
+
+
+def test_drop_devices_leaves_devices_out_but_never_all_and_keeps_the_targets():
+    b = batch(b=4000, d=3)
+    b["mask"][:1000, 2] = 0  # some samples already lack a device
+    b["x"][:1000, 2] = 0
+    before = {k: v.clone() for k, v in b.items()}
+    out = augment.get("drop_devices")(b, torch.Generator().manual_seed(0))
+    assert all(torch.equal(b[k], before[k]) for k in b)  # the input is not modified
+    assert torch.equal(out["vel"], b["vel"]) and torch.equal(out["disp"], b["disp"])
+    m = out["mask"]
+    assert bool((m <= b["mask"]).all()) and bool((m.sum(dim=1) >= 1).all())  # never added, never all gone
+    assert torch.equal(out["x"], b["x"] * m[:, :, None, None])  # a dropped device's inputs are zeros
+    kept = m[1000:].sum(dim=1)  # three present: each kept with 1 − p; none kept → all kept
+    p = augment.DROP_DEVICE_P
+    phone_only = ((m[1000:, 0] == 1) & (kept == 1)).float().mean()
+    assert abs(float(phone_only) - p * p * (1 - p)) < 0.03
+    assert abs(float((kept == 3).float().mean()) - ((1 - p) ** 3 + p**3)) < 0.03
+    again = augment.get("drop_devices")(b, torch.Generator().manual_seed(0))
+    assert torch.equal(again["mask"], m)  # seeded: reproducible

@@ -37,6 +37,8 @@ def test_simulate_info_plot(tmp_path, monkeypatch, capsys):
         (["info", "missing.h5"], "missing.h5: no such file"),
         (["simulate", "--preset", "huge", "--out", "x"], "'huge' is not one of 'tiny', 'small', 'default'"),
         (["import", "nonsense", ".", "--out", "x"], "'nonsense' is not one of 'ilc2', 'ipin2023'"),
+        (["bench", "real-odometry", "--data", ".", "--devices", "phone,watch"], "the real walks carry the phone alone"),
+        (["bench", "real-odometry", "--data", ".", "--devices", "phone,ring"], "each of phone, watch, earbuds"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(tmp_path, monkeypatch, capsys, args, needle):

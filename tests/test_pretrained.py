@@ -274,7 +274,8 @@ def test_track_without_model_lies_on_the_walks_own_fixes(stranger, monkeypatch, 
     t3 = json.loads((tmp_path / "t3" / "track.json").read_text())
     assert t3["shipped_model"] == pretrained.PHONE and t3["model_choice"] == "given with --model"
     # its speed: what its recipe recorded (cadence-long steps), unless --speed says otherwise
-    assert summary["speed"] == "model" and t3["speed"] == pretrained.recorded_speed(pretrained.SHIPPED["phone"].path)
+    assert summary["speed"] == pretrained.recorded_speed(pretrained.SHIPPED[pretrained.MULTI].path) == "cadence"
+    assert t3["speed"] == pretrained.recorded_speed(pretrained.SHIPPED["phone"].path)
     assert t3["speed"] == "cadence" and "cadence" in pretrained.phone_only_choice()[1]
     code, out, err = run_cli(
         monkeypatch,
@@ -334,3 +335,27 @@ def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch
     assert read_json(shipped / fuse.CALIBRATION_JSON)["per_building"] == named
     assert fuse.config_for(shipped)[0].odometry_walk_m_per_sqrt_s == 0.83
     assert cal["sigma_scale"] == 1.6 and fuse.config_for(shipped)[0].sigma_scale == 1.6
+
+
+def test_both_odometry_models_train_on_the_simulator_in_their_own_suite(sources):
+    """Issue 34: the multi-device model is made as the phone model is (one recipe: a suite trained
+    on the simulator and scored in both real buildings, its run the shipped model), on its three
+    devices; PDR stays on the phone; more devices than the phone only where the training data is
+    simulated (the real walks carry the phone alone)."""
+    from wearnav.bench.real import RealBench, _train_config
+    from wearnav.errors import ConfigError
+    from wearnav.pretrained.recipe import SUITES, Recipe, recipe_bench
+
+    r, sim = Recipe(), sources / "sim"
+    assert set(SUITES) == {pretrained.PHONE, pretrained.MULTI} and len(set(SUITES.values())) == 2
+    three = pretrained.SHIPPED[pretrained.MULTI].devices
+    multi, phone = recipe_bench(sim, r, three), recipe_bench(sim, r, pretrained.SHIPPED[pretrained.PHONE].devices)
+    assert multi.devices == three and phone.devices == ("phone",)
+    assert multi.vel_loss == phone.vel_loss == "polar" and multi.heading_frame and phone.heading_frame
+    learned = _train_config("suitein++", str(sim), 0.0, multi, elsewhere=True)
+    assert learned.devices == three and learned.heading_frame and "rotate_yaw" not in learned.augment
+    assert _train_config("pdr", str(sim), 0.0, multi, elsewhere=True).devices == ("phone",)
+    with pytest.raises(ConfigError, match="phone alone"):
+        RealBench(devices=("phone", "watch"))  # trained on the real walks
+    with pytest.raises(ConfigError, match="phone alone"):
+        RealBench(devices=("watch",), train_data=str(sim))

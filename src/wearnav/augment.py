@@ -99,6 +99,26 @@ def scale_motion(batch: Batch, generator: torch.Generator) -> Batch:
     return {**batch, "x": mean + s * (x - mean)}
 
 
+# A model of several devices trained on the simulator, where every walk carries them all, meets
+# the phone alone on real walks (issue 34): Suite-IN++ masks an absent device (its fusion weighs
+# the present ones), but it only learns to do without one where training shows it.
+DROP_DEVICE_P = 0.5  # ``drop_devices``: the chance that each present device is left out of a sample
+
+
+@register("drop_devices")
+def drop_devices(batch: Batch, generator: torch.Generator) -> Batch:
+    """Each present device of each sample absent with probability :data:`DROP_DEVICE_P`,
+    independently; a sample that would lose every device keeps them all. A dropped device's
+    inputs become zeros and its mask 0, as an absent device's are; the targets are kept (the walk
+    is the same)."""
+    mask = batch["mask"]
+    u = torch.rand(mask.shape, generator=generator, dtype=torch.float64, device=generator.device)
+    keep = (u.to(mask.device) >= DROP_DEVICE_P).to(mask.dtype) * mask
+    none_left = keep.sum(dim=1) == 0
+    keep[none_left] = mask[none_left]
+    return {**batch, "mask": keep, "x": batch["x"] * keep[:, :, None, None].to(batch["x"].dtype)}
+
+
 # ---- the HAR benchmark's techniques (paper 002, Sec. II-B) --------------------------------------
 #
 # Two kinds: *expansions* add fixed transformed copies of the training windows to the training

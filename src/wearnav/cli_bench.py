@@ -181,7 +181,13 @@ def bench_real_odometry(
         "--train-data",
         help="Train the learned models on this dataset instead: the simulator (sim-to-real) or a mix of sources (wearnav.pretrained.mix).",
     ),
-    models: str = typer.Option("ronin,suitein++,pdr", help="Models, comma-separated (phone only)."),
+    models: str = typer.Option("ronin,suitein++,pdr", help="Models, comma-separated."),
+    devices: str = typer.Option(
+        "phone",
+        "--devices",
+        help="The learned models' devices, comma-separated, the phone first (e.g. phone,watch,earbuds: only with "
+        "a simulated --train-data; the real walks carry the phone alone, the others are absent there).",
+    ),
     epochs: int = typer.Option(100, min=1, help="Maximum epochs per model."),
     max_time: float | None = typer.Option(
         None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."
@@ -227,6 +233,7 @@ def bench_real_odometry(
         vel_loss=vel_loss.value,
         heading_frame=heading_frame,
         speed_warp=split_floats(speed_warp, "--speed-warp") if speed_warp else (),
+        devices=split_list(devices),
     )
     where = PlanPlace(
         test_data=test_data,

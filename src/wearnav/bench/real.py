@@ -60,10 +60,12 @@ from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.bench.map_eval import has_plans, map_aware_eval, map_dir
 from wearnav.bench.real_page import VARIANTS, suite_runs, write_report
 from wearnav.bench.real_sites import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
+from wearnav.errors import ConfigError
 from wearnav.evaluate import evaluate_run
 from wearnav.models.registry import check_models, get
 from wearnav.preprocess import check_speed_warp
 from wearnav.pretrained.mix import MIX_FRAME, is_mix
+from wearnav.recording import CANONICAL_DEVICES
 from wearnav.textio import read_json
 from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 
@@ -92,17 +94,27 @@ class RealBench:
     # 34), without the random yaw of ``augment``
     heading_frame: bool = False
     speed_warp: tuple[float, ...] = ()  # the learned models' training also played this much faster (TrainConfig)
+    # the learned models' devices: the real walks carry the phone alone, so any other device is
+    # absent (masked) where they are scored; more than the phone only with simulated ``train_data``
+    devices: tuple[str, ...] = ("phone",)
 
     def __post_init__(self) -> None:
         check_models(self.models, "odometry")
         check_speed_warp(self.speed_warp)  # before any data is prepared
+        if set(self.devices) - set(CANONICAL_DEVICES) or len(set(self.devices)) < len(self.devices):
+            raise ConfigError(f"devices {'+'.join(self.devices)}: each of {', '.join(CANONICAL_DEVICES)} at most once")
+        if "phone" not in self.devices or (self.devices != ("phone",) and self.train_data is None):
+            raise ConfigError(
+                f"devices {'+'.join(self.devices)}: the real walks carry the phone alone; "
+                "more devices than the phone only with a simulated train_data"
+            )
 
 
 def _train_config(model: str, data: str, yaw: float, bench: RealBench, elsewhere: bool):
     kw: dict[str, Any] = dict(
         model=model,
         data=data,
-        devices=("phone",),
+        devices=bench.devices if get(model).learned else ("phone",),
         epochs=bench.epochs,
         patience=bench.patience,
         max_minutes=bench.max_minutes,

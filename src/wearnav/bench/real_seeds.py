@@ -234,6 +234,11 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
     p = provenance()
     lines = [
         f"# Odometry in real buildings over {len(docs)} seeds: trained on `{trained}`, tested on {tested}"
+        + (
+            f", the learned models on {' + '.join(bench.devices)} (the phone alone in the buildings)"
+            if bench.devices != ("phone",)
+            else ""
+        )
         + (", the learned models in the phone's heading frame" if bench.heading_frame else "")
         + (f", augmented with {', '.join(f'`{a}`' for a in extra)}" if extra else "")
         + warp_text(bench.speed_warp)

@@ -71,8 +71,8 @@ SHIPPED = {
             MULTI,
             "odometry",
             ("phone", "watch", "earbuds"),
-            "Suite-IN++ on phone, watch and earbuds (any of them absent): ILC2 site 1, IPIN 2023 Track 3 and "
-            "the simulator",
+            "Suite-IN++ on phone, watch and earbuds (any of them absent), in the phone's heading frame, trained "
+            "on the simulator only (ILC2 and IPIN 2023 are the buildings it is measured in, on the phone alone)",
         ),
         Shipped(
             ACTIVITY,
