@@ -231,15 +231,14 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
     tested = " and ".join(site["split"]["source"] for site in first["sites"].values())
     # augmentations beyond the default yaw (which the heading frame drops), named in the title
     extra = [a for a in bench.augment if a != "rotate_yaw"]
+    learned = (
+        [f"on {' + '.join(bench.devices)} (the phone alone in the buildings)"] if bench.devices != ("phone",) else []
+    )
+    learned += ["in the phone's heading frame"] if bench.heading_frame else []
     p = provenance()
     lines = [
         f"# Odometry in real buildings over {len(docs)} seeds: trained on `{trained}`, tested on {tested}"
-        + (
-            f", the learned models on {' + '.join(bench.devices)} (the phone alone in the buildings)"
-            if bench.devices != ("phone",)
-            else ""
-        )
-        + (", the learned models in the phone's heading frame" if bench.heading_frame else "")
+        + (f", the learned models {' '.join(learned)}" if learned else "")
         + (f", augmented with {', '.join(f'`{a}`' for a in extra)}" if extra else "")
         + warp_text(bench.speed_warp)
         + f" ({bench.epochs} epoch{'' if bench.epochs == 1 else 's'} at most)",
