@@ -163,7 +163,7 @@ def test_phone_only_choice_is_the_shipped_models_own_measurement_against_pdr(tmp
 
 
 def test_the_recipes_speed_is_recorded_and_taken_by_default(tmp_path, monkeypatch):
-    """Recipe.phone_speed: held_out.json records the numbers of the model's path with that speed (its
+    """Recipe.speed: held_out.json records the numbers of the model's path with that speed (its
     hybrid's row, not the model's own) and the speed itself, which resolve_model then takes for the
     shipped model by default (an explicit speed wins); a page without that row is refused."""
     from wearnav.errors import ConfigError

@@ -129,7 +129,7 @@ def default_for(task: str, devices_in_recording=()) -> Shipped:
 def recorded_speed(model: str | Path) -> str:
     """Where the speed of the model at ``model`` (a run folder or one of its checkpoints) comes from
     by default: what its :data:`HELD_OUT_JSON` records (``wearnav pretrain`` writes the recipe's
-    ``phone_speed`` there), else the model's own ("model"); a name or an exported file: "model"."""
+    ``speed`` there), else the model's own ("model"); a name or an exported file: "model"."""
     if is_exported(model):
         return "model"
     record = run_folder(model) / HELD_OUT_JSON
