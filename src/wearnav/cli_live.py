@@ -43,8 +43,8 @@ MODEL_DEVICE_HELP = (
 
 
 def _tracker_factory(model: Path | None, plan: Path | None = None, model_device: str = "cpu"):
-    """Trackers sharing one set of models (loaded once, on CUDA where there is one, while the server
-    starts: ``SharedModels.preload``); ``plan``: a GeoJSON floor plan every session's page draws under its path."""
+    """Trackers sharing one set of models (loaded once, on ``model_device``, while the server starts:
+    ``SharedModels.preload``); ``plan``: a GeoJSON floor plan every session's page draws under its path."""
     from wearnav.live import models, tracker  # torch: only where the server tracks
 
     shared = models.SharedModels(model_device)

@@ -235,12 +235,12 @@ def cross_building_calibration(run: Path, suites: list[Path], speed: str = "mode
     its errors."""
     per = {}
     for suite in suites:
-        for lobo in sorted((suite / "runs").glob(f"{MODEL}-*"))[:1]:
-            trained = runs.read_config(lobo)["config"]["train"]["data"]
+        for learned in sorted((suite / "runs").glob(f"{MODEL}-*"))[:1]:
+            trained = runs.read_config(learned)["config"]["train"]["data"]
             for site in ("main", "other"):
                 if site == "main" or (suite / "data" / site).is_dir():
                     per[cards.site_name(suite.name, site)] = site_calibration(
-                        lobo, site, suite / "data" / site, trained, speed
+                        learned, site, suite / "data" / site, trained, speed
                     )
     per = {k: c for k, c in per.items() if c.get("odometry_walk_m_per_sqrt_s")}
     if not per:
