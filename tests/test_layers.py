@@ -93,6 +93,7 @@ LAYERS: dict[str, int] = {
     "wearnav.track_files": 8,  # the names track writes, read by the CLI before torch is imported
     "wearnav.track_map": 8,  # track's map-aware path (--map, --start): the plans and the particle filter
     "wearnav.track_trust": 8,  # whether to trust a tracked path (track, and the live tracker above it)
+    "wearnav.track_write": 8,  # what track writes: the placed path, its files and page
     # 9 wearnav live: the receiver; its tracker runs track's steps as data arrives
     "wearnav.live": 9,
     "wearnav.live.crowd": 9,  # every session's tracker in batched ticks: imports live.tracker
