@@ -39,6 +39,7 @@ def test_simulate_info_plot(tmp_path, monkeypatch, capsys):
         (["import", "nonsense", ".", "--out", "x"], "'nonsense' is not one of 'ilc2', 'ipin2023'"),
         (["bench", "real-odometry", "--data", ".", "--devices", "phone,watch"], "the real walks carry the phone alone"),
         (["bench", "real-odometry", "--data", ".", "--devices", "phone,ring"], "each of phone, watch, earbuds"),
+        (["bench", "real-odometry", "--data", ".", "--augment", "spin"], "unknown augmentation 'spin'"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(tmp_path, monkeypatch, capsys, args, needle):

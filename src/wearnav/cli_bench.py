@@ -188,6 +188,12 @@ def bench_real_odometry(
         help="The learned models' devices, comma-separated, the phone first (e.g. phone,watch,earbuds: only with "
         "a simulated --train-data; the real walks carry the phone alone, the others are absent there).",
     ),
+    augment: str = typer.Option(
+        "rotate_yaw",
+        "--augment",
+        help="The learned models' batch augmentations, comma-separated (wearnav.augment, e.g. "
+        "rotate_yaw,drop_devices; the heading frame leaves rotate_yaw out); '' for none.",
+    ),
     epochs: int = typer.Option(100, min=1, help="Maximum epochs per model."),
     max_time: float | None = typer.Option(
         None, "--max-time", help="Total training minutes per model (raise it to resume a run for longer)."
@@ -234,6 +240,7 @@ def bench_real_odometry(
         heading_frame=heading_frame,
         speed_warp=split_floats(speed_warp, "--speed-warp") if speed_warp else (),
         devices=split_list(devices),
+        augment=split_list(augment),
     )
     where = PlanPlace(
         test_data=test_data,

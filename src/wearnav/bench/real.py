@@ -55,6 +55,7 @@ import time
 from pathlib import Path
 from typing import Any, TypedDict
 
+from wearnav import augment as augmentations
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.bench.map_eval import has_plans, map_aware_eval, map_dir
@@ -101,6 +102,8 @@ class RealBench:
     def __post_init__(self) -> None:
         check_models(self.models, "odometry")
         check_speed_warp(self.speed_warp)  # before any data is prepared
+        for name in self.augment:
+            augmentations.get(name)  # an unknown one: one line now, not at the first training batch
         if set(self.devices) - set(CANONICAL_DEVICES) or len(set(self.devices)) < len(self.devices):
             raise ConfigError(f"devices {'+'.join(self.devices)}: each of {', '.join(CANONICAL_DEVICES)} at most once")
         if "phone" not in self.devices or (self.devices != ("phone",) and self.train_data is None):
