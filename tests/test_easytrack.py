@@ -11,6 +11,7 @@ from tests.conftest import run_cli
 
 from wearnav import metrics
 from wearnav.errors import ConfigError
+from wearnav.models.base import instance_velocity_loss
 from wearnav.fixlabels import (
     LabelConfig,
     Segments,
@@ -26,7 +27,6 @@ from wearnav.train.noisy import (
     cnal_loss,
     coadapt_losses,
     fit_noisy,
-    instance_mse,
     r_delta_update,
     r_select,
     r_tau,
@@ -133,7 +133,30 @@ def test_cnal_loss_eq_13_by_hand():
     # segment 0: corrected (1.3, 0.4) = pred → 0; |Δc| = 0.5. segment 1: corrected (0, 1), Δc = 0
     want = ((0 + 0) + (0 + 1)) / 4 + 1.0 * (0.5 + 0.0) / 2
     assert float(cnal_loss(label, corr, node0, node1, pred, gamma=1.0)) == pytest.approx(want)
-    assert instance_mse(pred, label).tolist() == pytest.approx([(0.09 + 0.16) / 2, 0.5])
+    assert instance_velocity_loss(pred, label).tolist() == pytest.approx([(0.09 + 0.16) / 2, 0.5])
+
+
+def test_polar_loss_ranks_the_noisy_labels_last_and_is_checked():
+    """With ``loss="polar"`` CoAdapt ranks instances by their log-length and direction error: labels
+    half as long or 60° off come after the clean ones, as they do by the MSE."""
+    pred = torch.tensor([[1.0, 0.0]] * 4)
+    label = torch.tensor([[1.05, 0.02], [0.5, 0.0], [0.98, -0.03], [0.5, 0.866]])
+    for kind in ("mse", "polar"):
+        idx, _ = select_small_loss(instance_velocity_loss(pred, label, kind), 0.5)
+        assert sorted(idx.tolist()) == [0, 2], kind
+    assert NoisyConfig(loss="polar").loss == "polar"
+    with pytest.raises(ConfigError, match="unknown loss"):
+        NoisyConfig(loss="l1")
+
+
+def test_the_bench_gives_every_run_its_loss(tmp_path):
+    from wearnav.bench.easytrack import BenchConfig, _todo
+
+    lc = LabelConfig()
+    mse = _todo(tmp_path, BenchConfig(levels=("L1",), methods=("easytrack", "basemodel")), 1, lc)
+    polar = _todo(tmp_path, BenchConfig(levels=("L1",), methods=("easytrack", "basemodel"), loss="polar"), 1, lc)
+    assert [c.loss for c, *_ in mse] == ["mse", "mse"] and [c.loss for c, *_ in polar] == ["polar", "polar"]
+    assert {f for _, _, f, _ in mse}.isdisjoint({f for _, _, f, _ in polar})  # their own run folders
 
 
 def _chain_with_known_noise(n=2000, seed=0):

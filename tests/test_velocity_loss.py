@@ -9,7 +9,7 @@ import torch
 from torch.nn import functional as F
 
 from wearnav.errors import ConfigError
-from wearnav.models.base import VEL_LOSSES, velocity_loss
+from wearnav.models.base import VEL_LOSSES, instance_velocity_loss, velocity_loss
 
 SPEED_M_S = 1.2
 
@@ -103,10 +103,25 @@ def test_polar_gradients_are_finite_at_zero_prediction():
     assert torch.isfinite(p.grad).all()
 
 
+def test_the_instance_losses_average_to_the_loss():
+    gen = torch.Generator().manual_seed(0)
+    p, t = torch.randn(16, 2, generator=gen), torch.randn(16, 2, generator=gen)
+    for kind in VEL_LOSSES:
+        each = instance_velocity_loss(p, t, kind)
+        assert each.shape == (16,) and (each >= 0).all()
+        assert each.mean().item() == pytest.approx(velocity_loss(p, t, kind).item(), rel=1e-5)
+    # polar, by hand: half the speed → |log((0.5 + f) / (1 + f))|; 90° off at the mean speed → 1
+    f = 0.1
+    each = instance_velocity_loss(torch.tensor([[0.5, 0.0], [0.0, 1.0]]), torch.tensor([[1.0, 0.0], [1.0, 0.0]]), "polar")
+    assert each.tolist() == pytest.approx([math.log((1 + f) / (0.5 + f)), 1.0], abs=1e-4)
+
+
 def test_unknown_loss_is_refused():
     assert "mse" in VEL_LOSSES and "polar" in VEL_LOSSES
     with pytest.raises(ConfigError, match="velocity loss"):
         velocity_loss(torch.zeros(1, 2), torch.zeros(1, 2), "l2")
+    with pytest.raises(ConfigError, match="velocity loss"):
+        instance_velocity_loss(torch.zeros(1, 2), torch.zeros(1, 2), "l2")
 
 
 def test_the_command_lines_choices_are_the_losses():

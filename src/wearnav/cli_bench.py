@@ -505,6 +505,9 @@ def bench_easytrack(
     ),
     levels: str | None = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),
     methods: str | None = typer.Option(None, help="Methods, comma-separated (default: all)."),
+    loss: VelLoss = typer.Option(
+        VelLoss.mse, "--loss", help="The models' loss on the displacements: mse (the paper's) or polar (issue 34)."
+    ),
 ):
     """EasyTrack (paper 004): methods × noise levels on simulated phone labels, and a real GNSS test.
 
@@ -526,6 +529,7 @@ def bench_easytrack(
         ("ae_epochs", ae_epochs),
         ("pre_epochs", pre_epochs),
         ("stride_s", stride),
+        ("loss", loss.value),
     ):
         if value is not None:
             changes[key] = value

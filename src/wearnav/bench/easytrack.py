@@ -66,6 +66,7 @@ class BenchConfig:
     pre_epochs: int = 5
     joint_epochs: int = 30
     stride_s: float | None = None  # overlapping segments (fixlabels.LabelConfig.stride_s); None: back to back
+    loss: str = "mse"  # every method's loss on the displacements (NoisyConfig.loss: "mse" as the paper, or "polar")
     sim_seed: int = 0
     levels: tuple[str, ...] = LEVELS
     methods: tuple[str, ...] = MAIN + ABLATION
@@ -297,7 +298,12 @@ def real_plan(
     for method in IPIN_METHODS:
         for seed in range(seeds):
             cfg = NoisyConfig(
-                method=method, seed=seed, ae_epochs=bc.ae_epochs, pre_epochs=bc.pre_epochs, joint_epochs=bc.joint_epochs
+                method=method,
+                seed=seed,
+                ae_epochs=bc.ae_epochs,
+                pre_epochs=bc.pre_epochs,
+                joint_epochs=bc.joint_epochs,
+                loss=bc.loss,
             )
             record = {
                 "noisy": dataclasses.asdict(cfg),
@@ -429,6 +435,7 @@ def _todo(out: Path, bc: BenchConfig, seeds: int, lc: LabelConfig) -> list[tuple
                     ae_epochs=bc.ae_epochs,
                     pre_epochs=bc.pre_epochs,
                     joint_epochs=bc.joint_epochs,
+                    loss=bc.loss,
                 )
                 record = {
                     "noisy": dataclasses.asdict(cfg),

@@ -34,6 +34,7 @@ class PageConfig:
     stride_s: float | None  # overlapping segments every this many s; None: back to back
     levels: tuple[str, ...]
     methods: tuple[str, ...]
+    loss: str  # the models' loss on the displacements (NoisyConfig.loss)
 
     @classmethod
     def of(cls, config: object) -> PageConfig:
@@ -207,9 +208,17 @@ def write_page(
         f"~{bc.km:g} km of simulated walking per level, {seeds} seed(s). Machine: {platform.machine()}, "
         f"trained on {devices}" + (f"; a segment starts every {bc.stride_s:g} s." if bc.stride_s else ".")
     )
+    loss = (
+        "Every model's loss on the displacements: the mean squared error (the paper's)."
+        if bc.loss == "mse"
+        else f"Every model's loss on the displacements: `{bc.loss}` "
+        "(`wearnav.models.base.instance_velocity_loss`: log length and direction apart, issue 34), "
+        "the paper's MSE replaced; CoAdapt ranks instances by it, CNAL and AUX keep their MSE."
+    )
     title = (
         f"# EasyTrack: odometry from the phone's own location fixes (paper 004): {', '.join(bc.levels)}, "
         f"{bc.ae_epochs + bc.pre_epochs + bc.joint_epochs} epochs, ~{bc.km:g} km per level"
+        + (f", {bc.loss} loss" if bc.loss != "mse" else "")
         + (f" (--quick: {QUICK_NOTE})" if quick else "")
     )
     lines = [
@@ -219,6 +228,8 @@ def write_page(
         f"{p['wearnav']} {p['commit']}).",
         "",
         reduction,
+        "",
+        loss,
         "",
         f"Segments of {lc.segment_s:g} s at {lc.rate:g} Hz (phone IMU in the world frame, turned onto the fixes' "
         "east/north frame from the IMU and fixes only). Test: "

@@ -24,6 +24,24 @@ LOG_SPEED_FLOOR_M_S = 0.1
 _TINY = 1e-9
 
 
+def instance_velocity_loss(pred: Tensor, target: Tensor, kind: str = "mse") -> Tensor:
+    """Each instance's part of :func:`velocity_loss` (B,): its mean over the batch is that loss.
+
+    ``"mse"``: the squared error averaged over the two components. ``"polar"``: the log-speed error
+    plus ``|v|·(1 − cos∠(v̂, v)) / mean(|v|)`` (the batch's mean true speed as the denominator, so
+    the mean is the speed-weighted direction term). Methods that rank instances by their loss
+    (EasyTrack's small-loss selection, :mod:`wearnav.train.noisy`) take this."""
+    if kind == "mse":
+        return ((pred - target) ** 2).mean(dim=-1)
+    if kind != "polar":
+        raise ConfigError(f"unknown velocity loss {kind!r}; one of {', '.join(VEL_LOSSES)}")
+    speed_hat = torch.sqrt((pred**2).sum(-1) + _TINY)  # (B,) m/s, finite gradient at 0
+    speed = target.norm(dim=-1)
+    log_err = torch.log(speed_hat + LOG_SPEED_FLOOR_M_S) - torch.log(speed + LOG_SPEED_FLOOR_M_S)
+    cos = (pred * target).sum(-1) / (speed_hat * speed + _TINY)
+    return log_err.abs() + speed * (1 - cos) / (speed.mean() + _TINY)
+
+
 def velocity_loss(pred: Tensor, target: Tensor, kind: str = "mse") -> Tensor:
     """The loss between predicted and true window velocities, (B, 2) m/s each.
 
@@ -37,17 +55,11 @@ def velocity_loss(pred: Tensor, target: Tensor, kind: str = "mse") -> Tensor:
     median in ratio, which no direction uncertainty moves) plus ``Σ|v|·(1 − cos∠(v̂, v)) / Σ|v|``
     (the direction error weighted by the true speed, so a window standing still has none). Both
     terms are dimensionless; their gradients are radial and tangential to v̂ respectively.
+    Per instance: :func:`instance_velocity_loss`.
     """
     if kind == "mse":
         return F.mse_loss(pred, target)
-    if kind != "polar":
-        raise ConfigError(f"unknown velocity loss {kind!r}; one of {', '.join(VEL_LOSSES)}")
-    speed_hat = torch.sqrt((pred**2).sum(-1) + _TINY)  # (B,) m/s, finite gradient at 0
-    speed = target.norm(dim=-1)
-    log_err = torch.log(speed_hat + LOG_SPEED_FLOOR_M_S) - torch.log(speed + LOG_SPEED_FLOOR_M_S)
-    cos = (pred * target).sum(-1) / (speed_hat * speed + _TINY)
-    direction = (speed * (1 - cos)).sum() / (speed.sum() + _TINY)
-    return log_err.abs().mean() + direction
+    return instance_velocity_loss(pred, target, kind).mean()
 
 
 class OdometryModel(nn.Module):

@@ -23,7 +23,10 @@ follows the project's seeding rule instead (every draw of an epoch comes from a 
 by (seed, epoch)) and saves its whole state after every epoch (``state.pt``, atomic), so a killed
 run resumes at the next epoch with the same result.
 
-Losses are per-instance MSE over the two displacement components (m²). Sums over instances
+The models' losses are per instance (:func:`wearnav.models.base.instance_velocity_loss` on the
+displacements): the MSE over the two components (m², the paper's) or, with ``loss="polar"``, the
+log-length error plus the length-weighted direction error (issue 34: the MSE shortens a
+displacement whose direction is uncertain; the log floor is then 0.1 m on a ~1-s segment). Sums over instances
 (eq. 18) are divided by the batch size (a constant factor, i.e. a learning-rate scale). CNAL's
 loss (eq. 13) is taken against the ensemble prediction with the models detached, so CNAL learns
 the corrections from every instance while the models learn only from their peer's selection.
@@ -67,6 +70,7 @@ from wearnav import runs
 from wearnav.errors import ConfigError
 from wearnav.fileio import atomic_path, save_npy_atomic, write_text_atomic
 from wearnav.fixlabels import Segments
+from wearnav.models.base import VEL_LOSSES, instance_velocity_loss
 from wearnav.models.easytrack import BaseModel
 from wearnav.models.registry import build
 from wearnav.models.ronin import MIN_WINDOW
@@ -104,12 +108,18 @@ class NoisyConfig:
     low_weight: float = 0.1  # ... get this weight
     coteach_forget: float = 0.2  # Co-teaching's ε
     coteach_tk: float = 0.1  # T_k as a share of the joint epochs
+    # the models' loss on the displacements (wearnav.models.base.instance_velocity_loss): "mse" as the
+    # paper, or "polar" (log length and direction apart: issue 34's fix, which a direction the input
+    # leaves uncertain cannot shorten); CoAdapt ranks instances by it, CNAL and AUX keep their MSE
+    loss: str = "mse"
     yaw_augment: bool = True  # turn each segment's input by a random yaw, its prediction back (not in the
     # paper; RoNIN trains so). Its effect on BaseModel-GT: `wearnav bench easytrack-base`, docs/results.md
 
     def __post_init__(self):
         if self.method not in METHODS:
             raise ConfigError(f"unknown method {self.method!r} (expected one of {', '.join(METHODS)})")
+        if self.loss not in VEL_LOSSES:
+            raise ConfigError(f"unknown loss {self.loss!r} (expected one of {', '.join(VEL_LOSSES)})")
         if min(self.ae_epochs, self.pre_epochs, self.joint_epochs) < 0 or self.batch < 2:
             raise ConfigError("epochs must be ≥ 0 and batch ≥ 2")
 
@@ -152,11 +162,6 @@ def select_small_loss(
     if n_low:
         w[k - n_low :] = low_weight
     return idx, w
-
-
-def instance_mse(pred: Tensor, target: Tensor) -> Tensor:
-    """Per-instance MSE over the displacement components (B,)."""
-    return ((pred - target) ** 2).mean(dim=1)
 
 
 def instance_error(pred: Tensor, target: Tensor) -> Tensor:
@@ -413,7 +418,7 @@ def _fit_noisy(
                 else:
                     target = yb
                 tgt_models = target if phase == "joint" else yb
-                losses = [instance_mse(p, tgt_models) for p in preds]
+                losses = [instance_velocity_loss(p, tgt_models, cfg.loss) for p in preds]
                 total_loss = torch.zeros((), device=dev)
                 if dual and phase == "joint" and cfg.method in ("easytrack", "nocnal", "coteaching"):
                     if cfg.method == "coteaching":
