@@ -48,7 +48,7 @@ def test_site_calibration_uses_walks_the_model_never_trained_on(tmp_path, monkey
 
     def fake(run, data, split, speed="model"):
         calls.append((str(data), split))
-        return {"odometry_walk_m_per_sqrt_s": 0.5, "walks": 3, "sigma_scale": 1.2, "sigma_points": 40}
+        return {"odometry_walk_m_per_sqrt_s": 0.5, "walks": 3, "sigma_scale": 1.2, "fix_lag_s": 2.0}
 
     monkeypatch.setattr(user_protocol, "calibrate", fake)
     site, other = tmp_path / "ipin", tmp_path / "mix"
@@ -59,6 +59,10 @@ def test_site_calibration_uses_walks_the_model_never_trained_on(tmp_path, monkey
     assert (run / "fuse_calibration_main.json").is_file()
     user_protocol.site_calibration(run, "main", site, site)
     assert len(calls) == 1  # reused
+    stored = run / "fuse_calibration_main.json"  # one from before the fixes' lag is redone
+    stored.write_text(stored.read_text().replace('"fix_lag_s"', '"lag_before"'))
+    user_protocol.site_calibration(run, "main", site, site)
+    assert len(calls) == 2
     c = user_protocol.site_calibration(run, "main", site, other)
     assert calls[-1] == (str(site), "train") and "not trained on" in c["method"]
     user_protocol.site_calibration(run, "test", site, None)

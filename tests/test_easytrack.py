@@ -11,7 +11,6 @@ from tests.conftest import run_cli
 
 from wearnav import metrics
 from wearnav.errors import ConfigError
-from wearnav.models.base import instance_velocity_loss
 from wearnav.fixlabels import (
     LabelConfig,
     Segments,
@@ -20,6 +19,7 @@ from wearnav.fixlabels import (
     neighbour_correlation,
     segments_from_truth,
 )
+from wearnav.models.base import instance_velocity_loss
 from wearnav.train import noisy
 from wearnav.train.noisy import (
     NoisyConfig,

@@ -181,6 +181,27 @@ def test_odometry_walk_sigma_recovers_a_known_random_walk_and_is_read_back(tmp_p
     assert fuse.config_for(tmp_path)[0] == fuse.FuseConfig(odometry_walk_m_per_sqrt_s=0.21, sigma_scale=1.7)
 
 
+def test_fix_lag_is_found_on_walks_with_truth_and_read_back(tmp_path):
+    """Fixes that show where the walker was 3 s before their time stamp, with 2 m of noise: the
+    calibration finds 3 s (to its 0.5-s grid), the error at that lag is below the error at 0, and
+    a run folder's calibration sets the smoother's ``fix_lag_s``. Fixes on time give 0."""
+    late, on_time = [], []
+    for k in range(4):
+        t, truth = walk(300.0, seed=k)
+        ft = t[::2]
+        late_z = np.stack([np.interp(ft - 3.0, t, truth[:, j]) for j in range(2)], 1)
+        noise = np.random.default_rng(k).normal(0, 2.0, late_z.shape)
+        late.append((ft, late_z + noise, t[::10], truth[::10]))
+        on_time.append((ft, truth[::2] + noise, t[::10], truth[::10]))
+    cal = fuse.fix_lag_of(late)
+    assert cal["fix_lag_s"] == pytest.approx(3.0, abs=0.5) and cal["fix_lag_walks"] == 4
+    assert cal["fix_median_m_at_lag"] < cal["fix_median_m_at_0"]
+    assert fuse.fix_lag_of(on_time)["fix_lag_s"] == pytest.approx(0.0, abs=0.5)
+    assert fuse.fix_lag_of([])["fix_lag_s"] is None
+    (tmp_path / fuse.CALIBRATION_JSON).write_text('{"odometry_walk_m_per_sqrt_s": 0.21, "fix_lag_s": 3.5}')
+    assert fuse.config_for(tmp_path)[0].fix_lag_s == 3.5
+
+
 def test_sigma_scale_makes_the_68_percent_radius_hold_68_percent():
     """Errors 2 × what σ says (2-D Gaussian): the calibrated scale is 2 within 5 %, and with it the
     68 % radius holds 68 % of them; it scales the σ a smoothed path reports, not the path."""

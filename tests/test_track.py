@@ -389,6 +389,13 @@ def test_track_anchorings_and_a_walk_without_fixes(setup, tmp_path):
     assert "sigma_m" not in pd.read_csv(tmp_path / "first" / "trajectory.csv").columns
     with pytest.raises(ConfigError):
         track(folder, run, tmp_path / "bad", anchor="magic")
+    # fixes that lag the walker (docs/design.md, "The fixes' lag"): the smoother takes the lag given
+    assert a["fix_lag_s"] == 0.0
+    late = track(folder, run, tmp_path / "late", fix_lag_s=4.0)
+    assert late["anchoring"]["fix_lag_s"] == 4.0 and late["anchoring"]["method"] == "smooth"
+    assert not np.allclose(pd.read_csv(tmp_path / "late" / "trajectory.csv")["east"], traj["east"])
+    with pytest.raises(ConfigError, match="--fix-lag"):
+        track(folder, run, tmp_path / "bad", fix_lag_s=-1.0)
     h5 = dataclasses.replace(rec, fixes=None).save(tmp_path / "nofix.h5")
     with pytest.warns(WearnavWarning, match="no location fixes"):
         bare = track(h5, run, tmp_path / "bare")

@@ -112,7 +112,9 @@ def test_the_instance_losses_average_to_the_loss():
         assert each.mean().item() == pytest.approx(velocity_loss(p, t, kind).item(), rel=1e-5)
     # polar, by hand: half the speed → |log((0.5 + f) / (1 + f))|; 90° off at the mean speed → 1
     f = 0.1
-    each = instance_velocity_loss(torch.tensor([[0.5, 0.0], [0.0, 1.0]]), torch.tensor([[1.0, 0.0], [1.0, 0.0]]), "polar")
+    each = instance_velocity_loss(
+        torch.tensor([[0.5, 0.0], [0.0, 1.0]]), torch.tensor([[1.0, 0.0], [1.0, 0.0]]), "polar"
+    )
     assert each.tolist() == pytest.approx([math.log((1 + f) / (0.5 + f)), 1.0], abs=1e-4)
 
 

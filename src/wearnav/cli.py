@@ -289,6 +289,14 @@ def track(
         "(its speed along where the phone points; a heading-frame model). Default: what the model "
         "records (the shipped phone model: cadence, docs/design.md), else model.",
     ),
+    fix_lag: float | None = typer.Option(
+        None,
+        "--fix-lag",
+        min=0.0,
+        max=10.0,
+        help="Seconds the location fixes lag the walker (the smoother reads a fix as where the walker "
+        "was that long before its time stamp; IPIN 2023's indoor fixes: 4). Default: 0.",
+    ),
 ):
     """The walking path of one recording: predict, integrate from (0, 0), place it on the location fixes.
 
@@ -322,6 +330,7 @@ def track(
         plan=map_plan,
         start=start_pose,
         speed=choice_value(speed),
+        fix_lag_s=fix_lag,
     )
     shipped = f" (shipped model {summary['shipped_model']})" if summary.get("shipped_model") else ""
     typer.echo(

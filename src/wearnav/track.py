@@ -187,13 +187,15 @@ def track(
     plan: str | Path = "auto",
     start: tuple[float, float, float] | None = None,
     speed: str | None = None,
+    fix_lag_s: float | None = None,
 ) -> dict:
     """Track one recording (see module docstring); ``anchor`` places the path on the fixes
     (:data:`wearnav.fuse.ANCHORS`); ``plan`` (``auto``, ``none`` or a GeoJSON plan file) and ``start``
     (x, y, heading of travel in degrees) make the path map-aware (:func:`wearnav.track_map.map_path`);
     ``speed``: where a learned model's speed comes from (:func:`wearnav.train.odometry.with_speed`:
     itself, or its direction with PDR's steps, 0.67 m or cadence-long; default what the model's run
-    records, :func:`wearnav.pretrained.recorded_speed`); returns what ``track.json`` holds."""
+    records, :func:`wearnav.pretrained.recorded_speed`); ``fix_lag_s``: how many seconds the fixes lag
+    the walker (:func:`wearnav.track_write.write_track`); returns what ``track.json`` holds."""
     out = Path(out)
     if anchor not in fuse.ANCHORS:
         raise ConfigError(f"unknown anchoring {anchor!r}; one of {', '.join(fuse.ANCHORS)}")
@@ -201,6 +203,8 @@ def track(
         raise ConfigError(f"--speed {speed}: not one of {', '.join(SPEED_SOURCES)}")
     if str(plan) not in MAP_CHOICES and not Path(plan).is_file():
         raise ConfigError(f"--map {plan}: not auto, none or a GeoJSON plan file")
+    if fix_lag_s is not None and not 0.0 <= fix_lag_s <= fuse.MAX_FIX_LAG_S:
+        raise ConfigError(f"--fix-lag {fix_lag_s:g}: expected seconds from 0 to {fuse.MAX_FIX_LAG_S:g}")
     check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")  # before any work
     if model_path is not None:  # a bad --model is said before the input is read
         model_path = locate_model(model_path, "odometry")  # a run folder, checkpoint, file, shipped model, `pdr`
@@ -268,7 +272,7 @@ def track(
     for w in summary["warnings"]:
         warnings.warn(WearnavWarning(w), stacklevel=2)
     with staged_output(out, TRACK_JSON, "track") as stage:
-        write_track(stage, out, table, t, xy, rec, cfg, seq, summary, anchor, placed)
+        write_track(stage, out, table, t, xy, rec, cfg, seq, summary, anchor, placed, fix_lag_s)
     return summary
 
 

@@ -4,6 +4,7 @@ on the fixes or taken from the map-aware filter, ``trajectory.csv``, ``fixes.csv
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import warnings
 from datetime import datetime, timezone
@@ -138,10 +139,12 @@ def write_track(
     summary: dict,
     anchor: str = "smooth",
     placed: fuse.FuseResult | None = None,
+    fix_lag_s: float | None = None,
 ) -> None:
     """Place the path on the fixes by ``anchor`` (:mod:`wearnav.fuse`), or take the map-aware path
     ``placed`` (:func:`wearnav.track_map.place_on_map`), and write the files into ``stage`` (moved to
-    ``out`` afterwards)."""
+    ``out`` afterwards). ``fix_lag_s``: how far the fixes lag the walker (the smoother's
+    ``fix_lag_s``), None: the run's calibration's (0 for the shipped models)."""
     anchored, res = None, placed
     fx = rec.fixes
     has_fixes = fx is not None and len(fx) > 0
@@ -167,6 +170,8 @@ def write_track(
             rec.meta,
             seq.meta.get("frame", {}).get("reference"),
         )
+        if fix_lag_s is not None:
+            fcfg = dataclasses.replace(fcfg, fix_lag_s=fix_lag_s)
         res = fuse.fuse(t, xy, fx.t, fx.pos[:, :2], fx.accuracy, anchor, fcfg)
         assert res.fixes is not None  # every anchoring reports on each fix it was given
         summary["anchoring"] = {
@@ -174,6 +179,7 @@ def write_track(
             "method": res.method,
             "description": ANCHOR_TEXT[res.method],
             "odometry_calibration": cal or "none in the run: the smoother's defaults",
+            "fix_lag_s": fcfg.fix_lag_s,
             **{k: _rounded(v) for k, v in res.info.items() if k not in ("x", "smoother")},
             "fixes_dropped_index": {r: i[:INDEX_LIST_MAX] for r, i in res.info["fixes_dropped_index"].items()},
             "fixes_dropped_at_import": int(rec.meta.get("dropped_stale_fixes", 0)),

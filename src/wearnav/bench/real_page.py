@@ -332,7 +332,13 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
             rows, raw = user_table(scored, s["data"], s["fixes"], calibration=cal, speeds=speeds, site=models)
             paired = paired_rows(raw)
             doc["sites"][site]["user_protocol"] = {"table": rows, "paired": paired, "runs": raw}
-            lines += [USER_PROTOCOL_TEXT, "", pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"), ""]
+            lines += [
+                USER_PROTOCOL_TEXT,
+                "",
+                *_fix_lag_line(cal),
+                pd.DataFrame(rows).to_markdown(index=False, floatfmt=".2f"),
+                "",
+            ]
             if paired:
                 lines += [PAIRED_TEXT, "", pd.DataFrame(paired).to_markdown(index=False), ""]
             if particle := particle_paired_rows(raw):
@@ -345,6 +351,23 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         lines += [f"![{q.stem}]({q.name})" for q in (cdf, traj) if q] + [""]
     runs.write_json(out / "results.json", doc)
     return write_text_atomic("\n".join(lines), out / "results.md")
+
+
+def _fix_lag_line(calibrations: dict[str, dict]) -> list[str]:
+    """What the smoother took as the fixes' lag (:func:`wearnav.fuse.fix_lag_of` on the walks each
+    calibration came from: the site's training walks), a line and a blank; none where no
+    calibration measured one."""
+    found = [c for c in calibrations.values() if c.get("fix_lag_s") is not None]
+    if not found:
+        return []
+    c = found[0]
+    return [
+        f"The smoother reads each fix as where the walker was {c['fix_lag_s']:g} s before its time stamp: the "
+        f"fixes' lag on the {c.get('split', 'training')} walks (`wearnav.fuse.fix_lag_of`, {c['fix_lag_walks']} "
+        f"walks: their median error {c['fix_median_m_at_0']:.2f} m at 0 s, {c['fix_median_m_at_lag']:.2f} m "
+        "at that lag). The raw fixes' row reads them as stamped.",
+        "",
+    ]
 
 
 PARTICLE_TEXT = (

@@ -105,8 +105,9 @@ def calibrate(run: str | Path, data: str | Path, split: str = "val", speed: str 
 def calibration_of(walks, every_s: float | None = None) -> dict:
     """The smoother's calibration from ``walks`` (recording, t, odometry xy from (0, 0)) with truth:
     the odometry's random walk (:func:`wearnav.fuse.odometry_walk_sigma`, at the truth points, or
-    one every ``every_s`` seconds of a dense truth), then, smoothing the walks that have fixes with
-    it, the σ scale (:func:`wearnav.fuse.sigma_scale_of`; None without fixes)."""
+    one every ``every_s`` seconds of a dense truth) and the fixes' lag (:func:`wearnav.fuse.fix_lag_of`),
+    then, smoothing the walks that have fixes with them, the σ scale
+    (:func:`wearnav.fuse.sigma_scale_of`; None without fixes)."""
     walks = list(walks)
 
     def points(truth):
@@ -116,6 +117,8 @@ def calibration_of(walks, every_s: float | None = None) -> dict:
         return truth.t[k], truth.pos[k, :2]
 
     cal = fuse.odometry_walk_sigma((t, xy, *points(rec.truth)) for rec, t, xy in walks)
+    with_fixes = [rec for rec, _, _ in walks if rec.fixes is not None and len(rec.fixes) >= 2]
+    cal.update(fuse.fix_lag_of((r.fixes.t, r.fixes.pos[:, :2], r.truth.t, r.truth.pos[:, :2]) for r in with_fixes))
     ratios = []
     for rec, t, xy in walks:
         if cal["odometry_walk_m_per_sqrt_s"] and rec.fixes is not None and len(rec.fixes) >= 2:
@@ -206,11 +209,11 @@ def ensure_calibration(
 ) -> dict:
     """The run's smoother calibration (:func:`calibrate` on its ``split`` walks of ``data``), computed
     once and stored in the run folder as ``name`` (`track` reads :data:`wearnav.fuse.CALIBRATION_JSON`);
-    recomputed when the stored one came from other walks or predates the σ scale."""
+    recomputed when the stored one came from other walks or predates the fixes' lag."""
     f = Path(run) / name
     if f.is_file():
         cal = read_json(f)
-        if cal.get("data") == str(data) and cal.get("split") == split and "sigma_scale" in cal:
+        if cal.get("data") == str(data) and cal.get("split") == split and "fix_lag_s" in cal:
             return cal
     cal = {**calibrate(run, data, split, speed), "data": str(data), "split": split, "method": method}
     runs.write_json(f, cal)

@@ -47,11 +47,19 @@ from __future__ import annotations
 
 from wearnav.errors import ValidationError
 from wearnav.fuse.anchor import first_fix_anchor, rigid_anchor, rigid_fit
-from wearnav.fuse.calibrate import calibrated, config_for, known_heading_deg, odometry_walk_sigma, sigma_scale_of
+from wearnav.fuse.calibrate import (
+    calibrated,
+    config_for,
+    fix_lag_of,
+    known_heading_deg,
+    odometry_walk_sigma,
+    sigma_scale_of,
+)
 from wearnav.fuse.config import (
     ANCHOR_S,
     CALIBRATION_JSON,
     DOWNWEIGHT,
+    MAX_FIX_LAG_S,
     MEASURED_FIX_BIAS,
     RADIUS_68,
     RAYLEIGH_MEDIAN,
@@ -76,6 +84,7 @@ __all__ = [
     "ANCHOR_S",
     "CALIBRATION_JSON",
     "DOWNWEIGHT",
+    "MAX_FIX_LAG_S",
     "MEASURED_FIX_BIAS",
     "RADIUS_68",
     "RAYLEIGH_MEDIAN",
@@ -84,6 +93,7 @@ __all__ = [
     "calibrated",
     "config_for",
     "first_fix_anchor",
+    "fix_lag_of",
     "fix_sigma_m",
     "fuse",
     "known_heading_deg",

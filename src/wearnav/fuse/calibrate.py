@@ -1,5 +1,5 @@
 """The smoother's calibration for a model and a recording (:mod:`wearnav.fuse`): the odometry's random
-walk and the σ scale measured on walks with truth, stored in a run folder (``CALIBRATION_JSON``), and
+walk, the σ scale and the fixes' lag measured on walks with truth, stored in a run folder (``CALIBRATION_JSON``), and
 the heading prior a recording's north-referenced frame gives; :func:`config_for` puts them together."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 
 from wearnav.errors import FormatError
 from wearnav.export.header import is_exported, read_header
-from wearnav.fuse.config import CALIBRATION_JSON, RAYLEIGH_MEDIAN, FuseConfig
+from wearnav.fuse.config import CALIBRATION_JSON, MAX_FIX_LAG_S, RAYLEIGH_MEDIAN, FuseConfig
 from wearnav.recording import ANDROID_ENU_FRAME
 from wearnav.runs import run_folder
 from wearnav.textio import read_json
@@ -58,11 +58,46 @@ def sigma_scale_of(error_over_sigma) -> dict:
     return {"sigma_scale": round(float(np.median(z)) / RAYLEIGH_MEDIAN, 3), "sigma_points": int(z.size)}
 
 
+# the lags fix_lag_of tries, s: fixes that lag by more than MAX_FIX_LAG_S are not a position source
+FIX_LAGS_S = np.arange(0.0, MAX_FIX_LAG_S + 0.01, 0.5)
+
+
+def fix_lag_of(walks, lags_s=FIX_LAGS_S) -> dict:
+    """Calibrate ``fix_lag_s`` (a fix stamped t shows where the walker was at t − lag) on walks with
+    truth and fixes: the lag of ``lags_s`` at which the fixes, read at each truth point's time plus
+    the lag (linearly between fixes), lie closest to the truth, by the median over every walk's
+    points (the same points at every lag: those whose time plus the largest lag is still inside
+    the fixes). ``walks`` yields (fix_t (M,) s, fix_xy (M, 2) m, truth_t (K,) s, truth_xy (K, 2) m).
+    On IPIN 2023's training trials the phone's indoor fixes lag by 4 s (median 6.49 m at 0 s, 5.57 at
+    4 s; docs/design.md)."""
+    lags_s = np.asarray(lags_s, np.float64)
+    err, n = [], 0
+    for ft, fz, tt, tp in walks:
+        ft, fz, tt, tp = (np.asarray(a, np.float64) for a in (ft, fz, tt, tp))
+        k = (tt >= ft[0] - lags_s.min()) & (tt <= ft[-1] - lags_s.max()) if ft.size >= 2 else np.zeros(tt.size, bool)
+        if not k.any():
+            continue
+        q = tt[k][None, :] + lags_s[:, None]
+        at = np.stack([np.interp(q, ft, fz[:, j]) for j in range(2)], axis=-1)
+        err.append(np.linalg.norm(at - tp[k][None, :, :2], axis=-1))
+        n += 1
+    if n == 0:
+        return {"fix_lag_s": None, "fix_lag_walks": 0}
+    med = np.median(np.concatenate(err, axis=1), axis=1)
+    best = int(np.argmin(med))
+    return {
+        "fix_lag_s": float(lags_s[best]),
+        "fix_lag_walks": n,
+        "fix_median_m_at_lag": round(float(med[best]), 3),
+        "fix_median_m_at_0": round(float(np.interp(0.0, lags_s, med)), 3),
+    }
+
+
 def calibrated(cfg: FuseConfig, cal: dict | None) -> FuseConfig:
-    """``cfg`` with a calibration's odometry random walk and σ scale (``CALIBRATION_JSON``'s
-    ``odometry_walk_m_per_sqrt_s``, ``sigma_scale``) where they are given and positive."""
+    """``cfg`` with a calibration's odometry random walk, σ scale and fix lag (``CALIBRATION_JSON``'s
+    ``odometry_walk_m_per_sqrt_s``, ``sigma_scale``, ``fix_lag_s``) where they are given and positive."""
     found = {}
-    for key in ("odometry_walk_m_per_sqrt_s", "sigma_scale"):
+    for key in ("odometry_walk_m_per_sqrt_s", "sigma_scale", "fix_lag_s"):
         try:
             v = float((cal or {}).get(key))  # type: ignore[arg-type]  # a missing key: the TypeError caught below
         except (TypeError, ValueError):

@@ -21,6 +21,7 @@ DISAGREE_SHARE = 0.5  # more than this share down-weighted: the fixes disagree, 
 # is correlated, falling to 0.83 / 0.57 / 0.32 / 0.08 at lags of 6 / 15 / 25 / 74 s (about 20 s).
 # Opt-in: on those walks it helped Suite-IN++ (median 4.63 → 4.37 m) and not PDR (4.44 → 4.56 m).
 MEASURED_FIX_BIAS = {"bias_share": 0.9, "bias_correlation_s": 20.0, "bias_knot_s": 10.0}
+MAX_FIX_LAG_S = 10.0  # the largest lag of the fixes behind the walker calibrated or taken (s)
 CALIBRATION_JSON = "fuse_calibration.json"  # in a run folder: the model's odometry_walk_sigma and sigma_scale_of
 
 

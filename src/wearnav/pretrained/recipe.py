@@ -255,6 +255,9 @@ def cross_building_calibration(run: Path, suites: list[Path], speed: str = "mode
         "split": "train",
         "per_building": {k: c["odometry_walk_m_per_sqrt_s"] for k, c in per.items()},
         "sigma_scale_per_building": scales,
+        # measured, not applied: a lag belongs to a building's positioning, not to the user's fixes
+        # (`track --fix-lag` takes one; docs/design.md, "The fixes' lag")
+        "fix_lag_s_per_building": {k: c["fix_lag_s"] for k, c in per.items() if c.get("fix_lag_s") is not None},
         "method": "the largest wearnav.fuse.odometry_walk_sigma (and wearnav.fuse.sigma_scale_of, where the "
         "building has fixes) of the recipe trained without a building, on that building's training "
         "walks (wearnav.pretrained.recipe.cross_building_calibration)",
