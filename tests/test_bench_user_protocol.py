@@ -111,3 +111,19 @@ def test_user_protocol_keeps_each_walks_errors_and_pairs_the_smoother_by_walk(mo
     expect = np.nanpercentile(smooth, 50) - np.nanpercentile(rigid, 50)
     point, low, high = (float(x.strip("[],")) for x in rows[2]["median (m)"].split())
     assert point == pytest.approx(expect, abs=0.006) and low <= point <= high and rows[2]["walks"] == 3
+
+
+def test_the_page_says_at_what_lag_the_smoother_read_the_fixes():
+    from wearnav.bench.real_page import _fix_lag_line
+
+    cal = {
+        "fix_lag_s": 3.5,
+        "fix_lag_walks": 28,
+        "fix_median_m_at_0": 6.26,
+        "fix_median_m_at_lag": 5.48,
+        "split": "train",
+    }
+    line = _fix_lag_line({"suitein++": cal, "pdr": cal})[0]
+    assert "3.5 s before its time stamp" in line and "28 walks" in line and "6.26 m at 0 s" in line
+    assert "`track --fix-lag`" in line
+    assert _fix_lag_line({"pdr": {"odometry_walk_m_per_sqrt_s": 0.4}}) == []  # one from before the lag

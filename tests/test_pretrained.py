@@ -211,6 +211,15 @@ def test_cards_name_the_recipes_rows_and_each_building(tmp_path):
     rows = measured_rows({"sim-to-real": page})
     assert [r["path"] for r in rows] == [RECIPE_ROW, f"{RECIPE_ROW} · PDR speed", "pdr", RECIPE_ROW]
     assert rows[0]["building"].startswith("IPIN") and rows[-1]["building"].startswith("ILC2")
+    # user-protocol rows say at what lag the smoother read the fixes (the site's, `track --fix-lag`)
+    doc = json.loads((tmp_path / "sim-to-real" / "results.json").read_text())
+    smooth = {**_row(learned + " · smoother (`track` now)", 5.8, 0.85), "path": learned + " · smoother (`track` now)"}
+    doc["sites"]["main"]["user_protocol"] = {"table": [smooth]}
+    doc["sites"]["main"]["calibration"] = {learned: {"fix_lag_s": 3.5}, "pdr": {"fix_lag_s": 3.5}}
+    (tmp_path / "sim-to-real" / "results.json").write_text(json.dumps(doc))
+    user = [r for r in measured_rows({"sim-to-real": page}) if r["protocol"].startswith("user")]
+    assert [r["protocol"] for r in user] == ["user (own fixes, read 3.5 s late: `track --fix-lag 3.5`)"]
+    assert user[0]["path"] == f"{RECIPE_ROW} · smoother (`track` now)"
 
 
 # ---- the shipped models themselves (issue 18, "done when") ------------------------------------

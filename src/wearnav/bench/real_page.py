@@ -365,7 +365,8 @@ def _fix_lag_line(calibrations: dict[str, dict]) -> list[str]:
         f"The smoother reads each fix as where the walker was {c['fix_lag_s']:g} s before its time stamp: the "
         f"fixes' lag on the {c.get('split', 'training')} walks (`wearnav.fuse.fix_lag_of`, {c['fix_lag_walks']} "
         f"walks: their median error {c['fix_median_m_at_0']:.2f} m at 0 s, {c['fix_median_m_at_lag']:.2f} m "
-        "at that lag). The raw fixes' row reads them as stamped.",
+        "at that lag), as `track --fix-lag` does (`track`'s default reads them as stamped, as the raw fixes' row "
+        "does).",
         "",
     ]
 

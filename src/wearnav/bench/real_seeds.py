@@ -281,8 +281,18 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
         lines += [f"## {first['sites'][site]['split']['source']} ({where})", "", "Known start:", ""]
         lines += [ks.to_markdown(index=False), ""]
         if sm is not None:
+            lags = sorted(
+                {c.get("fix_lag_s") for d in docs.values() for c in d["sites"][site].get("calibration", {}).values()}
+                - {None}
+            )
+            lag = (
+                f" Each fix read as where the walker was {' / '.join(f'{v:g}' for v in lags)} s before its time "
+                "stamp (the fixes' lag on the site's training walks, `wearnav.fuse.fix_lag_of`; `track --fix-lag`)."
+                if any(lags)
+                else ""
+            )
             lines += [
-                "User protocol (no truth), the smoother (`track`'s default):",
+                "User protocol (no truth), the smoother (`track`'s default):" + lag,
                 "",
                 sm.to_markdown(index=False),
                 "",

@@ -99,12 +99,19 @@ def measured_rows(suites: dict[str, Path]) -> list[dict]:
                         "length ratio": r.get("length ratio", float("nan")),
                     }
                 )
+            lags = [c["fix_lag_s"] for c in result.get("calibration", {}).values() if c.get("fix_lag_s")]
+            # the smoother read the fixes at the site's lag (bench.real_page._fix_lag_line): `track --fix-lag`
+            user = (
+                f"user (own fixes, read {lags[0]:g} s late: `track --fix-lag {lags[0]:g}`)"
+                if lags
+                else "user (own fixes only)"
+            )
             for r in result.get("user_protocol", {}).get("table", []):
                 model, _, anchor = r["path"].rpartition(" · ")
                 rows.append(
                     {
                         "building": building,
-                        "protocol": "user (own fixes only)",
+                        "protocol": user,
                         "path": f"{_path_name(model)} · {anchor}" if model else r["path"],
                         **{k: r[k] for k in ("median (m)", "p75 (m)", "p95 (m)", "length ratio")},
                     }
