@@ -212,3 +212,12 @@ def test_test_frame_table_pairs_honest_and_diagnostic_scores(grid_runs, tmp_path
     row = table.iloc[0]
     assert row["test honest"] == pytest.approx(1.05) and row["test diagnostic"] == pytest.approx(0.85)
     assert row["test Δ"] == pytest.approx(0.2)
+
+
+def test_the_velocity_loss_reaches_every_run_and_names_its_folder(tmp_path):
+    """`bench odometry --vel-loss polar` (issue 34: the simulator's tables with the fix): every
+    config carries the loss, and its runs are not the MSE runs' folders."""
+    mse = odometry.suite_configs(tmp_path / "d", ["suitein++", "ronin"], seeds=[0, 1], epochs=1)
+    polar = odometry.suite_configs(tmp_path / "d", ["suitein++", "ronin"], seeds=[0, 1], epochs=1, vel_loss="polar")
+    assert {c.vel_loss for c in mse} == {"mse"} and {c.vel_loss for c in polar} == {"polar"}
+    assert {str(odometry.run_key(c)) for c in mse}.isdisjoint({str(odometry.run_key(c)) for c in polar})

@@ -78,6 +78,7 @@ def bench_odometry(
     ),
     recipe: Recipe = typer.Option(Recipe.fast, help=RECIPE_HELP),
     lr: float | None = typer.Option(None, help="Learning rate for every model (default: the recipe's)."),
+    vel_loss: VelLoss = typer.Option(VelLoss.mse, "--vel-loss", help=VEL_LOSS_HELP),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
     address: str | None = typer.Option(None, help=ADDRESS_HELP),
@@ -116,6 +117,7 @@ def bench_odometry(
         max_minutes=max_time,
         lr=lr,
         recipe=recipe.value,
+        vel_loss=vel_loss.value,
     )
     suite_folder(out, "bench odometry")
     if report_only:
@@ -151,6 +153,7 @@ def bench_odometry(
         )
         + f", recipe `{recipe.value}`"
         + (f", Adam lr {lr:g} for every model" if lr else "")
+        + (f", velocity loss `{vel_loss.value}` for every learned model" if vel_loss != VelLoss.mse else "")
         + "."
     )
     page = write_grid_report(folders, out, expected_seeds=len(seed_list), note=note)
