@@ -76,6 +76,17 @@ class BenchConfig:
         check_names(self.levels, LEVELS, "noise level")
         check_names(self.methods, METHODS, "method")
 
+    def noisy(self, method: str, seed: int) -> NoisyConfig:
+        """The training config of one run of ``method`` with ``seed``."""
+        return NoisyConfig(
+            method=method,
+            seed=seed,
+            ae_epochs=self.ae_epochs,
+            pre_epochs=self.pre_epochs,
+            joint_epochs=self.joint_epochs,
+            loss=self.loss,
+        )
+
     @classmethod
     def quick(cls) -> BenchConfig:
         return cls(
@@ -297,14 +308,7 @@ def real_plan(
     jobs = []
     for method in IPIN_METHODS:
         for seed in range(seeds):
-            cfg = NoisyConfig(
-                method=method,
-                seed=seed,
-                ae_epochs=bc.ae_epochs,
-                pre_epochs=bc.pre_epochs,
-                joint_epochs=bc.joint_epochs,
-                loss=bc.loss,
-            )
+            cfg = bc.noisy(method, seed)
             record = {
                 "noisy": dataclasses.asdict(cfg),
                 "data": str(Path(data).resolve()),
@@ -429,14 +433,7 @@ def _todo(out: Path, bc: BenchConfig, seeds: int, lc: LabelConfig) -> list[tuple
             for method in bc.methods:
                 if level != "L1" and method in bc.l1_only:
                     continue
-                cfg = NoisyConfig(
-                    method=method,
-                    seed=seed,
-                    ae_epochs=bc.ae_epochs,
-                    pre_epochs=bc.pre_epochs,
-                    joint_epochs=bc.joint_epochs,
-                    loss=bc.loss,
-                )
+                cfg = bc.noisy(method, seed)
                 record = {
                     "noisy": dataclasses.asdict(cfg),
                     "level": level,
