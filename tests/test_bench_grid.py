@@ -221,3 +221,9 @@ def test_the_velocity_loss_reaches_every_run_and_names_its_folder(tmp_path):
     polar = odometry.suite_configs(tmp_path / "d", ["suitein++", "ronin"], seeds=[0, 1], epochs=1, vel_loss="polar")
     assert {c.vel_loss for c in mse} == {"mse"} and {c.vel_loss for c in polar} == {"polar"}
     assert {str(odometry.run_key(c)) for c in mse}.isdisjoint({str(odometry.run_key(c)) for c in polar})
+    # `--heading-frame` (the shipped recipe's frame): no random yaw with it, its own folders too
+    framed = odometry.suite_configs(
+        tmp_path / "d", ["suitein++"], seeds=[0], epochs=1, vel_loss="polar", heading_frame=True, augment=()
+    )
+    assert framed[0].heading_frame and "rotate_yaw" not in framed[0].augment
+    assert str(odometry.run_key(framed[0])) not in {str(odometry.run_key(c)) for c in polar}

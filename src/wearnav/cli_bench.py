@@ -79,6 +79,7 @@ def bench_odometry(
     recipe: Recipe = typer.Option(Recipe.fast, help=RECIPE_HELP),
     lr: float | None = typer.Option(None, help="Learning rate for every model (default: the recipe's)."),
     vel_loss: VelLoss = typer.Option(VelLoss.mse, "--vel-loss", help=VEL_LOSS_HELP),
+    heading_frame: bool = typer.Option(False, "--heading-frame", help=HEADING_FRAME_HELP),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
     address: str | None = typer.Option(None, help=ADDRESS_HELP),
@@ -118,6 +119,8 @@ def bench_odometry(
         lr=lr,
         recipe=recipe.value,
         vel_loss=vel_loss.value,
+        # the heading frame keeps the device's heading: no random yaw (TrainConfig refuses both)
+        **({"heading_frame": True, "augment": ()} if heading_frame else {}),
     )
     suite_folder(out, "bench odometry")
     if report_only:
@@ -154,6 +157,7 @@ def bench_odometry(
         + f", recipe `{recipe.value}`"
         + (f", Adam lr {lr:g} for every model" if lr else "")
         + (f", velocity loss `{vel_loss.value}` for every learned model" if vel_loss != VelLoss.mse else "")
+        + (", each window in the phone's heading frame (no random yaw)" if heading_frame else "")
         + "."
     )
     page = write_grid_report(folders, out, expected_seeds=len(seed_list), note=note)
