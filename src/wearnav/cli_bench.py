@@ -160,7 +160,10 @@ def bench_odometry(
         + (", each window in the phone's heading frame (no random yaw)" if heading_frame else "")
         + "."
     )
-    page = write_grid_report(folders, out, expected_seeds=len(seed_list), note=note)
+    setting = [f"`{vel_loss.value}` loss"] if vel_loss != VelLoss.mse else []
+    setting += ["the phone's heading frame"] if heading_frame else []
+    title = "Odometry comparison (Suite-IN++ Tables III–VI)" + (f", {' and '.join(setting)}" if setting else "")
+    page = write_grid_report(folders, out, title=title, expected_seeds=len(seed_list), note=note)
     typer.echo(f"wrote {page}")
 
 
