@@ -327,8 +327,19 @@ def test_seeds_suite_pairs_each_path_with_pdr_by_walk(building, tmp_path):
     smoother = {r["smoother of"]: r for r in doc["sites"]["main"]["smoother"]}
     assert {"ronin", "pdr"} <= set(smoother)
     assert "over 2 seeds" in page.read_text()
-    # the title says what sets the suite apart: where it was scored, and how long it trained
-    assert page.read_text().splitlines()[0].endswith("tested on standin (1 epoch at most)")
+    # the title says what sets the suite apart: where it was scored, how it read the fixes (at the
+    # lag their training walks show, where they show one) and how long it trained
+    lags = {c.get("fix_lag_s") for s in ("seed-0", "seed-1") for c in _calibrations(out / s)}
+    lagged = ", the fixes read at the site's lag" if any(lags) else ""
+    assert page.read_text().splitlines()[0].endswith(f"tested on standin{lagged} (1 epoch at most)")
+    if any(lags):
+        assert "s before its time stamp (the fixes' lag on the site's training walks" in page.read_text()
+
+
+def _calibrations(suite) -> list[dict]:
+    """The smoother's calibrations a suite used at its main site (results.json)."""
+    doc = json.loads((suite / "results.json").read_text())
+    return list(doc["sites"]["main"].get("calibration", {}).values())
 
 
 def test_map_aware_rows_where_the_site_has_floor_plans(tmp_path):
