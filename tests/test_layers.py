@@ -101,6 +101,7 @@ LAYERS: dict[str, int] = {
     # 10 the command line
     "wearnav.cli": 10,
     "wearnav.cli_bench": 10,
+    "wearnav.cli_bench_fixes": 10,  # bench easytrack, easytrack-base, adapt (registered on cli_bench's app)
     "wearnav.cli_common": 10,
     "wearnav.cli_live": 10,
     "wearnav.cli_models": 10,

@@ -7,19 +7,24 @@ import dataclasses
 import os
 from enum import Enum
 from pathlib import Path
-from typing import Any
 
 import typer
 
 from wearnav.bench.executor import Backend
+from wearnav.cli_bench_fixes import register as register_fix_commands
 from wearnav.cli_common import (
+    ADDRESS_HELP,
+    EXECUTOR_HELP,
     HEADING_FRAME_HELP,
+    JOBS_HELP,
     RECIPE_HELP,
+    SEED_HELP,
     VEL_LOSS_HELP,
     ImportFormat,
     Recipe,
     VelLoss,
     choice_value,
+    execution_of,
     progress_enabled,
     split_floats,
     split_list,
@@ -34,21 +39,6 @@ class Clock(str, Enum):  # wearnav.bench.efficiency.CLOCKS
 
 
 bench_app = typer.Typer(help="The papers' experiments as resumable suites of run folders.", no_args_is_help=True)
-
-# How a suite's runs are spread (wearnav.bench.executor); none of it enters a run's hash.
-JOBS_HELP = "Runs at once in local processes (1: one after another in this process)."
-EXECUTOR_HELP = "local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav[cluster]')."
-SEED_HELP = "Random seed of every run (its weights, batch order and augmentation; part of the run's hash)."
-ADDRESS_HELP = (
-    "With --executor ray: the cluster to join (host:port, or 'auto': the one `ray start` joined here); "
-    "default: $RAY_ADDRESS or that cluster if there is one, else a new Ray on this machine."
-)
-
-
-def _execution(jobs: int, executor: Backend, address: str | None, threads: int | None = None):
-    from wearnav.bench.executor import Execution
-
-    return Execution(jobs=jobs, backend=executor, address=address, threads=threads)
 
 
 class Grid(str, Enum):  # wearnav.bench.odometry.GRIDS
@@ -127,7 +117,7 @@ def bench_odometry(
         folders = [run_folder(out, c) for c in configs]
     else:
         folders = run_suite(
-            configs, out, progress=progress_enabled(), echo=typer.echo, execution=_execution(jobs, executor, address)
+            configs, out, progress=progress_enabled(), echo=typer.echo, execution=execution_of(jobs, executor, address)
         )
     from wearnav.dataset import Dataset
 
@@ -261,7 +251,7 @@ def bench_real_odometry(
         test_group_by=test_group_by,
         test_test_groups=split_list(test_test_groups) if test_test_groups else None,
     )
-    execution = _execution(jobs, executor, address)
+    execution = execution_of(jobs, executor, address)
     if len(seed_list) > 1:
         page = run_seeds(data, out, seed_list, bench, execution, progress_enabled(), typer.echo, **where)
     else:
@@ -396,7 +386,7 @@ def bench_har(
         out,
         split_list(datasets) if datasets else None,
         seeds or (1 if quick else 3),
-        _execution(jobs, executor, address, threads),
+        execution_of(jobs, executor, address, threads),
         quick,
         epochs,
         split_list(techniques) if techniques else None,
@@ -472,7 +462,7 @@ def bench_har_lodo(
         base = dataclasses.replace(base, amp_jitter=amp_jitter)
     names = split_list(devices)
     results = run_lodo(
-        data, out, names, base, _execution(jobs, executor, address, threads), quick, final, echo=typer.echo
+        data, out, names, base, execution_of(jobs, executor, address, threads), quick, final, echo=typer.echo
     )
     if install:
         from wearnav.pretrained.recipe import install_activity
@@ -482,134 +472,4 @@ def bench_har_lodo(
     typer.echo(f"wrote {out / 'results.md'}")
 
 
-@bench_app.command("easytrack")
-def bench_easytrack(
-    out: Path = typer.Option(Path("runs/easytrack"), "--out", help="Suite folder (data, run folders, results.md)."),
-    quick: bool = typer.Option(False, "--quick", help="Tiny data, 1–2 epochs per phase: checks the pipeline only."),
-    seeds: int = typer.Option(1, min=1, help="Seeds per method and level."),
-    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
-    executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
-    address: str | None = typer.Option(None, help=ADDRESS_HELP),
-    data: Path | None = typer.Option(
-        None,
-        "--data",
-        help="Real dataset (wearnav folder: phone IMU, fixes, sparse truth), e.g. an `wearnav import ipin2023` output.",
-    ),
-    test_routes: str | None = typer.Option(
-        None,
-        "--test-routes",
-        help="Regex: recordings of --data held out for testing, the rest "
-        "train (default: the dataset's `test` split, else IPIN's "
-        "Trial(04|24|52)_, the real-odometry test trials).",
-    ),
-    km: float | None = typer.Option(None, help="Simulated walking per noise level, km (default 3; --quick 0.25)."),
-    joint_epochs: int | None = typer.Option(None, "--joint-epochs", help="Joint epochs (paper 190; default 30)."),
-    ae_epochs: int | None = typer.Option(None, "--ae-epochs", help="Auto-encoder pre-training epochs (paper 5)."),
-    pre_epochs: int | None = typer.Option(None, "--pre-epochs", help="Per-model pre-training epochs (paper 5)."),
-    stride: float | None = typer.Option(
-        None,
-        "--stride",
-        help="Start a 1-s segment every STRIDE s (0.2: ~5 "
-        "overlapping segments per second, as the paper's Table I counts; "
-        "default: back to back).",
-    ),
-    levels: str | None = typer.Option(None, help="Noise levels, comma-separated (default L1,L2,L3)."),
-    methods: str | None = typer.Option(None, help="Methods, comma-separated (default: all)."),
-    loss: VelLoss = typer.Option(
-        VelLoss.mse, "--loss", help="The models' loss on the displacements: mse (the paper's) or polar (issue 34)."
-    ),
-):
-    """EasyTrack (paper 004): methods × noise levels on simulated phone labels, and a real GNSS test.
-
-    \b
-    Example:
-      wearnav bench easytrack --out runs/easytrack --quick
-    """
-    import dataclasses as _dc
-
-    from wearnav.bench.easytrack import BenchConfig, run_benchmark
-
-    suite_folder(out, "bench easytrack")
-    bc = BenchConfig.quick() if quick else BenchConfig()
-    changes: dict[str, Any] = {}
-    if km is not None:
-        changes["km"] = km
-    for key, value in (
-        ("joint_epochs", joint_epochs),
-        ("ae_epochs", ae_epochs),
-        ("pre_epochs", pre_epochs),
-        ("stride_s", stride),
-        ("loss", loss.value),
-    ):
-        if value is not None:
-            changes[key] = value
-    if levels:
-        changes["levels"] = tuple(split_list(levels))
-    if methods:
-        changes["methods"] = tuple(split_list(methods))
-    page = run_benchmark(
-        out,
-        quick,
-        seeds,
-        _execution(jobs, executor, address),
-        data,
-        test_routes,
-        _dc.replace(bc, **changes),
-        echo=typer.echo,
-    )
-    typer.echo(f"wrote {page}")
-
-
-@bench_app.command("easytrack-base")
-def bench_easytrack_base(
-    out: Path = typer.Option(
-        Path("runs/easytrack-base"), "--out", help="Suite folder (data, run folders, results.md)."
-    ),
-    km: float = typer.Option(8.5, help="Simulated L1 walking, km."),
-    joint_epochs: int = typer.Option(40, "--joint-epochs", help="Joint epochs (after 5 AE + 5 pre-training)."),
-    seeds: int = typer.Option(1, min=1, help="Seeds per variant."),
-    jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
-):
-    """Why EasyTrack's BaseModel-GT is far from the paper's: one input change at a time, per walk.
-
-    \b
-    Example:
-      wearnav bench easytrack-base --out runs/easytrack-base --km 1 --joint-epochs 5
-    """
-    from wearnav.bench.easytrack import BenchConfig
-    from wearnav.bench.easytrack_base import run_study
-
-    suite_folder(out, "bench easytrack-base")
-    page = run_study(
-        out,
-        BenchConfig(km=km, joint_epochs=joint_epochs),
-        seeds,
-        _execution(jobs, Backend.local, None),
-        echo=typer.echo,
-    )
-    typer.echo(f"wrote {page}")
-
-
-@bench_app.command("adapt")
-def bench_adapt(
-    model: Path = typer.Option(..., "--model", help="The base run folder (a model never trained on --data)."),
-    data: Path = typer.Option(
-        ..., "--data", help="IPIN 2023: the imported dataset folder, or its original files with --format."
-    ),
-    out: Path = typer.Option(Path("runs/adapt"), "--out", help="Suite folder (split data, adapted runs, results.md)."),
-    format_: ImportFormat | None = typer.Option(None, "--format", help="Importer for original-format --data."),
-):
-    """The adaptation table (issue 18 §3): adapt on the training trials' GNSS, score at the held-out POSI points.
-
-    \b
-    Example:
-      wearnav bench adapt --model runs/base --data data/ipin --out runs/adapt
-    """
-    from wearnav.bench.adapt import adapt_table
-
-    suite_folder(out, "bench adapt")
-    doc = adapt_table(model, data, out, choice_value(format_), progress=progress_enabled())
-    typer.echo(str(out / "results.md"))
-    typer.echo(
-        f"default method by the training trials: {doc['choice']['best']}; {doc['seconds']['total'] / 60:.1f} min"
-    )
+register_fix_commands(bench_app)  # easytrack, easytrack-base, adapt (wearnav.cli_bench_fixes)

@@ -1,4 +1,4 @@
-"""What the ``wearnav`` command's modules share (:mod:`wearnav.cli`, :mod:`wearnav.cli_bench`):
+"""What the ``wearnav`` command's modules share (:mod:`wearnav.cli`, :mod:`wearnav.cli_bench`, ...):
 option values, JSON output, and the one line an interrupted command ends with."""
 
 from __future__ import annotations
@@ -10,12 +10,30 @@ from typing import overload
 
 import typer
 
+from wearnav.bench.executor import Backend
 from wearnav.errors import ConfigError, FormatError
 from wearnav.importers import FORMATS
 
 # Options with a fixed set of values that both modules take (wearnav.cli explains the enums).
 # (members from FORMATS at run time, which mypy cannot list: it sees an Enum without members)
 ImportFormat = Enum("ImportFormat", {f: f for f in FORMATS}, type=str)  # type: ignore[misc]
+
+
+# How a suite's runs are spread (wearnav.bench.executor); none of it enters a run's hash.
+JOBS_HELP = "Runs at once in local processes (1: one after another in this process)."
+EXECUTOR_HELP = "local: this machine (--jobs processes); ray: a Ray cluster (pip install 'wearnav[cluster]')."
+SEED_HELP = "Random seed of every run (its weights, batch order and augmentation; part of the run's hash)."
+ADDRESS_HELP = (
+    "With --executor ray: the cluster to join (host:port, or 'auto': the one `ray start` joined here); "
+    "default: $RAY_ADDRESS or that cluster if there is one, else a new Ray on this machine."
+)
+
+
+def execution_of(jobs: int, executor: Backend, address: str | None, threads: int | None = None):
+    """How a suite's runs are spread, from the bench commands' --jobs, --executor and --address."""
+    from wearnav.bench.executor import Execution
+
+    return Execution(jobs=jobs, backend=executor, address=address, threads=threads)
 
 
 class Recipe(str, Enum):
