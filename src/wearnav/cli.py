@@ -293,7 +293,7 @@ def track(
         None,
         "--fix-lag",
         min=0.0,
-        max=10.0,
+        max=10.0,  # fuse.MAX_FIX_LAG_S; fuse (scipy) is not imported before a command runs
         help="Seconds the location fixes lag the walker (the smoother reads a fix as where the walker "
         "was that long before its time stamp; IPIN 2023's indoor fixes: 4). Default: 0.",
     ),

@@ -32,6 +32,7 @@ from wearnav.bench.real_page import evaluations, suite_runs, warp_text
 from wearnav.bench.user_protocol import FLOOR_COLUMN, PARTICLES, PARTICLES_LABEL, RAW_FIXES
 from wearnav.errors import ValidationError
 from wearnav.fileio import write_text_atomic
+from wearnav.fuse import fix_lags
 from wearnav.provenance import provenance
 from wearnav.stats import walk_bootstrap_difference
 from wearnav.textio import read_json
@@ -235,9 +236,7 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
         [f"on {' + '.join(bench.devices)} (the phone alone in the buildings)"] if bench.devices != ("phone",) else []
     )
     learned += ["in the phone's heading frame"] if bench.heading_frame else []
-    lagged = any(
-        c.get("fix_lag_s") for d in docs.values() for c in d["sites"].get("main", {}).get("calibration", {}).values()
-    )
+    lagged = fix_lags(c for d in docs.values() for c in d["sites"].get("main", {}).get("calibration", {}).values())
     p = provenance()
     lines = [
         f"# Odometry in real buildings over {len(docs)} seeds: trained on `{trained}`, tested on {tested}"
@@ -285,14 +284,11 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
         lines += [f"## {first['sites'][site]['split']['source']} ({where})", "", "Known start:", ""]
         lines += [ks.to_markdown(index=False), ""]
         if sm is not None:
-            lags = sorted(
-                {c.get("fix_lag_s") for d in docs.values() for c in d["sites"][site].get("calibration", {}).values()}
-                - {None}
-            )
+            lags = fix_lags(c for d in docs.values() for c in d["sites"][site].get("calibration", {}).values())
             lag = (
                 f" Each fix read as where the walker was {' / '.join(f'{v:g}' for v in lags)} s before its time "
                 "stamp (the fixes' lag on the site's training walks, `wearnav.fuse.fix_lag_of`; `track --fix-lag`)."
-                if any(lags)
+                if lags
                 else ""
             )
             lines += [

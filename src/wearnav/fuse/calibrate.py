@@ -93,6 +93,13 @@ def fix_lag_of(walks, lags_s=FIX_LAGS_S) -> dict:
     }
 
 
+def fix_lags(calibrations) -> list[float]:
+    """The distinct positive fixes' lags (:func:`fix_lag_of`) of these calibrations, ascending: what
+    a page or card says the smoother read the fixes at (empty: as stamped, or calibrations from
+    before the lag)."""
+    return sorted({float(c["fix_lag_s"]) for c in calibrations if c.get("fix_lag_s")})
+
+
 def calibrated(cfg: FuseConfig, cal: dict | None) -> FuseConfig:
     """``cfg`` with a calibration's odometry random walk, σ scale and fix lag (``CALIBRATION_JSON``'s
     ``odometry_walk_m_per_sqrt_s``, ``sigma_scale``, ``fix_lag_s``) where they are given and positive."""

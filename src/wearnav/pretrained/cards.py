@@ -18,6 +18,7 @@ from wearnav import runs
 from wearnav.augment import DROP_DEVICE_P
 from wearnav.dataset import Dataset
 from wearnav.fileio import write_text_atomic
+from wearnav.fuse import fix_lags
 from wearnav.pretrained import CARD, MULTI, PHONE, SPEED_WORDS, Shipped, recorded_speed
 from wearnav.provenance import provenance
 from wearnav.textio import read_json
@@ -99,7 +100,7 @@ def measured_rows(suites: dict[str, Path]) -> list[dict]:
                         "length ratio": r.get("length ratio", float("nan")),
                     }
                 )
-            lags = [c["fix_lag_s"] for c in result.get("calibration", {}).values() if c.get("fix_lag_s")]
+            lags = fix_lags(result.get("calibration", {}).values())
             # the smoother read the fixes at the site's lag (bench.real_page._fix_lag_line): `track --fix-lag`
             user = (
                 f"user (own fixes, read {lags[0]:g} s late: `track --fix-lag {lags[0]:g}`)"
