@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from wearnav.dataset import Dataset, DatasetWriter
+from wearnav.dataset import Dataset, write_subset
 
 
 def main() -> None:
@@ -22,12 +22,8 @@ def main() -> None:
     args = ap.parse_args()
     want = {c: getattr(args, c).split(",") for c in ("placement", "mode", "subject", "source") if getattr(args, c)}
     src = Dataset.open(args.src)
-    view = src.filter(**want)
-    split = dict(zip(src.manifest["name"], src.manifest["split"]))
-    with DatasetWriter(args.out, {"made_by": "scripts/subset_dataset.py", "from": str(args.src), **want}) as w:
-        for name in view.names:
-            w.add(src.load(name), split=split[name])
-    print(f"{len(view.names)} of {len(src.names)} recordings in {args.out}")
+    out = write_subset(src, args.out, {"made_by": "scripts/subset_dataset.py"}, **want)
+    print(f"{len(out.names)} of {len(src.names)} recordings in {args.out}")
 
 
 if __name__ == "__main__":

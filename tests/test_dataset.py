@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 
 from conftest import make_stream
-from wearnav.dataset import Dataset, DatasetWriter
+from wearnav.dataset import Dataset, DatasetWriter, write_subset
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.recording import Recording
 
@@ -44,6 +44,14 @@ def test_filters_and_splits(ds):
     assert ds.split("train").filter(mode="PVW").names == []
     with pytest.raises(ValidationError, match="unknown split"):
         ds.split("nonsense")
+
+
+def test_subset_keeps_the_matching_recordings_and_their_splits(ds, tmp_path):
+    sub = write_subset(ds, tmp_path / "stw", {"made_by": "test"}, mode="STW")
+    assert sub.names == ["a", "c"]
+    assert dict(zip(sub.names, sub.manifest["split"], strict=True)) == {"a": "train", "c": "cross_subject"}
+    assert sub.load("c").meta["subject"] == "u2" and len(sub.load("c").devices) == 3
+    assert sub.provenance["mode"] == "STW" and sub.provenance["from"] == str(ds.root)
 
 
 def test_summary(ds):

@@ -346,6 +346,27 @@ def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch
     assert cal["sigma_scale"] == 1.6 and fuse.config_for(shipped)[0].sigma_scale == 1.6
 
 
+def test_the_recipe_trains_on_the_simulated_walks_with_the_phone_in_hand(sources, tmp_path):
+    """Issue 34: the odometry models' training set is the preset's hand-held walks (``sim-hd``),
+    written once beside the simulator's folder with each walk's split, and reused."""
+    from wearnav.pretrained.recipe import Recipe, prepare_data, training_name
+
+    work = tmp_path / "work"
+    for name in ("ilc2", "ipin"):  # imported already (prepare_data reuses a folder with a manifest)
+        (work / name).mkdir(parents=True)
+        (work / name / "manifest.csv").write_text("name,file,duration,devices\n")
+    (work / "sim").symlink_to(sources / "sim")
+    echoed = []
+    folders = prepare_data(tmp_path / "no-data-root", work, Recipe(), progress=False, echo=echoed.append)
+    assert training_name(Recipe()) == "sim-hd" and training_name(Recipe(placements=())) == "sim"
+    sim, hd = Dataset.open(sources / "sim"), Dataset.open(folders["sim-hd"])
+    assert 0 < len(hd) < len(sim) and set(hd.manifest["placement"]) == {"HD"}
+    kept = sim.filter(placement="HD").manifest
+    assert dict(zip(hd.names, hd.manifest["split"], strict=True)) == dict(zip(kept["name"], kept["split"], strict=True))
+    prepare_data(tmp_path / "no-data-root", work, Recipe(), progress=False, echo=echoed.append)
+    assert len(echoed) == 1  # the second call reuses it
+
+
 def test_both_odometry_models_train_on_the_simulator_in_their_own_suite(sources):
     """Issue 34: the multi-device model is made as the phone model is (one recipe: a suite trained
     on the simulator and scored in both real buildings, its run the shipped model), on its three
@@ -360,7 +381,7 @@ def test_both_odometry_models_train_on_the_simulator_in_their_own_suite(sources)
     three = pretrained.SHIPPED[pretrained.MULTI].devices
     multi, phone = recipe_bench(sim, r, three), recipe_bench(sim, r, pretrained.SHIPPED[pretrained.PHONE].devices)
     assert multi.devices == three and phone.devices == ("phone",)
-    assert multi.vel_loss == phone.vel_loss == "polar" and multi.heading_frame and phone.heading_frame
+    assert multi.vel_loss == phone.vel_loss == "mse" and multi.heading_frame and phone.heading_frame
     learned = _train_config("suitein++", str(sim), 0.0, multi, elsewhere=True)
     assert learned.devices == three and learned.heading_frame and "rotate_yaw" not in learned.augment
     assert _train_config("pdr", str(sim), 0.0, multi, elsewhere=True).devices == ("phone",)

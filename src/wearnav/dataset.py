@@ -499,6 +499,15 @@ def write_dataset(
     return Dataset.open(root)
 
 
+def write_subset(src: Dataset, root: str | Path, provenance: dict | None = None, **want) -> Dataset:
+    """The recordings of ``src`` that :meth:`Dataset.filter` keeps for ``want`` written to ``root``,
+    each with its split (e.g. the simulator's hand-held walks alone: ``placement="HD"``)."""
+    split = dict(zip(src.manifest["name"], src.manifest["split"], strict=True))
+    view = src.filter(**want)
+    meta = {"from": str(src.root), **{k: v for k, v in want.items() if v is not None}, **(provenance or {})}
+    return write_dataset(root, ((src.load(name), split[name]) for name in view.names), meta)
+
+
 def scorable_split(ds, split: str):
     """``ds``'s split ``split``, refused when it is unknown, empty, or has no recording with truth
     to score against (metrics over 0 sequences would be a page of blanks)."""
