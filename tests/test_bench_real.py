@@ -334,6 +334,13 @@ def test_seeds_suite_pairs_each_path_with_pdr_by_walk(building, tmp_path):
     assert page.read_text().splitlines()[0].endswith(f"tested on standin{lagged} (1 epoch at most)")
     if any(lags):
         assert "s before its time stamp (the fixes' lag on the site's training walks" in page.read_text()
+    # a loss other than the papers' MSE is named there too
+    from dataclasses import replace
+
+    from wearnav.bench.real_seeds import seeds_page
+
+    polar = seeds_page(out, {s: out / f"seed-{s}" for s in (0, 1)}, replace(bench, vel_loss="polar"))
+    assert "the learned models with the `polar` loss" in polar.read_text().splitlines()[0]
 
 
 def _calibrations(suite) -> list[dict]:

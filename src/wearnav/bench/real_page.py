@@ -227,6 +227,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         if not bench["train_data"]
         else f"Odometry in real buildings: trained on `{Path(bench['train_data']).name}`, tested on {src}"
     ) + (", the learned models in the phone's heading frame" if bench.get("heading_frame") else "")
+    title += f", the `{bench['vel_loss']}` loss" if bench.get("vel_loss", "mse") != "mse" else ""
     title += warp_text(bench.get("speed_warp"))
     if bench.get("models") and not any(get(m).learned for m in bench["models"]):  # nothing was trained
         title = f"Odometry in real buildings, untrained baselines only ({', '.join(bench['models'])}): {src}"

@@ -236,6 +236,7 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
         [f"on {' + '.join(bench.devices)} (the phone alone in the buildings)"] if bench.devices != ("phone",) else []
     )
     learned += ["in the phone's heading frame"] if bench.heading_frame else []
+    learned += [f"with the `{bench.vel_loss}` loss"] if bench.vel_loss != "mse" else []
     lagged = fix_lags(c for d in docs.values() for c in d["sites"].get("main", {}).get("calibration", {}).values())
     p = provenance()
     lines = [
