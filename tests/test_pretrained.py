@@ -389,3 +389,12 @@ def test_both_odometry_models_train_on_the_simulator_in_their_own_suite(sources)
         RealBench(devices=("phone", "watch"))  # trained on the real walks
     with pytest.raises(ConfigError, match="phone alone"):
         RealBench(devices=("watch",), train_data=str(sim))
+
+
+def test_card_rows_name_the_recipe_once_and_keep_the_baselines_names():
+    from wearnav.pretrained.cards import RECIPE_ROW, _path_name
+
+    assert _path_name("suitein++ · `sim-hd` · cadence speed · map-aware") == f"{RECIPE_ROW} · cadence speed · map-aware"
+    assert _path_name("suitein++ · `sim-hd`") == RECIPE_ROW
+    assert _path_name("pdr · map-aware") == "pdr · map-aware"  # was once "the shipped recipe"
+    assert _path_name("pdr") == "pdr"
