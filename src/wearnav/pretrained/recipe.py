@@ -1,19 +1,20 @@
 """`wearnav pretrain`: the one command that trains, measures and installs the shipped models.
 
 1. **Data** (under ``work``, reused when present): ILC2 site 1 (all floors) and IPIN 2023 Track 3
-   (all trials) imported from the shared data root, the simulator's ``default`` preset (seed 0)
-   and its walks with the phone in hand (``sim-hd``, :func:`training_name`); the activity models
-   import every labelled source into ``out/har-lodo/data``.
-2. **The phone model** (issue 34): Suite-IN++ on the simulator's hand-held walks alone, in the
-   phone's heading frame with the MSE of the velocity, trained and measured by one suite
+   (all trials) imported from the shared data root, the simulator's ``default`` preset (seed 0),
+   and where the recipe names placements its walks with the phone in them (e.g. ``sim-hd``,
+   :func:`training_name`); the activity models import every labelled source into
+   ``out/har-lodo/data``.
+2. **The phone model** (issue 34): Suite-IN++ on the simulator alone, in the phone's heading
+   frame with the MSE of the velocity, trained and measured by one suite
    (``out/sim-to-real``, :mod:`wearnav.bench.real`): both real buildings are then ones it never
    saw, and the suite scores it at IPIN's held-out routes and ILC2's held-out floors beside PDR.
    The shipped model *is* that suite's run, so its card's numbers are its own; :data:`HELD_OUT_JSON`
    keeps them against PDR's for `track`'s phone-only choice
    (:func:`wearnav.pretrained.phone_only_choice`). Trained on a mix of the buildings, the same
-   model came out 32–36 % short in the building left out; with the polar loss on every simulated
-   placement it lost to PDR's smoother in IPIN, with the MSE on every placement it lost to PDR in
-   ILC2 (docs/design.md, "Velocity losses").
+   model came out 32–36 % short in the building left out. Trained on the hand-held walks alone it
+   beat PDR from a known start in both buildings, and failed with the phone in a pocket or bag
+   (docs/design.md, "Velocity losses").
 3. **The multi-device model** (issue 34): the same recipe on phone + watch + earbuds (the heading
    frame is the phone's, where there is one), trained and measured by its own suite
    (``out/sim-to-real-multi``): no real walk here has a watch or earbuds, so it is scored there on
@@ -82,9 +83,10 @@ class Recipe:
     har_steps: int = 250
     seed: int = 0
     preset: str = "default"  # the simulator's
-    # the odometry models train on the preset's walks with the phone in these placements (all of them
-    # where empty): the hand-held ones (docs/design.md, "The simulator's hand-held walks alone")
-    placements: tuple[str, ...] = ("HD",)
+    # the odometry models train on the preset's walks with the phone in these placements, all of them
+    # where empty. The hand-held ones alone (("HD",): `sim-hd`) win in both real buildings, whose phones
+    # are all hand-held, and fail with the phone in a pocket or bag (docs/design.md, "Velocity losses")
+    placements: tuple[str, ...] = ()
     # the odometry models' (module docstring, steps 2–3): their loss (wearnav.models.base.velocity_loss),
     # their windows in the carrying device's heading frame (PreprocessConfig.heading_frame), and
     # their batch augmentations (wearnav.augment; in the heading frame random yaw has nothing to teach)
