@@ -383,7 +383,7 @@ def test_both_odometry_models_train_on_the_simulator_in_their_own_suite(sources)
     three = pretrained.SHIPPED[pretrained.MULTI].devices
     multi, phone = recipe_bench(sim, r, three), recipe_bench(sim, r, pretrained.SHIPPED[pretrained.PHONE].devices)
     assert multi.devices == three and phone.devices == ("phone",)
-    assert multi.vel_loss == phone.vel_loss == "mse" and multi.heading_frame and phone.heading_frame
+    assert multi.vel_loss == phone.vel_loss == "polar" and multi.heading_frame and phone.heading_frame
     learned = _train_config("suitein++", str(sim), 0.0, multi, elsewhere=True)
     assert learned.devices == three and learned.heading_frame and "rotate_yaw" not in learned.augment
     assert _train_config("pdr", str(sim), 0.0, multi, elsewhere=True).devices == ("phone",)

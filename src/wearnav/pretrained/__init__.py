@@ -64,15 +64,15 @@ SHIPPED = {
             PHONE,
             "odometry",
             ("phone",),
-            "Suite-IN++ on the phone alone, in the phone's heading frame, trained on the simulator's "
-            "hand-held walks only (ILC2 and IPIN 2023 are the buildings it is measured in)",
+            "Suite-IN++ on the phone alone, in the phone's heading frame, trained on the simulator only "
+            "(ILC2 and IPIN 2023 are the buildings it is measured in)",
         ),
         Shipped(
             MULTI,
             "odometry",
             ("phone", "watch", "earbuds"),
             "Suite-IN++ on phone, watch and earbuds (any of them absent), in the phone's heading frame, trained "
-            "on the simulator's hand-held walks only (ILC2 and IPIN 2023 are the buildings it is measured in, on the phone alone)",
+            "on the simulator only (ILC2 and IPIN 2023 are the buildings it is measured in, on the phone alone)",
         ),
         Shipped(
             ACTIVITY,

@@ -225,29 +225,21 @@ _LIMITS_ALL = [
 LIMITS = {  # per shipped odometry model
     PHONE: _LIMITS_ALL
     + [
-        "Trained on one simulated walker's phone in the hand (texting or swinging); the table above is where "
-        "it meets real phones, in the hand too. A phone in a pocket or bag is outside its training. Its own speed comes out short where walkers are faster than that one (ILC2's, "
+        "Trained on one simulated walker's phone (in the hand, a pocket, a bag); the table above is where it "
+        "meets real phones. Its own speed comes out short where walkers are faster than that one (ILC2's, "
         "holding the phone flat); the cadence-long steps `track` takes instead rest on one constant "
         "measured on the simulator (0.367 m per step/s), so a walker whose steps are unusually long or "
         "short for their cadence comes out long or short. Where the recording has location fixes, "
         "`track`'s smoother estimates the scale, and `wearnav adapt` fits it to the user's own walks.",
-        "One seed's run. Over three seeds the recipe's known-start medians with cadence steps varied by "
-        "0.03 m or less (docs/results.md, `seeds-simonly-sim-hd-mse-heading`). Where it loses: with IPIN's "
-        "fixes, this seed's smoother with cadence steps (`track`'s path) is above PDR's at the median and "
-        "p75 in the table above (the three seeds' mean was level with PDR's: 6.17 / 8.52 m against "
-        "6.15 / 8.60), and its particle filter with fixes, beacons and barometer is above PDR's at the "
-        "median.",
+        "One seed's run: the recipe's spread over seeds is on docs/results.md's seeds pages (the model's "
+        "direction in ILC2 varied most).",
     ],
     MULTI: _LIMITS_ALL
     + [
         "Measured on real walks with the phone alone (the table above): no real walk here has a watch or "
-        "earbuds, so what those add on real walks is not measured. One seed's run: with cadence steps "
-        "(`track`'s path) it is below PDR from a known start in both buildings; its own speed comes out "
-        "short in ILC2 and above PDR there (the table above). Its recipe was not run over several seeds "
-        "with all three devices; the phone model's was (docs/results.md). Earlier recipes lost in ILC2 "
-        "in every seed tried (docs/design.md).",
-        "Trained on one simulated walker's devices (the phone in the hand), every walk with all three of "
-        "them; the heading frame "
+        "earbuds, so what those add on real walks is not measured. From a known start it was below PDR in "
+        "IPIN and above it in ILC2 (the phone held flat there), in every seed tried (docs/design.md).",
+        "Trained on one simulated walker's devices, every walk with all three of them; the heading frame "
         "is the phone's, and a recording without a phone takes the watch's, which training never showed. "
         "The cadence-long steps `track` takes rest on the phone's steps (one constant measured on the "
         "simulator, 0.367 m per step/s).",
