@@ -85,9 +85,9 @@ def pretrain(
     ),
 ):
     """Train the shipped models, measure them in buildings they never saw, write model cards; resumes.
-    The odometry models (phone; phone+watch+earbuds) train on the simulator's hand-held walks alone
-    and are scored in IPIN and ILC2, buildings they never saw; the activity models train on every
-    labelled source, measured leave-one-dataset-out.
+    The odometry models (phone; phone+watch+earbuds) train on the simulator alone and are scored in
+    IPIN and ILC2, buildings they never saw; the activity models train on every labelled source,
+    measured leave-one-dataset-out.
 
     \b
     Example:
