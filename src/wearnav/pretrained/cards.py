@@ -150,8 +150,10 @@ def write_card(spec: Shipped, run: Path, recipe, suites: dict[str, Path]) -> Pat
         "",
     ]
     ds = Dataset.open(cfg["data"])
-    simulated = Path(cfg["data"]).name if Path(cfg["data"]).name in SOURCE_TEXT else "sim"
-    parts = ds.provenance.get("parts") or [{"part": simulated, "recordings": len(ds.names)}]
+    folder = Path(cfg["data"]).name  # a simulated set written by pretrain ("sim", "sim-hd") is named by its folder
+    parts = ds.provenance.get("parts") or [
+        {"part": folder if folder in SOURCE_TEXT else "sim", "recordings": len(ds.names)}
+    ]
     heading = bool(cfg.get("heading_frame"))
     others = [d for d in spec.devices if d != "phone"]
     frame = (
