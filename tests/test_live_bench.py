@@ -70,7 +70,7 @@ def test_walker_rows_name_the_odometry_each_kind_was_tracked_by():
     own measurement), three-device ones the shipped three-device model; rows and page say which."""
     from wearnav import pretrained
 
-    phone_only = pretrained.phone_only_choice()[0]
+    phone_only = pretrained.phone_only_choice(has_fixes=True)[0]  # the bench's walkers push fixes
     assert bench.odometry_name(("phone",)) == (pretrained.shipped_name(phone_only) or "pdr")
     assert bench.odometry_name(("phone", "watch", "earbuds")) == pretrained.MULTI
 

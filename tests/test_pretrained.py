@@ -160,6 +160,66 @@ def test_phone_only_choice_is_the_shipped_models_own_measurement_against_pdr(tmp
     path, why = pretrained.phone_only_choice()
     assert path == "pdr" and "4.19 against PDR's 3.75" in why and "--model phone" in why
     assert pretrained.recorded_speed(phone) == "model"
+    # no building measured the smoother: a recording with fixes is chosen by the known start too
+    assert pretrained.phone_only_choice(has_fixes=True)[0] == "pdr"
+
+
+def _with_smoother(page, site, rows):
+    """``page``'s suite with a user-protocol table (path, median, p75) at ``site``."""
+    doc = json.loads((page.parent / "results.json").read_text())
+    table = [{**_row(path, median, 1.0), "path": path, "p75 (m)": p75} for path, median, p75 in rows]
+    doc["sites"][site]["user_protocol"] = {"table": table}
+    (page.parent / "results.json").write_text(json.dumps(doc))
+
+
+def test_a_recording_with_fixes_is_chosen_by_the_smoothers_measurement(tmp_path, monkeypatch):
+    """Issue 34: `track` places a recording with fixes by the smoother, so its phone-only default is
+    chosen by the smoother's held-out median, where the building has fixes (IPIN; ILC2 has none);
+    without fixes by the known start. A model that loses to PDR from a known start in ILC2 but wins
+    on the smoother in IPIN is taken with fixes and not without; the reasons say which measurement."""
+    from wearnav.pretrained.recipe import held_out_record
+
+    monkeypatch.setattr(pretrained, "MODELS_DIR", tmp_path / "models")
+    phone = pretrained.SHIPPED[pretrained.PHONE].path
+    (phone / "checkpoints").mkdir(parents=True)
+    (phone / "checkpoints" / "best.ckpt").write_bytes(b"")
+    (phone / "config.yaml").write_text("config: {}\n")
+    learned = "suitein++ · simulator `sim` (commit abc)"
+    cadence = learned + " · cadence speed"
+    smooth = " · smoother (`track` now)"
+    page = _suite_page(
+        tmp_path / "s" / "sim-to-real",
+        {
+            "main": [_row(learned, 3.9, 1.0), _row(cadence, 2.88, 0.98), _row("pdr", 4.77, 1.11)],
+            "other": [_row(learned, 3.2, 0.9), _row(cadence, 3.94, 0.95), _row("pdr", 3.75, 0.94)],
+        },
+    )
+    # the rows of the path with the recorded speed count, not the model's own
+    _with_smoother(
+        page, "main", [(learned + smooth, 7.0, 9.0), (cadence + smooth, 5.39, 7.54), ("pdr" + smooth, 6.15, 8.6)]
+    )
+    record = held_out_record(phone, page, "cadence")
+    ipin, ilc2 = record["buildings"].values()
+    assert ipin["smoother"] == {
+        "model_median_m": 5.39,
+        "model_p75_m": 7.54,
+        "pdr_median_m": 6.15,
+        "pdr_p75_m": 8.6,
+        "walks": 10,
+        "points": 134,
+    }
+    assert "smoother" not in ilc2  # no fixes there: no user protocol
+    path, why = pretrained.phone_only_choice(has_fixes=True)
+    assert path == phone and "with fixes" in why and "5.39 against PDR's 6.15" in why and "smoother" in why
+    path, why = pretrained.phone_only_choice(has_fixes=False)
+    assert path == "pdr" and "without fixes" in why and "3.94 against PDR's 3.75" in why
+    assert pretrained.model_path(None, "odometry", ("phone",), has_fixes=True) == phone
+    assert pretrained.model_path(None, "odometry", ("phone",)) == "pdr"
+    # a smoother worse with the model than with PDR: PDR for a recording with fixes as well
+    _with_smoother(page, "main", [(cadence + smooth, 6.4, 8.0), ("pdr" + smooth, 6.15, 8.6)])
+    held_out_record(phone, page, "cadence")
+    path, why = pretrained.phone_only_choice(has_fixes=True)
+    assert path == "pdr" and "6.40 against PDR's 6.15" in why
 
 
 def test_the_recipes_speed_is_recorded_and_taken_by_default(tmp_path, monkeypatch):
@@ -273,8 +333,8 @@ def test_track_without_model_lies_on_the_walks_own_fixes(stranger, monkeypatch, 
     code, out, err = run_cli(monkeypatch, capsys, "track", str(export2), "--out", str(tmp_path / "t2"))
     assert code == 0, err
     t2 = json.loads((tmp_path / "t2" / "track.json").read_text())
-    chosen, why = pretrained.phone_only_choice()
-    assert t2["model_choice"] == why and "PDR" in why
+    chosen, why = pretrained.phone_only_choice(has_fixes=True)  # the export has GPS fixes
+    assert t2["model_choice"] == why and "PDR" in why and "with fixes" in why
     assert t2["shipped_model"] == (None if chosen == "pdr" else pretrained.PHONE)
     code, out, err = run_cli(
         monkeypatch, capsys, "track", str(export2), "--model", "phone", "--out", str(tmp_path / "t3")

@@ -211,8 +211,11 @@ def track(
         model, cfg = resolve_model(model_path, "odometry", speed=speed)
     rec = load_input(src, name, platform)
     choice = "given with --model"
-    if model_path is None:  # the default for the devices the recording has, and why (pretrained.default_model)
-        model_path, choice = pretrained.default_model("odometry", rec.devices)
+    if (
+        model_path is None
+    ):  # the default for the devices and fixes the recording has, and why (pretrained.default_model)
+        smoothed = anchor == "smooth" and rec.fixes is not None and len(rec.fixes.t) > 0
+        model_path, choice = pretrained.default_model("odometry", rec.devices, has_fixes=smoothed)
         model_path = locate_model(model_path, "odometry")
         model, cfg = resolve_model(model_path, "odometry", speed=speed)
     usable = [d for d in cfg.devices if d in rec.devices]

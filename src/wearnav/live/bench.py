@@ -310,8 +310,9 @@ def walkers_phase(
 
 
 def odometry_name(devices: tuple[str, ...]) -> str:
-    """The odometry a session with ``devices`` is tracked by without ``--model`` (shipped name or pdr)."""
-    path, _ = pretrained.default_model("odometry", devices)
+    """The odometry a session with ``devices`` is tracked by without ``--model`` (shipped name or pdr):
+    the bench's walkers push fixes from their start."""
+    path, _ = pretrained.default_model("odometry", devices, has_fixes=True)
     return pretrained.shipped_name(path) or str(path)
 
 

@@ -76,9 +76,9 @@ class SharedModels:
         On a GPU the first pass pays CUDA's start-up, which would otherwise land in the first
         session's first update. A model that cannot be loaded here is left to that session (whose
         page then says why)."""
-        for devices in (("phone",), CANONICAL_DEVICES):
+        for devices, has_fixes in ((("phone",), False), (("phone",), True), (CANONICAL_DEVICES, True)):
             try:
-                net, cfg = self.resolve(pretrained.model_path(model, "odometry", devices), "odometry")
+                net, cfg = self.resolve(pretrained.model_path(model, "odometry", devices, has_fixes), "odometry")
                 if isinstance(net, torch.nn.Module):
                     d = len(odometry_preprocess(cfg).devices)
                     predict_windows(net, torch.zeros(1, d, cfg.window, 6), torch.ones(1, d))

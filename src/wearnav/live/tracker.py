@@ -204,7 +204,9 @@ class LiveTracker:
         if last - first <= tol + START_MARGIN_S:
             return False
         if self.model is None:
-            path = pretrained.model_path(self._model_arg, "odometry", tuple(rec.devices))
+            # the fixes the walk has by now decide a phone-only walk's default (pretrained.phone_only_choice)
+            has_fixes = rec.fixes is not None and len(rec.fixes.t) > 0
+            path = pretrained.model_path(self._model_arg, "odometry", tuple(rec.devices), has_fixes)
             self.model, self.cfg = self._models.resolve(path, "odometry")
             self.model_path = path
             # a heading prior only for a phone-only walk (the frame's reference is the phone's)

@@ -139,12 +139,16 @@ def recorded_speed(model: str | Path) -> str:
     return speed if isinstance(speed, str) and speed in SPEED_WORDS else "model"
 
 
-def phone_only_choice() -> tuple[Path | str, str]:
+def phone_only_choice(has_fixes: bool = False) -> tuple[Path | str, str]:
     """What `track` and `live` use without ``--model`` for a recording with the phone alone, and why
-    (issue 34): the shipped phone model where its :data:`HELD_OUT_JSON` shows its known-start median
-    below PDR's in every building it never trained in, else step-and-heading PDR. A recording with a
-    watch or earbuds keeps the learned multi-device model: no real multi-device walk here measures
-    PDR against it, and on the simulator the multi-device Suite-IN++ is far ahead of PDR (Table III)."""
+    (issue 34): the path that measured better where the shipped phone model never trained, by what
+    the user will see. A recording with fixes (``has_fixes``) is placed by the smoother, so it takes
+    the shipped model where its :data:`HELD_OUT_JSON` shows the smoother's median with it at or below
+    the smoother's with PDR in every building with fixes; one without fixes (or a model measured in no
+    building with fixes) is placed from its start, so it takes the model where its known-start median
+    is below PDR's in every building. Else step-and-heading PDR. A recording with a watch or earbuds
+    keeps the learned multi-device model: no real multi-device walk here measures PDR against it, and
+    on the simulator the multi-device Suite-IN++ is far ahead of PDR (Table III)."""
     spec = SHIPPED[PHONE]
     record = spec.path / HELD_OUT_JSON
     if not (spec.installed and record.is_file()):
@@ -153,31 +157,45 @@ def phone_only_choice() -> tuple[Path | str, str]:
             "measurement in buildings it never saw); `--model phone` takes the learned model"
         )
     buildings = read_json(record)["buildings"]
-    said = "; ".join(
-        f"{name}: {b['model_median_m']:.2f} against PDR's {b['pdr_median_m']:.2f} m "
-        f"(path length / truth {b['model_length_ratio']:.2f} against {b['pdr_length_ratio']:.2f})"
-        for name, b in buildings.items()
-    )
-    how = "known start, median error at the surveyed points"
+    smoothed = {name: b["smoother"] for name, b in buildings.items() if b.get("smoother")}
+    if has_fixes and smoothed:
+        said = "; ".join(
+            f"{name}: {b['model_median_m']:.2f} against PDR's {b['pdr_median_m']:.2f} m "
+            f"(p75 {b['model_p75_m']:.2f} against {b['pdr_p75_m']:.2f})"
+            for name, b in smoothed.items()
+        )
+        how = "placed on the user's own fixes by the smoother, median error at the surveyed points"
+        wins = all(b["model_median_m"] <= b["pdr_median_m"] for b in smoothed.values())
+        where = "every building with fixes"
+    else:
+        said = "; ".join(
+            f"{name}: {b['model_median_m']:.2f} against PDR's {b['pdr_median_m']:.2f} m "
+            f"(path length / truth {b['model_length_ratio']:.2f} against {b['pdr_length_ratio']:.2f})"
+            for name, b in buildings.items()
+        )
+        how = "known start, median error at the surveyed points"
+        wins = bool(buildings) and all(b["model_median_m"] < b["pdr_median_m"] for b in buildings.values())
+        where = "every building"
+    kind = "with fixes" if has_fixes else "without fixes"
     speed = recorded_speed(spec.path)
     with_speed = "" if speed == "model" else f" with {SPEED_WORDS[speed]} (`--speed model` takes its own)"
-    if buildings and all(b["model_median_m"] < b["pdr_median_m"] for b in buildings.values()):
+    if wins:
         return spec.path, (
-            f"a phone-only recording: the shipped model {PHONE!r}{with_speed}, which measured better than "
-            f"step-and-heading PDR in every building it never trained in ({how}; {said}); `--model pdr` takes PDR"
+            f"a phone-only recording {kind}: the shipped model {PHONE!r}{with_speed}, which measured better than "
+            f"step-and-heading PDR in {where} it never trained in ({how}; {said}); `--model pdr` takes PDR"
         )
     return "pdr", (
-        f"a phone-only recording: step-and-heading PDR, which measured better than the shipped phone model in "
-        f"a building that model never trained in ({how}; {said}); `--model phone` takes the learned model"
+        f"a phone-only recording {kind}: step-and-heading PDR, which measured better than the shipped phone model "
+        f"in a building that model never trained in ({how}; {said}); `--model phone` takes the learned model"
     )
 
 
-def default_model(task: str, devices_in_recording=()) -> tuple[Path | str, str]:
-    """What a command uses without ``--model`` for a recording with ``devices_in_recording``, and
-    why: for odometry on a phone-only recording :func:`phone_only_choice`, else the shipped model
-    of :func:`default_for`."""
+def default_model(task: str, devices_in_recording=(), has_fixes: bool = False) -> tuple[Path | str, str]:
+    """What a command uses without ``--model`` for a recording with ``devices_in_recording`` (and
+    fixes, ``has_fixes``), and why: for odometry on a phone-only recording :func:`phone_only_choice`,
+    else the shipped model of :func:`default_for`."""
     if task == "odometry" and not {"watch", "earbuds"} & set(devices_in_recording):
-        return phone_only_choice()
+        return phone_only_choice(has_fixes)
     spec = default_for(task, devices_in_recording)
     return (
         spec.path,
@@ -185,11 +203,11 @@ def default_model(task: str, devices_in_recording=()) -> tuple[Path | str, str]:
     )
 
 
-def model_path(arg, task: str, devices_in_recording=()):
-    """A command's ``--model`` as the path of what it names: None → :func:`default_for`; the name of
+def model_path(arg, task: str, devices_in_recording=(), has_fixes: bool = False):
+    """A command's ``--model`` as the path of what it names: None → :func:`default_model`; the name of
     a shipped model (where no such file or folder exists) → its folder; anything else unchanged."""
     if arg is None:
-        return default_model(task, devices_in_recording)[0]
+        return default_model(task, devices_in_recording, has_fixes)[0]
     if not Path(arg).exists() and str(arg) in SHIPPED:
         spec = SHIPPED[str(arg)]
         if spec.task != task:

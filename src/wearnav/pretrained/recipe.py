@@ -47,7 +47,7 @@ from wearnav.bench.executor import Execution, run_jobs
 from wearnav.bench.har_lodo import run_lodo
 from wearnav.bench.real import RealBench, plan_benchmark
 from wearnav.bench.real_page import VARIANTS
-from wearnav.bench.user_protocol import site_calibration
+from wearnav.bench.user_protocol import ANCHOR_LABEL, site_calibration
 from wearnav.dataset import Dataset, write_subset
 from wearnav.errors import ConfigError, MissingFileError
 from wearnav.fileio import atomic_path, write_text_atomic
@@ -219,8 +219,10 @@ def pretrain(
 def held_out_record(run: Path, page: Path, speed: str = "model") -> dict:
     """``run``/:data:`HELD_OUT_JSON`: per building its suite scored, the known-start median error and
     length ratio of the model's path with its speed from ``speed`` (its own row, or that hybrid's:
-    :data:`wearnav.bench.real_page.VARIANTS`) beside PDR's, and ``speed`` itself, which `track` and
-    `live` then take by default (:func:`wearnav.pretrained.recorded_speed`)."""
+    :data:`wearnav.bench.real_page.VARIANTS`) beside PDR's, in a building with fixes also the
+    smoother's median and p75 with that path beside PDR's (``smoother``: what a recording with fixes
+    is chosen by, :func:`wearnav.pretrained.phone_only_choice`), and ``speed`` itself, which `track`
+    and `live` then take by default (:func:`wearnav.pretrained.recorded_speed`)."""
     doc = read_json(Path(page).parent / "results.json")
     buildings = {}
     for site, result in doc["sites"].items():
@@ -230,7 +232,7 @@ def held_out_record(run: Path, page: Path, speed: str = "model") -> dict:
         if label not in rows:
             raise ConfigError(f"{page}: no row {label!r} to record the shipped model's {speed} speed by")
         model = rows[label]
-        buildings[cards.site_name(Path(page).parent.name, site)] = {
+        building = buildings[cards.site_name(Path(page).parent.name, site)] = {
             "model_median_m": model["median (m)"],
             "pdr_median_m": rows["pdr"]["median (m)"],
             "model_length_ratio": model["length ratio"],
@@ -238,14 +240,37 @@ def held_out_record(run: Path, page: Path, speed: str = "model") -> dict:
             "walks": model["traces"],
             "points": model["points"],
         }
+        if smoother := _smoother_record(result.get("user_protocol"), label):
+            building["smoother"] = smoother
     record = {
         "protocol": "known start + site yaw, median error at the surveyed points (wearnav bench real-odometry)",
+        "smoother_protocol": "the user's own fixes, no truth: the smoother (`track`'s path where the recording "
+        "has fixes), median and p75 error at the surveyed points",
         "suite": str(Path(page).parent),
         "speed": speed,
         "buildings": buildings,
     }
     runs.write_json(run / HELD_OUT_JSON, record)
     return record
+
+
+def _smoother_record(user_protocol: dict | None, label: str) -> dict | None:
+    """The user protocol's smoother rows of the model's path ``label`` and of PDR's (median, p75),
+    or None where the building has no fixes (no user protocol) or either row is missing."""
+    if not user_protocol:
+        return None
+    rows = {r["path"]: r for r in user_protocol["table"]}
+    model, pdr = (rows.get(f"{name} · {ANCHOR_LABEL['smooth']}") for name in (label, "pdr"))
+    if model is None or pdr is None:
+        return None
+    return {
+        "model_median_m": model["median (m)"],
+        "model_p75_m": model["p75 (m)"],
+        "pdr_median_m": pdr["median (m)"],
+        "pdr_p75_m": pdr["p75 (m)"],
+        "walks": model["traces"],
+        "points": model["points"],
+    }
 
 
 def cross_building_calibration(run: Path, suites: list[Path], speed: str = "model") -> dict:
