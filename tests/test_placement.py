@@ -86,3 +86,22 @@ def test_floors_over_time_follows_the_barometer():
     floor_at, info = floors_over_time(rec, SiteModels(levels=levels))
     assert floor_at is not None and info["start_floor"] == 0
     assert floor_at(np.array([10.0, 50.0])).tolist() == [0.0, -1.0]
+
+
+def test_fixes_that_lag_are_read_at_the_walkers_time():
+    """MapConfig.fix_lag_s (issue 36; the smoother's FuseConfig.fix_lag_s): fixes stamped 4 s after
+    the walker was there pull a filter that reads them on time 4 m behind along the walk; read at
+    their lag, the path lies on the truth."""
+    rec, t, odo, true = straight_walk(seed=1, with_beacons=False)
+    rng = np.random.default_rng(2)
+    ft = np.arange(4.0, 60.0, 1.0)
+    rec.fixes = Fixes(ft, true[((ft - 4.0) * 10).astype(int)] + rng.normal(0, 1.0, (ft.size, 2)), np.full(ft.size, 3.0))
+    cfg = MapConfig(particles=300, scale_log_sigma=0.2, start_heading_sigma_deg=30)
+    errors = {}
+    for lag in (0.0, 4.0):
+        res, _ = place(rec, t, odo, cfg=MapConfig(**{**cfg.__dict__, "fix_lag_s": lag}))
+        errors[lag] = np.linalg.norm(res.xy - true, axis=1)[100:]  # after the first 10 s
+        assert res.info["config"]["fix_lag_s"] == lag
+    assert np.median(errors[4.0]) < 1.5 < 2.5 < np.median(errors[0.0])
+    with pytest.raises(ValidationError, match="fix_lag_s"):
+        MapConfig(fix_lag_s=-1.0)

@@ -294,8 +294,9 @@ def track(
         "--fix-lag",
         min=0.0,
         max=10.0,  # fuse.MAX_FIX_LAG_S; fuse (scipy) is not imported before a command runs
-        help="Seconds the location fixes lag the walker (the smoother reads a fix as where the walker "
-        "was that long before its time stamp; IPIN 2023's indoor fixes: 4). Default: 0.",
+        help="Seconds the location fixes lag the walker (the smoother, and the map-aware path with --map, "
+        "read a fix as where the walker was that long before its time stamp; IPIN 2023's indoor fixes: 4). "
+        "Default: 0.",
     ),
 ):
     """The walking path of one recording: predict, integrate from (0, 0), place it on the location fixes.

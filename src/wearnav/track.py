@@ -270,7 +270,7 @@ def track(
     summary["warnings"] += [
         f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel, summary["length_m"])
     ]
-    placed, summary["map"], map_warnings = map_path(rec, t, xy, plan, start, progress)
+    placed, summary["map"], map_warnings = map_path(rec, t, xy, plan, start, progress, fix_lag_s or 0.0)
     summary["warnings"] += map_warnings
     for w in summary["warnings"]:
         warnings.warn(WearnavWarning(w), stacklevel=2)

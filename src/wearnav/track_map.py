@@ -69,12 +69,14 @@ def map_path(
     plan: str | Path,
     start: tuple[float, float, float] | None,
     progress: bool = False,
+    fix_lag_s: float = 0.0,
 ) -> tuple[fuse.FuseResult | None, dict, list[str]]:
     """The map-aware path of the odometry path ``xy`` (times ``t``) for ``--map plan`` and ``--start``:
     the placed path (:func:`place_on_map`; None where no plan is used), ``track.json``'s ``map`` (the
     plans requested and found, and whether they were ``used``) and the warnings to add. A plan is not
     used where the recording has no fixes and no ``start`` is given; where it is used it becomes
-    ``rec.plans`` (what the page draws under the path)."""
+    ``rec.plans`` (what the page draws under the path). ``fix_lag_s``: how far the fixes lag the
+    walker (``track --fix-lag``, as the smoother takes it)."""
     floor_plans, plan_from = map_plans(rec, plan)
     info: dict = {"requested": str(plan), "plans": [p.name for p in floor_plans], "from": plan_from}
     placed, warns = None, []
@@ -84,7 +86,7 @@ def map_path(
         )
         info["used"] = False
     elif floor_plans:
-        placed = place_on_map(rec, t, xy, floor_plans, start, progress=progress)
+        placed = place_on_map(rec, t, xy, floor_plans, start, MapConfig(fix_lag_s=fix_lag_s), progress)
         info["used"] = True
         rec.plans = floor_plans  # what the page draws under the path
     return placed, info, warns

@@ -27,6 +27,7 @@ import numpy as np
 from wearnav import fuse, metrics, runs
 from wearnav.dataset import Dataset
 from wearnav.evaluate import predict_sequence
+from wearnav.fuse.particles import MapConfig
 from wearnav.fuse.placement import SiteModels, floors_over_time, place
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
 from wearnav.stats import difference_cells, walk_bootstrap_difference
@@ -138,7 +139,8 @@ def user_protocol(
     site: SiteModels | None = None,
 ) -> dict:
     """Per anchoring of :data:`wearnav.fuse.ANCHORS` (and, with ``site``, the particle filter of
-    :func:`wearnav.fuse.placement.place` with the site's beacon and floor models, key :data:`PARTICLES`,
+    :func:`wearnav.fuse.placement.place` with the site's beacon and floor models and the smoother's
+    fix lag, key :data:`PARTICLES`,
     its floor right at the surveyed points in ``floor_right``): the errors at the surveyed points of
     ``split`` of ``data`` for the model of ``run`` (a run folder) under the user protocol, the
     path-length ratio per trace, what the smoother found per trace and its seconds per hour of walk.
@@ -180,7 +182,7 @@ def user_protocol(
             out[anchor]["by_trace"][rec.name] = _rounded(err)
             out[anchor]["length_ratio"].append(ratio)
         if site is not None:
-            placed, _ = place(rec, t, xy, site)
+            placed, _ = place(rec, t, xy, site, cfg=MapConfig(fix_lag_s=c.fix_lag_s))  # the smoother's lag
             err, ratio = score_path(t, placed.xy, rec.truth.t, rec.truth.pos[:, :2])
             out[PARTICLES]["errors"].append(err)
             out[PARTICLES]["by_trace"][rec.name] = _rounded(err)

@@ -99,6 +99,9 @@ class MapConfig:
     # not independent. Chosen on IPIN 2023's training walks (31, PDR, user protocol): median / p95
     # 5.89 / 19.34 m at 1, 4.55 / 15.60 at 2, 5.59 / 14.33 at 3.
     beacon_sigma_scale: float = 2.0
+    # a fix stamped t is where the walker was at t − fix_lag_s (the smoother's FuseConfig.fix_lag_s:
+    # IPIN 2023's fixes lag by 3.5 s on its training walks, wearnav.fuse.fix_lag_of)
+    fix_lag_s: float = 0.0
     # A shared offset of the fixes as a state per particle (prior σ 1.5–8 m per axis, random walk
     # 0.01–0.2 m/√s), for indoor fixes that sit metres off for a whole walk, was tried on the same 31
     # training walks (PDR) and not kept: median / p95 5.24–7.60 / 13.35–21.71 m against 4.55 / 15.60
@@ -112,6 +115,8 @@ class MapConfig:
             raise ValidationError(f"step_s must be positive; got {self.step_s}")
         if not 0 < self.wall_penalty <= 1:
             raise ValidationError(f"wall_penalty must be in (0, 1]; got {self.wall_penalty}")
+        if not self.fix_lag_s >= 0:
+            raise ValidationError(f"fix_lag_s must be 0 or more seconds; got {self.fix_lag_s}")
 
 
 @dataclasses.dataclass

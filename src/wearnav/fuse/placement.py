@@ -112,7 +112,7 @@ def place(
     if fx is not None and len(fx):
         check = check_fixes(float(t[0]), float(t[-1]), fx.t, fx.pos[:, :2], fx.accuracy, FuseConfig().wide_m)
         k = check.kept
-        fixes = (fx.t[k], fx.pos[k, :2], fx.accuracy[k])
+        fixes = (fx.t[k] - cfg.fix_lag_s, fx.pos[k, :2], fx.accuracy[k])  # when the walker was there
     if start is None and (fixes is None or not len(fixes[0])):
         raise ValidationError(
             "nothing to place the path by: give --start X,Y,HEADING_DEG (the recording has no usable location fix)"
