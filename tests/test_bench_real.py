@@ -269,7 +269,12 @@ def test_a_heading_frame_model_is_also_scored_as_its_speed_along_the_phones_poin
     )
     doc = json.loads((out / "results.json").read_text())
     table = {r["method"]: r for r in doc["sites"]["main"]["table"]}
-    assert {"ronin", "ronin · PDR speed", "ronin · its speed, pointing"} <= set(table)
+    assert {
+        "ronin",
+        "ronin · PDR speed",
+        "ronin · its speed, pointing",
+        "ronin · cadence speed, pointing within 30°",
+    } <= set(table)
     run = next((out / "runs").glob("ronin-*"))
     own = json.loads((run / "site_yaw_eval_main_pointing.json").read_text())
     assert own["by"] == "the model itself, speed pointing"
@@ -277,6 +282,8 @@ def test_a_heading_frame_model_is_also_scored_as_its_speed_along_the_phones_poin
     assert table["ronin"]["site yaw (°)"] == doc["sites"]["main"]["yaw"]["yaw_deg"]  # trained under PDR's
     pointing = runs.read_metrics(run / "eval_main_pointing")
     assert pointing["speed"] == "pointing" and pointing["preprocess"]["yaw_deg"] == own["yaw_deg"]
+    snapped = json.loads((run / "site_yaw_eval_main_snapped.json").read_text())  # its own yaw, too
+    assert table["ronin · cadence speed, pointing within 30°"]["site yaw (°)"] == snapped["yaw_deg"]
     # the same speeds, another direction: each trace's path is as long along its samples
     for f in sorted((run / "eval_main" / "trajectories" / "test").glob("*.csv")):
         lengths = []
@@ -289,9 +296,10 @@ def test_a_heading_frame_model_is_also_scored_as_its_speed_along_the_phones_poin
         building / "building", out, group_by="floor_name", test_groups=("F9",), bench=world, progress=False, echo=print
     )
     world_run = next(p for p in (out / "runs").glob("ronin-*") if p != run)
-    assert not (world_run / "eval_main_pointing").exists()
-    with pytest.raises(ConfigError, match="heading frame"):
-        load_model(world_run, speed="pointing")
+    assert not (world_run / "eval_main_pointing").exists() and not (world_run / "eval_main_snapped").exists()
+    for speed in ("pointing", "snapped"):
+        with pytest.raises(ConfigError, match="heading frame"):
+            load_model(world_run, speed=speed)
 
 
 def test_seeds_suite_pairs_each_path_with_pdr_by_walk(building, tmp_path):

@@ -392,3 +392,23 @@ def test_along_pointing_keeps_the_models_speed_along_the_heading_frames_x():
 
     vel = AlongPointing(Guess())(torch.zeros(2, 1, 100, 6), torch.ones(2, 1)).numpy()
     np.testing.assert_allclose(vel, [[0.4, 0.0], [0.0, 0.0]], atol=1e-6)
+
+
+def test_snap_to_pointing_turns_only_directions_near_the_phones():
+    """wearnav.models.base.SnapToPointing: a heading-frame model's direction within 30° of +x (where
+    the phone points) is turned onto +x at the same speed; one further off (a phone in a pocket,
+    pointing sideways), standing still, or just past the angle is kept as it is."""
+    from wearnav.models.base import SNAP_DEG, SnapToPointing
+
+    angles = np.deg2rad([0.0, 12.0, -29.0, 31.0, -95.0, 180.0])
+    guess = np.stack([1.2 * np.cos(angles), 1.2 * np.sin(angles)], 1)
+
+    class Guess(torch.nn.Module):
+        def forward(self, x, mask):
+            return torch.tensor(np.vstack([guess, [[0.0, 0.0]]]), dtype=x.dtype)
+
+    assert SNAP_DEG == 30.0
+    vel = SnapToPointing(Guess())(torch.zeros(7, 1, 100, 6), torch.ones(7, 1)).numpy()
+    np.testing.assert_allclose(vel[:3], [[1.2, 0.0]] * 3, atol=1e-5)
+    np.testing.assert_allclose(vel[3:], np.vstack([guess[3:], [[0.0, 0.0]]]), atol=1e-6)
+    assert SnapToPointing(Guess(), snap_deg=10.0)(torch.zeros(7, 1, 100, 6), torch.ones(7, 1))[1, 1] > 0.2

@@ -79,6 +79,7 @@ class Speed(str, Enum):  # wearnav.train.odometry.SPEED_SOURCES
     pdr = "pdr"
     cadence = "cadence"
     pointing = "pointing"
+    snapped = "snapped"
 
 
 class Preset(str, Enum):  # wearnav.simulate.presets.PRESETS
@@ -286,7 +287,8 @@ def track(
         None,
         help="Where a learned model's speed comes from: model (its own), pdr (its direction, detected "
         "steps × 0.67 m), cadence (its direction, steps as long as the cadence makes them), pointing "
-        "(its speed along where the phone points; a heading-frame model). Default: what the model "
+        "(its speed along where the phone points; a heading-frame model), snapped (cadence, its direction "
+        "turned onto where the phone points wherever within 30° of it; a heading-frame model). Default: what the model "
         "records (the shipped phone model: cadence, docs/design.md), else model.",
     ),
     fix_lag: float | None = typer.Option(

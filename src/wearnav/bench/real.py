@@ -165,10 +165,10 @@ class RealEval:
     def yaw(self, run: Path, speed: str = "model") -> float:
         """The yaw the test input is turned by: PDR's, or the model's own (module docstring, step 3),
         estimated once on the site's training traces and kept beside the evaluation. A path along
-        where the phone points (``speed`` "pointing") always takes its own, as ``pdr-pointing`` does:
-        the heading frame's windows do not depend on the yaw, so what the model learned under PDR's
-        is its speed only."""
-        if not self.own_yaw and speed != "pointing":
+        where the phone points (``speed`` "pointing", or "snapped" onto it) always takes its own, as
+        ``pdr-pointing`` does: the heading frame's windows do not depend on the yaw, so what the model
+        learned under PDR's is its speed only."""
+        if not self.own_yaw and speed not in ("pointing", "snapped"):
             return self.yaw_deg
         f = run / f"site_yaw_{variant_dir(self.out_dir, speed).name}.json"
         if not f.is_file():
@@ -212,10 +212,10 @@ def scored_as(cfg: TrainConfig) -> tuple[str, ...]:
     """Where the speeds of a model's scored paths come from (issue 34; ``load_model``'s ``speed``):
     as trained; a learned model also as the hybrids with PDR's speed (0.67-m steps, and steps as
     long as the cadence makes them), and one in the heading frame also as its speed along where the
-    phone points."""
+    phone points and as the cadence hybrid turned onto the phone's pointing where near it."""
     if not get(cfg.model).learned:
         return ("model",)
-    return ("model", "pdr", "cadence", "pointing") if cfg.heading_frame else ("model", "pdr", "cadence")
+    return ("model", "pdr", "cadence", "pointing", "snapped") if cfg.heading_frame else ("model", "pdr", "cadence")
 
 
 def variant_dir(eval_dir: Path, speed: str) -> Path:

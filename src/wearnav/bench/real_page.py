@@ -69,6 +69,7 @@ VARIANTS = {
     "pdr": ("_pdrspeed", " · PDR speed"),
     "cadence": ("_cadence", " · cadence speed"),
     "pointing": ("_pointing", " · its speed, pointing"),
+    "snapped": ("_snapped", " · cadence speed, pointing within 30°"),
 }
 # and either one placed on the building's floor plans (wearnav.bench.map_eval, issue 36) + MAP_SUFFIX
 MAP_LABEL = " · map-aware"

@@ -7,6 +7,7 @@ LightningModule trains every odometry model.
 
 from __future__ import annotations
 
+import math
 from typing import cast
 
 import torch
@@ -160,3 +161,38 @@ class AlongPointing(OdometryModel):
     def predict(self, x: Tensor, mask: Tensor) -> Tensor:
         speed = cast(OdometryModel, self.inner).predict(x, mask).norm(dim=1)
         return torch.stack([speed, torch.zeros_like(speed)], dim=1)
+
+
+# Within this angle (degrees) of where the phone points, SnapToPointing takes the pointing.
+SNAP_DEG = 30.0
+
+
+class SnapToPointing(OdometryModel):
+    """``inner``'s velocity turned onto where the phone points wherever it is within ``snap_deg`` of it
+    (issue 34 §2, "Hybrids"), else as it is; for a model whose windows are in the device's heading
+    frame (+x: the horizontal direction of the phone's y − z axis, as :class:`AlongPointing`). A phone
+    held ahead points the way of walking, which the phone measures better than the model reads it from
+    the gait (its direction erred 10.7–21.0° against the pointing's 9.1° median in ILC2); a phone in a
+    pocket or bag points elsewhere, where the model's own direction stays. The model decides which,
+    window by window, so no placement is assumed. Turning within ``snap_deg`` errs by at most that
+    angle where the phone's pointing is off the walk by less; on the simulator's pocket and bag walks
+    it cost nothing (docs/design.md, "The phone's pointing where the model agrees")."""
+
+    def __init__(self, inner: nn.Module, snap_deg: float = SNAP_DEG):
+        super().__init__()
+        self.inner = inner
+        self.learned = bool(getattr(inner, "learned", True))
+        self.cos_snap = math.cos(math.radians(snap_deg))
+
+    def _snap(self, v: Tensor) -> Tensor:
+        speed = v.norm(dim=1)
+        near = v[:, 0] > self.cos_snap * speed  # within snap_deg of +x (and not standing still)
+        along = torch.stack([speed, torch.zeros_like(speed)], dim=1)
+        return torch.where(near[:, None], along, v)
+
+    def forward(self, x: Tensor, mask: Tensor) -> Tensor:
+        return self._snap(self.inner(x, mask))
+
+    @torch.no_grad()
+    def predict(self, x: Tensor, mask: Tensor) -> Tensor:
+        return self._snap(cast(OdometryModel, self.inner).predict(x, mask))

@@ -34,6 +34,8 @@ SPEED_WORDS = {
     "pdr": "its direction at detected steps × 0.67 m",
     "cadence": "its direction at detected steps as long as the cadence makes them",
     "pointing": "its speed along where the phone points",
+    "snapped": "its direction, turned onto where the phone points wherever within 30° of it, at detected steps "
+    "as long as the cadence makes them",
 }
 PHONE, MULTI, ACTIVITY, ACTIVITY_WATCH = "phone", "phone-watch-earbuds", "activity", "activity-watch"
 

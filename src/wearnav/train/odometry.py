@@ -28,7 +28,7 @@ from wearnav import runs, trust
 from wearnav.dataset import Dataset, scorable_split, train_val_views
 from wearnav.errors import ConfigError, FormatError, ValidationError, check_field_types, check_names
 from wearnav.models import registry
-from wearnav.models.base import VEL_LOSSES, AlongPointing, OdometryModel, ScaledVelocity
+from wearnav.models.base import VEL_LOSSES, AlongPointing, OdometryModel, ScaledVelocity, SnapToPointing
 from wearnav.models.pdr import PDR, STEP_PER_CADENCE_M_S, PDRSpeed
 from wearnav.preprocess import (
     SPARSE_TRUTH_HZ,
@@ -396,8 +396,10 @@ def zero_velocity_mse(ds: WindowDataset) -> float:
 # counter with the model's direction (wearnav.models.pdr.PDRSpeed, issue 34's hybrid), its steps
 # 0.67 m long or ("cadence") as long as the cadence makes them (pdr.STEP_PER_CADENCE_M_S); or the
 # model's speed alone, along where the phone points (wearnav.models.base.AlongPointing; a model in
+# the heading frame only); or ("snapped") the cadence hybrid with the model's direction turned onto
+# where the phone points wherever it is within SNAP_DEG of it (wearnav.models.base.SnapToPointing;
 # the heading frame only).
-SPEED_SOURCES = ("model", "pdr", "cadence", "pointing")
+SPEED_SOURCES = ("model", "pdr", "cadence", "pointing", "snapped")
 
 
 def load_model(run: str | Path, which: str = BEST, speed: str = "model") -> tuple[torch.nn.Module, TrainConfig]:
@@ -406,7 +408,9 @@ def load_model(run: str | Path, which: str = BEST, speed: str = "model") -> tupl
     "pdr": its direction at PDR's speed in the same window (:class:`wearnav.models.pdr.PDRSpeed`);
     "cadence": the same with steps as long as the window's cadence makes them;
     "pointing": its speed along where the phone points (:class:`wearnav.models.base.AlongPointing`),
-    for a run trained in the heading frame (:func:`with_speed`)."""
+    for a run trained in the heading frame (:func:`with_speed`); "snapped": "cadence" with its
+    direction turned onto the phone's pointing where it is near it
+    (:class:`wearnav.models.base.SnapToPointing`), for a run trained in the heading frame."""
     run = Path(run)
     check_run_kind(run, "odometry")  # a classifier's run: say so, not "unknown config keys"
     cfg = runs.read_run_config(run, TrainConfig)
@@ -431,11 +435,13 @@ def with_speed(model: torch.nn.Module, cfg: TrainConfig, speed: str) -> torch.nn
         return model
     if not registry.get(cfg.model).learned:
         raise ConfigError(f"a speed from {speed!r} needs a learned model: {cfg.model}'s speed is its own")
-    if speed == "pointing" and not cfg.heading_frame:
+    if speed in ("pointing", "snapped") and not cfg.heading_frame:
         raise ConfigError(f"{cfg.model}: only a model trained in the heading frame has the phone's pointing as +x")
     if speed == "pointing":
         return AlongPointing(model)
-    cadence = STEP_PER_CADENCE_M_S if speed == "cadence" else None
+    if speed == "snapped":
+        model = SnapToPointing(model)
+    cadence = STEP_PER_CADENCE_M_S if speed in ("cadence", "snapped") else None
     return PDRSpeed(model, PDR(len(cfg.devices), cfg.window, rate=cfg.rate, step_per_cadence=cadence))
 
 
