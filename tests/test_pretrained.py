@@ -20,7 +20,7 @@ from wearnav.dataset import Dataset, write_dataset
 from wearnav.errors import ConfigError
 from wearnav.importers.sensorlogger_export import write_export
 from wearnav.pretrained.mix import MIX_FRAME, Part, recording_yaw, write_mix
-from wearnav.pretrained.recipe import install_run
+from wearnav.pretrained.recipe import Recipe, install_run
 from wearnav.simulate import WalkConfig, simulate_dataset, simulate_recording
 from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
 
@@ -342,10 +342,13 @@ def test_track_without_model_lies_on_the_walks_own_fixes(stranger, monkeypatch, 
     assert code == 0, err
     t3 = json.loads((tmp_path / "t3" / "track.json").read_text())
     assert t3["shipped_model"] == pretrained.PHONE and t3["model_choice"] == "given with --model"
-    # its speed: what its recipe recorded (cadence-long steps), unless --speed says otherwise
-    assert summary["speed"] == pretrained.recorded_speed(pretrained.SHIPPED[pretrained.MULTI].path) == "cadence"
-    assert t3["speed"] == pretrained.recorded_speed(pretrained.SHIPPED["phone"].path)
-    assert t3["speed"] == "cadence" and "cadence" in pretrained.phone_only_choice()[1]
+    # its speed: what its recipe recorded (cadence-long steps, turned onto the phone's pointing where
+    # near it), unless --speed says otherwise
+    recipe_speed = Recipe().speed_of(pretrained.PHONE)
+    multi = pretrained.SHIPPED[pretrained.MULTI].path
+    assert summary["speed"] == pretrained.recorded_speed(multi) == Recipe().speed_of(pretrained.MULTI) == "cadence"
+    assert t3["speed"] == pretrained.recorded_speed(pretrained.SHIPPED["phone"].path) == recipe_speed == "snapped"
+    assert pretrained.SPEED_WORDS[recipe_speed] in pretrained.phone_only_choice()[1]
     code, out, err = run_cli(
         monkeypatch,
         capsys,
@@ -410,7 +413,7 @@ def test_a_recipe_may_train_on_the_simulated_walks_with_the_phone_in_hand(source
     """Issue 34: a recipe naming placements trains on the preset's walks with the phone in them
     (``sim-hd``), written once beside the simulator's folder with each walk's split, and reused;
     the shipped recipe names none (the whole preset)."""
-    from wearnav.pretrained.recipe import Recipe, prepare_data, training_name
+    from wearnav.pretrained.recipe import prepare_data, training_name
 
     work = tmp_path / "work"
     for name in ("ilc2", "ipin"):  # imported already (prepare_data reuses a folder with a manifest)

@@ -94,10 +94,20 @@ class Recipe:
     vel_loss: str = "polar"
     heading_frame: bool = True
     augment: tuple[str, ...] = ()
-    # where their speed comes from in `track` and `live` (SPEED_SOURCES): their direction at detected
-    # steps as long as the cadence makes them (docs/design.md, "Steps as long as the cadence makes
-    # them"; their held-out numbers are that path's)
-    speed: str = "cadence"
+    # where their speed comes from in `track` and `live` (SPEED_SOURCES): their direction, turned onto
+    # where the phone points wherever within 30° of it, at detected steps as long as the cadence makes
+    # them (docs/design.md, "The phone's pointing where the model agrees"; their held-out numbers are
+    # that path's). Over three seeds it is below PDR from a known start in both buildings, where the
+    # cadence steps alone are not in ILC2 (4.02 ± 0.83 m against PDR's 3.75)
+    speed: str = "snapped"
+    # the multi-device model's: the cadence steps along its own direction. Its recordings have a watch
+    # or earbuds, where only the simulator measures it, and there the pointing cost 0.07–0.35 m of ATE
+    # (docs/design.md, "The phone's pointing where the model agrees")
+    multi_speed: str = "cadence"
+
+    def speed_of(self, model: str) -> str:
+        """Where shipped odometry model ``model``'s speed comes from in `track` and `live`."""
+        return self.multi_speed if model == MULTI else self.speed
 
 
 def prepare_data(data_root: Path, work: Path, recipe: Recipe, progress: bool = True, echo=print) -> dict[str, Path]:
@@ -194,8 +204,8 @@ def pretrain(
     for name in odometry:
         suite = SUITES[name]
         made[name] = suite_model_run(out / suite)
-        cross_building_calibration(made[name], [out / suite], recipe.speed)
-        held_out_record(made[name], pages[suite], recipe.speed)
+        cross_building_calibration(made[name], [out / suite], recipe.speed_of(name))
+        held_out_record(made[name], pages[suite], recipe.speed_of(name))
         cards.write_card(SHIPPED[name], made[name], recipe, {suite: pages[suite]})
     for name in made:
         if install:
