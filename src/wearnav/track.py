@@ -211,9 +211,8 @@ def track(
         model, cfg = resolve_model(model_path, "odometry", speed=speed)
     rec = load_input(src, name, platform)
     choice = "given with --model"
-    if (
-        model_path is None
-    ):  # the default for the devices and fixes the recording has, and why (pretrained.default_model)
+    # without --model: the default for the devices and fixes the recording has, and why (pretrained.default_model)
+    if model_path is None:
         smoothed = anchor == "smooth" and rec.fixes is not None and len(rec.fixes.t) > 0
         model_path, choice = pretrained.default_model("odometry", rec.devices, has_fixes=smoothed)
         model_path = locate_model(model_path, "odometry")

@@ -68,7 +68,7 @@ from wearnav.preprocess import check_speed_warp
 from wearnav.pretrained.mix import MIX_FRAME, is_mix
 from wearnav.recording import CANONICAL_DEVICES
 from wearnav.textio import read_json
-from wearnav.train.odometry import TrainConfig, fit, prepare_run, run_hash_exclude, run_record
+from wearnav.train.odometry import POINTING_SPEEDS, TrainConfig, fit, prepare_run, run_hash_exclude, run_record
 
 DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
 
@@ -168,7 +168,7 @@ class RealEval:
         where the phone points (``speed`` "pointing", or "snapped" onto it) always takes its own, as
         ``pdr-pointing`` does: the heading frame's windows do not depend on the yaw, so what the model
         learned under PDR's is its speed only."""
-        if not self.own_yaw and speed not in ("pointing", "snapped"):
+        if not self.own_yaw and speed not in POINTING_SPEEDS:
             return self.yaw_deg
         f = run / f"site_yaw_{variant_dir(self.out_dir, speed).name}.json"
         if not f.is_file():

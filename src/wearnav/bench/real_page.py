@@ -29,6 +29,7 @@ from wearnav.bench.user_protocol import (
 from wearnav.dataset import Dataset
 from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.fuse.placement import SiteModels, fit_site_models
+from wearnav.models.base import SNAP_DEG
 from wearnav.models.registry import get
 from wearnav.pretrained.mix import is_mix
 from wearnav.report.odometry import plot_speed_ratio
@@ -69,7 +70,7 @@ VARIANTS = {
     "pdr": ("_pdrspeed", " · PDR speed"),
     "cadence": ("_cadence", " · cadence speed"),
     "pointing": ("_pointing", " · its speed, pointing"),
-    "snapped": ("_snapped", " · cadence speed, pointing within 30°"),
+    "snapped": ("_snapped", f" · cadence speed, pointing within {SNAP_DEG:g}°"),
 }
 # and either one placed on the building's floor plans (wearnav.bench.map_eval, issue 36) + MAP_SUFFIX
 MAP_LABEL = " · map-aware"

@@ -400,6 +400,7 @@ def zero_velocity_mse(ds: WindowDataset) -> float:
 # where the phone points wherever it is within SNAP_DEG of it (wearnav.models.base.SnapToPointing;
 # the heading frame only).
 SPEED_SOURCES = ("model", "pdr", "cadence", "pointing", "snapped")
+POINTING_SPEEDS = ("pointing", "snapped")  # the sources that read the phone's pointing: heading frame only
 
 
 def load_model(run: str | Path, which: str = BEST, speed: str = "model") -> tuple[torch.nn.Module, TrainConfig]:
@@ -435,7 +436,7 @@ def with_speed(model: torch.nn.Module, cfg: TrainConfig, speed: str) -> torch.nn
         return model
     if not registry.get(cfg.model).learned:
         raise ConfigError(f"a speed from {speed!r} needs a learned model: {cfg.model}'s speed is its own")
-    if speed in ("pointing", "snapped") and not cfg.heading_frame:
+    if speed in POINTING_SPEEDS and not cfg.heading_frame:
         raise ConfigError(f"{cfg.model}: only a model trained in the heading frame has the phone's pointing as +x")
     if speed == "pointing":
         return AlongPointing(model)
