@@ -68,7 +68,15 @@ from wearnav.preprocess import check_speed_warp
 from wearnav.pretrained.mix import MIX_FRAME, is_mix
 from wearnav.recording import CANONICAL_DEVICES
 from wearnav.textio import read_json
-from wearnav.train.odometry import POINTING_SPEEDS, TrainConfig, fit, prepare_run, run_hash_exclude, run_record
+from wearnav.train.odometry import (
+    POINTING_SPEEDS,
+    SPEED_SOURCES,
+    TrainConfig,
+    fit,
+    prepare_run,
+    run_hash_exclude,
+    run_record,
+)
 
 DEFAULT_MODELS = ("ronin", "suitein++", "pdr")
 
@@ -215,7 +223,7 @@ def scored_as(cfg: TrainConfig) -> tuple[str, ...]:
     phone points and as the cadence hybrid turned onto the phone's pointing where near it."""
     if not get(cfg.model).learned:
         return ("model",)
-    return ("model", "pdr", "cadence", "pointing", "snapped") if cfg.heading_frame else ("model", "pdr", "cadence")
+    return tuple(s for s in SPEED_SOURCES if cfg.heading_frame or s not in POINTING_SPEEDS)
 
 
 def variant_dir(eval_dir: Path, speed: str) -> Path:
