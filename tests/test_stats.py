@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from wearnav.errors import ValidationError
-from wearnav.stats import walk_bootstrap_difference
+from wearnav.stats import percentiles_of_draws, walk_bootstrap_difference
 
 
 def _walks(rng, n=12, points=15):
@@ -54,3 +54,23 @@ def test_mismatched_or_missing_walks_are_refused():
         walk_bootstrap_difference(a, a[:2])
     with pytest.raises(ValidationError, match="at least 2 walks"):
         walk_bootstrap_difference(a[:1], a[:1])
+
+
+def test_percentiles_of_draws_equal_numpys_on_the_drawn_walks_put_together():
+    """Each draw's quantiles without concatenating its walks (the bootstrap's inner loop) are
+    np.nanpercentile's of the concatenation: NaN points skipped, ties, a walk with no points, a walk
+    drawn several times, and a draw of walks with no points at all (NaN)."""
+    rng = np.random.default_rng(5)
+    walks = _walks(rng, n=7, points=9)
+    walks[1][::3] = np.nan
+    walks[2] = np.full(4, np.nan)
+    walks[3] = np.round(walks[3])  # ties
+    walks[4] = walks[3].copy()
+    draws = rng.integers(0, len(walks), (50, len(walks)))
+    draws[0] = 2  # no points at all
+    q = [0, 10, 50, 75, 95, 100]
+    got = percentiles_of_draws(walks, draws, q)
+    assert got.shape == (len(q), len(draws)) and np.isnan(got[:, 0]).all()
+    for r in range(1, len(draws)):
+        want = np.nanpercentile(np.concatenate([walks[i] for i in draws[r]]), q)
+        np.testing.assert_allclose(got[:, r], want, rtol=0, atol=1e-12)

@@ -66,19 +66,17 @@ def walk_bootstrap_difference(
     b = [np.asarray(x, float) for x in b]
     q = list(quantiles)
 
-    def diff(idx):
-        idx = np.asarray(idx, int)
-        return np.nanpercentile(np.concatenate([a[i] for i in idx]), q) - np.nanpercentile(
-            np.concatenate([b[i] for i in idx]), q
-        )
+    def diff(idx, axis=-1):
+        idx = np.moveaxis(np.asarray(idx, int), axis, -1)
+        return percentiles_of_draws(a, idx, q) - percentiles_of_draws(b, idx, q)
 
-    point = diff(np.arange(len(a)))
+    point = diff(np.arange(len(a)))[:, 0]
     with warnings.catch_warnings():  # identical paths: a degenerate (zero-width) distribution
         warnings.simplefilter("ignore")
         ci = bootstrap(
             (np.arange(len(a)),),
             diff,
-            vectorized=False,
+            vectorized=True,
             paired=True,
             n_resamples=n_resamples,
             confidence_level=confidence,
@@ -95,6 +93,39 @@ def walk_bootstrap_difference(
         "walks": len(a),
         "confidence": confidence,
     }
+
+
+def percentiles_of_draws(walks: list, draws, q) -> np.ndarray:
+    """``np.nanpercentile(np.concatenate([walks[i] for i in draw]), q)`` (its default, linear
+    method) for every draw at once, shape ``(len(q), draws)``; a draw with no finite point gives
+    NaN. The walks' points are sorted once; a draw weights each point by how often its walk was
+    drawn, and the k-th value of the concatenation is the first point whose cumulative weight
+    exceeds k. ``draws``: walk indices, shape ``(n_draws, walks_per_draw)`` or one draw."""
+    finite = [np.asarray(x, float)[np.isfinite(x)] for x in walks]
+    values = np.concatenate(finite)
+    walk_of = np.repeat(np.arange(len(finite)), [len(x) for x in finite])
+    order = np.argsort(values, kind="stable")
+    values, walk_of = values[order], walk_of[order]
+    draws = np.atleast_2d(np.asarray(draws, int))
+    out = np.full((len(q), len(draws)), np.nan)
+    frac = np.asarray(q, float) / 100.0
+    for start in range(0, len(draws), 256):  # bounded memory: (256, points) weights at a time
+        chunk = draws[start : start + 256]
+        counts = np.zeros((len(chunk), len(finite)), int)
+        np.add.at(counts, (np.arange(len(chunk))[:, None], chunk), 1)
+        cum = np.cumsum(counts[:, walk_of], axis=1)
+        for r, c in enumerate(cum):
+            n = int(c[-1]) if len(c) else 0
+            if n == 0:
+                continue
+            pos = frac * (n - 1)
+            lo = np.floor(pos)
+            x0 = values[np.searchsorted(c, lo, side="right")]
+            x1 = values[np.searchsorted(c, np.minimum(lo + 1, n - 1), side="right")]
+            t = pos - lo
+            # numpy's lerp, exactly (from the nearer end, so t = 1 gives x1 itself)
+            out[:, start + r] = np.where(t >= 0.5, x1 - (x1 - x0) * (1 - t), x0 + (x1 - x0) * t)
+    return out
 
 
 def difference_cells(d: dict) -> dict[str, str]:
