@@ -41,7 +41,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from starlette.applications import Starlette
 from starlette.background import BackgroundTask
@@ -53,9 +53,11 @@ from starlette.staticfiles import StaticFiles
 
 from wearnav.importers.sensorlogger_map import PLATFORMS
 from wearnav.live.buffer import AUTO, SessionBuffer
-from wearnav.live.crowd import Crowd
 from wearnav.live.push import BadPush, check_id, parse
 from wearnav.live.store import GroupCommit, Store
+
+if TYPE_CHECKING:
+    from wearnav.live.crowd import Crowd
 
 log = logging.getLogger("wearnav.live")
 STATIC = Path(__file__).parent / "static"
@@ -131,7 +133,11 @@ class Receiver:
         self.platform, self.standardised = platform, standardised
         self.max_future_s, self.max_age_s = max_future_s, max_age_s
         self.buffers: dict[str, SessionBuffer] = {}
-        self.crowd = Crowd(tracker_factory) if tracker_factory is not None else None
+        self.crowd: Crowd | None = None
+        if tracker_factory is not None:
+            from wearnav.live.crowd import Crowd  # torch and the models: only where the server tracks
+
+            self.crowd = Crowd(tracker_factory)
         self.counts: dict[str, Any] = {"accepted": 0, "repeats": 0, "refused": {}}
         self._lock = threading.Lock()  # store + buffer in one order
         self.commits = GroupCommit(self._flush)
