@@ -166,7 +166,7 @@ def test_track_places_the_path_the_same_from_the_run_and_its_export(walk, run_of
         pytest.importorskip("onnxruntime")
     _, rec = walk
     run = tmp_path / "run"
-    shutil.copytree(run_of("suitein++"), run)
+    shutil.copytree(run_of("ronin"), run)  # the cheapest network to export: the header is what is tested
     cal = {"odometry_walk_m_per_sqrt_s": 0.9, "sigma_scale": 2.5}  # far from the smoother's defaults
     (run / CALIBRATION_JSON).write_text(json.dumps(cal))
     out = tmp_path / f"m{FORMATS[fmt]}"
@@ -283,11 +283,8 @@ def _network_models() -> list[str]:
     return [s.name for s in registry.available() if s.learned and s.task in ("odometry", "classify")]
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("name", _network_models())
-def test_every_registered_network_exports_to_both_formats(name, tmp_path):
-    """Each learned registry model at its default size (random weights, 3 devices; a classifier 6
-    classes) writes an ONNX and a TorchScript file that pass the export's own parity check."""
+def _build_default(name: str):
+    """``name`` at its default size (random weights, 3 devices; a classifier 6 classes), its header."""
     from wearnav.train.classify import ClassifyConfig
 
     task = registry.get(name).task
@@ -299,8 +296,68 @@ def test_every_registered_network_exports_to_both_formats(name, tmp_path):
         cfg = ClassifyConfig(model=name, data="", devices=DEVICES)
         classes = [f"c{i}" for i in range(6)]
         model = registry.build(name, n_devices=3, window=cfg.window, n_classes=6)
-    header = make_header(task, cfg, classes)
-    for fmt, suffix in FORMATS.items():
-        written = export_model(model, header, fmt, tmp_path / f"m{suffix}")
-        print(f"{name} {fmt}: max |Δ| {written['max_abs_diff']:.2e}, {written['bytes'] / 1e6:.2f} MB")
-        assert written["max_abs_diff"] < PARITY_TOL
+    return model, make_header(task, cfg, classes)
+
+
+# Constructor switches that change a class's forward (and so the ops an export must map) without
+# changing the kinds of module it holds: Suite-IN's ablation (1) has every switch off (mean fusion,
+# hybrid extractors, no attention; suitein++ has them on), and har-gravity turns each window by its
+# gravity first (the shipped activity model).
+FORWARD_SWITCHED = ("suitein++-abl1", "har-gravity")
+
+
+# exported to ONNX by the parity tests above (small widths: the same forward)
+PARITY_TESTED = ("suitein++", "ronin", "ronin*", "har-cnn-bilstm")
+
+
+def _kinds(model: torch.nn.Module) -> tuple:
+    return type(model).__name__, frozenset(type(m).__name__ for m in model.modules())
+
+
+def _onnx_models() -> list[str]:
+    """The networks the ONNX test exports: the first of each model class and set of module kinds
+    not among :data:`PARITY_TESTED`'s, and :data:`FORWARD_SWITCHED`. The other networks are those
+    same forwards at other widths, layouts or head counts; an ONNX export costs 5-27 s each here
+    (torch.export's tracing, nearly independent of size), TorchScript about one, so every network
+    gets the latter."""
+    seen = {_kinds(_build_default(name)[0]) for name in PARITY_TESTED}
+    names = []
+    for name in _network_models():
+        kinds = _kinds(_build_default(name)[0])
+        if kinds not in seen or name in FORWARD_SWITCHED:
+            seen.add(kinds)
+            names.append(name)
+    return names
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", _network_models())
+def test_every_registered_network_exports_to_torchscript(name, tmp_path):
+    """Each learned registry model at its default size writes a TorchScript file that passes the
+    export's own parity check."""
+    model, header = _build_default(name)
+    written = export_model(model, header, "torchscript", tmp_path / f"m{FORMATS['torchscript']}")
+    print(f"{name} torchscript: max |Δ| {written['max_abs_diff']:.2e}, {written['bytes'] / 1e6:.2f} MB")
+    assert written["max_abs_diff"] < PARITY_TOL
+
+
+def test_every_forward_is_exported_to_onnx_somewhere():
+    """The ONNX tests' choice (this file's parity tests and the one below) covers every model class,
+    both states of Suite-IN's switches and the shipped activity model; and it leaves out most of the
+    networks (else it is not a choice)."""
+    chosen = [*PARITY_TESTED, *_onnx_models()]
+    classes = {type(_build_default(n)[0]).__name__ for n in _network_models()}
+    assert {type(_build_default(n)[0]).__name__ for n in chosen} == classes
+    assert {"suitein++", "suitein++-abl1", "har-gravity"} <= set(chosen)
+    assert len(chosen) < len(_network_models())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", _onnx_models())
+def test_each_networks_forward_exports_to_onnx(name, tmp_path):
+    """The networks of :func:`_onnx_models` at their default size write an ONNX file that passes
+    the export's own parity check."""
+    model, header = _build_default(name)
+    written = export_model(model, header, "onnx", tmp_path / f"m{FORMATS['onnx']}")
+    print(f"{name} onnx: max |Δ| {written['max_abs_diff']:.2e}, {written['bytes'] / 1e6:.2f} MB")
+    assert written["max_abs_diff"] < PARITY_TOL
