@@ -1,4 +1,5 @@
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,26 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip(f"real data not found at {SHARED_DATA}")
     return SHARED_DATA
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset(tmp_path_factory):
+    """``tiny_dataset(seed, dest=None)``: what ``simulate_dataset("tiny", dest, seed=seed)`` writes,
+    simulated once per test process and seed and copied to ``dest`` (a new folder where None);
+    returns ``dest``. One simulation costs ~10 s on 2 cores, a copy of its ~15 MB well under one."""
+    made: dict[int, Path] = {}
+
+    def copy(seed: int, dest: Path | None = None) -> Path:
+        if seed not in made:
+            from wearnav.simulate import simulate_dataset
+
+            made[seed] = tmp_path_factory.mktemp(f"tiny-seed{seed}") / "tiny"
+            simulate_dataset("tiny", made[seed], seed=seed, progress=False)
+        dest = dest or tmp_path_factory.mktemp("tiny") / "tiny"
+        shutil.copytree(made[seed], dest)
+        return dest
+
+    return copy
 
 
 def make_stream(n=200, rate=100.0, t0=0.0, seed=0, gyro=True, quat=True, worn=False):

@@ -76,13 +76,10 @@ def grid_runs(tmp_path):
     return folders
 
 
-def test_row_labels_and_seeded_configs(tmp_path):
+def test_row_labels_and_seeded_configs(tmp_path, tiny_dataset):
     assert odometry.row_label("suitein++", {"extractor": "mixed"}) == "suitein++ (extractor=mixed)"
     assert odometry.row_label("ronin", {"width": 8}) == "ronin (width=8)" and odometry.row_label("pdr", {}) == "pdr"
-    from wearnav.simulate import simulate_dataset
-
-    data = tmp_path / "d"
-    simulate_dataset("tiny", data, seed=1)
+    data = tiny_dataset(1, tmp_path / "d")
     cfgs = odometry.suite_configs(data, ["pdr", ("ronin", {})], seeds=[0, 1, 2], epochs=2)
     assert [(c.model, c.seed) for c in cfgs] == [
         ("pdr", 0),
@@ -187,10 +184,8 @@ def test_bad_grid_options_are_one_line(tmp_path, monkeypatch, capsys, args, says
     assert code == 2 and says in err and err.count("\n") == 1
 
 
-def test_unknown_model_args_refused_before_any_run(tmp_path):
-    from wearnav.simulate import simulate_dataset
-
-    simulate_dataset("tiny", tmp_path / "d", seed=1)
+def test_unknown_model_args_refused_before_any_run(tmp_path, tiny_dataset):
+    tiny_dataset(1, tmp_path / "d")
     cfgs = odometry.suite_configs(tmp_path / "d", [("ronin", {"no_such_switch": 1})], seeds=[0, 1], epochs=1)
     with pytest.raises(ConfigError, match="no_such_switch"):
         odometry.run_suite(cfgs, tmp_path / "suite")

@@ -44,9 +44,9 @@ def _building(recs, yaw_deg: float):
 
 
 @pytest.fixture(scope="module")
-def building(tmp_path_factory):
+def building(tmp_path_factory, tiny_dataset):
     root = tmp_path_factory.mktemp("real")
-    sim = simulate_dataset("tiny", root / "sim", seed=2, progress=False)
+    sim = Dataset.open(tiny_dataset(2, root / "sim"))
     recs = [sim.load(n) for n in sim.filter(mode=["STW", "DRW"]).names]
     write_dataset(root / "building", _building(recs, 40.0))
     write_dataset(root / "other", _building(recs[::-1], -25.0))

@@ -13,12 +13,8 @@ run = run_cli
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    from wearnav.simulate import simulate_dataset
-
-    path = tmp_path_factory.mktemp("data") / "tiny"
-    simulate_dataset("tiny", path, seed=1)
-    return path
+def tiny(tiny_dataset):
+    return tiny_dataset(1)
 
 
 def test_train_then_eval(tiny, tmp_path, monkeypatch, capsys):

@@ -49,12 +49,8 @@ SCRIPT = textwrap.dedent("""
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory) -> Path:
-    from wearnav.simulate import simulate_dataset
-
-    path = tmp_path_factory.mktemp("data") / "tiny"
-    simulate_dataset("tiny", path, seed=0)
-    return path
+def tiny(tiny_dataset) -> Path:
+    return tiny_dataset(0)
 
 
 def _train(tmp_path: Path, data: Path, name: str, devices: int, strategy: str) -> tuple[dict, pd.DataFrame, dict]:

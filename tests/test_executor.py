@@ -116,17 +116,15 @@ def test_execution_is_checked():
     assert not Execution(backend="ray").in_process
 
 
-def test_cli_executor_options_one_line_errors(tmp_path, monkeypatch, capsys):
+def test_cli_executor_options_one_line_errors(tmp_path, monkeypatch, capsys, tiny_dataset):
     from conftest import run_cli
-    from wearnav.simulate import simulate_dataset
 
     code, _, err = run_cli(monkeypatch, capsys, "bench", "odometry", "--data", tmp_path, "--address", "auto")
     assert code == 2 and "--address is for --executor ray" in err and err.count("\n") == 1
     code, _, err = run_cli(monkeypatch, capsys, "bench", "har", "--executor", "slurm")
     assert code == 2 and "local" in err and "ray" in err
     # without Ray installed, --executor ray is one line naming the extra, exit 2, nothing run
-    data = tmp_path / "tiny"
-    simulate_dataset("tiny", data, seed=0, progress=False)
+    data = tiny_dataset(0, tmp_path / "tiny")
     capsys.readouterr()
     monkeypatch.setitem(sys.modules, "ray", None)
     code, _, err = run_cli(
@@ -194,9 +192,8 @@ def local_ray():
 
 
 @pytest.mark.cluster
-def test_ray_runs_jobs_and_a_real_suite_then_resumes(local_ray, tmp_path):
+def test_ray_runs_jobs_and_a_real_suite_then_resumes(local_ray, tmp_path, tiny_dataset):
     from wearnav.bench import odometry
-    from wearnav.simulate import simulate_dataset
 
     jobs = _jobs(tmp_path / "trivial", n=3)
     lines = []
@@ -208,8 +205,7 @@ def test_ray_runs_jobs_and_a_real_suite_then_resumes(local_ray, tmp_path):
         run_jobs([Job(write_run, {"fail": True}, tmp_path / "bad")], Execution(backend="ray"), echo=lines.append)
     assert str(err.value) == f"{tmp_path / 'bad'}: this job fails"
     # a real suite job (PDR: evaluated, not trained) through Ray, then the same folder resumed locally
-    data = tmp_path / "tiny"
-    simulate_dataset("tiny", data, seed=0)
+    data = tiny_dataset(0, tmp_path / "tiny")
     cfgs = odometry.suite_configs(data, ("pdr",))
     folders = odometry.run_suite(
         cfgs,

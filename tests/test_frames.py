@@ -172,10 +172,10 @@ def test_preprocess_frame_align_modes_and_sign():
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    from wearnav.simulate import simulate_dataset
+def tiny(tiny_dataset):
+    from wearnav.dataset import Dataset
 
-    return simulate_dataset("tiny", tmp_path_factory.mktemp("tiny"), seed=0, progress=False)
+    return Dataset.open(tiny_dataset(0))
 
 
 def test_alignment_accuracy_on_the_tiny_preset(tiny):

@@ -268,10 +268,10 @@ def test_pdr_is_vectorised_and_fast():
 
 
 @pytest.fixture(scope="module")
-def tiny_phone(tmp_path_factory):
-    from wearnav.simulate import simulate_dataset
+def tiny_phone(tiny_dataset):
+    from wearnav.dataset import Dataset
 
-    ds = simulate_dataset("tiny", tmp_path_factory.mktemp("tiny") / "ds", seed=0, progress=False)
+    ds = Dataset.open(tiny_dataset(0))
     out = {}
     for rec in ds:
         if rec.meta["mode"] != "STW" or rec.meta["placement"] != "HD":

@@ -21,16 +21,16 @@ from wearnav.errors import ConfigError
 from wearnav.importers.sensorlogger_export import write_export
 from wearnav.pretrained.mix import MIX_FRAME, Part, recording_yaw, write_mix
 from wearnav.pretrained.recipe import Recipe, install_run
-from wearnav.simulate import WalkConfig, simulate_dataset, simulate_recording
+from wearnav.simulate import WalkConfig, simulate_recording
 from wearnav.train.odometry import TrainConfig, fit, load_model, prepare_run
 
 
 @pytest.fixture(scope="module")
-def sources(tmp_path_factory):
+def sources(tmp_path_factory, tiny_dataset):
     """A stand-in building (phone frame turned 40° from its survey, points every 5 s) and the
     simulator's own recordings (each device with its drawn yaw offset, dense truth)."""
     root = tmp_path_factory.mktemp("mix")
-    sim = simulate_dataset("tiny", root / "sim", seed=2, progress=False)
+    sim = Dataset.open(tiny_dataset(2, root / "sim"))
     recs = [sim.load(n) for n in sim.filter(mode=["STW", "DRW"]).names]
     write_dataset(root / "building", _building(recs, 40.0))
     return root

@@ -45,12 +45,8 @@ MODEL_PROPERTY = PROPERTY.__class__(PROPERTY, max_examples=EXAMPLES)
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory) -> Path:
-    from wearnav.simulate import simulate_dataset
-
-    path = tmp_path_factory.mktemp("data") / "tiny"
-    simulate_dataset("tiny", path, seed=1)
-    return path
+def tiny(tiny_dataset) -> Path:
+    return tiny_dataset(1)
 
 
 @pytest.fixture(scope="module")

@@ -99,12 +99,9 @@ def test_fit_takes_the_lock(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 @linux_only
-def test_two_train_commands_on_one_folder(tmp_path):
+def test_two_train_commands_on_one_folder(tmp_path, tiny_dataset):
     """Two real `wearnav train` processes on one --out: the second exits 2 with one line."""
-    from wearnav.simulate import simulate_dataset
-
-    data = tmp_path / "tiny"
-    simulate_dataset("tiny", data, seed=0)
+    data = tiny_dataset(0, tmp_path / "tiny")
     run = tmp_path / "R"
     cmd = [
         sys.executable,

@@ -52,8 +52,8 @@ def _cfg(mode="STW", placement="HD", hold=None, **kw) -> WalkConfig:
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory) -> Dataset:
-    return simulate_dataset("tiny", tmp_path_factory.mktemp("sim") / "tiny", seed=0, progress=False)
+def tiny(tiny_dataset) -> Dataset:
+    return Dataset.open(tiny_dataset(0))  # simulate_dataset("tiny", seed=0), made once per test process
 
 
 @pytest.fixture(scope="module")

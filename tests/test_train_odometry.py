@@ -37,12 +37,8 @@ class TinyGait(OdometryModel):
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    from wearnav.simulate import simulate_dataset
-
-    path = tmp_path_factory.mktemp("data") / "tiny"
-    simulate_dataset("tiny", path, seed=0)
-    return path
+def tiny(tiny_dataset):
+    return tiny_dataset(0)
 
 
 def _cfg(tiny, **kw):
