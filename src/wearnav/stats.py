@@ -100,7 +100,9 @@ def percentiles_of_draws(walks: list, draws, q) -> np.ndarray:
     method) for every draw at once, shape ``(len(q), draws)``; a draw with no finite point gives
     NaN. The walks' points are sorted once; a draw weights each point by how often its walk was
     drawn, and the k-th value of the concatenation is the first point whose cumulative weight
-    exceeds k. ``draws``: walk indices, shape ``(n_draws, walks_per_draw)`` or one draw."""
+    exceeds k (one search for all draws of a chunk: each draw's cumulative weights are offset
+    past the previous draw's, so the rows put end to end stay sorted). ``draws``: walk indices,
+    shape ``(n_draws, walks_per_draw)`` or one draw."""
     finite = [np.asarray(x, float)[np.isfinite(x)] for x in walks]
     values = np.concatenate(finite)
     walk_of = np.repeat(np.arange(len(finite)), [len(x) for x in finite])
@@ -108,23 +110,27 @@ def percentiles_of_draws(walks: list, draws, q) -> np.ndarray:
     values, walk_of = values[order], walk_of[order]
     draws = np.atleast_2d(np.asarray(draws, int))
     out = np.full((len(q), len(draws)), np.nan)
+    if values.size == 0:
+        return out
     frac = np.asarray(q, float) / 100.0
     for start in range(0, len(draws), 256):  # bounded memory: (256, points) weights at a time
         chunk = draws[start : start + 256]
-        counts = np.zeros((len(chunk), len(finite)), int)
-        np.add.at(counts, (np.arange(len(chunk))[:, None], chunk), 1)
+        rows = np.arange(len(chunk))
+        counts = np.zeros((len(chunk), len(finite)), np.int64)
+        np.add.at(counts, (rows[:, None], chunk), 1)
         cum = np.cumsum(counts[:, walk_of], axis=1)
-        for r, c in enumerate(cum):
-            n = int(c[-1]) if len(c) else 0
-            if n == 0:
-                continue
-            pos = frac * (n - 1)
-            lo = np.floor(pos)
-            x0 = values[np.searchsorted(c, lo, side="right")]
-            x1 = values[np.searchsorted(c, np.minimum(lo + 1, n - 1), side="right")]
-            t = pos - lo
-            # numpy's lerp, exactly (from the nearer end, so t = 1 gives x1 itself)
-            out[:, start + r] = np.where(t >= 0.5, x1 - (x1 - x0) * (1 - t), x0 + (x1 - x0) * t)
+        n = cum[:, -1]
+        offset = rows * (int(n.max()) + 1)  # row r's weights lie in [offset_r, offset_r + n_r]
+        flat = (cum + offset[:, None]).ravel()
+        pos = frac[None, :] * (n[:, None] - 1)
+        lo = np.floor(pos)
+        k = np.stack([lo, np.minimum(lo + 1, n[:, None] - 1)])  # the ranks (0-based) to read, (2, rows, q)
+        i = np.searchsorted(flat, (k + offset[:, None]).ravel(), side="right").reshape(k.shape)
+        x0, x1 = values[np.minimum(i - (rows * values.size)[:, None], values.size - 1)]
+        t = pos - lo
+        # numpy's lerp, exactly (from the nearer end, so t = 1 gives x1 itself)
+        v = np.where(t >= 0.5, x1 - (x1 - x0) * (1 - t), x0 + (x1 - x0) * t)
+        out[:, start : start + len(chunk)] = np.where(n[:, None] > 0, v, np.nan).T
     return out
 
 
