@@ -127,7 +127,9 @@ def _wait_for_training(proc: subprocess.Popen, epochs: float = 0.0, timeout_s: f
 @pytest.mark.parametrize(
     "sig, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated (SIGTERM)")]
 )
-def test_demo_interrupted_says_what_was_kept_and_resumes(tmp_path, sig, code, word):
+def test_demo_interrupted_says_what_was_kept_and_resumes(tmp_path, tiny_dataset, sig, code, word):
+    # the data the demo would simulate first (seed 0), there already: the signals come during training
+    tiny_dataset(0, tmp_path / "demo" / "data")
     proc = _start_demo(tmp_path, "demo")
     _wait_for_training(proc, epochs=1.1 if sig == signal.SIGINT else 0.0)  # SIGINT: a checkpoint to resume from
     deadline = time.monotonic() + 60  # on a busy machine the progress line can come before the checkpoint
