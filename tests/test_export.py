@@ -343,8 +343,8 @@ def test_every_registered_network_exports_to_torchscript(name, tmp_path):
 
 def test_every_forward_is_exported_to_onnx_somewhere():
     """The ONNX tests' choice (this file's parity tests and the one below) covers every model class,
-    both states of Suite-IN's switches and the shipped activity model; and it leaves out most of the
-    networks (else it is not a choice)."""
+    both states of Suite-IN's switches and the shipped activity model, and leaves some networks out
+    (TorchScript only)."""
     chosen = [*PARITY_TESTED, *_onnx_models()]
     classes = {type(_build_default(n)[0]).__name__ for n in _network_models()}
     assert {type(_build_default(n)[0]).__name__ for n in chosen} == classes
