@@ -1,14 +1,16 @@
-"""Where the phone points against where its walker goes (issue 34's heading frame).
+"""Where the phone (or another device) points against where its walker goes (issue 34's heading frame).
 
 For each dataset: every window (4 s, every 1 s) with a true speed above 0.5 m/s, the direction of
-the true displacement in the phone's heading frame (:attr:`wearnav.preprocess.PreprocessConfig.heading_frame`,
+the true displacement in the device's heading frame (:attr:`wearnav.preprocess.PreprocessConfig.heading_frame`,
 the horizontal direction of the phone's y − z axis). A phone held in the hand and pointing where
 its walker goes gives angles near 0; the share within ±30° and ±60° says how far a heading-frame
-model may lean on that. A real building's recordings use its surveyed points joined by straight
+model may lean on that; the share within ±30° of the median, how steady a device whose pointing
+is offset from the walk (earbuds, a watch: ``--device``) holds that offset (around the circular mean). A real building's recordings use its surveyed points joined by straight
 lines as truth, in the frame the data was imported in (``frame_align="none"``); a training mix
-(:mod:`wearnav.pretrained.mix`) its own frame (its truth turned into the IMU's).
+(:mod:`wearnav.pretrained.mix`) its own frame (its truth turned into the IMU's); simulated data the
+truth's (each device's drawn yaw taken out by ``frame_align="truth"``, a measurement's use of truth).
 
-    PYTHONPATH=src python scripts/heading_offsets.py DATA [DATA ...] [--per-source]
+    PYTHONPATH=src python scripts/heading_offsets.py DATA [DATA ...] [--per-source] [--device earbuds]
 """
 
 from __future__ import annotations
@@ -25,18 +27,19 @@ from wearnav.windows import WindowConfig, WindowDataset
 MIN_SPEED = 0.5  # m/s
 
 
-def angles(data: str, per_source: bool) -> dict[str, np.ndarray]:
+def angles(data: str, per_source: bool, device: str = "phone") -> dict[str, np.ndarray]:
     ds = Dataset.open(data)
     surveyed = float(np.median(ds.manifest["truth_points"] / ds.manifest["duration"])) < SPARSE_TRUTH_HZ
+    simulated = ds.provenance.get("generator") == "wearnav.simulate"
     cfg = PreprocessConfig(
-        devices=("phone",),
-        frame_align=MIX_FRAME if is_mix(data) else "none",
+        devices=(device,),
+        frame_align=MIX_FRAME if is_mix(data) else "truth" if simulated else "none",
         truth_max_gap=SURVEYED_TRUTH_MAX_GAP_S if surveyed or is_mix(data) else 1.0,
         heading_frame=True,
     )
     out: dict[str, list[np.ndarray]] = {}
     for rec in ds:
-        if "phone" not in rec.devices or rec.truth is None:
+        if device not in rec.devices or rec.truth is None:
             continue
         seq = align(rec, cfg)
         w = WindowDataset([seq], WindowConfig(window=100, stride=25))
@@ -53,13 +56,18 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("data", nargs="+")
     ap.add_argument("--per-source", action="store_true", help="A row per source of a mix (name prefix).")
+    ap.add_argument("--device", default="phone", help="The device whose heading frame is measured.")
     args = ap.parse_args()
-    print("| data | windows | median (°) | within ±30° | within ±60° |")
-    print("|---|---|---|---|---|")
+    print(f"{args.device}:")
+    print("| data | windows | circular mean (°) | within ±30° | within ±60° | within ±30° of the mean |")
+    print("|---|---|---|---|---|---|")
     for data in args.data:
-        for key, a in angles(data, args.per_source).items():
+        for key, a in angles(data, args.per_source, args.device).items():
+            med = float(np.degrees(np.angle(np.mean(np.exp(1j * np.radians(a))))))
+            near = np.abs((a - med + 180) % 360 - 180) < 30
             print(
-                f"| {key} | {a.size} | {np.median(a):.1f} | {np.mean(np.abs(a) < 30):.3f} | {np.mean(np.abs(a) < 60):.3f} |"
+                f"| {key} | {a.size} | {med:.1f} | {np.mean(np.abs(a) < 30):.3f} | {np.mean(np.abs(a) < 60):.3f} "
+                f"| {np.mean(near):.3f} |"
             )
 
 
