@@ -61,8 +61,9 @@ VEL_LOSS_HELP = (
     "uncertain); polar: L1 on log speed plus a speed-weighted direction term (keeps the length)."
 )
 HEADING_FRAME_HELP = (
-    "Each window of the learned model in the phone's heading frame (turned by the device's own heading, "
-    "its velocity turned back), without random yaw in training."
+    "Each window of the learned model in the heading frame of the first device of its layout present (the "
+    "phone, unless `train --devices` puts another first): turned by that device's own heading, its velocity "
+    "turned back; without random yaw in training."
 )
 
 
