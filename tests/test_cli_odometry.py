@@ -116,3 +116,21 @@ def test_one_line_errors(tiny, tmp_path, monkeypatch, capsys):
     assert not (tmp_path / "b").exists()
     code, _, err = run(monkeypatch, capsys, "eval", tmp_path / "nowhere")
     assert code == 2 and "not a run folder" in err
+
+
+def test_bench_devices_set_every_runs_layout_and_whose_heading_frame(tiny, tmp_path, monkeypatch, capsys):
+    """`bench odometry --devices`: every run's layout in that order, so with --heading-frame the first
+    device present gives the frame (the earbuds here); the page says whose; an unknown device is one
+    line before any run."""
+    from wearnav import runs
+
+    base = ("bench", "odometry", "--data", tiny, "--models", "test-mlp", "--epochs", "1", "--heading-frame")
+    code, _, err = run(monkeypatch, capsys, *base, "--out", tmp_path / "bad", "--devices", "earbuds,phne")
+    assert code == 2 and "unknown device(s) ['phne']" in err and err.count("\n") == 1
+    assert not (tmp_path / "bad").exists()
+    code, _, err = run(monkeypatch, capsys, *base, "--out", tmp_path / "s", "--devices", "earbuds,phone,watch")
+    assert code == 0, err
+    cfg = runs.read_config(next((tmp_path / "s").glob("test-mlp-*")))["config"]
+    assert cfg["preprocess"]["devices"] == ["earbuds", "phone", "watch"] and cfg["preprocess"]["heading_frame"]
+    page = (tmp_path / "s" / "results.md").read_text()
+    assert "heading frame of the earbuds (else the next device present)" in page

@@ -70,6 +70,11 @@ def bench_odometry(
     lr: float | None = typer.Option(None, help="Learning rate for every model (default: the recipe's)."),
     vel_loss: VelLoss = typer.Option(VelLoss.mse, "--vel-loss", help=VEL_LOSS_HELP),
     heading_frame: bool = typer.Option(False, "--heading-frame", help=HEADING_FRAME_HELP),
+    devices: str | None = typer.Option(
+        None,
+        help="Device layout of every model, comma-separated (default: phone, watch, earbuds); with "
+        "--heading-frame the first present device gives the frame (e.g. earbuds,phone,watch).",
+    ),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
     address: str | None = typer.Option(None, help=ADDRESS_HELP),
@@ -99,6 +104,12 @@ def bench_odometry(
         raise ConfigError("give --models or --grid, not both")
     grid = grid or Grid.default
     entries = list(split_list(models)) if models else GRIDS[grid.value]
+    layout = split_list(devices) if devices is not None else None
+    if layout is not None:
+        from wearnav.dataset import Dataset
+        from wearnav.train.odometry import check_devices
+
+        check_devices(Dataset.open(data), layout)
     configs = suite_configs(
         data,
         entries,
@@ -111,6 +122,7 @@ def bench_odometry(
         vel_loss=vel_loss.value,
         # the heading frame keeps the device's heading: no random yaw (TrainConfig refuses both)
         **({"heading_frame": True, "augment": ()} if heading_frame else {}),
+        **({"devices": layout} if layout is not None else {}),
     )
     suite_folder(out, "bench odometry")
     if report_only:
@@ -132,6 +144,11 @@ def bench_odometry(
 
     from wearnav.fileio import shown_path
 
+    # whose heading frame: the first device of the layout present (preprocess._carrier_heading)
+    frame = "the phone's heading frame"
+    if layout and layout[0] != "phone":
+        frame = f"the heading frame of the {layout[0]} (else the next device present)"
+
     note = (
         f"Data: `{shown_path(data)}` ({made}). Machine: {platform.machine()}, {os.cpu_count()} CPUs, torch "
         f"{__import__('torch').__version__}, shared with other work while it ran. Grid: "
@@ -147,11 +164,12 @@ def bench_odometry(
         + f", recipe `{recipe.value}`"
         + (f", Adam lr {lr:g} for every model" if lr else "")
         + (f", velocity loss `{vel_loss.value}` for every learned model" if vel_loss != VelLoss.mse else "")
-        + (", each window in the phone's heading frame (no random yaw)" if heading_frame else "")
+        + (f", devices {', '.join(layout)}" if layout is not None else "")
+        + (f", each window in {frame} (no random yaw)" if heading_frame else "")
         + "."
     )
     setting = [f"`{vel_loss.value}` loss"] if vel_loss != VelLoss.mse else []
-    setting += ["the phone's heading frame"] if heading_frame else []
+    setting += [frame] if heading_frame else []
     title = "Odometry comparison (Suite-IN++ Tables III–VI)" + (f", {' and '.join(setting)}" if setting else "")
     page = write_grid_report(folders, out, title=title, expected_seeds=len(seed_list), note=note)
     typer.echo(f"wrote {page}")
