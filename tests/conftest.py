@@ -7,6 +7,7 @@ import pytest
 
 from wearnav.errors import WearnavError
 from wearnav.recording import DeviceStream, Fixes, Recording, Trajectory
+from wearnav.simulate import simulate_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 # WEARNAV_DATA points elsewhere, e.g. from a git worktree that is not beside shared/.
@@ -41,8 +42,6 @@ def tiny_dataset(tmp_path_factory):
 
     def copy(seed: int, dest: Path | None = None) -> Path:
         if seed not in made:
-            from wearnav.simulate import simulate_dataset
-
             made[seed] = tmp_path_factory.mktemp(f"tiny-seed{seed}") / "tiny"
             simulate_dataset("tiny", made[seed], seed=seed, progress=False)
         dest = dest or tmp_path_factory.mktemp("tiny") / "tiny"

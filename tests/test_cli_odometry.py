@@ -7,6 +7,7 @@ import pytest
 
 from conftest import run_cli
 from test_train_odometry import TinyGait  # noqa: F401  (registers "test-mlp")
+from wearnav import runs
 from wearnav.dataset import Dataset, DatasetWriter
 
 run = run_cli
@@ -122,8 +123,6 @@ def test_bench_devices_set_every_runs_layout_and_whose_heading_frame(tiny, tmp_p
     """`bench odometry --devices`: every run's layout in that order, so with --heading-frame the first
     device present gives the frame (the earbuds here); the page says whose; an unknown device is one
     line before any run."""
-    from wearnav import runs
-
     base = ("bench", "odometry", "--data", tiny, "--models", "test-mlp", "--epochs", "1", "--heading-frame")
     code, _, err = run(monkeypatch, capsys, *base, "--out", tmp_path / "bad", "--devices", "earbuds,phne")
     assert code == 2 and "unknown device(s) ['phne']" in err and err.count("\n") == 1

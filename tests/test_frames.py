@@ -6,6 +6,7 @@ from scipy import signal
 from scipy.spatial.transform import Rotation
 
 from wearnav import frames
+from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Recording, Trajectory
@@ -173,8 +174,6 @@ def test_preprocess_frame_align_modes_and_sign():
 
 @pytest.fixture(scope="module")
 def tiny(tiny_dataset):
-    from wearnav.dataset import Dataset
-
     return Dataset.open(tiny_dataset(0))
 
 

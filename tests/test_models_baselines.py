@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 from torch.utils.data import default_collate
 from torch.utils.flop_counter import FlopCounterMode
 
+from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError
 from wearnav.models import build, get
 from wearnav.models.pdr import PDR
@@ -269,8 +270,6 @@ def test_pdr_is_vectorised_and_fast():
 
 @pytest.fixture(scope="module")
 def tiny_phone(tiny_dataset):
-    from wearnav.dataset import Dataset
-
     ds = Dataset.open(tiny_dataset(0))
     out = {}
     for rec in ds:

@@ -104,11 +104,11 @@ def bench_odometry(
         raise ConfigError("give --models or --grid, not both")
     grid = grid or Grid.default
     entries = list(split_list(models)) if models else GRIDS[grid.value]
+    from wearnav.dataset import Dataset
+    from wearnav.train.odometry import check_devices
+
     layout = split_list(devices) if devices is not None else None
     if layout is not None:
-        from wearnav.dataset import Dataset
-        from wearnav.train.odometry import check_devices
-
         check_devices(Dataset.open(data), layout)
     configs = suite_configs(
         data,
@@ -131,8 +131,6 @@ def bench_odometry(
         folders = run_suite(
             configs, out, progress=progress_enabled(), echo=typer.echo, execution=execution_of(jobs, executor, address)
         )
-    from wearnav.dataset import Dataset
-
     prov = Dataset.open(data).provenance
     made = (
         f"simulator preset `{prov['preset']['name'] if isinstance(prov.get('preset'), dict) else prov.get('preset')}`, "
