@@ -101,3 +101,41 @@ def test_drop_devices_leaves_devices_out_but_never_all_and_keeps_the_targets():
     assert abs(float((kept == 3).float().mean()) - ((1 - p) ** 3 + p**3)) < 0.03
     again = augment.get("drop_devices")(b, torch.Generator().manual_seed(0))
     assert torch.equal(again["mask"], m)  # seeded: reproducible
+
+
+def test_leaving_out_the_carrier_turns_a_heading_frame_window_into_the_next_devices_frame():
+    """issue 34: a model framed by the earbuds (the first of earbuds, phone, watch) must meet the
+    phone's frame where the earbuds are absent; training that leaves the earbuds out turns the
+    window as aligning the recording without them would have framed it."""
+    import dataclasses
+
+    import numpy as np
+
+    from wearnav.preprocess import PreprocessConfig, align
+    from wearnav.simulate import WalkConfig, simulate_recording
+    from wearnav.windows import WindowConfig, WindowDataset
+
+    rec = simulate_recording(WalkConfig(mode="STW", placement="PK", duration_s=30), seed=2)
+    cfg = PreprocessConfig(devices=("earbuds", "phone", "watch"), frame_align="none", heading_frame=True)
+    full = align(rec, cfg)
+    no_buds = dataclasses.replace(rec, devices={k: v for k, v in rec.devices.items() if k != "earbuds"})
+    alone = align(no_buds, cfg, full.t)
+    wcfg = WindowConfig(100, 25)
+    b = WindowDataset([full], wcfg)[list(range(5))]
+    want = WindowDataset([alone], wcfg)[list(range(5))]
+    assert b["yaws"].shape == (5, 3) and bool(torch.isfinite(b["yaws"]).all())
+    # the earbuds point ~125° off the walk here, the pocketed phone elsewhere: the frames differ
+    assert float((b["yaw"] - want["yaw"]).abs().min()) > 0.3
+    keep = torch.tensor([[0.0, 1.0, 1.0]]).repeat(5, 1)
+    out = augment.leave_out(b, keep)
+    torch.testing.assert_close(out["yaw"], want["yaw"], atol=1e-5, rtol=0)
+    torch.testing.assert_close(out["vel"], want["vel"], atol=1e-5, rtol=0)
+    torch.testing.assert_close(out["disp"], want["disp"], atol=1e-4, rtol=0)
+    torch.testing.assert_close(out["x"][:, 1:], want["x"][:, 1:], atol=1e-4, rtol=1e-4)
+    assert bool((out["x"][:, 0] == 0).all()) and torch.equal(out["mask"], keep)
+    # leaving out a device that is not the carrier keeps the frame; a world-frame batch has no turn
+    same = augment.leave_out(b, torch.tensor([[1.0, 0.0, 1.0]]).repeat(5, 1))
+    assert torch.equal(same["yaw"], b["yaw"]) and torch.equal(same["vel"], b["vel"])
+    plain = {k: v for k, v in b.items() if k not in ("yaw", "yaws")}
+    assert torch.equal(augment.leave_out(plain, keep)["vel"], b["vel"])
+    assert np.isfinite(out["x"].numpy()).all()

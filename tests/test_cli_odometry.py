@@ -127,9 +127,14 @@ def test_bench_devices_set_every_runs_layout_and_whose_heading_frame(tiny, tmp_p
     code, _, err = run(monkeypatch, capsys, *base, "--out", tmp_path / "bad", "--devices", "earbuds,phne")
     assert code == 2 and "unknown device(s) ['phne']" in err and err.count("\n") == 1
     assert not (tmp_path / "bad").exists()
-    code, _, err = run(monkeypatch, capsys, *base, "--out", tmp_path / "s", "--devices", "earbuds,phone,watch")
+    code, _, err = run(monkeypatch, capsys, *base, "--out", tmp_path / "bad", "--augment", "drop_devics")
+    assert code == 2 and "unknown augmentation 'drop_devics'" in err and err.count("\n") == 1
+    assert not (tmp_path / "bad").exists()
+    layout = ("--devices", "earbuds,phone,watch", "--augment", "rotate_yaw,drop_devices")
+    code, _, err = run(monkeypatch, capsys, *base, "--out", tmp_path / "s", *layout)
     assert code == 0, err
     cfg = runs.read_config(next((tmp_path / "s").glob("test-mlp-*")))["config"]
     assert cfg["preprocess"]["devices"] == ["earbuds", "phone", "watch"] and cfg["preprocess"]["heading_frame"]
+    assert cfg["train"]["augment"] == ["drop_devices"]  # the heading frame leaves random yaw out
     page = (tmp_path / "s" / "results.md").read_text()
     assert "heading frame of the earbuds (else the next device present)" in page

@@ -116,7 +116,34 @@ def drop_devices(batch: Batch, generator: torch.Generator) -> Batch:
     keep = (u.to(mask.device) >= DROP_DEVICE_P).to(mask.dtype) * mask
     none_left = keep.sum(dim=1) == 0
     keep[none_left] = mask[none_left]
-    return {**batch, "mask": keep, "x": batch["x"] * keep[:, :, None, None].to(batch["x"].dtype)}
+    return leave_out(batch, keep)
+
+
+def leave_out(batch: Batch, keep: torch.Tensor) -> Batch:
+    """The batch with only the devices ``keep`` (B, D; 1 kept, 0 left out) says: a left-out
+    device's inputs zeros and its mask 0. A heading-frame batch (``yaw``, and each device's own in
+    ``yaws``) whose carrier is left out is turned into the frame of the first kept device with a
+    heading, as :func:`wearnav.preprocess.align` would have framed the window without the others."""
+    x = batch["x"] * keep[:, :, None, None].to(batch["x"].dtype)
+    out = {**batch, "mask": keep, "x": x}
+    if "yaws" not in batch:
+        return out
+    yaws = batch["yaws"]
+    has = torch.isfinite(yaws)
+    carrier = _first(has & (batch["mask"] > 0))
+    first_kept = _first(has & (keep > 0))
+    new = yaws.gather(1, first_kept.clamp(min=0)[:, None])[:, 0]
+    change = (first_kept >= 0) & (first_kept != carrier)
+    delta = torch.where(change, new - batch["yaw"], torch.zeros_like(new))
+    out = rotate_batch(out, -delta.double())  # from the old carrier's frame into the new one's
+    out["yaw"] = torch.where(change, new, batch["yaw"])
+    return out
+
+
+def _first(rows: torch.Tensor) -> torch.Tensor:
+    """Index of each row's first True (−1 where none)."""
+    idx = torch.argmax(rows.to(torch.int8), dim=1)
+    return torch.where(rows.any(dim=1), idx, torch.full_like(idx, -1))
 
 
 # ---- the HAR benchmark's techniques (paper 002, Sec. II-B) --------------------------------------

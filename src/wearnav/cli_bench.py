@@ -46,6 +46,15 @@ class Grid(str, Enum):  # wearnav.bench.odometry.GRIDS
     paper = "paper"
 
 
+def frame_and_augment(heading_frame: bool, augment: str | None) -> dict:
+    """``bench odometry``'s TrainConfig fields for ``--heading-frame`` and ``--augment``: the heading
+    frame keeps the device's heading, so random yaw is left out (TrainConfig refuses both)."""
+    kw: dict = {"heading_frame": True, "augment": ()} if heading_frame else {}
+    if augment is not None:
+        kw["augment"] = tuple(a for a in split_list(augment) if not (heading_frame and a == "rotate_yaw"))
+    return kw
+
+
 @bench_app.command("odometry")
 def bench_odometry(
     data: Path = typer.Option(..., "--data", help="Simulated dataset (e.g. `wearnav simulate --preset default`)."),
@@ -74,6 +83,12 @@ def bench_odometry(
         None,
         help="Device layout of every model, comma-separated (default: phone, watch, earbuds); with "
         "--heading-frame the first present device gives the frame (e.g. earbuds,phone,watch).",
+    ),
+    augment: str | None = typer.Option(
+        None,
+        "--augment",
+        help="The learned models' batch augmentations, comma-separated (wearnav.augment, e.g. "
+        "rotate_yaw,drop_devices; default: rotate_yaw, none with --heading-frame); '' for none.",
     ),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
     executor: Backend = typer.Option(Backend.local, help=EXECUTOR_HELP),
@@ -120,8 +135,7 @@ def bench_odometry(
         lr=lr,
         recipe=recipe.value,
         vel_loss=vel_loss.value,
-        # the heading frame keeps the device's heading: no random yaw (TrainConfig refuses both)
-        **({"heading_frame": True, "augment": ()} if heading_frame else {}),
+        **frame_and_augment(heading_frame, augment),
         **({"devices": layout} if layout is not None else {}),
     )
     suite_folder(out, "bench odometry")
@@ -201,8 +215,10 @@ def bench_real_odometry(
     devices: str = typer.Option(
         "phone",
         "--devices",
-        help="The learned models' devices, comma-separated, the phone first (e.g. phone,watch,earbuds: only with "
-        "a simulated --train-data; the real walks carry the phone alone, the others are absent there).",
+        help="The learned models' devices, comma-separated, the phone among them (e.g. phone,watch,earbuds: only "
+        "with a simulated --train-data; the real walks carry the phone alone, the others are absent there). With "
+        "--heading-frame the first device present gives the frame: earbuds,phone,watch frames the simulated walks "
+        "by the earbuds and the real ones by the phone (train with --augment drop_devices to show it both).",
     ),
     augment: str = typer.Option(
         "rotate_yaw",

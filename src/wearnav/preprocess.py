@@ -119,6 +119,10 @@ class Aligned:
     # with ``heading_frame``: the carrying device's heading ψ (T,; rad, in the frame of ``imu``;
     # NaN where no device is present or its heading is undefined), else None
     yaw: np.ndarray | None = field(default=None, repr=False)
+    # with ``heading_frame``: every device's heading (devices × T, as ``yaw``; NaN where that device
+    # is absent), from which ``yaw`` takes the first present. A window can then be turned into
+    # another device's frame when training leaves its carrier out (``augment.drop_devices``)
+    yaws: np.ndarray | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -272,16 +276,16 @@ def align(rec: Recording, cfg: PreprocessConfig = PreprocessConfig(), t: np.ndar
             imu = turn_devices(imu, mask, turned)
     if cfg.yaw_deg:
         imu = np.stack([rotate_stacked(x, -np.deg2rad(cfg.yaw_deg)) for x in imu]).astype(np.float32)
-    yaw = _carrier_heading(rec, cfg, t, mask, turned) if cfg.heading_frame else None
-    return Aligned(rec.name, t, tuple(cfg.devices), imu, mask, pos, meta, rec, yaw)
+    yaws = _device_headings(rec, cfg, t, mask, turned) if cfg.heading_frame else None
+    yaw = _carrier_heading(yaws) if yaws is not None else None
+    return Aligned(rec.name, t, tuple(cfg.devices), imu, mask, pos, meta, rec, yaw, yaws)
 
 
-def _carrier_heading(rec: Recording, cfg: PreprocessConfig, t, mask, turned) -> np.ndarray:
-    """ψ (T,) of :attr:`Aligned.yaw`: at each sample the heading of the first device of the layout
-    present there, in the frame the IMU was turned into (its frame alignment and ``yaw_deg``)."""
-    yaw = np.full(t.size, np.nan)
-    for d in reversed(range(len(cfg.devices))):  # the first present device wins
-        dev = cfg.devices[d]
+def _device_headings(rec: Recording, cfg: PreprocessConfig, t, mask, turned) -> np.ndarray:
+    """ψ (devices × T) of :attr:`Aligned.yaws`: each device's heading where it is present, in the
+    frame the IMU was turned into (its frame alignment and ``yaw_deg``); NaN elsewhere."""
+    yaws = np.full((len(cfg.devices), t.size), np.nan)
+    for d, dev in enumerate(cfg.devices):
         if dev not in rec.devices or not mask[d].any():
             continue
         psi = np.angle(device_heading(rec.devices[dev], t))
@@ -289,7 +293,16 @@ def _carrier_heading(rec: Recording, cfg: PreprocessConfig, t, mask, turned) -> 
             psi = psi - turned[d]
         psi = psi - np.deg2rad(cfg.yaw_deg)
         here = mask[d] & np.isfinite(psi)
-        yaw[here] = np.angle(np.exp(1j * psi[here]))
+        yaws[d, here] = np.angle(np.exp(1j * psi[here]))
+    return yaws
+
+
+def _carrier_heading(yaws: np.ndarray) -> np.ndarray:
+    """ψ (T,) of :attr:`Aligned.yaw`: at each sample the heading of the first device of the layout
+    that has one there (NaN where none has)."""
+    yaw = np.full(yaws.shape[1], np.nan)
+    for row in yaws[::-1]:  # the first device with a heading wins
+        yaw = np.where(np.isfinite(row), row, yaw)
     return yaw
 
 
@@ -362,12 +375,15 @@ def time_warped(seq: Aligned, k: float) -> Aligned:
         imu[d, :, 2] = k * k * (imu[d, :, 2] - g) + g
         imu[d, :, 3:] *= k
     imu[~mask] = 0.0
-    yaw = None
-    if seq.yaw is not None:
-        y = seq.yaw.astype(np.float64).copy()
+
+    def angles(a: np.ndarray) -> np.ndarray:  # unwrapped where finite, NaN where either neighbour is
+        y = a.astype(np.float64).copy()
         fin = np.isfinite(y)
         y[fin] = np.unwrap(y[fin])
-        yaw = np.angle(np.exp(1j * lerp(y, 0)))  # NaN where either neighbour is
+        return np.angle(np.exp(1j * lerp(y, 0)))
+
+    yaw = angles(seq.yaw) if seq.yaw is not None else None
+    yaws = np.stack([angles(row) for row in seq.yaws]) if seq.yaws is not None else None
     return Aligned(
         name=f"{seq.name}@x{k:g}",
         t=t[0] + dt * np.arange(n),
@@ -378,6 +394,7 @@ def time_warped(seq: Aligned, k: float) -> Aligned:
         meta={**seq.meta, "time_warp": k},
         recording=None,
         yaw=yaw,
+        yaws=yaws,
     )
 
 

@@ -166,6 +166,10 @@ class WindowDataset(TorchDataset):
             d = (disp[:, 0] + 1j * disp[:, 1]) * turn
             disp = np.stack([d.real, d.imag], 1)
             extra["yaw"] = torch.from_numpy(psi.astype(np.float32))
+            if all(self.sequences[i].yaws is not None for i in set(idx[:, 0].tolist())):
+                # every device's own ψ (NaN where it has none), for augment.drop_devices
+                each = [device_headings(self.sequences[i].yaws, s, L) for i, s in idx]
+                extra["yaws"] = torch.from_numpy(np.array(each, np.float32).reshape(len(idx), D))
         return {
             "x": torch.from_numpy(x),
             "mask": torch.from_numpy(present.astype(np.float32)),
@@ -217,6 +221,15 @@ def window_heading(yaw: np.ndarray | None, start: int, length: int) -> float:
     v = np.exp(1j * yaw[start : start + length])
     v = v[np.isfinite(v)]
     return float(np.angle(v.mean())) if v.size and abs(v.mean()) > 0 else 0.0
+
+
+def device_headings(yaws: np.ndarray, start: int, length: int) -> np.ndarray:
+    """Each device's ψ over one window (devices,): the circular mean of its heading over the
+    window's samples, NaN where it has none there."""
+    v = np.exp(1j * yaws[:, start : start + length])
+    ok = np.isfinite(v)
+    m = np.where(ok, v, 0).sum(axis=1)
+    return np.where(ok.any(axis=1) & (np.abs(m) > 0), np.angle(m), np.nan)
 
 
 class _Resident:

@@ -25,6 +25,7 @@ import numpy as np
 import torch
 
 from wearnav import runs, trust
+from wearnav.augment import get as augmentation
 from wearnav.dataset import Dataset, scorable_split, train_val_views
 from wearnav.errors import ConfigError, FormatError, ValidationError, check_field_types, check_names
 from wearnav.models import registry
@@ -144,6 +145,8 @@ class TrainConfig:
             raise ConfigError("heading_frame keeps the device's heading as the window's frame: drop rotate_yaw")
         if self.vel_loss not in VEL_LOSSES:
             raise ConfigError(f"velocity loss must be one of {', '.join(VEL_LOSSES)}, got {self.vel_loss!r}")
+        for name in self.augment:  # every name before any work (a bench builds its configs first)
+            augmentation(name)
         check_speed_warp(self.speed_warp)
         if self.epochs < 1:
             raise ConfigError(f"epochs must be ≥ 1, got {self.epochs}")
