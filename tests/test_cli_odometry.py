@@ -138,3 +138,4 @@ def test_bench_devices_set_every_runs_layout_and_whose_heading_frame(tiny, tmp_p
     assert cfg["train"]["augment"] == ["drop_devices"]  # the heading frame leaves random yaw out
     page = (tmp_path / "s" / "results.md").read_text()
     assert "heading frame of the earbuds (else the next device present)" in page
+    assert "augmented with `drop_devices`" in page.splitlines()[0]

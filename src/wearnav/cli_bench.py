@@ -125,6 +125,8 @@ def bench_odometry(
     layout = split_list(devices) if devices is not None else None
     if layout is not None:
         check_devices(Dataset.open(data), layout)
+    given = frame_and_augment(heading_frame, augment)
+    augmented = given["augment"] if augment is not None else ()
     configs = suite_configs(
         data,
         entries,
@@ -135,7 +137,7 @@ def bench_odometry(
         lr=lr,
         recipe=recipe.value,
         vel_loss=vel_loss.value,
-        **frame_and_augment(heading_frame, augment),
+        **given,
         **({"devices": layout} if layout is not None else {}),
     )
     suite_folder(out, "bench odometry")
@@ -178,10 +180,12 @@ def bench_odometry(
         + (f", velocity loss `{vel_loss.value}` for every learned model" if vel_loss != VelLoss.mse else "")
         + (f", devices {', '.join(layout)}" if layout is not None else "")
         + (f", each window in {frame} (no random yaw)" if heading_frame else "")
+        + (f", batch augmentations {', '.join(augmented) or 'none'}" if augment is not None else "")
         + "."
     )
     setting = [f"`{vel_loss.value}` loss"] if vel_loss != VelLoss.mse else []
     setting += [frame] if heading_frame else []
+    setting += [f"augmented with `{'`, `'.join(augmented)}`"] if augmented else []
     title = "Odometry comparison (Suite-IN++ Tables III–VI)" + (f", {' and '.join(setting)}" if setting else "")
     page = write_grid_report(folders, out, title=title, expected_seeds=len(seed_list), note=note)
     typer.echo(f"wrote {page}")
