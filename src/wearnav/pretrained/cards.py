@@ -156,14 +156,18 @@ def write_card(spec: Shipped, run: Path, recipe, suites: dict[str, Path]) -> Pat
     ]
     heading = bool(cfg.get("heading_frame"))
     others = [d for d in spec.devices if d != "phone"]
+    layout = list(cfg.get("devices") or spec.devices)
+    carrier = layout[0]  # the heading frame's device: the first of the layout present
     frame = (
         (
             "then every device into the phone's (the devices' common frame, `wearnav.frames`), and "
             if others
             else "then "
         )
-        + "each window turned into the phone's heading frame (its own pointing, "
-        "`PreprocessConfig.heading_frame`); the output, the window's mean horizontal velocity (m/s) in "
+        + f"each window turned into the {carrier}'s heading frame (its own pointing, "
+        "`PreprocessConfig.heading_frame`"
+        + (f"; without the {carrier}, the next device's of {', '.join(layout)}" if len(layout) > 1 else "")
+        + "); the output, the window's mean horizontal velocity (m/s) in "
         "that frame, is turned back by the same heading. No random yaw: the frame carries none."
         if heading
         else "then every device into the phone's (the devices' common frame, `wearnav.frames`); output: "
@@ -173,8 +177,7 @@ def write_card(spec: Shipped, run: Path, recipe, suites: dict[str, Path]) -> Pat
             if len(parts) > 1
             else ""
         )
-        + "".join(f" {AUGMENT_TEXT[a]}" for a in cfg.get("augment", ()) if a in AUGMENT_TEXT)
-    )
+    ) + "".join(f" {AUGMENT_TEXT[a]}" for a in cfg.get("augment", ()) if a in AUGMENT_TEXT)
     loss = cfg.get("vel_loss", "mse")
     measured = (
         "Trained on the simulator alone, so both real buildings are ones it never saw: the run itself "
