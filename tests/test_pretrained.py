@@ -443,12 +443,17 @@ def test_both_odometry_models_train_on_the_simulator_in_their_own_suite(sources)
 
     r, sim = Recipe(), sources / "sim"
     assert set(SUITES) == {pretrained.PHONE, pretrained.MULTI} and len(set(SUITES.values())) == 2
+    multi, phone = recipe_bench(sim, r, pretrained.MULTI), recipe_bench(sim, r, pretrained.PHONE)
     three = pretrained.SHIPPED[pretrained.MULTI].devices
-    multi, phone = recipe_bench(sim, r, three), recipe_bench(sim, r, pretrained.SHIPPED[pretrained.PHONE].devices)
-    assert multi.devices == three and phone.devices == ("phone",)
+    assert multi.devices == three and three[0] == "phone" and phone.devices == ("phone",)
+    assert multi.augment == phone.augment == ()
     assert multi.vel_loss == phone.vel_loss == "polar" and multi.heading_frame and phone.heading_frame
     learned = _train_config("suitein++", str(sim), 0.0, multi, elsewhere=True)
     assert learned.devices == three and learned.heading_frame and "rotate_yaw" not in learned.augment
+    # the earbuds' frame (measured, not shipped): the earbuds first, devices left out in training
+    buds = recipe_bench(sim, Recipe(multi_frame="earbuds", multi_augment=("drop_devices",)), pretrained.MULTI)
+    assert buds.devices == ("earbuds", "phone", "watch") and buds.augment == ("drop_devices",)
+    assert recipe_bench(sim, Recipe(multi_frame="earbuds"), pretrained.PHONE).devices == ("phone",)
     assert _train_config("pdr", str(sim), 0.0, multi, elsewhere=True).devices == ("phone",)
     with pytest.raises(ConfigError, match="phone alone"):
         RealBench(devices=("phone", "watch"))  # trained on the real walks

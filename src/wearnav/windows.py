@@ -166,7 +166,7 @@ class WindowDataset(TorchDataset):
             d = (disp[:, 0] + 1j * disp[:, 1]) * turn
             disp = np.stack([d.real, d.imag], 1)
             extra["yaw"] = torch.from_numpy(psi.astype(np.float32))
-            if all(self.sequences[i].yaws is not None for i in set(idx[:, 0].tolist())):
+            if D > 1 and all(self.sequences[i].yaws is not None for i in set(idx[:, 0].tolist())):
                 # every device's own ψ (NaN where it has none), for augment.drop_devices
                 each = [device_headings(self.sequences[i].yaws, s, L) for i, s in idx]
                 extra["yaws"] = torch.from_numpy(np.array(each, np.float32).reshape(len(idx), D))
