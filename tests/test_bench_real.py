@@ -380,3 +380,13 @@ def test_map_aware_rows_where_the_site_has_floor_plans(tmp_path):
     assert "map-aware minus map-less" in text
     m = runs.read_metrics(next((out / "runs").glob("pdr-*")) / "eval_main_map")
     assert m["map_aware"]["of"] == "eval_main" and m["map_aware"]["config"]["particles"] > 0
+
+
+def test_pages_say_whose_heading_frame_the_learned_models_take():
+    """The first device of the layout gives the frame; the real walks carry the phone alone, so a
+    model framed by the earbuds on the simulator takes the phone's there, and the pages say so."""
+    from wearnav.bench.real_page import frame_name
+
+    assert frame_name(("phone", "watch", "earbuds")) == frame_name(None) == "the phone's heading frame"
+    said = frame_name(("earbuds", "phone", "watch"))
+    assert "of the earbuds" in said and "the phone's on the real walks" in said

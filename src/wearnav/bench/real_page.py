@@ -207,6 +207,17 @@ def length_ratios(eval_dir: Path, data: str) -> tuple[float, float]:
     return median(chords), median(arcs)
 
 
+def frame_name(devices) -> str:
+    """Whose heading frame a suite's learned models take: the first of their devices present, so the
+    phone's on the real walks, which carry it alone (``preprocess._carrier_heading``)."""
+    first = tuple(devices or ("phone",))[0]
+    return (
+        "the phone's heading frame"
+        if first == "phone"
+        else f"the heading frame of the {first} (the phone's on the real walks)"
+    )
+
+
 def warp_text(speed_warp) -> str:
     """The speed time-warp expansion (RealBench.speed_warp) as a page says it, or nothing."""
     if not speed_warp:
@@ -228,7 +239,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         f"Odometry in real buildings: trained on {src}"
         if not bench["train_data"]
         else f"Odometry in real buildings: trained on `{Path(bench['train_data']).name}`, tested on {src}"
-    ) + (", the learned models in the phone's heading frame" if bench.get("heading_frame") else "")
+    ) + (f", the learned models in {frame_name(bench.get('devices'))}" if bench.get("heading_frame") else "")
     title += f", the `{bench['vel_loss']}` loss" if bench.get("vel_loss", "mse") != "mse" else ""
     title += warp_text(bench.get("speed_warp"))
     if bench.get("models") and not any(get(m).learned for m in bench["models"]):  # nothing was trained
@@ -253,7 +264,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
         + (f", Adam lr {bench['lr']:g}" if bench["lr"] else ", each model's paper learning rate")
         + f", velocity loss `{bench.get('vel_loss', 'mse')}`"
         + (
-            ", the learned models' windows in the phone's heading frame (`--heading-frame`) without random yaw"
+            f", the learned models' windows in {frame_name(bench.get('devices'))} (`--heading-frame`) without random yaw"
             if bench.get("heading_frame")
             else ""
         )

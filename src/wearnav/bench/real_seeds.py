@@ -28,7 +28,7 @@ import pandas as pd
 from wearnav import runs
 from wearnav.bench.executor import Execution, run_jobs
 from wearnav.bench.real import RealBench, plan_benchmark
-from wearnav.bench.real_page import evaluations, suite_runs, warp_text
+from wearnav.bench.real_page import evaluations, frame_name, suite_runs, warp_text
 from wearnav.bench.user_protocol import FLOOR_COLUMN, PARTICLES, PARTICLES_LABEL, RAW_FIXES
 from wearnav.errors import ValidationError
 from wearnav.fileio import write_text_atomic
@@ -235,7 +235,7 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
     learned = (
         [f"on {' + '.join(bench.devices)} (the phone alone in the buildings)"] if bench.devices != ("phone",) else []
     )
-    learned += ["in the phone's heading frame"] if bench.heading_frame else []
+    learned += [f"in {frame_name(bench.devices)}"] if bench.heading_frame else []
     learned += [f"with the `{bench.vel_loss}` loss"] if bench.vel_loss != "mse" else []
     lagged = fix_lags(c for d in docs.values() for c in d["sites"].get("main", {}).get("calibration", {}).values())
     p = provenance()
@@ -253,7 +253,7 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
         f"Seeds {', '.join(map(str, docs))} (suites {', '.join(f'`{folders[s].name}`' for s in docs)}); every "
         f"other setting as each seed's page says (at most {bench.epochs} epochs, velocity loss `{bench.vel_loss}`"
         + (
-            ", the learned models' windows in the phone's heading frame without random yaw"
+            f", the learned models' windows in {frame_name(bench.devices)} without random yaw"
             if bench.heading_frame
             else ""
         )
