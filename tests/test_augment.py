@@ -1,10 +1,15 @@
+import dataclasses
 import math
 
+import numpy as np
 import pytest
 import torch
 
 from wearnav import augment
 from wearnav.errors import ConfigError
+from wearnav.preprocess import PreprocessConfig, align
+from wearnav.simulate import WalkConfig, simulate_recording
+from wearnav.windows import WindowConfig, WindowDataset
 
 
 def batch(b=16, d=3, L=20, seed=0):
@@ -107,14 +112,6 @@ def test_leaving_out_the_carrier_turns_a_heading_frame_window_into_the_next_devi
     """issue 34: a model framed by the earbuds (the first of earbuds, phone, watch) must meet the
     phone's frame where the earbuds are absent; training that leaves the earbuds out turns the
     window as aligning the recording without them would have framed it."""
-    import dataclasses
-
-    import numpy as np
-
-    from wearnav.preprocess import PreprocessConfig, align
-    from wearnav.simulate import WalkConfig, simulate_recording
-    from wearnav.windows import WindowConfig, WindowDataset
-
     rec = simulate_recording(WalkConfig(mode="STW", placement="PK", duration_s=30), seed=2)
     cfg = PreprocessConfig(devices=("earbuds", "phone", "watch"), frame_align="none", heading_frame=True)
     full = align(rec, cfg)

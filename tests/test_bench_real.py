@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from wearnav import runs
 from wearnav.bench.real import RealBench, run_benchmark
+from wearnav.bench.real_page import frame_name
 from wearnav.bench.real_sites import estimate_site_yaw, prepare_data, split_of
 from wearnav.dataset import Dataset, write_dataset
 from wearnav.errors import ConfigError, ValidationError
@@ -385,8 +386,6 @@ def test_map_aware_rows_where_the_site_has_floor_plans(tmp_path):
 def test_pages_say_whose_heading_frame_the_learned_models_take():
     """The first device of the layout gives the frame; the real walks carry the phone alone, so a
     model framed by the earbuds on the simulator takes the phone's there, and the pages say so."""
-    from wearnav.bench.real_page import frame_name
-
     assert frame_name(("phone", "watch", "earbuds")) == frame_name(None) == "the phone's heading frame"
     said = frame_name(("earbuds", "phone", "watch"))
     assert "of the earbuds" in said and "the phone's on the real walks" in said
