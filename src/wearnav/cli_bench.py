@@ -120,11 +120,8 @@ def bench_odometry(
     grid = grid or Grid.default
     entries = list(split_list(models)) if models else GRIDS[grid.value]
     from wearnav.dataset import Dataset
-    from wearnav.train.odometry import check_devices
 
     layout = split_list(devices) if devices is not None else None
-    if layout is not None:
-        check_devices(Dataset.open(data), layout)
     given = frame_and_augment(heading_frame, augment)
     augmented = given["augment"] if augment is not None else ()
     configs = suite_configs(

@@ -83,9 +83,12 @@ def grid_entries(models) -> list[tuple[str, dict]]:
 
 def suite_configs(data: str | Path, models=DEFAULT_MODELS, seeds=None, **train_kw) -> list:
     """One TrainConfig per grid entry (a model name or a (name, model_args) pair) and training
-    seed, entry by entry; ``seeds`` None: the one ``seed`` of ``train_kw`` (default 0)."""
+    seed, entry by entry; ``seeds`` None: the one ``seed`` of ``train_kw`` (default 0). A ``devices``
+    layout naming a device no recording of ``data`` has is refused here, before any run."""
     entries = grid_entries(models)
     check_models([m for m, _ in entries], "odometry")  # every name, before any config is built
+    if "devices" in train_kw:
+        check_devices(Dataset.open(data), tuple(train_kw["devices"]))
     seeds = [train_kw.pop("seed", 0)] if seeds is None else list(seeds)
     if not seeds or len(set(seeds)) != len(seeds):
         raise ConfigError(f"seeds must be distinct and at least one, got {seeds}")
