@@ -4,8 +4,9 @@ For each dataset: every window (4 s, every 1 s) with a true speed above 0.5 m/s,
 the true displacement in the device's heading frame (:attr:`wearnav.preprocess.PreprocessConfig.heading_frame`,
 the horizontal direction of the phone's y − z axis). A phone held in the hand and pointing where
 its walker goes gives angles near 0; the share within ±30° and ±60° says how far a heading-frame
-model may lean on that; the share within ±30° of the median, how steady a device whose pointing
-is offset from the walk (earbuds, a watch: ``--device``) holds that offset (around the circular mean). A real building's recordings use its surveyed points joined by straight
+model may lean on that; the share within ±30° of the circular mean, how steady a device whose
+pointing is offset from the walk (earbuds, a watch: ``--device``) holds that offset. A real
+building's recordings use its surveyed points joined by straight
 lines as truth, in the frame the data was imported in (``frame_align="none"``); a training mix
 (:mod:`wearnav.pretrained.mix`) its own frame (its truth turned into the IMU's); simulated data the
 truth's (each device's drawn yaw taken out by ``frame_align="truth"``, a measurement's use of truth).
@@ -63,10 +64,10 @@ def main() -> None:
     print("|---|---|---|---|---|---|")
     for data in args.data:
         for key, a in angles(data, args.per_source, args.device).items():
-            med = float(np.degrees(np.angle(np.mean(np.exp(1j * np.radians(a))))))
-            near = np.abs((a - med + 180) % 360 - 180) < 30
+            mean = float(np.degrees(np.angle(np.mean(np.exp(1j * np.radians(a))))))
+            near = np.abs((a - mean + 180) % 360 - 180) < 30
             print(
-                f"| {key} | {a.size} | {med:.1f} | {np.mean(np.abs(a) < 30):.3f} | {np.mean(np.abs(a) < 60):.3f} "
+                f"| {key} | {a.size} | {mean:.1f} | {np.mean(np.abs(a) < 30):.3f} | {np.mean(np.abs(a) < 60):.3f} "
                 f"| {np.mean(near):.3f} |"
             )
 
