@@ -249,11 +249,15 @@ LIMITS = {  # per shipped odometry model
     + [
         "Measured on real walks with the phone alone (the table above): no real walk here has a watch or "
         "earbuds, so what those add on real walks is not measured. From a known start its own direction "
-        "was below PDR in IPIN and above it in ILC2 (the phone held flat there), in every seed tried "
-        "(docs/design.md); turned onto the phone's pointing where near it (`--speed snapped`, the phone "
-        "model's default), the shipped seed is level with PDR in ILC2 (the table above). `track` keeps its "
-        "own direction for it: on the simulator's walks with all three devices the pointing cost "
-        "0.07–0.35 m of ATE.",
+        "with the cadence steps (`track`'s path for it) was below PDR in IPIN in every seed and level with "
+        "or above it in ILC2 (the phone held flat there: 4.12 / 4.06 / 3.70 m over three seeds against "
+        "PDR's 3.75; docs/design.md); turned onto the phone's pointing where near it (`--speed snapped`, "
+        "the phone model's default), the shipped seed is level with PDR in ILC2 (the table above). `track` "
+        "keeps its own direction for it: on the simulator's walks with all three devices the pointing cost "
+        "0.08–0.27 m of ATE.",
+        "Trained with the MSE loss (the phone model: the polar loss), which keeps the simulator's Table "
+        "III: its own speed (`--speed model`) comes out short where its direction is uncertain, so `track` "
+        "takes the cadence steps' length.",
         "Trained on one simulated walker's devices, every walk with all three of them; the heading frame "
         "is the phone's, and a recording without a phone takes the watch's, which training never showed. "
         "The cadence-long steps `track` takes rest on the phone's steps (one constant measured on the "
