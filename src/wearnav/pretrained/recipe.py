@@ -119,9 +119,10 @@ class Recipe:
     # the multi-device model's loss (wearnav.models.base.velocity_loss). The MSE, not the phone model's
     # polar loss: `track` takes its direction with the cadence steps' length (multi_speed), so the MSE's
     # short mean costs it nothing there, and the polar loss in the phone's frame costs the simulator's
-    # Table III (`small`, 3 seeds, ATE test 4.13 ± 0.58 m against the MSE's 2.56 ± 0.33). On the
-    # simulator's three-device walks its cadence path is also the better one (fifteenth session,
-    # docs/design.md "The multi-device model's loss")
+    # Table III (`small`, 3 seeds, ATE test 4.13 ± 0.58 m against the MSE's 2.54 ± 0.37; the MSE's
+    # test_unseen, 2 walks, is 0.80 m above the world frame's, p 0.07). On the simulator's
+    # three-device walks its cadence path is also the better one (fifteenth session, docs/design.md
+    # "The multi-device model's loss")
     multi_vel_loss: str = "mse"
 
     def speed_of(self, model: str) -> str:
