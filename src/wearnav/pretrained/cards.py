@@ -257,9 +257,9 @@ LIMITS = {  # per shipped odometry model
         "0.08–0.27 m of ATE.",
         "Trained with the MSE loss (the phone model: the polar loss), which keeps the simulator's Table "
         "III by its pages' test (its `test_unseen`, two walks with the phone in a pocket and a bag, 0.80 m "
-        "above the world frame's); its own speed (`--speed model`) is the mean of what it cannot tell apart: on the real walks "
-        "its paths came out 1.10 as long as the truth in IPIN and 0.78 in ILC2 (three seeds), the cadence "
-        "steps' 0.97 and 0.94, so `track` takes the cadence steps' length.",
+        "above the world frame's); its own speed (`--speed model`) is the mean of what it cannot tell "
+        "apart: on the real walks its paths came out 1.10 as long as the truth in IPIN and 0.78 in ILC2 "
+        "(three seeds), the cadence steps' 0.97 and 0.94, so `track` takes the cadence steps' length.",
         "Trained on one simulated walker's devices, every walk with all three of them; the heading frame "
         "is the phone's, and a recording without a phone takes the watch's, which training never showed. "
         "The cadence-long steps `track` takes rest on the phone's steps (one constant measured on the "
