@@ -59,6 +59,35 @@ def errors_at_reference(t_est, pos_est, t_ref, pos_ref, max_gap: float) -> np.nd
     return np.linalg.norm(p_at_ref[keep] - p_ref[keep], axis=1)
 
 
+def along_cross_errors(t_est, pos_est, t_ref, pos_ref, max_gap: float) -> tuple[np.ndarray, np.ndarray]:
+    """The error of :func:`errors_at_reference` at the same reference points, split along the walk
+    and across it: ``(along, cross)`` in metres, ``hypot(along, cross)`` the error.
+
+    The walk's direction at reference point k is that of the reference from point k − 1 to point
+    k + 1 (from k to k + 1 at the first point, from k − 1 to k at the last): at a turn, the turn's
+    bisector. ``along`` is the error's component in that direction (positive: the estimate is ahead
+    of the walker), ``cross`` its component to the walker's left (counter-clockwise from the
+    direction: positive left). Where the reference does not move between those points (a standing
+    walker) there is no direction, and both are NaN. A plan corrects a path across a corridor
+    (``cross``) everywhere, along it only where the corridor turns or ends (issue 36).
+    """
+    t_est, p_est = _track(t_est, pos_est, "estimate")
+    t_ref, p_ref = _track(t_ref, pos_ref, "reference")
+    if not max_gap >= 0:
+        raise ValidationError(f"max_gap must be >= 0 seconds, got {max_gap}")
+    if t_est.size == 0 or t_ref.size == 0:
+        return np.empty(0), np.empty(0)
+    ahead = p_ref[np.minimum(np.arange(1, len(p_ref) + 1), len(p_ref) - 1)]
+    behind = p_ref[np.maximum(np.arange(-1, len(p_ref) - 1), 0)]
+    d = ahead - behind
+    norm = np.linalg.norm(d, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = np.where(norm[:, None] > 0, d / norm[:, None], np.nan)
+    p_at_ref, keep = interp_onto(t_ref, t_est, p_est, max_gap=max_gap, rule="nearest")
+    e, u = p_at_ref[keep] - p_ref[keep], u[keep]
+    return e[:, 0] * u[:, 0] + e[:, 1] * u[:, 1], u[:, 0] * e[:, 1] - u[:, 1] * e[:, 0]
+
+
 # A segment between surveyed points shorter than this (m) has no direction worth scoring: the
 # surveyed points' own error (decimetres) would dominate its angle.
 MIN_SEGMENT_M = 1.0
