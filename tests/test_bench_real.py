@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from wearnav import runs
 from wearnav.bench.real import RealBench, run_benchmark
-from wearnav.bench.real_page import frame_name
+from wearnav.bench.real_page import along_across, frame_name
 from wearnav.bench.real_sites import estimate_site_yaw, prepare_data, split_of
 from wearnav.dataset import Dataset, write_dataset
 from wearnav.errors import ConfigError, ValidationError
@@ -381,6 +381,13 @@ def test_map_aware_rows_where_the_site_has_floor_plans(tmp_path):
     assert "map-aware minus map-less" in text
     m = runs.read_metrics(next((out / "runs").glob("pdr-*")) / "eval_main_map")
     assert m["map_aware"]["of"] == "eval_main" and m["map_aware"]["config"]["particles"] > 0
+    # the error split along the walk and across it, for both rows at the same points
+    assert "along, median (m)" in text and "across, p95 (m)" in text
+    run, data = next((out / "runs").glob("pdr-*")), out / "data" / "main"
+    along, across = along_across(run / "eval_main", data)
+    along_map, across_map = along_across(run / "eval_main_map", data)
+    assert along.size == along_map.size > 0 and across.size == along.size
+    assert np.median(across_map) < np.median(across)  # the corridor holds the path across it
 
 
 def test_pages_say_whose_heading_frame_the_learned_models_take():

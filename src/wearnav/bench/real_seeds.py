@@ -28,7 +28,7 @@ import pandas as pd
 from wearnav import runs
 from wearnav.bench.executor import Execution, run_jobs
 from wearnav.bench.real import RealBench, plan_benchmark
-from wearnav.bench.real_page import evaluations, frame_name, suite_runs, warp_text
+from wearnav.bench.real_page import ALONG_TEXT, along_across_table, evaluations, frame_name, suite_runs, warp_text
 from wearnav.bench.user_protocol import FLOOR_COLUMN, PARTICLES, PARTICLES_LABEL, RAW_FIXES
 from wearnav.errors import ValidationError
 from wearnav.fileio import write_text_atomic
@@ -274,16 +274,26 @@ def seeds_page(out: Path, folders: dict[int, Path], bench: RealBench) -> Path:
             for s in docs
         }
         ks = known_start_table(docs, evals, site)
+        labels = [label for label in ks["path"] if any(label in ev for ev in evals.values())]
+        split = along_across_table(
+            {
+                label: [(ev[label], folders[s] / "data" / site) for s, ev in evals.items() if label in ev]
+                for label in labels
+            }
+        )
         sm = smoother_table(docs, site)
         pf = smoother_table(docs, site, PARTICLES, " · " + PARTICLES_LABEL, "particle filter of")
         doc["sites"][site] = {
             "known_start": ks.to_dict(orient="records"),
+            "along_across": None if split is None else split.to_dict(orient="records"),
             "smoother": None if sm is None else sm.to_dict(orient="records"),
             "particle_filter": None if pf is None else pf.to_dict(orient="records"),
         }
         where = "held-out groups" if site == "main" else "another building, never trained on"
         lines += [f"## {first['sites'][site]['split']['source']} ({where})", "", "Known start:", ""]
         lines += [ks.to_markdown(index=False), ""]
+        if split is not None:
+            lines += [ALONG_TEXT.format(seeds="; mean ± sd over the seeds"), "", split.to_markdown(index=False), ""]
         if sm is not None:
             lags = fix_lags(c for d in docs.values() for c in d["sites"][site].get("calibration", {}).values())
             lag = (
