@@ -41,6 +41,15 @@ A scale prior of 1.12, the inverse of PDR's median length ratio on the training 
 2.68 / 11.03 m there, and on the test floors 2.24 / 10.09 m against 2.46 / 9.21 (median 0.60× the
 map-less path's instead of 0.66×, p95 0.79× instead of 0.73×); it stays 1: the p95 target (≤ 0.75×)
 would be lost for a median still above its target (≤ 0.5×).
+Tried later on the same floors with their validation walks too (PDR, 328 walks, 1702 points,
+map-less 3.92 / 13.02 m, these constants 2.81 / 11.33), none kept: a penalty on positions nearer a
+wall than 0.5 m (σ 0.25 m: 2.85 / 11.42; 1 m, σ 0.5 m: 2.86 / 12.13; the surveyed points' median
+clearance is 1.12 m, the walkable space's 1.0–1.9 m); a scale prior of 1.06 (2.65 / 11.54), with a
+log-scale σ of 0.1 (2.81 / 11.76), with a scale walk of 0.02/√s (2.77 / 11.81; alone 2.94 / 12.70),
+with a heading walk of 2 °/√s (2.58 / 11.74). The 0.5× target is 1.96 m there. What is left is
+along the walk: on ILC2's test floors the plan cuts the error across the walk to under half and
+along it by a quarter (:func:`wearnav.metrics.along_cross_errors`, the real bench's pages), and a
+plan holds a path along a corridor only where it turns or ends.
 Speed, one core: a 1-hour walk (7200 steps) takes 0.7 s with 300 particles, 1.5 s with 1000 and
 3.4 s with 3000 (2-core machine shared with other work, load 2.8).
 
