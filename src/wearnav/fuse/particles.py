@@ -48,7 +48,7 @@ clearance is 1.12 m, the walkable space's 1.0–1.9 m); a scale prior of 1.06 (2
 log-scale σ of 0.1 (2.81 / 11.76), with a scale walk of 0.02/√s (2.77 / 11.81; alone 2.94 / 12.70),
 with a heading walk of 2 °/√s (2.58 / 11.74). The 0.5× target is 1.96 m there. What is left is
 along the walk: on ILC2's test floors the plan cuts the error across the walk to under half and
-along it by a quarter (:func:`wearnav.metrics.along_cross_errors`, the real bench's pages), and a
+along it by a fifth to a third (:func:`wearnav.metrics.along_cross_errors`, the real bench's pages), and a
 plan holds a path along a corridor only where it turns or ends.
 Speed, one core: a 1-hour walk (7200 steps) takes 0.7 s with 300 particles, 1.5 s with 1000 and
 3.4 s with 3000 (2-core machine shared with other work, load 2.8).
