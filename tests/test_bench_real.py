@@ -387,7 +387,8 @@ def test_map_aware_rows_where_the_site_has_floor_plans(tmp_path):
     along, across = along_across(run / "eval_main", data)
     along_map, across_map = along_across(run / "eval_main_map", data)
     assert along.size == along_map.size > 0 and across.size == along.size
-    assert np.median(across_map) < np.median(across)  # the corridor holds the path across it
+    assert np.median(np.abs(across_map)) < np.median(np.abs(across))  # the corridor holds the path across it
+    assert "along, signed median (m)" in text
 
 
 def test_pages_say_whose_heading_frame_the_learned_models_take():

@@ -210,8 +210,8 @@ def length_ratios(eval_dir: Path, data: str) -> tuple[float, float]:
 
 def along_across(eval_dir: Path, data: str | Path, truths: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """An evaluation's errors at the surveyed points split along the walk and across it
-    (:func:`wearnav.metrics.along_cross_errors`, absolute values, every test walk's points
-    together; points where the truth stands still are left out), from the trajectories it wrote,
+    (:func:`wearnav.metrics.along_cross_errors`: along positive ahead, across positive left; every
+    test walk's points together, those where the truth stands still left out), from the trajectories it wrote,
     scored as :func:`wearnav.bench.map_eval.map_aware_eval` scores them. ``truths``: a dict the
     recordings' truths are kept in, by (data, name), for the next call on the same data."""
     ds, along, across = Dataset.open(data), [], []
@@ -229,8 +229,8 @@ def along_across(eval_dir: Path, data: str | Path, truths: dict | None = None) -
         keep = (truth.t > t[0]) & (truth.t <= t[-1] + SPARSE_MAX_GAP)
         a, c = metrics.along_cross_errors(t, xy, truth.t[keep], truth.pos[keep, :2], SPARSE_MAX_GAP)
         ok = np.isfinite(a)
-        along.append(np.abs(a[ok]))
-        across.append(np.abs(c[ok]))
+        along.append(a[ok])
+        across.append(c[ok])
     cat = lambda v: np.concatenate(v) if v else np.empty(0)
     return cat(along), cat(across)
 
@@ -238,15 +238,17 @@ def along_across(eval_dir: Path, data: str | Path, truths: dict | None = None) -
 ALONG_TEXT = (
     "Where the error lies, map-aware rows beside their map-less ones: the error at each surveyed point "
     "split along the walk's direction there and across it (:func:`wearnav.metrics.along_cross_errors`; "
-    "|·|, every walk's points together{seeds}). A plan holds a path across a corridor everywhere, along it "
-    "only where the corridor turns or ends:"
+    "|·|, every walk's points together{seeds}; *along, signed*: the median with its sign, below 0 the path "
+    "is behind the walker). A plan holds a path across a corridor everywhere, along it only where the "
+    "corridor turns or ends:"
 )
 
 
 def along_across_table(evals: dict[str, list[tuple[Path, str | Path]]]) -> pd.DataFrame | None:
     """Per map-aware path and its map-less one (``evals``: label → its (evaluation folder, data) of
-    each seed, in the page's order): the medians and 95th percentiles of :func:`along_across`, mean
-    ± sd over the seeds where there are several."""
+    each seed, in the page's order): the medians and 95th percentiles of :func:`along_across`'s
+    absolute values and the median of its signed along, mean ± sd over the seeds where there are
+    several."""
     rows: list[dict] = []
     truths: dict = {}
     for label in evals:
@@ -258,10 +260,13 @@ def along_across_table(evals: dict[str, list[tuple[Path, str | Path]]]) -> pd.Da
                 {
                     "path": name,
                     **{
-                        f"{part}, {q_name} (m)": _spread([float(np.percentile(x[k], q)) for x in split if x[k].size])
+                        f"{part}, {q_name} (m)": _spread(
+                            [float(np.percentile(np.abs(x[k]), q)) for x in split if x[k].size]
+                        )
                         for q, q_name in ((50, "median"), (95, "p95"))
                         for k, part in enumerate(("along", "across"))
                     },
+                    "along, signed median (m)": _spread([float(np.median(x[0])) for x in split if x[0].size]),
                 }
             )
     return pd.DataFrame(rows) if rows else None
