@@ -106,7 +106,9 @@ def l_walk(scale=0.85, heading_err_deg=12.0, seed=0):
 def test_particle_filter_keeps_a_short_turned_path_in_the_corridor():
     t, true, odo = l_walk()
     w = Walkable.of(l_corridor())
-    res = map_filter(t, odo, {None: w}, true[0], 0.0, cfg=MapConfig(particles=500, scale_log_sigma=0.2))
+    # the scale as a state (walls_only_scale None) takes the odometry's 15 % shortfall up
+    cfg = MapConfig(particles=500, scale_log_sigma=0.2, walls_only_scale=None)
+    res = map_filter(t, odo, {None: w}, true[0], 0.0, cfg=cfg)
     free = odo + true[0]
     err_free = np.linalg.norm(free - true, axis=1)
     err_map = np.linalg.norm(res.xy - true, axis=1)
@@ -115,6 +117,20 @@ def test_particle_filter_keeps_a_short_turned_path_in_the_corridor():
     assert np.median(err_map) < 0.5 * np.median(err_free)
     assert err_map[-1] < 3.0 < err_free[-1]
     assert res.info["resamples"] > 0 and 0 < res.info["wall_share"] < 1
+
+
+def test_with_the_walls_alone_the_scale_is_fixed_and_with_a_fix_it_is_a_state():
+    t, true, odo = l_walk(scale=1.0)
+    w = Walkable.of(l_corridor())
+    cfg = MapConfig(particles=300)
+    alone = map_filter(t, odo, {None: w}, true[0], 0.0, cfg=cfg)
+    assert alone.info["scale"] == "fixed (walls only)" and alone.info["scale_median"] == cfg.walls_only_scale
+    fixes = (t[::100], true[::100], np.full(t[::100].size, 3.0))
+    fixed = map_filter(t, odo, {None: w}, true[0], 0.0, fixes=fixes, cfg=cfg)
+    assert fixed.info["scale"] == "a state" and fixed.info["fixes_used"] == t[::100].size
+    assert np.linalg.norm(alone.xy - true, axis=1).max() < 3.0  # a right-length odometry stays on the walk
+    with pytest.raises(ValidationError, match="walls_only_scale"):
+        MapConfig(walls_only_scale=0.0)
 
 
 def test_start_heading_offset_turns_the_first_metres_onto_the_heading():

@@ -153,7 +153,7 @@ def results_table(sites: dict, folders: dict[str, Path], site: str) -> tuple[pd.
 MAP_TEXT = (
     "Map-aware rows (*· map-aware*, :mod:`wearnav.bench.map_eval`, issue 36): the same known-start path "
     "placed on the trace's floor plan by the particle filter of :mod:`wearnav.fuse.particles` (walls as "
-    "constraints; start at the first surveyed point, heading offset 0 ± {h:g}°, log-scale ± {s:g}, "
+    "constraints; start at the first surveyed point, heading offset 0 ± {h:g}°, {s}, "
     "{n} particles, constants chosen on ILC2's training floors B1/F1/F3 with PDR), scored at the same points. "
     "Below, each map-aware row minus its map-less row, paired by walk (90 % interval from resampling "
     "whole walks; below 0: the plan helps):"
@@ -183,7 +183,12 @@ def _map_section(evals: dict[str, tuple[Path, Path]]) -> list[str]:
         )
     if not rows or cfg is None:
         return []
-    text = MAP_TEXT.format(h=cfg["start_heading_sigma_deg"], s=cfg["scale_log_sigma"], n=cfg["particles"])
+    scale = (
+        f"the odometry's scale fixed at {cfg['walls_only_scale']:g} (the walls its only evidence)"
+        if cfg.get("walls_only_scale")
+        else f"log-scale ± {cfg['scale_log_sigma']:g}"
+    )
+    text = MAP_TEXT.format(h=cfg["start_heading_sigma_deg"], s=scale, n=cfg["particles"])
     return [text, "", pd.DataFrame(rows).to_markdown(index=False), ""]
 
 
