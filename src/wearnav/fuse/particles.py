@@ -47,9 +47,10 @@ wall than 0.5 m (σ 0.25 m: 2.85 / 11.42; 1 m, σ 0.5 m: 2.86 / 12.13; the surve
 clearance is 1.12 m, the walkable space's 1.0–1.9 m); a scale prior of 1.06 (2.65 / 11.54), with a
 log-scale σ of 0.1 (2.81 / 11.76), with a scale walk of 0.02/√s (2.77 / 11.81; alone 2.94 / 12.70),
 with a heading walk of 2 °/√s (2.58 / 11.74). The 0.5× target is 1.96 m there. What is left is
-along the walk: on ILC2's test floors the plan cuts the error across the walk to under half and
-along it by a fifth to a third (:func:`wearnav.metrics.along_cross_errors`, the real bench's pages), and a
-plan holds a path along a corridor only where it turns or ends.
+along the walk: on ILC2's test floors the plan cut the error across the walk to under half and
+along it by a fifth to a third (:func:`wearnav.metrics.along_cross_errors`, the real bench's
+pages; with the fixed scale below, by a quarter to two fifths), and a plan holds a path along a
+corridor only where it turns or ends.
 Speed, one core: a 1-hour walk (7200 steps) takes 0.7 s with 300 particles, 1.5 s with 1000 and
 3.4 s with 3000 (2-core machine shared with other work, load 2.8).
 
