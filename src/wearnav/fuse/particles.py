@@ -64,7 +64,11 @@ gave 2.67 / 11.24 and 2.67 / 10.74 m against the state's 2.81 / 11.33 and 2.79 /
 1.02 2.64 / 11.17, at 1.04 2.57 / 10.86 and 2.60 / 10.94 (kept), at 1.08 2.65 / 11.59 and 2.65 /
 11.58. The shipped phone model's paths on the same floors (cadence steps pointing within 30°,
 map-less 3.25 / 10.31 m) agree: the state 2.04 / 8.07, fixed at 1.00 1.97 / 8.33, at 1.04 1.92 /
-7.95, at 1.08 2.10 / 8.70. With fixes or beacons the state stays: they, not the walls, tell it the scale.
+7.95, at 1.08 2.10 / 8.70. With the scale fixed, the other constants were tried again on both
+paths (PDR / the phone model): a heading walk of 0.5 °/√s 2.63 / 11.22 and 1.98 / 8.39, of 2 °/√s
+2.54 / 11.01 and 1.96 / 8.38; a start heading σ of 5° 2.58 / 11.02 and 1.92 / 8.13, of 20° 2.67 /
+11.72 and 1.98 / 9.12; a step σ of 0.05 × its length 2.59 / 11.24 and 2.04 / 7.96. None is better
+on both, so they stay. With fixes or beacons the state stays: they, not the walls, tell it the scale.
 
 The floor is not a particle state: the caller gives the floor over time (a barometer's floor track,
 or the recording's one floor), and each step is constrained by that floor's plan; a floor without
