@@ -12,8 +12,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from wearnav import runs
+from wearnav.bench.decompose import along_across
 from wearnav.bench.real import RealBench, run_benchmark
-from wearnav.bench.real_page import along_across, frame_name
+from wearnav.bench.real_page import frame_name
 from wearnav.bench.real_sites import estimate_site_yaw, prepare_data, split_of
 from wearnav.dataset import Dataset, write_dataset
 from wearnav.errors import ConfigError, ValidationError

@@ -134,6 +134,15 @@ def percentiles_of_draws(walks: list, draws, q) -> np.ndarray:
     return out
 
 
+def mean_sd_text(values) -> str:
+    """A page cell of values over seeds: "mean ± sd" (sample sd), the value alone when there is one,
+    "—" when none is finite (None and NaN are left out)."""
+    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], float)
+    if not len(v):
+        return "—"
+    return f"{v.mean():.2f} ± {v.std(ddof=1):.2f}" if len(v) > 1 else f"{v[0]:.2f}"
+
+
 def difference_cells(d: dict) -> dict[str, str]:
     """A table's cells of a :func:`walk_bootstrap_difference` result: one per quantile, e.g.
     ``{"median (m)": "-1.35 [-1.70, -0.94]", "p95 (m)": ...}`` (difference and its interval, m)."""

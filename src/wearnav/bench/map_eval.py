@@ -33,6 +33,7 @@ from wearnav.progress import progress as report_progress
 from wearnav.recording import FloorPlan
 
 MAP_SUFFIX = "_map"  # the map-aware evaluation of eval_<site>[_pdrspeed] is that folder + this suffix
+MAP_LABEL = " · map-aware"  # ... and its row label is the map-less row's + this
 
 
 def map_dir(eval_dir: Path) -> Path:

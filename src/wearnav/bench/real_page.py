@@ -12,9 +12,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from wearnav import metrics, runs
+from wearnav import runs
 from wearnav.bench import decompose
-from wearnav.bench.map_eval import MAP_SUFFIX
+from wearnav.bench.map_eval import MAP_LABEL, MAP_SUFFIX
 from wearnav.bench.odometry import BEATS_STILL, beats_text
 from wearnav.bench.real_sites import fix_errors
 from wearnav.bench.user_protocol import (
@@ -27,7 +27,6 @@ from wearnav.bench.user_protocol import (
     user_table,
 )
 from wearnav.dataset import Dataset
-from wearnav.evaluate import SPARSE_MAX_GAP
 from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.fuse.placement import SiteModels, fit_site_models
 from wearnav.models.base import SNAP_DEG
@@ -73,8 +72,7 @@ VARIANTS = {
     "pointing": ("_pointing", " · its speed, pointing"),
     "snapped": ("_snapped", f" · cadence speed, pointing within {SNAP_DEG:g}°"),
 }
-# and either one placed on the building's floor plans (wearnav.bench.map_eval, issue 36) + MAP_SUFFIX
-MAP_LABEL = " · map-aware"
+# and either one placed on the building's floor plans (wearnav.bench.map_eval, issue 36): + MAP_SUFFIX, MAP_LABEL
 
 
 def evaluations(folders: dict[str, Path], site: str) -> dict[str, tuple[Path, Path]]:
@@ -197,91 +195,15 @@ def length_ratios(eval_dir: Path, data: str) -> tuple[float, float]:
     surveyed times (:func:`wearnav.bench.user_protocol.score_path`: chords) and of its own arc over
     the truth's polyline (:func:`wearnav.bench.user_protocol.arc_ratio`: below 1 the path is slow,
     however it wanders), from the trajectories an evaluation wrote; 1 is right."""
-    ds, chords, arcs = Dataset.open(data), [], []
-    for f in sorted((eval_dir / "trajectories" / "test").glob("*.csv")):
-        df = pd.read_csv(f)
-        if f.stem in ds.names and len(df) > 1:
-            truth = ds.load(f.stem).truth
-            assert truth is not None  # a scored test recording has truth
-            t, xy = df["t"].to_numpy(), df[["x", "y"]].to_numpy()
-            chords.append(score_path(t, xy, truth.t, truth.pos[:, :2])[1])
-            arcs.append(arc_ratio(t, xy, truth.t, truth.pos[:, :2]))
+    chords, arcs = [], []
+    for w in decompose.scored_walks(eval_dir, data):
+        chords.append(score_path(w.t, w.xy, w.truth.t, w.truth.pos[:, :2])[1])
+        arcs.append(arc_ratio(w.t, w.xy, w.truth.t, w.truth.pos[:, :2]))
 
     def median(v: list[float]) -> float:
         return round(float(np.nanmedian(v)), 3) if np.isfinite(v).any() else float("nan")
 
     return median(chords), median(arcs)
-
-
-def along_across(eval_dir: Path, data: str | Path, truths: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """An evaluation's errors at the surveyed points split along the walk and across it
-    (:func:`wearnav.metrics.along_cross_errors`: along positive ahead, across positive left; every
-    test walk's points together, those where the truth stands still left out), from the trajectories it wrote,
-    scored as :func:`wearnav.bench.map_eval.map_aware_eval` scores them. ``truths``: a dict the
-    recordings' truths are kept in, by (data, name), for the next call on the same data."""
-    ds, along, across = Dataset.open(data), [], []
-    truths = {} if truths is None else truths
-    for f in sorted((eval_dir / "trajectories" / "test").glob("*.csv")):
-        df = pd.read_csv(f)
-        if f.stem not in ds.names or len(df) < 2:
-            continue
-        key = (str(data), f.stem)
-        if key not in truths:
-            truths[key] = ds.load(f.stem).truth
-        truth = truths[key]
-        assert truth is not None  # a scored test recording has truth
-        t, xy = df["t"].to_numpy(), df[["x", "y"]].to_numpy()
-        keep = (truth.t > t[0]) & (truth.t <= t[-1] + SPARSE_MAX_GAP)
-        a, c = metrics.along_cross_errors(t, xy, truth.t[keep], truth.pos[keep, :2], SPARSE_MAX_GAP)
-        ok = np.isfinite(a)
-        along.append(a[ok])
-        across.append(c[ok])
-    cat = lambda v: np.concatenate(v) if v else np.empty(0)
-    return cat(along), cat(across)
-
-
-ALONG_TEXT = (
-    "Where the error lies, map-aware rows beside their map-less ones: the error at each surveyed point "
-    "split along the walk's direction there and across it (:func:`wearnav.metrics.along_cross_errors`; "
-    "|·|, every walk's points together{seeds}; *along, signed*: the median with its sign, below 0 the path "
-    "is behind the walker). A plan holds a path across a corridor everywhere, along it only where the "
-    "corridor turns or ends:"
-)
-
-
-def along_across_table(evals: dict[str, list[tuple[Path, str | Path]]]) -> pd.DataFrame | None:
-    """Per map-aware path and its map-less one (``evals``: label → its (evaluation folder, data) of
-    each seed, in the page's order): the medians and 95th percentiles of :func:`along_across`'s
-    absolute values and the median of its signed along, mean ± sd over the seeds where there are
-    several."""
-    rows: list[dict] = []
-    truths: dict = {}
-    for label in evals:
-        if not label.endswith(MAP_LABEL) or label[: -len(MAP_LABEL)] not in evals:
-            continue
-        for name in (label[: -len(MAP_LABEL)], label):
-            split = [along_across(ev, data, truths) for ev, data in evals[name]]
-            rows.append(
-                {
-                    "path": name,
-                    **{
-                        f"{part}, {q_name} (m)": _spread(
-                            [float(np.percentile(np.abs(x[k]), q)) for x in split if x[k].size]
-                        )
-                        for q, q_name in ((50, "median"), (95, "p95"))
-                        for k, part in enumerate(("along", "across"))
-                    },
-                    "along, signed median (m)": _spread([float(np.median(x[0])) for x in split if x[0].size]),
-                }
-            )
-    return pd.DataFrame(rows) if rows else None
-
-
-def _spread(values: list[float]) -> str:
-    v = np.asarray(values, float)
-    if not v.size:
-        return "—"
-    return f"{v.mean():.2f} ± {v.std(ddof=1):.2f}" if v.size > 1 else f"{v[0]:.2f}"
 
 
 def frame_name(devices) -> str:
@@ -406,9 +328,11 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
             "",
         ]
         lines += _map_section(evaluations(folders, site))
-        split = along_across_table({label: [(ev, s["data"])] for label, (_, ev) in evaluations(folders, site).items()})
+        split = decompose.along_across_table(
+            {label: [(ev, s["data"])] for label, (_, ev) in evaluations(folders, site).items()}
+        )
         if split is not None:
-            lines += [ALONG_TEXT.format(seeds=""), "", split.to_markdown(index=False), ""]
+            lines += [decompose.ALONG_TEXT.format(seeds=""), "", split.to_markdown(index=False), ""]
         lines += _decomposition(evaluations(folders, site), s["data"], out / f"{site}_speed_ratio.png", info["source"])
         if s.get("fixes"):
             scored = {

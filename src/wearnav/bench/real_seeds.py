@@ -26,15 +26,16 @@ import numpy as np
 import pandas as pd
 
 from wearnav import runs
+from wearnav.bench.decompose import ALONG_TEXT, along_across_table
 from wearnav.bench.executor import Execution, run_jobs
 from wearnav.bench.real import RealBench, plan_benchmark
-from wearnav.bench.real_page import ALONG_TEXT, along_across_table, evaluations, frame_name, suite_runs, warp_text
+from wearnav.bench.real_page import evaluations, frame_name, suite_runs, warp_text
 from wearnav.bench.user_protocol import FLOOR_COLUMN, PARTICLES, PARTICLES_LABEL, RAW_FIXES
 from wearnav.errors import ValidationError
 from wearnav.fileio import write_text_atomic
 from wearnav.fuse import fix_lags
 from wearnav.provenance import provenance
-from wearnav.stats import walk_bootstrap_difference
+from wearnav.stats import mean_sd_text, walk_bootstrap_difference
 from wearnav.textio import read_json
 
 REFERENCE = "pdr"  # the path every other is paired with
@@ -111,13 +112,6 @@ def _interval(d: dict | None, k: int) -> str:
     return f"{d['difference'][k]:+.2f} [{d['low'][k]:+.2f}, {d['high'][k]:+.2f}]"
 
 
-def _mean_sd(values: list[float]) -> str:
-    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], float)
-    if not len(v):
-        return "—"
-    return f"{v.mean():.2f} ± {v.std(ddof=1):.2f}" if len(v) > 1 else f"{v[0]:.2f}"
-
-
 def known_start_table(seed_docs: dict[int, dict], seed_evals: dict[int, dict[str, Path]], site: str) -> pd.DataFrame:
     """Per path: each seed's median / p75 / length ratio (known start), their mean ± sd over the
     seeds, and the path minus PDR paired by walk (median, p75, with 90 % walk-bootstrap intervals)."""
@@ -140,11 +134,11 @@ def known_start_table(seed_docs: dict[int, dict], seed_evals: dict[int, dict[str
             {
                 "path": label,
                 "seeds": len(got),
-                "median (m)": _mean_sd([r["median (m)"] for r in got]),
-                "p75 (m)": _mean_sd([r["p75 (m)"] for r in got]),
-                "p95 (m)": _mean_sd([r["p95 (m)"] for r in got]),
-                "length ratio": _mean_sd([r["length ratio"] for r in got]),
-                "arc ratio": _mean_sd([r["arc ratio"] for r in got if "arc ratio" in r]),
+                "median (m)": mean_sd_text([r["median (m)"] for r in got]),
+                "p75 (m)": mean_sd_text([r["p75 (m)"] for r in got]),
+                "p95 (m)": mean_sd_text([r["p95 (m)"] for r in got]),
+                "length ratio": mean_sd_text([r["length ratio"] for r in got]),
+                "arc ratio": mean_sd_text([r["arc ratio"] for r in got if "arc ratio" in r]),
                 "minus PDR, median (m)": "—" if label == REFERENCE else _interval(paired, 0),
                 "minus PDR, p75 (m)": "—" if label == REFERENCE else _interval(paired, 1),
                 "median (m) per seed": " / ".join(f"{r['median (m)']:.2f}" for r in got),
@@ -192,16 +186,16 @@ def smoother_table(
             {
                 column: label,
                 "seeds": len(stats),
-                "median (m)": _mean_sd([r["median (m)"] for r in stats]),
-                "p75 (m)": _mean_sd([r["p75 (m)"] for r in stats]),
-                "p95 (m)": _mean_sd([r["p95 (m)"] for r in stats]),
-                "length ratio": _mean_sd([r["length ratio"] for r in stats]),
+                "median (m)": mean_sd_text([r["median (m)"] for r in stats]),
+                "p75 (m)": mean_sd_text([r["p75 (m)"] for r in stats]),
+                "p95 (m)": mean_sd_text([r["p95 (m)"] for r in stats]),
+                "length ratio": mean_sd_text([r["length ratio"] for r in stats]),
                 "minus PDR's, median (m)": "—" if label == REFERENCE else _interval(paired, 0),
                 "minus PDR's, p75 (m)": "—" if label == REFERENCE else _interval(paired, 1),
                 "minus raw fixes, median (m)": _interval(raw, 0),
                 "minus raw fixes, p95 (m)": _interval(raw, 2),
                 **(
-                    {FLOOR_COLUMN: _mean_sd([r[FLOOR_COLUMN] for r in stats if FLOOR_COLUMN in r])}
+                    {FLOOR_COLUMN: mean_sd_text([r[FLOOR_COLUMN] for r in stats if FLOOR_COLUMN in r])}
                     if any(FLOOR_COLUMN in r for r in stats)
                     else {}
                 ),
