@@ -6,17 +6,22 @@ OUT ?= runs/demo
 
 .PHONY: demo test check lint install install-dev clean
 
-# torch is installed first and pinned, so pip takes the CPU wheel and never pulls CUDA packages.
-$(BIN)/python:
-	$(PY) -m venv $(VENV)
-	$(BIN)/pip install -q torch==2.13.0
+# torch is pinned by constraints.txt in every pip step (the CPU wheel, never CUDA packages) and is
+# installed first; the step's marker is written only after it, so a first install stopped anywhere
+# (even with .venv/bin/python already there) redoes it, still pinned.
+PIP := $(BIN)/pip install -q -c constraints.txt
 
-$(VENV)/.installed: $(BIN)/python pyproject.toml
-	$(BIN)/pip install -q -e ".[live]"
+$(VENV)/.torch: constraints.txt
+	$(PY) -m venv $(VENV)
+	$(PIP) torch
 	touch $@
 
-$(VENV)/.installed-dev: $(BIN)/python pyproject.toml
-	$(BIN)/pip install -q -e ".[dev]"
+$(VENV)/.installed: $(VENV)/.torch pyproject.toml
+	$(PIP) -e ".[live]"
+	touch $@
+
+$(VENV)/.installed-dev: $(VENV)/.torch pyproject.toml
+	$(PIP) -e ".[dev]"
 	touch $@ $(VENV)/.installed
 
 install: $(VENV)/.installed

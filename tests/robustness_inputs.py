@@ -54,6 +54,9 @@ def _text(path: Path) -> str:
     return raw.decode("utf-8")
 
 
+ILC2_TYPES = ("TYPE_ACCELEROMETER", "TYPE_GYROSCOPE", "TYPE_ROTATION_VECTOR", "TYPE_WAYPOINT")
+
+
 def _head(path: Path, n: int) -> str:
     return "".join(_text(path).splitlines(keepends=True)[:n])
 
@@ -78,7 +81,16 @@ def build_seed(fmt: str, data: Path | None) -> dict[str, str]:
     if fmt == "ilc2":
         trace = sorted((data / "ilc2_indoor_location/site1/F4/path_data_files").glob("*.txt.gz"))[0]
         lines = _text(trace).splitlines()
-        rows = [ln for ln in lines[:400]] + [lines[-1]]  # header, ~4 s of data, the endTime footer
+        # The rows the importer reads, by type, over the trace's first 4 s (a line count would take
+        # whatever else the trace holds there, e.g. Wi-Fi scans), between the header and the footer.
+        rows = [ln for ln in lines if ln.startswith("#") and "endTime" not in ln]
+        t0 = min(int(ln.split("\t")[0]) for ln in lines if ln.split("\t")[1:2] == ["TYPE_ACCELEROMETER"])
+        rows += [
+            ln
+            for ln in lines
+            if ln.split("\t")[1:2] and ln.split("\t")[1] in ILC2_TYPES and 0 <= int(ln.split("\t")[0]) - t0 <= 4000
+        ]
+        rows.append(lines[-1])  # the endTime footer
         return {
             TARGETS[fmt][0]: "\n".join(rows) + "\n",
             "site1/F4/floor_info.json": _text(trace.parent.parent / "floor_info.json"),
