@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from conftest import error_line
+from conftest import error_line, run_cli
 from wearnav.dataset import Dataset
-from wearnav.errors import FormatError, MissingFileError, ValidationError
+from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavWarning
 from wearnav.importers import ilc2, import_dataset
 
 F4_TRACE = "site1/F4/path_data_files/5ddb653fc5b77e0006b17906.txt.gz"
@@ -280,3 +280,168 @@ def test_cli_prints_one_line_and_exits_2(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err.strip().splitlines()  # tqdm's bar may precede it
     errors = [ln for ln in err if ln.startswith("error: ")]
     assert errors == [err[-1]] and "e.txt: empty file" in err[-1]
+
+
+# ---- floor plans of either layout; a plan that cannot be read costs the plan only (issue 56) ----
+
+# A floor's outline as a lon/lat box, and the size floor_info.json gives that box (m).
+LON0, LAT0, DLON, DLAT = 120.1, 30.29, 0.0002, 0.0001
+PLAN_W_M, PLAN_H_M = 20.0, 10.0
+OUTLINE_M, SHOP_M = (0.0, 0.0, 20.0, 10.0), (8.0, 4.0, 12.0, 7.0)  # rectangles in plan metres
+N_SAMPLES = 300  # 6 s at 50 Hz: track's windows are 4 s
+
+
+def lonlat_ring(x0, y0, x1, y1):
+    """The rectangle (x0, y0)-(x1, y1) in plan metres as a closed lon/lat ring."""
+    corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
+    return [[LON0 + x / PLAN_W_M * DLON, LAT0 + y / PLAN_H_M * DLAT] for x, y in corners]
+
+
+def feature(geometry, properties):
+    return {"type": "Feature", "geometry": geometry, "properties": properties}
+
+
+def plan_text(layout, floor):
+    """geojson_map.json of one floor in a given layout: site1's (the outline says ``"type": "floor"``,
+    first), site2's (the outline's properties name the floor, the shops carry ``poi_no``,
+    ``two_class``, ``center``; here after the shops), site2's with the floor named on the shops too,
+    one with nothing labelled, or broken ones."""
+    outline = {"type": "MultiPolygon", "coordinates": [[lonlat_ring(*OUTLINE_M)]]}
+    shop = {"type": "Polygon", "coordinates": [lonlat_ring(*SHOP_M)]}
+    centre = np.mean(lonlat_ring(*SHOP_M)[:4], axis=0).tolist()
+    site2_shop = {"poi_no": "10012", "two_class": "catering", "center": centre, "name": "tea"}
+    feats = {
+        "site1": [
+            feature(outline, {"Vr": "000200", "category": "floor", "name": floor, "type": "floor"}),
+            feature(shop, {"id": "5dd3", "name": "B277", "display": "B277", "category": ["5d35"], "points": []}),
+        ],
+        "site2": [feature(shop, site2_shop), feature(outline, {"floor": floor})],
+        "site2-floor-on-shops": [feature(shop, site2_shop | {"floor": floor}), feature(outline, {"floor": floor})],
+        "unlabelled": [feature(shop, {}), feature(outline, {})],
+        "points only": [feature({"type": "Point", "coordinates": centre}, {"name": "tea"})],
+        "no outline": [  # two rooms side by side: neither holds the other
+            feature({"type": "Polygon", "coordinates": [lonlat_ring(0.0, 0.0, 9.0, 10.0)]}, {}),
+            feature({"type": "Polygon", "coordinates": [lonlat_ring(11.0, 0.0, 20.0, 10.0)]}, {}),
+        ],
+    }
+    if layout == "not JSON":  # a download cut short
+        return '{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": {"type": "Multi'
+    return json.dumps({"type": "FeatureCollection", "features": feats[layout]})
+
+
+def write_floor(root, floor, layout, n_traces=2):
+    """<root>/site2/<floor>/ with ``n_traces`` short synthetic traces, floor_info.json and a plan."""
+    folder = root / "site2" / floor
+    (folder / "path_data_files").mkdir(parents=True)
+    lines = [ln.replace("FloorName:B2", f"FloorName:{floor}") for ln in synthetic_trace(n=N_SAMPLES)]
+    for k in range(n_traces):
+        write_trace(folder / "path_data_files" / f"{floor.lower()}trace{k}.txt", lines)
+    (folder / "floor_info.json").write_text(json.dumps({"map_info": {"height": PLAN_H_M, "width": PLAN_W_M}}))
+    (folder / "geojson_map.json").write_text(plan_text(layout, floor))
+    return folder
+
+
+def plan_area_m2(plan):
+    from wearnav.plans import plan_geometry
+
+    return plan_geometry(plan).area
+
+
+READABLE = ["site1", "site2", "site2-floor-on-shops", "unlabelled"]
+UNREADABLE = ["points only", "no outline", "not JSON"]
+
+
+@pytest.mark.parametrize("layout", READABLE)
+def test_both_plan_layouts_give_the_floor_minus_its_shops(tmp_path, layout):
+    """Whichever way the outline is labelled (or not at all), the plan is the outline minus the shop,
+    in floor_info.json's metres (issue 56: site2's ``"floor": "B1"`` outline refused the whole site)."""
+    write_floor(tmp_path, "B1", layout)
+    recs = list(ilc2.read(tmp_path))
+    assert len(recs) == 2
+    for r in recs:
+        (plan,) = r.plans
+        assert r.meta["plan"] == plan.name == "site2_B1" and plan.floor == -1 and "no_plan" not in r.meta
+        x0, y0, x1, y1 = OUTLINE_M
+        sx0, sy0, sx1, sy1 = SHOP_M
+        assert plan_area_m2(plan) == pytest.approx((x1 - x0) * (y1 - y0) - (sx1 - sx0) * (sy1 - sy0), rel=1e-6)
+        np.testing.assert_allclose(np.concatenate(plan.polygons[0]).min(0), [x0, y0], atol=1e-6)
+        np.testing.assert_allclose(np.concatenate(plan.polygons[0]).max(0), [x1, y1], atol=1e-6)
+
+
+@pytest.mark.parametrize("layout", UNREADABLE)
+def test_a_plan_that_cannot_be_read_costs_the_plan_not_the_walks(tmp_path, layout):
+    """Every trace imports without a plan; ``meta["no_plan"]`` says why and one warning per floor."""
+    write_floor(tmp_path, "F3", layout)
+    with pytest.warns(WearnavWarning) as caught:
+        ds = import_dataset("ilc2", tmp_path, tmp_path / "out", progress=False)
+    assert len(ds) == 2
+    lines = [str(w.message) for w in caught if "geojson_map.json" in str(w.message)]
+    assert len(lines) == 1 and "F3" in lines[0] and "\n" not in lines[0], lines
+    for name in ds.names:
+        r = ds.load(name)
+        assert r.plans == [] and "plan" not in r.meta and r.devices["phone"].acc.shape[0] == N_SAMPLES
+        assert "geojson_map.json" in r.meta["no_plan"] and r.meta["no_plan"] in lines[0]
+
+
+def test_one_folder_holding_both_layouts_imports_every_trace(tmp_path, monkeypatch, capsys):
+    """`wearnav import ilc2` on site1's layout, site2's and a broken plan side by side: every trace is
+    imported, the readable floors keep their plan, the broken one says why in one warning line."""
+    write_floor(tmp_path / "src", "B1", "site2")
+    write_floor(tmp_path / "src", "F1", "site1")
+    write_floor(tmp_path / "src", "F2", "not JSON")
+    code, _, err = run_cli(monkeypatch, capsys, "import", "ilc2", tmp_path / "src", "--out", tmp_path / "out")
+    assert code == 0, err
+    warned = [ln for ln in err.splitlines() if ln.startswith("warning: ")]
+    assert len(warned) == 1 and "F2" in warned[0] and "geojson_map.json" in warned[0], err
+    ds = Dataset.open(tmp_path / "out")
+    assert len(ds) == 6
+    by_floor = {}
+    for name in ds.names:
+        r = ds.load(name)
+        by_floor.setdefault(r.meta["floor_name"], []).append(r)
+    for floor in ("B1", "F1"):
+        assert all(r.meta["plan"] == f"site2_{floor}" and len(r.plans) == 1 for r in by_floor[floor])
+    # The two layouts of the same floor give the same plan.
+    np.testing.assert_allclose(by_floor["B1"][0].plans[0].polygons[0][0], by_floor["F1"][0].plans[0].polygons[0][0])
+    assert all(r.plans == [] and "not JSON" in r.meta["no_plan"] for r in by_floor["F2"])
+
+
+def test_track_on_a_recording_whose_plan_was_unreadable_says_no_plan(tmp_path, monkeypatch, capsys):
+    """`track --map auto` says there is no plan and why (the importer's reason), in track.json and on stderr."""
+    write_floor(tmp_path / "src", "F2", "no outline", n_traces=1)
+    with pytest.warns(WearnavWarning):
+        ds = import_dataset("ilc2", tmp_path / "src", tmp_path / "data", progress=False)
+    reason = ds.load(ds.names[0]).meta["no_plan"]
+    out = tmp_path / "t"
+    code, _, err = run_cli(monkeypatch, capsys, "track", tmp_path / "data", "--model", "pdr", "--out", out)
+    assert code == 0, err
+    summary = json.loads((out / "track.json").read_text())
+    assert summary["map"]["from"].startswith("no plan") and reason in summary["map"]["from"]
+    assert summary["map"]["plans"] == [] and not summary["map"].get("used")
+    assert any(ln.startswith("warning: ") and "no plan" in ln and reason in ln for ln in err.splitlines()), err
+
+
+@pytest.mark.parametrize("relabel", ["site2", "unlabelled"])
+def test_a_real_floor_relabelled_gives_the_same_plan(ilc2_root, tmp_path, relabel):
+    """site1's F2 written the way site2 labels its plan (the outline last, ``"floor": "F2"``, shops with
+    ``poi_no``/``two_class``/``center``), or with no labels at all, gives exactly site1's plan."""
+    real = ilc2_root / "site1/F2"
+    doc = json.loads((real / "geojson_map.json").read_text())
+    outline = [f for f in doc["features"] if f["properties"].get("type") == "floor"]
+    shops = [f for f in doc["features"] if f["properties"].get("type") != "floor"]
+    if relabel == "site2":
+        for k, f in enumerate(shops):
+            f["properties"] = {"poi_no": str(k), "two_class": "shop", "center": f["properties"]["point"]}
+        outline[0]["properties"] = {"floor": "F2"}
+    else:
+        for f in shops + outline:
+            f["properties"] = {}
+    folder = tmp_path / "F2"
+    folder.mkdir()
+    (folder / "geojson_map.json").write_text(json.dumps({"type": "FeatureCollection", "features": shops + outline}))
+    (folder / "floor_info.json").write_bytes((real / "floor_info.json").read_bytes())
+    (mine, why), (theirs, _) = ilc2.floor_plan(folder, "x", 1), ilc2.floor_plan(real, "x", 1)
+    assert mine is not None and theirs is not None, why
+    assert len(mine.polygons) == len(theirs.polygons) > 1
+    for a, b in zip(mine.polygons, theirs.polygons):
+        assert len(a) == len(b) and all(np.array_equal(r, s) for r, s in zip(a, b))

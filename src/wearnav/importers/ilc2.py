@@ -19,10 +19,16 @@ What becomes what:
   metric frame (not geo-referenced, not north-aligned); ``truth.floor`` is the floor index from
   ``FloorName`` (F1 → 0, F2 → 1, B1 → -1, the competition's convention; None when unparsable).
 * WiFi, iBeacon, magnetometer and uncalibrated-sensor rows are ignored.
-* The floor's plan, ``geojson_map.json`` beside ``floor_info.json`` (the floor's outline, a
-  MultiPolygon of ``"type": "floor"``, and one Polygon per shop, in lon/lat) → ``plans``: one
+* The floor's plan, ``geojson_map.json`` beside ``floor_info.json`` (a GeoJSON FeatureCollection in
+  lon/lat: the floor's outline, a (Multi)Polygon, and one polygon per shop) → ``plans``: one
   :class:`~wearnav.recording.FloorPlan` named ``<site>_<floor>`` (``meta["plan"]``), walkable
-  space = the outline minus the shops, in the waypoints' metric frame. That frame is the outline's
+  space = the outline minus the shops, in the waypoints' metric frame. The sites label the outline
+  differently (site1 ``"type": "floor"``; site2 of the same sample names the floor, ``"floor": "B1"``,
+  and its shops carry ``poi_no``, ``two_class``, ``center``), so the outline is the one polygon so
+  labelled, else the largest polygon where it holds the others (:func:`find_outline`); points and
+  lines are labels, not space. A plan that cannot be read (not JSON, no outline) costs the plan,
+  never the walks: the floor's traces are imported without one, ``meta["no_plan"]`` says why, and
+  :func:`read` warns once per floor. That frame is the outline's
   lon/lat bounding box scaled to ``floor_info.json``'s width × height (checked on the shipped
   sample: 98–100 % of each floor's 699–965 waypoints lie in the walkable space, the rest within
   6.1 m of it; the scales, 96 119 m per degree of longitude and 111 319 per degree of latitude,
@@ -60,9 +66,13 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import shapely
+from shapely.errors import ShapelyError
 from shapely.geometry import shape
+from shapely.geometry.base import BaseGeometry
+from shapely.ops import unary_union
 
-from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError, WearnavWarning
+from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError, WearnavWarning, one_line
 from wearnav.importers.common import (
     MAX_INTERP_GAP_S,
     check_finite,
@@ -86,6 +96,13 @@ MIN_VALUES = {ACC: 3, GYRO: 3, ROTVEC: 3, WAYPOINT: 2}
 # How far outside the floor plan a waypoint may lie (survey slack at the plan's edge).
 MAP_MARGIN_M, MAP_MARGIN_SHARE = 10.0, 0.1
 TRACE_SUFFIXES = (".txt", ".txt.gz", ".txt.xz")
+PLAN_FILE, PLAN_INFO_FILE = "geojson_map.json", "floor_info.json"
+# An unlabelled outline is the largest polygon where it holds at least this share of the other
+# polygons' combined area. On site1's five floors, whose outline is labelled (so the rule is checked
+# against the label), the outline holds 99.95–99.99 % of its shops' area (a few shops are drawn over
+# its edge) and the rule picks the labelled outline on every floor; the next-largest polygon, a
+# shop, holds 12–26 % (its own area inside the outline).
+OUTLINE_HOLDS_SHARE = 0.9
 
 # ---- reading one trace ---------------------------------------------------------------------
 
@@ -153,29 +170,81 @@ def _map_size(trace: Path) -> list[float] | None:
         raise FormatError(f"unreadable floor info ({exc.__class__.__name__}: {exc})", info) from None
 
 
+def find_outline(parts: list[tuple[dict, BaseGeometry]], floor_name: str, floor: int | None) -> tuple[int | None, str]:
+    """Which of a floor's polygons (``(properties, geometry)`` in file order) is its outline: the one
+    labelled ``"type": "floor"`` (site1), else the one whose ``floor`` property names this floor
+    (``floor_name``, the floor's folder, or its index ``floor``; site2), else the largest polygon where
+    it holds :data:`OUTLINE_HOLDS_SHARE` of the others' area. Returns its index and "", or None and why
+    there is none."""
+    if not parts:
+        return None, "no polygons (neither the floor's outline nor its shops)"
+
+    def names_floor(value: Any) -> bool:
+        text = str(value).strip().upper()
+        return text == floor_name.upper() or (floor is not None and _floor_index(text) == floor)
+
+    for labelled in (
+        [k for k, (props, _) in enumerate(parts) if props.get("type") == "floor"],
+        [k for k, (props, _) in enumerate(parts) if props.get("floor") is not None and names_floor(props["floor"])],
+    ):
+        if len(labelled) == 1:
+            return labelled[0], ""
+    geoms = [shapely.make_valid(g) for _, g in parts]
+    big = int(np.argmax([g.area for g in geoms]))
+    others = unary_union([g for k, g in enumerate(geoms) if k != big])
+    share = 1.0 if others.area == 0 else others.intersection(geoms[big]).area / others.area
+    if geoms[big].area > 0 and share >= OUTLINE_HOLDS_SHARE:
+        return big, ""
+    return None, (
+        f"no floor outline: no polygon is labelled as one ('type': 'floor' or 'floor': '{floor_name}') and the "
+        f"largest holds {share:.0%} of the others' area (an outline holds them all)"
+    )
+
+
 @functools.lru_cache(maxsize=16)
-def floor_plan(floor_dir: Path, name: str, floor: int | None) -> FloorPlan | None:
+def floor_plan(floor_dir: Path, name: str, floor: int | None) -> tuple[FloorPlan | None, str]:
     """The walkable space of the floor in ``floor_dir`` (``geojson_map.json`` and ``floor_info.json``;
-    see the module docstring), or None where either file is missing."""
+    see the module docstring) and "", or None and "" where either file is missing, or None and why the
+    plan cannot be read (a short line naming the file; the traces are imported without it)."""
     try:
-        gj, info = find_file(floor_dir / "geojson_map.json"), find_file(floor_dir / "floor_info.json")
+        gj, info = find_file(floor_dir / PLAN_FILE), find_file(floor_dir / PLAN_INFO_FILE)
     except MissingFileError:
-        return None
+        return None, ""
     try:
-        feats = json.loads(read_text(gj))["features"]
+        doc = json.loads(read_text(gj))
+    except ValueError as exc:  # json's JSONDecodeError; UnicodeDecodeError
+        return None, f"{PLAN_FILE}: not JSON ({one_line(str(exc))[:80]})"
+    except WearnavError as exc:  # a corrupt .gz / .xz copy
+        return None, f"{PLAN_FILE}: {exc.reason}"
+    try:
         size = json.loads(read_text(info))["map_info"]
         width, height = float(size["width"]), float(size["height"])
-        outline = [shape(f["geometry"]) for f in feats if f["properties"].get("type") == "floor"]
-        shops = [shape(f["geometry"]) for f in feats if f["properties"].get("type") != "floor"]
-    except (ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise FormatError(f"unreadable floor plan ({exc.__class__.__name__}: {exc})", gj) from None
-    if len(outline) != 1:
-        raise FormatError(f"{len(outline)} features of type 'floor', expected one (the floor's outline)", gj)
-    lon0, lat0, lon1, lat1 = outline[0].bounds
-    sx, sy = width / (lon1 - lon0), height / (lat1 - lat0)
-    return plan_from_lonlat(
-        name, floor, outline, shops, lambda lon, lat: np.stack([(lon - lon0) * sx, (lat - lat0) * sy], axis=1)
-    )
+        feats = doc["features"] if isinstance(doc, dict) else None
+        if not isinstance(feats, list):
+            return None, f"{PLAN_FILE}: not a GeoJSON FeatureCollection"
+        # Points and lines are labels on the plan, not space.
+        parts = [
+            (f.get("properties") or {}, shape(f["geometry"]))
+            for f in feats
+            if isinstance(f, dict)
+            and isinstance(f.get("geometry"), dict)
+            and f["geometry"].get("type") in ("Polygon", "MultiPolygon")
+        ]
+        k, why = find_outline(parts, floor_dir.name, floor)
+        if k is None:
+            return None, f"{PLAN_FILE}: {why}"
+        outline = [parts[k][1]]
+        shops = [g for i, (_, g) in enumerate(parts) if i != k]
+        lon0, lat0, lon1, lat1 = outline[0].bounds
+        if not (lon1 > lon0 and lat1 > lat0 and width > 0 and height > 0):
+            return None, f"{PLAN_FILE}: the outline or {PLAN_INFO_FILE}'s size has no extent"
+        sx, sy = width / (lon1 - lon0), height / (lat1 - lat0)
+        plan = plan_from_lonlat(
+            name, floor, outline, shops, lambda lon, lat: np.stack([(lon - lon0) * sx, (lat - lat0) * sy], axis=1)
+        )
+    except (ValueError, KeyError, TypeError, AttributeError, IndexError, ShapelyError, WearnavError) as exc:
+        return None, f"{PLAN_FILE}: unreadable floor plan ({exc.__class__.__name__}: {one_line(str(exc))[:80]})"
+    return plan, ""
 
 
 def read_trace(path: str | Path, root: Path | None = None) -> Recording:
@@ -318,11 +387,15 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
     plans = []
     if size is not None:
         meta["map_size_m"] = size
-        plan = floor_plan(path.parent.parent.resolve(), f"{meta['site'] or 'site'}_{floor_name or 'floor'}", floor)
+        plan, no_plan = floor_plan(
+            path.parent.parent.resolve(), f"{meta['site'] or 'site'}_{floor_name or 'floor'}", floor
+        )
         if plan is not None:
             plans.append(plan)
             meta["plan"] = plan.name
             meta["building"] = meta["site"] or meta["site_id"]
+        elif no_plan:
+            meta["no_plan"] = no_plan
     if truncated:
         meta["truncated"] = "no endTime footer: the trace was cut short (an unfinished last line is dropped)"
         warnings.warn(
@@ -354,12 +427,26 @@ def find_traces(src: Path) -> list[Path]:
 def read(src: Path, limit: int | None = None) -> Iterator[Recording]:
     """ILC2 traces from a dataset folder (any level of site/floor/path_data_files) or one file."""
     src, limit = check_source(src, limit, expect="an ILC2 trace or a folder of them")
+    warned: set[Path] = set()
     if src.is_file():
         if limit != 0:
-            yield read_trace(src)
+            yield _warn_no_plan(read_trace(src), src, warned)
         return
     files = find_traces(src)
     if not files:
         raise FormatError("no ILC2 traces found (expected <site>/<floor>/path_data_files/*.txt[.gz])", src)
     for path in files[:limit]:
-        yield read_trace(path, root=src)
+        yield _warn_no_plan(read_trace(path, root=src), path, warned)
+
+
+def _warn_no_plan(rec: Recording, path: Path, warned: set[Path]) -> Recording:
+    """``rec`` as it is, after one warning line for the first trace of a floor whose plan could not be
+    read (``meta["no_plan"]``); ``warned`` holds the floors already said."""
+    floor_dir = path.parent.parent
+    if rec.meta.get("no_plan") and floor_dir not in warned:
+        warned.add(floor_dir)
+        warnings.warn(
+            WearnavWarning(f"{floor_dir}: {rec.meta['no_plan']}; its traces are imported without a floor plan"),
+            stacklevel=3,
+        )
+    return rec
