@@ -252,14 +252,16 @@ def test_simulated_walk_carries_its_corridors(tmp_path, monkeypatch, capsys):
         if plan == "auto":
             placed = table[["east", "north"]].to_numpy()
             assert w.inside(placed).mean() > 0.9
-        else:  # no plan, no fixes: the odometry from (0, 0); turned by the same start for comparison
+        else:  # no plan, no fixes: the odometry placed by the start alone (issue 56 §4)
             summary = json.loads((out / "track.json").read_text())
-            assert summary["map"]["plans"] == [] and "east" not in table
+            assert summary["map"]["plans"] == [] and summary["anchoring"]["method"] == "start"
             xy = table[["x", "y"]].to_numpy()
             from wearnav.fuse.particles import start_heading_offset
 
             a = start_heading_offset(table.t.to_numpy(), xy, np.radians(head))
-            placed = xy @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) + pos[0]
+            turned = (xy - xy[0]) @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) + pos[0]
+            placed = table[["east", "north"]].to_numpy()
+            assert np.abs(placed - turned).max() < 1e-3  # the odometry turned and moved to the start
         errs[plan] = float(np.median(np.linalg.norm(placed - true_at, axis=1)))
     assert errs["auto"] < 0.5 * errs["none"]  # measured: 0.62 against 3.60 m
 

@@ -280,8 +280,10 @@ def track(
         None,
         "--start",
         metavar="X,Y,HEADING_DEG",
-        help="A known start pose for the map-aware path where there are no fixes: X, Y (m) in the "
-        "recording's frame, the heading of travel in degrees counter-clockwise from +x.",
+        help="A known start pose: X, Y (m) in the recording's frame, the heading of travel in degrees "
+        "counter-clockwise from +x. With a floor plan the map-aware path starts there (and weighs in the "
+        "fixes); without one the path is the odometry turned and moved to it, the fixes unused "
+        "(track.json anchoring.method: start).",
     ),
     speed: Speed | None = typer.Option(
         None,
@@ -289,7 +291,8 @@ def track(
         "steps × 0.67 m), cadence (its direction, steps as long as the cadence makes them), pointing "
         "(its speed along where the phone points; a heading-frame model), snapped (cadence, its direction "
         "turned onto where the phone points wherever within 30° of it; a heading-frame model). Default: what the model "
-        "records (the shipped phone model: cadence, docs/design.md), else model.",
+        "records (the shipped phone model: snapped, docs/design.md; a file of `wearnav export`: its run's, "
+        "carried in the file), else model.",
     ),
     fix_lag: float | None = typer.Option(
         None,

@@ -28,7 +28,7 @@ and write into the output folder:
     1e-7° ≈ 1 cm, converted back by :func:`wearnav.geo.local_to_latlon`): the format map tools read
     (geojson.io, QGIS, Leaflet). First feature, the anchored path as one LineString; its
     properties: ``kind`` "path"; ``recording``; ``model``; ``anchor`` (the anchoring used: smooth,
-    rigid or first-fixes); ``start_time``, ``end_time`` (ISO 8601 UTC, null where the recording
+    rigid, first-fixes, map or start); ``start_time``, ``end_time`` (ISO 8601 UTC, null where the recording
     keeps no Unix time, ``meta["t0_unix_ns"]``); ``t_start_s``, ``t_end_s``, ``duration_s`` (s since
     the recording's start, as the CSV's ``t``); ``length_m`` (the anchored path's length, m);
     ``median_sigma_m`` (the median 1-σ per-axis uncertainty of its points, m; null unless smoothed);
@@ -79,7 +79,15 @@ and a start (``--start X,Y,HEADING_DEG``, or the first kept fix), the path is pl
 filter keeping the odometry inside walkable space, weighing in every kept fix. ``track.json``
 ``map`` says which plans and whether they were used; ``anchoring.method`` is then "map"; the plan is
 drawn under the path in ``trajectory.png`` and ``trajectory.html``. A plan without fixes or
-``--start`` is not used (a warning says to give ``--start``).
+``--start`` is not used (a warning says to give ``--start``). Without a plan, ``--start`` places the
+path alone (issue 56 §4, :func:`wearnav.track_map.place_from_start`): the odometry turned so that its
+first metres run along the start heading and moved to the start position, ``anchoring.method``
+"start"; the user's start is honoured over the recording's fixes, which are then checked and marked
+unused (``fixes.csv``).
+
+A file of `wearnav export` gives the path of the model it came from: its header carries the
+defaults ``track`` takes from a run (:func:`wearnav.pretrained.track_defaults`: the speed source,
+the smoother's calibration).
 """
 
 from __future__ import annotations
@@ -191,10 +199,11 @@ def track(
 ) -> dict:
     """Track one recording (see module docstring); ``anchor`` places the path on the fixes
     (:data:`wearnav.fuse.ANCHORS`); ``plan`` (``auto``, ``none`` or a GeoJSON plan file) and ``start``
-    (x, y, heading of travel in degrees) make the path map-aware (:func:`wearnav.track_map.map_path`);
+    (x, y, heading of travel in degrees) make the path map-aware (:func:`wearnav.track_map.map_path`; the start
+    alone places it where no plan is used);
     ``speed``: where a learned model's speed comes from (:func:`wearnav.train.odometry.with_speed`:
     itself, or its direction with PDR's steps, 0.67 m or cadence-long; default what the model's run
-    records, :func:`wearnav.pretrained.recorded_speed`); ``fix_lag_s``: how many seconds the fixes lag
+    records, :func:`wearnav.pretrained.recorded_speed`, or a file of `wearnav export` carries); ``fix_lag_s``: how many seconds the fixes lag
     the walker (:func:`wearnav.track_write.write_track`); returns what ``track.json`` holds."""
     out = Path(out)
     if anchor not in fuse.ANCHORS:

@@ -11,8 +11,9 @@ import numpy as np
 from tqdm import tqdm
 
 from wearnav import fuse, plans
+from wearnav.fixcheck import UNUSED, check_fixes
 from wearnav.fuse import placement
-from wearnav.fuse.particles import MapConfig
+from wearnav.fuse.particles import START_DIR_M, MapConfig, start_heading_offset
 from wearnav.recording import FloorPlan, Recording
 
 MAP_CHOICES = ("auto", "none")  # or a GeoJSON plan file (wearnav.plans.read_geojson_plan)
@@ -20,12 +21,15 @@ MAP_CHOICES = ("auto", "none")  # or a GeoJSON plan file (wearnav.plans.read_geo
 
 def map_plans(rec: Recording, plan: str | Path) -> tuple[list[FloorPlan], str]:
     """The floor plans ``--map`` asks for and where they come from: ``auto`` the recording's own
-    (``rec.plans``, from its importer), ``none`` no plan, else a GeoJSON plan file placed in the
+    (``rec.plans``, from its importer; "no plan: why" where the importer could not read it,
+    ``meta["no_plan"]``), ``none`` no plan, else a GeoJSON plan file placed in the
     recording's local frame (:func:`wearnav.plans.read_geojson_plan`; its lat/lon origin, or the
     plan's own centre where the recording has none)."""
     if str(plan) == "none":
         return [], "none"
     if str(plan) == "auto":
+        if not rec.plans and rec.meta.get("no_plan"):  # the importer could not read it (e.g. ILC2's)
+            return [], f"no plan: {rec.meta['no_plan']}"
         return list(rec.plans), "the recording's own" if rec.plans else "none in the recording"
     path = Path(plan)
     lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
@@ -80,6 +84,8 @@ def map_path(
     floor_plans, plan_from = map_plans(rec, plan)
     info: dict = {"requested": str(plan), "plans": [p.name for p in floor_plans], "from": plan_from}
     placed, warns = None, []
+    if plan_from.startswith("no plan: "):
+        warns.append(f"{plan_from}; the path is placed without a floor plan")
     if floor_plans and start is None and (rec.fixes is None or not len(rec.fixes)):
         warns.append(
             "the recording has a floor plan but no location fixes: give --start X,Y,HEADING_DEG to place the path on it"
@@ -89,4 +95,35 @@ def map_path(
         placed = place_on_map(rec, t, xy, floor_plans, start, MapConfig(fix_lag_s=fix_lag_s), progress)
         info["used"] = True
         rec.plans = floor_plans  # what the page draws under the path
+    else:
+        info["used"] = False
+        if start is not None:  # no plan: the start alone places the path (issue 56 §4)
+            placed = place_from_start(rec, t, xy, start)
     return placed, info, warns
+
+
+def place_from_start(
+    rec: Recording, t: np.ndarray, xy: np.ndarray, start: tuple[float, float, float]
+) -> fuse.FuseResult:
+    """The odometry path ``xy`` (times ``t``) placed by a start pose alone, where no floor plan is used
+    (issue 56 §4): turned so that its first :data:`wearnav.fuse.particles.START_DIR_M` metres run along
+    the heading of travel ``start[2]`` (degrees counter-clockwise from +x, as the map-aware path reads
+    it: :func:`wearnav.fuse.particles.start_heading_offset`) and moved so that it starts at
+    ``start[:2]``; from there it drifts freely, as the first-fixes anchoring's path does after its
+    first minute. The user's start is honoured over the recording's fixes: they are checked
+    (:func:`wearnav.fixcheck.check_fixes`, for ``fixes.csv``) and marked unused (without ``--start``
+    the smoother places the path on them; with a plan the particle filter weighs them in)."""
+    yaw = start_heading_offset(t, xy, float(np.radians(start[2])))
+    c, s = np.cos(yaw), np.sin(yaw)
+    placed = (xy - xy[0]) @ np.array([[c, s], [-s, c]]) + np.asarray(start[:2], np.float64)
+    info: dict = {
+        "start": [float(v) for v in start],
+        "heading_offset_deg": float(np.degrees(yaw)),
+        "heading_from_m": START_DIR_M,
+    }
+    fx, check = rec.fixes, None
+    if fx is not None and len(fx):
+        check = check_fixes(float(t[0]), float(t[-1]), fx.t, fx.pos[:, :2], fx.accuracy, fuse.FuseConfig().wide_m)
+        check.mark(check.kept, UNUSED, "--start places the path (no floor plan to weigh the fixes in)")
+        info.update(check.info(), fixes="not used: --start places the path; without it the fixes do")
+    return fuse.FuseResult(placed, np.full(len(t), np.nan), "start", info, [], check)

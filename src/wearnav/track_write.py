@@ -30,6 +30,8 @@ ANCHOR_TEXT = {
     "none": "not placed on the fixes",
     "map": "map-aware particle filter (wearnav.fuse.particles): the odometry's moves kept inside the floor plan's "
     "walkable space, heading offset and scale per particle, every kept fix weighed in (Student-t)",
+    "start": "placed by --start alone (no floor plan): the odometry turned so that its first metres run along the "
+    "start heading and moved to the start position (wearnav.track_map.place_from_start); the fixes are not used",
 }
 TRAJ_FORMAT = "%.4f"
 COORD_DIGITS = 7  # GeoJSON and fixes.csv lat/lon decimals: 1e-7° is 1.1 cm
@@ -142,7 +144,7 @@ def write_track(
     fix_lag_s: float | None = None,
 ) -> None:
     """Place the path on the fixes by ``anchor`` (:mod:`wearnav.fuse`), or take the map-aware path
-    ``placed`` (:func:`wearnav.track_map.place_on_map`), and write the files into ``stage`` (moved to
+    or the start's ``placed`` (:func:`wearnav.track_map.map_path`), and write the files into ``stage`` (moved to
     ``out`` afterwards). ``fix_lag_s``: how far the fixes lag the walker (the smoother's
     ``fix_lag_s``), None: the run's calibration's (0 for the shipped models)."""
     anchored, res = None, placed
@@ -156,9 +158,11 @@ def write_track(
         }
         summary["warnings"].append(f"{rec.name}: no location fixes: the path is not placed on a map")
         warnings.warn(WearnavWarning(summary["warnings"][-1]), stacklevel=2)
-    elif res is not None:  # the map-aware path (wearnav.track_map.place_on_map)
+    elif res is not None:  # the map-aware path, or the start's (wearnav.track_map.map_path)
         summary["anchoring"] = {
-            "requested": f"--map ({anchor} is not used with a plan)",
+            "requested": f"--map ({anchor} is not used with a plan)"
+            if res.method == "map"
+            else f"--start ({anchor} is not used with a start pose and no plan)",
             "method": res.method,
             "description": ANCHOR_TEXT[res.method],
             **{k: _rounded(v) for k, v in res.info.items() if k != "method"},
@@ -274,6 +278,8 @@ def page_html(
     where = (
         "the map-aware path on the floor plan"
         if res is not None and res.method == "map"
+        else "placed from --start"
+        if res is not None and res.method == "start"
         else f"placed on the location fixes ({summary['anchoring']['method']})"
         if res is not None
         else "the odometry's own frame from (0, 0): not placed on the fixes"

@@ -14,9 +14,16 @@ units); ``config`` (the run's whole training config, as config.yaml's ``train`` 
 :class:`wearnav.train.odometry.TrainConfig` or :class:`wearnav.train.classify.ClassifyConfig`);
 ``classes`` (classifiers: the label of each logit); ``training`` (the run's training.json:
 whether it beat its trivial baseline, what data it saw, for ``wearnav track``'s warnings);
-``metrics`` (classifiers: test accuracy against the majority class); ``fuse_calibration`` (odometry:
-the run's smoother calibration, ``fuse_calibration.json``, that ``wearnav track`` places the path
-with, :func:`wearnav.fuse.config_for`; null where the run has none); ``source_run``;
+``metrics`` (classifiers: test accuracy against the majority class); ``track_defaults`` (odometry:
+every default that ``wearnav track`` takes from the run besides its weights and config, gathered by
+:func:`wearnav.pretrained.track_defaults` for the run and read back by it for the file, so that the
+file and its run give the same path (issue 56 §2): ``speed``, where the speed comes from, e.g. the
+shipped phone model's "snapped", and ``fuse_calibration``, the smoother's calibration,
+``fuse_calibration.json``, null where the run has none); ``fuse_calibration`` (the same calibration
+again, where files exported before ``track_defaults`` kept it; :func:`wearnav.fuse.config_for` reads
+it); ``speed_constants`` (odometry: what the default speed source does and its constants, the
+pointing's snap angle and the step length per unit cadence, for a runtime outside wearnav);
+``source_run``;
 ``provenance`` (wearnav version, commit, time) and ``torch`` (the exporting version).
 """
 

@@ -28,7 +28,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from wearnav import runs
+from wearnav import pretrained, runs
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.export.header import (
     EXTRA_FILE,
@@ -41,8 +41,9 @@ from wearnav.export.header import (
 )
 from wearnav.export.runtime import load_file
 from wearnav.fileio import atomic_path
-from wearnav.fuse.config import CALIBRATION_JSON
 from wearnav.models import registry
+from wearnav.models.base import SNAP_DEG
+from wearnav.models.pdr import STEP_PER_CADENCE_M_S
 from wearnav.provenance import provenance
 from wearnav.textio import read_json
 from wearnav.train import classify, odometry
@@ -85,7 +86,6 @@ def load_run(run: str | Path) -> tuple[nn.Module, dict]:
         model, cfg, classes = classify.load_model(run)
     training = read_json(run / odometry.TRAINING) if (run / odometry.TRAINING).is_file() else {}
     metrics = runs.read_metrics(run) if task == "classify" and runs.is_complete(run) else {}
-    calibration = read_json(run / CALIBRATION_JSON) if (run / CALIBRATION_JSON).is_file() else None
     return model, make_header(
         task,
         cfg,
@@ -93,7 +93,7 @@ def load_run(run: str | Path) -> tuple[nn.Module, dict]:
         training,
         {k: metrics[k] for k in TRUST_METRICS if k in metrics},
         str(run),
-        calibration if isinstance(calibration, dict) else None,
+        pretrained.track_defaults(run) if task == "odometry" else None,
     )
 
 
@@ -104,10 +104,12 @@ def make_header(
     training: dict | None = None,
     metrics: dict | None = None,
     source_run: str = "",
-    fuse_calibration: dict | None = None,
+    track_defaults: dict | None = None,
 ) -> dict:
     """The header of a model of ``task`` trained with ``cfg`` (TrainConfig / ClassifyConfig);
-    ``fuse_calibration``: the run's smoother calibration (:data:`wearnav.fuse.CALIBRATION_JSON`)."""
+    ``track_defaults``: what `wearnav track` takes from the run besides its weights and config
+    (:func:`wearnav.pretrained.track_defaults`: the default speed source, the smoother's
+    calibration), carried whole so that `track` reads the file as it reads the run (issue 56 §2)."""
     D = len(cfg.devices)
     frame = "world (gravity on +z)" if task == "odometry" else f"{cfg.frame} (ClassifyConfig.frame)"
     out = (
@@ -137,10 +139,28 @@ def make_header(
         "classes": classes,
         "training": training or {},
         "metrics": metrics or {},
-        "fuse_calibration": fuse_calibration,
+        pretrained.TRACK_DEFAULTS: track_defaults,
+        # the calibration where files exported before track_defaults existed kept it (read by fuse.config_for)
+        "fuse_calibration": (track_defaults or {}).get("fuse_calibration"),
+        "speed_constants": speed_constants((track_defaults or {}).get("speed")) if task == "odometry" else None,
         "source_run": source_run,
         "provenance": provenance(),
         "torch": torch.__version__,
+    }
+
+
+def speed_constants(speed: str | None) -> dict:
+    """The constants behind a speed source (:data:`wearnav.train.odometry.SPEED_SOURCES`), named in the
+    header for a runtime outside wearnav that rebuilds it: the sentence saying what it does, the
+    angle within which the phone's pointing is taken (:data:`wearnav.models.base.SNAP_DEG`) and the
+    step length per unit cadence (:data:`wearnav.models.pdr.STEP_PER_CADENCE_M_S`). wearnav's `track`
+    uses its own code's (the same for the file and its run)."""
+    speed = speed or "model"
+    return {
+        "speed": speed,
+        "description": pretrained.SPEED_WORDS.get(speed, speed),
+        "snap_deg": SNAP_DEG if speed == "snapped" else None,
+        "step_per_cadence_m_s": STEP_PER_CADENCE_M_S if speed in ("cadence", "snapped") else None,
     }
 
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from wearnav.errors import ConfigError
-from wearnav.export.header import is_exported
+from wearnav.errors import ConfigError, FormatError
+from wearnav.export.header import is_exported, read_header
 from wearnav.runs import run_folder
 from wearnav.textio import read_json
 
@@ -128,17 +128,51 @@ def default_for(task: str, devices_in_recording=()) -> Shipped:
     return spec
 
 
-def recorded_speed(model: str | Path) -> str:
-    """Where the speed of the model at ``model`` (a run folder or one of its checkpoints) comes from
-    by default: what its :data:`HELD_OUT_JSON` records (``wearnav pretrain`` writes the recipe's
-    ``speed`` there), else the model's own ("model"); a name or an exported file: "model"."""
+TRACK_DEFAULTS = "track_defaults"  # the export header's field holding track_defaults (wearnav.export.header)
+
+
+def track_defaults(model: str | Path) -> dict:
+    """What `wearnav track` takes from the model at ``model`` besides its weights and training config
+    (issue 56 §2): ``speed``, where its speed comes from by default (:data:`SPEED_WORDS`; what its
+    :data:`HELD_OUT_JSON` records, where ``wearnav pretrain`` writes the recipe's ``speed``; else
+    "model"), and ``fuse_calibration``, the smoother's calibration of its run
+    (:data:`wearnav.fuse.CALIBRATION_JSON`, that :func:`wearnav.fuse.config_for` places the path with;
+    None where the run has none or it is not an object). ``model``: a run folder or one of its
+    checkpoints, or a file of `wearnav export`, whose header carries these under
+    :data:`TRACK_DEFAULTS` (written from this function by :func:`wearnav.export.write.load_run`, so
+    the file and its run cannot drift); a file exported before the header carried them gives "model"
+    and the header's own ``fuse_calibration``. The speed sources' constants (30° of
+    :data:`wearnav.models.base.SNAP_DEG`, the cadence's step length) are the code's, the same for
+    both; the header also names them for runtimes outside wearnav."""
+    from wearnav.fuse.config import CALIBRATION_JSON  # scipy: not imported before a command runs
+
     if is_exported(model):
+        header = read_header(model)
+        got = header.get(TRACK_DEFAULTS)
+        got = got if isinstance(got, dict) else {"fuse_calibration": header.get("fuse_calibration")}
+        speed, calibration = got.get("speed", "model"), got.get("fuse_calibration")
+    else:
+        folder = run_folder(model)
+        record = read_json(folder / HELD_OUT_JSON) if (folder / HELD_OUT_JSON).is_file() else {}
+        speed = record.get("speed", "model") if isinstance(record, dict) else "model"
+        f, calibration = folder / CALIBRATION_JSON, None
+        if f.is_file():
+            try:
+                calibration = read_json(f)
+            except FormatError:  # config_for says so and uses the smoother's defaults
+                calibration = None
+    return {
+        "speed": speed if isinstance(speed, str) and speed in SPEED_WORDS else "model",
+        "fuse_calibration": calibration if isinstance(calibration, dict) else None,
+    }
+
+
+def recorded_speed(model: str | Path) -> str:
+    """Where the speed of the model at ``model`` (a run folder or one of its checkpoints, or a file of
+    `wearnav export`) comes from by default: :func:`track_defaults`' ``speed``; a name: "model"."""
+    if not Path(model).exists():
         return "model"
-    record = run_folder(model) / HELD_OUT_JSON
-    if not record.is_file():
-        return "model"
-    speed = read_json(record).get("speed", "model")
-    return speed if isinstance(speed, str) and speed in SPEED_WORDS else "model"
+    return track_defaults(model)["speed"]
 
 
 def phone_only_choice(has_fixes: bool = False) -> tuple[Path | str, str]:

@@ -131,7 +131,8 @@ def resolve_model(arg: str | Path | None, task: str, devices_in_recording=(), sp
     default :class:`wearnav.train.odometry.TrainConfig` (25 Hz, 100-sample windows, the first of
     phone, watch, earbuds that the recording has). An odometry model's speed comes from ``speed``
     (:func:`wearnav.train.odometry.with_speed`), by default from what its run records
-    (:func:`wearnav.pretrained.recorded_speed`: the shipped phone model's recipe says "cadence")."""
+    (:func:`wearnav.pretrained.recorded_speed`: the shipped phone model's recipe says "snapped"; a file of
+    `wearnav export` carries its run's, :func:`wearnav.pretrained.track_defaults`)."""
     from wearnav.export.runtime import load_exported
     from wearnav.train import classify, odometry
     from wearnav.train.common import BEST, check_run_kind

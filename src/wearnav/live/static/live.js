@@ -32,7 +32,8 @@
     $("activity").dataset.label = st.activity ? st.activity.label : "";
     text($("points"), (st.path || []).length);
     text($("length"), Math.round(length(st.path || [])));
-    text($("anchor"), st.anchor === "none" ? "not on a map (no fixes used)" : `placed on fixes (${st.anchor})`);
+    text($("anchor"), st.anchor === "none" ? "not on a map (no fixes used)"
+      : st.anchor === "start" ? "placed from --start (no plan; fixes not used)" : `placed on fixes (${st.anchor})`);
     text($("time"), (st.t_s || 0).toFixed(1));
     text($("nfixes"), (st.fixes || []).length);
     const now = Date.now() / 1000;
