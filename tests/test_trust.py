@@ -217,7 +217,7 @@ def test_track_is_quiet_on_data_like_its_training(odometry_run, tmp_path):
     out-of-domain line (its domain is the training data's), only what a run that did not learn
     earns: the did-not-learn and implausible-result lines and, where its path is garbage, the fixes
     disagreeing with it (the fixes' receiver-filter error and ramped multipath make them disagree
-    with each other too, so the smoother falls back and says so)."""
+    with each other too, so the smoother falls back and says so) and going farther than it does."""
     from wearnav.train.odometry import TrainConfig, fit, prepare_run
 
     root, rec, run, _ = odometry_run
@@ -231,7 +231,11 @@ def test_track_is_quiet_on_data_like_its_training(odometry_run, tmp_path):
     kinds = {ln.split(": ", 2)[1] for ln in warned}
     kinds = {"fixes disagree" if "location fixes disagree with the path" in k else k for k in kinds}
     assert "the model did not learn" in kinds
-    assert kinds <= {"the model did not learn", "implausible for walking", "fixes disagree"}
+    short = {
+        "the odometry walked far less than the fixes moved",
+        "the odometry walked far less than the activity model says",
+    }
+    assert kinds <= {"the model did not learn", "implausible for walking", "fixes disagree"} | short
 
 
 @pytest.fixture(scope="module")
