@@ -10,6 +10,8 @@ random rotation of input and target about the vertical. A walker's motion looks 
 they walk in, so the horizontal channels of every device and the horizontal targets are rotated
 together about the vertical by one random angle per sample; vertical channels and speeds are
 unchanged.
+
+Decision: docs/decisions/0029-heading-frame.md.
 """
 
 from __future__ import annotations

@@ -8,6 +8,8 @@ The manifest columns are ``name, file, duration, devices, mode, subject, placeme
 source, split, noise_level, truth_points, fixes``, taken from each recording's meta;
 ``devices`` is a ``;``-joined list of device names and ``noise_level`` the location-fix noise
 level of simulated data (EasyTrack's L1/L2/L3).
+
+Decision: docs/decisions/0038-mse-heading-frame-and-sim-hd.md.
 """
 
 from __future__ import annotations

@@ -7,6 +7,8 @@ centre (Suite-IN++ eq. 8, :func:`wearnav.trajectory.integrate_velocity`). With d
 errors are ATE and RTE (DESIGN.md definitions, :mod:`wearnav.metrics`) over the span the windows
 cover; with sparse truth (waypoints) they are errors at the truth times only, and the report says
 so.
+
+Decision: docs/decisions/0005-evaluation-integration.md.
 """
 
 from __future__ import annotations

@@ -15,6 +15,8 @@ file behind. Such a file is never read (hidden, wrong name) and is removed when 
 the same target on the same host starts, once its writer's process id is no longer alive (the
 temporary file of a writer still running is left alone; one written on another host sharing the
 folder is left too, since its writer's liveness cannot be told from here).
+
+Decision: docs/decisions/0004-run-folders-atomic-writes-locks.md.
 """
 
 from __future__ import annotations

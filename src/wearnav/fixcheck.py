@@ -20,6 +20,8 @@ Those are ``dropped``; the rest are kept, and the anchoring then marks each kept
 ``unused`` (first-fix anchoring: after its first ``ANCHOR_S`` seconds of kept fixes). Where most
 fixes would be jumps the fixes disagree with each other, not with a few outliers: none is dropped
 as a jump (the smoother's robust loss and its fallback judge them; a warning says so).
+
+Decision: docs/decisions/0015-fixcheck-bad-fixes.md.
 """
 
 from __future__ import annotations

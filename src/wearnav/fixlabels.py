@@ -37,6 +37,8 @@ noise, 5 m/s drops 0.3 % of labels and keeps 85 % of those with over 1 m of nois
 Test segments of held-out trajectories (:func:`segments_from_truth`) are cut from dense truth
 instead: contiguous, N samples each, labelled by the true displacement from each segment's first
 sample to the next segment's first sample, so summing them integrates a trajectory.
+
+Decision: docs/decisions/0007-easytrack-phone-labels-and-frame.md.
 """
 
 from __future__ import annotations

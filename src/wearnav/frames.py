@@ -43,14 +43,9 @@ estimator between each device (already in the common frame) and the truth's acce
 (second difference of truth positions), fused over devices with a model-error floor; it uses truth
 positions only, never model predictions.
 
-Confidence figures (``YawTrack.info`` / ``std_deg``) are statistical. Measured on the simulator's
-`small` preset, the RMS error of the relative yaws is a median 1.4× (p90 4×) the reported
-``std_deg``, because devices on different body parts do not move as exact rotated copies; the truth
-alignment's floor makes its ``std_deg`` about right (error/std median 0.65, p90 1.6).
+Confidence figures (``YawTrack.info`` / ``std_deg``) are statistical; how they compare with the
+errors on the simulator, and what was tried and dropped: Decision: docs/decisions/0002-one-frame-for-all-devices.md.
 Errors per device and walking mode: ``scripts/frame_alignment_report.py``.
-
-Tried and dropped (no gain on `small`): Cauchy-reweighted fits against one device's own motion,
-kernels of 10–60 s instead of 20 s, a body turn rate from the median of all devices' gyros.
 """
 
 from __future__ import annotations

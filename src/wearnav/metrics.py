@@ -2,6 +2,8 @@
 
 Positions are metres in a recording's local world frame; "horizontal" means the first two
 coordinates (x/east, y/north) whatever the array's width.
+
+Decisions: docs/decisions/0008-label-noise-model.md, docs/decisions/0024-speed-heading-along-across.md.
 """
 
 from __future__ import annotations

@@ -12,6 +12,8 @@ Quaternions are (w, x, y, z) and rotate device-frame vectors into the world fram
 
 Everything is validated on construction (the checks: :mod:`wearnav.recording_checks`), so a
 Recording that exists is well-formed; loading a file re-validates and names the file in any error.
+
+Decision: docs/decisions/0001-data-model-refinements.md.
 """
 
 from __future__ import annotations

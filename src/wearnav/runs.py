@@ -15,6 +15,8 @@ is neither a result (a run is still complete only with ``metrics.json``) nor par
 Only what changes the numbers enters the hash (model, data, splits, preprocessing, windows,
 training hyper-parameters, seed); where a run is written, progress bars and the time budget do
 not.
+
+Decision: docs/decisions/0004-run-folders-atomic-writes-locks.md.
 """
 
 from __future__ import annotations

@@ -6,6 +6,9 @@ corrects a table's p values for testing several models against one reference
 (Benjamini–Hochberg false discovery rate); a table marks a difference where the adjusted p is
 below :data:`SIGNIFICANCE`. :func:`walk_bootstrap_difference` asks the same of two paths scored on
 the same walks: is a difference in a quantile of the error larger than the walk-to-walk spread?
+
+Decisions: docs/decisions/0011-odometry-grid-and-page.md,
+docs/decisions/0021-smoother-tried-simulator-confidence.md.
 """
 
 from __future__ import annotations

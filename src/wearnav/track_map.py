@@ -1,7 +1,9 @@
 """The map-aware path of `wearnav track` (issue 36): the floor plans ``--map`` asks for, and the path
 placed on them from ``--start`` or the first kept fix by the particle filter of
 :func:`wearnav.fuse.placement.place` (walls of the plan, every kept fix weighed in), in place of
-the smoother's anchoring. :mod:`wearnav.track` calls :func:`map_path` and writes what it returns."""
+the smoother's anchoring. :mod:`wearnav.track` calls :func:`map_path` and writes what it returns.
+
+Decision: docs/decisions/0027-particle-filter-map-aware.md."""
 
 from __future__ import annotations
 

@@ -1,6 +1,8 @@
 """What `wearnav track` writes (the files the :mod:`wearnav.track` docstring lists): the path placed
 on the fixes or taken from the map-aware filter, ``trajectory.csv``, ``fixes.csv``,
-``trajectory.geojson``, ``trajectory.png``, ``trajectory.html`` and ``track.json``."""
+``trajectory.geojson``, ``trajectory.png``, ``trajectory.html`` and ``track.json``.
+
+Decision: docs/decisions/0016-track-outputs-geojson.md."""
 
 from __future__ import annotations
 

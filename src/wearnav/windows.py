@@ -7,6 +7,9 @@ hertz (:meth:`WindowConfig.from_seconds`); they are converted to samples once, h
 Targets follow Suite-IN++ (paper 000, Sec. IV-A): for window n covering samples
 [s, s+L−1], the displacement d = p(t_{s+L−1}) − p(t_s) of the horizontal truth, and the mean
 horizontal world velocity v = d / (t_{s+L−1} − t_s).
+
+Decisions: docs/decisions/0001-data-model-refinements.md,
+docs/decisions/0003-exact-resume-and-batched-fetch.md, docs/decisions/0029-heading-frame.md.
 """
 
 from __future__ import annotations

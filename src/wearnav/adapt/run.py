@@ -26,6 +26,8 @@ and after (:func:`wearnav.adapt.segments.summary`: length ratio, speed factor, s
 The new run folder holds the base run's config.yaml (with ``adapted_from``), training.json
 (what it was trained on, for `track`'s warnings) and smoother calibration where it has one, the
 weights in checkpoints/best.ckpt, and adaptation.json.
+
+Decision: docs/decisions/0017-adaptation-from-fixes.md.
 """
 
 from __future__ import annotations
@@ -54,8 +56,8 @@ from wearnav.train.common import BEST, CHECKPOINTS
 from wearnav.train.odometry import ADAPTATION, TRAINING, load_model
 
 METHODS = ("scale", "finetune")
-# Chosen by `wearnav bench adapt` on IPIN 2023's training trials only (docs/design.md, "Adaptation
-# from a user's own fixes") for the base users adapt: the shipped recipe trained without IPIN,
+# Chosen by `wearnav bench adapt` on IPIN 2023's training trials only
+# (docs/decisions/0017-adaptation-from-fixes.md) for the base users adapt: the shipped recipe trained without IPIN,
 # median at their POSI points un-adapted 7.81 m, scale 6.90, finetune 4.75. (A base trained on the
 # simulator alone, already right in length, read scale 4.23, finetune 4.93, un-adapted 4.06.)
 DEFAULT_METHOD = "finetune"

@@ -18,6 +18,8 @@ The fixes are east/north, the odometry in the phone's own world frame (an arbitr
 drifts slowly): :func:`segment_yaw` fits the yaw between them per segment from the segments of
 the same walk near it in time (a Procrustes fit, Gaussian weights, σ = ``YAW_KERNEL_S``). Only
 the user's fixes and IMU are used; a recording's truth is never read.
+
+Decision: docs/decisions/0017-adaptation-from-fixes.md.
 """
 
 from __future__ import annotations

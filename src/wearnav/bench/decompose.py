@@ -9,6 +9,8 @@ error*). A model whose speed ratio sits below 1 at every walking speed errs in s
 ratio is right but whose heading error is wide errs in direction. Rows are kept per segment, with
 the walk's device (the phone model, where the dataset names it) and the true speed, so the page
 can split them by building, walking speed and device.
+
+Decision: docs/decisions/0024-speed-heading-along-across.md.
 """
 
 from __future__ import annotations

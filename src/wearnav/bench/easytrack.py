@@ -18,6 +18,9 @@ BaseModel (same labels, same epochs), PDR and the raw GNSS fixes are scored at t
 
 The page ``<out>/results.md`` (+ PNGs; :mod:`wearnav.bench.easytrack_page`) is what ``wearnav results``
 stitches into docs/results.md.
+
+Decisions: docs/decisions/0009-easytrack-training-loop-and-units.md,
+docs/decisions/0014-easytrack-benchmark-findings.md.
 """
 
 from __future__ import annotations

@@ -18,6 +18,8 @@ median) so both see the same load. ``clock="cpu"`` times with
 the process's CPU time instead of the wall clock: with one thread it leaves out the time other
 programs hold the core, which makes the fraction reproducible on a busy machine (memory and
 cache contention remain).
+
+Decision: docs/decisions/0012-table-iii-models-at-table-vi-size.md.
 """
 
 from __future__ import annotations

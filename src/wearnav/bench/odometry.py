@@ -5,6 +5,8 @@ training seed is one run folder ``<out>/<model>-<hash8>`` (see :mod:`wearnav.run
 model_args are part of the hash); complete runs are skipped, so an interrupted suite resumes.
 The pages (:func:`write_suite_report` here, the paper's tables in
 :mod:`wearnav.bench.odometry_tables`) read run folders only.
+
+Decision: docs/decisions/0011-odometry-grid-and-page.md.
 """
 
 from __future__ import annotations

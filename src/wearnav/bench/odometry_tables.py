@@ -9,6 +9,8 @@ with fewer seeds than asked says "n of N".
 
 Table VI is measured here, when the page is written (same machine, same command, 1 torch
 thread); MACs per window come from :func:`wearnav.bench.efficiency.macs_per_window`.
+
+Decision: docs/decisions/0011-odometry-grid-and-page.md.
 """
 
 from __future__ import annotations

@@ -14,20 +14,15 @@ The benchmark
    ``TRUTH_MAX_GAP_S``). Evaluation uses the surveyed points only: each test trace starts at
    its first point and is scored at every later one (:func:`wearnav.evaluate.evaluate_sequence`).
 3. **estimates one yaw per site from its training traces.** The phone's rotation vector refers to
-   magnetic north, the truth to a floor plan (ILC2) or to geographic east/north (IPIN): the two
-   differ by a constant yaw per site. :func:`wearnav.bench.real_sites.site_yaw` takes it from the training traces only:
-   PDR (not learned, so nothing is fitted to the data first) is run on each trace, and the yaw is
-   the angle of Σ d_pdr · conj(d_truth) over all segments between consecutive surveyed points (a
-   2-D Procrustes fit, longer segments weighing more). Every model's input is rotated by it into
-   the truth frame. PDR's own heading bias goes into that angle; a learned model trained under it
+   magnetic north, the truth to a floor plan (ILC2) or to geographic east/north (IPIN): the two differ
+   by a constant yaw per site. :func:`wearnav.bench.real_sites.site_yaw` takes it from the training
+   traces only, with PDR (not learned): the angle of Σ d_pdr · conj(d_truth) over all segments between
+   consecutive surveyed points (a 2-D Procrustes fit), which turns every model's input into the truth
+   frame. PDR's own heading bias goes into that angle; a learned model trained under it
    absorbs any constant yaw left over (a constant rotation commutes with the yaw augmentation).
-   A learned model scored where it did not train under that angle (another building, or trained
-   on other data) would inherit PDR's bias there (18° at ILC2: PDR's −19.2° against −1.0° from the
-   held-flat phone's axis), so it is given its own estimate instead: the same fit of *its* paths on
-   the site's training traces (:meth:`RealEval.yaw`; a site yaw from training data, no test truth),
-   run with its own preprocessing (a heading-frame model's windows in its heading frame). So is
-   every other model that is not learned (``pdr-pointing`` walks along where the phone points, not
-   along PDR's gait axis).
+   A learned model scored where it did not train under that angle gets its own estimate, the
+   same fit of *its* paths on the site's training traces (:meth:`RealEval.yaw`), as does every
+   model that is not learned.
 4. **transfers to another building** with ``test_data``: the same import and grouping; the
    models trained on ``data`` are scored on its test groups, with its yaw estimated from its own
    training groups (which are used for nothing else).
@@ -45,7 +40,8 @@ this module runs the suite.
 
 Optionally ``train_data`` (a simulated dataset) trains the learned models instead of the real
 training floors: the sim-to-real test of issue 11. Everything is a run folder; complete runs
-are skipped, so the benchmark resumes.
+are skipped, so the benchmark resumes. Decisions: docs/decisions/0010-real-buildings-splits-and-site-yaw.md,
+docs/decisions/0032-sim-only-transfers-best.md.
 """
 
 from __future__ import annotations

@@ -13,6 +13,8 @@ its PDR-speed hybrid, PDR):
 - where the site has fixes, the same for the user protocol's smoother against PDR's smoother.
 
 PDR is not learned: its seeds give the same path, and it is paired with each learned path as is.
+
+Decision: docs/decisions/0026-real-bench-seeds.md.
 """
 
 from __future__ import annotations

@@ -1,7 +1,9 @@
 """The sites of `wearnav bench real-odometry` (:mod:`wearnav.bench.real`): each building's data split by
 place (step 1 there), its yaw between the phone's magnetic-north frame and the truth's, estimated by
 PDR from its training traces (step 3), and the phone's own fixes' error at its surveyed points
-(step 5)."""
+(step 5).
+
+Decisions: docs/decisions/0010-real-buildings-splits-and-site-yaw.md, docs/decisions/0029-heading-frame.md."""
 
 from __future__ import annotations
 

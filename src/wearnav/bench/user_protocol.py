@@ -14,6 +14,9 @@ the raw fixes are), with the path-length ratio per walk: the length of the path 
 positions at the surveyed times over the truth's through the same points (1 is right; learned
 paths run short). The known-start protocol (true start, site yaw: a floor, not available to a
 user) is the benchmark's main table, beside it.
+
+Decisions: docs/decisions/0020-fused-path-smoother.md, docs/decisions/0036-fix-lag.md,
+docs/decisions/0033-length-ratio-arc.md.
 """
 
 from __future__ import annotations

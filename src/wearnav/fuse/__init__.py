@@ -32,15 +32,9 @@ One job per module:
 
 :class:`wearnav.fuse.live.IncrementalFuser` is the same estimate as a fixed-lag smoother for the live
 receiver: each update solves only the last ``lag_s`` seconds, the walk before them marginalised into a
-Gaussian prior on the window's start state, so its cost does not grow with the session (a
-1-hour synthetic walk, 50-Hz odometry, 1-Hz fixes, an update every 10 s, 300-s window, one core:
-median 71 ms / p95 97 ms per update, 73 ms in the walk's first tenth and 75 ms in its last,
-where re-solving the whole hour takes 3.3 s; the final path within 0.14 m median / 0.90 m p95
-of the batch smoother's; measured with the finite-difference Jacobian, before the analytic one of
-:meth:`wearnav.fuse.smoother.Problem.jacobian` cut a solve 3.7–3.9×, figures in its module). It is scipy rather than GTSAM's IncrementalFixedLagSmoother because the model's
-global unknowns (scale, heading offset, drift) and its heading random walk act on every later
-position through a cumulative sum, which in GTSAM needs Python-side custom factors (slow, a second
-copy of the model to keep equal); here batch and fixed-lag share one residual function.
+Gaussian prior on the window's start state, so its cost does not grow with the session; scipy
+rather than GTSAM, so that batch and fixed-lag share one residual function (measurements and why:
+Decision: docs/decisions/0020-fused-path-smoother.md).
 """
 
 from __future__ import annotations

@@ -1,6 +1,9 @@
 """The smoother's calibration for a model and a recording (:mod:`wearnav.fuse`): the odometry's random
 walk, the σ scale and the fixes' lag measured on walks with truth, stored in a run folder (``CALIBRATION_JSON``), and
-the heading prior a recording's north-referenced frame gives; :func:`config_for` puts them together."""
+the heading prior a recording's north-referenced frame gives; :func:`config_for` puts them together.
+
+Decisions: docs/decisions/0020-fused-path-smoother.md, docs/decisions/0023-smoother-point-sigma.md,
+docs/decisions/0036-fix-lag.md."""
 
 from __future__ import annotations
 
@@ -69,7 +72,7 @@ def fix_lag_of(walks, lags_s=FIX_LAGS_S) -> dict:
     points (the same points at every lag: those whose time plus the largest lag is still inside
     the fixes). ``walks`` yields (fix_t (M,) s, fix_xy (M, 2) m, truth_t (K,) s, truth_xy (K, 2) m).
     On IPIN 2023's training trials the phone's indoor fixes lag by 4 s (median 6.49 m at 0 s, 5.57 at
-    4 s; docs/design.md)."""
+    4 s; docs/decisions/0036-fix-lag.md)."""
     lags_s = np.asarray(lags_s, np.float64)
     err, n = [], 0
     for ft, fz, tt, tp in walks:

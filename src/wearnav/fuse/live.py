@@ -1,5 +1,7 @@
 """The fused path as data arrives (the live receiver): :class:`IncrementalFuser`, the smoother of
-:mod:`wearnav.fuse` as a fixed-lag smoother whose cost per update is bounded by its window."""
+:mod:`wearnav.fuse` as a fixed-lag smoother whose cost per update is bounded by its window.
+
+Decisions: docs/decisions/0020-fused-path-smoother.md, docs/decisions/0022-live-tracking.md."""
 
 from __future__ import annotations
 

@@ -25,50 +25,15 @@ the final weights' mean of each final particle's ancestry (genealogy smoothing: 
 smoother by the paths that survived, which respect the walls by construction; its σ is their
 weighted spread). Backward simulation (FFBSi, Godsill, Doucet & West 2004: 100 paths drawn
 backwards through every step's particles, the wall penalty of each move's midpoint in the backward
-kernel) was tried in its place and not kept: on the training floors it gave 2.99 / 11.82 m (median /
-p95) against the lineages' 2.93 / 11.91, so what limits the path is the model (the odometry, the
-width of the corridors), not the smoother's degeneracy. Memory: 12 bytes per particle and step
-(1000 particles, 2 steps/s, 1 hour: 86 MB).
+kernel) was tried in its place and not kept (Decision: docs/decisions/0027-particle-filter-map-aware.md).
+Memory: 12 bytes per particle and step (1000 particles, 2 steps/s, 1 hour: 86 MB).
 
-The constants (:class:`MapConfig`) were chosen on ILC2's training floors (B1, F1, F3: 261 walks, 1375
-surveyed points, PDR's known-start paths, map-less median / p95 4.03 / 12.80 m), never on its test
-floors. A wide scale prior shrinks the path (a shorter move crosses fewer walls, so the walls favour
-particles that walk short): log-scale σ 0.2 gave 3.99 / 15.74 m, 0.1 gave 3.22 / 14.54, 0.05 (kept,
-with a start heading σ of 10°) 2.93 / 11.91, 0.02 2.84 / 11.22 (kept at 0.05 to leave a learned
-model's short steps some room). The heading walk (0.3–2 °/√s), wall penalty (1e-4–1e-2), start σ and
-step noise each moved the median by under 0.1 m; 3000 particles instead of 1000 gave 2.88 / 11.66 m.
-A scale prior of 1.12, the inverse of PDR's median length ratio on the training floors (0.893), gave
-2.68 / 11.03 m there, and on the test floors 2.24 / 10.09 m against 2.46 / 9.21 (median 0.60× the
-map-less path's instead of 0.66×, p95 0.79× instead of 0.73×); it stays 1: the p95 target (≤ 0.75×)
-would be lost for a median still above its target (≤ 0.5×).
-Tried later on the same floors with their validation walks too (PDR, 328 walks, 1702 points,
-map-less 3.92 / 13.02 m, these constants 2.81 / 11.33), none kept: a penalty on positions nearer a
-wall than 0.5 m (σ 0.25 m: 2.85 / 11.42; 1 m, σ 0.5 m: 2.86 / 12.13; the surveyed points' median
-clearance is 1.12 m, the walkable space's 1.0–1.9 m); a scale prior of 1.06 (2.65 / 11.54), with a
-log-scale σ of 0.1 (2.81 / 11.76), with a scale walk of 0.02/√s (2.77 / 11.81; alone 2.94 / 12.70),
-with a heading walk of 2 °/√s (2.58 / 11.74). The 0.5× target is 1.96 m there. What is left is
-along the walk: on ILC2's test floors the plan cut the error across the walk to under half and
-along it by a fifth to a third (:func:`wearnav.metrics.along_cross_errors`, the real bench's
-pages; with the fixed scale below, by a quarter to two fifths), and a plan holds a path along a
-corridor only where it turns or ends.
-Speed, one core: a 1-hour walk (7200 steps) takes 0.7 s with 300 particles, 1.5 s with 1000 and
-3.4 s with 3000 (2-core machine shared with other work, load 2.8).
+The constants (:class:`MapConfig`) were chosen on ILC2's training floors (B1, F1, F3), never on
+its test floors; what was tried, with its numbers: Decision: docs/decisions/0027-particle-filter-map-aware.md.
 
-**Where the walls are the only evidence** (a known start, no fix, no beacon: ILC2's known-start
-rows, ``track --map --start``) the scale is not a state but fixed (``walls_only_scale``). With a
-heading offset, a longer move drifts further across the corridor, so the walls keep the particles
-that walk short: the state's final median was 0.98 (p10 0.91) on ILC2's test floors, and the
-map-aware paths lagged the walker more than the map-less ones (signed along-the-walk error, the
-real bench's pages). On the training floors (PDR, two filter seeds each) a fixed scale of 1
-gave 2.67 / 11.24 and 2.67 / 10.74 m against the state's 2.81 / 11.33 and 2.79 / 12.06; fixed at
-1.02 2.64 / 11.17, at 1.04 2.57 / 10.86 and 2.60 / 10.94 (kept), at 1.08 2.65 / 11.59 and 2.65 /
-11.58. The shipped phone model's paths on the same floors (cadence steps pointing within 30°,
-map-less 3.25 / 10.31 m) agree: the state 2.04 / 8.07, fixed at 1.00 1.97 / 8.33, at 1.04 1.92 /
-7.95, at 1.08 2.10 / 8.70. With the scale fixed, the other constants were tried again on both
-paths (PDR / the phone model): a heading walk of 0.5 °/√s 2.63 / 11.22 and 1.98 / 8.39, of 2 °/√s
-2.54 / 11.01 and 1.96 / 8.38; a start heading σ of 5° 2.58 / 11.02 and 1.92 / 8.13, of 20° 2.67 /
-11.72 and 1.98 / 9.12; a step σ of 0.05 × its length 2.59 / 11.24 and 2.04 / 7.96. None is better
-on both, so they stay. With fixes or beacons the state stays: they, not the walls, tell it the scale.
+Where the walls are the only evidence (a known start, no fix, no beacon: ``track --map --start``)
+the scale is not a state but fixed (``walls_only_scale``: with a heading offset the walls keep the
+particles that walk short); with fixes or beacons it stays a state.
 
 The floor is not a particle state: the caller gives the floor over time (a barometer's floor track,
 or the recording's one floor), and each step is constrained by that floor's plan; a floor without

@@ -7,6 +7,8 @@ The site's radio and pressure models are fitted on the site's training walks wit
 (:class:`SiteModels`, JSON). :func:`place` takes what the recording has: without beacons or a
 barometer those parts are left out; without a plan the walls are; with neither fixes nor a start
 there is nothing to place the path by (an error).
+
+Decision: docs/decisions/0027-particle-filter-map-aware.md.
 """
 
 from __future__ import annotations

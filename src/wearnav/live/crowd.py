@@ -14,6 +14,8 @@ plus the tracker's own step (``wearnav.live.tracker.STEP_S``), not by a queue th
 A tracker is made in this thread (loading a model must not hold up a 200); one that cannot be
 made, or fails, is a warning on that session's page, never a failed push, and never stops the
 other sessions. A tracker without ``begin`` / ``finish`` (a stand-in in tests) is updated whole.
+
+Decision: docs/decisions/0028-live-crowd.md.
 """
 
 from __future__ import annotations

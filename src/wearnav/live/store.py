@@ -15,6 +15,8 @@ second), and each is still on disk before its 200.
 Tracker processes (``wearnav live track``) read the messages by row id as they arrive
 (:meth:`Store.messages_after`) and write each session's page state into ``states``, which a
 receiver that does not track itself serves (:meth:`Store.state`).
+
+Decision: docs/decisions/0028-live-crowd.md.
 """
 
 from __future__ import annotations

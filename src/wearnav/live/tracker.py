@@ -30,6 +30,8 @@ by :mod:`wearnav.geo`). Activity: the phone's latest window classified by the sh
 as ``classify`` runs it (:func:`wearnav.train.labelling.window_classes`). Warnings: those the input
 gives (:func:`wearnav.track_trust.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
 the smoother's; the walk-plausibility check of ``track`` needs the whole walk and is left to it.
+
+Decision: docs/decisions/0022-live-tracking.md.
 """
 
 from __future__ import annotations

@@ -15,6 +15,8 @@ every session of its shard (as a restarted receiver does).
 wearnav installed and the store's path (SQLite, WAL: a file system that all of them share with
 working locks, as a single machine's or a cluster node's local disk mounted at the same path;
 WAL over NFS is not safe, docs/live-scaling.md).
+
+Decision: docs/decisions/0028-live-crowd.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,9 @@
 An odometry model maps world-frame IMU windows of a fixed device layout to a mean horizontal
 velocity; every auxiliary loss lives in the model's own :meth:`OdometryModel.loss`, so one
 LightningModule trains every odometry model.
+
+Decisions: docs/decisions/0025-velocity-losses-polar.md, docs/decisions/0031-pdr-pointing-and-hybrids.md,
+docs/decisions/0040-snapped-pointing.md.
 """
 
 from __future__ import annotations
@@ -176,7 +179,7 @@ class SnapToPointing(OdometryModel):
     pocket or bag points elsewhere, where the model's own direction stays. The model decides which,
     window by window, so no placement is assumed. Turning within ``snap_deg`` errs by at most that
     angle where the phone's pointing is off the walk by less; on the simulator's pocket and bag walks
-    it cost nothing (docs/design.md, "The phone's pointing where the model agrees")."""
+    it cost nothing (docs/decisions/0040-snapped-pointing.md)."""
 
     def __init__(self, inner: nn.Module, snap_deg: float = SNAP_DEG):
         super().__init__()

@@ -37,6 +37,8 @@ phone in the hand moves less than one in a pocket and bounces more than it sways
 / horizontal acceleration std of walking: ILC2's flat-held phone 3.3 / 0.5 m/s², MotionSense's
 pocket 5.2 / 3.0, IPIN's hand-held 0.9 / 0.5), and the walk is the same walk. A model trained this way sees the same input from a phone in the hand, the pocket
 or a bag held any way up.
+
+Decision: docs/decisions/0030-activity-context-ensembles-amplitude.md.
 """
 
 from __future__ import annotations

@@ -32,12 +32,8 @@ Choices where the paper is silent (aimed at its budget of ≈ 0.5 M parameters, 
     sensor channel dimension"; ``sensor_pools`` does that along the rows, but off by default:
     with kernels shared by the rows, a max over rows is symmetric in them (swap acc x and y →
     the same features; tested), so the model could not tell a velocity's x from its y.
-  Why the default is "mixed" (measured on `small`, seed 0, 12 epochs, the "fast" recipe, 1
-  thread): the row reading's activations are six rows at full time resolution, so one training
-  step at batch 128 takes ≈ 1.2–1.5 s against ≈ 0.15 s (10× the training time on a CPU), and it
-  learns later (validation velocity MSE at the trivial 0.63 for 8 epochs without the auxiliary-
-  loss ramp, 30 epochs to 0.063; the mixed reading 0.021 after 4 epochs). The odometry grid
-  compares the two on accuracy (docs/results.md). Max-pool comes before ReLU (they commute) and
+  The default is "mixed": the row reading takes 10× the training time on a CPU and learns later
+  (Decision: docs/decisions/0012-table-iii-models-at-table-vi-size.md). Max-pool comes before ReLU (they commute) and
   dropout after the pool, which is the paper's block with less work.
 * All D devices' global and local extractors run as ONE grouped convolution (groups = devices ×
   branches) in channels-last layout; arithmetic is that of separate extractors (tested). Small

@@ -10,6 +10,9 @@ trained and installed by one command, ``wearnav pretrain`` (:mod:`wearnav.pretra
 ``track`` without ``--model`` takes :data:`PHONE` for a phone-only recording and :data:`MULTI`
 when the recording also has a watch or earbuds; ``classify`` takes :data:`ACTIVITY` (the phone's)
 where the recording has a phone, else :data:`ACTIVITY_WATCH` where it has a watch.
+
+Decisions: docs/decisions/0018-shipped-models-phone-on-simulator.md,
+docs/decisions/0039-mse-whole-preset-not-shipped.md.
 """
 
 from __future__ import annotations

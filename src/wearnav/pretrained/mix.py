@@ -24,6 +24,8 @@ models train in that frame (``frame_align="common"``, the frame `wearnav track` 
 Turning the truth rather than the IMU keeps the recordings' sensor data byte for byte. Both yaws
 use truth, which is allowed for training data only; nothing here reads what the simulator drew.
 Validation recordings are chosen by a hash of the name (:func:`wearnav.dataset.is_validation_name`).
+
+Decision: docs/decisions/0019-pretrained-mix-lobo.md.
 """
 
 from __future__ import annotations

@@ -38,12 +38,8 @@ average), so the median of the mixture is the target when (1 − p)(1 − e^(−
 s = m / √(−2 ln(1 − ½/(1 − p))). tests/test_simulate.py checks the medians after the labeller's
 jump filter against Table I within ±1 cm, the neighbour correlation and the tail shares.
 The rates and sizes of ``m`` and the outages are calibrated against IPIN 2023 trials 01–02
-(jumps per 100 fixes, outage lengths, reported accuracy / error; docs/realism.md). The neighbour
-correlation is chosen inside the range IPIN's fixes allow: the lag-1 correlation of trials 01–02's
-label noise is 0.42 against truth interpolated between surveyed points (an overestimate: the
-interpolation is smooth) and 0.15–0.22 for the fixes minus their own 11-s moving average (an
-underestimate: the high-pass removes correlation); this model gives 0.29–0.44 per level, and
-0.22–0.27 by the second estimator (docs/design.md, EasyTrack).
+(docs/realism.md); the neighbour correlation is chosen inside the range IPIN's fixes allow
+(Decision: docs/decisions/0008-label-noise-model.md).
 """
 
 from __future__ import annotations

@@ -9,6 +9,9 @@ exactly and ends with the same weights and metrics as an uninterrupted run.
 Checkpoints are written through :func:`wearnav.fileio.atomic_path` with ``durable=True``
 (:class:`AtomicCheckpointIO`): a kill or a power cut during a save leaves the previous
 ``last.ckpt`` / ``best.ckpt``, never a torn one.
+
+Decisions: docs/decisions/0013-training-recipe-and-one-module.md,
+docs/decisions/0003-exact-resume-and-batched-fetch.md.
 """
 
 from __future__ import annotations

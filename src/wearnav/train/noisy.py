@@ -36,18 +36,11 @@ the two ends, not the curve).
 Units: displacements are in metres; the paper reports every length in cm. Two of its
 hyper-parameters carry a unit:
 
-* γ = 1 (eq. 13) weighs ‖Δc‖ against an MSE; with displacements in cm both are cm-scaled and
-  γ_cm = 1 is γ = 0.01 in metres (L_cm = 10⁴·(MSE_m + 0.01·γ_cm·‖Δc‖_m)). Taken as 1 in metres, the
-  L1 term's pull on a correction (γ per segment) outweighs the MSE's (the error itself) until the
-  error exceeds ~1 m: with 0.2–0.3 m of label noise the corrections never move.
-* δ = 0.24 (eq. 14, the loss threshold l_δ = α·n_c of a clean label's noise n_c) is compared with
-  the per-instance displacement error ‖d̂ − d̃‖₂ in metres (:func:`instance_error`), i.e. the
-  paper's loss taken as a length: 0.24 m is about DS_L1's median label noise (21.6 cm) plus the
-  model's own error. For Rayleigh label noise of median m = 21.6 / 27.6 / 33.5 cm (DS_L1–L3) and a
-  perfect model the share below 0.24 m is 1 − 2^−(0.24/m)² = 0.58 / 0.41 / 0.30, the range of the
-  paper's Fig. 5 (R_δ 0.68 / 0.64 / 0.57 at the end). Compared with the per-instance MSE in m²
-  instead (mean of two squared components), every error under √(2·0.24) = 0.69 m counts as clean
-  and R_δ saturates near 0.9. The small-loss *ranking* is the same either way (monotonic).
+* γ = 1 (eq. 13) is γ = 0.01 in metres (the paper's lengths are cm).
+* δ = 0.24 (eq. 14) is compared with the per-instance displacement error ‖d̂ − d̃‖₂ in metres
+  (:func:`instance_error`), not with the MSE in m². Why, with the numbers: Decision: docs/decisions/0009-easytrack-training-loop-and-units.md.
+
+Decision: docs/decisions/0037-easytrack-polar-loss.md.
 """
 
 from __future__ import annotations

@@ -8,6 +8,9 @@ stopping decided on the validation velocity MSE, the one figure every model shar
 Reproducibility: every random draw of an epoch (shuffling, augmentation, dropout) is seeded
 from ``(seed, epoch)``, so a run killed mid-epoch and resumed from ``last.ckpt`` replays that
 epoch exactly and ends with the same weights and metrics as an uninterrupted run.
+
+Decisions: docs/decisions/0013-training-recipe-and-one-module.md,
+docs/decisions/0025-velocity-losses-polar.md.
 """
 
 from __future__ import annotations
