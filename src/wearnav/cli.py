@@ -394,19 +394,24 @@ def results_(
         "(none with --keep: the page's sections rebuilt as they are).",
     ),
     out: Path = typer.Option(Path("docs/results.md"), "--out", help="The page to write."),
-    keep: bool = typer.Option(False, "--keep", help="Keep the page's other suites' sections (update suite by suite)."),
+    keep: bool = typer.Option(
+        False, "--keep", help="Keep the page's other sections (a suite replaces the one answering its questions)."
+    ),
     drop: list[str] | None = typer.Option(
         None,
         "--drop",
-        help="With --keep: remove this suite's kept sections "
-        "(a suite folder name, or an unmarked section's heading; repeatable).",
+        help="With --keep: remove this suite's kept section, SUITE or SUITE=WHY (a line in history.md; "
+        "a suite folder name, or an unmarked section's heading; repeatable).",
     ),
 ):
-    """Stitch the suites' generated pages into one results page (figures copied to its img/).
+    """Stitch the suites' generated pages into one results page, one section per question
+    (wearnav.bench.results.QUESTIONS; figures copied to its img/). A suite folder that answers no
+    registered question, or two sections for one question, is refused; a replaced section gets a
+    line in docs/history.md, and README.md's first-screen table is rewritten from the page.
 
     \b
     Example:
-      wearnav results runs/odometry runs/efficiency --out docs/results.md
+      wearnav results --keep runs/odometry runs/efficiency --out docs/results.md
     """
     from wearnav.bench.results import collect
 
