@@ -65,7 +65,7 @@ def test_bench_suite_resumes_and_results_page(tiny, tmp_path, monkeypatch, capsy
         "--data",
         tiny,
         "--out",
-        tmp_path / "suite",
+        tmp_path / "odometry",
         "--models",
         "test-mlp",
         "--epochs",
@@ -76,28 +76,36 @@ def test_bench_suite_resumes_and_results_page(tiny, tmp_path, monkeypatch, capsy
     code, out, err = run(monkeypatch, capsys, *args)
     assert code == 0, err
     assert out.count(": done in ") == 2 and "skipped" not in out  # one run per seed
-    assert len(list((tmp_path / "suite").glob("test-mlp-*/metrics.json"))) == 2
+    assert len(list((tmp_path / "odometry").glob("test-mlp-*/metrics.json"))) == 2
     code, out, err = run(monkeypatch, capsys, *args)
     assert code == 0 and out.count("complete, skipped") == 2
-    page = (tmp_path / "suite" / "results.md").read_text()
+    page = (tmp_path / "odometry" / "results.md").read_text()
     assert "## Table III: split `cross_subject`" in page and "| test-mlp |" in page and "Table VI" in page
-    metrics = json.loads(next((tmp_path / "suite").glob("test-mlp-*/metrics.json")).read_text())
+    metrics = json.loads(next((tmp_path / "odometry").glob("test-mlp-*/metrics.json")).read_text())
     assert set(metrics["splits"]["test"]["by_placement"]) == {"HD", "MP"}  # Table IV's placements
     assert set(metrics["splits"]["test_unseen"]["by_placement"]) == {"PK", "BG"}
     # issue 16 §1: scored in the honest frame, and once more in the old frame as a diagnostic
-    run_dir = next((tmp_path / "suite").glob("test-mlp-*/metrics.json")).parent
+    run_dir = next((tmp_path / "odometry").glob("test-mlp-*/metrics.json")).parent
     assert metrics["test_frame"] == "initial"
     assert json.loads((run_dir / "diagnostic-truth-frame" / "metrics.json").read_text())["test_frame"] == "truth"
     assert "## What the honest test frame costs" in page
     # a third seed asked for but not run: the page says so
     code, out, err = run(monkeypatch, capsys, *args[:-1], "0,1,2", "--report-only")
     assert code == 0, err
-    assert "| 2 of 3 " in (tmp_path / "suite" / "results.md").read_text()
-    assert not list((tmp_path / "suite").glob("test-mlp-*/training.json"))[2:]  # nothing trained
-    code, out, err = run(monkeypatch, capsys, "results", tmp_path / "suite", "--out", tmp_path / "docs" / "results.md")
+    assert "| 2 of 3 " in (tmp_path / "odometry" / "results.md").read_text()
+    assert not list((tmp_path / "odometry").glob("test-mlp-*/training.json"))[2:]  # nothing trained
+    # the folder answers a registered question (bench.results.QUESTIONS: the simulator's tables)
+    code, out, err = run(
+        monkeypatch, capsys, "results", tmp_path / "odometry", "--out", tmp_path / "docs" / "results.md"
+    )
     assert code == 0, err
     doc = (tmp_path / "docs" / "results.md").read_text()
-    assert "## Odometry comparison" in doc and "Table III: split `test`" in doc and "| 2 of 3 " in doc
+    assert (
+        "how does Suite-IN++ compare with its baselines" in doc
+        and "Odometry comparison" in doc
+        and "Table III: split `test`" in doc
+        and "| 2 of 3 " in doc
+    )
 
 
 def test_one_line_errors(tiny, tmp_path, monkeypatch, capsys):
