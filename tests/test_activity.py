@@ -5,6 +5,7 @@ and `classify` labelling unsure windows unknown."""
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -193,10 +194,18 @@ def test_tiny_leave_one_dataset_out_suite(tiny_sources, tmp_path):
     assert "stairs_up" in rec["rare_classes"] and rec["class_sources"]["walking"] == 2
     page = (out / "results.md").read_text()
     assert "| held-out source" in page and "unknown` threshold" in page
+    # standing and sitting (UCI HAPT has both): the rule calibrated on the held-out windows, scored per
+    # source on rules calibrated without it, and written into the final model (issue 56 §3)
+    still = phone["still"]
+    assert [r["held-out source"] for r in still["rows"]] == list(tiny_sources) and "Standing and sitting" in page
+    if still["calibration"] is not None:
+        assert set(still["calibration"]["rule"]) <= {"threshold", "standing_share", "gyro_rad_s"}
     check_suite_folder(out, "bench har-lodo")  # its own page: the suite resumes (e.g. to add --final)
     # the final model carries the threshold classify reads
     model, cfg, classes = load_model(phone["final"])
     assert model.unknown_threshold == phone["unknown"]["threshold"] and cfg.model == "har-gravity"
+    rule = still["calibration"] and still["calibration"]["rule"]
+    assert (model.still_rule and model.still_rule.record()) == rule
     assert model.context_windows == act.CONTEXT_WINDOWS == 5  # and the context it was scored with
     # resumable: a second invocation trains nothing
     said = []
@@ -343,3 +352,114 @@ def test_shipped_activity_model_calls_a_simulated_sensor_logger_walk_walking(tmp
     res = label_recordings(recs, pretrained.SHIPPED[pretrained.ACTIVITY].path, tmp_path / "out")
     df = pd.read_csv(res["files"][0])
     assert df.loc[df["label"] == "walking", "windows"].sum() >= 0.9 * df["windows"].sum()
+
+
+def test_still_windows_are_decided_between_standing_and_sitting_as_a_group():
+    """Issue 56 §3: a still window the model splits between standing and sitting (neither over the one
+    threshold) is still, and the calibrated share decides which; a window unsure of being still at
+    all stays unknown, and a window of any other top class is decided as by the one threshold."""
+    from wearnav.train.classify import StillRule, context_mean, decide
+
+    classes = ["walking", "standing", "sitting", "other"]
+    rule = StillRule.from_record({"threshold": 0.8, "standing_share": 0.45}, classes)
+    prob = np.array(
+        [
+            [0.05, 0.50, 0.45, 0.00],  # a pause: standing (share 0.53)
+            [0.03, 0.42, 0.54, 0.01],  # standing's share 0.44, under 0.45: sitting
+            [0.02, 0.05, 0.90, 0.03],  # sitting, sure of it
+            [0.30, 0.36, 0.30, 0.04],  # still or walking? 0.66 on still: unknown
+            [0.40, 0.15, 0.10, 0.35],  # top walking 0.40 under the one threshold: unknown
+            [0.90, 0.05, 0.04, 0.01],  # walking
+            [0.01, 0.02, 0.02, 0.95],  # other
+        ]
+    )
+    cls, conf = decide(prob, 0.664, rule)
+    assert cls.tolist() == [1, 2, 2, -1, -1, 0, 3]
+    np.testing.assert_allclose(conf, [0.95, 0.96, 0.95, 0.66, 0.40, 0.90, 0.95])
+    plain, _ = decide(prob, 0.664)  # one threshold for every class, as before: the pause is unknown
+    assert plain.tolist() == [-1, -1, 2, -1, -1, 0, 3]
+    assert rule.record() == {"threshold": 0.8, "standing_share": 0.45}
+    # with a gyroscope the posture is how much the phone turns: a swaying body stands, a seated one rests
+    moving = StillRule.from_record({"threshold": 0.8, "standing_share": 0.45, "gyro_rad_s": 0.03}, classes)
+    gyro = np.array([0.01, 0.05, 0.0, 0.05, 0.05, 0.01, 0.01])  # 0: no gyroscope, the share decides
+    cls, _ = decide(prob, 0.664, moving, gyro)
+    assert cls.tolist() == [2, 1, 2, -1, -1, 0, 3]
+    assert decide(prob, 0.664, moving)[0].tolist() == [1, 2, 2, -1, -1, 0, 3]  # no rates given: the share
+    assert moving.record()["gyro_rad_s"] == 0.03
+    # the rate is averaged over the windows the probabilities are decided over
+    np.testing.assert_allclose(context_mean(np.array([1.0, 2, 3, 4, 5]), 3), [1.5, 2, 3, 4, 4.5])
+    with pytest.raises(FormatError, match="standing and sitting"):
+        StillRule.from_record({"threshold": 0.8, "standing_share": 0.45}, ["walking", "sitting"])
+    with pytest.raises(FormatError, match="threshold and standing_share"):
+        StillRule.from_record({"threshold": 1.5, "standing_share": 0.45}, classes)
+
+
+def test_still_rule_calibration_splits_postures_by_their_mean_recall():
+    """har_lodo.calibrate_still: the group threshold keeps ≥ 95 % of the held-out windows that are
+    still and called still; the standing share maximises the mean of the two postures' recall, so a
+    posture with few windows counts as much as one with many."""
+    from wearnav.bench import har_lodo
+
+    rng = np.random.default_rng(3)
+    st, si, wk = (al.LABELS.index(c) for c in (al.STANDING, al.SITTING, al.WALKING))
+    n_st, n_si = 200, 2000  # sitting outnumbers standing ten to one
+    share = np.concatenate([rng.normal(0.55, 0.05, n_st), rng.normal(0.40, 0.05, n_si)])
+    q = rng.uniform(0.7, 1.0, n_st + n_si)
+    prob = np.zeros((n_st + n_si, len(al.LABELS)))
+    prob[:, st], prob[:, si], prob[:, wk] = q * share, q * (1 - share), 1 - q
+    true = np.array([st] * n_st + [si] * n_si)
+    source = np.where(np.arange(len(true)) % 2 == 0, "a", "b")  # two sources, each with both postures
+    part = {"labels": prob, "true": true, "source": source}
+    cal = har_lodo.calibrate_still([part])
+    rule = cal["rule"]
+    # equal spreads: equal recalls midway (0.475); the accuracy of all windows would favour sitting
+    assert abs(rule["standing_share"] - 0.475) < 0.02
+    kept = q >= rule["threshold"]
+    assert kept.mean() >= 0.95 and (q >= rule["threshold"] + 1e-4).mean() < 0.95  # the largest, to its 4 decimals
+    # without standing windows, or with one source's postures only, the rule is not calibrated
+    assert har_lodo.calibrate_still([{**part, "true": np.full(len(true), si)}]) is None
+    assert har_lodo.calibrate_still([{**part, "source": np.full(len(true), "a")}]) is None
+    # with each window's angular rate, the posture is split on it too
+    gyro = np.where(true == st, 0.06, 0.01) * rng.uniform(0.5, 1.5, len(true))
+    moving = har_lodo.calibrate_still([{**part, "gyro": gyro}])["rule"]
+    assert 0.01 < moving["gyro_rad_s"] <= 0.03 and moving["threshold"] == rule["threshold"]
+
+
+def _walk_with_pause(pause_s: float = 40.0):
+    """A simulated hand-held walk, then the phone held still in the same hand for ``pause_s``, then
+    walking again: the stranger's Android walk of issue 56 §3 in miniature. The still part is the
+    walk's own last second of gravity in the phone's frame plus sensor noise."""
+    from wearnav.recording import DeviceStream, Recording
+    from wearnav.simulate import WalkConfig, simulate_recording
+
+    walk = simulate_recording(WalkConfig(mode="STW", placement="HD", duration_s=25, devices=("phone",)), seed=7)
+    ph = walk.devices["phone"]
+    rate = 1.0 / float(np.median(np.diff(ph.t)))
+    n = int(pause_s * rate)
+    rng = np.random.default_rng(0)
+    g = ph.acc[-int(rate) :].mean(axis=0)
+    still_acc = g + 0.03 * rng.standard_normal((n, 3))
+    still_gyro = 0.005 * rng.standard_normal((n, 3))
+    dur = ph.t[-1] - ph.t[0] + 1 / rate
+    t = np.concatenate([ph.t, ph.t[-1] + (1 + np.arange(n)) / rate, ph.t + dur + pause_s])
+    acc = np.concatenate([ph.acc, still_acc, ph.acc])
+    gyro = np.concatenate([ph.gyro, still_gyro, ph.gyro])
+    pause = (float(ph.t[-1]), float(ph.t[-1] + pause_s))
+    return Recording(name="pause", devices={"phone": DeviceStream(t=t, acc=acc, gyro=gyro)}), pause
+
+
+@pytest.mark.skipif(not _shipped_is_multi_source(), reason="the shipped activity model is not the multi-source one")
+def test_shipped_model_does_not_call_a_pause_with_the_phone_in_hand_unknown(tmp_path):
+    """Issue 56 §3: classify on a walk with a 40 s pause, the phone still in the hand: the pause's
+    windows are standing or sitting, not unknown, and the walk stays walking."""
+    rec, (a, b) = _walk_with_pause()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the walk is short; its warnings are not what is tested here
+        res = label_recordings([rec], pretrained.SHIPPED[pretrained.ACTIVITY].path, tmp_path / "out")
+    df = pd.read_csv(res["files"][0])
+
+    def labels_over(t0: float, t1: float) -> set[str]:
+        return set(df.loc[(df["end_s"] > t0) & (df["start_s"] < t1), "label"])
+
+    assert labels_over(a + 8, b - 8) <= {al.STANDING, al.SITTING}, df.to_string()  # the context's edges left out
+    assert labels_over(5, a - 5) == {al.WALKING}, df.to_string()

@@ -457,6 +457,12 @@ def bench_har_lodo(
     install: bool = typer.Option(
         False, "--install", help="With --final: write the cards and install the models into the package."
     ),
+    install_decision: bool = typer.Option(
+        False,
+        "--install-decision",
+        help="Write this suite's unknown threshold and standing/sitting rule into the installed models "
+        "(and their cards), keeping their weights; the suite's recipe must be theirs.",
+    ),
     quick: bool = typer.Option(
         False, "--quick", help="A few recordings per source, 1 epoch: checks the pipeline only."
     ),
@@ -502,6 +508,11 @@ def bench_har_lodo(
 
         for device in names:
             install_activity(device, results, echo=typer.echo)
+    elif install_decision:
+        from wearnav.pretrained.recipe import install_activity_decision
+
+        for device in names:
+            install_activity_decision(device, results, echo=typer.echo)
     typer.echo(f"wrote {out / 'results.md'}")
 
 

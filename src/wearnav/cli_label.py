@@ -117,6 +117,8 @@ def classify_(
     thr = getattr(classifier[0], "unknown_threshold", None)
     if thr is not None:
         typer.echo(f"windows whose top probability is under {thr:.2f} are labelled unknown")
+    if (still := getattr(classifier[0], "still_rule", None)) is not None:
+        typer.echo(f"  (standing or sitting: where the two together are under {still.threshold:.2f})")
 
 
 def register(app: typer.Typer) -> None:

@@ -27,11 +27,12 @@ import numpy as np
 from wearnav import activity_labels as al
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
-from wearnav.errors import MissingFileError, check_names
+from wearnav.errors import MissingFileError, ValidationError, check_names
 from wearnav.fileio import write_text_atomic
 from wearnav.provenance import provenance
-from wearnav.train.activity import ActivityRun, read_heldout, train_run, unknown_threshold
-from wearnav.train.activity_data import PHONE_SOURCES, SOURCES, WATCH_SOURCES
+from wearnav.train.activity import ActivityRun, read_heldout, train_run, training_record, unknown_threshold
+from wearnav.train.activity_data import PHONE_SOURCES, SOURCES, WATCH_SOURCES, source_windows
+from wearnav.train.classify import StillRule, context_mean, decide, gyro_rad_s
 
 KEEP_CORRECT = 0.95  # issue 35 §3: the threshold keeps ≥ 95 % of the held-out correct windows
 # The threshold is capped here: above it the held-out models' top probabilities are saturated (a
@@ -120,6 +121,153 @@ def calibrate(folders) -> dict:
     }
 
 
+MIN_STILL_SOURCES = 2  # held-out sources of standing, and of sitting, that a StillRule is calibrated on
+STILL = (al.STANDING, al.SITTING)  # the classes a gravity-aligned still window is split between (issue 56 §3)
+
+
+def heldout_parts(folders, cache: str | Path | None = None) -> list[dict]:
+    """Each leave-one-out run's held-out windows (:func:`read_heldout`) with ``labels``: their
+    probabilities (N, len(LABELS)) in :data:`wearnav.activity_labels.LABELS` order, 0 for a class
+    the run did not train on (each run's class list is its own), and ``gyro``: their mean angular
+    rate over the context (rad/s, :func:`wearnav.train.classify.gyro_rad_s`, :func:`context_mean`),
+    from the held-out source's windows (``cache``: the suite's window cache)."""
+    parts = []
+    for f in folders:
+        p = read_heldout(f)
+        full = np.zeros((len(p["true"]), len(al.LABELS)))
+        full[:, [al.LABELS.index(c) for c in training_record(f)["classes"]]] = p["prob"]
+        run = runs.read_config(f)["activity_run"]
+        w, _ = source_windows(run["held_out"], Path(run["data"][run["held_out"]]), Path(cache) if cache else None)
+        gyro = np.empty(len(w))
+        for idx in w.runs():  # as score_run decides: every window of a recording, then the labelled ones
+            gyro[idx] = context_mean(gyro_rad_s(w.x[idx]), run["context_windows"])
+        gyro = gyro[w.y >= 0]
+        if not np.array_equal(w.y[w.y >= 0], p["true"]):
+            raise ValidationError("the held-out windows are not the source's labelled windows", f)
+        parts.append({**p, "labels": full, "gyro": gyro})
+    return parts
+
+
+def _labels_rule(rule: dict) -> StillRule:
+    """A calibrated rule for probabilities in LABELS order (:func:`heldout_parts`)."""
+    return StillRule(
+        rule["threshold"],
+        rule["standing_share"],
+        rule.get("gyro_rad_s"),
+        al.LABELS.index(al.STANDING),
+        al.LABELS.index(al.SITTING),
+    )
+
+
+def best_split(share: np.ndarray, standing: np.ndarray) -> float:
+    """The standing share (p(standing) / (p(standing) + p(sitting))) from which a still window is
+    called standing that maximises the mean of standing's and sitting's recall over windows whose
+    truth is standing (``standing`` True) or sitting (False): each posture counts the same, however
+    many windows of it the sources have. The smallest such share."""
+    cand = np.unique(share)
+    st, si = np.sort(share[standing]), np.sort(share[~standing])
+    rec_st = 1.0 - np.searchsorted(st, cand, side="left") / st.size  # share ≥ cand: standing
+    rec_si = np.searchsorted(si, cand, side="left") / si.size  # share < cand: sitting
+    return float(cand[int(np.argmax(rec_st + rec_si))])
+
+
+def _floor4(v: float) -> float:
+    return float(np.floor(v * 1e4) / 1e4)
+
+
+def calibrate_still(parts, ceiling: float = MAX_THRESHOLD) -> dict | None:
+    """The :class:`wearnav.train.classify.StillRule` from held-out windows (``parts`` of
+    :func:`heldout_parts`): its threshold the largest standing + sitting probability that keeps ≥
+    :data:`KEEP_CORRECT` of the windows whose top class is standing or sitting and whose truth is
+    one of them (as :func:`calibrate` does for the top probability), at most ``ceiling``, the one
+    threshold (the two's sum is at least the top probability, so a still window the one threshold
+    keeps stays kept; the group's own quantile held out from MotionSense was 0.78, over the one
+    threshold's 0.64, and turned 32 % of its still windows unknown, against 21 % before);
+    its ``gyro_rad_s`` and ``standing_share`` :func:`best_split` over those windows (the angular
+    rate over those with a gyroscope, where parts carry ``gyro``). Each rounded down to 4 decimals.
+    None when fewer than :data:`MIN_STILL_SOURCES` sources have standing, or sitting (a rule fitted
+    to one source's postures would be that source's: the model keeps the one threshold)."""
+    prob = np.concatenate([p["labels"] for p in parts])
+    true = np.concatenate([p["true"] for p in parts])
+    st, si = al.LABELS.index(al.STANDING), al.LABELS.index(al.SITTING)
+    top = prob.argmax(1)
+    group = (top == st) | (top == si)
+    still = (true == st) | (true == si)
+    source = np.concatenate([p["source"] for p in parts])
+    if min(len(np.unique(source[group & (true == c)])) for c in (st, si)) < MIN_STILL_SOURCES:
+        return None
+    q = prob[:, st] + prob[:, si]
+    quantile = unknown_threshold(q[group], still[group], KEEP_CORRECT)
+    m = group & still
+    rule = {
+        "threshold": _floor4(min(quantile, MAX_THRESHOLD, ceiling)),
+        "standing_share": _floor4(best_split(prob[m, st] / np.maximum(q[m], 1e-300), true[m] == st)),
+    }
+    if all("gyro" in p for p in parts):
+        gyro = np.concatenate([p["gyro"] for p in parts])
+        g = m & (gyro > 0)
+        if np.any(g & (true == st)) and np.any(g & (true == si)):
+            rule["gyro_rad_s"] = _floor4(best_split(gyro[g], true[g] == st))
+    return {
+        "rule": rule,
+        "quantile": round(quantile, 4),
+        "capped": quantile > min(MAX_THRESHOLD, ceiling),
+        "held_out_windows": int(group.sum()),
+        "still_windows": int(still.sum()),
+    }
+
+
+def _recall(label: np.ndarray, true: np.ndarray, c: int) -> float | None:
+    return float(np.mean(label[true == c] == c)) if np.any(true == c) else None
+
+
+def still_rows(parts, sources) -> list[dict]:
+    """Per held-out source, its windows decided as ``classify`` decides them
+    (:func:`wearnav.train.classify.decide`, unknown counting as a miss), with the one threshold and
+    with the still rule, each calibrated on the other sources' held-out windows only (so no source
+    is scored by a rule fitted to it): standing, sitting and walking recall, and the share of the
+    standing and sitting windows labelled unknown."""
+    rows = []
+    lab = {c: al.LABELS.index(c) for c in (al.WALKING, *STILL)}
+    for s in sources:
+        own = [p for p in parts if np.all(p["source"] == s)]
+        others = [p for p in parts if not np.all(p["source"] == s)]
+        if not own:
+            continue
+        prob, true = own[0]["labels"], own[0]["true"]
+        thr = min(
+            unknown_threshold(
+                np.concatenate([p["conf"] for p in others]),
+                np.concatenate([p["pred"] == p["true"] for p in others]),
+                KEEP_CORRECT,
+            ),
+            MAX_THRESHOLD,
+        )
+        cal = calibrate_still(others, thr)
+        one, _ = decide(prob, thr)
+        rule, _ = decide(prob, thr, None if cal is None else _labels_rule(cal["rule"]), own[0].get("gyro"))
+        still = (true == lab[al.STANDING]) | (true == lab[al.SITTING])
+        row: dict = {"held-out source": s, "still windows": int(still.sum())}
+        for name, label in (("one threshold", one), ("still rule", rule)):
+            row[f"standing recall, {name}"] = _recall(label, true, lab[al.STANDING])
+            row[f"sitting recall, {name}"] = _recall(label, true, lab[al.SITTING])
+            row[f"still unknown, {name}"] = float(np.mean(label[still] == -1)) if still.any() else None
+            row[f"walking recall, {name}"] = _recall(label, true, lab[al.WALKING])
+        row["rule calibrated on"] = (
+            "—" if cal is None else ", ".join(sorted({str(x) for p in others for x in np.unique(p["source"])}))
+        )
+        row["calibrated: threshold; still threshold, standing share, rad/s"] = (
+            "—"
+            if cal is None
+            else f"{thr:.3f}; "
+            + ", ".join(
+                f"{cal['rule'][k]:.3f}" for k in ("threshold", "standing_share", "gyro_rad_s") if k in cal["rule"]
+            )
+        )
+        rows.append(row)
+    return rows
+
+
 def table(device: str, sources, jobs: dict[str, Job]) -> list[dict]:
     """One row per held-out source: leave-one-dataset-out and in-dataset numbers."""
     ind = runs.read_metrics(jobs[IN_DATASET].folder)["per_source"]
@@ -205,7 +353,14 @@ def run_lodo(
         run_jobs(list(jobs.values()), execution, echo)
         rows = table(device, srcs[device], jobs)
         cal = calibrate([jobs[s].folder for s in srcs[device]])
-        res = {"rows": rows, "unknown": cal, "runs": {k: str(j.folder) for k, j in jobs.items()}}
+        parts = heldout_parts([jobs[s].folder for s in srcs[device]], base.cache)
+        still = calibrate_still(parts, cal["threshold"])
+        res = {
+            "rows": rows,
+            "unknown": cal,
+            "still": {"calibration": still, "rows": still_rows(parts, srcs[device])},
+            "runs": {k: str(j.folder) for k, j in jobs.items()},
+        }
         if final:
             run = replace(
                 base,
@@ -213,6 +368,7 @@ def run_lodo(
                 sources=tuple(srcs[device]),
                 data={s: folders[s] for s in srcs[device]},
                 unknown_threshold=cal["threshold"],
+                still_rule=None if still is None else still["rule"],
             )
             folder = runs.run_dir(out / "final", device, run.record())
             run_jobs([Job(_job, run, folder)], execution, echo)
@@ -222,6 +378,52 @@ def run_lodo(
     runs.write_json(out / "results.json", results)
     write_text_atomic(page(results, quick), out / "results.md")
     return results
+
+
+def still_section(res: dict) -> list[str]:
+    """The page's and the model card's lines on how standing and sitting are decided (issue 56 §3):
+    the calibrated :class:`wearnav.train.classify.StillRule` and, per held-out source, what it and
+    the one threshold make of its windows (:func:`still_rows`)."""
+    still = res.get("still") or {}
+    cal, rows = still.get("calibration"), still.get("rows") or []
+    if cal is None:
+        lines = [
+            f"Standing and sitting: fewer than {MIN_STILL_SOURCES} held-out sources have standing, or sitting, so "
+            "no rule splits the two; the one threshold decides every window."
+        ]
+    else:
+        r = cal["rule"]
+        posture = (
+            f"standing when the phone turns at least **{r['gyro_rad_s']:.3f} rad/s** on average over the "
+            "window's context (a standing body sways, a seated one rests), else sitting; without a gyroscope, "
+            if "gyro_rad_s" in r
+            else ""
+        ) + f"standing when standing's share of the two is ≥ **{r['standing_share']:.3f}**, else sitting"
+        lines = [
+            "Standing and sitting (issue 56 §3): turned to gravity, a still phone shows neither posture; with the "
+            "one threshold a pause with the phone in the hand came out unknown (standing about 0.45, sitting 0.55), "
+            "and on a source it did not train on the model calls nearly every standing window sitting. So a window "
+            "whose top class is standing or sitting is decided between the two as a group "
+            f"(wearnav.train.classify.StillRule): `unknown` when their summed probability is under "
+            f"**{r['threshold']:.3f}** (the largest that keeps ≥ {100 * KEEP_CORRECT:.0f} % of the held-out "
+            f"windows whose top class and truth are both standing or sitting; {cal['held_out_windows']} windows "
+            "had such a top class)"
+            + (f", capped by the one threshold (the quantile was {cal['quantile']:.4f})" if cal.get("capped") else "")
+            + f"; else {posture} (each the value that maximises the mean of standing's and sitting's recall over "
+            f"the {cal['still_windows']} held-out standing and sitting windows). Windows of any other top class "
+            "are decided as before.",
+        ]
+    if rows:
+        lines += [
+            "",
+            "Per held-out source, every window decided as `classify` decides it (`unknown` counts as a miss), "
+            "with the one threshold and with the still rule, both calibrated on the other sources' held-out "
+            "windows only (the last column: what each was calibrated to). "
+            "*Still unknown*: the share of the standing and sitting windows labelled unknown.",
+            "",
+            markdown_table(rows),
+        ]
+    return lines
 
 
 def page(results: dict, quick: bool = False) -> str:
@@ -281,6 +483,8 @@ def page(results: dict, quick: bool = False) -> str:
                 if cal.get("capped")
                 else ""
             ),
+            "",
+            *still_section(res),
             "",
         ]
     return "\n".join(lines)

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from wearnav import activity_labels as al
-from wearnav.bench.har_lodo import WALKING_RECALL_TARGET, markdown_table, misses
+from wearnav.bench.har_lodo import WALKING_RECALL_TARGET, markdown_table, misses, still_section
 from wearnav.pretrained import ACTIVITY, ACTIVITY_WATCH, SHIPPED
 from wearnav.provenance import provenance
 from wearnav.textio import read_json
@@ -125,12 +125,21 @@ def card_text(device: str, results: dict) -> str:
                 else ""
             ),
             "",
+            *still_section(res),
+            "",
             "## Known limits",
             "",
             "- No source has vehicles, cycling or other daily activities; such windows should come out unknown "
             "or as the nearest class, unmeasured.",
             "- Gravity alignment removes how the device is held, so standing and sitting differ only in small "
-            "motions; they are the classes most confused (see the sources' confusion in results.json).",
+            "motions; they are the classes most confused (see the sources' confusion in results.json)."
+            + (
+                " The still rule decides the posture by how much the phone turns: a phone in the hand of someone "
+                "seated can read as standing, and a still pocket while standing as sitting (the sitting and "
+                "standing recall above)."
+                if (res.get("still") or {}).get("calibration")
+                else ""
+            ),
             f"- Stairs come from two sources (MotionSense, UCI HAPT) and running from one (MotionSense), each of "
             f"one placement; held out, their windows took strangers' walking, so their prior is cut "
             f"(× {r['rare_factor']}): the model says stairs or running only on strong evidence and most stairs "

@@ -15,7 +15,7 @@
    model came out 32–36 % short in the building left out. With the MSE it was better over three
    seeds but its seed 0 lost to PDR in ILC2; trained on the hand-held walks alone it beat PDR
    from a known start in both buildings and failed with the phone in a pocket or bag
-   (docs/design.md, "Velocity losses").
+   (docs/decisions/0038-mse-heading-frame-and-sim-hd.md, 0039-mse-whole-preset-not-shipped.md).
 3. **The multi-device model** (issue 34): the same recipe on phone + watch + earbuds (the heading
    frame is the phone's, where there is one: :attr:`Recipe.multi_frame` says why not the earbuds'),
    but with the MSE loss (:attr:`Recipe.multi_vel_loss` says why),
@@ -24,7 +24,7 @@
    the phone alone, the others absent. Its first recipe had been a mix of both buildings and the
    simulator (:mod:`wearnav.pretrained.mix`, the MSE loss, yaw augmentation), measured by
    leave-one-building-out runs on the phone: 6.75 m from a known start in IPIN against PDR's 4.77,
-   its paths 0.64 as long as the truth (docs/design.md).
+   its paths 0.64 as long as the truth (docs/decisions/0019-pretrained-mix-lobo.md).
 4. **The activity models** (phone, watch) come from the leave-one-dataset-out suite
    (:mod:`wearnav.bench.har_lodo`, ``out/har-lodo``): its ``final`` runs, trained on every labelled
    source with the ``unknown`` threshold calibrated there.
@@ -34,6 +34,11 @@
 
 Every learned model trains for the same ``epochs`` (the "fast" recipe's schedule is set by
 them); ``max_minutes`` only caps a run on a slow machine and is stated in the card.
+
+Decisions: docs/decisions/0038-mse-heading-frame-and-sim-hd.md,
+docs/decisions/0039-mse-whole-preset-not-shipped.md, docs/decisions/0040-snapped-pointing.md,
+docs/decisions/0018-shipped-models-phone-on-simulator.md, docs/decisions/0035-multi-device-model.md,
+docs/decisions/0041-earbuds-heading-frame-not-shipped.md, docs/decisions/0042-multi-device-mse.md.
 """
 
 from __future__ import annotations
@@ -59,6 +64,7 @@ from wearnav.pretrained.activity import SHIPPED_FOR_DEVICE, card_text
 from wearnav.simulate import simulate_dataset
 from wearnav.textio import read_json
 from wearnav.train.activity import ActivityRun
+from wearnav.train.classify import STILL_RULE
 from wearnav.train.common import BEST, CHECKPOINTS, LAST
 from wearnav.train.odometry import TRAINING
 
@@ -88,7 +94,7 @@ class Recipe:
     preset: str = "default"  # the simulator's
     # the odometry models train on the preset's walks with the phone in these placements, all of them
     # where empty. The hand-held ones alone (("HD",): `sim-hd`) win in both real buildings, whose phones
-    # are all hand-held, and fail with the phone in a pocket or bag (docs/design.md, "Velocity losses")
+    # are all hand-held, and fail with the phone in a pocket or bag (docs/decisions/0038-mse-heading-frame-and-sim-hd.md)
     placements: tuple[str, ...] = ()
     # the odometry models' (module docstring, steps 2–3): their loss (wearnav.models.base.velocity_loss),
     # their windows in the carrying device's heading frame (PreprocessConfig.heading_frame), and
@@ -98,13 +104,13 @@ class Recipe:
     augment: tuple[str, ...] = ()
     # where their speed comes from in `track` and `live` (SPEED_SOURCES): their direction, turned onto
     # where the phone points wherever within 30° of it, at detected steps as long as the cadence makes
-    # them (docs/design.md, "The phone's pointing where the model agrees"; their held-out numbers are
+    # them (docs/decisions/0040-snapped-pointing.md; their held-out numbers are
     # that path's). Over three seeds it is below PDR from a known start in both buildings, where the
     # cadence steps alone are not in ILC2 (4.02 ± 0.83 m against PDR's 3.75)
     speed: str = "snapped"
     # the multi-device model's: the cadence steps along its own direction. Its recordings have a watch
     # or earbuds, where only the simulator measures it, and there the pointing cost 0.08–0.27 m of ATE
-    # (docs/design.md, "The phone's pointing where the model agrees")
+    # (docs/decisions/0040-snapped-pointing.md)
     multi_speed: str = "cadence"
     # the multi-device model's heading frame: the device first in its layout (the frame is the first
     # present's), and its batch augmentations. "earbuds" with ("drop_devices",) (which turns a window
@@ -112,8 +118,8 @@ class Recipe:
     # fourteenth session: on the simulator it keeps Table III and beats the phone's frame on walks with
     # all three devices, but the offset it learns between the earbuds' axes and the walk is the
     # simulator's mount, and no real earbud recording here says what a real pair's is (a wrong one
-    # turns the whole path); on the real walks, phone only, it lost ILC2 (docs/design.md, "The
-    # heading frame"). So the shipped model keeps the phone's frame
+    # turns the whole path); on the real walks, phone only, it lost ILC2
+    # (docs/decisions/0041-earbuds-heading-frame-not-shipped.md). So the shipped model keeps the phone's frame
     multi_frame: str = "phone"
     multi_augment: tuple[str, ...] = ()
     # the multi-device model's loss (wearnav.models.base.velocity_loss). The MSE, not the phone model's
@@ -121,8 +127,8 @@ class Recipe:
     # short mean costs it nothing there, and the polar loss in the phone's frame costs the simulator's
     # Table III (`small`, 3 seeds, ATE test 4.13 ± 0.58 m against the MSE's 2.54 ± 0.37; the MSE's
     # test_unseen, 2 walks, is 0.80 m above the world frame's, p 0.07). On the simulator's
-    # three-device walks its cadence path is also the better one (fifteenth session, docs/design.md
-    # "The multi-device model's loss")
+    # three-device walks its cadence path is also the better one (fifteenth session,
+    # docs/decisions/0042-multi-device-mse.md)
     multi_vel_loss: str = "mse"
 
     def speed_of(self, model: str) -> str:
@@ -349,7 +355,7 @@ def cross_building_calibration(run: Path, suites: list[Path], speed: str = "mode
         "per_building": {k: c["odometry_walk_m_per_sqrt_s"] for k, c in per.items()},
         "sigma_scale_per_building": scales,
         # measured, not applied: a lag belongs to a building's positioning, not to the user's fixes
-        # (`track --fix-lag` takes one; docs/design.md, "The fixes' lag")
+        # (`track --fix-lag` takes one; docs/decisions/0036-fix-lag.md)
         "fix_lag_s_per_building": {k: c["fix_lag_s"] for k, c in per.items() if c.get("fix_lag_s") is not None},
         "method": "the largest wearnav.fuse.odometry_walk_sigma (and wearnav.fuse.sigma_scale_of, where the "
         "building has fixes) of the recipe trained without a building, on that building's training "
@@ -367,6 +373,32 @@ def install_activity(device: str, results: dict, echo=print) -> Path:
     write_text_atomic(card_text(device, results), final / CARD)
     dest = install_run(final, SHIPPED[SHIPPED_FOR_DEVICE[device]].path, LAST)
     echo(f"installed {dest.name}: {SHIPPED[dest.name].size_bytes() / 1e6:.1f} MB in {dest}")
+    return dest
+
+
+def install_activity_decision(device: str, results: dict, echo=print) -> Path:
+    """How the installed activity model of ``device`` decides its windows, recalibrated without
+    training it again (issue 56 §3): the ``unknown`` threshold and the standing/sitting rule
+    (:class:`wearnav.train.classify.StillRule`) of a leave-one-dataset-out suite's ``results``
+    (:func:`wearnav.bench.har_lodo.run_lodo`, no ``final`` needed) written into its training.json, the
+    one record ``classify`` and the live page read them from, and its card rewritten from those
+    results. The weights stay. Refused when the suite's recipe is not the one the model was trained by
+    (config.yaml's ``activity_run``): its held-out windows would not be this model's."""
+    dest = SHIPPED[SHIPPED_FOR_DEVICE[device]].path
+    res = results["devices"][device]
+    trained = runs.read_config(dest).get("activity_run") or {}
+    differ = sorted(k for k, v in results["recipe"].items() if trained.get(k) != v)
+    if differ:
+        raise ConfigError(f"the suite's recipe differs from the installed {dest.name}'s in {', '.join(differ)}", dest)
+    record = read_json(dest / TRAINING)
+    record["unknown_threshold"] = res["unknown"]["threshold"]
+    still = (res.get("still") or {}).get("calibration")
+    record.pop(STILL_RULE, None)
+    if still is not None:
+        record[STILL_RULE] = still["rule"]
+    runs.write_json(dest / TRAINING, record)
+    write_text_atomic(card_text(device, {**results, "devices": {device: {**res, "final": str(dest)}}}), dest / CARD)
+    echo(f"{dest.name}: unknown threshold {record['unknown_threshold']}, still rule {record.get(STILL_RULE)}")
     return dest
 
 

@@ -81,6 +81,7 @@ from wearnav.train.activity_data import (
     source_windows,
 )
 from wearnav.train.classify import (
+    STILL_RULE,
     TRAINING,
     context_probs,
     load_model,
@@ -139,6 +140,7 @@ class ActivityRun:
     seed: int = 0
     lr: float = 1e-3
     unknown_threshold: float | None = None  # written into training.json for classify (shipped model)
+    still_rule: dict | None = None  # ditto: how standing and sitting are decided (classify.StillRule.record)
     context_windows: int = CONTEXT_WINDOWS  # ditto: classify decides a window's label over this many
     members: int = 1  # networks in the model, each from its own seed (wearnav.models.har.HAREnsemble)
     cache: str | None = None
@@ -164,6 +166,8 @@ class ActivityRun:
         d.pop("cache")
         if self.members == 1:  # left out at its default: runs from before it keep their folders
             d.pop("members")
+        if self.still_rule is None:  # ditto
+            d.pop("still_rule")
         return d
 
 
@@ -258,6 +262,8 @@ def train_run(run: ActivityRun, folder: Path, echo=None) -> dict:
     }
     if run.unknown_threshold is not None:
         record["unknown_threshold"] = run.unknown_threshold
+    if run.still_rule is not None:
+        record[STILL_RULE] = run.still_rule
     runs.write_json(folder / TRAINING, record)
     metrics = score_run(run, folder, record)
     runs.write_metrics(folder, metrics)

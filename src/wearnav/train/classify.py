@@ -313,6 +313,8 @@ def load_model(run: str | Path) -> tuple[torch.nn.Module, ClassifyConfig, list[s
     if thr is not None and not (isinstance(thr, int | float) and 0.0 <= thr <= 1.0):
         raise FormatError(f"'unknown_threshold' must be a probability, got {thr!r}", path)
     model.unknown_threshold = thr  # type: ignore[assignment]  # a plain attribute labelling.window_classes reads (issue 35 §3)
+    still = record.get(STILL_RULE)
+    model.still_rule = None if still is None else StillRule.from_record(still, classes, path)  # type: ignore[assignment]  # ditto (issue 56 §3)
     k = record.get("context_windows", 1)
     if not (isinstance(k, int) and k >= 1 and k % 2 == 1):
         raise FormatError(f"'context_windows' must be an odd count of windows, got {k!r}", path)
@@ -362,6 +364,108 @@ def context_probs(prob: np.ndarray, k: int) -> np.ndarray:
     mean = (c[hi] - c[lo]) / (hi - lo)[:, None]
     e = np.exp(mean - mean.max(axis=1, keepdims=True))
     return e / e.sum(axis=1, keepdims=True)
+
+
+STILL_RULE = "still_rule"  # training.json's record of the model's StillRule (issue 56 §3)
+
+
+@dataclass(frozen=True)
+class StillRule:
+    """How a window whose top class is standing or sitting is decided (issue 56 §3). Turned to
+    gravity, a still phone shows neither posture: the shipped model splits a still phone in the hand
+    about 0.45 / 0.55 between them, and one top-probability threshold for every class (0.66) called
+    a user's pauses ``unknown``; on a source it did not train on it calls nearly every standing
+    window sitting (its standing share of the two, about 0.04, the same for both postures). So the
+    two are decided as a group: the window is still when their summed probability reaches
+    ``threshold`` (else ``unknown``); it is standing when the phone turns at least
+    ``gyro_rad_s`` on average over the window's context (a standing body sways, a seated one rests;
+    :func:`context_mean` of :func:`gyro_rad_s`), else sitting; a window without a gyroscope (all
+    zeros), or a rule without ``gyro_rad_s``, is standing when standing's share of the two reaches
+    ``standing_share``. All are calibrated on the leave-one-dataset-out held-out windows
+    (:func:`wearnav.bench.har_lodo.calibrate_still`); ``standing`` and ``sitting`` are the classes'
+    indices in the model's class list. Decision: docs/decisions/0043-standing-sitting-still-rule.md."""
+
+    threshold: float  # standing + sitting probability under which the window is unknown
+    standing_share: float  # p(standing) / (p(standing) + p(sitting)) from which it is standing
+    gyro_rad_s: float | None = None  # mean angular rate (rad/s) from which a still window is standing
+    standing: int = 0
+    sitting: int = 1
+
+    def record(self) -> dict:
+        """Its training.json form (classes by name: indices differ between runs)."""
+        out = {"threshold": self.threshold, "standing_share": self.standing_share}
+        return out if self.gyro_rad_s is None else {**out, "gyro_rad_s": self.gyro_rad_s}
+
+    @classmethod
+    def from_record(cls, d, classes: list[str], path: Path | None = None) -> StillRule:
+        """The rule of a training.json record for a model of ``classes``; a malformed one ends in
+        a :class:`FormatError` naming ``path``."""
+        keys = {"threshold", "standing_share"}
+        ok = isinstance(d, dict) and keys <= set(d) <= keys | {"gyro_rad_s"}
+        if not ok or not all(isinstance(d[k], int | float) and 0.0 <= d[k] <= 1.0 for k in d):
+            raise FormatError(
+                f"'{STILL_RULE}' must hold threshold and standing_share (probabilities) and gyro_rad_s "
+                f"(0–1 rad/s), got {d!r}",
+                path,
+            )
+        if "standing" not in classes or "sitting" not in classes:
+            raise FormatError(f"'{STILL_RULE}' needs classes standing and sitting, the model has {classes}", path)
+        gyro = d.get("gyro_rad_s")
+        return cls(
+            float(d["threshold"]),
+            float(d["standing_share"]),
+            None if gyro is None else float(gyro),
+            classes.index("standing"),
+            classes.index("sitting"),
+        )
+
+
+def gyro_rad_s(x: np.ndarray) -> np.ndarray:
+    """Each window's mean angular rate (rad/s): the mean norm of the gyroscope channels (3:6) of
+    windows ``x`` (N, L, 6), in any frame (a norm does not depend on how the device is held)."""
+    return np.linalg.norm(np.asarray(x, np.float64)[..., 3:6], axis=-1).mean(axis=-1)
+
+
+def context_mean(v: np.ndarray, k: int) -> np.ndarray:
+    """Each window's value ``v`` (N,) averaged over the windows at most (k − 1) / 2 away in a run of
+    consecutive windows (at the ends, those that exist): the context :func:`context_probs` decides
+    over."""
+    v = np.asarray(v, np.float64)
+    if k <= 1 or len(v) == 0:
+        return v
+    c = np.concatenate([[0.0], np.cumsum(v)])
+    i = np.arange(len(v))
+    lo, hi = np.maximum(i - k // 2, 0), np.minimum(i + k // 2 + 1, len(v))
+    return (c[hi] - c[lo]) / (hi - lo)
+
+
+def decide(
+    prob: np.ndarray,
+    unknown_threshold: float | None = None,
+    still: StillRule | None = None,
+    gyro: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each window's class index (−1: unknown) and confidence from its probabilities ``prob``
+    (N, C), as ``classify``, the live page and the leave-one-dataset-out scores decide it: the top
+    class, unknown where its probability is under ``unknown_threshold`` (issue 35 §3); a window
+    whose top class is standing or sitting is decided by ``still`` instead (:class:`StillRule`, with
+    ``gyro`` (N,) the windows' mean angular rate over their context, rad/s), its confidence then the
+    two classes' summed probability. Windows of any other top class are decided as without ``still``."""
+    prob = np.asarray(prob, np.float64)
+    cls, conf = prob.argmax(1), prob.max(1)
+    sure = np.ones(len(cls), bool) if unknown_threshold is None else conf >= unknown_threshold
+    if still is not None and len(prob):
+        a, b = still.standing, still.sitting
+        group = (cls == a) | (cls == b)
+        q = prob[:, a] + prob[:, b]
+        standing = prob[:, a] / np.maximum(q, 1e-300) >= still.standing_share
+        if still.gyro_rad_s is not None and gyro is not None:
+            g = np.asarray(gyro, np.float64)
+            standing = np.where(g > 0, g >= still.gyro_rad_s, standing)
+        cls = np.where(group, np.where(standing, a, b), cls)
+        conf = np.where(group, q, conf)
+        sure = np.where(group, q >= still.threshold, sure)
+    return np.where(sure, cls, -1), conf
 
 
 def evaluate_run(run: str | Path, training: dict | None = None, progress: bool = False) -> dict:

@@ -19,7 +19,16 @@ from wearnav.export.header import is_exported, read_header
 from wearnav.fileio import write_text_atomic
 from wearnav.preprocess import Aligned, align
 from wearnav.textio import read_json
-from wearnav.train.classify import TRAINING, ClassifyConfig, context_probs, load_model, window_probs
+from wearnav.train.classify import (
+    TRAINING,
+    ClassifyConfig,
+    context_mean,
+    context_probs,
+    decide,
+    gyro_rad_s,
+    load_model,
+    window_probs,
+)
 from wearnav.windows import WindowConfig, WindowDataset
 
 UNKNOWN = "unknown"  # the label of a window the model is unsure of (issue 35 §3)
@@ -31,17 +40,14 @@ def class_name(classes, i: int) -> str:
     return UNKNOWN if int(i) == UNKNOWN_INDEX else classes[int(i)]
 
 
-def unsure_windows(model, seq: Aligned, t: np.ndarray, conf: np.ndarray) -> np.ndarray:
-    """Which windows are labelled :data:`UNKNOWN` (issue 35 §3): the top probability is under the
-    model's calibrated ``unknown_threshold`` (training.json; the shipped activity model's comes from
-    its leave-one-dataset-out runs, :mod:`wearnav.bench.har_lodo`), or, for a model that takes the
-    device's own frame (not turned to gravity, ``gravity_align``), the window's gravity direction
-    lies further than :data:`wearnav.trust.GRAVITY_MATCH_DEG` from every training window's (the
-    trust check of :func:`trust.gravity_outside`, per window). A model without either record: none."""
-    out = np.zeros(len(conf), bool)
-    thr = getattr(model, "unknown_threshold", None)
-    if thr is not None:
-        out |= conf < thr
+def held_unlike_training(model, seq: Aligned, t: np.ndarray) -> np.ndarray:
+    """Which windows are labelled :data:`UNKNOWN` because of how the device is held: for a model
+    that takes the device's own frame (not turned to gravity, ``gravity_align``), the window's
+    gravity direction lies further than :data:`wearnav.trust.GRAVITY_MATCH_DEG` from every
+    training window's (the trust check of :func:`trust.gravity_outside`, per window). A model
+    without that record, or turned to gravity: none. Windows the model is unsure of are
+    :func:`wearnav.train.classify.decide`'s."""
+    out = np.zeros(len(t), bool)
     dirs = getattr(model, "training_gravity", None)
     if dirs and not getattr(model, "gravity_align", False):
         d = int(np.argmax(seq.mask.any(axis=1)))
@@ -57,6 +63,8 @@ def unknown_note(model, k: int, n: int) -> str:
     """The sentence saying that ``k`` of ``n`` windows are :data:`UNKNOWN`, and why."""
     thr = getattr(model, "unknown_threshold", None)
     why = [f"the model's top probability is under {thr:.2f}"] if thr is not None else []
+    if (still := getattr(model, "still_rule", None)) is not None:
+        why.append(f"standing and sitting together are under {still.threshold:.2f}")
     if getattr(model, "training_gravity", None) and not getattr(model, "gravity_align", False):
         why.append("the device is held unlike any training window")
     return (
@@ -208,10 +216,16 @@ def decide_classes(model, w: Windows, prob: np.ndarray) -> tuple[np.ndarray, np.
     ``w``'s windows, each labelled window's times, class and confidence."""
     if w.keep == 0:
         return np.empty((0, 2)), np.empty(0, np.int64), np.empty(0)
-    prob = context_probs(prob, getattr(model, "context_windows", 1))[-w.keep :]
-    cls, conf = prob.argmax(1), prob.max(1)
+    k = getattr(model, "context_windows", 1)
+    prob = context_probs(prob, k)[-w.keep :]
+    still = getattr(model, "still_rule", None)
+    gyro = None
+    if still is not None and still.gyro_rad_s is not None:  # how much the phone turns, for the posture
+        x = w.inputs()["x"].numpy()  # (N, D, L, 6): the first present device's windows
+        gyro = context_mean(gyro_rad_s(x[:, int(np.argmax(w.seq.mask.any(axis=1)))]), k)[-w.keep :]
+    cls, conf = decide(prob, getattr(model, "unknown_threshold", None), still, gyro)
     t = w.wds[w.index[-w.keep :].tolist()]["t"].numpy()
-    cls = np.where(unsure_windows(model, w.seq, t, conf), UNKNOWN_INDEX, cls)
+    cls = np.where(held_unlike_training(model, w.seq, t), UNKNOWN_INDEX, cls)
     return t, cls, conf
 
 
@@ -222,7 +236,8 @@ def window_classes(
     ``track``'s trajectory.html its path): ``rec`` aligned by the run's preprocessing (with eq. 13's
     moving average when ``cfg.denoise``), cut into windows of the run's length at half-window
     strides; returns the aligned input, each window's start and end time (N, 2) s, its class index
-    (:data:`UNKNOWN_INDEX` where :func:`unsure_windows`) and softmax confidence (N,) (N = 0 when
+    (:data:`UNKNOWN_INDEX` where :func:`wearnav.train.classify.decide` or :func:`held_unlike_training`
+    says so) and confidence (N,) (N = 0 when
     shorter than one window), both decided over the model's ``context_windows`` (training.json;
     :func:`context_probs`; 1 where it has none). ``last``: only the last ``last`` windows, each decided
     as the whole would decide it; the model sees only the windows their contexts hold (the live
