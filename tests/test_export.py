@@ -145,10 +145,10 @@ def test_track_runs_the_onnx_export_like_the_run(walk, run_of, exported, tmp_pat
     a = track(folder, run, tmp_path / "a")
     b = track(folder, onnx_file, tmp_path / "b")
     ta, tb = (pd.read_csv(tmp_path / d / "trajectory.csv") for d in "ab")
-    assert len(ta) == len(tb) > 100 and a["length_m"] > 1.0
+    assert len(ta) == len(tb) > 100 and a["odometry"]["length_m"] > 1.0
     diff = np.abs(ta[["x", "y"]].to_numpy() - tb[["x", "y"]].to_numpy())
     print(
-        f"track: path {a['length_m']} m, max |Δxy| {diff.max():.2e} m, share of coordinates differing "
+        f"track: path {a['odometry']['length_m']} m, max |Δxy| {diff.max():.2e} m, share of coordinates differing "
         f"{np.mean(diff > 0):.3f}"
     )
     assert diff.max() <= 1e-4 + 1e-9 and np.mean(diff > 0) < 0.01

@@ -67,9 +67,11 @@ def test_simulated_sensorlogger_export_imports_and_tracks_with_pdr_by_name(tmp_p
     assert json.loads(p.stdout)["devices"] == {"phone": 1, "watch": 1, "earbuds": 1}
     p = wearnav("track", tmp_path / "walk", "--model", "pdr", "--out", tmp_path / "t")
     assert p.returncode == 0, p.stderr
-    assert p.stdout.startswith("model input: pdr on phone, watch, earbuds")
+    assert p.stdout.startswith("model: pdr on the phone;")  # PDR reads one device (issue 58 §7)
     summary = json.loads((tmp_path / "t" / "track.json").read_text())
-    assert summary["model"] == "pdr" and summary["length_m"] > 50 and "heading_offset_deg" in summary["anchoring"]
+    assert (
+        summary["model"] == "pdr" and summary["path"]["length_m"] > 50 and "heading_offset_deg" in summary["anchoring"]
+    )
     assert (tmp_path / "t" / "trajectory.geojson").is_file()  # lat/lon made it there and back
     # the same steps along where the phone points (its heading frame): another path, the same length
     p = wearnav("track", tmp_path / "walk", "--model", "pdr-pointing", "--out", tmp_path / "p")

@@ -363,7 +363,7 @@ def test_track_without_model_lies_on_the_walks_own_fixes(stranger, monkeypatch, 
     )
     assert code == 0, err
     t4 = json.loads((tmp_path / "t4" / "track.json").read_text())
-    assert t4["speed"] == "model" and t4["length_m"] != t3["length_m"]
+    assert t4["speed"] == "model" and t4["path"]["length_m"] != t3["path"]["length_m"]
 
 
 @needs_shipped

@@ -148,8 +148,8 @@ def test_geojson_is_an_rfc7946_feature_collection_in_the_walks_bbox(exports, tmp
     assert p["length_m"] == pytest.approx(drawn_m, abs=0.05)
     # track.json (and the page's header, which reads it) report the path drawn, not the odometry's
     saved = json.loads((tmp_path / "out" / "track.json").read_text())
-    assert saved["length_m"] == summary["length_m"] == pytest.approx(drawn_m, abs=0.05)
-    assert saved["odometry_length_m"] > 0
+    assert saved["path"]["length_m"] == summary["path"]["length_m"] == pytest.approx(drawn_m, abs=0.05)
+    assert saved["odometry"]["length_m"] > 0
     assert f"{drawn_m:.0f} m" in (tmp_path / "out" / "trajectory.html").read_text()
     assert 0 < p["median_sigma_m"] < 50
     start, end = datetime.fromisoformat(p["start_time"]), datetime.fromisoformat(p["end_time"])

@@ -60,7 +60,7 @@ def test_a_normal_walk_has_no_distance_warning(walk, tmp_path):
     fix_m = fixes_length_m(rec, rec.t_start, rec.t_end)
     assert fix_m is not None and fix_m > 60  # the fixes move as the walker does
     summary = track(root / "walk.h5", runs["pdr"], tmp_path / "out")
-    assert summary["odometry_length_m"] > fix_m / DISTANCE_FACTOR
+    assert summary["odometry"]["length_m"] > fix_m / DISTANCE_FACTOR
     assert not [w for w in summary["warnings"] if FIXES_LINE in w or ACTIVITY_LINE in w]
 
 
@@ -71,7 +71,7 @@ def test_an_imu_that_hardly_walks_under_moving_fixes_is_said(walk, tmp_path):
     still_imu(rec).save(tmp_path / "still.h5")
     with pytest.warns(WearnavWarning, match=FIXES_LINE):
         summary = track(tmp_path / "still.h5", runs["pdr"], tmp_path / "out")
-    assert summary["odometry_length_m"] < 10.0
+    assert summary["odometry"]["length_m"] < 10.0
     (line,) = [w for w in summary["warnings"] if FIXES_LINE in w]
     assert line.startswith(f"{rec.name}: ")
 
@@ -82,6 +82,6 @@ def test_an_odometry_shorter_than_the_walking_time_is_said(walk, tmp_path):
     root, rec, runs = walk
     with pytest.warns(WearnavWarning):
         summary = track(root / "walk.h5", runs["short"], tmp_path / "out")
-    assert np.isfinite(summary["odometry_length_m"]) and summary["odometry_length_m"] < 10.0
+    assert np.isfinite(summary["odometry"]["length_m"]) and summary["odometry"]["length_m"] < 10.0
     assert [w for w in summary["warnings"] if FIXES_LINE in w]
     assert [w for w in summary["warnings"] if ACTIVITY_LINE in w]

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import typer
 
+from wearnav import pretrained  # light: the shipped models' names and records (no torch)
 from wearnav.cli_bench import bench_app
 from wearnav.cli_common import (
     KEPT,
@@ -291,8 +292,9 @@ def track(
         "steps × 0.67 m), cadence (its direction, steps as long as the cadence makes them), pointing "
         "(its speed along where the phone points; a heading-frame model), snapped (cadence, its direction "
         "turned onto where the phone points wherever within 30° of it; a heading-frame model). Default: what the model "
-        "records (the shipped phone model: snapped, docs/design.md; a file of `wearnav export`: its run's, "
-        "carried in the file), else model.",
+        "records ("
+        + "".join(f"the shipped {n} model's default: {sp}; " for n, sp in pretrained.shipped_speeds().items())
+        + "a file of `wearnav export`: its run's, carried in the file), else model.",
     ),
     fix_lag: float | None = typer.Option(
         None,
@@ -323,6 +325,7 @@ def track(
     check_input(src)
     if map_plan not in ("auto", "none") and not Path(map_plan).is_file():
         raise ConfigError(f"--map {map_plan}: not auto, none or a GeoJSON plan file")
+    from wearnav.track import model_line
     from wearnav.track import track as track_
 
     summary = track_(
@@ -338,14 +341,10 @@ def track(
         speed=choice_value(speed),
         fix_lag_s=fix_lag,
     )
-    shipped = f" (shipped model {summary['shipped_model']})" if summary.get("shipped_model") else ""
-    typer.echo(
-        f"model input: {summary['model']}{shipped} on {', '.join(summary['model_devices'])}; used "
-        f"{', '.join(summary['devices_used'])} (frame: {summary['frame']}, reference "
-        f"{summary['frame_reference']})"
-    )
+    typer.echo(model_line(summary))  # the model, the devices it read, its speed and frames (said once)
     echo_json(
-        {k: summary[k] for k in ("recording", "duration_s", "length_m", "end_xy_m", "files") if k in summary}
+        {k: summary[k] for k in ("recording", "duration_s", "path", "files") if k in summary}
+        | {"odometry": {k: v for k, v in summary["odometry"].items() if k != "frame"}}  # the frame: the line above
         | {"anchoring": summary.get("anchoring", "no location fixes")}
     )
 

@@ -34,16 +34,13 @@ def models_():
     Example:
       wearnav models
     """
-    from wearnav.models.registry import available, n_parameters
+    from wearnav.models import catalogue  # the registry's table: no torch (issue 58 §7)
 
-    specs = available()
+    specs = catalogue.read()
     w = max(15, *(len(spec.name) for spec in specs))  # the name column as wide as the longest name
     typer.echo(f"{'model':{w}s} {'task':9s} {'layout':7s} {'parameters':>12s}  description")
     for spec in specs:
-        try:
-            n = f"{n_parameters(spec.build(n_devices=3, window=100)):,}"
-        except Exception as exc:  # a model that cannot be built with defaults still gets listed
-            n = f"? ({type(exc).__name__})"
+        n = "?" if spec.parameters is None else f"{spec.parameters:,}"  # None: not built with defaults
         typer.echo(f"{spec.name:{w}s} {spec.task:9s} {spec.layout:7s} {n:>12s}  {spec.description}")
     typer.echo("\nshipped (pretrained; `wearnav track`/`classify` use them without --model, card: MODEL_CARD.md):")
     typer.echo(f"{'name':20s} {'task':9s} {'devices':22s} size and card")
@@ -55,9 +52,10 @@ def models_():
         )
         typer.echo(f"{s.name:20s} {s.task:9s} {','.join(s.devices):22s} {where}")
         typer.echo(f"{'':20s} {s.summary}")
-        speed = pretrained.recorded_speed(s.path) if s.task == "odometry" else "model"
-        if speed != "model":  # what `track` and `live` take from it by default (`--speed` to change)
-            typer.echo(f"{'':20s} speed: {pretrained.SPEED_WORDS[speed]} (`--speed {speed}`)")
+        if s.task == "odometry" and s.installed:  # read from the model's own run (issue 58 §7)
+            typer.echo(f"{'':20s} frame: {pretrained.shipped_frame_words(s)}")
+            speed = pretrained.recorded_speed(s.path)  # what `track` and `live` take by default
+            typer.echo(f"{'':20s} speed: {pretrained.SPEED_WORDS[speed]} (`--speed {speed}`, the default)")
 
 
 def pretrain(

@@ -45,14 +45,14 @@ and write into the output folder:
     known), ``east``, ``north`` (m), ``lat``, ``lon`` (where the recording has a lat/lon origin),
     ``accuracy_m``, ``status``, ``reason``, ``weight`` (as in the GeoJSON).
 ``track.json``
-    What was done: model, run (``shipped_model``: the shipped model's name where no ``--model`` was
-    given or one was named, :mod:`wearnav.pretrained`), runtime (pytorch, or onnxruntime / torchscript
-    for a file of `wearnav export`), devices used and present, frame reference, anchoring fit, and
-    ``warnings`` (one line each; also shown on the console), e.g. a recording imported with an
-    older lat/lon projection (:func:`wearnav.geo.needs_reimport`), or a reason not to trust the
-    path (:func:`wearnav.track_trust.trust_warnings`, :mod:`wearnav.trust`): devices the recording lacks, a rate,
-    placement or gravity direction unlike the model's training data, a model that did not beat
-    standing still, a path implausible for walking.
+    What was done: model, run (``shipped_model``: the shipped model's name where no ``--model`` was given or
+    one was named), runtime (pytorch, or onnxruntime / torchscript for a `wearnav export` file), devices
+    present and used (a one-device model's, e.g. PDR's: the first present per window); ``odometry``, the
+    integrated path in its own frame (``frame`` in words, :func:`wearnav.pretrained.frame_words`; ``frame_align``,
+    ``frame_reference``, ``length_m``, ``end_xy_m``: the CSV's last x, y); ``path``, the path drawn (``frame``:
+    placed on east, north or not; ``length_m``); the anchoring fit; ``warnings`` (one line each, also on the
+    console): an older lat/lon projection (:func:`wearnav.geo.needs_reimport`), a reason not to trust the path
+    (:func:`wearnav.track_trust.trust_warnings`, :mod:`wearnav.trust`).
 
 Anchoring: the common frame has an arbitrary yaw and the path starts at (0, 0); ``anchor``
 (``--anchor``) places it on the recording's location fixes by :mod:`wearnav.fuse`:
@@ -102,13 +102,14 @@ import pandas as pd
 from wearnav import fuse, geo, pretrained
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.evaluate import predict_sequence
+from wearnav.models import registry
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import Recording
 from wearnav.track_files import TRACK_FILES, TRACK_JSON
 from wearnav.track_map import MAP_CHOICES, map_path
 from wearnav.track_trust import trust_warnings
-from wearnav.track_write import write_track
+from wearnav.track_write import UNPLACED, write_track
 from wearnav.train.odometry import SPEED_SOURCES
 from wearnav.train.resolve import locate_model, resolve_model
 from wearnav.trajectory import integrate_velocity
@@ -181,6 +182,36 @@ def odometry(model, cfg, rec: Recording, progress: bool = False):
     return seq, t_c, vel, present, t, integrate_velocity(t_c, vel, t, np.zeros(2))
 
 
+# ---- what was used, said once (issue 58 §7) --------------------------------------------------------
+
+
+def devices_used(cfg, devices: tuple[str, ...], present: np.ndarray) -> list[str]:
+    """The devices the model actually read (of ``devices``, the aligned input's, in the model's
+    order): a one-device model (layout "single", e.g. PDR) the first present one of each window
+    (:func:`wearnav.models.base.first_present`), the others every device present in any window;
+    ``present`` (windows × devices)."""
+    on = present > 0
+    if registry.get(cfg.model).layout == "single":
+        firsts = {int(np.argmax(row)) for row in on if row.any()}
+        return [d for k, d in enumerate(devices) if k in firsts]
+    return [d for k, d in enumerate(devices) if on[:, k].any()]
+
+
+def model_line(summary: dict) -> str:
+    """The line `wearnav track` prints of the model it ran: its name (and shipped name), the devices
+    it read, where its speed came from, and its frames (:func:`wearnav.pretrained.frame_words`), all
+    from ``summary`` (what ``track.json`` holds)."""
+    shipped = f" (shipped model {summary['shipped_model']})" if summary.get("shipped_model") else ""
+    used = summary["devices_used"]
+    on = f"the {used[0]}" if len(used) == 1 else ", ".join(used)
+    unused = [
+        d for d in summary["model_devices"] if d not in used and registry.get(summary["model"]).layout != "single"
+    ]
+    lacking = f" (of {', '.join(summary['model_devices'])}: {', '.join(unused)} absent)" if unused else ""
+    speed = "" if summary["speed"] == "model" else f"; speed: {summary['speed']}"
+    return f"model: {summary['model']}{shipped} on {on}{lacking}{speed}; frame: {summary['odometry']['frame']}"
+
+
 # ---- the command -------------------------------------------------------------------------------
 
 
@@ -249,7 +280,9 @@ def track(
     for k, dev in enumerate(seq.devices):
         table[dev] = (present[nearest, k] > 0).astype(int)
     share = {dev: round(float((present[:, k] > 0).mean()), 3) for k, dev in enumerate(seq.devices)}
+    used = devices_used(cfg, seq.devices, present)
     frame = seq.meta.get("frame", {})
+    odometry_m = round(float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1))), 2)
     summary: dict = {
         "recording": rec.name,
         "source": str(src),
@@ -261,23 +294,27 @@ def track(
         "runtime": getattr(model, "runtime", "pytorch"),  # onnxruntime / torchscript: a `wearnav export` file
         "model_devices": list(cfg.devices),
         "devices_in_recording": list(rec.devices),
-        "devices_used": usable,
+        "devices_used": used,
         "device_share_of_windows": share,
         "rate_hz": cfg.rate,
         "window": cfg.window,
         "stride": cfg.stride,
-        "frame": frame.get("frame", "none"),
-        "frame_reference": frame.get("reference"),
         "duration_s": round(float(t[-1] - t[0]), 2),
-        "length_m": round(float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1))), 2),
-        "end_xy_m": [round(float(v), 3) for v in xy[-1]],
+        # the integrated odometry (trajectory.csv x, y): its own frame, from (0, 0)
+        "odometry": {
+            "frame": pretrained.frame_words(cfg.heading_frame, used, frame.get("reference")),
+            "frame_align": frame.get("frame", "none"),
+            "frame_reference": frame.get("reference"),
+            "length_m": odometry_m,
+            "end_xy_m": [round(float(v), 3) for v in xy[-1]],
+        },
+        # the path drawn (trajectory.csv east, north where placed): track_write.write_track places it
+        "path": {"frame": UNPLACED, "length_m": odometry_m},
         "warnings": [],
     }
     if (stale := geo.needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
         summary["warnings"].append(f"{rec.name}: {stale}")
-    summary["warnings"] += [
-        f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel, summary["length_m"])
-    ]
+    summary["warnings"] += [f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel, odometry_m)]
     placed, summary["map"], map_warnings = map_path(rec, t, xy, plan, start, progress, fix_lag_s or 0.0)
     summary["warnings"] += map_warnings
     for w in summary["warnings"]:
@@ -293,5 +330,7 @@ __all__ = [
     "odometry",
     "odometry_preprocess",
     "path_times",
+    "devices_used",
+    "model_line",
     "ANCHOR_S",
 ]

@@ -38,6 +38,9 @@ ANCHOR_TEXT = {
 TRAJ_FORMAT = "%.4f"
 COORD_DIGITS = 7  # GeoJSON and fixes.csv lat/lon decimals: 1e-7° is 1.1 cm
 INDEX_LIST_MAX = 10  # track.json lists at most this many dropped fixes' indices per reason
+# track.json ``path.frame``: where the path drawn lies (issue 58 §7: beside the odometry's own frame)
+UNPLACED = "not placed: the odometry's own frame from (0, 0) (trajectory.csv x, y)"
+PLACED = "placed: east, north (m) of the recording's local frame (trajectory.csv east, north)"
 
 
 # ---- the GeoJSON and fixes.csv ------------------------------------------------------------------
@@ -206,10 +209,12 @@ def write_track(
         if res.method != "none":
             anchored = res.xy
             table["east"], table["north"] = anchored[:, 0], anchored[:, 1]
-            # the length reported is the length of the path drawn (issue 34): the placed one, which
-            # the smoother may stretch; the odometry's own length is kept beside it
-            summary["odometry_length_m"] = summary["length_m"]
-            summary["length_m"] = round(float(np.sum(np.linalg.norm(np.diff(anchored, axis=0), axis=1))), 2)
+            # the path drawn is the placed one (issue 34), which the smoother may stretch; the
+            # odometry's own length stays under summary["odometry"]
+            summary["path"] = {
+                "frame": PLACED,
+                "length_m": round(float(np.sum(np.linalg.norm(np.diff(anchored, axis=0), axis=1))), 2),
+            }
             if np.isfinite(res.sigma_m).any():
                 table["sigma_m"] = res.sigma_m
             if origin is not None and has_fixes and fix_ll is not None and res.fixes is not None:
@@ -221,7 +226,12 @@ def write_track(
                     fx.t,
                     fx.accuracy,
                     res.fixes,
-                    {"recording": rec.name, "model": cfg.model, "anchor": res.method, "length_m": summary["length_m"]},
+                    {
+                        "recording": rec.name,
+                        "model": cfg.model,
+                        "anchor": res.method,
+                        "length_m": summary["path"]["length_m"],
+                    },
                     sigma_m=res.sigma_m,
                     t0_unix_s=t0_unix,
                 )
@@ -289,9 +299,9 @@ def page_html(
     return trajectory_html(
         state,
         f"{rec.name}: wearnav track",
-        f"{summary['length_m']:.0f} m in {summary['duration_s']:.0f} s; model {cfg.model}",
+        f"{summary['path']['length_m']:.0f} m in {summary['duration_s']:.0f} s; model {cfg.model}",
         note,
-        f"{summary['length_m']:.0f} m, {where}; {len(state['path'])} points (1 per s)",
+        f"{summary['path']['length_m']:.0f} m, {where}; {len(state['path'])} points (1 per s)",
     )
 
 
@@ -353,7 +363,7 @@ def plot_track(
     ax.set_xlabel("east (m)" if anchored is not None else "x (m, common frame)")
     ax.set_ylabel("north (m)" if anchored is not None else "y (m, common frame)")
     ax.set_title(
-        f"{summary['recording']}: {summary['length_m']:.0f} m in {summary['duration_s']:.0f} s; "
+        f"{summary['recording']}: {summary['path']['length_m']:.0f} m in {summary['duration_s']:.0f} s; "
         f"devices used: {', '.join(summary['devices_used'])}",
         fontsize=9,
     )

@@ -48,6 +48,8 @@ class Shipped:
     name: str
     task: str  # "odometry" or "classify" (wearnav.train.common.RUN_KINDS)
     devices: tuple[str, ...]
+    # what it is and what it learned from; its frame, speed and loss are read from its run
+    # (frame_words, recorded_speed), never restated here
     summary: str
 
     @property
@@ -69,14 +71,14 @@ SHIPPED = {
             PHONE,
             "odometry",
             ("phone",),
-            "Suite-IN++ on the phone alone, in the phone's heading frame, trained on the simulator only "
+            "Suite-IN++ on the phone alone, trained on the simulator only "
             "(ILC2 and IPIN 2023 are the buildings it is measured in)",
         ),
         Shipped(
             MULTI,
             "odometry",
             ("phone", "watch", "earbuds"),
-            "Suite-IN++ on phone, watch and earbuds (any of them absent), in the phone's heading frame, trained "
+            "Suite-IN++ on phone, watch and earbuds (any of them absent), trained "
             "on the simulator only (ILC2 and IPIN 2023 are the buildings it is measured in, on the phone alone)",
         ),
         Shipped(
@@ -156,8 +158,7 @@ def track_defaults(model: str | Path) -> dict:
         speed, calibration = got.get("speed", "model"), got.get("fuse_calibration")
     else:
         folder = run_folder(model)
-        record = read_json(folder / HELD_OUT_JSON) if (folder / HELD_OUT_JSON).is_file() else {}
-        speed = record.get("speed", "model") if isinstance(record, dict) else "model"
+        speed = _run_speed(folder)
         f, calibration = folder / CALIBRATION_JSON, None
         if f.is_file():
             try:
@@ -165,17 +166,65 @@ def track_defaults(model: str | Path) -> dict:
             except FormatError:  # config_for says so and uses the smoother's defaults
                 calibration = None
     return {
-        "speed": speed if isinstance(speed, str) and speed in SPEED_WORDS else "model",
+        "speed": _speed_or_model(speed),
         "fuse_calibration": calibration if isinstance(calibration, dict) else None,
     }
 
 
+def _speed_or_model(speed) -> str:
+    return speed if isinstance(speed, str) and speed in SPEED_WORDS else "model"
+
+
+def _run_speed(folder: Path) -> str:
+    """The speed a run folder records (its :data:`HELD_OUT_JSON`'s ``speed``), else "model"."""
+    record = read_json(folder / HELD_OUT_JSON) if (folder / HELD_OUT_JSON).is_file() else {}
+    return _speed_or_model(record.get("speed", "model") if isinstance(record, dict) else "model")
+
+
 def recorded_speed(model: str | Path) -> str:
     """Where the speed of the model at ``model`` (a run folder or one of its checkpoints, or a file of
-    `wearnav export`) comes from by default: :func:`track_defaults`' ``speed``; a name: "model"."""
+    `wearnav export`) comes from by default: :func:`track_defaults`' ``speed`` (for a run folder read
+    without importing the smoother: ``wearnav models`` lists it); a name: "model"."""
     if not Path(model).exists():
         return "model"
-    return track_defaults(model)["speed"]
+    if is_exported(model):
+        return track_defaults(model)["speed"]
+    return _run_speed(run_folder(model))
+
+
+def shipped_speeds() -> dict[str, str]:
+    """Each installed shipped odometry model's default speed source (:func:`recorded_speed`: its
+    :data:`HELD_OUT_JSON`), the one place `track --help`, `wearnav models` and the model cards read
+    it from (issue 58 §7; tests/test_said_once.py holds the README to it)."""
+    return {s.name: recorded_speed(s.path) for s in installed("odometry")}
+
+
+def frame_words(heading_frame: bool, devices, reference: str | None = None) -> str:
+    """The frames an odometry model on ``devices`` (those it uses, in its layout's order) works in, in
+    one phrase: what `wearnav models` says of a shipped model and `track` of the model it ran (issue 58
+    §7: before, one said "the phone's heading frame" and the other "frame: common", each half of it).
+    Every device is turned into the ``reference`` device's world frame (the devices' common frame,
+    :mod:`wearnav.frames`; default the phone where it is among ``devices``, as
+    :func:`wearnav.frames.reference_index` picks it); a ``heading_frame`` model's windows are turned
+    into the first device's heading frame (where it points, :attr:`wearnav.preprocess.PreprocessConfig.heading_frame`)
+    and its velocity turned back, so its path too is in the common frame, whose yaw no one knows until
+    the path is placed (on the fixes, a plan or ``--start``)."""
+    devices = list(devices)
+    if not devices:
+        return "no device"
+    ref = reference or ("phone" if "phone" in devices else devices[0])
+    common = f"the {ref}'s world frame (the devices' common frame; its yaw is fixed where the path is placed)"
+    if not heading_frame:
+        return f"input and path in {common}"
+    return f"windows in the {devices[0]}'s heading frame (where it points), the velocity turned back: path in {common}"
+
+
+def shipped_frame_words(spec: Shipped) -> str:
+    """:func:`frame_words` of the installed shipped odometry model ``spec``, read from its ``config.yaml``."""
+    from wearnav.textio import read_yaml
+
+    train = read_yaml(spec.path / "config.yaml").get("config", {}).get("train", {})
+    return frame_words(bool(train.get("heading_frame")), train.get("devices") or spec.devices)
 
 
 def phone_only_choice(has_fixes: bool = False) -> tuple[Path | str, str]:

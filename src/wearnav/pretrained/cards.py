@@ -20,7 +20,7 @@ from wearnav.dataset import Dataset
 from wearnav.fileio import write_text_atomic
 from wearnav.fuse import fix_lags
 from wearnav.models.registry import get
-from wearnav.pretrained import CARD, MULTI, PHONE, SPEED_WORDS, Shipped, recorded_speed
+from wearnav.pretrained import CARD, MULTI, PHONE, SPEED_WORDS, Shipped, frame_words, recorded_speed
 from wearnav.provenance import provenance
 from wearnav.textio import read_json
 
@@ -142,6 +142,8 @@ def write_card(spec: Shipped, run: Path, recipe, suites: dict[str, Path]) -> Pat
         "",
         spec.summary + ".",
         "",
+        f"Frame: {frame_words(bool(cfg.get('heading_frame')), cfg.get('devices') or spec.devices)}.",
+        "",
         f"Task: {spec.task}. Devices: {', '.join(spec.devices)}. Model: `{cfg['model']}`. Trained by "
         f"`wearnav pretrain` (wearnav {trained.get('wearnav', '?')}, commit {trained.get('commit', '?')}; "
         f"this card written at commit {now['commit']}); recipe: "
@@ -218,54 +220,74 @@ def write_card(spec: Shipped, run: Path, recipe, suites: dict[str, Path]) -> Pat
             f"with that speed above, docs/design.md); `--speed model` takes its own.",
             "",
         ]
-    lines += ["## Known limits", ""] + [f"- {x}" for x in LIMITS[spec.name]] + [""]
+    lines += ["## Known limits", ""] + [f"- {x}" for x in limits(spec.name, recipe)] + [""]
     return write_text_atomic("\n".join(lines), run / CARD)
 
 
-_SNAP_LIMIT = (
-    "Where the model's direction is within 30° of where the phone points, `track` and `live` take the "
-    "phone's pointing (the recipe's speed, above): a phone carried pointing up to 30° off the way of "
-    "walking, steadily, gives a path turned by that much; `--speed cadence` keeps the model's direction."
-)
 _LIMITS_ALL = [
     "Walking only: no running, cycling, vehicles or stairs in the training data.",
     "The output has no absolute heading: `track` places the path on the recording's own location fixes "
     "(or from `--start`, else at (0, 0), and says so).",
 ]
-LIMITS = {  # per shipped odometry model
-    PHONE: _LIMITS_ALL
-    + [
-        "Trained on one simulated walker's phone (in the hand, a pocket, a bag); the table above is where it "
-        "meets real phones. Its own speed comes out short where walkers are faster than that one (ILC2's, "
-        "holding the phone flat); the cadence-long steps `track` takes instead rest on one constant "
-        "measured on the simulator (0.367 m per step/s), so a walker whose steps are unusually long or "
-        "short for their cadence comes out long or short. Where the recording has location fixes, "
-        "`track`'s smoother estimates the scale, and `wearnav adapt` fits it to the user's own walks.",
-        "One seed's run: the recipe's spread over seeds is on docs/results.md's seeds pages (the model's "
-        "direction in ILC2 varied most).",
-        _SNAP_LIMIT,
-    ],
-    MULTI: _LIMITS_ALL
-    + [
-        "Measured on real walks with the phone alone (the table above): no real walk here has a watch or "
-        "earbuds, so what those add on real walks is not measured. From a known start its own direction "
-        "with the cadence steps (`track`'s path for it) was below PDR in IPIN in every seed and level with "
-        "or above it in ILC2 (the phone held flat there: 4.12 / 4.06 / 3.70 m over three seeds against "
-        "PDR's 3.75; docs/design.md); turned onto the phone's pointing where near it (`--speed snapped`, "
-        "the phone model's default), the shipped seed is level with PDR in ILC2 (the table above). `track` "
-        "keeps its own direction for it: on the simulator's walks with all three devices the pointing cost "
-        "0.08–0.27 m of ATE.",
-        "Trained with the MSE loss (the phone model: the polar loss), which keeps the simulator's Table "
-        "III by its pages' test (its `test_unseen`, two walks with the phone in a pocket and a bag, 0.80 m "
-        "above the world frame's); its own speed (`--speed model`) is the mean of what it cannot tell "
-        "apart: on the real walks its paths came out 1.10 as long as the truth in IPIN and 0.78 in ILC2 "
-        "(three seeds), the cadence steps' 0.97 and 0.94, so `track` takes the cadence steps' length.",
-        "Trained on one simulated walker's devices, every walk with all three of them; the heading frame "
-        "is the phone's, and a recording without a phone takes the watch's, which training never showed. "
-        "The cadence-long steps `track` takes rest on the phone's steps (one constant measured on the "
-        "simulator, 0.367 m per step/s).",
-    ],
-}
+_LOSS_WORDS = {"mse": "the MSE loss", "polar": "the polar loss"}  # wearnav.models.base.velocity_loss
+
+
+def _snap_limit(speed: str) -> list[str]:
+    if speed != "snapped":
+        return []
+    return [
+        "Where the model's direction is within 30° of where the phone points, `track` and `live` take the "
+        "phone's pointing (the recipe's speed, above): a phone carried pointing up to 30° off the way of "
+        "walking, steadily, gives a path turned by that much; `--speed cadence` keeps the model's direction."
+    ]
+
+
+def limits(name: str, recipe) -> list[str]:
+    """The known limits on shipped odometry model ``name``'s card. What a limit says of a model's
+    default speed, frame and loss is read from ``recipe`` (:class:`wearnav.pretrained.recipe.Recipe`:
+    ``speed``/``vel_loss`` the phone model's, ``multi_speed``/``multi_vel_loss``/``multi_frame`` the
+    multi-device one's), the record the models were trained and installed by (issue 58 §7)."""
+    phone_speed, multi_speed = recipe.speed_of(PHONE), recipe.speed_of(MULTI)
+    phone_loss = _LOSS_WORDS.get(recipe.vel_loss, f"the {recipe.vel_loss} loss")
+    multi_loss = _LOSS_WORDS.get(recipe.multi_vel_loss, f"the {recipe.multi_vel_loss} loss")
+    if name == PHONE:
+        return (
+            _LIMITS_ALL
+            + [
+                "Trained on one simulated walker's phone (in the hand, a pocket, a bag); the table above is where it "
+                "meets real phones. Its own speed comes out short where walkers are faster than that one (ILC2's, "
+                "holding the phone flat); the cadence-long steps `track` takes instead rest on one constant "
+                "measured on the simulator (0.367 m per step/s), so a walker whose steps are unusually long or "
+                "short for their cadence comes out long or short. Where the recording has location fixes, "
+                "`track`'s smoother estimates the scale, and `wearnav adapt` fits it to the user's own walks.",
+                "One seed's run: the recipe's spread over seeds is on docs/results.md's seeds pages (the model's "
+                "direction in ILC2 varied most).",
+            ]
+            + _snap_limit(phone_speed)
+        )
+    return (
+        _LIMITS_ALL
+        + [
+            "Measured on real walks with the phone alone (the table above): no real walk here has a watch or "
+            "earbuds, so what those add on real walks is not measured. From a known start its own direction "
+            "with the cadence steps was below PDR in IPIN in every seed and level with "
+            "or above it in ILC2 (the phone held flat there: 4.12 / 4.06 / 3.70 m over three seeds against "
+            f"PDR's 3.75; docs/decisions/0040-snapped-pointing.md); turned onto the phone's pointing where near it "
+            f"(`--speed snapped`), the shipped seed is level with PDR in ILC2 (the table above). `track` takes "
+            f"`--speed {multi_speed}` for it (the phone model: `--speed {phone_speed}`): on the simulator's walks "
+            "with all three devices the pointing cost 0.08–0.27 m of ATE.",
+            f"Trained with {multi_loss} (the phone model: {phone_loss}), which keeps the simulator's Table "
+            "III by its pages' test (its `test_unseen`, two walks with the phone in a pocket and a bag, 0.80 m "
+            "above the world frame's); its own speed (`--speed model`) is the mean of what it cannot tell "
+            "apart: on the real walks its paths came out 1.10 as long as the truth in IPIN and 0.78 in ILC2 "
+            "(three seeds), the cadence steps' 0.97 and 0.94, so `track` takes the cadence steps' length.",
+            f"Trained on one simulated walker's devices, every walk with all three of them; the heading frame "
+            f"is the {recipe.multi_frame}'s, and a recording without it takes the next device's, which training "
+            "never showed. The cadence-long steps `track` takes rest on the phone's steps (one constant measured "
+            "on the simulator, 0.367 m per step/s).",
+        ]
+        + _snap_limit(multi_speed)
+    )
 
 
 def write_page(out: Path, shipped: dict[str, Path], suites: dict[str, Path], recipe) -> Path:

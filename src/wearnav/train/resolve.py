@@ -6,7 +6,7 @@ into the model and the config that says how to feed it.
 Two steps, so that a command refuses a bad ``--model`` before it imports torch (issue 38):
 :func:`locate_model` reads the argument without loading anything (what it names: a path, or a
 baseline's name; a typo is refused listing the shipped names and the baselines, with the nearest
-suggested), and :func:`resolve_model` loads what it locates. ``track``, ``classify``, ``adapt``
+suggested; the names come from the registry's table, :mod:`wearnav.models.catalogue`), and :func:`resolve_model` loads what it locates. ``track``, ``classify``, ``adapt``
 and ``export`` all take their ``--model`` (``export``'s RUN) through :func:`locate_model`; a run
 of the wrong kind is refused saying what it is and which command takes it
 (:func:`wearnav.train.common.check_run_kind`).
@@ -20,19 +20,20 @@ from pathlib import Path
 from wearnav import pretrained
 from wearnav.errors import ConfigError, FormatError, MissingFileError
 from wearnav.export.header import format_of, is_exported, onnxruntime
+from wearnav.models import catalogue
 from wearnav.runs import CONFIG
 
 TASKS = ("odometry", "classify")
 CHECKPOINTS_DIR = "checkpoints"  # wearnav.train.common.CHECKPOINTS (that module imports Lightning)
 # difflib.get_close_matches' cutoff (its default): 'phnoe' → 'phone' scores 0.8, 'pdr' → 'phone' 0.25.
 SUGGEST_CUTOFF = 0.6
+SUGGEST_N = 3  # at most this many close names suggested
 
 
 def untrained_baselines(task: str = "odometry") -> list[str]:
-    """Registry models of ``task`` that need no training, usable by name as ``--model``."""
-    from wearnav.models import registry  # imports the model families (torch): only for a name
-
-    return sorted(s.name for s in registry.available(task) if not s.learned)
+    """Registry models of ``task`` that need no training, usable by name as ``--model`` (from the
+    registry's table, :mod:`wearnav.models.catalogue`: no torch)."""
+    return sorted(catalogue.names(task, learned=False))
 
 
 def locate_model(
@@ -93,16 +94,15 @@ def locate_model(
             )
         return name
     known = shipped + (base if baselines else [])
-    near = difflib.get_close_matches(name, known, n=1, cutoff=SUGGEST_CUTOFF)
+    # the names suggested: those accepted, then the registered models of the task (to train first)
+    near = difflib.get_close_matches(name, known, n=SUGGEST_N, cutoff=SUGGEST_CUTOFF)
+    near += difflib.get_close_matches(
+        name, [n for n in catalogue.names(task) if n not in known], n=SUGGEST_N - len(near), cutoff=SUGGEST_CUTOFF
+    )
     what = f"shipped models: {', '.join(shipped) or 'none installed'}"
     if baselines:
         what += f"; untrained baselines usable by name: {', '.join(base) or 'none of this kind'}"
-    from wearnav.models import registry
-
-    try:
-        spec = registry.get(name)
-    except ConfigError:
-        spec = None
+    spec = catalogue.entry(name)  # the registry's table: no torch before the refusal
     if spec is not None:  # a registered model to train first, or of another task
         if task is not None and spec.task != task:
             from wearnav.train.common import RUN_KINDS
@@ -114,7 +114,7 @@ def locate_model(
             f"then --model RUN); {what}",
             name,
         )
-    hint = f"; did you mean {near[0]!r}?" if near else ""
+    hint = f"; did you mean {' or '.join(map(repr, near))}?" if near else ""
     raise ConfigError(
         f"no such run folder or checkpoint (nor an exported .onnx / .pt file), nor a model name ({what}){hint}",
         name,
