@@ -21,7 +21,7 @@ import torch
 from wearnav.dataset import Dataset
 from wearnav.models.pdr import PDR
 from wearnav.preprocess import PreprocessConfig, align
-from wearnav.windows import WindowConfig, WindowDataset
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 
 RATE, WINDOW = 25.0, 100
 

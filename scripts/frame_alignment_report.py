@@ -1,4 +1,4 @@
-"""Frame-alignment error on a simulated dataset: naive Procrustes vs :mod:`wearnav.frames`.
+"""Frame-alignment error on a simulated dataset: naive Procrustes vs :mod:`wearnav.preprocess.frames`.
 
 The error of a yaw estimate is measured against the simulator's reported-orientation yaw ψ_d(t)
 (drawn offset + yaw walk, reconstructed by re-simulating each walk; see
@@ -27,9 +27,8 @@ import numpy as np
 import pandas as pd
 from scipy import signal
 
-from wearnav import frames
 from wearnav.dataset import Dataset
-from wearnav.preprocess import PreprocessConfig, align
+from wearnav.preprocess import PreprocessConfig, align, frames
 from wearnav.simulate import simulate_dataset
 from wearnav.simulate.walk import reported_yaw_offset
 
@@ -131,8 +130,8 @@ def main() -> None:
             ds = simulate_dataset(args.preset, tmp, seed=args.seed, progress=False)
         table = summary(alignment_report(ds))
     if args.out:
-        from wearnav.fileio import write_text_atomic
-        from wearnav.provenance import provenance
+        from wearnav.core.fileio import write_text_atomic
+        from wearnav.core.provenance import provenance
 
         p = provenance()
         src = f"`{args.data}`" if args.data else f"the `{args.preset}` preset, seed {args.seed}"

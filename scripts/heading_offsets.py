@@ -22,8 +22,8 @@ import numpy as np
 
 from wearnav.dataset import Dataset
 from wearnav.preprocess import SPARSE_TRUTH_HZ, SURVEYED_TRUTH_MAX_GAP_S, PreprocessConfig, align
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 from wearnav.pretrained.mix import MIX_FRAME, is_mix
-from wearnav.windows import WindowConfig, WindowDataset
 
 MIN_SPEED = 0.5  # m/s
 

@@ -28,8 +28,8 @@ from wearnav import pretrained
 from wearnav.bench.user_protocol import arc_ratio, score_path
 from wearnav.dataset import Dataset
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, align
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 from wearnav.train.odometry import load_model
-from wearnav.windows import WindowConfig, WindowDataset
 
 SEGMENT_BINS_S = ((0.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, np.inf))
 SCALINGS = {

@@ -20,7 +20,7 @@ import torch
 
 from wearnav import fuse
 from wearnav.bench.user_protocol import user_protocol
-from wearnav.textio import read_json
+from wearnav.core.textio import read_json
 
 
 def main() -> None:

@@ -18,11 +18,11 @@ import pytest
 import torch
 
 from conftest import error_line, run_cli
-from wearnav import cli_models
 from wearnav.adapt import DEFAULT_METHOD, METHODS, AdaptConfig, adapt
 from wearnav.adapt.finetune import FinetuneConfig
 from wearnav.adapt.run import MIN_SEGMENTS, SCALE_MAX_RELATIVE_SE, SCALE_RANGE, check_scale, scale_fit
 from wearnav.adapt.segments import compare, integration_weights, odometry_displacements, walk_segments
+from wearnav.cli import models as cli_models
 from wearnav.dataset import DatasetWriter
 from wearnav.errors import ConfigError, ValidationError, WearnavWarning
 from wearnav.evaluate import predict_sequence

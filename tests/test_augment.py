@@ -5,11 +5,10 @@ import numpy as np
 import pytest
 import torch
 
-from wearnav import augment
 from wearnav.errors import ConfigError
-from wearnav.preprocess import PreprocessConfig, align
+from wearnav.preprocess import PreprocessConfig, align, augment
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 from wearnav.simulate import WalkConfig, simulate_recording
-from wearnav.windows import WindowConfig, WindowDataset
 
 
 def batch(b=16, d=3, L=20, seed=0):

@@ -16,12 +16,12 @@ from wearnav.bench.decompose import along_across
 from wearnav.bench.real import RealBench, run_benchmark
 from wearnav.bench.real_page import frame_name
 from wearnav.bench.real_sites import estimate_site_yaw, prepare_data, split_of
+from wearnav.core.rotations import from_wxyz, to_wxyz
 from wearnav.dataset import Dataset, write_dataset
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.frames import rotate_stacked
 from wearnav.preprocess import PreprocessConfig, align
+from wearnav.preprocess.frames import rotate_stacked
 from wearnav.recording import Trajectory
-from wearnav.rotations import from_wxyz, to_wxyz
 from wearnav.simulate import simulate_dataset
 
 POINT_EVERY_S = 5.0
@@ -93,7 +93,7 @@ def test_preprocess_joins_points_by_straight_lines_and_turns_the_input(building)
 
 def test_site_yaw_follows_a_turn_of_the_input_frame(building, tmp_path):
     """The PDR estimate is equivariant: the same traces with the phone's world frame turned by a
-    further 30° give a yaw 30° larger (the sign convention of wearnav.frames)."""
+    further 30° give a yaw 30° larger (the sign convention of wearnav.preprocess.frames)."""
     ds = Dataset.open(building / "building")
     base = estimate_site_yaw(building / "building", split="")
     recs = [

@@ -93,9 +93,11 @@ def test_help_lists_the_choices(monkeypatch, capsys, command, listed):
 
 def test_cli_choices_are_the_librarys():
     """The CLI spells out some choice lists (so `--help` stays light); they must match the library's."""
-    from wearnav import cli, cli_bench, cli_models
+    from wearnav import cli
     from wearnav.bench.efficiency import CLOCKS
     from wearnav.bench.odometry import GRIDS
+    from wearnav.cli import bench as cli_bench
+    from wearnav.cli import models as cli_models
     from wearnav.export.header import FORMATS as EXPORT_FORMATS
     from wearnav.importers import FORMATS
     from wearnav.importers.sensorlogger import PLATFORMS

@@ -165,10 +165,10 @@ def test_progress_without_a_terminal_is_log_lines_with_an_estimate(tmp_path):
 def test_progress_helper_interval(monkeypatch, caplog):
     import logging
 
-    from wearnav.progress import Progress
+    from wearnav.core.progress import Progress
 
-    monkeypatch.setattr("wearnav.progress.on_terminal", lambda: False)
-    caplog.set_level(logging.INFO, logger="wearnav.progress")
+    monkeypatch.setattr("wearnav.core.progress.on_terminal", lambda: False)
+    caplog.set_level(logging.INFO, logger="wearnav.core.progress")
     list(Progress(range(5), desc="x", unit="rec", interval=0.0))
     assert [r.getMessage().split(",")[0] for r in caplog.records] == [f"x: {i}/5 rec" for i in range(1, 6)]
     caplog.clear()

@@ -102,7 +102,7 @@ def test_ddp_on_two_processes_trains_as_one_process(tiny, tmp_path):
 
 def test_sharded_batches_split_every_batch_between_processes(monkeypatch):
     """What each process of a DDP training draws: its part of every batch of the one-process order."""
-    from wearnav.windows import BatchSampler
+    from wearnav.preprocess.windows import BatchSampler
 
     one = list(BatchSampler(203, 64, seed=5))
     assert [len(b) for b in one] == [64, 64, 64, 11]

@@ -40,10 +40,10 @@ REFERENCE = {
     "importers/ipin2023.py": 58,
     "importers/sensorlogger_build.py": 60,
     "importers/sensorlogger_map.py": 61,
-    "track.py": 91,  # every file, column and GeoJSON property `track` writes
+    "track/run.py": 91,  # every file, column and GeoJSON property `track` writes
     # The paper's equations and the choices where the paper is silent, read top to bottom.
     "models/suitein.py": 84,
-    "frames.py": 49,  # the method, step by step, with its citations
+    "preprocess/frames.py": 49,  # the method, step by step, with its citations
     # Printed on docs/realism.md from its second paragraph: shortening it changes the page.
     "realism/report.py": 46,
 }

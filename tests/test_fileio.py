@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wearnav import fileio
-from wearnav.fileio import atomic_path, host_tag, savez_atomic, stale_temps, write_text_atomic
+from wearnav.core import fileio
+from wearnav.core.fileio import atomic_path, host_tag, savez_atomic, stale_temps, write_text_atomic
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
@@ -93,7 +93,7 @@ def test_savez_atomic_keeps_the_name_and_round_trips(tmp_path):
 FORK_SERVER = """
 import json, os, sys
 sys.path.insert(0, {src!r})
-from wearnav.fileio import write_text_atomic
+from wearnav.core.fileio import write_text_atomic
 target = sys.argv[1]
 for _ in sys.stdin:
     pid = os.fork()

@@ -1,14 +1,13 @@
-"""wearnav.frames: one horizontal frame for all devices, and its alignment to the truth frame."""
+"""wearnav.preprocess.frames: one horizontal frame for all devices, and its alignment to the truth frame."""
 
 import numpy as np
 import pytest
 from scipy import signal
 from scipy.spatial.transform import Rotation
 
-from wearnav import frames
 from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError
-from wearnav.preprocess import PreprocessConfig, align
+from wearnav.preprocess import PreprocessConfig, align, frames
 from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Recording, Trajectory
 
 RATE = 25.0
@@ -180,7 +179,7 @@ def tiny(tiny_dataset):
 def test_alignment_accuracy_on_the_tiny_preset(tiny):
     """Error against the simulator's reported-orientation yaw (drawn offset + yaw walk, recovered
     by re-simulating), RMS over the time a device is worn, per recording. Measured with seed 0 and
-    frames.py's defaults (scripts/frame_alignment_report.py --data <tiny>): relative to the phone,
+    preprocess/frames.py's defaults (scripts/frame_alignment_report.py --data <tiny>): relative to the phone,
     median 1.3° (earbuds) / 1.9° (watch), p90 3.9° / 3.9°, max 4.9° / 7.4°; in the truth frame
     medians 0.7–1.0°, p90 ≤ 3.1°, max 6.7°. The naive Procrustes baseline on the same data:
     relative medians 3.5° / 3.6°, max 13.0° / 11.1°. The thresholds leave ~1.5× room."""

@@ -1,6 +1,6 @@
-"""wearnav.geo: lat/lon ↔ local metres (WGS-84 east-north-up), and the re-import check.
+"""wearnav.core.geo: lat/lon ↔ local metres (WGS-84 east-north-up), and the re-import check.
 
-The reference is written here independently of wearnav.geo (geodetic → ECEF → ENU, the textbook
+The reference is written here independently of wearnav.core.geo (geodetic → ECEF → ENU, the textbook
 formulas) and agrees with ``pymap3d.geodetic2enu``; the points lie 0.1, 1 and 10 km from the
 origin in eight directions, at the equator and at 60° N.
 """
@@ -11,7 +11,7 @@ import numpy as np
 import pymap3d
 import pytest
 
-from wearnav import geo
+from wearnav.core import geo
 
 A_M = 6378137.0  # WGS-84 semi-major axis
 F = 1 / 298.257223563  # WGS-84 flattening

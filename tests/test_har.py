@@ -14,12 +14,11 @@ import pytest
 import torch
 
 from conftest import ROOT, make_stream
-from wearnav import augment
 from wearnav.errors import ConfigError
 from wearnav.models.har import HARNet
-from wearnav.preprocess import Aligned
+from wearnav.preprocess import Aligned, augment
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 from wearnav.train.classify import split_of, split_view
-from wearnav.windows import WindowConfig, WindowDataset
 
 C, S = math.cos(math.pi / 6), math.sin(math.pi / 6)
 

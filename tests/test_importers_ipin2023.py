@@ -12,8 +12,8 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import spearmanr
 
 from conftest import error_line
+from wearnav.core.geo import PROJECTION, latlon_to_local
 from wearnav.errors import FormatError, MissingFileError, ValidationError
-from wearnav.geo import PROJECTION, latlon_to_local
 from wearnav.importers import ipin2023, ipin2023_radio
 
 LOGS = "01 Logfiles/01 IPIN2023_T3_TrainingTrials (training)"

@@ -15,8 +15,8 @@ import pandas as pd
 import pytest
 
 from synthetic import synthetic_recording
+from wearnav.core.geo import PROJECTION
 from wearnav.errors import FormatError, MissingFileError, WearnavError
-from wearnav.geo import PROJECTION
 from wearnav.importers import import_dataset
 from wearnav.importers.sensorlogger import read
 from wearnav.importers.sensorlogger_export import T0_NS, time_origin, write_export, zip_export

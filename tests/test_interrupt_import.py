@@ -2,7 +2,7 @@
 
 A robustness run once saw ``wearnav import ilc2`` stopped by SIGTERM exit 0, printing only
 ``Exception ignored in: <function WeakValueDictionary…>``: the handler's exception was raised
-inside a finalizer h5py triggered, where Python cannot propagate it. :mod:`wearnav.interrupts`
+inside a finalizer h5py triggered, where Python cannot propagate it. :mod:`wearnav.core.interrupts`
 keeps such an exception and raises it again at the writer's next step. The process tests send
 SIGTERM at several points of a real import; the in-process ones make the finalizer case happen
 on purpose (a weakref callback that raises, as the handler does when it lands there).
@@ -22,9 +22,9 @@ from pathlib import Path
 import pytest
 
 from conftest import make_stream
+from wearnav.core.interrupts import note_sigterm, noting_lost_interrupts, raise_lost_interrupt
 from wearnav.dataset import DatasetWriter
 from wearnav.errors import Terminated
-from wearnav.interrupts import note_sigterm, noting_lost_interrupts, raise_lost_interrupt
 from wearnav.recording import Recording
 
 SRC = Path(__file__).resolve().parents[1] / "src"

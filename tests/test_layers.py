@@ -29,14 +29,15 @@ LAYERS: dict[str, int] = {
     # 0 foundations: errors, files, text, clocks, rotations and the pure numeric helpers; they
     # import nothing of wearnav but each other
     "wearnav.errors": 0,
-    "wearnav.fileio": 0,
-    "wearnav.textio": 0,
-    "wearnav.progress": 0,
-    "wearnav.provenance": 0,  # also holds __version__ (the root package re-exports it)
-    "wearnav.interrupts": 0,  # Ctrl-C / SIGTERM that a finalizer swallowed, raised again later
-    "wearnav.rotations": 0,
-    "wearnav.timeseries": 0,
-    "wearnav.geo": 0,
+    "wearnav.core": 0,  # the package of the foundations below
+    "wearnav.core.fileio": 0,
+    "wearnav.core.textio": 0,
+    "wearnav.core.progress": 0,
+    "wearnav.core.provenance": 0,  # also holds __version__ (the root package re-exports it)
+    "wearnav.core.interrupts": 0,  # Ctrl-C / SIGTERM that a finalizer swallowed, raised again later
+    "wearnav.core.rotations": 0,
+    "wearnav.core.timeseries": 0,
+    "wearnav.core.geo": 0,
     "wearnav.stats": 0,
     "wearnav.trust": 0,
     "wearnav.fixcheck": 0,
@@ -49,8 +50,8 @@ LAYERS: dict[str, int] = {
     "wearnav.export.header": 0,
     # 1 the data model: one Recording, a Dataset folder of them, run and output folders
     "wearnav.recording": 1,
-    "wearnav.recording_checks": 1,  # the checks Recording's parts run on construction
-    "wearnav.recording_radio": 1,  # a Recording's beacons, pressure and floor plans (recording re-exports them)
+    "wearnav.recording.checks": 1,  # the checks Recording's parts run on construction
+    "wearnav.recording.radio": 1,  # a Recording's beacons, pressure and floor plans (recording re-exports them)
     "wearnav.dataset": 1,
     "wearnav.outputs": 1,
     "wearnav.plans": 1,  # floor plans' geometry (shapely): importers place plans with it, fuse and track use it
@@ -61,9 +62,9 @@ LAYERS: dict[str, int] = {
     "wearnav.simulate": 2,
     # 3 preprocessing: common frame, alignment, windows, augmentations
     "wearnav.preprocess": 3,
-    "wearnav.frames": 3,
-    "wearnav.windows": 3,
-    "wearnav.augment": 3,
+    "wearnav.preprocess.frames": 3,
+    "wearnav.preprocess.windows": 3,
+    "wearnav.preprocess.augment": 3,
     # figure helpers that take arrays and recordings only (matplotlib); fixlabels, train.classify
     # and evaluate draw their checks with them, so they sit here although their folder is report/
     "wearnav.report.plots": 3,
@@ -90,23 +91,23 @@ LAYERS: dict[str, int] = {
     "wearnav.pretrained.activity": 7,  # the shipped activity models' cards, from bench.har_lodo's results
     # 8 wearnav track: one recording to a path, its page and summary
     "wearnav.track": 8,
-    "wearnav.track_files": 8,  # the names track writes, read by the CLI before torch is imported
-    "wearnav.track_map": 8,  # track's map-aware path (--map, --start): the plans and the particle filter
-    "wearnav.track_trust": 8,  # whether to trust a tracked path (track, and the live tracker above it)
-    "wearnav.track_write": 8,  # what track writes: the placed path, its files and page
+    "wearnav.track.files": 8,  # the names track writes, read by the CLI before torch is imported
+    "wearnav.track.maps": 8,  # track's map-aware path (--map, --start): the plans and the particle filter
+    "wearnav.track.trust": 8,  # whether to trust a tracked path (track, and the live tracker above it)
+    "wearnav.track.write": 8,  # what track writes: the placed path, its files and page
     # 9 wearnav live: the receiver; its tracker runs track's steps as data arrives
     "wearnav.live": 9,
     "wearnav.live.crowd": 9,  # every session's tracker in batched ticks: imports live.tracker
     "wearnav.live.trackers": 9,  # tracker processes beside a receiver: live.crowd, live.store, bench.executor
     # 10 the command line
     "wearnav.cli": 10,
-    "wearnav.cli_bench": 10,
-    "wearnav.cli_bench_fixes": 10,  # bench easytrack, easytrack-base, adapt (registered on cli_bench's app)
-    "wearnav.cli_common": 10,
-    "wearnav.cli_live": 10,
-    "wearnav.cli_models": 10,
-    "wearnav.cli_train": 10,
-    "wearnav.cli_label": 10,
+    "wearnav.cli.bench": 10,
+    "wearnav.cli.bench_fixes": 10,  # bench easytrack, easytrack-base, adapt (registered on cli_bench's app)
+    "wearnav.cli.common": 10,
+    "wearnav.cli.live": 10,
+    "wearnav.cli.models": 10,
+    "wearnav.cli.train": 10,
+    "wearnav.cli.label": 10,
     "wearnav.__main__": 10,
 }
 
@@ -243,7 +244,7 @@ def test_the_scan_sees_every_kind_of_import():
     assert len(MODULES) > 100
     assert "wearnav.dataset" in GRAPH["wearnav.importers"]  # module level
     assert "wearnav.train.resolve" in GRAPH["wearnav.report.trajectory_page"]
-    assert "wearnav.pretrained" in GRAPH["wearnav.track"]  # from wearnav import pretrained
+    assert "wearnav.pretrained" in GRAPH["wearnav.track.run"]  # from wearnav import pretrained
     assert "wearnav.fuse.smoother" in GRAPH["wearnav.fuse"]  # relative or absolute, a sibling
     assert "wearnav.report.odometry" in GRAPH["wearnav.bench.real_page"]  # inside a function
 

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from wearnav import geo
+from wearnav.core import geo
 from wearnav.importers.sensorlogger_export import ORIGIN, T0_NS, simulated_export, time_origin
 from wearnav.live.bench import walker_export
 from wearnav.live.buffer import SessionBuffer
@@ -131,7 +131,7 @@ def truth_on(run: dict, t: np.ndarray) -> np.ndarray:
 
 def test_three_devices_live_against_track_and_truth(export):
     """The shipped phone-watch-earbuds model: the same windows and path times as track, but each
-    window's common frame (wearnav.frames) is estimated from 90 s before it (CONTEXT_S) to 60 s
+    window's common frame (wearnav.preprocess.frames) is estimated from 90 s before it (CONTEXT_S) to 60 s
     after it (FRAME_LAG_S), not from the whole walk, so the live input differs slightly; measured here
     against track and against the truth. Also the update latency and CPU per second of walk (one
     thread, this machine), and the state the page gets: activity, fixes, 1-Hz points."""

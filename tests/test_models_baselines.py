@@ -16,7 +16,7 @@ from wearnav.models import build, get
 from wearnav.models.pdr import PDR
 from wearnav.models.registry import n_parameters
 from wearnav.preprocess import PreprocessConfig
-from wearnav.windows import WindowConfig, WindowDataset
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 
 RATE = 25.0
 G = 9.81

@@ -516,12 +516,12 @@ def test_time_call_is_blocked_autorange_median_and_iqr(monkeypatch):
 
 
 def test_trains_on_window_dataset_batches():
-    """Batches of :class:`wearnav.windows.WindowDataset` (default collate) go straight into
+    """Batches of :class:`wearnav.preprocess.windows.WindowDataset` (default collate) go straight into
     ``loss`` and ``forward``, including windows where the earbuds are out (mask 0)."""
     from torch.utils.data import DataLoader
 
     from synthetic import synthetic_recording
-    from wearnav.windows import WindowConfig, WindowDataset
+    from wearnav.preprocess.windows import WindowConfig, WindowDataset
 
     rec = synthetic_recording(duration=40.0)
     ds = WindowDataset.from_recordings([rec], wcfg=WindowConfig(window=100, stride=20))

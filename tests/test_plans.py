@@ -9,7 +9,7 @@ import pytest
 from shapely.geometry import LineString
 
 from conftest import run_cli
-from wearnav import geo
+from wearnav.core import geo
 from wearnav.errors import FormatError, ValidationError
 from wearnav.fuse.particles import MapConfig, map_filter, start_heading_offset
 from wearnav.plans import Walkable, plan_from_geometry, plan_geometry, read_geojson_plan

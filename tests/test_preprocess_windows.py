@@ -4,9 +4,9 @@ from scipy.spatial.transform import Rotation
 
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.preprocess import PreprocessConfig, align, common_span
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 from wearnav.recording import STANDARD_GRAVITY as GRAVITY
 from wearnav.recording import DeviceStream, Recording, Trajectory
-from wearnav.windows import WindowConfig, WindowDataset
 
 
 def rotating_device(rate, t0=0.0, t1=20.0, worn=None):
@@ -126,7 +126,7 @@ def test_batched_fetch_equals_single_items(small_recording):
     import torch
 
     from wearnav.preprocess import PreprocessConfig
-    from wearnav.windows import WindowConfig, WindowDataset
+    from wearnav.preprocess.windows import WindowConfig, WindowDataset
 
     wds = WindowDataset.from_recordings(
         [small_recording],

@@ -380,8 +380,8 @@ def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch
     odometry random walk the leave-one-building-out models show on their held-out buildings, and
     the largest σ scale of those with fixes."""
     from wearnav import fuse
+    from wearnav.core.textio import read_json
     from wearnav.pretrained import cards, recipe
-    from wearnav.textio import read_json
 
     got = {"lobo-ipin": 0.56, "lobo-ilc2": 0.83}
     scale = {"lobo-ipin": 1.6, "lobo-ilc2": None}  # a building without fixes has no σ scale

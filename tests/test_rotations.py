@@ -1,4 +1,4 @@
-"""wearnav.rotations: the one place for quaternion conventions (w, x, y, z; world←device)."""
+"""wearnav.core.rotations: the one place for quaternion conventions (w, x, y, z; world←device)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from wearnav import rotations as rot
+from wearnav.core import rotations as rot
 
 X, Y, Z = np.eye(3)
 

@@ -138,7 +138,7 @@ def test_track_json_says_which_frame_each_length_is_in(walks, monkeypatch, capsy
     assert odo["length_m"] == pytest.approx(np.linalg.norm(np.diff(xy, axis=0), axis=1).sum(), abs=0.02)
     assert path["length_m"] == pytest.approx(np.linalg.norm(np.diff(en, axis=0), axis=1).sum(), abs=0.02)
     assert "east, north" in path["frame"] and "own frame" in odo["frame"] + " own frame"
-    doc = (SRC / "wearnav" / "track.py").read_text()
+    doc = (SRC / "wearnav" / "track/run.py").read_text()
     for field in ("``odometry``", "``end_xy_m``", "``path``"):
         assert field in doc  # the docstring's field list names them
 

@@ -7,12 +7,12 @@ import pytest
 from scipy import signal
 from scipy.integrate import cumulative_trapezoid
 
+from wearnav.core.rotations import as_matrix as matrix_from_wxyz
 from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError
 from wearnav.fixlabels import LabelConfig, plausible_labels
 from wearnav.metrics import label_noise, label_noise_correlation
 from wearnav.recording import ACC_NORM_MEDIAN_RANGE, Recording
-from wearnav.rotations import as_matrix as matrix_from_wxyz
 from wearnav.simulate import (
     LABEL_NOISE_MEDIAN_M,
     MODES,

@@ -1,13 +1,13 @@
-"""wearnav.timeseries: one clock onto another with an explicit gap rule, rates, duplicate policy."""
+"""wearnav.core.timeseries: one clock onto another with an explicit gap rule, rates, duplicate policy."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from wearnav import rotations
+from wearnav.core import rotations
+from wearnav.core.timeseries import covered, drop_duplicate_times, interp_onto, period, periods, rate, sampling
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.timeseries import covered, drop_duplicate_times, interp_onto, period, periods, rate, sampling
 
 T_SRC = np.array([0.0, 0.1, 0.2, 1.2, 1.3])  # a 1-s hole between 0.2 and 1.2
 

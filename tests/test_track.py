@@ -19,11 +19,11 @@ import pytest
 from conftest import run_cli
 from test_importers_ipin2023 import LOGS, rows_of
 from wearnav import metrics
+from wearnav.core.geo import PROJECTION, latlon_to_local
 from wearnav.dataset import DatasetWriter
 from wearnav.errors import ConfigError, WearnavWarning
 from wearnav.evaluate import evaluate_sequence
 from wearnav.fuse import first_fix_anchor
-from wearnav.geo import PROJECTION, latlon_to_local
 from wearnav.importers import ipin2023
 from wearnav.importers.sensorlogger_export import ORIGIN, time_origin, write_export, zip_export
 from wearnav.preprocess import align

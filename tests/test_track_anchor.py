@@ -15,8 +15,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from wearnav.core.geo import latlon_to_local, local_to_latlon
 from wearnav.dataset import DatasetWriter
-from wearnav.geo import latlon_to_local, local_to_latlon
 from wearnav.importers.sensorlogger_export import ORIGIN, time_origin, write_export
 from wearnav.recording import Fixes
 from wearnav.simulate import WalkConfig, simulate_recording

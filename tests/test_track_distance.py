@@ -9,10 +9,10 @@ import dataclasses
 import numpy as np
 import pytest
 
+from wearnav.core.rotations import from_wxyz
 from wearnav.dataset import DatasetWriter
 from wearnav.errors import WearnavWarning
 from wearnav.recording import Recording
-from wearnav.rotations import from_wxyz
 from wearnav.simulate import WalkConfig, simulate_recording
 from wearnav.track import track
 from wearnav.train.odometry import TrainConfig, fit, prepare_run
@@ -54,7 +54,7 @@ def still_imu(rec: Recording) -> Recording:
 
 
 def test_a_normal_walk_has_no_distance_warning(walk, tmp_path):
-    from wearnav.track_trust import DISTANCE_FACTOR, fixes_length_m
+    from wearnav.track.trust import DISTANCE_FACTOR, fixes_length_m
 
     root, rec, runs = walk
     fix_m = fixes_length_m(rec, rec.t_start, rec.t_end)

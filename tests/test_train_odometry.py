@@ -81,7 +81,7 @@ def test_learning_beats_a_zero_velocity_guess(tiny, tmp_path):
     model, _ = load_model(run)
     from wearnav.dataset import Dataset
     from wearnav.preprocess import load_sequences
-    from wearnav.windows import WindowDataset
+    from wearnav.preprocess.windows import WindowDataset
 
     wds = WindowDataset(load_sequences(Dataset.open(tiny).split("test"), cfg), cfg.window_config())
     b = wds[list(range(len(wds)))]

@@ -127,6 +127,6 @@ def test_unknown_loss_is_refused():
 
 
 def test_the_command_lines_choices_are_the_losses():
-    from wearnav.cli_common import VelLoss
+    from wearnav.cli.common import VelLoss
 
     assert tuple(v.value for v in VelLoss) == VEL_LOSSES

@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-from wearnav.provenance import __version__
+from wearnav.core.provenance import __version__
 
 if TYPE_CHECKING:
     from wearnav.dataset import Dataset, DatasetWriter

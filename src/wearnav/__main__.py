@@ -3,7 +3,7 @@
 import signal
 import threading
 
-from wearnav.interrupts import note_sigterm
+from wearnav.core.interrupts import note_sigterm
 
 
 def main() -> None:

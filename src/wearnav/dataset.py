@@ -31,13 +31,13 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from wearnav.core.fileio import fsync_dir, fsync_file, host_tag, pid_alive, require_regular_file
+from wearnav.core.interrupts import noting_lost_interrupts, raise_lost_interrupt
+from wearnav.core.provenance import provenance
+from wearnav.core.textio import read_yaml
 from wearnav.errors import FormatError, MissingFileError, Terminated, ValidationError, check_names
-from wearnav.fileio import fsync_dir, fsync_file, host_tag, pid_alive, require_regular_file
-from wearnav.interrupts import noting_lost_interrupts, raise_lost_interrupt
-from wearnav.provenance import provenance
 from wearnav.recording import Recording
-from wearnav.recording_checks import check_name, check_text
-from wearnav.textio import read_yaml
+from wearnav.recording.checks import check_name, check_text
 
 MANIFEST = "manifest.csv"
 PROVENANCE = "dataset.yaml"
@@ -164,7 +164,7 @@ class DatasetWriter:
     (:func:`replaceable_reason`); any other existing folder is refused before anything is written.
 
     An exception inside the ``with`` block — and SIGTERM, turned into :class:`Terminated` while
-    the block runs in the main thread (also when a finalizer swallowed it: :mod:`wearnav.interrupts`)
+    the block runs in the main thread (also when a finalizer swallowed it: :mod:`wearnav.core.interrupts`)
     — removes the partial folder, so a failed or stopped import
     or simulation leaves nothing behind. Work folders of writers killed outright (SIGKILL) are
     removed by the next writer of the same ``root`` (:func:`clean_stale_work_dirs`).
@@ -195,7 +195,7 @@ class DatasetWriter:
         self._critical = False
 
     def add(self, rec: Recording, split: str = "") -> None:
-        raise_lost_interrupt()  # a SIGTERM whose exception a finalizer swallowed (wearnav.interrupts)
+        raise_lost_interrupt()  # a SIGTERM whose exception a finalizer swallowed (wearnav.core.interrupts)
         if any(r["name"] == rec.name for r in self.rows):
             raise ValidationError(f"duplicate recording name {rec.name!r}", self.root)
         file = f"{rec.name}.h5"

@@ -23,16 +23,16 @@ import pandas as pd
 import torch
 
 from wearnav import metrics, runs
+from wearnav.core.fileio import atomic_path
+from wearnav.core.progress import progress as report_progress
+from wearnav.core.textio import read_json
 from wearnav.dataset import Dataset, scorable_split
 from wearnav.errors import FormatError, ValidationError
-from wearnav.fileio import atomic_path
 from wearnav.models.registry import n_parameters
 from wearnav.preprocess import Aligned, load_sequences
-from wearnav.progress import progress as report_progress
-from wearnav.textio import read_json
+from wearnav.preprocess.windows import WindowConfig, WindowDataset, turn
 from wearnav.train.odometry import TRAINING, load_model
 from wearnav.trajectory import integrate_velocity
-from wearnav.windows import WindowConfig, WindowDataset, turn
 
 # Truth sampled at least this densely counts as dense (ATE/RTE); sparser truth is scored at its points.
 DENSE_TRUTH_MAX_DT = 1.0
@@ -245,7 +245,7 @@ def evaluate_run(
         "eval_stride": stride or cfg.stride,
         "preprocess": dict(preprocess or {}),
         "speed": speed,
-        # the test recordings' frame (wearnav.frames): "initial" = one constant yaw from the
+        # the test recordings' frame (wearnav.preprocess.frames): "initial" = one constant yaw from the
         # truth's first 10 s; "truth" = the truth's yaw over time (a diagnostic)
         "test_frame": cfg.eval_config().frame_align,
         "training": training if training is not None else old.get("training", {}),

@@ -10,7 +10,7 @@ correction vector per node and a correction telescopes along a trajectory.
 Input. The phone's IMU is rotated into the world frame with its own orientation and resampled
 (:mod:`wearnav.preprocess`, phone only). A phone's orientation is a game rotation vector with an
 arbitrary yaw, while the fixes are east/north, so the IMU frame is then turned onto the *fixes'*
-frame by the same estimator that turns it onto the truth elsewhere (:func:`wearnav.frames.
+frame by the same estimator that turns it onto the truth elsewhere (:func:`wearnav.preprocess.frames.
 align_frames`), fed the fixes instead of the truth: only what the phone itself logged is used,
 as the user of this setting has no truth. Where a recording has dense truth, each segment also
 carries its true displacement between the same two times (for label-noise statistics, eqs. 5–7,
@@ -50,13 +50,13 @@ from typing import Any
 
 import numpy as np
 
+from wearnav.core.fileio import savez_atomic
+from wearnav.core.progress import progress as report_progress
+from wearnav.core.timeseries import interp_onto
 from wearnav.errors import ConfigError, ValidationError, WearnavWarning
-from wearnav.fileio import savez_atomic
 from wearnav.metrics import FIX_MAX_GAP_S
 from wearnav.preprocess import PreprocessConfig, align, interpolate_position
-from wearnav.progress import progress as report_progress
 from wearnav.recording import Recording
-from wearnav.timeseries import interp_onto
 
 # Fixes of one recording that all lie within this distance (m) of each other never moved: a stuck
 # receiver, a placeholder position or a copy of one fix. Their labels would all be 0 m, so the
@@ -259,7 +259,7 @@ def fix_frame_yaw(
     """Yaw δ(t) (rad, per clock sample) that turns a phone's world-frame IMU (T, 6) onto the fixes'
     east/north frame: rotate with ``rotate_stacked(imu, δ)``.
 
-    Why not the truth-frame estimator of :mod:`wearnav.frames` fed the fixes: it compares
+    Why not the truth-frame estimator of :mod:`wearnav.preprocess.frames` fed the fixes: it compares
     accelerations, and the second difference of 1-Hz fixes is dominated by their noise (measured on a
     simulated L2 walk: coherence 0.12, yaw spread 300°). Instead, per ``window_s`` window (stride 1 s)
     the walking direction in the IMU frame comes from the step-frequency acceleration (PDR's
@@ -311,7 +311,7 @@ def aligned_phone(rec: Recording, cfg: LabelConfig):
     own fixes' east/north frame (:func:`fix_frame_yaw`; module docstring, "Input")."""
     seq = align(rec, cfg.preprocess())
     if cfg.align_to_fixes and rec.fixes is not None and len(rec.fixes) >= 3:
-        from wearnav.frames import rotate_stacked
+        from wearnav.preprocess.frames import rotate_stacked
 
         yaw, info = fix_frame_yaw(seq.imu[0], seq.t, seq.rate, rec.fixes.t, rec.fixes.pos[:, :2])
         if info["windows"]:

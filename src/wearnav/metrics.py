@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from wearnav.core.timeseries import interp_onto
 from wearnav.errors import ValidationError
-from wearnav.timeseries import interp_onto
 
 
 def _track(t, pos, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -43,7 +43,7 @@ def errors_at_reference(t_est, pos_est, t_ref, pos_ref, max_gap: float) -> np.nd
 
     The estimate is linearly interpolated at each reference time. A reference point is kept only
     if some estimate sample lies within ``max_gap`` seconds of it (gap rule ``"nearest"`` of
-    :func:`wearnav.timeseries.interp_onto`); reference times just outside the estimate's span
+    :func:`wearnav.core.timeseries.interp_onto`); reference times just outside the estimate's span
     (but within ``max_gap`` of its first / last sample) take that end sample's position, never an
     extrapolation. Returns one error per kept reference point, in
     reference order (possibly empty, never NaN).

@@ -25,8 +25,8 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from wearnav.core.textio import read_json
 from wearnav.errors import ConfigError
-from wearnav.textio import read_json
 
 
 def check_out_folder(out: str | Path, names: Iterable[str], marker: str, command: str) -> None:

@@ -9,7 +9,7 @@ recording's own metric frame. This module turns it into geometry the map-aware p
   answers exact questions (area, distance).
 * :func:`read_geojson_plan`, a user's own plan: an RFC 7946 GeoJSON file (WGS-84 lon/lat) whose
   Polygon / MultiPolygon features are walkable space or obstacles (the ``kind`` property:
-  ``"walkable"`` or ``"obstacle"``), placed in a recording's local frame with :mod:`wearnav.geo`
+  ``"walkable"`` or ``"obstacle"``), placed in a recording's local frame with :mod:`wearnav.core.geo`
   as fixes are. Walkable space = the union of the walkable polygons minus the obstacles. A
   ``floor`` property (integer) splits the file into one plan per floor.
 * :func:`plan_from_lonlat`, the same from polygons already parsed (the ILC2 importer uses it with
@@ -30,10 +30,10 @@ from shapely.geometry import MultiPolygon, Polygon, shape
 from shapely.geometry.base import BaseGeometry
 from shapely.ops import unary_union
 
-from wearnav import geo
+from wearnav.core import geo
+from wearnav.core.textio import read_json
 from wearnav.errors import FormatError
 from wearnav.recording import FloorPlan
-from wearnav.textio import read_json
 
 # Occupancy grid cell (m): a corridor is ≥ 1.2 m wide (building codes' minimum for public
 # corridors), so 0.25 m cells keep at least four cells across it; an ILC2 floor (240 × 176 m) is
@@ -126,7 +126,7 @@ def plan_from_lonlat(
 
 def read_geojson_plan(path: str | Path, origin_lat: float, origin_lon: float) -> list[FloorPlan]:
     """A user's plan file (see the module docstring) as one FloorPlan per floor, in the local ENU
-    frame at (origin_lat, origin_lon) (:func:`wearnav.geo.latlon_to_local`)."""
+    frame at (origin_lat, origin_lon) (:func:`wearnav.core.geo.latlon_to_local`)."""
     path = Path(path)
     doc = read_json(path)
     feats = doc.get("features") if isinstance(doc, dict) and doc.get("type") == "FeatureCollection" else None

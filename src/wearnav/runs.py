@@ -5,7 +5,7 @@ package version and git commit), ``checkpoints/`` (best.ckpt, last.ckpt), ``metr
 ``trajectories/`` and ``plots/``. A run is complete when ``metrics.json`` exists: suites skip
 complete runs, so an interrupted benchmark resumes where it stopped. The results (config,
 metrics, training record) are written durably: on disk before the call returns
-(:func:`wearnav.fileio.atomic_path`).
+(:func:`wearnav.core.fileio.atomic_path`).
 
 One process at a time trains into a run folder: :func:`locked` holds the folder's lock file
 ``.wearnav.lock`` (an OS file lock, released when the process ends however it ends), and a second
@@ -34,10 +34,10 @@ from typing import Any, Protocol, TypeVar
 import yaml
 from filelock import FileLock, Timeout
 
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.provenance import provenance
+from wearnav.core.textio import read_json, read_yaml
 from wearnav.errors import BusyError, FormatError, MissingFileError, WearnavError
-from wearnav.fileio import write_text_atomic
-from wearnav.provenance import provenance
-from wearnav.textio import read_json, read_yaml
 
 CONFIG = "config.yaml"
 METRICS = "metrics.json"

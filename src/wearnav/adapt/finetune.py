@@ -49,9 +49,9 @@ from wearnav.adapt.segments import (
     segment_yaw,
     window_centres,
 )
-from wearnav.augment import rotate_batch
 from wearnav.errors import ConfigError
-from wearnav.windows import WindowConfig, WindowDataset
+from wearnav.preprocess.augment import rotate_batch
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 
 log = logging.getLogger(__name__)
 
@@ -112,7 +112,7 @@ def _prepare(model, seg: WalkSegments, window: int, stride: int, loss: str) -> _
 
 
 def _turned(v: torch.Tensor, psi: torch.Tensor) -> torch.Tensor:
-    """Velocities (N, 2) turned counter-clockwise by ``psi`` (N,) rad (:func:`wearnav.windows.turn`)."""
+    """Velocities (N, 2) turned counter-clockwise by ``psi`` (N,) rad (:func:`wearnav.preprocess.windows.turn`)."""
     c, s = torch.cos(psi).to(v.dtype), torch.sin(psi).to(v.dtype)
     return torch.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]], dim=1)
 

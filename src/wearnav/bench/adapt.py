@@ -36,13 +36,13 @@ from wearnav.adapt import METHODS, AdaptConfig, adapt
 from wearnav.adapt.segments import walk_segments
 from wearnav.bench.real_sites import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
 from wearnav.bench.user_protocol import calibrate, median_ratio, raw_fix_length_ratio, score_path, user_protocol
+from wearnav.core.fileio import shown_path, write_text_atomic
+from wearnav.core.provenance import provenance
+from wearnav.core.textio import read_json
 from wearnav.dataset import Dataset
 from wearnav.evaluate import evaluate_run
-from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.preprocess import interpolate_position
-from wearnav.provenance import provenance
 from wearnav.recording import Recording
-from wearnav.textio import read_json
 from wearnav.train.odometry import ADAPTATION, TrainConfig, fit, load_model, prepare_run
 
 UNADAPTED, PDR, RAW = "un-adapted", "PDR", "raw GNSS"

@@ -38,13 +38,13 @@ from wearnav import metrics, runs
 from wearnav.bench.easytrack_page import PageConfig, write_page
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.bench.real_sites import IPIN_TEST_TRIALS
+from wearnav.core.timeseries import interp_onto
 from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError, ValidationError, check_names
 from wearnav.evaluate import SPARSE_MAX_GAP, predict_sequence
 from wearnav.fixlabels import LabelConfig, Segments, aligned_phone, label_dataset
 from wearnav.models.registry import build
 from wearnav.simulate.presets import plan_phone_only, simulate_plan
-from wearnav.timeseries import interp_onto
 from wearnav.train.noisy import METHODS, NoisyConfig, fit_noisy, load_predictor, write_history
 from wearnav.trajectory import integrate_velocity
 from wearnav.trust import QUICK_NOTE

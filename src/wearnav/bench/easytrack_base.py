@@ -31,18 +31,18 @@ import pandas as pd
 from wearnav import metrics, runs
 from wearnav.bench.easytrack import BenchConfig, EasyJob, run_job, sim_segment_files
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.provenance import provenance
 from wearnav.dataset import Dataset
-from wearnav.fileio import write_text_atomic
 from wearnav.fixlabels import LabelConfig, Segments, label_dataset
 from wearnav.preprocess import PreprocessConfig
-from wearnav.provenance import provenance
 from wearnav.train.noisy import NoisyConfig, load_predictor
 
 PAPER_ADE_CM, PAPER_LABEL_CM = 11.2, 100.0  # paper 004: BaseModel-GT's ADE (Fig. 3), mean phone label (§III-B)
 
 
 class TruthFrameLabels(LabelConfig):
-    """Diagnostic only: the IMU turned onto the truth's frame (:mod:`wearnav.frames`), not the fixes'."""
+    """Diagnostic only: the IMU turned onto the truth's frame (:mod:`wearnav.preprocess.frames`), not the fixes'."""
 
     def preprocess(self) -> PreprocessConfig:
         return PreprocessConfig(rate=self.rate, devices=("phone",), frame="world", frame_align="truth")

@@ -12,12 +12,12 @@ import numpy as np
 import pandas as pd
 
 from wearnav import metrics
-from wearnav.fileio import write_text_atomic
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.provenance import provenance
+from wearnav.core.textio import read_json
 from wearnav.fixlabels import LabelConfig, Segments, noise_summary
-from wearnav.provenance import provenance
 from wearnav.report.plots import plot_ecdf, save
 from wearnav.stats import welch_p
-from wearnav.textio import read_json
 from wearnav.trust import QUICK_NOTE
 
 

@@ -38,10 +38,10 @@ import torch
 from torch.utils import benchmark
 from torch.utils.flop_counter import FlopCounterMode
 
-from wearnav.fileio import write_text_atomic
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.textio import read_json
 from wearnav.models.base import OdometryModel
 from wearnav.models.registry import build, get, n_parameters
-from wearnav.textio import read_json
 
 DEVICES = 3
 WINDOW = 100
@@ -366,7 +366,7 @@ def write_report(rows, out, odometry_suite=None) -> Path:
     import pandas as pd
 
     from wearnav import runs
-    from wearnav.provenance import provenance
+    from wearnav.core.provenance import provenance
 
     out = Path(out)
     df = pd.DataFrame(rows)

@@ -16,14 +16,14 @@ import pandas as pd
 
 from wearnav import fuse, pretrained, runs
 from wearnav.bench.user_protocol import calibration_of, error_stats
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.provenance import provenance
 from wearnav.dataset import Dataset
 from wearnav.errors import ConfigError
 from wearnav.evaluate import predict_sequence
-from wearnav.fileio import write_text_atomic
 from wearnav.fuse.live import IncrementalFuser
 from wearnav.models.registry import build
 from wearnav.preprocess import align
-from wearnav.provenance import provenance
 from wearnav.simulate.config import MODES, WalkConfig
 from wearnav.simulate.walk import simulate_recording
 from wearnav.train.resolve import resolve_model

@@ -25,10 +25,10 @@ import numpy as np
 
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.textio import read_json
 from wearnav.errors import ConfigError, FormatError, MissingFileError, check_names
-from wearnav.fileio import write_text_atomic
 from wearnav.stats import SIGNIFICANCE, bh_adjust, welch_p
-from wearnav.textio import read_json
 from wearnav.trust import QUICK_NOTE
 
 BASELINE = "har-cnn-bilstm"
@@ -223,7 +223,7 @@ def run_job(cfg, run: Path) -> Path:
 def expected_cost(cfg) -> int:
     """A run's training windows relative to the baseline's: an expanded set (rotation, noise)
     trains on 2–4× the windows, so it starts first and the workers finish together."""
-    from wearnav.augment import expansion_copies
+    from wearnav.preprocess.augment import expansion_copies
 
     return 1 + len(expansion_copies(cfg.expand)) if cfg.expand else 1
 
@@ -456,7 +456,7 @@ def write_report(
     their total, since a resumed benchmark trains across several."""
     import pandas as pd
 
-    from wearnav.provenance import provenance
+    from wearnav.core.provenance import provenance
 
     p = provenance()
     lines = [

@@ -27,9 +27,9 @@ import numpy as np
 from wearnav import activity_labels as al
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.provenance import provenance
 from wearnav.errors import MissingFileError, ValidationError, check_names
-from wearnav.fileio import write_text_atomic
-from wearnav.provenance import provenance
 from wearnav.train.activity import ActivityRun, read_heldout, train_run, training_record, unknown_threshold
 from wearnav.train.activity_data import PHONE_SOURCES, SOURCES, WATCH_SOURCES, source_windows
 from wearnav.train.classify import StillRule, context_mean, decide, gyro_rad_s

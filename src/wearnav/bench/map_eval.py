@@ -25,11 +25,11 @@ import numpy as np
 import pandas as pd
 
 from wearnav import metrics, runs
+from wearnav.core.progress import progress as report_progress
 from wearnav.dataset import Dataset
 from wearnav.evaluate import SPARSE_MAX_GAP, summarise
 from wearnav.fuse.particles import MapConfig, map_filter
 from wearnav.plans import Walkable
-from wearnav.progress import progress as report_progress
 from wearnav.recording import FloorPlan
 
 MAP_SUFFIX = "_map"  # the map-aware evaluation of eval_<site>[_pdrspeed] is that folder + this suffix

@@ -19,10 +19,10 @@ import pandas as pd
 
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
+from wearnav.core.fileio import write_text_atomic
 from wearnav.dataset import Dataset, scorable_split
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import evaluate_run
-from wearnav.fileio import write_text_atomic
 from wearnav.models.registry import check_models, get
 from wearnav.train.odometry import (
     TrainConfig,
@@ -262,7 +262,7 @@ def write_suite_report(
 ) -> Path:
     """results.md + results.json + comparison PNGs (error CDF and ATE box per split) in ``out``;
     ``command``: what the page says produced it."""
-    from wearnav.provenance import provenance
+    from wearnav.core.provenance import provenance
     from wearnav.report.odometry import plot_box, plot_cdf
 
     out = Path(out)

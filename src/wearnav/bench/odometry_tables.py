@@ -29,11 +29,11 @@ import torch
 from wearnav import runs
 from wearnav.bench.efficiency import macs_per_window, windows_per_second
 from wearnav.bench.odometry import DIAGNOSTIC_TRUTH_FRAME, MODES, TEST_SPLITS, beats_text, row_label
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.provenance import provenance
 from wearnav.errors import ValidationError, WearnavError
-from wearnav.fileio import write_text_atomic
 from wearnav.models.registry import build, get, n_parameters
 from wearnav.models.suitein import ABLATIONS
-from wearnav.provenance import provenance
 from wearnav.report.odometry import plot_cdf_panels, plot_speed
 from wearnav.stats import SIGNIFICANCE, bh_adjust, welch_p
 

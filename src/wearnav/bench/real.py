@@ -51,19 +51,19 @@ import time
 from pathlib import Path
 from typing import Any, TypedDict
 
-from wearnav import augment as augmentations
 from wearnav import runs
 from wearnav.bench.executor import Execution, Job, run_jobs
 from wearnav.bench.map_eval import has_plans, map_aware_eval, map_dir
 from wearnav.bench.real_page import VARIANTS, suite_runs, write_report
 from wearnav.bench.real_sites import TRUTH_MAX_GAP_S, estimate_site_yaw, fix_errors, prepare_data
+from wearnav.core.textio import read_json
 from wearnav.errors import ConfigError
 from wearnav.evaluate import evaluate_run
 from wearnav.models.registry import check_models, get
+from wearnav.preprocess import augment as augmentations
 from wearnav.preprocess import check_speed_warp
 from wearnav.pretrained.mix import MIX_FRAME, is_mix
 from wearnav.recording import CANONICAL_DEVICES
-from wearnav.textio import read_json
 from wearnav.train.odometry import (
     POINTING_SPEEDS,
     SPEED_SOURCES,
@@ -93,7 +93,7 @@ class RealBench:
     window: int = 100
     stride: int = 10
     train_data: str | None = None  # a simulated dataset or a mix (wearnav.pretrained.mix) to train on instead
-    augment: tuple[str, ...] = ("rotate_yaw",)  # the learned models' batch augmentations (wearnav.augment)
+    augment: tuple[str, ...] = ("rotate_yaw",)  # the learned models' batch augmentations (wearnav.preprocess.augment)
     vel_loss: str = "mse"  # the learned models' velocity loss (wearnav.models.base.velocity_loss)
     # the learned models' windows in the phone's heading frame (PreprocessConfig.heading_frame; issue
     # 34), without the random yaw of ``augment``

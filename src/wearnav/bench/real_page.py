@@ -26,15 +26,15 @@ from wearnav.bench.user_protocol import (
     site_calibration,
     user_table,
 )
+from wearnav.core.fileio import shown_path, write_text_atomic
+from wearnav.core.textio import read_json
 from wearnav.dataset import Dataset
-from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.fuse.placement import SiteModels, fit_site_models
 from wearnav.models.base import SNAP_DEG
 from wearnav.models.registry import get
 from wearnav.pretrained.mix import is_mix
 from wearnav.report.odometry import plot_speed_ratio
 from wearnav.stats import difference_cells, walk_bootstrap_difference
-from wearnav.textio import read_json
 
 
 def suite_runs(out: Path, main_data: str) -> dict[str, Path]:
@@ -229,7 +229,7 @@ def write_report(out: Path, sites: dict, folders: dict[str, Path], bench: dict, 
     :class:`wearnav.bench.real.RealBench`: train_data, epochs, patience, max_minutes, lr, seed are read)."""
     import torch
 
-    from wearnav.provenance import provenance
+    from wearnav.core.provenance import provenance
     from wearnav.report.odometry import plot_cdf
 
     p = provenance()

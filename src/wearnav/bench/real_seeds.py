@@ -33,12 +33,12 @@ from wearnav.bench.executor import Execution, run_jobs
 from wearnav.bench.real import RealBench, plan_benchmark
 from wearnav.bench.real_page import evaluations, frame_name, suite_runs, warp_text
 from wearnav.bench.user_protocol import FLOOR_COLUMN, PARTICLES, PARTICLES_LABEL, RAW_FIXES
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.provenance import provenance
+from wearnav.core.textio import read_json
 from wearnav.errors import ValidationError
-from wearnav.fileio import write_text_atomic
 from wearnav.fuse import fix_lags
-from wearnav.provenance import provenance
 from wearnav.stats import mean_sd_text, walk_bootstrap_difference
-from wearnav.textio import read_json
 
 REFERENCE = "pdr"  # the path every other is paired with
 SMOOTH_SUFFIX = " · smoother (`track` now)"  # the user protocol's row label of a path's smoother

@@ -14,14 +14,14 @@ import numpy as np
 
 from wearnav import runs
 from wearnav.bench.user_protocol import fix_point_errors
+from wearnav.core.progress import progress as report_progress
+from wearnav.core.rotations import from_wxyz
+from wearnav.core.textio import read_json
 from wearnav.dataset import Dataset, is_validation_name
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.evaluate import predict_sequence
 from wearnav.models.registry import build
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
-from wearnav.progress import progress as report_progress
-from wearnav.rotations import from_wxyz
-from wearnav.textio import read_json
 from wearnav.train.odometry import TrainConfig, load_model
 from wearnav.trajectory import integrate_velocity
 
@@ -191,7 +191,7 @@ def estimate_site_yaw(
     """:func:`site_yaw` of the ``split`` traces (None: all) of dataset ``data`` (no yaw applied, no
     frame alignment), by PDR or by the model of ``run`` (a run folder: its rate, window and stride;
     ``speed`` as :func:`wearnav.train.odometry.load_model`'s); ``progress``: report the traces' loading
-    (:mod:`wearnav.progress`)."""
+    (:mod:`wearnav.core.progress`)."""
     model, window, stride = None, 100, 10
     cfg = TrainConfig(
         model="pdr",

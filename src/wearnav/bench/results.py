@@ -20,10 +20,10 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
+from wearnav.core.fileio import atomic_path, shown_path, write_text_atomic
+from wearnav.core.provenance import provenance
+from wearnav.core.textio import read_text
 from wearnav.errors import ConfigError, MissingFileError
-from wearnav.fileio import atomic_path, shown_path, write_text_atomic
-from wearnav.provenance import provenance
-from wearnav.textio import read_text
 
 # Every metric a suite's page shows: (name, unit, one sentence). The glossary lists those the
 # page uses; docs/design.md "Metric definitions" has the formulas.

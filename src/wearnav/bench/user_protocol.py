@@ -28,14 +28,14 @@ from pathlib import Path
 import numpy as np
 
 from wearnav import fuse, metrics, runs
+from wearnav.core.textio import read_json
+from wearnav.core.timeseries import interp_onto
 from wearnav.dataset import Dataset
 from wearnav.evaluate import predict_sequence
 from wearnav.fuse.particles import MapConfig
 from wearnav.fuse.placement import SiteModels, floors_over_time, place
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, load_sequences
 from wearnav.stats import difference_cells, walk_bootstrap_difference
-from wearnav.textio import read_json
-from wearnav.timeseries import interp_onto
 from wearnav.train.odometry import load_model
 from wearnav.trajectory import integrate_velocity
 

@@ -29,6 +29,9 @@ import torch
 from torch import nn
 
 from wearnav import pretrained, runs
+from wearnav.core.fileio import atomic_path
+from wearnav.core.provenance import provenance
+from wearnav.core.textio import read_json
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.export.header import (
     EXTRA_FILE,
@@ -40,12 +43,9 @@ from wearnav.export.header import (
     onnxruntime,
 )
 from wearnav.export.runtime import load_file
-from wearnav.fileio import atomic_path
 from wearnav.models import registry
 from wearnav.models.base import SNAP_DEG
 from wearnav.models.pdr import STEP_PER_CADENCE_M_S
-from wearnav.provenance import provenance
-from wearnav.textio import read_json
 from wearnav.train import classify, odometry
 from wearnav.train.common import run_kind
 

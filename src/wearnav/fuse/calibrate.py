@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
+from wearnav.core.textio import read_json
 from wearnav.errors import FormatError
 from wearnav.export.header import is_exported, read_header
 from wearnav.fuse.config import CALIBRATION_JSON, MAX_FIX_LAG_S, RAYLEIGH_MEDIAN, FuseConfig
 from wearnav.recording import ANDROID_ENU_FRAME
 from wearnav.runs import run_folder
-from wearnav.textio import read_json
 
 log = logging.getLogger(__name__)
 

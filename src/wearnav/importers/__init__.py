@@ -12,8 +12,8 @@ import importlib
 from pathlib import Path
 from types import ModuleType
 
+from wearnav.core.progress import Progress
 from wearnav.errors import ConfigError
-from wearnav.progress import Progress
 
 FORMATS: dict[str, str] = {
     "ilc2": "wearnav.importers.ilc2",

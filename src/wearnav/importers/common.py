@@ -1,5 +1,5 @@
 """Helpers every importer shares: transparent .gz/.xz reading, column checks (lat/lon → metres is
-:mod:`wearnav.geo`)."""
+:mod:`wearnav.core.geo`)."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from wearnav.core.fileio import require_regular_file
+from wearnav.core.rotations import NotUnitQuaternion, from_android_rotation_vector, normalize_wxyz
 from wearnav.errors import ConfigError, FormatError, MissingFileError
-from wearnav.fileio import require_regular_file
-from wearnav.rotations import NotUnitQuaternion, from_android_rotation_vector, normalize_wxyz
 
 COMPRESSED_SUFFIXES = (".gz", ".xz")
 
@@ -176,7 +176,7 @@ MAX_INTERP_GAP_S = 0.25
 
 def quat_from_rotation_vector(v: np.ndarray, path: str | Path, what: str) -> np.ndarray:
     """Android rotation-vector values (N, 3) x, y, z or (N, ≥4) x, y, z, w → unit (w, x, y, z)
-    (:func:`wearnav.rotations.from_android_rotation_vector`), refusing rows that are not one."""
+    (:func:`wearnav.core.rotations.from_android_rotation_vector`), refusing rows that are not one."""
     try:
         return normalize_wxyz(from_android_rotation_vector(v))
     except NotUnitQuaternion as exc:

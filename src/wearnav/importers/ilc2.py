@@ -40,7 +40,7 @@ start so times can be put back on the Unix clock.
 
 Timestamps are handled explicitly, per row type: a sample whose timestamp repeats the previous
 one is dropped (the first is kept) and counted in ``meta["dropped_duplicates"]``; more than
-:data:`~wearnav.timeseries.MAX_DUPLICATE_SHARE` of duplicates, or any timestamp going backwards, means the file is
+:data:`~wearnav.core.timeseries.MAX_DUPLICATE_SHARE` of duplicates, or any timestamp going backwards, means the file is
 broken and raises. When gyroscope or rotation-vector rows are not on the accelerometer's
 timestamps they are interpolated onto them (linear; normalised linear for quaternions), and
 accelerometer samples they cannot cover (outside their span, or across a gap longer than
@@ -72,6 +72,7 @@ from shapely.geometry import shape
 from shapely.geometry.base import BaseGeometry
 from shapely.ops import unary_union
 
+from wearnav.core.timeseries import drop_duplicate_times, interp_onto
 from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavError, WearnavWarning, one_line
 from wearnav.importers.common import (
     MAX_INTERP_GAP_S,
@@ -85,7 +86,6 @@ from wearnav.importers.common import (
 )
 from wearnav.plans import plan_from_lonlat
 from wearnav.recording import ANDROID_ENU_FRAME, DeviceStream, FloorPlan, Recording, Trajectory
-from wearnav.timeseries import drop_duplicate_times, interp_onto
 
 SOURCE = "ilc2"
 LICENCE = "MIT (Copyright (c) 2017-2020 XYZ10, Inc.; Indoor Location Competition 2.0 sample data)"

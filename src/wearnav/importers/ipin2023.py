@@ -49,7 +49,7 @@ dropped (``gnss_stale_dropped``), so fix times increase by construction. IMU or 
 (``dropped_duplicates``; more than 5 % raises); ACCE samples that GYRO/AHRS cannot cover are
 dropped (``dropped_uncovered``). Any timestamp going backwards after that raises.
 
-Positions: lat/lon are projected with :func:`wearnav.geo.latlon_to_local` (WGS-84 east-north-up,
+Positions: lat/lon are projected with :func:`wearnav.core.geo.latlon_to_local` (WGS-84 east-north-up,
 named in ``meta["projection"]``) around one origin per site, the same for truth and fixes of a
 recording: the centre of the organisers' georeferenced floor maps for the IPIN 2023 venue
 (``calib_mapa_Nuremberg.cal``), or, for a log recorded elsewhere (more than :data:`VENUE_RADIUS_M`
@@ -70,7 +70,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from wearnav import geo
+from wearnav.core import geo
+from wearnav.core.timeseries import drop_duplicate_times, interp_onto, rate
 from wearnav.errors import FormatError, ValidationError, WearnavError
 from wearnav.importers.common import (
     MAX_INTERP_GAP_S,
@@ -98,7 +99,6 @@ from wearnav.recording import (
     Recording,
     Trajectory,
 )
-from wearnav.timeseries import drop_duplicate_times, interp_onto, rate
 
 SOURCE = "ipin2023"
 LICENCE = (

@@ -27,11 +27,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav import geo
+from wearnav.core import geo
+from wearnav.core.timeseries import drop_duplicate_times
 from wearnav.errors import FormatError
 from wearnav.importers.common import check_finite, check_latlon
 from wearnav.recording import BeaconReadings, Pressure
-from wearnav.timeseries import drop_duplicate_times
 
 # The venue's six iBeacons (BLE_Locations.csv's BLE1..BLE6): one UUID, major 1, minor k; their MAC
 # addresses end in k (checked on every BLE4 row of the training logs).

@@ -50,11 +50,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from wearnav.core.rotations import from_euler, to_wxyz
 from wearnav.errors import FormatError, MissingFileError, ValidationError
 from wearnav.importers.common import check_finite, check_source, find_file, read_csv, require_columns
 from wearnav.recording import STANDARD_GRAVITY as G  # Core Motion's unit of acceleration
 from wearnav.recording import DeviceStream, Recording
-from wearnav.rotations import from_euler, to_wxyz
 
 RATE_HZ = 50.0
 ACTIVITIES = {

@@ -20,7 +20,7 @@ ground-truth device, the phone's hardware step counter — all zero where the ph
   with acc exactly (0, 0, 0) — the logger's placeholder before the first sensor event — are
   dropped (``dropped_zero_rows``), and a row repeating the previous row's timestamp is dropped,
   the first kept (``dropped_duplicates``; wearnav's one policy,
-  :func:`wearnav.timeseries.drop_duplicate_times`: more than 5 % repeats or time going backwards
+  :func:`wearnav.core.timeseries.drop_duplicate_times`: more than 5 % repeats or time going backwards
   is refused). In the real files the 3 repeats (in 2 files, each followed by a ~0.2 s gap)
   repeat the whole row.
 * Steps: each increment of ``steps_groundtruth`` is one ``step`` label row with zero length,
@@ -48,10 +48,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from wearnav.core.timeseries import drop_duplicate_times, period
 from wearnav.errors import FormatError, ValidationError
 from wearnav.importers.common import check_finite, check_source, read_csv
 from wearnav.recording import DeviceStream, Recording
-from wearnav.timeseries import drop_duplicate_times, period
 
 VALIDATION_DIR = "validation"
 FILE_RE = re.compile(r"^(user\d+)_([A-Za-z]+)_(\d{10,})\.csv(\.gz|\.xz)?$")

@@ -51,6 +51,7 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 import pandas as pd
 
+from wearnav.core.timeseries import drop_duplicate_times
 from wearnav.errors import ConfigError, FormatError, MissingFileError, WearnavError
 from wearnav.importers.common import (
     check_finite,
@@ -70,7 +71,6 @@ from wearnav.importers.sensorlogger_map import (
     acceleration_convention,
 )
 from wearnav.recording import Recording
-from wearnav.timeseries import drop_duplicate_times
 
 # ---- discovery ------------------------------------------------------------------------------
 

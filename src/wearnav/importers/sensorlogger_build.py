@@ -45,7 +45,7 @@ Orientation (phone ``qw,qx,qy,qz``; watch and earbuds ``quaternionW/X/Y/Z``)
 
 Location (``Location.csv`` → ``Recording.fixes``)
   * ``latitude`` / ``longitude`` (UNITS.md: "in degrees") are projected to local east/north metres
-    about the first fix with :func:`wearnav.geo.latlon_to_local` (WGS-84 east-north-up); the origin
+    about the first fix with :func:`wearnav.core.geo.latlon_to_local` (WGS-84 east-north-up); the origin
     is kept in ``meta["origin_lat"]`` / ``meta["origin_lon"]``, the converter's name in
     ``meta["projection"]``. Fixes are 2-D (altitude is not used).
   * A cached fix from before the recording (negative ``seconds_elapsed``; usually far away with a
@@ -68,7 +68,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from wearnav import geo
+from wearnav.core import geo
+from wearnav.core.rotations import NotUnitQuaternion, from_wxyz, normalize_wxyz, to_wxyz
+from wearnav.core.timeseries import interp_onto
 from wearnav.errors import FormatError, ValidationError, WearnavError, WearnavWarning
 from wearnav.importers.common import MAX_INTERP_GAP_S, check_latlon
 from wearnav.importers.sensorlogger_map import (
@@ -83,8 +85,6 @@ from wearnav.importers.sensorlogger_map import (
 )
 from wearnav.recording import STANDARD_GRAVITY as G
 from wearnav.recording import DeviceStream, Fixes, Recording
-from wearnav.rotations import NotUnitQuaternion, from_wxyz, normalize_wxyz, to_wxyz
-from wearnav.timeseries import interp_onto
 
 SOURCE = "sensorlogger"
 # The world-frame mean of a device's specific force must lie this close to +z (gravity).

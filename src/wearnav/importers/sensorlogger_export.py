@@ -5,7 +5,7 @@ Files, columns and unit conventions come from the importer (``DEVICE_FILES``, ``
 app's documentation (``shared/data/sensor_logger_format``: UNITS.md, COORDINATES.md,
 CROSSPLATFORM.md): nanosecond ``time``, columns in the app's order (``z,y,x``), user acceleration
 and gravity split, g units on the Apple wearables when "Standardise Units & Frames" is off, iOS's
-flipped acceleration sign, lat/lon from local metres by :func:`wearnav.geo.local_to_latlon` (about
+flipped acceleration sign, lat/lon from local metres by :func:`wearnav.core.geo.local_to_latlon` (about
 ``ORIGIN``).
 
 :func:`simulated_export` writes one simulated walk (phone, watch, earbuds and GPS fixes) this way,
@@ -23,8 +23,9 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
-from wearnav import geo
-from wearnav.fileio import write_text_atomic
+from wearnav.core import geo
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.rotations import from_wxyz, to_wxyz
 from wearnav.importers.sensorlogger_map import (
     DEVICE_FILES,
     GRAVITY_IN_G,
@@ -36,7 +37,6 @@ from wearnav.importers.sensorlogger_map import (
 from wearnav.outputs import staged_output
 from wearnav.recording import STANDARD_GRAVITY as G
 from wearnav.recording import Recording
-from wearnav.rotations import from_wxyz, to_wxyz
 from wearnav.simulate import WalkConfig, simulate_recording
 
 T0_NS = 1_700_000_000_123_456_789  # the export's first sample, ns since the Unix epoch (2023-11-14)

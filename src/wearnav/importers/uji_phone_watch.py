@@ -54,10 +54,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from wearnav.core.timeseries import period
 from wearnav.errors import FormatError, MissingFileError, ValidationError, WearnavWarning
 from wearnav.importers.common import check_finite, check_source, check_unix_time, find_file, read_csv
 from wearnav.recording import DeviceStream, Recording
-from wearnav.timeseries import period
 
 DATA_DIR = "DATA"
 SUBJECT_RE = re.compile(r"^s(\d+)$")

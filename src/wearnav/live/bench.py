@@ -44,8 +44,9 @@ import httpx
 import numpy as np
 
 from wearnav import pretrained
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.provenance import provenance
 from wearnav.errors import ConfigError
-from wearnav.fileio import write_text_atomic
 from wearnav.importers import sensorlogger
 from wearnav.importers.sensorlogger_build import build_recording
 from wearnav.importers.sensorlogger_export import simulated_export
@@ -56,7 +57,6 @@ from wearnav.live.bench_page import BATCH_S, KEPT_UP_UPDATE_S, LATENCY_GOAL_S, p
 from wearnav.live.export import export_session
 from wearnav.live.process import LiveServer, cpu_s, start_tracker
 from wearnav.live.trackers import STATS_EVERY_S
-from wearnav.provenance import provenance
 
 log = logging.getLogger(__name__)
 

@@ -32,10 +32,10 @@ import math
 import re
 from dataclasses import dataclass
 
+from wearnav.core.rotations import UNIT_NORM_TOL
 from wearnav.importers.sensorlogger_map import ORIENTATION_COLS, PUSH_NAMES, quat_cols
 from wearnav.recording import ACC_AXIS_MAX, GYRO_AXIS_MAX
-from wearnav.recording_checks import POS_ABS_MAX
-from wearnav.rotations import UNIT_NORM_TOL
+from wearnav.recording.checks import POS_ABS_MAX
 
 ID_RE = re.compile(r"[A-Za-z0-9_.:-]{1,128}")
 MAX_NAME_LEN = 64

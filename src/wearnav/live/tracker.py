@@ -3,12 +3,12 @@
 Odometry, the way ``track`` runs it (:func:`wearnav.track.odometry`), piece by piece. The session's
 model clock is ``t0 + k / rate`` (``t0`` the devices' common start as :func:`wearnav.preprocess.align`
 finds it, decided once the devices that start together have started) and its windows start at every
-``stride``-th clock sample, as :class:`wearnav.windows.WindowDataset` cuts them offline. An update
+``stride``-th clock sample, as :class:`wearnav.preprocess.windows.WindowDataset` cuts them offline. An update
 (once ``STEP_S`` more of the session has arrived) aligns only the clock from ``CONTEXT_S`` before the
 first window not yet final up to the data's end (:meth:`SessionBuffer.covered_until`) and predicts the
 windows that end ``LAG_S`` before it (the zero-phase low-pass needs that much data after a window).
 A window is final once the data reaches ``LAG_S`` past it for one device, ``FRAME_LAG_S`` for several
-(the common frame's yaw, :mod:`wearnav.frames`, is a 20-s Gaussian-kernel estimate that needs data on
+(the common frame's yaw, :mod:`wearnav.preprocess.frames`, is a 20-s Gaussian-kernel estimate that needs data on
 both sides); the path grows by the final windows' velocities, integrated on from its last position
 (Suite-IN++ eq. 8, :func:`wearnav.trajectory.integrate_velocity`), and the windows after them are
 predicted again at each update as the path's provisional end. So each window is predicted once (one
@@ -26,9 +26,9 @@ fixed-lag smoother; before the first final window the provisional path is smooth
 :func:`wearnav.fuse.smooth`), solved at most every ``FUSE_EVERY_S``; the path since the last solve is
 placed by a rigid fit (:func:`wearnav.fuse.rigid_fit`) on the last ``PLACE_S`` of the smoothed one.
 Everything is in the east/north frame of the first good fix (:mod:`wearnav.fixcheck`; fixes converted
-by :mod:`wearnav.geo`). Activity: the phone's latest window classified by the shipped activity model
+by :mod:`wearnav.core.geo`). Activity: the phone's latest window classified by the shipped activity model
 as ``classify`` runs it (:func:`wearnav.train.labelling.window_classes`). Warnings: those the input
-gives (:func:`wearnav.track_trust.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
+gives (:func:`wearnav.track.trust.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
 the smoother's; the walk-plausibility check of ``track`` needs the whole walk and is left to it.
 
 Decision: docs/decisions/0022-live-tracking.md.
@@ -43,7 +43,8 @@ from typing import Any
 
 import numpy as np
 
-from wearnav import fuse, geo, plans, pretrained
+from wearnav import fuse, plans, pretrained
+from wearnav.core import geo
 from wearnav.errors import ValidationError
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
@@ -51,17 +52,17 @@ from wearnav.fuse.live import IncrementalFuser
 from wearnav.live.buffer import derived, sliced
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
+from wearnav.preprocess.windows import WindowConfig, WindowDataset, turn
 from wearnav.recording import Recording
 from wearnav.report.trajectory_page import page_points
 from wearnav.track import odometry_preprocess, path_times
-from wearnav.track_trust import input_warnings
+from wearnav.track.trust import input_warnings
 from wearnav.train.labelling import UNKNOWN_INDEX, Windows, class_name, class_windows, decide_classes, unknown_note
 from wearnav.train.odometry import TrainConfig
 from wearnav.trajectory import integrate_velocity
-from wearnav.windows import WindowConfig, WindowDataset, turn
 
 # Input aligned before the first window not yet final: the common frame's Gaussian kernel (σ 20 s,
-# wearnav.frames) reaches 4 σ = 80 s back. Measured on a 300-s simulated walk (3 devices), the fused
+# wearnav.preprocess.frames) reaches 4 σ = 80 s back. Measured on a 300-s simulated walk (3 devices), the fused
 # live path vs track's: 30 s → 24.6 m max (the frame's estimate goes astray), 60 s → 0.37 m, 90 s → 0.11 m.
 CONTEXT_S = 90.0
 # One device: no common frame, so the input before a window matters only through the zero-phase
@@ -72,7 +73,7 @@ CONTEXT_S = 90.0
 ONE_DEVICE_CONTEXT_S = 10.0
 LAG_S = 1.0  # a window is predicted once the data reaches this far past its end (zero-phase filters)
 # Several devices: a window is final once the data reaches this far past it (the common frame's yaw,
-# wearnav.frames, is a 20-s Gaussian kernel estimate: 3 σ); until then it is predicted again at
+# wearnav.preprocess.frames, is a 20-s Gaussian kernel estimate: 3 σ); until then it is predicted again at
 # every update, as the provisional end of the path.
 FRAME_LAG_S = 60.0
 # An update works once this much more of the session has arrived (each aligns the context). `wearnav live

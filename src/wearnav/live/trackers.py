@@ -31,8 +31,8 @@ from pathlib import Path
 from typing import Any
 
 from wearnav.bench.executor import RAY_MISSING
+from wearnav.core.fileio import write_text_atomic
 from wearnav.errors import ConfigError
-from wearnav.fileio import write_text_atomic
 from wearnav.live.buffer import NS, SessionBuffer
 from wearnav.live.crowd import Crowd
 from wearnav.live.models import SharedModels

@@ -74,7 +74,7 @@ def generate() -> list[dict]:
 
 def write(path: Path = CATALOGUE_JSON) -> Path:
     """Write :func:`generate`'s table to ``path``."""
-    from wearnav.fileio import write_text_atomic
+    from wearnav.core.fileio import write_text_atomic
 
     text = json.dumps({"generated_by": "python -m wearnav.models.catalogue", "models": generate()}, indent=1)
     return write_text_atomic(text + "\n", path)

@@ -20,10 +20,10 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+from wearnav.core.textio import read_json
 from wearnav.errors import ConfigError, FormatError
 from wearnav.export.header import is_exported, read_header
 from wearnav.runs import run_folder
-from wearnav.textio import read_json
 
 MODELS_DIR = Path(__file__).parent / "models"
 CARD = "MODEL_CARD.md"
@@ -204,8 +204,8 @@ def frame_words(heading_frame: bool, devices, reference: str | None = None) -> s
     one phrase: what `wearnav models` says of a shipped model and `track` of the model it ran (issue 58
     §7: before, one said "the phone's heading frame" and the other "frame: common", each half of it).
     Every device is turned into the ``reference`` device's world frame (the devices' common frame,
-    :mod:`wearnav.frames`; default the phone where it is among ``devices``, as
-    :func:`wearnav.frames.reference_index` picks it); a ``heading_frame`` model's windows are turned
+    :mod:`wearnav.preprocess.frames`; default the phone where it is among ``devices``, as
+    :func:`wearnav.preprocess.frames.reference_index` picks it); a ``heading_frame`` model's windows are turned
     into the first device's heading frame (where it points, :attr:`wearnav.preprocess.PreprocessConfig.heading_frame`)
     and its velocity turned back, so its path too is in the common frame, whose yaw no one knows until
     the path is placed (on the fixes, a plan or ``--start``)."""
@@ -221,7 +221,7 @@ def frame_words(heading_frame: bool, devices, reference: str | None = None) -> s
 
 def shipped_frame_words(spec: Shipped) -> str:
     """:func:`frame_words` of the installed shipped odometry model ``spec``, read from its ``config.yaml``."""
-    from wearnav.textio import read_yaml
+    from wearnav.core.textio import read_yaml
 
     train = read_yaml(spec.path / "config.yaml").get("config", {}).get("train", {})
     return frame_words(bool(train.get("heading_frame")), train.get("devices") or spec.devices)

@@ -11,9 +11,9 @@ from pathlib import Path
 
 from wearnav import activity_labels as al
 from wearnav.bench.har_lodo import WALKING_RECALL_TARGET, markdown_table, misses, still_section
+from wearnav.core.provenance import provenance
+from wearnav.core.textio import read_json
 from wearnav.pretrained import ACTIVITY, ACTIVITY_WATCH, SHIPPED
-from wearnav.provenance import provenance
-from wearnav.textio import read_json
 
 SHIPPED_FOR_DEVICE = {"phone": ACTIVITY, "watch": ACTIVITY_WATCH}
 

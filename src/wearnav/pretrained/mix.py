@@ -3,7 +3,7 @@
 A model trained on one building loses to PDR in another; the shipped models train on everything
 with positions. The sources disagree on frames, so each recording's truth (and fixes) is turned
 into the frame its own IMU input will have — the phone's world frame after the devices' common
-alignment (:func:`wearnav.frames.align_frames`, mode ``common``) — by one constant yaw, and the
+alignment (:func:`wearnav.preprocess.frames.align_frames`, mode ``common``) — by one constant yaw, and the
 models train in that frame (``frame_align="common"``, the frame `wearnav track` feeds them):
 
 ``axis``        a real building where the phone is held in the hand, pointing ahead (ILC2, IPIN
@@ -14,11 +14,11 @@ models train in that frame (``frame_align="common"``, the frame `wearnav track` 
                 fits for PDR carries PDR's own heading bias, which differs by building (ILC2: PDR
                 −20.0°, the axis −1.0°; IPIN: PDR +3.3°, the axis +6.6°), and a model trained on
                 the simulator alone found −11.3° and +12.1°: either would teach a mixed model a
-                different rotation per building. The truth-frame estimator of :mod:`wearnav.frames`
+                different rotation per building. The truth-frame estimator of :mod:`wearnav.preprocess.frames`
                 does not work on surveyed points joined by straight lines (measured on 16 ILC2/IPIN
                 traces: per-trace yaws 50–180° apart within a site).
 ``recording``   the simulator: one yaw per recording from its dense truth (each simulated device's
-                orientation has its own drawn yaw offset), :func:`wearnav.frames.truth_yaw` over
+                orientation has its own drawn yaw offset), :func:`wearnav.preprocess.frames.truth_yaw` over
                 the whole walk — the estimate of mode ``initial`` without its 10-s limit.
 
 Turning the truth rather than the IMU keeps the recordings' sensor data byte for byte. Both yaws
@@ -35,11 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
+from wearnav.core.progress import progress as report_progress
 from wearnav.dataset import Dataset, DatasetWriter, is_validation_name
 from wearnav.errors import ValidationError
-from wearnav.frames import FrameConfig, _circular_mean, align_frames, truth_yaw
 from wearnav.preprocess import SURVEYED_TRUTH_MAX_GAP_S, PreprocessConfig, align
-from wearnav.progress import progress as report_progress
+from wearnav.preprocess.frames import FrameConfig, _circular_mean, align_frames, truth_yaw
 from wearnav.recording import Fixes, Recording, Trajectory
 
 MIX_FRAME = "common"  # the frame the mix's truth is in, and the frame its models train in
@@ -63,7 +63,7 @@ class Part:
 def turn(rec: Recording, yaw_rad: float) -> Recording:
     """``rec`` with its truth and fixes turned by ``yaw_rad`` about the vertical (x, y only;
     counter-clockwise), so that input rotated by −yaw into the truth frame becomes: truth rotated
-    by +yaw into the input's frame (:func:`wearnav.frames.rotate_stacked`'s convention)."""
+    by +yaw into the input's frame (:func:`wearnav.preprocess.frames.rotate_stacked`'s convention)."""
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
 
     def xy(p):

@@ -55,14 +55,14 @@ from wearnav.bench.har_lodo import run_lodo
 from wearnav.bench.real import RealBench, plan_benchmark
 from wearnav.bench.real_page import VARIANTS
 from wearnav.bench.user_protocol import ANCHOR_LABEL, site_calibration
+from wearnav.core.fileio import atomic_path, write_text_atomic
+from wearnav.core.textio import read_json
 from wearnav.dataset import Dataset, write_subset
 from wearnav.errors import ConfigError, MissingFileError
-from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.importers import import_dataset
 from wearnav.pretrained import ACTIVITY, ACTIVITY_WATCH, CARD, HELD_OUT_JSON, MULTI, PHONE, SHIPPED, cards, get
 from wearnav.pretrained.activity import SHIPPED_FOR_DEVICE, card_text
 from wearnav.simulate import simulate_dataset
-from wearnav.textio import read_json
 from wearnav.train.activity import ActivityRun
 from wearnav.train.classify import STILL_RULE
 from wearnav.train.common import BEST, CHECKPOINTS, LAST
@@ -98,7 +98,7 @@ class Recipe:
     placements: tuple[str, ...] = ()
     # the odometry models' (module docstring, steps 2–3): their loss (wearnav.models.base.velocity_loss),
     # their windows in the carrying device's heading frame (PreprocessConfig.heading_frame), and
-    # their batch augmentations (wearnav.augment; in the heading frame random yaw has nothing to teach)
+    # their batch augmentations (wearnav.preprocess.augment; in the heading frame random yaw has nothing to teach)
     vel_loss: str = "polar"
     heading_frame: bool = True
     augment: tuple[str, ...] = ()
@@ -146,7 +146,7 @@ class Recipe:
         return self.multi_vel_loss if model == MULTI else self.vel_loss
 
     def augment_of(self, model: str) -> tuple[str, ...]:
-        """Shipped odometry model ``model``'s batch augmentations (:mod:`wearnav.augment`)."""
+        """Shipped odometry model ``model``'s batch augmentations (:mod:`wearnav.preprocess.augment`)."""
         return self.multi_augment if model == MULTI else self.augment
 
 

@@ -58,9 +58,9 @@ import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from wearnav.core.fileio import atomic_path, write_text_atomic
+from wearnav.core.provenance import __version__, git_commit
 from wearnav.errors import ConfigError
-from wearnav.fileio import atomic_path, write_text_atomic
-from wearnav.provenance import __version__, git_commit
 from wearnav.realism.calibrate import IQR_MIN_SEGMENTS, SourceResult, compute_realism, fix_compare, summary
 from wearnav.realism.fixes import FIX_STATS, JUMP_SPEED_MPS, OUTAGE_GAP_S, SIM_REFERENCE_EVERY_S
 from wearnav.realism.sources import (

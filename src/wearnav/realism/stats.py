@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import butter, filtfilt, find_peaks, periodogram, welch
 
-from wearnav import rotations
+from wearnav.core import rotations
 from wearnav.realism.gait import MIN_SEGMENT_S, RATE_HZ, resample, segments, walking_stretches
 from wearnav.recording import Recording
 

@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pandas as pd
 
+from wearnav.core.fileio import shown_path, write_text_atomic
+from wearnav.core.provenance import __version__, git_commit
 from wearnav.dataset import Dataset
 from wearnav.errors import WearnavError
-from wearnav.fileio import shown_path, write_text_atomic
 from wearnav.importers import import_dataset
-from wearnav.provenance import __version__, git_commit
 from wearnav.report.plots import plot_recording
 from wearnav.report.stats import dataset_stats, stats_markdown
 

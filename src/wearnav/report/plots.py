@@ -18,12 +18,12 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from numpy.typing import ArrayLike
 
+from wearnav.core.fileio import atomic_path
+from wearnav.core.timeseries import period
 from wearnav.dataset import Dataset
 from wearnav.errors import ValidationError
-from wearnav.fileio import atomic_path
 from wearnav.metrics import ecdf
 from wearnav.recording import DeviceStream, Recording, device_order
-from wearnav.timeseries import period
 
 MAX_PLOT_POINTS = 4000  # per time-series line; longer series are min/max decimated
 MAX_MAP_POINTS = 20000  # per trajectory line on a map

@@ -8,12 +8,12 @@ from collections.abc import Iterable
 import numpy as np
 import pandas as pd
 
+from wearnav.core.geo import needs_reimport
+from wearnav.core.progress import progress as report_progress
+from wearnav.core.timeseries import sampling
 from wearnav.dataset import Dataset
-from wearnav.geo import needs_reimport
 from wearnav.metrics import FIX_MAX_GAP_S, errors_at_reference, label_noise
-from wearnav.progress import progress as report_progress
 from wearnav.recording import device_order
-from wearnav.timeseries import sampling
 
 
 def _pct(x: np.ndarray, q: float) -> float:
@@ -29,7 +29,7 @@ def dataset_stats(ds: Dataset, progress: bool = False, fix_max_gap: float = FIX_
     ``fix_error_m``: horizontal error of the location fixes at the truth points (fixes linearly
     interpolated, a truth point counted only when a fix lies within ``fix_max_gap`` s), pooled.
     ``needs_reimport``: one line naming the recordings whose positions came from an older lat/lon
-    projection (:func:`wearnav.geo.needs_reimport`), or None.
+    projection (:func:`wearnav.core.geo.needs_reimport`), or None.
     """
     dev: dict[str, dict] = {}
     labels: dict[tuple[str, str], list] = {}

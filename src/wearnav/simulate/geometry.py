@@ -3,7 +3,7 @@
 Conventions: a rotation matrix maps segment/device-frame vectors into the world frame (z up);
 ``rot_x/rot_y/rot_z(a)`` are right-handed rotations by angle ``a`` (rad) about that axis.
 For a segment hanging down, ``rot_y(-a)`` swings its lower end *forward* (+x) by ``a``.
-Quaternions (what a device reports) are :mod:`wearnav.rotations`' business, as everywhere else.
+Quaternions (what a device reports) are :mod:`wearnav.core.rotations`' business, as everywhere else.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from wearnav.rotations import yaw_matrix
+from wearnav.core.rotations import yaw_matrix
 
 
 def _rot(a, i: int, j: int) -> np.ndarray:

@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wearnav.core.rotations import matrix_to_wxyz
 from wearnav.recording import STANDARD_GRAVITY as G  # sensor ranges and resolutions are in g
-from wearnav.rotations import matrix_to_wxyz
 from wearnav.simulate.geometry import apply, apply_t, exp_so3, log_so3, rot_z
 from wearnav.simulate.signals import smooth_noise
 

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
+from wearnav.core.progress import progress as report_progress
 from wearnav.dataset import Dataset, DatasetWriter
 from wearnav.errors import ConfigError
-from wearnav.progress import progress as report_progress
 from wearnav.simulate.config import MODES, NOISE_LEVELS, SCENES, WalkConfig, sample_subject
 from wearnav.simulate.walk import simulate_walk
 

@@ -13,9 +13,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from shapely.geometry import LineString
 
+from wearnav.core.rotations import matrix_to_wxyz
 from wearnav.plans import plan_from_geometry
 from wearnav.recording import DeviceStream, FloorPlan, Recording, Trajectory
-from wearnav.rotations import matrix_to_wxyz
 from wearnav.simulate.body import Body
 from wearnav.simulate.config import REMOVABLE, SCENES, WalkConfig
 from wearnav.simulate.fixes import FixNoise, simulate_fixes

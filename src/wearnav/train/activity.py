@@ -66,11 +66,11 @@ import torch
 
 from wearnav import activity_labels as al
 from wearnav import runs
+from wearnav.core.textio import read_json
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.metrics import accuracy, confusion_matrix, macro_f1
 from wearnav.models import registry
 from wearnav.models.har import AMP_JITTER, HAREnsemble, HARNet
-from wearnav.textio import read_json
 from wearnav.train.activity_data import (
     MODEL,
     SOURCES,

@@ -13,7 +13,7 @@ Protocol (as the paper: a train and a test set, a fixed number of epochs): no va
 and no early stopping; the weights after the last epoch are the model (``last.ckpt``). Splits are
 subject-independent (:data:`TEST_SUBJECTS`): every recording of a subject is on one side.
 
-Techniques (paper 002 Sec. II-B, :mod:`wearnav.augment`): ``model`` picks the baseline / Head2 /
+Techniques (paper 002 Sec. II-B, :mod:`wearnav.preprocess.augment`): ``model`` picks the baseline / Head2 /
 Head3; ``expand`` adds transformed copies of the training windows (rotation eqs. 9–11,
 "all axes", noise eq. 12 with σ from the training windows); ``denoise`` applies the moving
 average of eq. 13 to training and test sequences; ``augment`` names batch augmentations
@@ -35,6 +35,7 @@ import numpy as np
 import torch
 
 from wearnav import runs, trust
+from wearnav.core.textio import read_json
 from wearnav.errors import (
     ConfigError,
     FormatError,
@@ -44,10 +45,9 @@ from wearnav.errors import (
 )
 from wearnav.models import registry
 from wearnav.preprocess import Aligned, PreprocessConfig, load_sequences
-from wearnav.textio import read_json
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 from wearnav.train.common import CHECKPOINTS, LAST, SeededModule, check_run_kind, load_weights, make_trainer
 from wearnav.train.interrupt import stop_between_batches
-from wearnav.windows import WindowConfig, WindowDataset
 
 log = logging.getLogger(__name__)
 
@@ -124,7 +124,7 @@ class ClassifyConfig:
         if self.denoise < 0:
             raise ConfigError(f"moving-average window must be ≥ 0 samples, got {self.denoise}")
         if self.expand is not None:
-            from wearnav.augment import expansion_copies
+            from wearnav.preprocess.augment import expansion_copies
 
             expansion_copies(self.expand)
         if not self.devices:
@@ -191,7 +191,7 @@ def prepare_run(cfg: ClassifyConfig, run: str | Path) -> Path:
 
 def sequences(view, cfg: ClassifyConfig, progress: bool = False) -> list[Aligned]:
     """Aligned recordings of a view, with eq. 13's moving average when ``cfg.denoise``."""
-    from wearnav.augment import moving_average
+    from wearnav.preprocess.augment import moving_average
 
     seqs = load_sequences(view, cfg, progress)
     if cfg.denoise > 1:  # new objects: the aligned cache must stay raw
@@ -226,8 +226,8 @@ def fit(cfg: ClassifyConfig, run: str | Path, progress: bool = True) -> dict:
 
 
 def _fit(cfg: ClassifyConfig, run: Path, progress: bool) -> dict:
-    from wearnav.augment import ExpandedWindows, expansion_copies, noise_sigma
     from wearnav.dataset import Dataset
+    from wearnav.preprocess.augment import ExpandedWindows, expansion_copies, noise_sigma
 
     ds = Dataset.open(cfg.data)
     train_seqs = sequences(split_view(ds, cfg.scheme, "train"), cfg, progress)

@@ -6,7 +6,7 @@ Reproducibility: every random draw of an epoch (shuffling, augmentation, dropout
 ``(seed, epoch)``, so a run killed mid-epoch and resumed from ``last.ckpt`` replays that epoch
 exactly and ends with the same weights and metrics as an uninterrupted run.
 
-Checkpoints are written through :func:`wearnav.fileio.atomic_path` with ``durable=True``
+Checkpoints are written through :func:`wearnav.core.fileio.atomic_path` with ``durable=True``
 (:class:`AtomicCheckpointIO`): a kill or a power cut during a save leaves the previous
 ``last.ckpt`` / ``best.ckpt``, never a torn one.
 
@@ -33,11 +33,11 @@ from lightning.pytorch.callbacks import Callback, Timer
 from lightning.pytorch.plugins import TorchCheckpointIO
 
 from wearnav import runs
-from wearnav.augment import apply as augment_batch
+from wearnav.core.fileio import atomic_path
+from wearnav.core.progress import eta_line, interval_s, on_terminal
 from wearnav.errors import ConfigError, FormatError, MissingFileError
-from wearnav.fileio import atomic_path
 from wearnav.models import registry
-from wearnav.progress import eta_line, interval_s, on_terminal
+from wearnav.preprocess.augment import apply as augment_batch
 
 log = logging.getLogger(__name__)
 
@@ -95,7 +95,7 @@ class Schedule:
 
 class SeededModule(L.LightningModule):
     """Adam on ``model`` at ``lr`` × ``schedule`` (per optimizer step; default constant); batch
-    augmentations from :mod:`wearnav.augment` drawn from a generator seeded per epoch; the
+    augmentations from :mod:`wearnav.preprocess.augment` drawn from a generator seeded per epoch; the
     training loss is ``model.loss(batch)`` → (loss, named parts)."""
 
     def __init__(
@@ -146,7 +146,7 @@ STRATEGIES = ("auto", "ddp", "ddp_spawn")
 
 
 class LogProgress(Callback):
-    """Training progress as log lines (:mod:`wearnav.progress`) where no bar can be drawn: at most
+    """Training progress as log lines (:mod:`wearnav.core.progress`) where no bar can be drawn: at most
     every ``interval_s`` seconds, the epoch and batch, and the time left (the epoch limit's
     estimate, or the time budget's remainder if that is sooner)."""
 

@@ -14,11 +14,12 @@ from pathlib import Path
 import numpy as np
 
 from wearnav import runs, trust
+from wearnav.core.fileio import write_text_atomic
+from wearnav.core.textio import read_json
 from wearnav.errors import ValidationError, WearnavWarning
 from wearnav.export.header import is_exported, read_header
-from wearnav.fileio import write_text_atomic
 from wearnav.preprocess import Aligned, align
-from wearnav.textio import read_json
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 from wearnav.train.classify import (
     TRAINING,
     ClassifyConfig,
@@ -29,7 +30,6 @@ from wearnav.train.classify import (
     load_model,
     window_probs,
 )
-from wearnav.windows import WindowConfig, WindowDataset
 
 UNKNOWN = "unknown"  # the label of a window the model is unsure of (issue 35 §3)
 UNKNOWN_INDEX = -1  # its class index in window_classes' output
@@ -200,7 +200,7 @@ class Windows:
 def class_windows(model, cfg: ClassifyConfig, rec, last: int | None = None) -> Windows:
     """The first half of :func:`window_classes` (the model's input); a caller may run the model
     on many recordings' windows at once (the live receiver, one batch per tick)."""
-    from wearnav.augment import moving_average
+    from wearnav.preprocess.augment import moving_average
 
     seq = align(rec, cfg.preprocess_config())
     if cfg.denoise > 1:

@@ -60,15 +60,15 @@ from torch import Tensor, nn
 from torch.nn import functional as F
 
 from wearnav import runs
+from wearnav.core.fileio import atomic_path, save_npy_atomic, write_text_atomic
+from wearnav.core.progress import Progress
+from wearnav.core.rotations import rotate_about_vertical
 from wearnav.errors import ConfigError
-from wearnav.fileio import atomic_path, save_npy_atomic, write_text_atomic
 from wearnav.fixlabels import Segments
 from wearnav.models.base import VEL_LOSSES, instance_velocity_loss
 from wearnav.models.easytrack import BaseModel
 from wearnav.models.registry import build
 from wearnav.models.ronin import MIN_WINDOW
-from wearnav.progress import Progress
-from wearnav.rotations import rotate_about_vertical
 
 log = logging.getLogger(__name__)
 

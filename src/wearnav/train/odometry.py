@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from wearnav import runs, trust
-from wearnav.augment import get as augmentation
+from wearnav.core.textio import read_json
 from wearnav.dataset import Dataset, scorable_split, train_val_views
 from wearnav.errors import ConfigError, FormatError, ValidationError, check_field_types, check_names
 from wearnav.models import registry
@@ -43,8 +43,9 @@ from wearnav.preprocess import (
     load_sequences,
     time_warped,
 )
+from wearnav.preprocess.augment import get as augmentation
+from wearnav.preprocess.windows import WindowConfig, WindowDataset
 from wearnav.recording import CANONICAL_DEVICES
-from wearnav.textio import read_json
 from wearnav.train.common import (
     BEST,
     CHECKPOINTS,
@@ -57,7 +58,6 @@ from wearnav.train.common import (
     make_trainer,
 )
 from wearnav.train.interrupt import stop_between_batches
-from wearnav.windows import WindowConfig, WindowDataset
 
 log = logging.getLogger(__name__)
 

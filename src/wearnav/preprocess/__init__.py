@@ -20,15 +20,15 @@ import numpy as np
 from scipy import signal
 from scipy.interpolate import CubicSpline
 
+from wearnav.core.progress import progress as report_progress
+from wearnav.core.rotations import from_wxyz
+from wearnav.core.timeseries import interp_onto, periods, rate
 from wearnav.errors import ConfigError, ValidationError
-from wearnav.frames import FRAME_ALIGN_MODES, frame_yaws, rotate_stacked, turn_devices
-from wearnav.progress import progress as report_progress
+from wearnav.preprocess.frames import FRAME_ALIGN_MODES, frame_yaws, rotate_stacked, turn_devices
 from wearnav.recording import STANDARD_GRAVITY, DeviceStream, Recording
-from wearnav.rotations import from_wxyz
 from wearnav.runs import OMIT_AT_DEFAULT
-from wearnav.timeseries import interp_onto, periods, rate
 
-# Gap rules (wearnav.timeseries): a device stream is trusted across a hole of up to this many of
+# Gap rules (wearnav.core.timeseries): a device stream is trusted across a hole of up to this many of
 # its own sample periods (its rate is 25–200 Hz, so a fixed time would be wrong for some: one
 # or two dropped samples are jitter, more is a hole); truth is interpolated across at most
 # TRUTH_MAX_GAP_S, so dense truth gives targets and sparse waypoints (seconds apart) do not.
@@ -43,7 +43,7 @@ CHANNELS = ("ax", "ay", "az", "gx", "gy", "gz")
 
 
 # The model clock's rate bounds (Hz). Walking's step band reaches 5 Hz and the frame alignment
-# low-passes turns at 0.5 Hz (wearnav.frames): below 10 Hz the clock's Nyquist cuts into the steps.
+# low-passes turns at 0.5 Hz (wearnav.preprocess.frames): below 10 Hz the clock's Nyquist cuts into the steps.
 # Above 1 kHz no wearable IMU samples (a rate typed in ms, or a damaged config.yaml).
 MIN_RATE_HZ, MAX_RATE_HZ = 10.0, 1000.0
 
@@ -61,7 +61,7 @@ class PreprocessConfig:
     # clock offsets (the clock is cut to their overlap); a stream starting or ending further
     # inside is a device put on / taken off mid-walk and is masked instead of cutting the clock.
     edge_tolerance: float = 2.0
-    # One horizontal frame for all devices (wearnav.frames): "none" keeps each device's own yaw;
+    # One horizontal frame for all devices (wearnav.preprocess.frames): "none" keeps each device's own yaw;
     # "common" rotates every device into the reference device's frame (IMU only); "truth" also
     # rotates that frame onto the truth's where the recording has truth, else it is "common".
     # Only world-frame input is rotated (frame="device" has no common vertical).
@@ -71,7 +71,7 @@ class PreprocessConfig:
     # straight lines when this is raised (the competitions' own assumption between waypoints).
     truth_max_gap: float = TRUTH_MAX_GAP_S
     # A constant yaw (degrees) of the input's world frame relative to the truth frame, as a site
-    # has between its magnetic-north rotation vector and its floor plan (wearnav.frames sign
+    # has between its magnetic-north rotation vector and its floor plan (wearnav.preprocess.frames sign
     # convention); world-frame input is rotated by −yaw_deg into the truth frame, after any
     # frame alignment. Estimated from a site's training traces (wearnav.bench.real).
     yaw_deg: float = 0.0

@@ -1,6 +1,6 @@
 """Batch augmentations on tensors (the one registry: name → function).
 
-Every augmentation takes a collated batch (the dict :class:`wearnav.windows.WindowDataset`
+Every augmentation takes a collated batch (the dict :class:`wearnav.preprocess.windows.WindowDataset`
 yields, stacked: ``x`` (B, D, L, 6) world-frame acc xyz + gyro xyz, ``mask`` (B, D), ``vel`` and
 ``disp`` (B, 2), ...) and a ``torch.Generator``, and returns a new batch dict; the input is not
 modified. Seeding the generator makes an augmentation reproducible.
@@ -22,8 +22,8 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
+from wearnav.core.rotations import rotate_about_vertical
 from wearnav.errors import ConfigError
-from wearnav.rotations import rotate_about_vertical
 
 Batch = dict[str, torch.Tensor]
 Augmentation = Callable[[Batch, torch.Generator], Batch]
@@ -58,7 +58,7 @@ def apply(names, batch: Batch, generator: torch.Generator) -> Batch:
 
 def rotate_batch(batch: Batch, angle: torch.Tensor) -> Batch:
     """The batch with inputs and 2-D targets rotated about the vertical by ``angle`` (B,) rad
-    (v' = Rz(angle) v, counter-clockwise seen from above; :mod:`wearnav.rotations`)."""
+    (v' = Rz(angle) v, counter-clockwise seen from above; :mod:`wearnav.core.rotations`)."""
     out = dict(batch)
     x = batch["x"]
     yaw = angle.to(x.dtype).view(-1, *([1] * (x.dim() - 1)))  # (B, 1, 1, 1): one angle per sample
@@ -210,7 +210,7 @@ class ExpandedWindows(torch.utils.data.Dataset):
     c·N + k is window k through copy c. A noise copy's noise is a function of (seed, copy,
     window), so the added data are the same every epoch, as data generated once would be.
 
-    ``base`` is a :class:`wearnav.windows.WindowDataset` (batched fetching: ``base[list]``).
+    ``base`` is a :class:`wearnav.preprocess.windows.WindowDataset` (batched fetching: ``base[list]``).
     """
 
     def __init__(self, base, copies: list[str], sigma: tuple[float, float] = (0.0, 0.0), seed: int = 0):
@@ -248,7 +248,7 @@ class ExpandedWindows(torch.utils.data.Dataset):
     def loader(self, batch: int, shuffle_seed: int | None = None):
         from torch.utils.data import DataLoader
 
-        from wearnav.windows import BatchSampler
+        from wearnav.preprocess.windows import BatchSampler
 
         return DataLoader(
             self,

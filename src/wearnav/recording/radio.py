@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from wearnav.errors import ValidationError
-from wearnav.recording_checks import _as_array, _check_position, _check_time, check_name
+from wearnav.recording.checks import _as_array, _check_position, _check_time, check_name
 
 # Received power of a BLE beacon: -110 dBm is below any phone's sensitivity, 0 dBm at the antenna.
 RSSI_DBM_RANGE = (-130.0, 0.0)

@@ -20,8 +20,8 @@ from pathlib import Path
 import typer
 
 from wearnav import pretrained  # light: the shipped models' names and records (no torch)
-from wearnav.cli_bench import bench_app
-from wearnav.cli_common import (
+from wearnav.cli.bench import bench_app
+from wearnav.cli.common import (
     KEPT,
     NOTHING_KEPT,
     ImportFormat,
@@ -33,10 +33,11 @@ from wearnav.cli_common import (
     split_list,
     suite_folder,
 )
-from wearnav.cli_label import register as register_label_commands
-from wearnav.cli_live import register as register_live_commands
-from wearnav.cli_models import register as register_model_commands
-from wearnav.cli_train import register as register_train_commands
+from wearnav.cli.label import register as register_label_commands
+from wearnav.cli.live import register as register_live_commands
+from wearnav.cli.models import register as register_model_commands
+from wearnav.cli.train import register as register_train_commands
+from wearnav.core.interrupts import noting_lost_interrupts, raise_lost_interrupt
 from wearnav.errors import (
     ConfigError,
     Terminated,
@@ -45,7 +46,6 @@ from wearnav.errors import (
     WearnavWarning,
     one_line,
 )
-from wearnav.interrupts import noting_lost_interrupts, raise_lost_interrupt
 
 app = typer.Typer(
     help="Inertial odometry and activity recognition from everyday wearables.",
@@ -144,8 +144,8 @@ def info(path: Path = typer.Argument(..., help="A recording (.h5) or a dataset f
     Example:
       wearnav info data/sim
     """
+    from wearnav.core.geo import needs_reimport
     from wearnav.dataset import Dataset
-    from wearnav.geo import needs_reimport
     from wearnav.recording import Recording
     from wearnav.report.stats import dataset_stats
 
@@ -314,7 +314,7 @@ def track(
       wearnav track data/sim --model runs/sipp --out walk
     """
     from wearnav.outputs import check_out_folder
-    from wearnav.track_files import TRACK_FILES, TRACK_JSON
+    from wearnav.track.files import TRACK_FILES, TRACK_JSON
     from wearnav.train.resolve import locate_model
 
     # Refused before torch is imported (a mistake is said in well under a second, not 6 s).
@@ -381,8 +381,8 @@ def datasets_report(
     typer.echo(str(write_datasets_report(data, out, work)))
 
 
-register_train_commands(app)  # train, eval (wearnav.cli_train), listed after datasets-report
-register_label_commands(app)  # label-from-fixes, classify (wearnav.cli_label), after them
+register_train_commands(app)  # train, eval (wearnav.cli.train), listed after datasets-report
+register_label_commands(app)  # label-from-fixes, classify (wearnav.cli.label), after them
 
 
 @app.command("results")
@@ -498,8 +498,8 @@ def demo(
     typer.echo(f"\nreport: {page} (trajectory plots per run under {out / 'runs'}/*/plots)")
 
 
-register_model_commands(app)  # models, pretrain, export (wearnav.cli_models), listed after the rest
-register_live_commands(app)  # live, live export, live bench, replay (wearnav.cli_live)
+register_model_commands(app)  # models, pretrain, export (wearnav.cli.models), listed after the rest
+register_live_commands(app)  # live, live export, live bench, replay (wearnav.cli.live)
 
 
 def _os_error_line(exc: OSError) -> str:

@@ -57,8 +57,8 @@ import numpy as np
 from scipy import signal
 from scipy.ndimage import binary_erosion
 
+from wearnav.core.rotations import rotate_about_vertical
 from wearnav.errors import ConfigError
-from wearnav.rotations import rotate_about_vertical
 
 # "initial": the common frame plus ONE constant yaw onto the truth, estimated from the truth's first
 # ``FrameConfig.initial_s`` seconds only (Suite-IN++'s single initial rotation): the honest test input,
@@ -146,7 +146,7 @@ def horizontal(x: np.ndarray) -> np.ndarray:
 
 def rotate_stacked(x: np.ndarray, yaw) -> np.ndarray:
     """Rotate (T, 3k) stacked 3-vectors (acc xyz, gyro xyz, ...) about z by ``yaw`` (scalar or (T,))
-    rad: v' = Rz(yaw) v (:func:`wearnav.rotations.rotate_about_vertical`). Vertical channels are
+    rad: v' = Rz(yaw) v (:func:`wearnav.core.rotations.rotate_about_vertical`). Vertical channels are
     untouched."""
     x = np.asarray(x)
     yaw = np.broadcast_to(np.asarray(yaw, np.float64), x.shape[:1])[:, None]

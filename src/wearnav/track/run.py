@@ -1,9 +1,9 @@
 """`wearnav track`: the walking path of a user's own recording, from a trained odometry model
-(placing it and writing the files below: :mod:`wearnav.track_write`).
+(placing it and writing the files below: :mod:`wearnav.track.write`).
 
 Steps: read the input (a Sensor Logger export folder or zip, a wearnav ``.h5`` recording, or a
 dataset folder and a recording name), align the devices the model was trained on into one
-horizontal frame (:mod:`wearnav.frames`, mode "common": a user's recording has no truth, so the
+horizontal frame (:mod:`wearnav.preprocess.frames`, mode "common": a user's recording has no truth, so the
 frame is the reference device's), predict a velocity per window (the run's window and rate),
 integrate from (0, 0) at the first window centre (:func:`wearnav.trajectory.integrate_velocity`),
 and write into the output folder:
@@ -23,9 +23,9 @@ and write into the output folder:
     ``wearnav classify`` runs it (``track.json`` ``activity`` says which model, or why not).
 ``trajectory.geojson``
     Only when the recording has fixes and a lat/lon origin (``meta["origin_lat"/"origin_lon"]``,
-    written by the importers that project lat/lon with :func:`wearnav.geo.latlon_to_local`): an
+    written by the importers that project lat/lon with :func:`wearnav.core.geo.latlon_to_local`): an
     RFC 7946 FeatureCollection (WGS-84, no ``crs`` member; coordinates ``[lon, lat]`` rounded to
-    1e-7° ≈ 1 cm, converted back by :func:`wearnav.geo.local_to_latlon`): the format map tools read
+    1e-7° ≈ 1 cm, converted back by :func:`wearnav.core.geo.local_to_latlon`): the format map tools read
     (geojson.io, QGIS, Leaflet). First feature, the anchored path as one LineString; its
     properties: ``kind`` "path"; ``recording``; ``model``; ``anchor`` (the anchoring used: smooth,
     rigid, first-fixes, map or start); ``start_time``, ``end_time`` (ISO 8601 UTC, null where the recording
@@ -51,8 +51,8 @@ and write into the output folder:
     integrated path in its own frame (``frame`` in words, :func:`wearnav.pretrained.frame_words`; ``frame_align``,
     ``frame_reference``, ``length_m``, ``end_xy_m``: the CSV's last x, y); ``path``, the path drawn (``frame``:
     placed on east, north or not; ``length_m``); the anchoring fit; ``warnings`` (one line each, also on the
-    console): an older lat/lon projection (:func:`wearnav.geo.needs_reimport`), a reason not to trust the path
-    (:func:`wearnav.track_trust.trust_warnings`, :mod:`wearnav.trust`).
+    console): an older lat/lon projection (:func:`wearnav.core.geo.needs_reimport`), a reason not to trust the path
+    (:func:`wearnav.track.trust.trust_warnings`, :mod:`wearnav.trust`).
 
 Anchoring: the common frame has an arbitrary yaw and the path starts at (0, 0); ``anchor``
 (``--anchor``) places it on the recording's location fixes by :mod:`wearnav.fuse`:
@@ -75,12 +75,12 @@ anchoring, with a warning.
 Map-aware path (issue 36): where there is a floor plan (``--map auto``, the default: the plan the
 recording carries, e.g. ILC2's; or a user's GeoJSON file, :func:`wearnav.plans.read_geojson_plan`)
 and a start (``--start X,Y,HEADING_DEG``, or the first kept fix), the path is placed by
-:func:`wearnav.fuse.placement.place` instead of the smoother (:mod:`wearnav.track_map`): a particle
+:func:`wearnav.fuse.placement.place` instead of the smoother (:mod:`wearnav.track.maps`): a particle
 filter keeping the odometry inside walkable space, weighing in every kept fix. ``track.json``
 ``map`` says which plans and whether they were used; ``anchoring.method`` is then "map"; the plan is
 drawn under the path in ``trajectory.png`` and ``trajectory.html``. A plan without fixes or
 ``--start`` is not used (a warning says to give ``--start``). Without a plan, ``--start`` places the
-path alone (issue 56 §4, :func:`wearnav.track_map.place_from_start`): the odometry turned so that its
+path alone (issue 56 §4, :func:`wearnav.track.maps.place_from_start`): the odometry turned so that its
 first metres run along the start heading and moved to the start position, ``anchoring.method``
 "start"; the user's start is honoured over the recording's fixes, which are then checked and marked
 unused (``fixes.csv``).
@@ -99,17 +99,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav import fuse, geo, pretrained
+from wearnav import fuse, pretrained
+from wearnav.core import geo
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
 from wearnav.evaluate import predict_sequence
 from wearnav.models import registry
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import Recording
-from wearnav.track_files import TRACK_FILES, TRACK_JSON
-from wearnav.track_map import MAP_CHOICES, map_path
-from wearnav.track_trust import trust_warnings
-from wearnav.track_write import UNPLACED, write_track
+from wearnav.track.files import TRACK_FILES, TRACK_JSON
+from wearnav.track.maps import MAP_CHOICES, map_path
+from wearnav.track.trust import trust_warnings
+from wearnav.track.write import UNPLACED, write_track
 from wearnav.train.odometry import SPEED_SOURCES
 from wearnav.train.resolve import locate_model, resolve_model
 from wearnav.trajectory import integrate_velocity
@@ -160,7 +161,7 @@ def load_input(src: str | Path, name: str | None = None, platform: str | None = 
 
 def odometry_preprocess(cfg) -> PreprocessConfig:
     """The run's preprocessing for a user's recording: its devices in one common frame (mode
-    "common", :mod:`wearnav.frames`: a user's recording has no truth)."""
+    "common", :mod:`wearnav.preprocess.frames`: a user's recording has no truth)."""
     return dataclasses.replace(cfg.preprocess_config(), frame_align="common")
 
 
@@ -230,12 +231,12 @@ def track(
 ) -> dict:
     """Track one recording (see module docstring); ``anchor`` places the path on the fixes
     (:data:`wearnav.fuse.ANCHORS`); ``plan`` (``auto``, ``none`` or a GeoJSON plan file) and ``start``
-    (x, y, heading of travel in degrees) make the path map-aware (:func:`wearnav.track_map.map_path`; the start
+    (x, y, heading of travel in degrees) make the path map-aware (:func:`wearnav.track.maps.map_path`; the start
     alone places it where no plan is used);
     ``speed``: where a learned model's speed comes from (:func:`wearnav.train.odometry.with_speed`:
     itself, or its direction with PDR's steps, 0.67 m or cadence-long; default what the model's run
     records, :func:`wearnav.pretrained.recorded_speed`, or a file of `wearnav export` carries); ``fix_lag_s``: how many seconds the fixes lag
-    the walker (:func:`wearnav.track_write.write_track`); returns what ``track.json`` holds."""
+    the walker (:func:`wearnav.track.write.write_track`); returns what ``track.json`` holds."""
     out = Path(out)
     if anchor not in fuse.ANCHORS:
         raise ConfigError(f"unknown anchoring {anchor!r}; one of {', '.join(fuse.ANCHORS)}")

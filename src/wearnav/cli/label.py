@@ -10,7 +10,7 @@ from pathlib import Path
 
 import typer
 
-from wearnav.cli_common import check_input, check_out_folder_path, progress_enabled
+from wearnav.cli.common import check_input, check_out_folder_path, progress_enabled
 
 _LABEL_FROM_FIXES_HELP = (
     "Label IMU segments by the phone's location fixes (EasyTrack); their noise where truth is known."

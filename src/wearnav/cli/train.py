@@ -10,7 +10,7 @@ from pathlib import Path
 
 import typer
 
-from wearnav.cli_common import (
+from wearnav.cli.common import (
     HEADING_FRAME_HELP,
     RECIPE_HELP,
     VEL_LOSS_HELP,
@@ -25,7 +25,7 @@ from wearnav.errors import ConfigError, MissingFileError, WearnavWarning
 
 
 class TestFrame(str, Enum):
-    """The test recordings' frame (wearnav.frames): honest, or the old time-varying diagnostic."""
+    """The test recordings' frame (wearnav.preprocess.frames): honest, or the old time-varying diagnostic."""
 
     initial = "initial"
     truth = "truth"

@@ -2,7 +2,7 @@
 
 On a terminal (stderr a TTY) it draws a tqdm bar; anywhere else (CI, ``nohup``, a pipe, a log
 file) a bar's carriage returns would stay behind as fragments, so it writes a log line instead
-(``log.info`` on the ``wearnav.progress`` logger, which ``wearnav.cli`` prints on stderr) at
+(``log.info`` on the ``wearnav.core.progress`` logger, which ``wearnav.cli`` prints on stderr) at
 most every ``interval_s`` seconds: what, done/total, elapsed and an estimate of the time left.
 ``interval_s`` defaults to :data:`INTERVAL_S`, or ``$WEARNAV_PROGRESS_INTERVAL_S`` where set (a
 test sets it small).

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from wearnav import activity_labels, runs, trust
+from wearnav.core.textio import read_json
 from wearnav.errors import ConfigError, FormatError
 from wearnav.evaluate import predict_sequence
 from wearnav.export.header import is_exported, read_header
@@ -21,7 +22,6 @@ from wearnav.models import registry
 from wearnav.models.pdr import PDR
 from wearnav.recording import Recording
 from wearnav.report.trajectory_page import activity_intervals
-from wearnav.textio import read_json
 from wearnav.train.odometry import TRAINING
 
 

@@ -149,7 +149,7 @@ def interp_onto(
         return values, mask
     values = np.asarray(values, dtype=np.float64)
     if quaternion:
-        from wearnav.rotations import sign_continuous
+        from wearnav.core.rotations import sign_continuous
 
         values = sign_continuous(values)
     out = np.column_stack([np.interp(t_dst, t_src, values[:, k]) for k in range(values.shape[1])])

@@ -1,4 +1,4 @@
-"""What the ``wearnav`` command's modules share (:mod:`wearnav.cli`, :mod:`wearnav.cli_bench`, ...):
+"""What the ``wearnav`` command's modules share (:mod:`wearnav.cli`, :mod:`wearnav.cli.bench`, ...):
 option values, JSON output, and the one line an interrupted command ends with."""
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ def suite_folder(out: Path, command: str) -> None:
 
 def progress_enabled() -> bool:
     """Long work reports progress: a bar on a terminal, log lines every 30 s otherwise (the choice
-    is :mod:`wearnav.progress`'s)."""
+    is :mod:`wearnav.core.progress`'s)."""
     return True
 
 

@@ -11,8 +11,8 @@ from pathlib import Path
 import typer
 
 from wearnav.bench.executor import Backend
-from wearnav.cli_bench_fixes import register as register_fix_commands
-from wearnav.cli_common import (
+from wearnav.cli.bench_fixes import register as register_fix_commands
+from wearnav.cli.common import (
     ADDRESS_HELP,
     EXECUTOR_HELP,
     HEADING_FRAME_HELP,
@@ -87,7 +87,7 @@ def bench_odometry(
     augment: str | None = typer.Option(
         None,
         "--augment",
-        help="The learned models' batch augmentations, comma-separated (wearnav.augment, e.g. "
+        help="The learned models' batch augmentations, comma-separated (wearnav.preprocess.augment, e.g. "
         "rotate_yaw,drop_devices; default: rotate_yaw, none with --heading-frame); '' for none.",
     ),
     jobs: int = typer.Option(1, min=1, help=JOBS_HELP),
@@ -153,7 +153,7 @@ def bench_odometry(
     )
     import platform
 
-    from wearnav.fileio import shown_path
+    from wearnav.core.fileio import shown_path
 
     # whose heading frame: the first device of the layout present (preprocess._carrier_heading)
     frame = "the phone's heading frame"
@@ -224,7 +224,7 @@ def bench_real_odometry(
     augment: str = typer.Option(
         "rotate_yaw",
         "--augment",
-        help="The learned models' batch augmentations, comma-separated (wearnav.augment, e.g. "
+        help="The learned models' batch augmentations, comma-separated (wearnav.preprocess.augment, e.g. "
         "rotate_yaw,drop_devices; the heading frame leaves rotate_yaw out); '' for none.",
     ),
     epochs: int = typer.Option(100, min=1, help="Maximum epochs per model."),
@@ -516,4 +516,4 @@ def bench_har_lodo(
     typer.echo(f"wrote {out / 'results.md'}")
 
 
-register_fix_commands(bench_app)  # easytrack, easytrack-base, adapt (wearnav.cli_bench_fixes)
+register_fix_commands(bench_app)  # easytrack, easytrack-base, adapt (wearnav.cli.bench_fixes)

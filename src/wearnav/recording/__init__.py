@@ -3,14 +3,14 @@
 A :class:`Recording` holds what one walk produced: the IMU stream of each worn device
 (:class:`DeviceStream`), optionally the true body trajectory (:class:`Trajectory`), noisy location
 fixes (:class:`Fixes`), interval labels and free metadata; where the source has them, BLE beacon
-readings, barometer pressure and floor plans (:mod:`wearnav.recording_radio`, re-exported here).
+readings, barometer pressure and floor plans (:mod:`wearnav.recording.radio`, re-exported here).
 Streams keep their own rates and clocks; resampling to a common clock is :mod:`wearnav.preprocess`'s
 job.
 
 Units are SI: seconds, metres, m/s² (accelerometer *including* gravity, device frame), rad/s.
 Quaternions are (w, x, y, z) and rotate device-frame vectors into the world frame (z up).
 
-Everything is validated on construction (the checks: :mod:`wearnav.recording_checks`), so a
+Everything is validated on construction (the checks: :mod:`wearnav.recording.checks`), so a
 Recording that exists is well-formed; loading a file re-validates and names the file in any error.
 
 Decision: docs/decisions/0001-data-model-refinements.md.
@@ -27,9 +27,10 @@ import h5py
 import numpy as np
 import pandas as pd
 
+from wearnav.core.fileio import atomic_path, require_regular_file
+from wearnav.core.timeseries import rate
 from wearnav.errors import FormatError, ValidationError
-from wearnav.fileio import atomic_path, require_regular_file
-from wearnav.recording_checks import (
+from wearnav.recording.checks import (
     POS_ABS_MAX,
     _as_array,
     _as_flags,
@@ -40,10 +41,9 @@ from wearnav.recording_checks import (
     check_name,
     check_text,
 )
-from wearnav.recording_radio import BeaconReadings as BeaconReadings
-from wearnav.recording_radio import FloorPlan as FloorPlan
-from wearnav.recording_radio import Pressure as Pressure
-from wearnav.timeseries import rate
+from wearnav.recording.radio import BeaconReadings as BeaconReadings
+from wearnav.recording.radio import FloorPlan as FloorPlan
+from wearnav.recording.radio import Pressure as Pressure
 
 FORMAT_NAME = "wearnav.recording"
 FORMAT_VERSION = 1

@@ -15,13 +15,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wearnav import fuse, geo
+from wearnav import fuse
+from wearnav.core import geo
+from wearnav.core.fileio import atomic_path, write_text_atomic
 from wearnav.errors import WearnavWarning
-from wearnav.fileio import atomic_path, write_text_atomic
 from wearnav.fixcheck import FixCheck
 from wearnav.recording import FloorPlan, Recording
 from wearnav.report.trajectory_page import activity_intervals, page_points, trajectory_html
-from wearnav.track_files import TRACK_JSON
+from wearnav.track.files import TRACK_JSON
 
 ANCHOR_TEXT = {
     "smooth": "robust smoother over every fix (wearnav.fuse): heading offset, scale (prior), heading drift, "
@@ -33,7 +34,7 @@ ANCHOR_TEXT = {
     "map": "map-aware particle filter (wearnav.fuse.particles): the odometry's moves kept inside the floor plan's "
     "walkable space, heading offset and scale per particle, every kept fix weighed in (Student-t)",
     "start": "placed by --start alone (no floor plan): the odometry turned so that its first metres run along the "
-    "start heading and moved to the start position (wearnav.track_map.place_from_start); the fixes are not used",
+    "start heading and moved to the start position (wearnav.track.maps.place_from_start); the fixes are not used",
 }
 TRAJ_FORMAT = "%.4f"
 COORD_DIGITS = 7  # GeoJSON and fixes.csv lat/lon decimals: 1e-7° is 1.1 cm
@@ -149,7 +150,7 @@ def write_track(
     fix_lag_s: float | None = None,
 ) -> None:
     """Place the path on the fixes by ``anchor`` (:mod:`wearnav.fuse`), or take the map-aware path
-    or the start's ``placed`` (:func:`wearnav.track_map.map_path`), and write the files into ``stage`` (moved to
+    or the start's ``placed`` (:func:`wearnav.track.maps.map_path`), and write the files into ``stage`` (moved to
     ``out`` afterwards). ``fix_lag_s``: how far the fixes lag the walker (the smoother's
     ``fix_lag_s``), None: the run's calibration's (0 for the shipped models)."""
     anchored, res = None, placed
@@ -163,7 +164,7 @@ def write_track(
         }
         summary["warnings"].append(f"{rec.name}: no location fixes: the path is not placed on a map")
         warnings.warn(WearnavWarning(summary["warnings"][-1]), stacklevel=2)
-    elif res is not None:  # the map-aware path, or the start's (wearnav.track_map.map_path)
+    elif res is not None:  # the map-aware path, or the start's (wearnav.track.maps.map_path)
         summary["anchoring"] = {
             "requested": f"--map ({anchor} is not used with a plan)"
             if res.method == "map"

@@ -15,8 +15,8 @@ from typing import Any
 
 import yaml
 
+from wearnav.core.fileio import require_regular_file
 from wearnav.errors import FormatError
-from wearnav.fileio import require_regular_file
 
 
 def read_text(path: str | Path) -> str:

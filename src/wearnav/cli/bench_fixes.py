@@ -1,6 +1,6 @@
 """The bench commands that learn from a phone's own location fixes: EasyTrack (paper 004) and its
 BaseModel study, and adapting a model to a user's fixes (issue 18 §3). Registered on
-:data:`wearnav.cli_bench.bench_app` by :func:`register`."""
+:data:`wearnav.cli.bench.bench_app` by :func:`register`."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any
 import typer
 
 from wearnav.bench.executor import Backend
-from wearnav.cli_common import (
+from wearnav.cli.common import (
     ADDRESS_HELP,
     EXECUTOR_HELP,
     JOBS_HELP,

@@ -12,7 +12,7 @@ from pathlib import Path
 import typer
 
 from wearnav import pretrained  # light (no torch): names and folders of the shipped models
-from wearnav.cli_common import choice_value, echo_json, progress_enabled, suite_folder
+from wearnav.cli.common import choice_value, echo_json, progress_enabled, suite_folder
 from wearnav.errors import ConfigError
 
 
@@ -177,7 +177,7 @@ def adapt(
       wearnav adapt my_walks/*.zip --model runs/sipp --out runs/sipp-mine
       wearnav track walk.zip --model runs/sipp-mine --out walk
     """
-    from wearnav.cli_common import check_input
+    from wearnav.cli.common import check_input
     from wearnav.train.resolve import locate_model
 
     # Refused before torch is imported: the model (a shipped model's name → its folder), --out,

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import typer
 
-from wearnav.cli_common import echo_json, on_interrupt, split_list
+from wearnav.cli.common import echo_json, on_interrupt, split_list
 from wearnav.errors import ConfigError
 from wearnav.outputs import check_new_dataset, check_suite_folder
 

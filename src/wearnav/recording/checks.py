@@ -1,6 +1,6 @@
 """The checks every part of a :class:`~wearnav.recording.Recording` runs on construction: names and
 text that HDF5 and a file name can hold, arrays of the right dtype, shape and range, increasing
-times, positions on Earth. :mod:`wearnav.recording` and :mod:`wearnav.recording_radio` share them;
+times, positions on Earth. :mod:`wearnav.recording` and :mod:`wearnav.recording.radio` share them;
 each raises :class:`~wearnav.errors.ValidationError` naming the field."""
 
 from __future__ import annotations
