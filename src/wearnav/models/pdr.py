@@ -8,27 +8,15 @@ the next present device).
 
 Steps. The vertical world acceleration is band-passed around walking cadence (Butterworth, ``band``
 Hz, zero phase); a step is a local maximum higher than a threshold with no higher sample within
-``min_step_s`` s. The threshold is ``min_peak`` (0.6 m/s²), lowered for a gentle walker (issue 56
-§6: a phone in a Samsung walker's hand whose band-passed peaks had a median of 0.31 m/s², 21 % of
-them above 0.6) to ``peak_fraction`` of the window's amplitude (the 90th percentile of |band-passed
-vertical acc|), never below ``peak_floor``: min(min_peak, max(peak_floor, peak_fraction ·
-amplitude)). The lowered threshold's peaks count only where they are regular (at least 3, the
-coefficient of variation of their intervals at most ``max_interval_cv``) and the window repeats
-itself at a step period (:func:`periodicity` at least ``min_periodicity``), as a walk does and a
-still phone's jitter mostly does not; elsewhere the window counts the peaks above ``min_peak`` as
-before. A window whose amplitude is at least min_peak / peak_fraction (1.2 m/s²: 99.6 % of ILC2's
-walking windows, 85 % of IPIN's) counts exactly what the fixed threshold counted, so the
-calibrations made with it (:data:`STEP_PER_CADENCE_M_S`, the shipped models' held-out numbers) keep
-their meaning. The four constants were chosen on Oxford's step counter user 1 (its walks, their
-motion halved, and scaled to a tenth with 0.05 m/s² of sensor noise added), UCI HAPT's standing /
-sitting / lying of subjects 1–15 and IPIN's training trials 1–5, and scored on the rest (before →
-after): Oxford user 2's walks scaled to a tenth, steps missed 98.6 % → 2.9 % (median; at full
-strength +1.2 % both); IPIN's walking windows with their motion halved, 24 % → 2.6 % fewer steps
-than at full strength; the simulator's phone walks (tiny, seeds 0 and 1) halved, −6.1 % → −4.4 %
-against the truth; still phones 0.09 → 0.15 steps/min (HAPT 16–30) and 0.45 → 0.68 (MotionSense
-standing / sitting). Its cost: where IPIN's walkers stand holding the phone (reference points under
-0.1 m/s), 5.8 → 9.9 steps/min, so the shipped phone model's IPIN paths grow by 1.3 % (median; at
-most 7 %); ILC2's, by at most 0.3 %.
+``min_step_s`` s. The threshold is ``min_peak`` (0.6 m/s²), lowered for a gentle walker to
+min(min_peak, max(``peak_floor``, ``peak_fraction`` · amplitude)), the amplitude being the 90th
+percentile of |band-passed vertical acc|; the lowered threshold's peaks count only where they are
+regular (at least 3, the coefficient of variation of their intervals at most ``max_interval_cv``)
+and the window repeats itself at a step period (:func:`periodicity` at least ``min_periodicity``),
+else the window counts the peaks above ``min_peak``. A window whose amplitude is at least
+min_peak / peak_fraction (1.2 m/s²) counts exactly what the fixed threshold counted. Decision (the
+constants, where they were chosen and what they measured):
+docs/decisions/0044-adaptive-step-threshold.md.
 
 A 4 s window holds 7–9 steps, so counting whole peaks would quantise the speed by ±1 step (±12 %);
 the window's step count is instead the number of step intervals between its first and last peak

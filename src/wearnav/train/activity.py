@@ -6,33 +6,18 @@ inference cuts them, each labelled in the one label set (unlabelled: −1), cach
 
 **Balance** (:func:`sample_weights`): at most ``max_per_class`` windows of one class from one
 source (drawn at random), then each window is drawn with probability ∝ m_c / (S_c · n_{c,s}): class
-c weighs m_c ∝ n_c^``class_power`` (n_c its windows after the cap; 0: every class the same, 1, the
-default: as the capped data has them; fully balanced, the stairs of two sources weighed as much
-as the walking of seven, and held-out walking recall was 0.14–0.94, ½: 0.26–0.98), and within a class each of the S_c
-sources that have it weighs the same, so MotionSense's pocket walks do not outweigh the hand-held
-ones.
+c weighs m_c ∝ n_c^``class_power`` (n_c its windows after the cap), and within a class each of the
+S_c sources that have it weighs the same, so MotionSense's pocket walks do not outweigh the
+hand-held ones.
 
-**Rare classes**: a class that fewer than ``rare_sources`` (3) training sources have (stairs: MotionSense
-and UCI HAPT only; running: MotionSense only) is learned from one or two placements, and held out
-its windows took a stranger's walking: up to 70 % of ILC2's hand-held walking came out stairs down.
-After training its prior is multiplied by ``rare_factor`` (log ``rare_factor`` added to its logit
-bias in the checkpoint, so ``classify`` needs nothing else): the model says stairs or running only
-on strong evidence. 0.03 was chosen on the held-out ILC2, UJI and simulator windows of runs of
-this recipe without it (walking recall there 0.60 / 0.50 / 0.67 → 0.93 / 0.90 / 0.83), so those
-rows of the leave-one-dataset-out table are not independent of the choice.
+**Rare classes**: a class that fewer than ``rare_sources`` (3) training sources have (stairs,
+running) has its prior multiplied by ``rare_factor`` after training (log ``rare_factor`` added to
+its logit bias in the checkpoint, so ``classify`` needs nothing else): the model says stairs or
+running only on strong evidence.
 
 **Motion amplitude** (``amp_jitter``, :mod:`wearnav.models.har`): each training window's horizontal
-and vertical motion is scaled by its own random factor within 1 ± 0.8 (it was ± 0.5). With ± 0.5 the
-held-out simulator's walking recall was 0.876, the one source under 0.9: its pocket walks came out
-stairs up (front and back pocket 5–22 % walking, every other placement 99–100 %). The stairs that
-training has are MotionSense's, in a front pocket, at 0.7× the amplitude of its walking (gravity-aligned
-vertical / horizontal std 3.6 / 2.6 m/s² against 5.3 / 3.5), so a pocket walk weaker than
-MotionSense's read as stairs; real pocket walks span that range (UJI's 2.3 / 2.4, the simulator's
-front pocket within the real band, docs/realism.md). Wider jitter leaves the model the walk's
-shape rather than its strength. Only the held-out simulator was looked at to choose it (± 0.8:
-0.925, ± 0.95: 0.915), so that row is not independent of the choice. The other held-out sources'
-walking recall: ILC2 0.951 → 0.981, IPIN 0.973 → 0.994, UJI 0.968 → 0.989, Oxford 0.992 → 0.957,
-MotionSense and UCI HAPT 1.000 both (docs/results.md).
+and vertical motion is scaled by its own random factor within 1 ± ``amp_jitter``, so the model reads
+the walk's shape rather than its strength.
 
 **Training** (:func:`train_run`): Adam, ``epochs`` × ``steps`` batches of 64 drawn with those
 weights, one torch thread; the run folder is one ``classify`` reads (config.yaml with a
@@ -41,17 +26,15 @@ weights, one torch thread; the run folder is one ``classify`` reads (config.yaml
 **Context** (``context_windows``, :data:`CONTEXT_WINDOWS`): ``classify``, the live page and the
 scores here decide each window's label over its neighbours as well
 (:func:`wearnav.train.classify.context_probs`: the normalised geometric mean of the probabilities
-of 5 consecutive windows, 7.7 s), written into training.json. A window alone mistook a stranger's
-walking for stairs at random moments; a walk rarely looks like stairs for 7 s on end, and a flight
-of stairs between floors lasts about that long. 5 was chosen for that span, but only after a look at
-3, 5 and 9 windows on the held-out windows of earlier runs (ILC2's walking recall 0.86 / 0.92 /
-0.97), so the leave-one-dataset-out rows are not fully independent of it. Windows that are
-unlabelled are kept, with label −1, as the neighbours of the labelled windows; they are neither
-trained on nor scored.
+of 5 consecutive windows, 7.7 s), written into training.json. Unlabelled windows are kept, with
+label −1, as the neighbours of the labelled windows; they are neither trained on nor scored.
 
 **Leave one dataset out** (:mod:`wearnav.bench.har_lodo`): a run trains on every source but
 ``held_out`` and is scored on all of ``held_out``'s windows; the ``in-dataset`` run trains on
 every source's training subjects and is scored on each source's test subjects.
+
+Decision (each constant, what it was chosen on and what it measured):
+docs/decisions/0030-activity-context-ensembles-amplitude.md.
 """
 
 from __future__ import annotations
