@@ -323,15 +323,3 @@ def track(
     with staged_output(out, TRACK_JSON, "track") as stage:
         write_track(stage, out, table, t, xy, rec, cfg, seq, summary, anchor, placed, fix_lag_s)
     return summary
-
-
-__all__ = [
-    "track",
-    "load_input",
-    "odometry",
-    "odometry_preprocess",
-    "path_times",
-    "devices_used",
-    "model_line",
-    "ANCHOR_S",
-]
