@@ -409,29 +409,6 @@ def test_shipped_calibration_is_the_recipes_worst_building(tmp_path, monkeypatch
     assert cal["sigma_scale"] == 1.6 and fuse.config_for(shipped)[0].sigma_scale == 1.6
 
 
-def test_a_recipe_may_train_on_the_simulated_walks_with_the_phone_in_hand(sources, tmp_path):
-    """Issue 34: a recipe naming placements trains on the preset's walks with the phone in them
-    (``sim-hd``), written once beside the simulator's folder with each walk's split, and reused;
-    the shipped recipe names none (the whole preset)."""
-    from wearnav.pretrained.recipe import prepare_data, training_name
-
-    work = tmp_path / "work"
-    for name in ("ilc2", "ipin"):  # imported already (prepare_data reuses a folder with a manifest)
-        (work / name).mkdir(parents=True)
-        (work / name / "manifest.csv").write_text("name,file,duration,devices\n")
-    (work / "sim").symlink_to(sources / "sim")
-    echoed = []
-    hand = Recipe(placements=("HD",))
-    folders = prepare_data(tmp_path / "no-data-root", work, hand, progress=False, echo=echoed.append)
-    assert training_name(hand) == "sim-hd" and training_name(Recipe()) == "sim"
-    sim, hd = Dataset.open(sources / "sim"), Dataset.open(folders["sim-hd"])
-    assert 0 < len(hd) < len(sim) and set(hd.manifest["placement"]) == {"HD"}
-    kept = sim.filter(placement="HD").manifest
-    assert dict(zip(hd.names, hd.manifest["split"], strict=True)) == dict(zip(kept["name"], kept["split"], strict=True))
-    prepare_data(tmp_path / "no-data-root", work, hand, progress=False, echo=echoed.append)
-    assert len(echoed) == 1  # the second call reuses it
-
-
 def test_both_odometry_models_train_on_the_simulator_in_their_own_suite(sources):
     """Issue 34: the multi-device model is made as the phone model is (one recipe: a suite trained
     on the simulator and scored in both real buildings, its run the shipped model), on its three

@@ -516,4 +516,79 @@ def bench_har_lodo(
     typer.echo(f"wrote {out / 'results.md'}")
 
 
+# ---- the registry of experiments (issue 58 §4) ---------------------------------------------------
+
+
+@bench_app.command("experiment")
+def bench_experiment(
+    ctx: typer.Context,
+    name: str | None = typer.Argument(None, metavar="[NAME]", help="A registered experiment (--list names them)."),
+    list_: bool = typer.Option(
+        False,
+        "--list",
+        help="Print the registry: each experiment, the questions it answers, shipped or not, its decision.",
+    ),
+    out: Path | None = typer.Option(None, "--out", help="Suite folder (default runs/NAME, the results page's name)."),
+    data: Path = typer.Option(
+        Path("runs/data"), "--data", help="Folder of the named datasets it reads (each made there where missing)."
+    ),
+    shared: Path = typer.Option(Path("../shared/data"), "--shared", help="Folder holding the public datasets."),
+    jobs: int = typer.Option(1, min=1, help=JOBS_HELP + " For the commands that take --jobs."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Print the commands (the missing data first); run nothing."),
+):
+    """Run a named experiment of the registry (wearnav.bench.experiments): the command that answers a
+    question of docs/results.md, or a variant measured and not shipped, with the data it reads.
+
+    \b
+    Example:
+      wearnav bench experiment --list
+      wearnav bench experiment seeds-simonly-snapped-polar-heading --jobs 2 --dry-run
+    """
+    import shlex
+
+    from wearnav.bench import experiments
+
+    if list_:
+        typer.echo(experiments.table())
+        return
+    if name is None:
+        raise ConfigError("name an experiment, or give --list")
+    exp = experiments.get(name)
+    out = out if out is not None else Path("runs") / exp.name
+    steps = [(d.command, {"path": str(data / d.name)}) for d in experiments.data_steps(exp, data)] + [
+        (exp.command, {"out": str(out), "jobs": str(jobs)})
+    ]
+    for command, own in steps:
+        argv = experiments.fill(command, data=str(data), shared=str(shared), **own)
+        shown = argv if argv[0] == experiments.PYTHON else ["wearnav", *argv]
+        typer.echo(shlex.join(shown))
+        if not dry_run:
+            run_step(argv, out, ctx.find_root().command)
+
+
+def run_step(argv: list[str], out: Path, wearnav) -> None:
+    """One command of an experiment: a ``wearnav`` command through this command line (``wearnav``,
+    its root command, in this process), a script of ``scripts/`` with this interpreter; a failure
+    is one line."""
+    import subprocess
+    import sys
+
+    from wearnav.bench.experiments import PYTHON
+
+    if argv[0] != PYTHON:
+        code = wearnav.main(args=argv, prog_name="wearnav", standalone_mode=False)
+        if isinstance(code, int) and code:
+            raise ConfigError(f"wearnav {argv[0]} ended with exit code {code}")
+        return
+    src = Path(__file__).resolve().parents[2]  # src/, beside scripts/ in a checkout
+    script = src.parent / argv[1]
+    if not script.is_file():
+        raise ConfigError(f"{argv[1]}: not here; it is a script of the wearnav checkout", script)
+    Path(out).mkdir(parents=True, exist_ok=True)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, (str(src), os.environ.get("PYTHONPATH"))))}
+    code = subprocess.run([sys.executable, str(script), *argv[2:]], env=env).returncode
+    if code:
+        raise ConfigError(f"{argv[1]} ended with exit code {code}")
+
+
 register_fix_commands(bench_app)  # easytrack, easytrack-base, adapt (wearnav.cli.bench_fixes)

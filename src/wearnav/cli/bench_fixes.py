@@ -131,7 +131,9 @@ def bench_easytrack_base(
 
 
 def bench_adapt(
-    model: Path = typer.Option(..., "--model", help="The base run folder (a model never trained on --data)."),
+    model: Path = typer.Option(
+        ..., "--model", help="The base run folder, or a shipped model by name (phone): a model never trained on --data."
+    ),
     data: Path = typer.Option(
         ..., "--data", help="IPIN 2023: the imported dataset folder, or its original files with --format."
     ),
@@ -144,6 +146,9 @@ def bench_adapt(
     Example:
       wearnav bench adapt --model runs/base --data data/ipin --out runs/adapt
     """
+    from wearnav.train.resolve import locate_model
+
+    model = Path(locate_model(model, "odometry", files=False, baselines=False))  # a shipped name → its folder
     from wearnav.bench.adapt import adapt_table
 
     suite_folder(out, "bench adapt")

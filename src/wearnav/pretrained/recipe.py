@@ -1,10 +1,10 @@
 """`wearnav pretrain`: the one command that trains, measures and installs the shipped models.
 
 1. **Data** (under ``work``, reused when present): ILC2 site 1 (all floors) and IPIN 2023 Track 3
-   (all trials) imported from the shared data root, the simulator's ``default`` preset (seed 0),
-   and where the recipe names placements its walks with the phone in them (e.g. ``sim-hd``,
-   :func:`training_name`); the activity models import every labelled source into
-   ``out/har-lodo/data``.
+   (all trials) imported from the shared data root, and the simulator's ``default`` preset (seed
+   0); the activity models import every labelled source into ``out/har-lodo/data``. The variants
+   measured and not shipped (the hand-held walks alone, ``sim-hd``; mixes of the buildings) are
+   named experiments of :mod:`wearnav.bench.experiments`.
 2. **The phone model** (issue 34): Suite-IN++ on the simulator alone, in the phone's heading
    frame with the polar loss, trained and measured by one suite
    (``out/sim-to-real``, :mod:`wearnav.bench.real`): both real buildings are then ones it never
@@ -57,7 +57,6 @@ from wearnav.bench.real_page import VARIANTS
 from wearnav.bench.user_protocol import ANCHOR_LABEL, site_calibration
 from wearnav.core.fileio import atomic_path, write_text_atomic
 from wearnav.core.textio import read_json
-from wearnav.dataset import Dataset, write_subset
 from wearnav.errors import ConfigError, MissingFileError
 from wearnav.importers import import_dataset
 from wearnav.pretrained import ACTIVITY, ACTIVITY_WATCH, CARD, HELD_OUT_JSON, MULTI, PHONE, SHIPPED, cards, get
@@ -91,11 +90,10 @@ class Recipe:
     har_epochs: int = 8  # activity models (wearnav.bench.har_lodo): epochs of har_steps batches
     har_steps: int = 250
     seed: int = 0
-    preset: str = "default"  # the simulator's
-    # the odometry models train on the preset's walks with the phone in these placements, all of them
-    # where empty. The hand-held ones alone (("HD",): `sim-hd`) win in both real buildings, whose phones
-    # are all hand-held, and fail with the phone in a pocket or bag (docs/decisions/0038-mse-heading-frame-and-sim-hd.md)
-    placements: tuple[str, ...] = ()
+    # the simulator's; the odometry models train on all of its walks. The hand-held ones alone
+    # (experiment `sim-hd`) win in both real buildings, whose phones are all hand-held, and fail with
+    # the phone in a pocket or bag (docs/decisions/0038-mse-heading-frame-and-sim-hd.md)
+    preset: str = "default"
     # the odometry models' (module docstring, steps 2–3): their loss (wearnav.models.base.velocity_loss),
     # their windows in the carrying device's heading frame (PreprocessConfig.heading_frame), and
     # their batch augmentations (wearnav.preprocess.augment; in the heading frame random yaw has nothing to teach)
@@ -164,20 +162,7 @@ def prepare_data(data_root: Path, work: Path, recipe: Recipe, progress: bool = T
     if not (folders["sim"] / "manifest.csv").is_file():
         echo(f"simulating preset {recipe.preset} ...")
         simulate_dataset(recipe.preset, folders["sim"], seed=recipe.seed, progress=progress)
-    train = training_name(recipe)
-    folders[train] = work / train
-    if not (folders[train] / "manifest.csv").is_file():
-        echo(f"keeping the simulated walks with the phone in {', '.join(recipe.placements)} ...")
-        write_subset(
-            Dataset.open(folders["sim"]), folders[train], {"made_by": "wearnav pretrain"}, placement=recipe.placements
-        )
     return folders
-
-
-def training_name(recipe: Recipe) -> str:
-    """The odometry models' training folder under the work folder: ``sim``, or its walks with the
-    phone in the recipe's placements (``sim-hd``)."""
-    return "-".join(["sim", *(p.lower() for p in recipe.placements)])
 
 
 def recipe_bench(train_data: Path, recipe: Recipe, model: str) -> RealBench:
@@ -229,7 +214,7 @@ def pretrain(
             folders["ipin"],
             out / SUITES[name],
             test_data=folders["ilc2"],
-            bench=recipe_bench(folders[training_name(recipe)], recipe, name),
+            bench=recipe_bench(folders["sim"], recipe, name),
             **suite_kw,
         )
         for name in odometry
