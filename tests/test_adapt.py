@@ -278,6 +278,7 @@ def test_finetune_turns_a_heading_frame_models_windows_back_before_integrating(w
         assert float(_loss(model, [walk], [(0, np.arange(len(seg)))], 0.5, None)) != pytest.approx(want, rel=1e-2)
 
 
+@pytest.mark.slow
 def test_cli_adapts_a_learned_run_by_finetune_and_track_takes_it(walks, tmp_path, monkeypatch, capsys):
     root, recs, _ = walks
     cfg = TrainConfig(model="suitein", data=str(root / "ds"), devices=("phone",), epochs=1, stride=50, seed=0)

@@ -119,6 +119,7 @@ def test_site_yaw_follows_a_turn_of_the_input_frame(building, tmp_path):
     assert abs(base["yaw_deg"] - 40.0) < 25.0
 
 
+@pytest.mark.slow
 def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_path):
     out = tmp_path / "bench"
     bench = RealBench(models=("pdr", "suitein++"), epochs=1, stride=25)
@@ -213,6 +214,7 @@ def test_cli_real_odometry_bad_group_is_one_line(building, tmp_path, monkeypatch
     assert code == 2 and err.count("\n") == 1 and "F77" in err
 
 
+@pytest.mark.slow
 def test_cli_real_odometry_reports_progress_without_a_terminal(building, tmp_path):
     """Issue 22: the suite was silent for minutes with stderr on a pipe; now each long step logs
     done/total and the time left (the interval made short here)."""
@@ -258,6 +260,7 @@ def test_cli_real_odometry_reports_progress_without_a_terminal(building, tmp_pat
     assert "\r" not in res.stderr
 
 
+@pytest.mark.slow
 def test_a_heading_frame_model_is_also_scored_as_its_speed_along_the_phones_pointing(building, tmp_path):
     """issue 34: a learned heading-frame model's path, its PDR-speed hybrid, and its own speed along
     where the phone points, the last with its own site yaw (as pdr-pointing's) from the training
@@ -304,6 +307,7 @@ def test_a_heading_frame_model_is_also_scored_as_its_speed_along_the_phones_poin
             load_model(world_run, speed=speed)
 
 
+@pytest.mark.slow
 def test_seeds_suite_pairs_each_path_with_pdr_by_walk(building, tmp_path):
     """`bench real-odometry --seeds`: a suite per seed sharing one prepared data folder, and one page
     with each path's statistics over the seeds and its difference from PDR, paired by walk."""
@@ -359,6 +363,7 @@ def _calibrations(suite) -> list[dict]:
     return list(doc["sites"]["main"].get("calibration", {}).values())
 
 
+@pytest.mark.slow
 def test_map_aware_rows_where_the_site_has_floor_plans(tmp_path):
     """A site whose recordings carry floor plans (here: the simulator's corridors along each route)
     scores every path also map-aware, at the same points, with the walk-paired difference on the page."""

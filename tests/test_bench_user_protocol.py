@@ -69,6 +69,7 @@ def test_site_calibration_uses_walks_the_model_never_trained_on(tmp_path, monkey
     assert calls[-1] == (str(site), "train") and (run / "fuse_calibration_test.json").is_file()
 
 
+@pytest.mark.slow
 def test_user_protocol_keeps_each_walks_errors_and_pairs_the_smoother_by_walk(monkeypatch):
     """Per trace: every anchoring's errors and the raw fixes' at the same surveyed points; the
     concatenated errors are those traces'; the paired rows give the smoother minus each other path."""

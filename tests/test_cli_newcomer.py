@@ -127,6 +127,7 @@ def _wait_for_training(proc: subprocess.Popen, epochs: float = 0.0, timeout_s: f
 @pytest.mark.parametrize(
     "sig, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated (SIGTERM)")]
 )
+@pytest.mark.slow
 def test_demo_interrupted_says_what_was_kept_and_resumes(tmp_path, tiny_dataset, sig, code, word):
     # the data the demo would simulate first (seed 0), there already: the signals come during training
     tiny_dataset(0, tmp_path / "demo" / "data")
@@ -227,6 +228,7 @@ def test_every_command_has_an_example_that_parses():
         cmd.make_context(" ".join(("wearnav",) + path), args[len(path) :])  # raises on a bad option or value
 
 
+@pytest.mark.slow
 def test_the_cheap_examples_run(tmp_path, shared_data):
     work = tmp_path / "work"
     work.mkdir()
@@ -294,6 +296,7 @@ def test_data_folder_is_ignored_by_git():
     assert res.returncode == 0
 
 
+@pytest.mark.slow
 def test_demo_report_has_its_own_title_and_explains_its_numbers(tmp_path):
     res = wearnav("demo", "--out", "d", "--preset", "tiny", "--models", "pdr", cwd=tmp_path, timeout=300)
     assert res.returncode == 0, res.stderr

@@ -18,6 +18,7 @@ def tiny(tiny_dataset):
     return tiny_dataset(1)
 
 
+@pytest.mark.slow
 def test_train_then_eval(tiny, tmp_path, monkeypatch, capsys):
     code, out, err = run(
         monkeypatch,
@@ -58,6 +59,7 @@ def test_train_then_eval(tiny, tmp_path, monkeypatch, capsys):
     assert code == 2 and "another configuration" in err and err.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_bench_suite_resumes_and_results_page(tiny, tmp_path, monkeypatch, capsys):
     args = (
         "bench",
@@ -127,6 +129,7 @@ def test_one_line_errors(tiny, tmp_path, monkeypatch, capsys):
     assert code == 2 and "not a run folder" in err
 
 
+@pytest.mark.slow
 def test_bench_devices_set_every_runs_layout_and_whose_heading_frame(tiny, tmp_path, monkeypatch, capsys):
     """`bench odometry --devices`: every run's layout in that order, so with --heading-frame the first
     device present gives the frame (the earbuds here); the page says whose; an unknown device is one

@@ -116,6 +116,7 @@ def test_execution_is_checked():
     assert not Execution(backend="ray").in_process
 
 
+@pytest.mark.slow
 def test_cli_executor_options_one_line_errors(tmp_path, monkeypatch, capsys, tiny_dataset):
     from conftest import run_cli
 
@@ -191,6 +192,7 @@ def local_ray():
     ray.shutdown()
 
 
+@pytest.mark.slow
 @pytest.mark.cluster
 def test_ray_runs_jobs_and_a_real_suite_then_resumes(local_ray, tmp_path, tiny_dataset):
     from wearnav.bench import odometry

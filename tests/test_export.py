@@ -228,6 +228,7 @@ def test_wrong_suffix_and_wrong_task_are_refused(run_of, exported, monkeypatch, 
     assert code == 2 and "is an odometry model (ronin) exported" in err and "wearnav track" in err
 
 
+@pytest.mark.slow
 def test_classifier_export_gives_the_runs_logits_and_labels(walk, tmp_path, monkeypatch, capsys):
     """A classifier run (random weights) exported to both formats: logits within PARITY_TOL, the
     file resolves to the run's config and class names, and `wearnav classify` with the ONNX file

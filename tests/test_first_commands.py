@@ -57,6 +57,7 @@ def real_like(tmp_path_factory) -> Path:
     return root
 
 
+@pytest.mark.slow
 def test_simulated_sensorlogger_export_imports_and_tracks_with_pdr_by_name(tmp_path):
     p = wearnav("simulate", "--format", "sensorlogger", "--out", tmp_path / "walk")
     assert p.returncode == 0, p.stderr
@@ -111,6 +112,7 @@ def test_model_names_that_are_not_untrained_baselines_are_refused_with_what_work
         ),
     ],
 )
+@pytest.mark.slow
 def test_a_run_of_the_wrong_kind_says_what_it_is_and_which_command_takes_it(tmp_path, command, model, words):
     run = tmp_path / "run"
     run.mkdir()
@@ -121,6 +123,7 @@ def test_a_run_of_the_wrong_kind_says_what_it_is_and_which_command_takes_it(tmp_
     assert p.stderr == f"error: {run}: {words}\n"
 
 
+@pytest.mark.slow
 def test_training_on_a_dataset_without_val_or_test_uses_its_defaults_and_says_so(real_like, tmp_path):
     p = wearnav("train", "ionet", "--data", real_like, "--out", tmp_path / "run", "--epochs", "1")
     assert p.returncode == 0, p.stderr

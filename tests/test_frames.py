@@ -176,6 +176,7 @@ def tiny(tiny_dataset):
     return Dataset.open(tiny_dataset(0))
 
 
+@pytest.mark.slow
 def test_alignment_accuracy_on_the_tiny_preset(tiny):
     """Error against the simulator's reported-orientation yaw (drawn offset + yaw walk, recovered
     by re-simulating), RMS over the time a device is worn, per recording. Measured with seed 0 and

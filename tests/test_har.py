@@ -227,6 +227,7 @@ def test_split_view_has_no_subject_on_both_sides(tmp_path):
 # ---- end to end on real data --------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
     import json
 

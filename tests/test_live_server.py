@@ -150,6 +150,7 @@ def test_a_stopped_server_says_so_neutrally_and_exits_0(tmp_path, signum, name):
     assert stored_rows(db) == 1
 
 
+@pytest.mark.slow
 def test_load_10x_no_sample_lost_or_duplicated(tmp_path, export60, imported):
     """60 s of a walk replayed at 10× (6 s, 0.2-s batches: 50 messages a second), then the stored
     session exported: the same samples and fixes as importing the export directly."""
@@ -199,6 +200,7 @@ def test_load_10x_no_sample_lost_or_duplicated(tmp_path, export60, imported):
     assert_same(direct.load(direct.names[0]), live.load("load"))
 
 
+@pytest.mark.slow
 def test_sigkill_mid_replay_loses_nothing(tmp_path, export60, imported):
     """SIGKILL the server while a replay runs, restart it on the same store: every message
     acknowledged before the kill is in the store, the replay's retries fill in the rest, the

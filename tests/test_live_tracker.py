@@ -129,6 +129,7 @@ def truth_on(run: dict, t: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(t, ts, en[:, 0]), np.interp(t, ts, en[:, 1])], axis=1)
 
 
+@pytest.mark.slow
 def test_three_devices_live_against_track_and_truth(export):
     """The shipped phone-watch-earbuds model: the same windows and path times as track, but each
     window's common frame (wearnav.preprocess.frames) is estimated from 90 s before it (CONTEXT_S) to 60 s

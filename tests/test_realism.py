@@ -155,6 +155,7 @@ def test_fix_jumps_and_outages_with_accuracy_tracking_the_error():
     assert np.median(fx.accuracy[big]) > 1.5 * np.median(fx.accuracy[~big])
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not DOCS_JSON.exists(), reason="docs/realism.json not generated")
 def test_calibrated_simulator_within_the_real_bands():
     """A fresh simulation (12 walkers × 40 s per placement, another seed than the report's)

@@ -808,6 +808,7 @@ def test_unexpected_exceptions_are_one_line_and_say_bug(tmp_path, monkeypatch):
     assert "internal error (RuntimeError: boom second line)" in line and "bug" in line
 
 
+@pytest.mark.slow
 def test_no_progress_fragments_on_a_pipe(tmp_path):
     code, out, err = run_cli("simulate", "--preset", "tiny", "--out", tmp_path / "s")
     # no bar on a pipe; only whole progress lines (one per 30 s: none on a quick run)

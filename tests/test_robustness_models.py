@@ -148,6 +148,7 @@ def test_signal_during_train_is_its_exit_code_and_the_run_resumes(signum, code, 
     assert record["resumed"] and record["attempts"] == 2 and record["epochs_run"] == 3
 
 
+@pytest.mark.slow
 def test_sigterm_to_a_training_process_is_143(small, tmp_path):
     """The real thing: Lightning's own SIGTERM handling in a process of its own."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).parents[1] / "src"), "OMP_NUM_THREADS": "1"}
@@ -514,6 +515,7 @@ def _damage(run: Path, how: str, which: float, data, raw: bytes, keys=TRAIN_KEYS
         (run / "config.yaml").write_text(data.draw(TEXT), encoding="utf-8", errors="surrogatepass")
 
 
+@pytest.mark.slow
 def test_damaged_run_folders_are_evaluated_or_one_line(pdr_run, small):
     @MODEL_PROPERTY
     @given(

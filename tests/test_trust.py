@@ -167,6 +167,7 @@ def odometry_run(tmp_path_factory):
     return root, rec, run, record
 
 
+@pytest.mark.slow
 def test_track_warns_when_the_model_is_out_of_its_depth(odometry_run, tmp_path):
     root, rec, run, record = odometry_run
     assert record["beats_trivial"] is False  # the untrained network is worse than standing still
@@ -259,6 +260,7 @@ def classifier_run(odometry_run):
     return run, metrics
 
 
+@pytest.mark.slow
 def test_classify_warns_outside_its_domain_and_shows_its_labels(classifier_run, odometry_run, tmp_path):
     run, metrics = classifier_run
     _, rec, _, _ = odometry_run
