@@ -107,6 +107,7 @@ from wearnav.models import registry
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import Recording
+from wearnav.report.trajectory_page import activity_intervals
 from wearnav.track.files import TRACK_FILES, TRACK_JSON
 from wearnav.track.maps import MAP_CHOICES, map_path
 from wearnav.track.trust import trust_warnings
@@ -315,11 +316,14 @@ def track(
     }
     if (stale := geo.needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
         summary["warnings"].append(f"{rec.name}: {stale}")
-    summary["warnings"] += [f"{rec.name}: {w}" for w in trust_warnings(model_path, cfg, rec, seq, t_c, vel, odometry_m)]
+    # the activity model runs once: the distance check and the page's colours both read it
+    activity = activity_intervals(rec)
+    found = trust_warnings(model_path, cfg, rec, seq, t_c, vel, odometry_m, activity[0])
+    summary["warnings"] += [f"{rec.name}: {w}" for w in found]
     placed, summary["map"], map_warnings = map_path(rec, t, xy, plan, start, progress, fix_lag_s or 0.0)
     summary["warnings"] += map_warnings
     for w in summary["warnings"]:
         warnings.warn(WearnavWarning(w), stacklevel=2)
     with staged_output(out, TRACK_JSON, "track") as stage:
-        write_track(stage, out, table, t, xy, rec, cfg, seq, summary, anchor, placed, fix_lag_s)
+        write_track(stage, out, table, t, xy, rec, cfg, seq, summary, activity, anchor, placed, fix_lag_s)
     return summary

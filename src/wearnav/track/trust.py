@@ -21,7 +21,6 @@ from wearnav.fuse.config import FuseConfig
 from wearnav.models import registry
 from wearnav.models.pdr import PDR
 from wearnav.recording import Recording
-from wearnav.report.trajectory_page import activity_intervals
 from wearnav.train.odometry import TRAINING
 
 
@@ -123,11 +122,10 @@ def fixes_length_m(rec: Recording, t0: float, t1: float) -> float | None:
     return float(np.sum(np.linalg.norm(np.diff(mean, axis=0), axis=1)))
 
 
-def walking_seconds(rec: Recording, t0: float, t1: float) -> float | None:
-    """Seconds between ``t0`` and ``t1`` that the shipped activity model labels on foot
-    (:data:`ON_FOOT`, as `wearnav classify` does: :func:`wearnav.report.trajectory_page.activity_intervals`);
-    None where it cannot label the recording (no model, no phone, too short)."""
-    rows, _ = activity_intervals(rec)
+def walking_seconds(rows: list[dict] | None, t0: float, t1: float) -> float | None:
+    """Seconds between ``t0`` and ``t1`` that the activity intervals ``rows`` label on foot
+    (:data:`ON_FOOT`; the rows of :func:`wearnav.report.trajectory_page.activity_intervals`, as
+    `wearnav classify` finds them); None where there are none (no model, no phone, too short)."""
     if rows is None:
         return None
     return float(sum(max(0.0, min(r["end_s"], t1) - max(r["start_s"], t0)) for r in rows if r["label"] in ON_FOOT))
@@ -139,17 +137,18 @@ def falls_short(odometry_m: float, other_m: float) -> bool:
     return other_m - odometry_m > DISTANCE_MIN_M and other_m > DISTANCE_FACTOR * odometry_m
 
 
-def distance_warnings(rec: Recording, t0: float, t1: float, length_m: float) -> list[str]:
+def distance_warnings(rec: Recording, t0: float, t1: float, length_m: float, activity: list[dict] | None) -> list[str]:
     """The odometry's path of ``length_m`` m over [``t0``, ``t1``] s against the distance the fixes
-    move (:func:`fixes_length_m`) and the activity model's walking time × :data:`WALK_SPEED_M_S`
-    (:func:`walking_seconds`): one line for each that it falls short of (:func:`falls_short`)."""
+    move (:func:`fixes_length_m`) and the walking time × :data:`WALK_SPEED_M_S` of the recording's
+    ``activity`` intervals (:func:`walking_seconds`): one line for each that it falls short of
+    (:func:`falls_short`)."""
     out = []
     if (fix_m := fixes_length_m(rec, t0, t1)) is not None and falls_short(length_m, fix_m):
         out.append(
             f"the odometry walked far less than the fixes moved: the odometry's path is "
             f"{length_m:.1f} m long, the fixes move {fix_m:.0f} m; {DISTANCE_ADVICE}"
         )
-    if (walk_s := walking_seconds(rec, t0, t1)) is not None and falls_short(length_m, walk_s * WALK_SPEED_M_S):
+    if (walk_s := walking_seconds(activity, t0, t1)) is not None and falls_short(length_m, walk_s * WALK_SPEED_M_S):
         out.append(
             f"the odometry walked far less than the activity model says: the odometry's path "
             f"is {length_m:.1f} m long, the activity model finds {walk_s:.0f} s of walking (≈ "
@@ -159,15 +158,22 @@ def distance_warnings(rec: Recording, t0: float, t1: float, length_m: float) -> 
 
 
 def trust_warnings(
-    model_path, cfg, rec: Recording, seq, t_c: np.ndarray, vel: np.ndarray, length_m: float
+    model_path,
+    cfg,
+    rec: Recording,
+    seq,
+    t_c: np.ndarray,
+    vel: np.ndarray,
+    length_m: float,
+    activity: list[dict] | None = None,
 ) -> list[str]:
     """One line per reason not to trust the path, each with what to do: :func:`input_warnings`
     (devices, domain, did the model learn), :func:`walk_warnings` (implausible for walking) and
-    :func:`distance_warnings` (the odometry against the fixes and the activity model)."""
+    :func:`distance_warnings` (the odometry against the fixes and the ``activity`` intervals)."""
     return (
         input_warnings(model_path, cfg, rec)
         + walk_warnings(cfg, seq, vel, length_m)
-        + distance_warnings(rec, float(t_c[0]), float(t_c[-1]), length_m)
+        + distance_warnings(rec, float(t_c[0]), float(t_c[-1]), length_m, activity)
     )
 
 

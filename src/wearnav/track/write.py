@@ -21,7 +21,7 @@ from wearnav.core.fileio import atomic_path, write_text_atomic
 from wearnav.errors import WearnavWarning
 from wearnav.fixcheck import FixCheck
 from wearnav.recording import FloorPlan, Recording
-from wearnav.report.trajectory_page import activity_intervals, page_points, trajectory_html
+from wearnav.report.trajectory_page import page_points, trajectory_html
 from wearnav.track.files import TRACK_JSON
 
 ANCHOR_TEXT = {
@@ -145,6 +145,7 @@ def write_track(
     cfg,
     seq,
     summary: dict,
+    activity: tuple[list[dict] | None, str],
     anchor: str = "smooth",
     placed: fuse.FuseResult | None = None,
     fix_lag_s: float | None = None,
@@ -246,7 +247,8 @@ def write_track(
     drawn_plans = rec.plans if summary.get("map", {}).get("used") else None
     plot_track(table, seq.devices, anchored, fx, summary, stage / "trajectory.png", kept, drawn_plans)
     write_text_atomic(
-        page_html(t, xy, rec, cfg, summary, res if anchored is not None else None, kept), stage / "trajectory.html"
+        page_html(t, xy, rec, cfg, summary, activity, res if anchored is not None else None, kept),
+        stage / "trajectory.html",
     )
     summary["files"] = ["trajectory.csv", "trajectory.png", "trajectory.html", TRACK_JSON] + [
         f for f in ("trajectory.geojson", "fixes.csv") if (stage / f).is_file()
@@ -255,13 +257,21 @@ def write_track(
 
 
 def page_html(
-    t: np.ndarray, xy: np.ndarray, rec: Recording, cfg, summary: dict, res=None, kept: np.ndarray | None = None
+    t: np.ndarray,
+    xy: np.ndarray,
+    rec: Recording,
+    cfg,
+    summary: dict,
+    activity: tuple[list[dict] | None, str],
+    res=None,
+    kept: np.ndarray | None = None,
 ) -> str:
     """``trajectory.html`` (:mod:`wearnav.report.trajectory_page`): the live page's drawing of the path (anchored
     by ``res`` where given, with the ``kept`` fixes; else the odometry's own frame, without fixes),
-    self-contained, with a time slider, coloured by the activity ``classify`` finds
-    (``summary["activity"]`` says which model, or why not)."""
-    rows, note = activity_intervals(rec)
+    self-contained, with a time slider, coloured by the ``activity`` intervals ``classify`` finds
+    (:func:`wearnav.report.trajectory_page.activity_intervals`; ``summary["activity"]`` says which
+    model, or why not)."""
+    rows, note = activity
     summary["activity"] = note
     origin, fixes = None, []
     fx = rec.fixes
