@@ -325,7 +325,7 @@ def track(
     check_input(src)
     if map_plan not in ("auto", "none") and not Path(map_plan).is_file():
         raise ConfigError(f"--map {map_plan}: not auto, none or a GeoJSON plan file")
-    from wearnav.track import model_line
+    from wearnav.track import model_line  # torch: after the cheap checks
     from wearnav.track import track as track_
 
     summary = track_(

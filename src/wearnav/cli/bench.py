@@ -10,6 +10,7 @@ from pathlib import Path
 
 import typer
 
+from wearnav.bench import experiments  # data and stdlib only: no torch
 from wearnav.bench.executor import Backend
 from wearnav.cli.bench_fixes import register as register_fix_commands
 from wearnav.cli.common import (
@@ -546,8 +547,6 @@ def bench_experiment(
     """
     import shlex
 
-    from wearnav.bench import experiments
-
     if list_:
         typer.echo(experiments.table())
         return
@@ -573,9 +572,7 @@ def run_step(argv: list[str], out: Path, wearnav) -> None:
     import subprocess
     import sys
 
-    from wearnav.bench.experiments import PYTHON
-
-    if argv[0] != PYTHON:
+    if argv[0] != experiments.PYTHON:
         code = wearnav.main(args=argv, prog_name="wearnav", standalone_mode=False)
         if isinstance(code, int) and code:
             raise ConfigError(f"wearnav {argv[0]} ended with exit code {code}")

@@ -14,6 +14,7 @@ import typer
 from wearnav import pretrained  # light (no torch): names and folders of the shipped models
 from wearnav.cli.common import choice_value, echo_json, progress_enabled, suite_folder
 from wearnav.errors import ConfigError
+from wearnav.models import catalogue  # the registry's table: no torch (issue 58 §7)
 
 
 class AdaptMethod(str, Enum):  # wearnav.adapt.METHODS
@@ -34,7 +35,6 @@ def models_():
     Example:
       wearnav models
     """
-    from wearnav.models import catalogue  # the registry's table: no torch (issue 58 §7)
 
     specs = catalogue.read()
     w = max(15, *(len(spec.name) for spec in specs))  # the name column as wide as the longest name

@@ -18,6 +18,8 @@ import json
 from functools import cache
 from pathlib import Path
 
+from wearnav.core.fileio import write_text_atomic
+
 CATALOGUE_JSON = Path(__file__).with_name("catalogue.json")
 # the build arguments of the parameter count (what `wearnav models` has always shown)
 COUNT_DEVICES, COUNT_WINDOW = 3, 100
@@ -74,7 +76,6 @@ def generate() -> list[dict]:
 
 def write(path: Path = CATALOGUE_JSON) -> Path:
     """Write :func:`generate`'s table to ``path``."""
-    from wearnav.core.fileio import write_text_atomic
 
     text = json.dumps({"generated_by": "python -m wearnav.models.catalogue", "models": generate()}, indent=1)
     return write_text_atomic(text + "\n", path)

@@ -20,7 +20,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from wearnav.core.textio import read_json
+from wearnav.core.textio import read_json, read_yaml
 from wearnav.errors import ConfigError, FormatError
 from wearnav.export.header import is_exported, read_header
 from wearnav.runs import run_folder
@@ -221,7 +221,6 @@ def frame_words(heading_frame: bool, devices, reference: str | None = None) -> s
 
 def shipped_frame_words(spec: Shipped) -> str:
     """:func:`frame_words` of the installed shipped odometry model ``spec``, read from its ``config.yaml``."""
-    from wearnav.core.textio import read_yaml
 
     train = read_yaml(spec.path / "config.yaml").get("config", {}).get("train", {})
     return frame_words(bool(train.get("heading_frame")), train.get("devices") or spec.devices)
