@@ -96,7 +96,7 @@ def test_bench_suite_resumes_and_results_page(tiny, tmp_path, monkeypatch, capsy
     assert code == 0, err
     assert "| 2 of 3 " in (tmp_path / "odometry" / "results.md").read_text()
     assert not list((tmp_path / "odometry").glob("test-mlp-*/training.json"))[2:]  # nothing trained
-    # the folder answers a registered question (bench.results.QUESTIONS: the simulator's tables)
+    # the folder answers a registered question (bench.questions.QUESTIONS: the simulator's tables)
     code, out, err = run(
         monkeypatch, capsys, "results", tmp_path / "odometry", "--out", tmp_path / "docs" / "results.md"
     )

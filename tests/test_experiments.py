@@ -11,7 +11,7 @@ import typer
 from conftest import run_cli
 from wearnav.bench import experiments
 from wearnav.bench.experiments import DATA, EXPERIMENTS, HISTORY, PYTHON, STATUSES, data_read, fill
-from wearnav.bench.results import QUESTIONS
+from wearnav.bench.questions import QUESTIONS
 from wearnav.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -294,7 +294,7 @@ def test_walk_table_distance_and_label_noise(tmp_path):
 
 def _questions(*tags):
     """A registry of one question per suite folder name, for the page's mechanics."""
-    from wearnav.bench.results import Question
+    from wearnav.bench.questions import Question
 
     return tuple(Question(f"q-{t}", "Tests", f"Question {t.upper()}?", (t,)) for t in tags)
 

@@ -2,7 +2,7 @@
 questions, and of the variants measured and not shipped (issue 58 §4).
 
 An :class:`Experiment` is a command line held as data (a ``wearnav`` command, or a script of
-``scripts/``), the questions of :data:`wearnav.bench.results.QUESTIONS` its page answers (or
+``scripts/``), the questions of :data:`wearnav.bench.questions.QUESTIONS` its page answers (or
 ``history`` where its page left for ``docs/history.md``), whether it is the shipped configuration,
 and the decision record that says why. A :class:`Data` is a dataset variant the commands read
 (``{data}/NAME``), with the command that writes it. ``wearnav bench experiment NAME`` makes the

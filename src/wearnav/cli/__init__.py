@@ -404,7 +404,7 @@ def results_(
     ),
 ):
     """Stitch the suites' generated pages into one results page, one section per question
-    (wearnav.bench.results.QUESTIONS; figures copied to its img/). A suite folder that answers no
+    (wearnav.bench.questions.QUESTIONS; figures copied to its img/). A suite folder that answers no
     registered question, or two sections for one question, is refused; a replaced section gets a
     line in docs/history.md, and README.md's first-screen table is rewritten from the page.
 
