@@ -391,6 +391,15 @@ EXPERIMENTS: tuple[Experiment, ...] = (
         "0041",
         ("ipin", "ilc2", "sim"),
     ),
+    Experiment(
+        "map-lofo",
+        "the map-aware path in ILC2 site 1, every constant chosen on the other floors (the shipped phone model)",
+        ("bench", "map-lofo", "--data", "{data}/ilc2", "--out", "{out}"),
+        ("map-lofo",),
+        SHIPPED,
+        "0046",
+        ("ilc2",),
+    ),
 )
 
 _PLACEHOLDER = re.compile(r"\{(\w+)\}")

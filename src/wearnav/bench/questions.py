@@ -117,6 +117,13 @@ QUESTIONS: tuple[Question, ...] = (
         readme="Your path on your own location fixes (`track`), against the raw fixes",
     ),
     Question(
+        "map-lofo",
+        "The user's path",
+        "Does a floor plan help in a building the filter was not tuned in (every floor held out in turn), and what does it cost where it does not fit?",
+        ("map-lofo",),
+        (Pick("ILC2 B1 held out: `track`", r"^B1$", "`track` median"), Pick("map-less", r"^B1$", "map-less median")),
+    ),
+    Question(
         "sim-fusion",
         "The user's path",
         "On the simulator's dense truth, what do the fixes and the smoother add to the shipped `phone` model?",

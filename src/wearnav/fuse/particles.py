@@ -44,18 +44,23 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Protocol
 
 import numpy as np
 
 from wearnav.errors import ValidationError
 from wearnav.fuse.config import fix_sigma_m
-from wearnav.plans import Walkable
 
 # The odometry's direction of travel at the start (to turn it onto a given start heading) is that of
 # its first START_DIR_M metres of path (a step or two is too noisy: the body sways ±10° per step).
 START_DIR_M = 3.0
+
+
+class Walls(Protocol):
+    """Where a walker can be: :class:`wearnav.plans.Walkable` (or a plan moved for a test of trust)."""
+
+    def inside(self, xy: np.ndarray) -> np.ndarray: ...
 
 
 class PathLossModel(Protocol):
@@ -83,6 +88,10 @@ class MapConfig:
     # is not a state: every particle takes this one (None: the state above, as with fixes). The walls
     # would select short scales (module docstring); 1.04 was the best of 1.00–1.08 on ILC2's training floors.
     walls_only_scale: float | None = 1.04
+    # ... and its heading walk and relative step noise are these (leave one floor of ILC2 site 1 out, five
+    # folds, 12 settings each: every fold chose 0.5 °/√s and 0.2 on its four other floors; decision 0046)
+    walls_only_heading_walk_deg_per_sqrt_s: float = 0.5
+    walls_only_step_sigma_rel: float = 0.2
     step_sigma_rel: float = 0.1  # noise per step, relative to the step's length, per axis
     step_sigma_m: float = 0.05  # and absolute, per axis (a standing walker's sway)
     wall_penalty: float = 1e-3  # weight factor of a move that ends in, or crosses, non-walkable space
@@ -101,6 +110,16 @@ class MapConfig:
     # 0.01–0.2 m/√s), for indoor fixes that sit metres off for a whole walk, was tried on the same 31
     # training walks (PDR) and not kept: median / p95 5.24–7.60 / 13.35–21.71 m against 4.55 / 15.60
     # without it (probably because the beacons hold the path too loosely to tell the two offsets apart).
+    # The referee (issue 57): with a known start and heading, the map-less path from that start bounds where
+    # the walker can be: a particle farther from it than max(referee_m, referee_rel × distance walked) costs
+    # like a wall. Both are the odometry's own drift, measured (the map-less error's p99 on ILC2 site 1, per
+    # distance walked beyond 10 m and within the first 10 m), never a filter tuning: decision 0046. None: off.
+    referee_rel: float | None = 0.47
+    referee_m: float = 5.7
+    # ... and the 95th percentiles (0.31 per metre walked, 4.2 m within 10 m): a path the plan moved further
+    # from the odometry than this is doubtful (wearnav.fuse.mapcheck), a warning says so
+    doubt_rel: float = 0.31
+    doubt_m: float = 4.2
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -137,6 +156,7 @@ class MapResult:
     sigma_m: np.ndarray
     floor: np.ndarray
     info: dict
+    steps: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
 
 def start_heading_offset(t: np.ndarray, xy: np.ndarray, heading_rad: float) -> float:
@@ -165,7 +185,7 @@ def _student_t_loglik(r: np.ndarray, dof: float) -> np.ndarray:
 def map_filter(
     t: np.ndarray,
     xy: np.ndarray,
-    plans: dict[int | None, Walkable],
+    plans: Mapping[int | None, Walls],
     start_xy: np.ndarray | None,
     heading_offset_rad: float | None,
     floor_at: Callable[[np.ndarray], np.ndarray] | None = None,
@@ -216,9 +236,11 @@ def map_filter(
         theta = rng.uniform(-np.pi, np.pi, n)
     heard = beacons is not None and beacons.t.size > 0
     walls_only = (fx_t is None or not fx_t.size) and not heard and cfg.walls_only_scale is not None
+    heading_walk, step_rel = cfg.heading_walk_deg_per_sqrt_s, cfg.step_sigma_rel
     if walls_only:
         assert cfg.walls_only_scale is not None
         log_s, scale_walk = np.full(n, np.log(cfg.walls_only_scale)), 0.0
+        heading_walk, step_rel = cfg.walls_only_heading_walk_deg_per_sqrt_s, cfg.walls_only_step_sigma_rel
     else:
         log_s = np.log(cfg.scale_prior) + cfg.scale_log_sigma * rng.standard_normal(n)
         scale_walk = cfg.scale_walk_per_sqrt_s
@@ -229,12 +251,27 @@ def map_filter(
     hist[0] = pos
     parents[0] = np.arange(n)
     sq_dt = np.sqrt(cfg.step_s)
-    walls = resamples = 0
+    walls = resamples = refereed = 0
+    # the referee: the map-less path from the start (the odometry turned by the start heading) and how far
+    # the walker can have drifted from it by each step (MapConfig.referee_rel)
+    referee = None
+    if start_xy is not None and heading_offset_rad is not None and cfg.referee_rel is not None:
+        c0, s0 = np.cos(heading_offset_rad), np.sin(heading_offset_rad)
+        referee = (odo - odo[0]) @ np.array([[c0, s0], [-s0, c0]]) + np.asarray(start_xy, np.float64)[:2]
+        walked = np.concatenate([[0.0], np.cumsum(np.linalg.norm(disp, axis=1))])
+        reach = np.maximum(cfg.referee_m, cfg.referee_rel * walked)
+    # per step, what the filter saw (the lost test and the diagnostics read them): the effective sample
+    # size (share of n) before resampling, the share of the weight the walls took, the cloud's mean and spread
+    ess_k = np.ones(steps + 1)
+    kill_k = np.zeros(steps + 1)
+    mean_k = np.empty((steps + 1, 2))
+    spread_k = np.zeros(steps + 1)
+    mean_k[0] = pos.mean(axis=0)
     fi = 0
     bi = 0
     ll_wall = np.log(cfg.wall_penalty)
 
-    def plan_of(k: int) -> Walkable | None:
+    def plan_of(k: int) -> Walls | None:
         f = floors[k]
         key = None if not np.isfinite(f) else int(round(f))
         return plans.get(key) or (next(iter(plans.values())) if len(plans) == 1 and key is None else plans.get(None))
@@ -244,25 +281,32 @@ def map_filter(
         w = np.exp(logw - logw.max())
         w /= w.sum()
         idx = np.arange(n)
-        if 1.0 / np.sum(w * w) < cfg.resample_ess * n:
+        ess_k[k] = 1.0 / np.sum(w * w) / n
+        if ess_k[k] < cfg.resample_ess:
             idx = _systematic(w, rng)
             pos, theta, log_s = pos[idx], theta[idx], log_s[idx]
             logw = np.zeros(n)
             resamples += 1
         parents[k + 1] = idx
-        theta = theta + np.radians(cfg.heading_walk_deg_per_sqrt_s) * sq_dt * rng.standard_normal(n)
+        theta = theta + np.radians(heading_walk) * sq_dt * rng.standard_normal(n)
         log_s = log_s + scale_walk * sq_dt * rng.standard_normal(n)
         d = disp[k]
         c, s = np.cos(theta), np.sin(theta)
         sc = np.exp(log_s)
         move = np.stack([sc * (c * d[0] - s * d[1]), sc * (s * d[0] + c * d[1])], axis=1)
-        move += (cfg.step_sigma_rel * float(np.hypot(*d)) + cfg.step_sigma_m) * rng.standard_normal((n, 2))
+        move += (step_rel * float(np.hypot(*d)) + cfg.step_sigma_m) * rng.standard_normal((n, 2))
         new = pos + move
         plan = plan_of(k + 1)
         if plan is not None:
             bad = ~plan.inside(new) | ~plan.inside(pos + 0.5 * move)
             walls += int(bad.sum())
+            wk = np.exp(logw - logw.max())
+            kill_k[k + 1] = float(wk @ bad) / float(wk.sum())
             logw = logw + ll_wall * bad
+        if referee is not None:
+            far = np.sum((new - referee[k + 1]) ** 2, axis=1) > reach[k + 1] ** 2
+            refereed += int(far.sum())
+            logw = logw + ll_wall * far
         pos = new
         # the observations of (tk[k], tk[k + 1]]
         if fx_t is not None:
@@ -281,6 +325,10 @@ def map_filter(
                 logw = logw + beacons.model.loglik(beacons.rssi_dbm[bi], dist, between)
                 bi += 1
         hist[k + 1] = pos
+        wk = np.exp(logw - logw.max())
+        wk /= wk.sum()
+        mean_k[k + 1] = wk @ pos
+        spread_k[k + 1] = np.sqrt(max(0.0, float(wk @ np.sum((pos - mean_k[k + 1]) ** 2, axis=1)) / 2.0))
         if progress is not None:
             progress(k + 1, steps)
 
@@ -302,12 +350,37 @@ def map_filter(
         "steps": steps,
         "resamples": resamples,
         "wall_share": round(walls / (steps * n), 4),
+        "referee_share": round(refereed / (steps * n), 4) if referee is not None else None,
+        # the share of the weight the walls took per step, on average: near 0 where the walk fits the plan
+        "wall_kill_mean": round(float(kill_k[1:].mean()), 4),
         "fixes_used": int(fi) if fx_t is not None else 0,
         "beacon_readings_used": int(bi),
         "scale_median": round(float(np.exp(np.median(log_s))), 4),
         "scale": "fixed (walls only)" if walls_only else "a state",
         "heading_offset_deg": round(float(np.degrees(np.angle(np.sum(w * np.exp(1j * theta))))), 2),
+        # how far the walls turned the given start heading by the end (None: no heading was given)
+        "heading_turned_deg": None
+        if heading_offset_rad is None
+        else round(float(np.degrees(np.angle(np.sum(w * np.exp(1j * (theta - heading_offset_rad)))))), 2),
         "seconds": round(time.perf_counter() - t0_wall, 3),
         "config": dataclasses.asdict(cfg),
     }
-    return MapResult(out, np.interp(t, tk, spread), np.interp(t, tk, floors), info)
+    ess_k[steps] = 1.0 / np.sum(w * w) / n
+    diag = {
+        "t": tk,
+        "odometry": odo,
+        "ess": ess_k,
+        "wall_kill": kill_k,
+        "filter_xy": mean_k,
+        "filter_spread_m": spread_k,
+    }
+    diag["lineages_left"] = np.asarray(np.unique(idx).size)  # the final cloud's distinct ancestors at the start
+    first_plan = plan_of(0)
+    if start_xy is not None and first_plan is not None:  # whether the plan has walkable space within the start's σ
+        ring = np.exp(1j * np.linspace(0, 2 * np.pi, 16, endpoint=False))
+        near = np.concatenate([[0], 0.5 * ring, ring]) * cfg.start_sigma_m
+        pts = np.asarray(start_xy, np.float64)[:2] + np.stack([near.real, near.imag], axis=1)
+        diag["start_walkable"] = np.asarray(bool(first_plan.inside(pts).any()))
+    if referee is not None:
+        diag["referee"] = referee
+    return MapResult(out, np.interp(t, tk, spread), np.interp(t, tk, floors), info, diag)

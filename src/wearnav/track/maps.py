@@ -15,6 +15,7 @@ from tqdm import tqdm
 from wearnav import fuse, plans
 from wearnav.fixcheck import UNUSED, check_fixes
 from wearnav.fuse import placement
+from wearnav.fuse.mapcheck import DOUBTFUL, MapVerdict, check_map_path, diagnostics
 from wearnav.fuse.particles import START_DIR_M, MapConfig, start_heading_offset
 from wearnav.recording import FloorPlan, Recording
 
@@ -52,11 +53,13 @@ def place_on_map(
     start: tuple[float, float, float] | None,
     cfg: MapConfig = MapConfig(),
     progress: bool = False,
-) -> fuse.FuseResult | None:
+) -> tuple[fuse.FuseResult, MapVerdict] | None:
     """The map-aware path (:func:`wearnav.fuse.placement.place`: the particle filter with the plan's
     walls and the recording's fixes) of the odometry path ``xy`` on ``floor_plans``, as a FuseResult
-    (method "map"), or None where there is no plan. The start is ``start`` (x, y in the plan's frame,
-    the heading of travel in degrees counter-clockwise from +x) or the first kept fix."""
+    (method "map", its ``info["trust"]`` the verdict and ``info["diagnostics"]``: :mod:`wearnav.fuse.mapcheck`),
+    with :func:`wearnav.fuse.mapcheck.check_map_path`'s verdict; None where there is no plan. The start
+    is ``start`` (x, y in the plan's frame, the heading of travel in degrees counter-clockwise from +x)
+    or the first kept fix."""
     if not floor_plans:
         return None
     with tqdm(total=100, desc="map-aware path", unit="%", disable=not progress, leave=False) as bar:
@@ -65,7 +68,12 @@ def place_on_map(
             bar.update(int(100 * k / n) - bar.n)
 
         res, check = placement.place(rec, t, xy, None, floor_plans, start, cfg, tick)
-    return fuse.FuseResult(res.xy, res.sigma_m, "map", res.info, [], check)
+    verdict = check_map_path(res, cfg)
+    info = res.info | {
+        "trust": {"status": verdict.status, "reason": verdict.reason, **verdict.figures},
+        "diagnostics": diagnostics(res),
+    }
+    return fuse.FuseResult(res.xy, res.sigma_m, "map", info, [], check), verdict
 
 
 def map_path(
@@ -94,9 +102,19 @@ def map_path(
         )
         info["used"] = False
     elif floor_plans:
-        placed = place_on_map(rec, t, xy, floor_plans, start, MapConfig(fix_lag_s=fix_lag_s), progress)
-        info["used"] = True
-        rec.plans = floor_plans  # what the page draws under the path
+        found = place_on_map(rec, t, xy, floor_plans, start, MapConfig(fix_lag_s=fix_lag_s), progress)
+        assert found is not None
+        placed, verdict = found
+        info["trust"] = placed.info["trust"]
+        rec.plans = floor_plans  # what the page draws under the path (a plan that did not fit too: see why)
+        if verdict.use_map:
+            info["used"] = True
+            if verdict.status == DOUBTFUL:
+                warns.append(verdict.reason)
+        else:  # the walk does not fit the plan (issue 57): the path as if there were none, said
+            info["used"] = False
+            warns.append(verdict.reason)
+            placed = place_from_start(rec, t, xy, start) if start is not None else None
     else:
         info["used"] = False
         if start is not None:  # no plan: the start alone places the path (issue 56 §4)
