@@ -121,7 +121,7 @@ QUESTIONS: tuple[Question, ...] = (
         "The user's path",
         "Does a floor plan help in a building the filter was not tuned in (every floor held out in turn), and what does it cost where it does not fit?",
         ("map-lofo",),
-        (Pick("ILC2 B1 held out: `track`", r"^B1$", "`track` median"), Pick("map-less", r"^B1$", "map-less median")),
+        tuple(Pick(f"{f} held out", rf"^{f}$", "median ratio", "Every floor") for f in ("B1", "F1", "F2", "F3", "F4")),
     ),
     Question(
         "sim-fusion",
