@@ -19,6 +19,8 @@ from hypothesis import strategies as st
 from wearnav.errors import FormatError
 from wearnav.importers import sensorlogger
 from wearnav.importers.sensorlogger_export import simulated_export, write_export
+from wearnav.importers.sensorlogger_map import WEARABLE_COLS as WEARABLE
+from wearnav.live import push as push_module
 from wearnav.live import replay
 from wearnav.live.app import Receiver
 from wearnav.live.badinputs import body, catalogue, enc
@@ -364,3 +366,101 @@ def test_update_latency_runs_from_the_oldest_ack_to_the_update_that_changed_the_
         time.sleep(0.1)
     lat = rx.crowd.sessions["s-1"].latency_s
     assert len(lat) == 1 and lat[0] >= 0.2 and lat[0] <= time.perf_counter() - t0  # from the first push's ack
+
+
+# ---- the fast reading (issue 61): it accepts only what the per-sample rules accept, the same samples
+
+
+def _same_columns(a: dict, b: dict) -> bool:
+    if set(a) != set(b):
+        return False
+    for f in a:
+        x, y = a[f], b[f]
+        if not (
+            np.array_equal(x.t, y.t)
+            and x.t.dtype == y.t.dtype == np.int64
+            and np.array_equal(x.v, y.v, equal_nan=True)
+            and x.seen == y.seen
+            and x.text == y.text
+        ):
+            return False
+    return True
+
+
+def assert_fast_agrees(raw: bytes) -> None:
+    """Where the fast reading accepts ``raw``, the per-sample rules accept it too, with the same
+    ids, payload and samples; where it does not, parse's answer is the per-sample rules'."""
+    now = time.time_ns()
+    lo, hi = now - int(7 * DAY * 1e9), now + int(120 * 1e9)
+    fast = push_module._fast(raw, lo, hi)
+    refused: BadPush | None = None
+    try:
+        slow = push_module._slow(raw, now, 120, 7 * DAY)
+    except BadPush as exc:
+        refused = exc
+    if refused is not None:
+        assert fast is None, f"fast accepted what the rules refuse: {refused.message}"
+        with pytest.raises(BadPush) as again:
+            parse(raw, now, 120, 7 * DAY)
+        assert (again.value.status, again.value.message) == (refused.status, refused.message)
+        return
+    slow_cols, slow_ignored = push_module.columns_of(slow.payload)
+    if fast is not None:
+        assert (fast.session_id, fast.device_id, fast.message_id) == (slow.session_id, slow.device_id, slow.message_id)
+        assert fast.payload == slow.payload and fast.ignored == slow_ignored
+        assert _same_columns(fast.columns, slow_cols)
+    got = parse(raw, now, 120, 7 * DAY)
+    assert _same_columns(got.columns, slow_cols)
+
+
+def test_the_app_s_bodies_take_the_fast_reading(tmp_path):
+    """The bodies a phone-only walker and a three-device one push (a simulated walk replayed as the
+    app sends it) are all read the fast way, with the per-sample rules' samples."""
+    export = tmp_path / "walk"
+    simulated_export(export, seed=2, duration_s=20.0)
+    rp = replay.build(export, batch_s=0.2)
+    assert {it["name"] for m in rp.messages for it in m["payload"]} >= {"orientation", "wrist motion", "location"}
+    for m in rp.messages[:40]:
+        raw = json.dumps({k: v for k, v in m.items() if k[0] != "_"}).encode()
+        now = time.time_ns()
+        assert push_module._fast(raw, now - 10**15, now + 10**11) is not None
+        assert_fast_agrees(raw)
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_the_fast_reading_refuses_every_bad_body(case):
+    assert_fast_agrees(BAD[case][0])
+
+
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    key=st.sampled_from(
+        ["messageId", "sessionId", "deviceId", "payload", "name", "time", "values", "x", "qw", "extra", "latitude"]
+    ),
+    value=json_value,
+    item=st.integers(0, 3),
+)
+def test_fuzz_fast_reading_never_accepts_more(key, value, item):
+    doc = body()
+    doc["payload"] += [
+        {"name": "orientation", "time": time.time_ns(), "values": {"qw": 1.0, "qx": 0.0, "qy": 0.0, "qz": 0.0}},
+        {"name": "wrist motion", "time": time.time_ns(), "values": dict.fromkeys(WEARABLE, 0.0) | {"quaternionW": 1}},
+    ]
+    target = doc["payload"][item]
+    if key in ("name", "time", "values"):
+        target[key] = value
+    elif key in ("x", "qw", "extra", "latitude"):
+        if isinstance(target.get("values"), dict):
+            target["values"][key] = value
+    else:
+        doc[key] = value
+    assert_fast_agrees(json.dumps(doc, allow_nan=True).encode())
+
+
+@settings(max_examples=300, deadline=None)
+@given(flips=st.lists(st.tuples(st.integers(0, 10**6), st.integers(0, 255)), min_size=1, max_size=5))
+def test_fuzz_fast_reading_on_mutated_bytes(flips):
+    good = bytearray(enc(body()))
+    for i, b in flips:
+        good[i % len(good)] = b
+    assert_fast_agrees(bytes(good))

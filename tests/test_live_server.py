@@ -19,6 +19,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import live_stores
 from test_live_push import BAD, assert_same
 from wearnav.dataset import Dataset
 from wearnav.importers import import_dataset, sensorlogger
@@ -27,8 +28,13 @@ from wearnav.live import replay
 from wearnav.live.badinputs import body, enc
 from wearnav.live.export import export_session
 from wearnav.live.process import SRC, LiveServer
+from wearnav.live.store import open_store
 
 TOKEN = "t0k3n-for-the-test-only-9f3c"
+
+# the store fixtures (SQLite, PostgreSQL) and helpers of tests/live_stores.py
+postgres_cluster, store_where = live_stores.postgres_cluster, live_stores.store_where
+count, message_ids = live_stores.count, live_stores.message_ids
 
 
 @pytest.fixture(scope="module")
@@ -201,14 +207,14 @@ def test_load_10x_no_sample_lost_or_duplicated(tmp_path, export60, imported):
 
 
 @pytest.mark.slow
-def test_sigkill_mid_replay_loses_nothing(tmp_path, export60, imported):
-    """SIGKILL the server while a replay runs, restart it on the same store: every message
-    acknowledged before the kill is in the store, the replay's retries fill in the rest, the
-    restarted server resumed the session, and the export equals an uninterrupted one's."""
+def test_sigkill_mid_replay_loses_nothing(tmp_path, export60, imported, store_where):
+    """SIGKILL the server while a replay runs, restart it on the same store (SQLite, PostgreSQL):
+    every message acknowledged before the kill is in the store, the replay's retries fill in the
+    rest, the restarted server resumed the session, and the export equals an uninterrupted one's."""
     db = tmp_path / "live.db"
     rp = replay.build(export60, batch_s=0.2, session_id="kill")  # sent without ?platform=: decided from the data
     acked: list[int] = []
-    srv = LiveServer(db, "--no-track").start()
+    srv = LiveServer(db, "--no-track", store_url=store_where).start()
     out: dict = {}
     sender = threading.Thread(
         target=lambda: out.update(
@@ -221,11 +227,9 @@ def test_sigkill_mid_replay_loses_nothing(tmp_path, export60, imported):
             time.sleep(0.01)
         srv.kill()
         acked_at_kill = list(acked)
-        with sqlite3.connect(db) as c:
-            ids = {m for (m,) in c.execute("SELECT message_id FROM messages WHERE session_id = 'kill'")}
-        assert set(acked_at_kill) <= ids
+        assert set(acked_at_kill) <= message_ids(store_where, "kill")
         time.sleep(0.5)
-        srv = LiveServer(db, "--no-track", port=srv.port).start()
+        srv = LiveServer(db, "--no-track", port=srv.port, store_url=store_where).start()
         sender.join(120)
         state = httpx.get(f"{srv.url}/state?session=kill").json()
     finally:
@@ -234,11 +238,14 @@ def test_sigkill_mid_replay_loses_nothing(tmp_path, export60, imported):
     assert res.retries > 0  # it did go down
     assert res.acknowledged == list(range(len(rp.messages)))
     assert state["messages"] == len(rp.messages)  # the restarted buffer holds the whole session
-    assert stored_rows(db) == len(rp.messages)
-    with sqlite3.connect(db) as c:
-        bodies = [json.loads(b) for (b,) in c.execute("SELECT body FROM messages ORDER BY message_id")]
+    assert count(store_where) == len(rp.messages)
+    store = open_store(store_where)
+    try:
+        bodies = sorted((json.loads(b) for _d, _m, _r, b in store.messages("kill")), key=lambda b: b["messageId"])
+    finally:
+        store.close()
     assert [b["messageId"] for b in bodies] == list(range(len(rp.messages)))
-    ds = export_session(db, "kill", tmp_path / "out")
+    ds = export_session(store_where, "kill", tmp_path / "out")
     assert_same(imported, Dataset.open(ds.root).load("kill"))
 
 
@@ -277,3 +284,28 @@ def test_a_session_quiet_for_a_while_is_made_final_once(monkeypatch):
         assert calls == [False, True, False, True]
     finally:
         crowd.stop()
+
+
+def test_several_receivers_share_one_port_and_the_store(tmp_path):
+    """`wearnav live --no-track --workers 2`: two processes on one port (SO_REUSEPORT), one store;
+    pushes over many connections are all stored once, whichever process took them, and either
+    process serves every session (the store's sessions)."""
+    db = tmp_path / "live.db"
+    srv = LiveServer(db, "--no-track", "--workers", "2").start()
+    try:
+        time.sleep(1.0)  # the second process binds too
+        pids = set()
+        for k in range(40):  # a new connection each: the kernel spreads them over the two processes
+            with httpx.Client(base_url=srv.url) as c:
+                r = c.post("/push", content=enc(body(messageId=k, sessionId=f"s-{k % 4}")))
+                assert r.status_code == 200 and r.json() == {"stored": True}
+                pids.add(c.get("/stats").json().get("pid"))
+        assert count(str(db)) == 40
+        with httpx.Client(base_url=srv.url) as c:
+            for _ in range(6):  # every session known to whichever process answers
+                assert sorted(s["session"] for s in c.get("/sessions").json()) == [f"s-{i}" for i in range(4)]
+                assert c.get("/state", params={"session": "s-3"}).status_code == 200
+    finally:
+        code = srv.stop()
+    assert code == 0, srv.output()
+    assert len(pids) == 2  # both processes took pushes

@@ -6,7 +6,6 @@ and the receiver serves the tracker's path."""
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import sqlite3
@@ -20,16 +19,19 @@ from pathlib import Path
 import httpx
 import pytest
 
+import live_stores
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import replay
 from wearnav.live.bench import walker_export
-from wearnav.live.process import SRC, LiveServer
-from wearnav.live.store import Store
+from wearnav.live.process import SRC, LiveServer, start_tracker
+from wearnav.live.store import Store, open_store
 from wearnav.live.trackers import parse_shard, shard_of
 
 WALK_S = 30.0
 SPEED = 5.0
 SESSIONS = ("walker-a", "walker-b", "walker-c")  # in both of two shards (checked below)
+# the store fixtures (SQLite, PostgreSQL) of tests/live_stores.py
+postgres_cluster, store_where, count = live_stores.postgres_cluster, live_stores.store_where, live_stores.count
 
 
 @pytest.fixture(scope="module")
@@ -56,12 +58,16 @@ def push_sessions(url: str, export: Path) -> dict[str, list[int]]:
     return acked
 
 
-def stored_states(db: Path) -> dict[str, dict]:
-    with sqlite3.connect(db) as c:
-        return {sid: json.loads(st) for sid, st in c.execute("SELECT session_id, state FROM states")}
+def stored_states(db: Path | str) -> dict[str, dict]:
+    """Every session's state in the store (a SQLite file or a postgresql:// URL)."""
+    store = open_store(db)
+    try:
+        return {sid: st for sid in store.sessions() if (st := store.state(sid)) is not None}
+    finally:
+        store.close()
 
 
-def wait_for_states(db: Path, acked: dict[str, list[int]], timeout_s: float) -> dict[str, dict]:
+def wait_for_states(db: Path | str, acked: dict[str, list[int]], timeout_s: float) -> dict[str, dict]:
     """The store's states once every session's tracker holds all its acknowledged messages and a path."""
     deadline = time.monotonic() + timeout_s
     while True:
@@ -149,6 +155,51 @@ def test_two_tracker_processes_beside_one_receiver_lose_nothing(tmp_path, phone_
         assert states[sid]["tracked_messages"] == n and len(states[sid]["path"]) > 5
     assert {states[s]["tracker"] for s in SESSIONS} == {"0/2", "1/2"}
     assert served["path"] and served["messages"] == n and served["tracker"] == states[SESSIONS[0]]["tracker"]
+
+
+@pytest.mark.slow  # ~60 s on 2 cores: three processes start (five with the restarts) and load torch
+def test_receiver_and_two_trackers_killed_and_restarted_lose_nothing(tmp_path, phone_export, store_where):
+    """A receiver and two tracker processes on one store (SQLite, PostgreSQL), each SIGKILLed once
+    while three walkers push and started again: every acknowledged message stored once, every
+    session tracked by the tracker of its shard with all of its messages, and the path served."""
+    db = tmp_path / "live.db"
+    log = tmp_path / "trackers.log"
+    srv = LiveServer(db, "--no-track", store_url=store_where).start()
+
+    def tracker(i: int):
+        return start_tracker(store_where, (i, 2), tmp_path / f"t{i}.json", log)
+
+    procs = [tracker(0), tracker(1)]
+    out: dict = {}
+    pusher = threading.Thread(target=lambda: out.update(acked=push_sessions(f"{srv.url}/push", phone_export)))
+    n = len(replay.build(phone_export).messages)
+    try:
+        pusher.start()
+        for i, wait_s in ((0, 1.5), (None, 1.0), (1, 1.0)):  # tracker 0, the receiver, tracker 1
+            time.sleep(wait_s)
+            if i is None:
+                srv.kill()
+                srv = LiveServer(db, "--no-track", port=srv.port, store_url=store_where).start()
+            else:
+                procs[i].kill()
+                procs[i].wait(10)
+                procs[i] = tracker(i)
+        pusher.join(180)
+        acked = out["acked"]
+        assert all(ids == list(range(n)) for ids in acked.values())
+        states = wait_for_states(store_where, acked, timeout_s=150.0)
+        served = httpx.get(f"{srv.url}/state", params={"session": SESSIONS[1]}).json()
+    finally:
+        srv.stop()
+        for p in procs:
+            p.terminate()
+            p.wait(10)
+    assert count(store_where) == n * len(SESSIONS)
+    assert set(states) == set(SESSIONS), log.read_text()[-3000:]
+    for sid in SESSIONS:
+        assert states[sid]["tracker"] == f"{shard_of(sid, 2)}/2"
+        assert states[sid]["tracked_messages"] == n and len(states[sid]["path"]) > 5
+    assert served["path"] and served["messages"] == n and set(served["devices"]) == {"phone"}
 
 
 @pytest.fixture(scope="module")

@@ -8,6 +8,7 @@ from __future__ import annotations
 import secrets
 import signal
 import socket
+import subprocess
 import threading
 from pathlib import Path
 
@@ -34,6 +35,53 @@ def _lan_address() -> str:
             return s.getsockname()[0]
     except OSError:
         return "<this machine's address>"
+
+
+STORE_KINDS = "a SQLite file, or a postgresql:// URL: a store that spans machines, the [postgres] extra"
+STORE_HELP = f"The session store ({STORE_KINDS}); created, and the sessions in it resumed."
+
+
+def redact(url: str) -> str:
+    """A store URL without its password (what is printed)."""
+    from wearnav.live.store_pg import redact as _redact
+
+    return _redact(url)
+
+
+def _reuse_port_socket(host: str, port: int) -> socket.socket:
+    """A listening socket on ``host:port`` that other processes may bind too (SO_REUSEPORT: the
+    kernel spreads new connections over every process listening)."""
+    if not hasattr(socket, "SO_REUSEPORT"):
+        raise ConfigError("--workers needs SO_REUSEPORT (Linux, BSD, macOS)")
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEPORT, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        raise ConfigError(f"could not listen on {host}:{port} ({exc.strerror})") from None
+    sock.listen(2048)
+    sock.set_inheritable(False)
+    return sock
+
+
+def _start_workers(workers: int, token: str | None) -> list[subprocess.Popen]:
+    """``workers`` − 1 more receiver processes: this command again with ``--workers 1 --reuse-port``,
+    each binding the same port with SO_REUSEPORT."""
+    import os
+    import sys
+
+    argv = list(sys.argv[1:])
+    for i, a in enumerate(argv):  # --workers N / --workers=N → 1 (they start no workers of their own)
+        if a == "--workers" and i + 1 < len(argv):
+            argv[i + 1] = "1"
+        elif a.startswith("--workers="):
+            argv[i] = "--workers=1"
+    env = {**os.environ, **({"WEARNAV_LIVE_TOKEN": token} if token else {})}  # not on the command line
+    return [
+        subprocess.Popen([sys.executable, "-m", "wearnav", *argv, "--reuse-port"], env=env) for _ in range(workers - 1)
+    ]
 
 
 MODEL_DEVICE_HELP = (
@@ -78,12 +126,11 @@ def live(
         "127.0.0.1", help="Address to listen on (0.0.0.0: the phone on the same Wi-Fi; then a token is required)."
     ),
     port: int = typer.Option(8000, min=1, max=65535, help="TCP port."),
-    store: Path = typer.Option(
-        Path("runs/live/live.db"), "--store", help="SQLite session store (created; sessions in it are resumed)."
-    ),
+    store: str = typer.Option("runs/live/live.db", "--store", help=STORE_HELP),
     token: str | None = typer.Option(
         None,
         "--token",
+        envvar="WEARNAV_LIVE_TOKEN",
         help="Token the phone sends (made and printed when listening beyond this machine and none is given).",
     ),
     require_token: bool = typer.Option(False, "--require-token", help="Want a token on 127.0.0.1 too."),
@@ -121,6 +168,15 @@ def live(
     ),
     address: str | None = typer.Option(None, "--address", help="The Ray cluster (as ray.init's; --executor ray)."),
     trackers: int = typer.Option(2, "--trackers", min=1, help="Tracker processes to place (--executor ray)."),
+    workers: int = typer.Option(
+        1,
+        "--workers",
+        min=1,
+        help="Receiver processes sharing the port (SO_REUSEPORT; the kernel spreads the phones' connections over "
+        "them) and the store; with more than one they only store and serve (as --no-track): `wearnav live track` "
+        "tracks.",
+    ),
+    reuse_port: bool = typer.Option(False, "--reuse-port", hidden=True, help="(one of --workers' processes)"),
 ):
     """Receive Sensor Logger's HTTP Push: every message stored before its 200, a live path on a page.
 
@@ -154,6 +210,13 @@ def live(
     _check_plan(plan)
     if plan is not None and executor == "ray":
         raise ConfigError("--map is drawn by trackers in this process: not with --executor ray")
+    if workers > 1 and not no_track and executor != "ray":
+        raise ConfigError(
+            "--workers above 1 store and serve only: add --no-track and track in `wearnav live track` processes"
+        )
+    if reuse_port and not no_track:
+        raise ConfigError("--reuse-port is for --workers' receivers, which store and serve only (--no-track)")
+    sock = _reuse_port_socket(host, port) if workers > 1 or reuse_port else None
     factory = None if no_track or executor == "ray" else _tracker_factory(model, plan, model_device)
     app = create_app(
         store,
@@ -163,7 +226,9 @@ def live(
         tracker_factory=factory,
         platform=platform,
         standardised=standardised,
+        shared=sock is not None,
     )
+    shown_store = redact(store)
     if mqtt:
         from wearnav.live.mqtt import subscribe
 
@@ -173,26 +238,42 @@ def live(
         from wearnav.live.trackers import place_on_ray
 
         placed = place_on_ray(store, trackers, model, address, model_device=model_device)
-        typer.echo(f"{trackers} tracker processes placed on Ray (sharing {store})")
+        typer.echo(f"{trackers} tracker processes placed on Ray (sharing {shown_store})")
     shown = _lan_address() if host in ("0.0.0.0", "::") else host
     query = "" if token is None else (f"?token={token}" if made else "?token=<your token>")
-    typer.echo(f"push URL (Sensor Logger > HTTP Push): http://{shown}:{port}/push{query}")
-    typer.echo(f"live page: http://{shown}:{port}/{query}")
-    if made:
-        typer.echo("(the token was made now; give --token to keep one across restarts)")
-    on_interrupt(f"stopped; every acknowledged message is in {store} (`wearnav live` resumes its sessions)")
+    if not reuse_port:  # (a --workers child says nothing: its parent has said it)
+        typer.echo(f"push URL (Sensor Logger > HTTP Push): http://{shown}:{port}/push{query}")
+        typer.echo(f"live page: http://{shown}:{port}/{query}")
+        if made:
+            typer.echo("(the token was made now; give --token to keep one across restarts)")
+        if workers > 1:
+            typer.echo(f"{workers} receiver processes share port {port} and the store")
+    on_interrupt(f"stopped; every acknowledged message is in {shown_store} (`wearnav live` resumes its sessions)")
+    children = _start_workers(workers, token) if workers > 1 else []
     # Ctrl-C and SIGTERM are how a server is stopped: uvicorn shuts down cleanly (open requests
     # answered, every acknowledged message stored) and raises the signal again once it has stopped;
     # it is noted here, and the command ends with one neutral line and exit 0 (README, "wearnav live").
     stopped: list[int] = []
     noted = {s: signal.signal(s, lambda signum, frame: stopped.append(signum)) for s in STOP_SIGNALS} if main else {}
+    import gc
+
+    gc.freeze()  # the modules and models loaded so far: out of the collector's sight (issue 61)
+    where = {"fd": sock.fileno()} if sock is not None else {"host": host, "port": port}
     try:
-        uvicorn.run(app, host=host, port=port, access_log=False, log_level="warning")
+        uvicorn.run(app, **where, access_log=False, log_level="warning", proxy_headers=False)
     except SystemExit as exc:  # uvicorn exits when it cannot bind
         raise ConfigError(f"could not listen on {host}:{port} (in use?)") from exc
     finally:
         for s, handler in noted.items():
             signal.signal(s, handler)
+        for child in children:
+            child.terminate()
+        for child in children:
+            try:
+                child.wait(15)
+            except subprocess.TimeoutExpired:
+                child.kill()
+        app.state.receiver.commits.stop()
         if placed:
             import ray
 
@@ -201,7 +282,8 @@ def live(
     if stopped:
         n = len(app.state.receiver.store.sessions())
         typer.echo(
-            f"live: stopped ({STOP_SIGNALS[signal.Signals(stopped[0])]}); {n} session{'s' * (n != 1)} stored in {store} "
+            f"live: stopped ({STOP_SIGNALS[signal.Signals(stopped[0])]}); {n} session{'s' * (n != 1)} stored in "
+            f"{shown_store} "
             "(`wearnav live` resumes them)",
             err=True,
         )
@@ -209,7 +291,9 @@ def live(
 
 @live_app.command("track")
 def live_track(
-    store: Path = typer.Option(Path("runs/live/live.db"), "--store", help="The receiver's SQLite session store."),
+    store: str = typer.Option(
+        "runs/live/live.db", "--store", help="The receiver's session store (" + STORE_KINDS + ")."
+    ),
     shard: str = typer.Option("0/1", "--shard", help="i/n: track the sessions of shard i of n (a hash of the id)."),
     model: Path | None = typer.Option(None, "--model", help="Odometry model (as for `wearnav track`)."),
     executor: str = typer.Option(
@@ -239,7 +323,9 @@ def live_track(
         raise typer.BadParameter("--executor: local or ray")
     if address is not None and executor != "ray":
         raise ConfigError("--address is for --executor ray only")
-    if not store.is_file():
+    from wearnav.live.store import store_missing
+
+    if store_missing(store):
         raise ConfigError(f"no session store at {store} (start `wearnav live --no-track --store {store}` first)")
     on_interrupt("tracker stopped; the store keeps every session (a tracker started again resumes them)")
     _check_plan(plan)
@@ -269,7 +355,7 @@ def live_track(
 @live_app.command("export")
 def live_export(
     session: str = typer.Argument(..., help="Session id (`/sessions` lists them)."),
-    store: Path = typer.Option(Path("runs/live/live.db"), "--store", help="The SQLite session store."),
+    store: str = typer.Option("runs/live/live.db", "--store", help="The session store (" + STORE_KINDS + ")."),
     out: Path = typer.Option(..., "--out", help="Dataset folder to write (as `wearnav import` writes)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace the dataset that --out already holds."),
 ):
@@ -338,6 +424,53 @@ def live_bench(
             )
         )
     )
+
+
+cost_app = typer.Typer(help="What receiving a message and tracking a walker cost this machine (issue 61).")
+live_app.add_typer(cost_app, name="cost")
+
+
+@cost_app.command("receiver")
+def cost_receiver(
+    messages: int = typer.Option(5000, min=1, help="Messages to post (phone-only pushes of 0.2 s)."),
+    walkers: int = typer.Option(100, min=1, help="Sessions they are spread over."),
+    senders: int = typer.Option(100, min=1, help="Keep-alive connections sending them (a walker's phone keeps one)."),
+    rate: float = typer.Option(500.0, min=0.0, help="Messages a second in all (0: as fast as they go)."),
+    store: str | None = typer.Option(
+        None, "--store", help="The receiver's store (default a SQLite file in a tmp dir)."
+    ),
+    workers: int = typer.Option(1, "--workers", min=1, help="Receiver processes sharing the port."),
+):
+    """Post MESSAGES pushes over HTTP to a real `wearnav live --no-track` on 127.0.0.1 and print its
+    CPU per message (user + system, /proc), every message acknowledged and stored.
+
+    \b
+    Example:
+      wearnav live cost receiver --messages 5000 --walkers 100 --rate 500
+    """
+    from wearnav.live.cost import receiver_cost
+
+    _needs_live_extra()
+    args = ("--workers", str(workers)) if workers > 1 else ()
+    echo_json(receiver_cost(messages, walkers, senders, rate, store=store, server_args=args))
+
+
+@cost_app.command("tracker")
+def cost_tracker(
+    walk_s: float = typer.Option(90.0, "--walk-s", min=10.0, help="Seconds of simulated walk."),
+    walkers: int = typer.Option(8, min=1, help="Phone-only sessions tracked at once."),
+    stages: bool = typer.Option(False, "--stages", help="Also where the time goes (each stage's CPU)."),
+):
+    """Track WALKERS phone-only sessions of a simulated walk in one process, message by message (no
+    HTTP), and print the tracking CPU per walker-second of data.
+
+    \b
+    Example:
+      wearnav live cost tracker --walk-s 90 --walkers 8
+    """
+    from wearnav.live.cost import tracker_cost
+
+    echo_json(tracker_cost(walk_s, walkers, stages=stages))
 
 
 def replay(

@@ -6,6 +6,7 @@ tracker.py   the live path and activity (LiveTracker)    static/    the page (it
 replay.py    an export sent as the app pushes it          mqtt.py    the MQTT transport
 export.py    a stored session as a dataset folder        bench.py   ``wearnav live bench``
 crowd.py     every session's tracker in batched ticks     trackers.py ``wearnav live track``: tracker processes, Ray
+store_pg.py  the store on PostgreSQL (spans machines)     cost.py    ``wearnav live cost``: a message's, a walker's CPU
 
 The Sensor Logger names, units and signs are :mod:`wearnav.importers.sensorlogger_map`'s, and a
 session becomes a Recording by the importer's own step (:mod:`wearnav.importers.sensorlogger_build`).

@@ -1,5 +1,7 @@
 """The page of `wearnav live bench` (:mod:`wearnav.live.bench`): results.md from the bench's results,
-and what the bench and its page share: how the walkers batch their pushes and what keeping up means."""
+and what the bench and its page share: how the walkers batch their pushes and what keeping up means.
+The page states what a message and a walker-second cost and what that makes a process's and the
+machine's capacity (:func:`costs`, issue 61)."""
 
 from __future__ import annotations
 
@@ -36,8 +38,45 @@ def capacity_line(rows: list[dict]) -> str:
     return line
 
 
+# What receiving and tracking cost before issue 61 (docs/live-scaling.md): the receiver's CPU per
+# message (100 phone-only walkers' pushes, storing only) and the tracker's per walker-second
+# (phone-only, in one process; 16 ms on a quiet machine, 38–42 ms under load).
+BEFORE_RECEIVER_MS = 1.9
+BEFORE_TRACKER_MS = (16.0, 42.0)
+
+
+def costs(r: dict) -> dict:
+    """The receiver's CPU per message (ms; the load phase, storing only) and, per walkers row that
+    tracked, the tracking CPU per walker-second (ms: the row's CPU less its messages at the receiver's
+    cost, over walkers × seconds), and what they make of a process and of this machine: messages a
+    second per receiver core, walkers per tracker core, and walkers the machine's cores could carry
+    (receiving and tracking; the senders elsewhere)."""
+    ld, cores = r["load"], r["machine"].get("cores") or 1
+    share = ld.get("cpu_share_of_one_core")
+    rx = None if share is None or not ld["messages"] else 1e3 * share * ld["wall_s"] / ld["messages"]
+    out: dict = {"receiver_ms_per_message": None if rx is None else round(rx, 3), "tracker_ms_per_walker_s": {}}
+    for w in r["walkers"]:
+        if not w.get("tracking") or w.get("cpu_share_of_one_core") is None or rx is None or not w["kept_up"]:
+            continue
+        cpu_ms = 1e3 * w["cpu_share_of_one_core"] * w["seconds"]
+        per = (cpu_ms - w["messages"] * rx) / (w["walkers"] * w["seconds"])
+        out["tracker_ms_per_walker_s"][f"{w['devices']}-{w['walkers']}"] = round(per, 2)
+    trk = sorted(out["tracker_ms_per_walker_s"].values())
+    if rx is not None:
+        out["messages_per_s_per_receiver_core"] = int(1e3 / rx)
+        out["walkers_per_receiver_core"] = int(1e3 / rx * BATCH_S)
+    if trk:
+        med = trk[len(trk) // 2]
+        out["walkers_per_tracker_core"] = int(1e3 / med) if med > 0 else None
+        if rx is not None and med > 0:
+            out["walkers_per_machine"] = int(cores / (rx / BATCH_S / 1e3 + med / 1e3))
+    return out
+
+
 def page(r: dict) -> str:
     ld, rows, p = r["load"], r["walkers"], r["provenance"]
+    cost = costs(r)
+    trk = sorted(cost["tracker_ms_per_walker_s"].values())
     bad, fl = r["bad_inputs"], r["faults"]
     lost = sum(d["lost"] for d in ld["devices"].values())
     dup = sum(d["duplicated"] for d in ld["devices"].values())
@@ -59,6 +98,7 @@ def page(r: dict) -> str:
 
     table = "\n".join(
         f"| {WALKER_NAMES[w.get('devices', 'all')]} | {w['walkers']} | {pc(w['cpu_share_of_one_core'])} | "
+        f"{pc(w.get('senders_cpu_share_of_one_core'))} | "
         f"{w['ack_ms']['p50']} | {w['ack_ms']['p99']} | "
         f"{w['update_ms']['p50'] if tracking else '–'} | {w['update_ms']['p95'] if tracking else '–'} | "
         f"{w['behind_at_end_s']} | {_kept(w)} | {_yes(w.get('latency_goal_met'))} | "
@@ -89,6 +129,31 @@ def page(r: dict) -> str:
             f"| server CPU, one walker (% of one core) | {'?' if one['cpu_share_of_one_core'] is None else round(100 * one['cpu_share_of_one_core'], 1)} |",
             *([f"| tracker update p95, one walker (ms) | {one['update_ms']['p95']} |"] if tracking else []),
             *[f"| {WALKER_NAMES[k]} walkers kept up at real time | {max(kept[k]) if kept[k] else 0} |" for k in kinds],
+            f"| receiver CPU per message (ms; {BEFORE_RECEIVER_MS:g} before issue 61) | "
+            f"{cost['receiver_ms_per_message'] if cost['receiver_ms_per_message'] is not None else '?'} |",
+            f"| tracking CPU per walker-second (ms; {BEFORE_TRACKER_MS[0]:g}–{BEFORE_TRACKER_MS[1]:g} before issue 61) | "
+            f"{'–' if not trk else (f'{trk[0]:g}' if len(trk) == 1 else f'{trk[0]:g}–{trk[-1]:g}')} |",
+            "| capacity per process | "
+            + (
+                f"a receiver core: {cost['messages_per_s_per_receiver_core']} messages a second "
+                f"({cost['walkers_per_receiver_core']} walkers' pushes)"
+                if "messages_per_s_per_receiver_core" in cost
+                else "?"
+            )
+            + (
+                f"; a tracker core: {cost['walkers_per_tracker_core']} walkers"
+                if cost.get("walkers_per_tracker_core")
+                else ""
+            )
+            + " |",
+            *(
+                [
+                    f"| capacity of this machine ({r['machine']['cores']} cores, receiving and tracking) | "
+                    f"{cost['walkers_per_machine']} walkers |"
+                ]
+                if cost.get("walkers_per_machine")
+                else []
+            ),
             f"| bad inputs refused as expected | {bad['catalogue'] - len(bad['catalogue_wrong'])} |",
             f"| acknowledged messages lost in {fl['kills']} SIGKILLs | {fl['acknowledged_missing']} |",
             "",
@@ -135,9 +200,9 @@ def page(r: dict) -> str:
                 else "."
             ),
             "",
-            "| walker | walkers | server CPU | ack p50 ms | ack p99 ms | update p50 ms | update p95 ms | behind at end s "
-            f"| kept up | p95 under {LATENCY_GOAL_S:g} s | machine load (1 min, before → after) |",
-            "|---|---|---|---|---|---|---|---|---|---|---|",
+            "| walker | walkers | server CPU | senders' CPU | ack p50 ms | ack p99 ms | update p50 ms | update p95 ms "
+            f"| behind at end s | kept up | p95 under {LATENCY_GOAL_S:g} s | machine load (1 min, before → after) |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|",
             table,
             "",
             f"CPU share at one walker ({WALKER_NAMES[one.get('devices', 'all')]}): {pc(one['cpu_share_of_one_core'])} "

@@ -17,7 +17,6 @@ so every slice lies in one frame.
 from __future__ import annotations
 
 import copy
-import json
 import threading
 import time
 import warnings
@@ -28,7 +27,8 @@ import pandas as pd
 
 from wearnav.errors import FormatError, MissingFileError
 from wearnav.importers.sensorlogger_build import build_recording, stale_fixes
-from wearnav.importers.sensorlogger_map import PUSH_NAMES, SENSORS, Table
+from wearnav.importers.sensorlogger_map import SENSORS, Table
+from wearnav.live.push import TEXT_COLS, Columns, Push, columns_of, parse_stored
 from wearnav.recording import DeviceStream, Fixes, Recording
 
 NS = 1_000_000_000
@@ -39,7 +39,6 @@ CONNECTED_S = 5.0  # a device this far behind the newest (sample time) no longer
 # The distinct readings of an app's acceleration (sign, unit: sensorlogger_map.acceleration_convention),
 # tried in this order: iOS with "Standardise Units & Frames" off (the app's default), on, and Android.
 CONVENTIONS = (("ios", False), ("ios", True), ("android", False))
-TEXT_COLS = {"Headphone.csv": "devicelocation"}
 _BUILD_LOCK = threading.Lock()  # warnings.catch_warnings is process-wide
 
 
@@ -142,7 +141,7 @@ class SessionBuffer:
             raise MissingFileError(f"no session {session_id!r} in the store (sessions: {known})", store.path)
         buf = cls(session_id, sessions[session_id]["platform"], sessions[session_id]["standardised"])
         for _device, _mid, received_ns, body in store.messages(session_id):
-            buf.add(json.loads(body)["payload"], received_unix_s=received_ns / NS)
+            buf.add_body(body, received_unix_s=received_ns / NS)
         return buf
 
     # ---- input ------------------------------------------------------------------------------
@@ -150,29 +149,37 @@ class SessionBuffer:
     def add(self, payload: list[dict], received_unix_s: float | None = None) -> int:
         """Add one accepted message's payload (checked by :func:`wearnav.live.push.parse`);
         returns how many samples of known sensors it held."""
+        columns, ignored = columns_of(payload)
+        return self.add_columns(columns, ignored, received_unix_s)
+
+    def add_push(self, push: Push, received_unix_s: float | None = None) -> int:
+        """Add one accepted message (:func:`wearnav.live.push.parse`'s, or
+        :func:`~wearnav.live.push.parse_stored`'s), as the arrays it was checked as."""
+        return self.add_columns(push.columns, push.ignored, received_unix_s)
+
+    def add_body(self, body: str | bytes, received_unix_s: float | None = None) -> int:
+        """Add one stored message's body (as the store holds it: checked when it arrived)."""
+        return self.add_push(parse_stored(body), received_unix_s)
+
+    def add_columns(
+        self, columns: dict[str, Columns], ignored: dict[str, int], received_unix_s: float | None = None
+    ) -> int:
+        """Add one message's samples, by sensor file (:class:`wearnav.live.push.Columns`), and count
+        its unknown sensors' samples; returns how many samples of known sensors it held."""
         now = time.time() if received_unix_s is None else received_unix_s
-        rows: dict[str, list[dict]] = {}
-        for item in payload:
-            sensor = PUSH_NAMES.get(item["name"])
-            if sensor is None:
-                self.ignored[item["name"]] = self.ignored.get(item["name"], 0) + 1
-                continue
-            rows.setdefault(sensor.file, []).append(item)
         n = 0
         with self._lock:
-            for fname, items in rows.items():
+            for name, k in ignored.items():
+                self.ignored[name] = self.ignored.get(name, 0) + k
+            for fname, c in columns.items():
                 spec = SENSORS[fname]
-                if fname not in self._sensors:
-                    self._sensors[fname] = _Sensor([*spec.cols, *spec.optional], fname in TEXT_COLS)
-                s = self._sensors[fname]
-                t = np.fromiter((it["time"] for it in items), np.int64, len(items))
-                v = np.array([[_num(it["values"].get(c)) for c in s.cols] for it in items], np.float64)
-                s.optional_seen.update(c for c in spec.optional if any(c in it["values"] for it in items))
-                tc = TEXT_COLS.get(fname)
-                text = [it["values"].get(tc) for it in items] if tc else None
-                s.chunks.append((t, v, text))
+                s = self._sensors.get(fname)
+                if s is None:
+                    s = self._sensors[fname] = _Sensor([*spec.cols, *spec.optional], fname in TEXT_COLS)
+                s.optional_seen.update(c.seen)
+                s.chunks.append((c.t, c.v, c.text))
                 s.last_seen_unix_s = now
-                n += len(items)
+                n += len(c.t)
             self.version += 1
             self.messages += 1
         return n
@@ -372,10 +379,6 @@ class SessionBuffer:
                 d["rate_hz"], d["samples"] = round(float(rate), 1), int(t.size)
             d["last_seen_unix_s"] = max(d["last_seen_unix_s"], seen[fname])
         return out
-
-
-def _num(x) -> float:
-    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else np.nan
 
 
 def _table(session_id: str, fname: str, entry: tuple, i: int) -> Table:

@@ -38,7 +38,19 @@ def cpu_s(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def start_tracker(store: Path, shard: tuple[int, int], stats: Path, log: Path, *args: str) -> subprocess.Popen:
+def children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (Linux /proc; none elsewhere)."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            if int(stat.read_text().rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(stat.parent.name))
+        except (OSError, ValueError, IndexError):
+            continue
+    return out
+
+
+def start_tracker(store: Path | str, shard: tuple[int, int], stats: Path, log: Path, *args: str) -> subprocess.Popen:
     """``wearnav live track --store STORE --shard i/n --stats STATS ARGS`` beside a receiver on ``store``."""
     cmd = [sys.executable, "-m", "wearnav", "live", "track", "--store", str(store), "--shard", f"{shard[0]}/{shard[1]}"]
     cmd += list(args)
@@ -49,8 +61,18 @@ def start_tracker(store: Path, shard: tuple[int, int], stats: Path, log: Path, *
 class LiveServer:
     """``wearnav live --host 127.0.0.1 --port P --store DB ARGS``; stdout and stderr to ``log``."""
 
-    def __init__(self, store: Path, *args: str, port: int | None = None, token: str | None = None):
+    def __init__(
+        self,
+        store: Path,
+        *args: str,
+        port: int | None = None,
+        token: str | None = None,
+        store_url: str | None = None,
+    ):
+        """``store``: the SQLite file (and where the log goes beside it); ``store_url``: what
+        ``--store`` says instead (a ``postgresql://`` URL)."""
         self.store, self.args, self.token = Path(store), list(args), token
+        self.store_url = store_url or str(self.store)
         self.port = port or free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         self.log = self.store.with_suffix(f".{self.port}.log")
@@ -67,7 +89,7 @@ class LiveServer:
             "--port",
             str(self.port),
             "--store",
-            str(self.store),
+            self.store_url,
             *self.args,
         ]
         with open(self.log, "ab") as log:
@@ -103,8 +125,24 @@ class LiveServer:
         return None if self.proc is None else self.proc.returncode
 
     def cpu_s(self) -> float | None:
-        """CPU seconds (user + system) the server process has used so far (Linux /proc), or None."""
-        return None if self.proc is None else cpu_s(self.proc.pid)
+        """CPU seconds (user + system) the server process, and the receivers it started
+        (``--workers``), have used so far (Linux /proc), or None."""
+        if self.proc is None:
+            return None
+        own = cpu_s(self.proc.pid)
+        if own is None:
+            return None
+        return own + sum(c for pid in children(self.proc.pid) if (c := cpu_s(pid)) is not None)
+
+    def stored(self) -> int:
+        """How many messages the store holds."""
+        from wearnav.live.store import open_store
+
+        store = open_store(self.store_url)
+        try:
+            return store.count()
+        finally:
+            store.close()
 
     def output(self) -> str:
         return self.log.read_text(errors="replace")
@@ -116,4 +154,4 @@ class LiveServer:
         self.stop()
 
 
-__all__ = ["LiveServer", "cpu_s", "env", "free_port", "start_tracker"]
+__all__ = ["LiveServer", "children", "cpu_s", "env", "free_port", "start_tracker"]

@@ -1,4 +1,6 @@
-"""The receiver's on-disk session store: SQLite, one row per accepted message.
+"""The receiver's on-disk session store: SQLite, one row per accepted message (the embedded
+default; :mod:`wearnav.live.store_pg` is the same on a PostgreSQL server, for a deployment that
+spans machines: :func:`open_store` picks by what ``--store`` names).
 
 Rows are keyed by (session_id, device_id, message_id), so a message sent twice is stored once
 (``INSERT OR IGNORE``); each insert is committed (WAL journal, ``synchronous=FULL``: on disk
@@ -7,10 +9,10 @@ the process is killed. The body is kept as received (UTF-8 JSON text), and a ses
 settings (platform, standardisation: what Sensor Logger does not send) beside it; the live
 buffers are rebuilt from here on restart.
 
-Group commit (issue 37): messages that arrive while a transaction is being committed wait and go
-into the next one together (:class:`GroupCommit`), so many sessions' pushes cost one ``fsync``
-(measured on this machine: 3.4 ms a commit, which alone capped one receiver near 290 messages a
-second), and each is still on disk before its 200.
+Group commit (issue 37; one committer thread since issue 61): messages that arrive while a
+transaction is being committed wait and go into the next one together (:class:`GroupCommit`), so
+many sessions' pushes cost one ``fsync`` (measured on this machine: 3.4 ms a commit, which alone
+capped one receiver near 290 messages a second), and each is still on disk before its 200.
 
 Tracker processes (``wearnav live track``) read the messages by row id as they arrive
 (:meth:`Store.messages_after`) and write each session's page state into ``states``, which a
@@ -21,12 +23,15 @@ Decision: docs/decisions/0028-live-crowd.md.
 
 from __future__ import annotations
 
+import asyncio
+import bisect
 import json
 import sqlite3
 import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS messages (
@@ -52,48 +57,111 @@ CREATE TABLE IF NOT EXISTS states (
 BUSY_TIMEOUT_S = 30.0  # several processes share the file: a writer waits this long for another's lock
 
 
-class _Pending:
-    __slots__ = ("item", "result", "error", "done")
-
-    def __init__(self, item):
-        self.item, self.result, self.error, self.done = item, None, None, False
-
-
 class GroupCommit:
-    """``submit(item)`` from many threads: items that arrive while ``flush`` runs on a batch wait
-    and are flushed together by the next caller (one leader at a time, no thread of its own);
-    each ``submit`` returns its own item's result once the batch holding it is flushed, or raises
-    the batch's error. ``flush(items) -> results`` (in order) commits them in one transaction."""
+    """Every item submitted while a transaction commits goes into the next one (one commit per
+    tick, however many messages arrived in it, once more than two a tick have been arriving; right
+    away while fewer do): one committer thread of its own calls
+    ``flush(items) -> results`` (in order, one transaction), then hands each submitter its own
+    item's result, or the batch's error. :meth:`submit` blocks a thread until then;
+    :meth:`submit_async` returns an asyncio future of the running loop (the receiver's ``/push``
+    awaits it: no worker thread per message), all of one batch resolved by one wake-up of the loop."""
 
-    def __init__(self, flush: Callable[[list], list]):
+    def __init__(self, flush: Callable[[list], list], tick_s: float = 0.0):
         self._flush = flush
-        self._queue: list[_Pending] = []
-        self._queue_lock = threading.Lock()
-        self._leader = threading.Lock()
+        self.tick_s = float(tick_s)  # transactions start at most this often (s): busier, fewer and larger
+        self._queue: list[tuple[Any, Any]] = []  # (item, waiter: a callable or (loop, future))
+        self._cv = threading.Condition()
+        self._stopped = False
         self.batches = 0
         self.items = 0
+        self._thread = threading.Thread(target=self._run, name="live-commit", daemon=True)
+        self._thread.start()
 
     def submit(self, item):
-        p = _Pending(item)
-        with self._queue_lock:
-            self._queue.append(p)
-        with self._leader:
-            if not p.done:  # not flushed by the previous leader: flush everything waiting
-                with self._queue_lock:
-                    batch, self._queue = self._queue, []
-                try:
-                    results = self._flush([q.item for q in batch])
-                except BaseException as exc:
-                    for q in batch:
-                        q.error, q.done = exc, True
+        """``item``'s result once the transaction holding it is committed (or its error, raised)."""
+        done = threading.Event()
+        box: list = [None, None]
+
+        def waiter(result, error):
+            box[0], box[1] = result, error
+            done.set()
+
+        self._put(item, waiter)
+        done.wait()
+        if box[1] is not None:
+            raise box[1]
+        return box[0]
+
+    def submit_async(self, item) -> asyncio.Future:
+        """An asyncio future (of the running loop) of ``item``'s result."""
+        loop = asyncio.get_running_loop()
+        fut = loop.create_future()
+        self._put(item, (loop, fut))
+        return fut
+
+    def _put(self, item, waiter) -> None:
+        with self._cv:
+            if self._stopped:
+                raise RuntimeError("the store's committer has stopped")
+            self._queue.append((item, waiter))
+            self._cv.notify()
+
+    def stop(self) -> None:
+        """Commit what is waiting, then end the committer thread."""
+        with self._cv:
+            self._stopped = True
+            self._cv.notify()
+        self._thread.join(30)
+
+    def _run(self) -> None:
+        last = -float("inf")
+        recent: list[float] = []  # when the items of the last second were taken (monotonic s)
+        while True:
+            with self._cv:
+                while not self._queue and not self._stopped:
+                    self._cv.wait()
+                if not self._queue:
+                    return
+            now = time.monotonic()
+            del recent[: bisect.bisect_left(recent, now - 1.0)]
+            rest = last + self.tick_s - now
+            # busy (more than two items a tick over the last second): the tick's other items join this
+            # transaction; quiet: no wait (a lone sender's next message would wait a tick for nothing)
+            if rest > 0 and len(recent) * self.tick_s > 2.0 and not self._stopped:
+                time.sleep(rest)
+            last = time.monotonic()
+            with self._cv:
+                batch, self._queue = self._queue, []
+            recent += [last] * len(batch)
+            results: list = [None] * len(batch)
+            error: BaseException | None = None
+            try:
+                results = self._flush([item for item, _ in batch])
+            except BaseException as exc:  # every submitter of the batch gets it
+                error = exc
+            self.batches += 1
+            self.items += len(batch)
+            loops: dict[int, tuple] = {}
+            for (_, waiter), result in zip(batch, results):
+                if callable(waiter):
+                    waiter(result, error)
                 else:
-                    for q, r in zip(batch, results):
-                        q.result, q.done = r, True
-                self.batches += 1
-                self.items += len(batch)
-        if p.error is not None:
-            raise p.error
-        return p.result
+                    loops.setdefault(id(waiter[0]), (waiter[0], []))[1].append((waiter[1], result))
+            for ev_loop, futs in loops.values():
+                try:
+                    ev_loop.call_soon_threadsafe(_resolve, futs, error)
+                except RuntimeError:  # the loop has closed: nobody waits any more
+                    pass
+
+
+def _resolve(futs: list[tuple[asyncio.Future, object]], error: BaseException | None) -> None:
+    for fut, result in futs:
+        if fut.done():  # the request was cancelled (its client left)
+            continue
+        if error is not None:
+            fut.set_exception(error)
+        else:
+            fut.set_result(result)
 
 
 class Store:
@@ -214,4 +282,21 @@ class Store:
             self._db.close()
 
 
-__all__ = ["GroupCommit", "Store"]
+def open_store(where: str | Path, readonly: bool = False):
+    """The store at ``where``: a ``postgresql://`` URL (:class:`wearnav.live.store_pg.PgStore`, a
+    store that spans machines), else a SQLite file's path (:class:`Store`, the embedded default)."""
+    from wearnav.live.store_pg import PgStore, is_url
+
+    if is_url(where):
+        return PgStore(str(where), readonly=readonly)
+    return Store(where, readonly=readonly)
+
+
+def store_missing(where: str | Path) -> bool:
+    """Whether ``where`` is a SQLite path with no file there (a URL's server is asked when opened)."""
+    from wearnav.live.store_pg import is_url
+
+    return not is_url(where) and not Path(where).is_file()
+
+
+__all__ = ["GroupCommit", "Store", "open_store", "store_missing"]

@@ -80,7 +80,13 @@ FRAME_LAG_S = 60.0
 # bench`, 3 devices, 0.2-s pushes, 60 s at real time: 1.0 s → push-to-path p95 1.22 s at 15.8 % of a core
 # (3 walkers 1.69 s, 65 %); 0.5 s → 0.65 s at 26.8 % (3 walkers 1.26 s, 93 %): the issue's 1-s goal for one.
 STEP_S = 0.5
-FUSE_EVERY_S = 3.0  # the smoother is solved at most this often; the path since is placed rigidly
+# The smoother is solved at most this often (s of session); the path since is placed rigidly on the
+# last PLACE_S of the smoothed one, so the odometry extends the path between solves and push → path
+# does not wait for a solve. Issue 61: every 10 s instead of 3 s, the solves' share of a phone-only
+# walker's tracking falls from ~18 % to ~6 % (docs/live-scaling.md); the path drawn since the last
+# solve may move by a few metres when the next one lands (2.7 m at most on a 120-s walk, measured
+# for issue 37), the final path (the session's end) is a solve as before.
+FUSE_EVERY_S = 10.0
 PLACE_S = 10.0  # ... on the last this many seconds of the smoothed path (wearnav.fuse.rigid_fit)
 ACTIVITY_EVERY_S = 1.0  # the activity label is refreshed at most this often (s of session time)
 TRUST_AFTER_S = 30.0  # the input's warnings once this much of the session has arrived

@@ -36,7 +36,8 @@ from wearnav.errors import ConfigError
 from wearnav.live.buffer import NS, SessionBuffer
 from wearnav.live.crowd import Crowd
 from wearnav.live.models import SharedModels
-from wearnav.live.store import Store
+from wearnav.live.store import open_store
+from wearnav.live.store_pg import is_url
 from wearnav.live.tracker import LiveTracker
 
 log = logging.getLogger("wearnav.live")
@@ -74,7 +75,7 @@ class TrackerProcess:
         shard: tuple[int, int] = (0, 1),
         stats: str | Path | None = None,
     ):
-        self.store = Store(store)
+        self.store = open_store(store)
         self.shard = shard
         self.stats = None if stats is None else Path(stats)
         self.crowd = Crowd(tracker_factory)
@@ -96,7 +97,7 @@ class TrackerProcess:
                 buf = self.buffers.get(sid)
                 if buf is None:
                     buf = self.buffers[sid] = SessionBuffer(sid, platform, bool(standardised))
-                buf.add(json.loads(body)["payload"], received_unix_s=received_ns / NS)
+                buf.add_body(body, received_unix_s=received_ns / NS)
                 taken += 1
                 touched.setdefault(sid, received_ns)  # the oldest new message of the session
         # its latency runs from when the receiver stored it (just before its 200; one clock on one machine)
@@ -113,7 +114,14 @@ class TrackerProcess:
             st = self.crowd.state(sid)
             if st is None:
                 continue
-            text = json.dumps({**st, "tracker": f"{self.shard[0]}/{self.shard[1]}", "tracked_messages": buf.messages})
+            text = json.dumps(
+                {
+                    **st,
+                    "tracker": f"{self.shard[0]}/{self.shard[1]}",
+                    "tracked_messages": buf.messages,
+                    "devices": buf.devices(),  # the whole session's (a receiver of several sees a part)
+                }
+            )
             if self._written.get(sid) != text:
                 changed[sid] = text
         self.store.put_states(changed)
@@ -192,7 +200,7 @@ def place_on_ray(
     if not ray.is_initialized():
         ray.init(address=address, include_dashboard=False, logging_level=logging.WARNING)
     task = ray.remote(run_tracker).options(num_cpus=1, max_retries=0)
-    path = str(Path(store).resolve())
+    path = str(store) if is_url(str(store)) else str(Path(store).resolve())
     model_arg = None if model is None else str(model)
     return [task.remote(path, (i, trackers), model_arg, max_s, model_device=model_device) for i in range(trackers)]
 
