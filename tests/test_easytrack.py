@@ -329,13 +329,16 @@ def test_registry_has_ionet_and_basemodel():
         assert m(x, torch.tensor([[1.0, 0], [0, 1], [1, 1]])).shape == (3, 2)
 
 
+@pytest.mark.slow  # ~16 s on a busy 2-core machine: six methods trained
 def test_quick_bench_end_to_end_and_label_cli(monkeypatch, capsys, tmp_path):
     out = tmp_path / "et"
     code, so, se = run_cli(monkeypatch, capsys, "bench", "easytrack", "--out", str(out), "--quick")
     assert code == 0, se
     page = (out / "results.md").read_text()
-    for m in ("easytrack", "coteaching", "aux", "basemodel", "basemodel-gt"):
+    for m in ("easytrack", "easytrack-amended", "coteaching", "aux", "basemodel", "basemodel-gt"):
         assert f"| {m} " in page
+    assert "Issue 59's bar for the amended CoAdapt" in page and "| L1      | easytrack-amended |" in page
+    assert "Length ratio (held-out" in page
     assert "Reduced from the paper" in page and (out / "ade_by_level.png").is_file()
     assert "(--quick: pipeline check, not accuracy)" in page.splitlines()[0]  # the title says so
     assert "Standing still (zero displacement per segment) scores" in page  # the trivial baseline beside

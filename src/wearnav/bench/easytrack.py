@@ -20,7 +20,8 @@ The page ``<out>/results.md`` (+ PNGs; :mod:`wearnav.bench.easytrack_page`) is w
 stitches into docs/results.md.
 
 Decisions: docs/decisions/0009-easytrack-training-loop-and-units.md,
-docs/decisions/0014-easytrack-benchmark-findings.md.
+docs/decisions/0014-easytrack-benchmark-findings.md,
+docs/decisions/0047-easytrack-amended-and-table-v-power.md (the amended CoAdapt, ``easytrack-amended``).
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ from wearnav.trajectory import integrate_velocity
 from wearnav.trust import QUICK_NOTE
 
 LEVELS = ("L1", "L2", "L3")
-MAIN = ("easytrack", "coteaching", "aux", "basemodel", "basemodel-gt", "ionet", "ronin")
+MAIN = ("easytrack", "easytrack-amended", "coteaching", "aux", "basemodel", "basemodel-gt", "ionet", "ronin")
 ABLATION = ("nocnal", "nocoadapt")
 # held-out routes: the recordings of real-odometry's IPIN test trials (04/24/52, recording names
 # IPIN2023_T3_TrainingTrial04_repetition01 ...); trials 01/02 (simulator calibration) train only
@@ -100,7 +101,7 @@ class BenchConfig:
             pre_epochs=1,
             joint_epochs=2,
             levels=("L1",),
-            methods=("easytrack", "basemodel", "coteaching", "aux", "basemodel-gt"),
+            methods=("easytrack", "easytrack-amended", "basemodel", "coteaching", "aux", "basemodel-gt"),
             l1_only=(),
         )
 
@@ -197,11 +198,14 @@ def run_one(cfg: NoisyConfig, train: Segments, test: Segments | None, folder: Pa
         "training": {k: v for k, v in tr.items() if k != "history"},
     }
     if test is not None and len(test):
-        m["ade_m"] = metrics.ade(predict(test.x), test.truth)
+        pred = predict(test.x)
+        m["ade_m"] = metrics.ade(pred, test.truth)
         m["ate"] = _ate_rows(predict, test)
         m["ate_mean_m"] = float(np.mean([r["ate"] for r in m["ate"]])) if m["ate"] else None
         # did it learn: against standing still (zero displacement per segment) on the same segments
         m["trivial_ade_m"] = metrics.ade(np.zeros_like(test.truth), test.truth)
+        # does it walk slow (issue 59: small-loss selection that keeps short segments teaches so)?
+        m["length_ratio"] = float(np.linalg.norm(pred, axis=1).sum() / np.linalg.norm(test.truth, axis=1).sum())
         m["beats_trivial"] = bool(m["ade_m"] < m["trivial_ade_m"])
     runs.write_metrics(folder, m)
     score = f"ADE {m['ade_m']:.3f} m" if "ade_m" in m else "trained"
@@ -313,7 +317,7 @@ def real_plan(
         for seed in range(seeds):
             cfg = bc.noisy(method, seed)
             record = {
-                "noisy": dataclasses.asdict(cfg),
+                "noisy": cfg.record(),
                 "data": str(Path(data).resolve()),
                 "test_routes": test_routes,
                 "labels": dataclasses.asdict(lc),
@@ -438,7 +442,7 @@ def _todo(out: Path, bc: BenchConfig, seeds: int, lc: LabelConfig) -> list[tuple
                     continue
                 cfg = bc.noisy(method, seed)
                 record = {
-                    "noisy": dataclasses.asdict(cfg),
+                    "noisy": cfg.record(),
                     "level": level,
                     "km": bc.km,
                     "sim_seed": bc.sim_seed,

@@ -121,7 +121,7 @@ def run_study(out: str | Path, bc: BenchConfig, seeds: int = 1, execution: Execu
             )
             km, (train, test) = kms[v], segment_files[v]
             record = {
-                "noisy": dataclasses.asdict(cfg),
+                "noisy": cfg.record(),
                 "variant": dataclasses.asdict(v),
                 "km": km,
                 "sim_seed": bc.sim_seed,

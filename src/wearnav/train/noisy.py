@@ -3,6 +3,7 @@
 Methods (one :class:`NoisyConfig` each; ``method``):
 
 * ``easytrack``   dual BaseModels + CNAL (eqs. 12–13) + CoAdapt (eqs. 14–18), total loss eq. 19.
+* ``easytrack-amended``  the same, CoAdapt amended: no length bias, δ from the data (:mod:`wearnav.train.coadapt`).
 * ``nocnal``      EasyTrack without CNAL (labels uncorrected).
 * ``nocoadapt``   EasyTrack without CoAdapt (each model trains on all instances with weight 1).
 * ``coteaching``  the same dual BaseModels, no CNAL; each model keeps its R(T) small-loss share to
@@ -69,11 +70,28 @@ from wearnav.models.base import VEL_LOSSES, instance_velocity_loss
 from wearnav.models.easytrack import BaseModel
 from wearnav.models.registry import build
 from wearnav.models.ronin import MIN_WINDOW
+from wearnav.train import coadapt
 
 log = logging.getLogger(__name__)
 
-METHODS = ("easytrack", "nocnal", "nocoadapt", "coteaching", "aux", "basemodel", "basemodel-gt", "ionet", "ronin")
-DUAL = ("easytrack", "nocnal", "nocoadapt", "coteaching", "aux")
+METHODS = (
+    "easytrack",
+    "easytrack-amended",
+    "nocnal",
+    "nocoadapt",
+    "coteaching",
+    "aux",
+    "basemodel",
+    "basemodel-gt",
+    "ionet",
+    "ronin",
+)
+DUAL = ("easytrack", "easytrack-amended", "nocnal", "nocoadapt", "coteaching", "aux")
+COADAPT = ("easytrack", "easytrack-amended", "nocnal")  # the methods that select with CoAdapt
+CNAL = ("easytrack", "easytrack-amended", "nocoadapt")
+AMENDED_FIELDS = ("strata", "delta_mad", "rel_floor")  # NoisyConfig fields only the amended method reads
+# per joint epoch, the mean over batches of each of issue 59's diagnostics (wearnav.train.coadapt)
+DIAGNOSTICS = ("length_bias", "weighting_length_bias", "delta_scale", "ensemble_shrinkage")
 STATE = "state.pt"
 
 
@@ -107,6 +125,11 @@ class NoisyConfig:
     loss: str = "mse"
     yaw_augment: bool = True  # turn each segment's input by a random yaw, its prediction back (not in the
     # paper; RoNIN trains so). Its effect on BaseModel-GT: `wearnav bench easytrack-base`, docs/results.md
+    # easytrack-amended only (wearnav.train.coadapt): label-length strata of the selection; p_δ's outlier
+    # bound median + delta_mad·MAD on relative errors ‖d̂ − d̃‖ / max(‖d̃‖, rel_floor m)
+    strata: int = 8
+    delta_mad: float = 3.0
+    rel_floor: float = coadapt.REL_FLOOR_M
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -115,6 +138,14 @@ class NoisyConfig:
             raise ConfigError(f"unknown loss {self.loss!r} (expected one of {', '.join(VEL_LOSSES)})")
         if min(self.ae_epochs, self.pre_epochs, self.joint_epochs) < 0 or self.batch < 2:
             raise ConfigError("epochs must be ≥ 0 and batch ≥ 2")
+        if self.strata < 1 or not self.delta_mad > 0 or not self.rel_floor > 0:
+            raise ConfigError("strata must be ≥ 1, delta_mad and rel_floor > 0")
+
+    def record(self) -> dict:
+        """The config as a run folder's record: the amended method's fields only where it reads them,
+        so the other methods' run folders keep the names (config hashes) they had before it."""
+        d = dataclasses.asdict(self)
+        return d if self.method == "easytrack-amended" else {k: v for k, v in d.items() if k not in AMENDED_FIELDS}
 
 
 # ---- schedules and losses (each a pure function; tests use hand-made tensors) -------------------
@@ -322,7 +353,7 @@ def _fit_noisy(
             m.set_normalisation(x)
     base = all(isinstance(m, BaseModel) for m in models)
     dual = len(models) == 2
-    cnal = cfg.method in ("easytrack", "nocoadapt")
+    cnal = cfg.method in CNAL
     aux = cfg.method == "aux"
     corr = nn.Parameter(torch.zeros(train.n_nodes if cnal else (n if aux else 0), 2, device=dev))
     zero = torch.zeros((), device=dev)
@@ -383,6 +414,7 @@ def _fit_noisy(
             "n_b": 0,
         }
         sel_noise_last = []
+        diag: dict[str, list[float]] = {k: [] for k in DIAGNOSTICS}
         if phase == "ae":
             for k, m in enumerate(models):
                 for b in _batches(halves[k].numel(), cfg.batch, gen):
@@ -413,17 +445,40 @@ def _fit_noisy(
                 tgt_models = target if phase == "joint" else yb
                 losses = [instance_velocity_loss(p, tgt_models, cfg.loss) for p in preds]
                 total_loss = torch.zeros((), device=dev)
-                if dual and phase == "joint" and cfg.method in ("easytrack", "nocnal", "coteaching"):
+                if dual and phase == "joint":
+                    diag["ensemble_shrinkage"].append(coadapt.ensemble_shrinkage(preds[0].detach(), preds[1].detach()))
+                if dual and phase == "joint" and cfg.method in (*COADAPT, "coteaching"):
+                    pooled = torch.cat([preds[0].detach(), preds[1].detach()])
+                    tgt2 = tgt_models.detach().repeat(2, 1)
+                    length = tgt_models.detach().norm(dim=1)  # the label's length, what the rule may see
                     if cfg.method == "coteaching":
                         ratio = 1.0 - cfg.coteach_forget * min(T / max(1.0, cfg.coteach_tk * cfg.joint_epochs), 1.0)
                         lp1, lp2, s1, s2 = coadapt_losses(losses[0], losses[1], ratio, 0.0, 1.0)
+                        w1, w2 = torch.ones_like(s1, dtype=yb.dtype), torch.ones_like(s2, dtype=yb.dtype)
+                    elif cfg.method == "easytrack-amended":
+                        r_delta = coadapt.r_delta_amended(r_delta, pooled, tgt2, cfg.delta_mad, cfg.rel_floor, cfg.beta)
+                        ratio = r_select(r_t, r_delta)
+                        lp1, lp2, s1, s2, w1, w2 = coadapt.coadapt_losses_stratified(
+                            losses[0], losses[1], length, ratio, cfg.strata, cfg.low_share, cfg.low_weight
+                        )
                     else:
-                        pooled = torch.cat([preds[0].detach(), preds[1].detach()])
-                        r_delta = r_delta_update(r_delta, pooled, tgt_models.detach().repeat(2, 1), cfg.delta, cfg.beta)
+                        r_delta = r_delta_update(r_delta, pooled, tgt2, cfg.delta, cfg.beta)
                         ratio = r_select(r_t, r_delta)
                         lp1, lp2, s1, s2 = coadapt_losses(losses[0], losses[1], ratio, cfg.low_share, cfg.low_weight)
+                        w1 = select_small_loss(losses[0], ratio, cfg.low_share, cfg.low_weight)[1]
+                        w2 = select_small_loss(losses[1], ratio, cfg.low_share, cfg.low_weight)[1]
                     total_loss = total_loss + lp1 + lp2
                     sums["r_s"] += ratio
+                    # issue 59's diagnostics (wearnav.train.coadapt), from what the rule sees (no truth)
+                    diag["length_bias"].append(coadapt.length_bias(torch.cat([s1, s2]), length))
+                    diag["weighting_length_bias"].append(
+                        0.5
+                        * (
+                            coadapt.weighting_length_bias(s1, w1, length)
+                            + coadapt.weighting_length_bias(s2, w2, length)
+                        )
+                    )
+                    diag["delta_scale"].append(coadapt.delta_scale(instance_error(pooled, tgt2), cfg.delta))
                     sel = torch.cat([s1, s2])
                     tb = truth[b]
                     e_raw = (tb[sel] - yb[sel]).norm(dim=1)
@@ -481,6 +536,7 @@ def _fit_noisy(
             "selected_displacement_cm": sums["sel_disp_cm"] / sums["n_sel"] if sums["n_sel"] else None,
             "batch_displacement_cm": sums["all_disp_cm"] / nb if sums["n_sel"] else None,
             "s": time.perf_counter() - t0,
+            **{k: float(np.nanmean(v)) if v else None for k, v in diag.items()},
         }
         if opt_c is not None and cnal and np.isfinite(train.truth).all():
             rec["corrected_label_noise_median_cm"] = 100 * float(
