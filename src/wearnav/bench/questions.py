@@ -205,6 +205,12 @@ QUESTIONS: tuple[Question, ...] = (
         ("easytrack",),
     ),
     Question(
+        "easytrack-amended",
+        "EasyTrack (paper 004)",
+        "Where labels are nearly clean (today's simulator), does the amended CoAdapt stop costing accuracy against BaseModel?",
+        ("easytrack-amended",),
+    ),
+    Question(
         "easytrack-base",
         "EasyTrack (paper 004)",
         "Why is BaseModel-GT far from the paper's 11.2 cm?",
