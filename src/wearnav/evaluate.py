@@ -29,8 +29,9 @@ from wearnav.core.textio import read_json
 from wearnav.dataset import Dataset, scorable_split
 from wearnav.errors import FormatError, ValidationError
 from wearnav.models.registry import n_parameters
-from wearnav.preprocess import Aligned, load_sequences
+from wearnav.preprocess import Aligned, PreprocessConfig, align, load_sequences
 from wearnav.preprocess.windows import WindowConfig, WindowDataset, turn
+from wearnav.recording import Recording
 from wearnav.train.odometry import TRAINING, load_model
 from wearnav.trajectory import integrate_velocity
 
@@ -269,3 +270,30 @@ def evaluate_run(
         plot_run_split(dest / "plots", split, res, trajs, cfg.model)
     runs.write_metrics(dest, out)
     return out
+
+
+# ---- one way to window and run the odometry model (track and the live receiver) ----------------
+
+
+def odometry_preprocess(cfg) -> PreprocessConfig:
+    """The run's preprocessing for a user's recording: its devices in one common frame (mode
+    "common", :mod:`wearnav.preprocess.frames`: a user's recording has no truth)."""
+    return dataclasses.replace(cfg.preprocess_config(), frame_align="common")
+
+
+def path_times(clock_t: np.ndarray, t_c: np.ndarray) -> np.ndarray:
+    """The clock's times the path is given at: those between the first and last window centre."""
+    return clock_t[(clock_t >= t_c[0]) & (clock_t <= t_c[-1])]
+
+
+def odometry(model, cfg, rec: Recording, progress: bool = False):
+    """The model's path of ``rec``: the aligned input (:func:`odometry_preprocess`), window centre
+    times, velocities and device presence (:func:`wearnav.evaluate.predict_sequence`), and the
+    path's times and positions, integrated from (0, 0) at the first centre (Suite-IN++ eq. 8,
+    :func:`wearnav.trajectory.integrate_velocity`)."""
+    seq = align(rec, odometry_preprocess(cfg))
+    t_c, vel, present = predict_sequence(model, seq, cfg.window, cfg.stride, progress=progress)
+    if t_c.size < 2:
+        return seq, t_c, vel, present, np.empty(0), np.empty((0, 2))
+    t = path_times(seq.t, t_c)
+    return seq, t_c, vel, present, t, integrate_velocity(t_c, vel, t, np.zeros(2))

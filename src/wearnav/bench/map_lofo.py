@@ -83,7 +83,7 @@ class _Moved:
 def odometry_walks(data: Path, out: Path, model: str, progress: bool) -> tuple[list[Walk], dict[str, Walkable]]:
     """Every walk of ``data`` with at least two surveyed points in its odometry's span, the odometry of
     ``model`` (a shipped name, run folder or `pdr`) kept in ``out/odometry``; and each floor's plan."""
-    from wearnav.track.run import odometry  # torch: only when the suite runs
+    from wearnav.evaluate import odometry  # torch: only when the suite runs
     from wearnav.train.resolve import locate_model, resolve_model
 
     ds = Dataset.open(data)

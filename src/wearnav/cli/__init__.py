@@ -36,6 +36,7 @@ from wearnav.cli.common import (
 from wearnav.cli.label import register as register_label_commands
 from wearnav.cli.live import register as register_live_commands
 from wearnav.cli.models import register as register_model_commands
+from wearnav.cli.radiomap import radiomap_app
 from wearnav.cli.train import register as register_train_commands
 from wearnav.core.interrupts import noting_lost_interrupts, raise_lost_interrupt
 from wearnav.errors import (
@@ -55,6 +56,7 @@ app = typer.Typer(
     rich_markup_mode=None,  # click's plain help: flags read as flags (`--quick`, not `--quick <bool>`)
 )
 app.add_typer(bench_app, name="bench")
+app.add_typer(radiomap_app, name="radiomap")
 
 
 # Options with a fixed set of values: typer lists them in --help and rejects any other (exit 2).
@@ -305,6 +307,12 @@ def track(
         "read a fix as where the walker was that long before its time stamp; IPIN 2023's indoor fixes: 4). "
         "Default: 0.",
     ),
+    radiomap: Path | None = typer.Option(
+        None,
+        "--radiomap",
+        help="A radio map folder of `wearnav radiomap build`: the positions it gives the recording's Wi-Fi "
+        "scans join the location fixes (and give the floor); a map of another site is not used (a warning).",
+    ),
 ):
     """The walking path of one recording: predict, integrate from (0, 0), place it on the location fixes.
 
@@ -325,6 +333,10 @@ def track(
     check_input(src)
     if map_plan not in ("auto", "none") and not Path(map_plan).is_file():
         raise ConfigError(f"--map {map_plan}: not auto, none or a GeoJSON plan file")
+    if radiomap is not None and not (radiomap / "card.json").is_file():
+        raise ConfigError(
+            f"--radiomap {radiomap}: not a radio map folder (no card.json; `wearnav radiomap build` writes one)"
+        )
     from wearnav.track import model_line  # torch: after the cheap checks
     from wearnav.track import track as track_
 
@@ -340,12 +352,14 @@ def track(
         start=start_pose,
         speed=choice_value(speed),
         fix_lag_s=fix_lag,
+        radiomap=radiomap,
     )
     typer.echo(model_line(summary))  # the model, the devices it read, its speed and frames (said once)
     echo_json(
         {k: summary[k] for k in ("recording", "duration_s", "path", "files") if k in summary}
         | {"odometry": {k: v for k, v in summary["odometry"].items() if k != "frame"}}  # the frame: the line above
         | {"anchoring": summary.get("anchoring", "no location fixes")}
+        | ({"radiomap": summary["radiomap"]} if "radiomap" in summary else {})
     )
 
 

@@ -306,10 +306,11 @@ def bench_map_lofo(
     """The map-aware path with every constant chosen by leaving one floor out (issue 57): each floor
     scored with the filter's settings, the site yaw and the odometry's drift taken from the other
     floors, beside the map-less path; plans moved, turned or another floor's, to show what the
-    verdict catches; per walk, why it went wrong.
+    verdict catches; per walk, why it went wrong. The data: `wearnav import ilc2
+    ../shared/data/ilc2_indoor_location --out data/ilc2`.
 
+    \b
     Example:
-      wearnav import ilc2 ../shared/data/ilc2_indoor_location --out data/ilc2
       wearnav bench map-lofo --data data/ilc2 --out runs/map-lofo
     """
     from wearnav.bench.map_lofo import run_suite

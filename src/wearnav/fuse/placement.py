@@ -92,6 +92,13 @@ def floors_over_time(rec: Recording, site: SiteModels) -> tuple[Callable[[np.nda
     return floor_at, {"start_floor": f0, "start_floor_by": how.get("by")}
 
 
+def _fix_floors(t_fix: np.ndarray, floor_fix: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """The floor over time from the fixes that carry one (:func:`wearnav.fuse.radiomap.floor_at`)."""
+    from wearnav.fuse.radiomap import floor_at
+
+    return lambda times: floor_at(t_fix, floor_fix, np.asarray(times, np.float64))
+
+
 def place(
     rec: Recording,
     t: np.ndarray,
@@ -126,6 +133,11 @@ def place(
         start_xy, known = None, known_heading_deg(rec.meta, "phone")
         offset = None if known is None else float(np.radians(known))
     floor_at, floor_info = floors_over_time(rec, site)
+    if floor_at is None and len(grids) > 1 and fx is not None and fx.floor is not None and np.isfinite(fx.floor).any():
+        floor_at, floor_info = (
+            _fix_floors(fx.t, fx.floor),
+            {"floors": "from the fixes' floors (a radio map's, issue 60)"},
+        )
     if floor_at is None and len(grids) > 1:  # several plans and no barometer: the recording's own floor
         f = rec.meta.get("floor_index")
         floor_at = None if f is None else (lambda times: np.full(np.shape(times), float(f)))

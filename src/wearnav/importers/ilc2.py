@@ -18,7 +18,7 @@ What becomes what:
 * ``TYPE_WAYPOINT`` (x, y in metres) → sparse ``truth``: positions (M, 2) in the floor plan's own
   metric frame (not geo-referenced, not north-aligned); ``truth.floor`` is the floor index from
   ``FloorName`` (F1 → 0, F2 → 1, B1 → -1, the competition's convention; None when unparsable).
-* WiFi, iBeacon, magnetometer and uncalibrated-sensor rows are ignored.
+* ``TYPE_WIFI`` → ``wifi``, ``TYPE_BEACON`` → ``beacons`` (:func:`_wifi`, :func:`_beacons`); no magnetometer rows.
 * The floor's plan, ``geojson_map.json`` beside ``floor_info.json`` (a GeoJSON FeatureCollection in
   lon/lat: the floor's outline, a (Multi)Polygon, and one polygon per shop) → ``plans``: one
   :class:`~wearnav.recording.FloorPlan` named ``<site>_<floor>`` (``meta["plan"]``), walkable
@@ -84,13 +84,26 @@ from wearnav.importers.common import (
     read_text,
     strip_compression,
 )
+from wearnav.importers.radio_rows import drop_repeated_readings, ibeacon_name
 from wearnav.plans import plan_from_lonlat
-from wearnav.recording import ANDROID_ENU_FRAME, DeviceStream, FloorPlan, Recording, Trajectory
+from wearnav.recording import (
+    ANDROID_ENU_FRAME,
+    BeaconReadings,
+    DeviceStream,
+    FloorPlan,
+    Recording,
+    Trajectory,
+    WifiScans,
+)
 
 SOURCE = "ilc2"
 LICENCE = "MIT (Copyright (c) 2017-2020 XYZ10, Inc.; Indoor Location Competition 2.0 sample data)"
 
 ACC, GYRO, ROTVEC, WAYPOINT = ("TYPE_ACCELEROMETER", "TYPE_GYROSCOPE", "TYPE_ROTATION_VECTOR", "TYPE_WAYPOINT")
+WIFI, BEACON = "TYPE_WIFI", "TYPE_BEACON"
+# Fields of a radio row after the timestamp and type (upstream README): Wi-Fi SSID, BSSID, RSSI,
+# frequency, last seen; iBeacon UUID, major, minor, Tx power, RSSI, distance, MAC, time again.
+WIFI_FIELDS, BEACON_FIELDS = 5, 8
 # Values each imported row type must carry after the timestamp and type columns.
 MIN_VALUES = {ACC: 3, GYRO: 3, ROTVEC: 3, WAYPOINT: 2}
 # How far outside the floor plan a waypoint may lie (survey slack at the plan's edge).
@@ -105,6 +118,85 @@ PLAN_FILE, PLAN_INFO_FILE = "geojson_map.json", "floor_info.json"
 OUTLINE_HOLDS_SHARE = 0.9
 
 # ---- reading one trace ---------------------------------------------------------------------
+
+
+def _split_rows(rows: list[str], n_fields: int, text: tuple[int, ...], what: str, path: Path) -> pd.DataFrame:
+    """Tab-separated Wi-Fi rows → a table (column 0 the ms, 1 the type, then the fields): the columns
+    ``text`` as text, the others numbers. A row with more fields than ``n_fields`` (a tab inside an
+    SSID, the first text field) keeps the extra ones in that field."""
+    # object, not str: pandas' string dtype costs twice the parse (10 against 6 ms for 15k rows)
+    dtype = {k: (object if k in text or k == 1 else np.float64) for k in range(2 + n_fields)}
+    try:
+        df = pd.read_csv(
+            io.StringIO("\n".join(rows)), sep="\t", header=None, dtype=dtype, quoting=3, keep_default_na=False
+        )
+    except ValueError as exc:  # pandas' ParserError is one: a row of another width, or not a number
+        if "Expected" not in str(exc):
+            raise FormatError(f"{what} rows: not a number ({one_line(str(exc))[:80]})", path) from None
+    else:
+        if df.shape[1] == 2 + n_fields:
+            return df
+    out = []
+    for k, ln in enumerate(rows):
+        f = ln.split("\t")
+        if len(f) < 2 + n_fields:
+            raise FormatError(f"{what} row {k} has {len(f) - 2} values, expected {n_fields}", path)
+        extra = len(f) - 2 - n_fields
+        out.append([f[0], f[1], "\t".join(f[2 : 3 + extra]), *f[3 + extra :]])
+    try:
+        return pd.DataFrame(out).astype(dtype)
+    except ValueError as exc:
+        raise FormatError(f"{what} rows: not a number ({one_line(str(exc))[:80]})", path) from None
+
+
+def _numbers(df: pd.DataFrame, cols: list[int], what: str, path: Path) -> np.ndarray:
+    arr = df[cols].to_numpy(np.float64)
+    check_finite(arr, f"{what} rows", path)
+    return arr
+
+
+def _wifi(rows: list[str], t0_ms: int, path: Path, meta: dict) -> WifiScans:
+    """TYPE_WIFI rows (SSID, BSSID, RSSI dBm, frequency MHz, last-seen Unix ms) → WifiScans (issue 60
+    §1): ``t`` the scan's time (the row's first column, shared by the scan's readings), ``t_seen``
+    the last-seen time, both on the trace's clock (they do not move its zero). A phone hands cached
+    results on (site 1: median 4.8 s, up to 30 s before the scan). An SSID holding a tab is read
+    whole. Rows follow :mod:`wearnav.importers.radio_rows`'s rules: 3 of site 1's 2,303,930 readings
+    repeat a row and are dropped; 5,086 more repeat an access point within a scan with another
+    last-seen time (a cached reading beside the fresh one) and are kept. The copy in ../shared/data
+    dropped the magnetometer and uncalibrated-sensor rows."""
+    df = _split_rows(rows, WIFI_FIELDS, (2, 3), WIFI, path)
+    num = _numbers(df, [0, 4, 5, 6], WIFI, path)  # ms, RSSI, MHz, last seen ms
+    check_unix_time(num[:, 0] / 1e3, WIFI, path)
+    check_unix_time(num[:, 3] / 1e3, f"{WIFI} last seen", path)
+    bssid = df[3].to_numpy(object)
+    keep = drop_repeated_readings(num[:, 0], bssid, WIFI, path, meta, num[:, 3])
+    t, t_seen = (num[keep, 0] - t0_ms) / 1000.0, (num[keep, 3] - t0_ms) / 1000.0
+    return WifiScans(t, bssid[keep], df[2].to_numpy(object)[keep], num[keep, 2], num[keep, 1], t_seen)
+
+
+def _beacons(rows: list[str], t0_ms: int, path: Path, meta: dict) -> BeaconReadings:
+    """TYPE_BEACON rows (iBeacon UUID, major, minor, Tx power, RSSI, distance, MAC, Unix ms again) →
+    BeaconReadings on the trace's clock, named ``UUID:major:minor:MAC``
+    (:func:`wearnav.importers.radio_rows.ibeacon_name`), with ``tx_power_dbm`` and ``distance_m``
+    (the app's -1, "cannot tell", → NaN)."""
+    fields = [ln.split("\t") for ln in rows]  # a few hundred rows a trace: plain Python beats pandas' set-up
+    short = [k for k, f in enumerate(fields) if len(f) < 2 + BEACON_FIELDS]
+    if short:
+        raise FormatError(
+            f"{BEACON} row {short[0]} has {len(fields[short[0]]) - 2} values, expected {BEACON_FIELDS}", path
+        )
+    try:  # ms, major, minor, Tx power, RSSI, distance
+        num = np.array([[float(f[k]) for k in (0, 3, 4, 5, 6, 7)] for f in fields], dtype=np.float64)
+    except ValueError as exc:
+        raise FormatError(f"{BEACON} rows: not a number ({exc})", path) from None
+    check_finite(num, f"{BEACON} rows", path)
+    check_unix_time(num[:, 0] / 1e3, BEACON, path)
+    names = np.array(
+        [ibeacon_name(f[2], int(a), int(b), f[8]) for f, a, b in zip(fields, num[:, 1], num[:, 2])], dtype=object
+    )
+    keep = drop_repeated_readings(num[:, 0], names, BEACON, path, meta)
+    distance = np.where(num[keep, 5] < 0, np.nan, num[keep, 5])  # the app's -1: cannot tell
+    return BeaconReadings((num[keep, 0] - t0_ms) / 1000.0, names[keep], num[keep, 4], num[keep, 3], distance)
 
 
 def _parse_header(lines: list[str]) -> dict[str, str]:
@@ -271,6 +363,7 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
         lines = lines[:-1]
     header: list[str] = []
     rows: dict[str, list[str]] = {ACC: [], GYRO: [], ROTVEC: [], WAYPOINT: []}
+    radio: dict[str, list[str]] = {WIFI: [], BEACON: []}  # kept apart: they do not set the clock's zero
     first_data = None
     for ln in lines:
         if not ln or ln.isspace():
@@ -280,7 +373,10 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
             continue
         i = ln.find("\t")
         j = ln.find("\t", i + 1)
-        bucket = rows.get(ln[i + 1 : j] if j > 0 else ln[i + 1 :])
+        kind = ln[i + 1 : j] if j > 0 else ln[i + 1 :]
+        bucket = rows.get(kind)
+        if bucket is None:
+            bucket = radio.get(kind)
         if bucket is not None:
             bucket.append(ln)
         elif first_data is None:
@@ -384,6 +480,10 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
         "dropped_uncovered": n_uncovered,
         "file": str(path.relative_to(root)) if root is not None and path.is_relative_to(root) else path.name,
     }
+    radio_meta: dict[str, Any] = {}  # the radio rows' dropped repeats, into meta["dropped_duplicates"]
+    wifi = _wifi(radio[WIFI], t0_ms, path, radio_meta) if radio[WIFI] else None
+    beacons = _beacons(radio[BEACON], t0_ms, path, radio_meta) if radio[BEACON] else None
+    meta_dropped.update(radio_meta.get("dropped_duplicates", {}))
     plans = []
     if size is not None:
         meta["map_size_m"] = size
@@ -402,7 +502,9 @@ def _read_trace(path: Path, root: Path | None) -> Recording:
             WearnavWarning(f"{path}: {meta['truncated']}; imported as far as it goes, flagged in meta['truncated']"),
             stacklevel=2,
         )
-    return Recording(name=name, devices={"phone": stream}, truth=truth, meta=meta, plans=plans)
+    return Recording(
+        name=name, devices={"phone": stream}, truth=truth, meta=meta, plans=plans, wifi=wifi, beacons=beacons
+    )
 
 
 # ---- finding traces ------------------------------------------------------------------------

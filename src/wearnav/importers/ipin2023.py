@@ -28,10 +28,10 @@ Log format (the ``%`` header of each log documents it): ``;``-separated rows ``T
   own sensor-clock offset (as the fixes).
 * ``BLE4;App;iBeacon;MAC;RSSI(dBm);...`` (and the Eddystone variant) → ``beacons``, at the app time
   of the row, named as the venue's ``BLE_Locations.csv`` names them.
-* WIFI, MAGN, LIGH, SOUN ... are ignored.
+* ``WIFI`` → ``wifi`` (every reading of every scan), ``MAGN`` (µT) → ``magnetic``; LIGH, SOUN ... are ignored.
 
-The radio part (BLE4 rows and their beacon names, PRES, the beacons' surveyed positions from
-``BLE_Locations.csv`` → ``meta["beacons"]``) is :mod:`wearnav.importers.ipin2023_radio`.
+The radio part (BLE4 rows and their beacon names, WIFI, MAGN, PRES, the beacons' surveyed positions
+from ``BLE_Locations.csv`` → ``meta["beacons"]``) is :mod:`wearnav.importers.ipin2023_radio`.
 
 Clocks: everything is on the app clock (``AppTimestamp``, seconds since the log started), the one
 clock all rows share and the one POSI uses. IMU samples take their ``SensorTimestamp`` (exact
@@ -88,9 +88,13 @@ from wearnav.importers.common import (
 from wearnav.importers.ipin2023_radio import (
     _beacon_positions,
     _beacon_readings,
+    _magnetic,
     _mat_ble4,
+    _mat_wifi,
     _parse_ble4,
+    _parse_wifi,
     _pressure,
+    _wifi_scans,
 )
 from wearnav.recording import (
     ANDROID_ENU_FRAME,
@@ -118,7 +122,7 @@ STALE_FIX_S = 5.0
 MAX_CLOCK_DISAGREEMENT_S = 1.0
 
 # Numeric columns needed after the tag (the rest is optional): text logs.
-TXT_COLUMNS = {"ACCE": 5, "GYRO": 5, "AHRS": 8, "GNSS": 7, "POSI": 5, "PRES": 3}
+TXT_COLUMNS = {"ACCE": 5, "GYRO": 5, "AHRS": 8, "GNSS": 7, "POSI": 5, "PRES": 3, "MAGN": 5}
 # The .mat conversion's variables and their needed columns (no accuracy / counter columns).
 MAT_VARS = {
     "Acce": ("ACCE", 5),
@@ -127,6 +131,7 @@ MAT_VARS = {
     "Gnss": ("GNSS", 7),
     "Posi": ("POSI", 4),
     "Pres": ("PRES", 3),
+    "Magn": ("MAGN", 5),
 }
 LOG_SUFFIXES = (".txt", ".txt.gz", ".txt.xz", ".mat")
 # The dataset's own documentation beside its logs (ZZ_README.txt in the organisers' folder):
@@ -184,12 +189,13 @@ def _header_info(lines: list[str]) -> dict[str, str]:
 
 def read_txt(path: Path) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     """A GetSensorData text log → {tag: numeric rows} for the imported tags (BLE4: app time and
-    RSSI, with the beacon names under ``BLE4_NAME``), header info."""
+    RSSI, with the beacon names under ``BLE4_NAME``; WIFI: app time, sensor time, MHz, dBm, with
+    ``WIFI_BSSID`` and ``WIFI_SSID``), header info."""
     text = read_text(path)
     if not text.strip():
         raise FormatError("empty file", path)
     header: list[str] = []
-    rows: dict[str, list[str]] = {tag: [] for tag in (*TXT_COLUMNS, "BLE4")}
+    rows: dict[str, list[str]] = {tag: [] for tag in (*TXT_COLUMNS, "BLE4", "WIFI")}
     first_other = None
     for ln in text.splitlines():
         if not ln:
@@ -205,10 +211,12 @@ def read_txt(path: Path) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     if not rows["ACCE"]:
         seen = first_other or (header[0] if header else "")
         raise FormatError(f"not a GetSensorData log: no ACCE rows (first line: {seen[:60]!r})", path)
-    ble4 = rows.pop("BLE4")
+    ble4, wifi = rows.pop("BLE4"), rows.pop("WIFI")
     data = {tag: _parse_block(r, tag, path) for tag, r in rows.items() if r}
     if ble4:
         data["BLE4"], data["BLE4_NAME"] = _parse_ble4(ble4, path)
+    if wifi:
+        data["WIFI"], data["WIFI_BSSID"], data["WIFI_SSID"] = _parse_wifi(wifi, path)
     return data, _header_info(header)
 
 
@@ -230,8 +238,8 @@ def _load_mat(path: Path) -> dict[str, np.ndarray]:
 
 
 def read_mat(path: Path) -> tuple[dict[str, np.ndarray], dict[str, str]]:
-    """The organisers' .mat conversion (variables Acce, Gyro, Ahrs, Gnss, Posi, Pres, Ble4) → same as
-    read_txt."""
+    """The organisers' .mat conversion (variables Acce, Gyro, Ahrs, Gnss, Posi, Pres, Magn, Ble4, Wifi)
+    → same as read_txt."""
     mat = _load_mat(path)
     if "Acce" not in mat:
         raise FormatError(f"not an IPIN .mat log: no 'Acce' variable (has {sorted(mat)[:8]})", path)
@@ -256,6 +264,8 @@ def read_mat(path: Path) -> tuple[dict[str, np.ndarray], dict[str, str]]:
         raise FormatError("variable 'Acce' is empty", path)
     if "Ble4" in mat and np.size(mat["Ble4"]):
         data["BLE4"], data["BLE4_NAME"] = _mat_ble4(mat["Ble4"], path)
+    if "Wifi" in mat and np.size(mat["Wifi"]):
+        data["WIFI"], data["WIFI_BSSID"], data["WIFI_SSID"] = _mat_wifi(mat["Wifi"], path)
     return data, {}
 
 
@@ -439,6 +449,8 @@ def _read_log(path: Path) -> Recording:
             _beacon_positions(path, lat0, lon0, meta)
     pressure = _pressure(data["PRES"], path, meta) if "PRES" in data else None
     beacons = _beacon_readings(data["BLE4"], data["BLE4_NAME"], path, meta) if "BLE4" in data else None
+    wifi = _wifi_scans(data["WIFI"], data["WIFI_BSSID"], data["WIFI_SSID"], path, meta) if "WIFI" in data else None
+    magnetic = _magnetic(data["MAGN"], path, meta, MAX_CLOCK_DISAGREEMENT_S) if "MAGN" in data else None
     return Recording(
         name=name,
         devices={"phone": stream},
@@ -447,6 +459,8 @@ def _read_log(path: Path) -> Recording:
         meta=meta,
         beacons=beacons,
         pressure=pressure,
+        wifi=wifi,
+        magnetic=magnetic,
     )
 
 

@@ -1,5 +1,6 @@
-"""IPIN 2023 Track 3 logs, the radio part: BLE beacon readings, barometer pressure and the venue
-beacons' surveyed positions (:mod:`wearnav.importers.ipin2023` reads the rest of a log and calls these).
+"""IPIN 2023 Track 3 logs, the radio part: BLE beacon readings, Wi-Fi scans, the magnetometer,
+barometer pressure and the venue beacons' surveyed positions (:mod:`wearnav.importers.ipin2023` reads
+the rest of a log and calls these).
 
 * ``PRES;App;Sensor;Pres(mbar);acc`` → ``pressure`` (hPa = mbar), on the app clock through its
   own sensor-clock offset (as the fixes).
@@ -11,6 +12,15 @@ beacons' surveyed positions (:mod:`wearnav.importers.ipin2023` reads the rest of
   the minor (``BE:AC:20:23:00:0k``, on every BLE4 row of the text logs), which is all the .mat
   conversion keeps (its ``Ble4`` cells are time, MAC, RSSI), so there the minor comes from the
   MAC. Any other beacon is named by its MAC.
+* ``WIFI;App;Sensor;SSID;BSSID;Frequency(MHz);RSS(dBm)`` → ``wifi`` (issue 60 §1): ``t`` the app time
+  of the row (one scan's rows share it), ``t_seen`` the reading's own timestamp (Android's
+  ``ScanResult.timestamp``, seconds since boot: the sensor clock of ACCE, so shifted onto the app
+  clock by the log's ``imu_clock_offset_s``). An SSID holding ``;`` is read whole (the last three
+  fields are BSSID, frequency, RSSI). The .mat conversion's ``Wifi`` cells are (app time, BSSID,
+  frequency, RSSI): no SSID (""), no own timestamp (``t_seen`` None).
+* ``MAGN;App;Sensor;X;Y;Z;acc`` (µT; the header documents an empty field after X, which no row has) →
+  ``magnetic``, on the app clock through the IMU's sensor-clock offset where its own offset agrees
+  with it (within :data:`~wearnav.importers.ipin2023.MAX_CLOCK_DISAGREEMENT_S`), else its own.
 
 Beacon positions: ``02 Supplementary Materials/02 - BLE Locations/BLE_Locations.csv`` (``bleID,
 Lat,Lon,floor``), found from the log's folder upwards as the dataset lays it out, projected into
@@ -31,7 +41,8 @@ from wearnav.core import geo
 from wearnav.core.timeseries import drop_duplicate_times
 from wearnav.errors import FormatError
 from wearnav.importers.common import check_finite, check_latlon
-from wearnav.recording import BeaconReadings, Pressure
+from wearnav.importers.radio_rows import drop_repeated_readings
+from wearnav.recording import BeaconReadings, MagneticField, Pressure, WifiScans
 
 # The venue's six iBeacons (BLE_Locations.csv's BLE1..BLE6): one UUID, major 1, minor k; their MAC
 # addresses end in k (checked on every BLE4 row of the training logs).
@@ -106,6 +117,42 @@ def _mat_ble4(cells: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
     return arr, np.array([m if k is None else _venue_beacon_name(k) for m, k in zip(macs, minors)], dtype=object)
 
 
+def _parse_wifi(rows: list[str], path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """WIFI rows → ((N, 4) app time s, sensor time s, frequency MHz, RSSI dBm; (N,) BSSIDs; (N,) SSIDs)."""
+    nums, bssid, ssid = [], [], []
+    for k, ln in enumerate(rows):
+        f = ln.rstrip(";").split(";")
+        if len(f) < 7:
+            raise FormatError(f"WIFI row {k} has {len(f) - 1} fields, expected 6", path)
+        try:
+            nums.append((float(f[1]), float(f[2]), float(f[-2]), float(f[-1])))
+        except ValueError:
+            raise FormatError(f"WIFI row {k}: not a number ({f[1]!r}, {f[2]!r}, {f[-2]!r}, {f[-1]!r})", path) from None
+        bssid.append(f[-3].strip().lower())
+        ssid.append(";".join(f[3:-3]))
+    arr = np.array(nums, dtype=np.float64).reshape(-1, 4)
+    check_finite(arr, "WIFI rows", path)
+    return arr, np.array(bssid, dtype=object), np.array(ssid, dtype=object)
+
+
+def _mat_wifi(cells: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The .mat's ``Wifi`` cell array (N, 4): app time, BSSID, frequency, RSSI → as :func:`_parse_wifi`
+    (sensor time NaN: the conversion drops it; SSIDs "")."""
+    cells = np.asarray(cells, dtype=object)
+    if cells.ndim != 2 or cells.shape[1] < 4:
+        raise FormatError(f"variable 'Wifi' has shape {cells.shape}, expected (N, 4) cells", path)
+    try:
+        arr = np.array(
+            [[float(np.ravel(c[0])[0]), np.nan, float(np.ravel(c[2])[0]), float(np.ravel(c[3])[0])] for c in cells],
+            dtype=np.float64,
+        ).reshape(-1, 4)
+        bssid = [str(np.ravel(c[1])[0]).strip().lower() for c in cells]
+    except (IndexError, TypeError, ValueError) as exc:
+        raise FormatError(f"variable 'Wifi': not (time, BSSID, frequency, RSSI) cells ({exc})", path) from None
+    check_finite(arr[:, [0, 2, 3]], "variable 'Wifi'", path)
+    return arr, np.array(bssid, dtype=object), np.full(len(bssid), "", dtype=object)
+
+
 # ---- building the recording ----------------------------------------------------------------
 
 
@@ -128,6 +175,32 @@ def _beacon_readings(b: np.ndarray, names: np.ndarray, path: Path, meta: dict) -
     if n_dup:
         meta["dropped_duplicates"]["BLE4"] = n_dup
     return BeaconReadings(b[keep, 0], names[keep], b[keep, 1])
+
+
+def _wifi_scans(w: np.ndarray, bssid: np.ndarray, ssid: np.ndarray, path: Path, meta: dict) -> WifiScans | None:
+    """WIFI rows (App, Sensor, MHz, dBm) → WifiScans on the app clock (:mod:`.radio_rows`'s rules);
+    the own timestamps through the IMU's clock offset (None where the rows have none)."""
+    keep = drop_repeated_readings(w[:, 0], bssid, "WIFI", path, meta, None if np.isnan(w[:, 1]).any() else w[:, 1])
+    w, bssid, ssid = w[keep], bssid[keep], ssid[keep]
+    t_seen = None
+    if np.all(np.isfinite(w[:, 1])):
+        t_seen = w[:, 1] + float(meta["imu_clock_offset_s"])
+    return WifiScans(w[:, 0], bssid, ssid, w[:, 2], w[:, 3], t_seen)
+
+
+def _magnetic(m: np.ndarray, path: Path, meta: dict, max_disagreement_s: float) -> MagneticField:
+    """MAGN rows (App, Sensor, x, y, z µT) → MagneticField on the app clock: the IMU's sensor-clock
+    offset where the rows' own least delivery delay agrees with it, else their own (said in meta)."""
+    keep, n_dup = drop_duplicate_times(m[:, 1], "MAGN SensorTimestamp", path)
+    if n_dup:
+        meta["dropped_duplicates"]["MAGN"] = n_dup
+    m = m[keep]
+    own = float(np.min(m[:, 0] - m[:, 1]))
+    offset = float(meta["imu_clock_offset_s"])
+    if abs(own - offset) > max_disagreement_s:
+        meta["magnetic_clock_offset_s"] = round(own, 6)
+        offset = own
+    return MagneticField(m[:, 1] + offset, m[:, 2:5])
 
 
 def find_ble_locations(log_path: Path) -> Path | None:

@@ -3,7 +3,8 @@
 A :class:`Recording` holds what one walk produced: the IMU stream of each worn device
 (:class:`DeviceStream`), optionally the true body trajectory (:class:`Trajectory`), noisy location
 fixes (:class:`Fixes`), interval labels and free metadata; where the source has them, BLE beacon
-readings, barometer pressure and floor plans (:mod:`wearnav.recording.radio`, re-exported here).
+readings, Wi-Fi scans, the magnetometer, barometer pressure and floor plans
+(:mod:`wearnav.recording.radio`, re-exported here).
 Streams keep their own rates and clocks; resampling to a common clock is :mod:`wearnav.preprocess`'s
 job.
 
@@ -43,7 +44,9 @@ from wearnav.recording.checks import (
 )
 from wearnav.recording.radio import BeaconReadings as BeaconReadings
 from wearnav.recording.radio import FloorPlan as FloorPlan
+from wearnav.recording.radio import MagneticField as MagneticField
 from wearnav.recording.radio import Pressure as Pressure
+from wearnav.recording.radio import WifiScans as WifiScans
 
 FORMAT_NAME = "wearnav.recording"
 FORMAT_VERSION = 1
@@ -75,6 +78,11 @@ MAX_TIME_OUTSIDE_S = 600.0
 def device_order(name: str) -> tuple[int, str]:
     """Sort key: phone, watch, earbuds first (HDF5 hands devices back alphabetically), then the rest."""
     return (CANONICAL_DEVICES.index(name) if name in CANONICAL_DEVICES else len(CANONICAL_DEVICES), name)
+
+
+def _text(v: Any) -> str:
+    """A string read back from HDF5 (h5py hands variable-length UTF-8 back as bytes)."""
+    return v.decode() if isinstance(v, bytes) else str(v)
 
 
 @dataclass
@@ -313,6 +321,8 @@ class Recording:
     beacons: BeaconReadings | None = None
     pressure: Pressure | None = None
     plans: list[FloorPlan] = field(default_factory=list)
+    wifi: WifiScans | None = None
+    magnetic: MagneticField | None = None
 
     def __post_init__(self) -> None:
         self.validate()
@@ -332,6 +342,8 @@ class Recording:
             ("fixes", self.fixes, Fixes),
             ("beacons", self.beacons, BeaconReadings),
             ("pressure", self.pressure, Pressure),
+            ("wifi", self.wifi, WifiScans),
+            ("magnetic", self.magnetic, MagneticField),
         )
         for what, part, kind in parts:
             if part is not None and type(part) is not kind and not issubclass(type(part), kind):
@@ -359,7 +371,7 @@ class Recording:
                 s.validate()
             except ValidationError as exc:
                 raise ValidationError(f"device {dev!r}: {exc.reason}") from None
-        for part in (self.truth, self.fixes, self.beacons, self.pressure, *self.plans):
+        for part in (self.truth, self.fixes, self.beacons, self.pressure, self.wifi, self.magnetic, *self.plans):
             if part is not None:
                 part.validate()
 
@@ -431,6 +443,27 @@ class Recording:
             b.create_dataset("t", data=self.beacons.t)
             b.create_dataset("beacon", data=self.beacons.beacon, dtype=str_t)
             b.create_dataset("rssi_dbm", data=self.beacons.rssi_dbm)
+            for key in ("tx_power_dbm", "distance_m"):
+                arr = getattr(self.beacons, key)
+                if arr is not None:
+                    b.create_dataset(key, data=arr)
+        if self.wifi is not None:
+            # The text columns as a table of their distinct values and an index per reading: a walk
+            # hears a few hundred access points in thousands of readings.
+            w = f.create_group("wifi")
+            w.create_dataset("t", data=self.wifi.t, compression="gzip", compression_opts=4)
+            for key in ("bssid", "ssid"):
+                index, names = pd.factorize(getattr(self.wifi, key))
+                w.create_dataset(f"{key}_names", data=names.astype(object), dtype=str_t)
+                w.create_dataset(f"{key}_index", data=index.astype(np.int32), compression="gzip", compression_opts=4)
+            w.create_dataset("freq_mhz", data=self.wifi.freq_mhz, compression="gzip", compression_opts=4)
+            w.create_dataset("rssi_dbm", data=self.wifi.rssi_dbm, compression="gzip", compression_opts=4)
+            if self.wifi.t_seen is not None:
+                w.create_dataset("t_seen", data=self.wifi.t_seen, compression="gzip", compression_opts=4)
+        if self.magnetic is not None:
+            m = f.create_group("magnetic")
+            m.create_dataset("t", data=self.magnetic.t)
+            m.create_dataset("ut", data=self.magnetic.ut, compression="gzip", compression_opts=4)
         if self.pressure is not None:
             pr = f.create_group("pressure")
             pr.create_dataset("t", data=self.pressure.t)
@@ -514,7 +547,30 @@ class Recording:
         if "beacons" in f:
             g = group(f, "beacons")
             names = [v.decode() if isinstance(v, bytes) else v for v in g["beacon"][()]]
-            beacons = BeaconReadings(g["t"][()], np.array(names, dtype=object), g["rssi_dbm"][()])
+            beacons = BeaconReadings(
+                g["t"][()],
+                np.array(names, dtype=object),
+                g["rssi_dbm"][()],
+                opt(g, "tx_power_dbm"),
+                opt(g, "distance_m"),
+            )
+        wifi = None
+        if "wifi" in f:
+            g = group(f, "wifi")
+            text = {}
+            for key in ("bssid", "ssid"):
+                table = np.array([_text(v) for v in g[f"{key}_names"][()]], dtype=object)
+                index = g[f"{key}_index"][()]
+                if index.size and (index.min() < 0 or index.max() >= table.size):
+                    raise FormatError(f"corrupt recording: wifi/{key}_index points outside wifi/{key}_names")
+                text[key] = table[index] if index.size else np.array([], dtype=object)
+            wifi = WifiScans(
+                g["t"][()], text["bssid"], text["ssid"], g["freq_mhz"][()], g["rssi_dbm"][()], opt(g, "t_seen")
+            )
+        magnetic = None
+        if "magnetic" in f:
+            g = group(f, "magnetic")
+            magnetic = MagneticField(g["t"][()], g["ut"][()])
         pressure = None
         if "pressure" in f:
             g = group(f, "pressure")
@@ -541,6 +597,8 @@ class Recording:
             beacons=beacons,
             pressure=pressure,
             plans=plans,
+            wifi=wifi,
+            magnetic=magnetic,
         )
 
     def summary(self) -> dict[str, Any]:
@@ -562,6 +620,12 @@ class Recording:
             "fixes": 0 if self.fixes is None else len(self.fixes),
             "beacon_readings": 0 if self.beacons is None else len(self.beacons),
             "pressure_readings": 0 if self.pressure is None else len(self.pressure),
+            **(
+                {"wifi_readings": len(self.wifi), "wifi_access_points": len(set(self.wifi.bssid.tolist()))}
+                if self.wifi is not None
+                else {}
+            ),
+            **({"magnetic_readings": len(self.magnetic)} if self.magnetic is not None else {}),
             "plans": [p.name for p in self.plans],
             "labels": {k: sorted(set(g["value"])) for k, g in self.labels.groupby("kind")},
             "meta": self.meta,

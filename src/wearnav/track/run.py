@@ -92,7 +92,6 @@ the smoother's calibration).
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 from pathlib import Path
 
@@ -102,10 +101,12 @@ import pandas as pd
 from wearnav import fuse, pretrained
 from wearnav.core import geo
 from wearnav.errors import ConfigError, FormatError, ValidationError, WearnavWarning
-from wearnav.evaluate import predict_sequence
+from wearnav.evaluate import odometry as odometry  # re-exported with the two below: wearnav.track, the live tracker
+from wearnav.evaluate import odometry_preprocess as odometry_preprocess
+from wearnav.evaluate import path_times as path_times
+from wearnav.fuse import radiomap as radiomap_mod
 from wearnav.models import registry
 from wearnav.outputs import check_out_folder, staged_output
-from wearnav.preprocess import PreprocessConfig, align
 from wearnav.recording import Recording
 from wearnav.report.trajectory_page import activity_intervals
 from wearnav.track.files import TRACK_FILES, TRACK_JSON
@@ -114,7 +115,6 @@ from wearnav.track.trust import trust_warnings
 from wearnav.track.write import UNPLACED, write_track
 from wearnav.train.odometry import SPEED_SOURCES
 from wearnav.train.resolve import locate_model, resolve_model
-from wearnav.trajectory import integrate_velocity
 
 ANCHOR_S = fuse.ANCHOR_S
 
@@ -155,33 +155,6 @@ def load_input(src: str | Path, name: str | None = None, platform: str | None = 
             src,
         )
     return recs[0]
-
-
-# ---- one way to window and run the odometry model (track and the live receiver) ----------------
-
-
-def odometry_preprocess(cfg) -> PreprocessConfig:
-    """The run's preprocessing for a user's recording: its devices in one common frame (mode
-    "common", :mod:`wearnav.preprocess.frames`: a user's recording has no truth)."""
-    return dataclasses.replace(cfg.preprocess_config(), frame_align="common")
-
-
-def path_times(clock_t: np.ndarray, t_c: np.ndarray) -> np.ndarray:
-    """The clock's times the path is given at: those between the first and last window centre."""
-    return clock_t[(clock_t >= t_c[0]) & (clock_t <= t_c[-1])]
-
-
-def odometry(model, cfg, rec: Recording, progress: bool = False):
-    """The model's path of ``rec``: the aligned input (:func:`odometry_preprocess`), window centre
-    times, velocities and device presence (:func:`wearnav.evaluate.predict_sequence`), and the
-    path's times and positions, integrated from (0, 0) at the first centre (Suite-IN++ eq. 8,
-    :func:`wearnav.trajectory.integrate_velocity`)."""
-    seq = align(rec, odometry_preprocess(cfg))
-    t_c, vel, present = predict_sequence(model, seq, cfg.window, cfg.stride, progress=progress)
-    if t_c.size < 2:
-        return seq, t_c, vel, present, np.empty(0), np.empty((0, 2))
-    t = path_times(seq.t, t_c)
-    return seq, t_c, vel, present, t, integrate_velocity(t_c, vel, t, np.zeros(2))
 
 
 # ---- what was used, said once (issue 58 §7) --------------------------------------------------------
@@ -229,6 +202,7 @@ def track(
     start: tuple[float, float, float] | None = None,
     speed: str | None = None,
     fix_lag_s: float | None = None,
+    radiomap: str | Path | None = None,
 ) -> dict:
     """Track one recording (see module docstring); ``anchor`` places the path on the fixes
     (:data:`wearnav.fuse.ANCHORS`); ``plan`` (``auto``, ``none`` or a GeoJSON plan file) and ``start``
@@ -237,7 +211,10 @@ def track(
     ``speed``: where a learned model's speed comes from (:func:`wearnav.train.odometry.with_speed`:
     itself, or its direction with PDR's steps, 0.67 m or cadence-long; default what the model's run
     records, :func:`wearnav.pretrained.recorded_speed`, or a file of `wearnav export` carries); ``fix_lag_s``: how many seconds the fixes lag
-    the walker (:func:`wearnav.track.write.write_track`); returns what ``track.json`` holds."""
+    the walker (:func:`wearnav.track.write.write_track`); ``radiomap``: a radio map folder of
+    `wearnav radiomap build` whose positions of the recording's Wi-Fi scans join its fixes
+    (:func:`wearnav.fuse.radiomap.with_radio_fixes`, issue 60 §3; ``track.json`` ``radiomap``); returns
+    what ``track.json`` holds."""
     out = Path(out)
     if anchor not in fuse.ANCHORS:
         raise ConfigError(f"unknown anchoring {anchor!r}; one of {', '.join(fuse.ANCHORS)}")
@@ -248,10 +225,16 @@ def track(
     if fix_lag_s is not None and not 0.0 <= fix_lag_s <= fuse.MAX_FIX_LAG_S:
         raise ConfigError(f"--fix-lag {fix_lag_s:g}: expected seconds from 0 to {fuse.MAX_FIX_LAG_S:g}")
     check_out_folder(out, TRACK_FILES, TRACK_JSON, "track")  # before any work
+    rmap = radiomap_mod.RadioMap.load(radiomap) if radiomap is not None else None  # a bad map before any work
     if model_path is not None:  # a bad --model is said before the input is read
         model_path = locate_model(model_path, "odometry")  # a run folder, checkpoint, file, shipped model, `pdr`
         model, cfg = resolve_model(model_path, "odometry", speed=speed)
     rec = load_input(src, name, platform)
+    radio_fix: np.ndarray | None = None
+    radio_info: dict | None = None
+    radio_warnings: list[str] = []
+    if rmap is not None:  # the radio map's positions of the scans join the fixes (issue 60 §3)
+        rec, radio_fix, radio_info, radio_warnings = radiomap_mod.with_radio_fixes(rec, rmap)
     choice = "given with --model"
     # without --model: the default for the devices and fixes the recording has, and why (pretrained.default_model)
     if model_path is None:
@@ -281,6 +264,8 @@ def track(
         table.insert(1, "unix_time", rec.meta["t0_unix_ns"] * 1e-9 + t)
     for k, dev in enumerate(seq.devices):
         table[dev] = (present[nearest, k] > 0).astype(int)
+    if radio_fix is not None and radio_fix.any() and rec.fixes is not None and rec.fixes.floor is not None:
+        table["floor"] = radiomap_mod.floor_at(rec.fixes.t[radio_fix], rec.fixes.floor[radio_fix], t)
     share = {dev: round(float((present[:, k] > 0).mean()), 3) for k, dev in enumerate(seq.devices)}
     used = devices_used(cfg, seq.devices, present)
     frame = seq.meta.get("frame", {})
@@ -314,6 +299,9 @@ def track(
         "path": {"frame": UNPLACED, "length_m": odometry_m},
         "warnings": [],
     }
+    if radio_info is not None:
+        summary["radiomap"] = {"map": str(radiomap), **radio_info}
+        summary["warnings"] += radio_warnings
     if (stale := geo.needs_reimport(rec.meta, has_fixes=rec.fixes is not None)) is not None:
         summary["warnings"].append(f"{rec.name}: {stale}")
     # the activity model runs once: the distance check and the page's colours both read it
@@ -325,5 +313,5 @@ def track(
     for w in summary["warnings"]:
         warnings.warn(WearnavWarning(w), stacklevel=2)
     with staged_output(out, TRACK_JSON, "track") as stage:
-        write_track(stage, out, table, t, xy, rec, cfg, seq, summary, activity, anchor, placed, fix_lag_s)
+        write_track(stage, out, table, t, xy, rec, cfg, seq, summary, activity, anchor, placed, fix_lag_s, radio_fix)
     return summary

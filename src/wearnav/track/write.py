@@ -119,8 +119,11 @@ def geojson(
     return {"type": "FeatureCollection", "features": feats}
 
 
-def fix_table(fx, fixes: FixCheck, t0_unix_s: float | None, latlon: tuple | None) -> pd.DataFrame:
-    """``fixes.csv``: one row per fix of the recording (module docstring)."""
+def fix_table(
+    fx, fixes: FixCheck, t0_unix_s: float | None, latlon: tuple | None, radio: np.ndarray | None = None
+) -> pd.DataFrame:
+    """``fixes.csv``: one row per fix of the recording (module docstring); with ``--radiomap`` (``radio``:
+    which fixes are the radio map's positions) a ``source`` column, phone or radio map, and ``floor``."""
     table = pd.DataFrame({"index": np.arange(len(fx.t)), "t": np.round(fx.t, 3)})
     if t0_unix_s is not None:
         table["unix_time"] = np.round(t0_unix_s + fx.t, 3)
@@ -129,6 +132,9 @@ def fix_table(fx, fixes: FixCheck, t0_unix_s: float | None, latlon: tuple | None
         table["lat"], table["lon"] = np.round(latlon[0], COORD_DIGITS), np.round(latlon[1], COORD_DIGITS)
     table["accuracy_m"] = np.round(fx.accuracy, 2)
     table["status"], table["reason"], table["weight"] = fixes.status, fixes.reason, np.round(fixes.weight, 3)
+    if radio is not None and radio.size == len(fx.t):
+        table["source"] = np.where(radio, "radio map", "phone")
+        table["floor"] = fx.floor if fx.floor is not None else np.nan
     return table
 
 
@@ -149,11 +155,13 @@ def write_track(
     anchor: str = "smooth",
     placed: fuse.FuseResult | None = None,
     fix_lag_s: float | None = None,
+    radio: np.ndarray | None = None,
 ) -> None:
     """Place the path on the fixes by ``anchor`` (:mod:`wearnav.fuse`), or take the map-aware path
     or the start's ``placed`` (:func:`wearnav.track.maps.map_path`), and write the files into ``stage`` (moved to
     ``out`` afterwards). ``fix_lag_s``: how far the fixes lag the walker (the smoother's
-    ``fix_lag_s``), None: the run's calibration's (0 for the shipped models)."""
+    ``fix_lag_s``), None: the run's calibration's (0 for the shipped models). ``radio``: which fixes
+    are the radio map's (``fixes.csv``'s ``source``)."""
     anchored, res = None, placed
     fx = rec.fixes
     has_fixes = fx is not None and len(fx) > 0
@@ -207,7 +215,7 @@ def write_track(
         if has_fixes and res.fixes is not None:
             assert fx is not None
             with atomic_path(stage / "fixes.csv") as tmp:
-                fix_table(fx, res.fixes, t0_unix, fix_ll).to_csv(tmp, index=False)
+                fix_table(fx, res.fixes, t0_unix, fix_ll, radio).to_csv(tmp, index=False)
         if res.method != "none":
             anchored = res.xy
             table["east"], table["north"] = anchored[:, 0], anchored[:, 1]

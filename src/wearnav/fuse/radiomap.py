@@ -1,0 +1,574 @@
+"""A Wi-Fi radio map from survey walks, and the positions it gives a walk's scans (issue 60 §2–§3).
+
+Build (:func:`build`): every Wi-Fi scan of the survey walks (:class:`~wearnav.recording.WifiScans`)
+is placed where the walker was at its time (:mod:`wearnav.fuse.survey`: the walk's PDR path warped
+onto its surveyed points) and becomes a fingerprint, one RSSI per access point of the map
+(:func:`fingerprints`). A scan is the readings sharing one time; of an access point heard twice in
+a scan the fresher reading counts; readings older than ``stale_s`` (cached by the phone,
+``t − t_seen``) are left out; an access point the scan did not hear reads ``missing_dbm``. The map
+keeps the access points heard in at least ``min_scans_per_ap`` of its scans.
+
+Model: scikit-learn, no hand-written learner. The floor is a distance-weighted k-nearest-neighbour
+vote over every scan of the map (:class:`~sklearn.neighbors.KNeighborsClassifier`); x, y a
+distance-weighted k-nearest-neighbour mean over the scans of that floor
+(:class:`~sklearn.neighbors.KNeighborsRegressor`; ``model="extra-trees"``:
+:class:`~sklearn.ensemble.ExtraTreesRegressor`, kept for the comparison of
+:mod:`wearnav.bench.radiomap`). Its 1-σ per axis: the neighbours' weighted spread about the
+estimate (the trees' spread for extra trees), at least ``min_sigma_m``, times ``sigma_scale``,
+calibrated by a ``cv_folds``-fold cross-validation over the map's own walks (each walk held out
+whole): the scale that puts 68 % of the held-out errors inside the 68 % radius
+(:data:`wearnav.fuse.RADIUS_68` σ), as a fix's reported accuracy is. The same cross-validation
+gives the card's validation numbers.
+
+Storage (:meth:`RadioMap.save`): a folder holding ``radiomap.npz`` (the fingerprints, their
+positions, floors and walks: the learner is fitted again on load, so no pickle is read),
+``card.json`` (the config, the walks, the access points, the validation) and ``README.md`` (the card
+for a person). Use (:meth:`RadioMap.locate`): a recording's scans → positions with σ and floor
+(:class:`RadioPositions`); a scan sharing fewer than ``min_common_aps`` access points with the map
+gets none; a recording of which no scan shares one is another site (:meth:`RadioMap.fits`).
+Decision: docs/decisions/0048-radio-map.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from wearnav.core.fileio import atomic_path, write_text_atomic
+from wearnav.core.textio import read_json
+from wearnav.errors import ConfigError, FormatError, ValidationError
+from wearnav.fuse.config import RADIUS_68
+from wearnav.fuse.survey import SURVEY_ODOMETRY, odometry_path, positions_between
+from wearnav.recording import Fixes, Recording, WifiScans
+
+FORMAT = "wearnav.radiomap"
+FORMAT_VERSION = 1
+MAP_NPZ, CARD_JSON, CARD_MD = "radiomap.npz", "card.json", "README.md"
+MODELS = ("knn", "extra-trees")
+NO_FIT = "the radio map does not fit this recording: no access point in common"
+
+
+@dataclasses.dataclass(frozen=True)
+class RadioMapConfig:
+    """Every constant of a radio map (stored on its card). Compared on held-out walks (prototype runs,
+    the same folds as :mod:`wearnav.bench.radiomap`, so these choices saw the data they are scored on):
+    ILC2 site 1 floor F2, walks held out in 10 folds, k = 8: readings older than 4 s or 8 s left out
+    4.44 / 4.43 m median against 5.08 m (2 s) and 5.92 m (none left out), ``stale_s`` 6 s between them;
+    IPIN 2023 trials held out: k = 3, 5, 8, 12 gave 7.47, 7.40, 7.40, 7.51 m (Euclidean; Manhattan,
+    Bray-Curtis and exponential or "powed" RSSI no better)."""
+
+    model: str = "knn"  # MODELS
+    k: int = 8  # neighbours (floor vote and position)
+    missing_dbm: float = -100.0  # an access point the scan did not hear (weaker readings are clipped to it)
+    stale_s: float = 6.0  # readings older than this at the scan's time are left out (t - t_seen)
+    min_scans_per_ap: int = 3  # access points heard in fewer of the map's scans are not kept
+    min_common_aps: int = 3  # a scan sharing fewer access points with the map gets no position
+    min_sigma_m: float = 1.0  # the raw σ's floor (neighbours that agree exactly)
+    cv_folds: int = 5  # walks held out whole to calibrate σ and validate
+    trees: int = 100  # extra-trees only
+    # x, y from the scans of the floor voted for (True), or from every scan (False: the floors share
+    # one frame, e.g. lat/lon: on IPIN 2023, trials held out, 7.4 m median against 8.1 m per floor,
+    # where a wrong floor vote costs the position too); None: build decides (:func:`shared_frame`)
+    per_floor: bool | None = None
+    odometry: str = SURVEY_ODOMETRY  # where survey walks run between surveyed points
+
+    def __post_init__(self) -> None:
+        if self.model not in MODELS:
+            raise ConfigError(f"radio map model {self.model!r}: not one of {', '.join(MODELS)}")
+        if self.k < 1 or self.min_scans_per_ap < 1 or self.min_common_aps < 1 or self.cv_folds < 2:
+            raise ConfigError("radio map config: k, min_scans_per_ap, min_common_aps >= 1 and cv_folds >= 2")
+        if not -130.0 <= self.missing_dbm <= -50.0 or not self.stale_s > 0 or not self.min_sigma_m > 0:
+            raise ConfigError("radio map config: missing_dbm in -130..-50 dBm, stale_s and min_sigma_m > 0")
+
+
+# ---- scans -------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class Scans:
+    """Scans as a long table: scan ``t`` (S,), and per reading its scan index ``scan`` (R,), ``bssid``
+    (R,) and ``rssi_dbm`` (R,) (stale readings already left out, one reading per access point and
+    scan). Survey scans also carry ``xy`` (S, 2), ``floor`` (S,) and ``walk`` (S,) names."""
+
+    t: np.ndarray
+    scan: np.ndarray
+    bssid: np.ndarray
+    rssi_dbm: np.ndarray
+    xy: np.ndarray | None = None
+    floor: np.ndarray | None = None
+    walk: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    def subset(self, keep: np.ndarray) -> Scans:
+        """The scans where ``keep`` (S,) bool, renumbered."""
+        new = np.full(self.t.size, -1)
+        new[keep] = np.arange(int(keep.sum()))
+        r = keep[self.scan]
+        opt = {
+            k: None if v is None else v[keep] for k, v in (("xy", self.xy), ("floor", self.floor), ("walk", self.walk))
+        }
+        return Scans(self.t[keep], new[self.scan[r]], self.bssid[r], self.rssi_dbm[r], **opt)
+
+    @classmethod
+    def concat(cls, parts: Sequence[Scans]) -> Scans:
+        offsets = np.cumsum([0] + [len(p) for p in parts[:-1]])
+        cat = np.concatenate
+        return cls(
+            cat([p.t for p in parts]),
+            cat([p.scan + o for p, o in zip(parts, offsets)]).astype(np.int64),
+            cat([p.bssid for p in parts]),
+            cat([p.rssi_dbm for p in parts]),
+            *(
+                None if any(getattr(p, k) is None for p in parts) else cat([getattr(p, k) for p in parts])
+                for k in ("xy", "floor", "walk")
+            ),
+        )
+
+
+def scans_of(wifi: WifiScans, stale_s: float) -> Scans:
+    """A recording's scans (readings sharing one time), readings older than ``stale_s`` left out and,
+    of an access point heard twice in a scan, the fresher reading kept (the louder where equally fresh)."""
+    starts = wifi.scan_starts
+    scan = np.repeat(np.arange(starts.size - 1), np.diff(starts))
+    age = np.zeros(len(wifi)) if wifi.t_seen is None else np.nan_to_num(wifi.t - wifi.t_seen, nan=0.0)
+    fresh = age <= stale_s
+    df = pd.DataFrame({"scan": scan, "bssid": wifi.bssid, "rssi": wifi.rssi_dbm, "age": age})[fresh]
+    df = df.sort_values(["scan", "bssid", "age", "rssi"], ascending=[True, True, True, False], kind="stable")
+    df = df.drop_duplicates(["scan", "bssid"])
+    return Scans(
+        wifi.t[starts[:-1]],
+        df["scan"].to_numpy(np.int64),
+        df["bssid"].to_numpy(object),
+        df["rssi"].to_numpy(np.float64),
+    )
+
+
+def survey_scans(rec: Recording, cfg: RadioMapConfig) -> tuple[Scans | None, dict[str, Any]]:
+    """A survey walk's scans with the walker's position and floor at each (:mod:`wearnav.fuse.survey`),
+    those that could not be placed left out; None where the walk has no Wi-Fi or no surveyed points."""
+    if rec.wifi is None or rec.truth is None or len(rec.truth) < 2:
+        return None, {"walk": rec.name, "scans": 0, "why": "no Wi-Fi scans or fewer than 2 surveyed points"}
+    t_odo, xy_odo = odometry_path(rec, cfg.odometry)
+    scans = scans_of(rec.wifi, cfg.stale_s)
+    xy, floor, ok, info = positions_between(rec.truth, t_odo, xy_odo, scans.t)
+    ok &= np.bincount(scans.scan, minlength=len(scans)) > 0
+    placed = dataclasses.replace(
+        scans, xy=xy, floor=np.nan_to_num(floor, nan=0.0), walk=np.full(len(scans), rec.name, dtype=object)
+    )
+    return placed.subset(ok), {"walk": rec.name, "scans": int(ok.sum()), "scans_not_placed": int((~ok).sum()), **info}
+
+
+def fingerprints(scans: Scans, bssids: Sequence[str], missing_dbm: float) -> tuple[np.ndarray, np.ndarray]:
+    """(S, A) RSSI of each scan at each of ``bssids`` (``missing_dbm`` where not heard, weaker readings
+    clipped to it) and (S,) how many of them each scan heard."""
+    col = pd.Index(list(bssids)).get_indexer(scans.bssid)
+    known = col >= 0
+    x = np.full((len(scans), len(bssids)), missing_dbm, np.float32)
+    x[scans.scan[known], col[known]] = np.maximum(scans.rssi_dbm[known], missing_dbm)
+    return x, np.bincount(scans.scan[known], minlength=len(scans))
+
+
+# ---- the model ----------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class RadioPositions:
+    """Positions a radio map gives a recording's scans: ``t`` (P,) s, ``xy`` (P, 2) m in the map's
+    frame, ``sigma_m`` (P,) 1-σ per axis, ``floor`` (P,), ``common_aps`` (P,) access points shared
+    with the map; ``info`` how many scans there were and why some gave none."""
+
+    t: np.ndarray
+    xy: np.ndarray
+    sigma_m: np.ndarray
+    floor: np.ndarray
+    common_aps: np.ndarray
+    info: dict[str, Any]
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    @property
+    def accuracy_m(self) -> np.ndarray:
+        """The 68 % radius, as a phone reports a fix's accuracy (RADIUS_68 σ)."""
+        return RADIUS_68 * self.sigma_m
+
+
+class _Learner:
+    """The fitted scikit-learn models of a map: a floor vote over every scan, a position model per floor."""
+
+    def __init__(self, x: np.ndarray, xy: np.ndarray, floor: np.ndarray, cfg: RadioMapConfig):
+        from sklearn.ensemble import ExtraTreesRegressor
+        from sklearn.neighbors import KNeighborsClassifier, KNeighborsRegressor
+
+        self.cfg = cfg
+        self.floors = np.unique(floor)
+        self.vote = None
+        if self.floors.size > 1:
+            self.vote = KNeighborsClassifier(min(cfg.k, len(x)), weights="distance").fit(x, floor.astype(np.int64))
+        self.by_floor: dict[float | None, tuple[Any, np.ndarray]] = {}
+        for f in self.floors if cfg.per_floor is not False else [None]:
+            on = floor == f if f is not None else np.ones(len(x), bool)
+            if cfg.model == "knn":
+                model: Any = KNeighborsRegressor(min(cfg.k, int(on.sum())), weights="distance").fit(x[on], xy[on])
+            else:
+                model = ExtraTreesRegressor(cfg.trees, min_samples_leaf=2, random_state=0, n_jobs=1).fit(x[on], xy[on])
+            self.by_floor[None if f is None else float(f)] = (model, xy[on])
+
+    def predict(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(N, 2) positions, (N,) raw σ (per axis, before the map's scale), (N,) floors."""
+        floor = np.full(len(x), float(self.floors[0])) if self.vote is None else self.vote.predict(x).astype(np.float64)
+        xy, sigma = np.zeros((len(x), 2)), np.zeros(len(x))
+        for f, (model, train_xy) in self.by_floor.items():
+            on = floor == f if f is not None else np.ones(len(x), bool)
+            if not on.any():
+                continue
+            if self.cfg.model == "knn":
+                dist, idx = model.kneighbors(x[on])
+                w = 1.0 / np.maximum(dist, 1e-9)
+                w /= w.sum(axis=1, keepdims=True)
+                est = np.einsum("nk,nkd->nd", w, train_xy[idx])
+                spread = np.einsum("nk,nk->n", w, np.sum((train_xy[idx] - est[:, None]) ** 2, axis=2))
+            else:
+                per_tree = np.stack([tree.predict(x[on]) for tree in model.estimators_])  # (T, N, 2)
+                est = per_tree.mean(axis=0)
+                spread = np.mean(np.sum((per_tree - est) ** 2, axis=2), axis=0)
+            xy[on], sigma[on] = est, np.sqrt(spread / 2.0)  # per axis: half the 2-D mean square
+        return xy, np.maximum(sigma, self.cfg.min_sigma_m), floor
+
+
+def cross_validate(
+    scans: Scans, bssids: Sequence[str], cfg: RadioMapConfig, folds: int, groups: dict[str, str] | None = None
+) -> dict[str, np.ndarray]:
+    """Each walk's scans predicted by the model fitted on the other walks (``folds`` groups of walks,
+    scikit-learn's GroupKFold; ``groups``: walk → the group held out with it, e.g. IPIN's repetitions
+    of one route): errors (m), raw σ, floor right, for every scan sharing ``min_common_aps`` access
+    points with the rest (S,) arrays; fewer than 2 groups: empty."""
+    from sklearn.model_selection import GroupKFold
+
+    assert scans.xy is not None and scans.floor is not None and scans.walk is not None
+    x, _ = fingerprints(scans, bssids, cfg.missing_dbm)
+    walks = np.array([(groups or {}).get(str(w), str(w)) for w in scans.walk], dtype=object)
+    n_walks = np.unique(walks).size
+    out: dict[str, list[np.ndarray]] = {"error_m": [], "sigma_raw_m": [], "floor_right": []}
+    if n_walks < 2:
+        return {k: np.empty(0) for k in out}
+    for train, test in GroupKFold(min(folds, n_walks)).split(x, groups=walks):
+        heard = (x[train] > cfg.missing_dbm).sum(axis=0) > 0  # what a map of these walks would know
+        common = (x[test][:, heard] > cfg.missing_dbm).sum(axis=1)
+        test = test[common >= cfg.min_common_aps]
+        if test.size == 0:
+            continue
+        learner = _Learner(x[train][:, heard], scans.xy[train], scans.floor[train], cfg)
+        xy, sigma, floor = learner.predict(x[test][:, heard])
+        out["error_m"].append(np.linalg.norm(xy - scans.xy[test], axis=1))
+        out["sigma_raw_m"].append(sigma)
+        out["floor_right"].append(floor == scans.floor[test])
+    return {k: np.concatenate(v) if v else np.empty(0) for k, v in out.items()}
+
+
+def error_summary(err: np.ndarray, floor_right: np.ndarray | None = None) -> dict[str, Any]:
+    """Median / p75 / p95 of errors (m), their count, and the share of floors right."""
+    if err.size == 0:
+        return {"n": 0}
+    q = np.percentile(err, [50, 75, 95])
+    out: dict[str, Any] = {"n": int(err.size), "median_m": round(float(q[0]), 2), "p75_m": round(float(q[1]), 2)}
+    out["p95_m"] = round(float(q[2]), 2)
+    if floor_right is not None and floor_right.size:
+        out["floor_right"] = round(float(np.mean(floor_right)), 4)
+    return out
+
+
+class RadioMap:
+    """A radio map: its survey fingerprints (``scans`` with positions), the access points it knows
+    (``bssids``), its config, its σ scale and its card (module docstring)."""
+
+    def __init__(
+        self, scans: Scans, bssids: Sequence[str], cfg: RadioMapConfig, sigma_scale: float, card: dict[str, Any]
+    ):
+        assert scans.xy is not None and scans.floor is not None
+        self.scans, self.bssids, self.cfg = scans, list(bssids), cfg
+        self.sigma_scale, self.card = float(sigma_scale), card
+        self._bssid_set = set(self.bssids)
+        x, _ = fingerprints(scans, self.bssids, cfg.missing_dbm)
+        self._learner = _Learner(x, scans.xy, scans.floor, cfg)
+
+    # ---- use --------------------------------------------------------------------------------
+
+    def common_aps(self, wifi: WifiScans | None) -> int:
+        """How many of the map's access points the recording heard at all."""
+        return 0 if wifi is None else len(self._bssid_set.intersection(pd.unique(wifi.bssid)))
+
+    def fits(self, rec: Recording) -> bool:
+        """Whether any access point of the map is in the recording's scans (a map of another site: no)."""
+        return self.common_aps(rec.wifi) > 0
+
+    def predict(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Fingerprints (N, A) over :attr:`bssids` (:func:`fingerprints`) → positions (N, 2), σ (N,) m
+        per axis (calibrated), floors (N,)."""
+        xy, sigma_raw, floor = self._learner.predict(x)
+        return xy, sigma_raw * self.sigma_scale, floor
+
+    def locate(self, wifi: WifiScans | None) -> RadioPositions:
+        """Every scan sharing ``min_common_aps`` access points with the map → position, σ, floor."""
+        empty = np.empty(0)
+        if wifi is None:
+            return RadioPositions(empty, np.empty((0, 2)), empty, empty, empty, {"scans": 0, "positions": 0})
+        scans = scans_of(wifi, self.cfg.stale_s)
+        x, common = fingerprints(scans, self.bssids, self.cfg.missing_dbm)
+        use = common >= self.cfg.min_common_aps
+        xy, sigma, floor = self.predict(x[use]) if use.any() else (np.empty((0, 2)), empty, empty)
+        info = {
+            "scans": len(scans),
+            "positions": int(use.sum()),
+            "scans_too_few_common_aps": int((~use).sum()),
+            "access_points_in_common": self.common_aps(wifi),
+        }
+        return RadioPositions(scans.t[use], xy, sigma, floor, common[use], info)
+
+    # ---- storage ----------------------------------------------------------------------------
+
+    def save(self, folder: str | Path) -> Path:
+        """Write the map folder (module docstring); the folder may exist only as an earlier map."""
+        folder = Path(folder)
+        if folder.exists() and (not folder.is_dir() or (any(folder.iterdir()) and not (folder / CARD_JSON).is_file())):
+            raise ConfigError("exists and is not a radio map folder: choose a new --out", folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        s = self.scans
+        assert s.xy is not None and s.floor is not None and s.walk is not None
+        walks, walk_index = np.unique(s.walk.astype(str), return_inverse=True)
+        ap_index = pd.Index(self.bssids).get_indexer(s.bssid)
+        keep = ap_index >= 0
+        with atomic_path(folder / MAP_NPZ) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(
+                f,
+                t=s.t,
+                xy=s.xy,
+                floor=s.floor,
+                walk_index=walk_index.astype(np.int32),
+                walks=walks.astype(str),
+                bssids=np.array(self.bssids, dtype=str),
+                reading_scan=s.scan[keep].astype(np.int32),
+                reading_ap=ap_index[keep].astype(np.int32),
+                reading_rssi_dbm=s.rssi_dbm[keep].astype(np.float32),
+            )
+        write_text_atomic(json.dumps(self.card, indent=2), folder / CARD_JSON)
+        write_text_atomic(card_markdown(self.card), folder / CARD_MD)
+        return folder
+
+    @classmethod
+    def load(cls, folder: str | Path) -> RadioMap:
+        """A map folder written by :meth:`save` (a clear error for anything else)."""
+        folder = Path(folder)
+        if not (folder / CARD_JSON).is_file() or not (folder / MAP_NPZ).is_file():
+            raise FormatError(
+                f"not a radio map folder (no {CARD_JSON} and {MAP_NPZ}; `wearnav radiomap build` writes one)", folder
+            )
+        card = read_json(folder / CARD_JSON)
+        if not isinstance(card, dict) or card.get("format") != FORMAT or card.get("version") != FORMAT_VERSION:
+            raise FormatError(f"{CARD_JSON} is not a {FORMAT} card of version {FORMAT_VERSION}", folder)
+        try:
+            cfg = RadioMapConfig(**card["config"])
+            with np.load(folder / MAP_NPZ, allow_pickle=False) as z:
+                bssids = [str(b) for b in z["bssids"]]
+                walks = z["walks"].astype(str).astype(object)
+                scans = Scans(
+                    z["t"],
+                    z["reading_scan"].astype(np.int64),
+                    np.array(bssids, dtype=object)[z["reading_ap"]],
+                    z["reading_rssi_dbm"].astype(np.float64),
+                    z["xy"],
+                    z["floor"],
+                    walks[z["walk_index"]],
+                )
+        except (KeyError, TypeError, ValueError, OSError, IndexError) as exc:
+            raise FormatError(f"corrupt radio map ({exc.__class__.__name__}: {exc})", folder) from None
+        return cls(scans, bssids, cfg, float(card["sigma_scale"]), card)
+
+
+def map_access_points(scans: Scans, min_scans: int) -> list[str]:
+    """The access points heard in at least ``min_scans`` scans, sorted."""
+    counts = pd.Series(scans.bssid).value_counts()
+    return sorted(str(b) for b in counts.index[counts.to_numpy() >= min_scans])
+
+
+def from_scans(
+    scans: Scans,
+    cfg: RadioMapConfig,
+    walks_info: list[dict] | None = None,
+    source: str = "",
+    groups: dict[str, str] | None = None,
+    group_by: str = "walk",
+) -> RadioMap:
+    """The map of placed survey scans: its access points, the σ scale and validation of a
+    cross-validation over its walks (module docstring; ``groups``: walk → what is held out with it,
+    named ``group_by``), and its card."""
+    if len(scans) == 0:
+        raise ValidationError("no placed Wi-Fi scans to build a radio map from (walks with Wi-Fi and surveyed points?)")
+    bssids = map_access_points(scans, cfg.min_scans_per_ap)
+    if not bssids:
+        raise ValidationError(f"no access point is heard in {cfg.min_scans_per_ap} scans of the survey walks")
+    cv = cross_validate(scans, bssids, cfg, cfg.cv_folds, groups)
+    ratio = cv["error_m"] / cv["sigma_raw_m"] if cv["error_m"].size else np.empty(0)
+    scale = float(np.percentile(ratio, 68) / RADIUS_68) if ratio.size >= 10 else 1.0
+    inside = float(np.mean(cv["error_m"] <= RADIUS_68 * scale * cv["sigma_raw_m"])) if ratio.size else None
+    assert scans.walk is not None and scans.floor is not None
+    walks = sorted(set(scans.walk.astype(str)))
+    n_groups = len({(groups or {}).get(w, w) for w in walks})
+    card = {
+        "format": FORMAT,
+        "version": FORMAT_VERSION,
+        "source": source,
+        "config": dataclasses.asdict(cfg),
+        "sigma_scale": scale,  # exact: the map read back gives the same σ
+        "walks": walks,
+        "positions": "per floor (the floors' frames differ)"
+        if cfg.per_floor is not False
+        else "one frame for every floor",
+        "walks_info": walks_info or [],
+        "scans": len(scans),
+        "floors": {
+            str(int(f) if float(f).is_integer() else f): int(n)
+            for f, n in zip(*np.unique(scans.floor, return_counts=True))
+        },
+        "access_points": bssids,
+        "validation": {
+            "how": f"{min(cfg.cv_folds, n_groups)}-fold cross-validation over the map's walks (each {group_by} held out whole)",
+            **error_summary(cv["error_m"], cv["floor_right"]),
+            "share_inside_68_radius": None if inside is None else round(inside, 4),
+        },
+    }
+    return RadioMap(scans, bssids, cfg, scale, card)
+
+
+def shared_frame(recs: Sequence[Recording]) -> bool:
+    """Whether every walk's positions are in one frame across floors: one lat/lon origin for all
+    (IPIN's venue); else (ILC2: each floor's plan its own frame) positions are per floor."""
+    origins = {(r.meta.get("origin_lat"), r.meta.get("origin_lon")) for r in recs}
+    return len(origins) == 1 and None not in next(iter(origins))
+
+
+def walk_group(rec: Recording, group_by: str) -> str:
+    """What is held out with a walk in the cross-validation: ``meta[group_by]`` (e.g. IPIN's
+    ``trial``: its repetitions walk one route), the walk itself for ``walk`` or where meta lacks it."""
+    value = rec.meta.get(group_by) if group_by != "walk" else None
+    return rec.name if value is None else f"{group_by} {value}"
+
+
+def build(
+    recordings: Iterable[Recording], cfg: RadioMapConfig = RadioMapConfig(), source: str = "", group_by: str = "walk"
+) -> RadioMap:
+    """A radio map from survey walks (recordings with Wi-Fi and surveyed points; others are skipped);
+    ``group_by``: a meta key whose walks are held out together in the validation (:func:`walk_group`)."""
+    recordings = list(recordings)
+    if cfg.per_floor is None:
+        cfg = dataclasses.replace(cfg, per_floor=not shared_frame(recordings))
+    parts, infos, groups = [], [], {}
+    for rec in recordings:
+        s, info = survey_scans(rec, cfg)
+        infos.append(info)
+        groups[rec.name] = walk_group(rec, group_by)
+        if s is not None and len(s):
+            parts.append(s)
+    if not parts:
+        raise ValidationError("no survey walk with Wi-Fi scans and surveyed points to build a radio map from")
+    return from_scans(Scans.concat(parts), cfg, infos, source, groups, group_by)
+
+
+def card_markdown(card: dict[str, Any]) -> str:
+    """The card for a person: what the map was built from and how well it placed held-out walks."""
+    v = card["validation"]
+    lines = [
+        "# Radio map",
+        "",
+        f"Built by `wearnav radiomap build` from {len(card['walks'])} survey walks"
+        + (f" of `{card['source']}`" if card.get("source") else "")
+        + f": {card['scans']} Wi-Fi scans placed on the walks' PDR paths between their surveyed points, "
+        f"{len(card['access_points'])} access points, floors {', '.join(card['floors'])}.",
+        "",
+        f"Model: {card['config']['model']} (k = {card['config']['k']}), scikit-learn; σ scale {card['sigma_scale']}.",
+        "",
+        f"Validation ({v['how']}): median {v.get('median_m')} m, p75 {v.get('p75_m')} m, p95 {v.get('p95_m')} m "
+        f"over {v.get('n', 0)} scans; floor right {v.get('floor_right')}; share of errors inside the 68 % radius "
+        f"{v.get('share_inside_68_radius')}.",
+        "",
+        "The access points, the walks and the config are in card.json.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+# ---- radio positions as location fixes (issue 60 §3) -------------------------------------------
+
+
+def with_radio_fixes(rec: Recording, rmap: RadioMap) -> tuple[Recording, np.ndarray, dict[str, Any], list[str]]:
+    """``rec`` with its scans' radio positions added to its location fixes (accuracy: the 68 % radius;
+    floor: the map's), for the smoother and the particle filter as any fix; (M,) bool which fixes are
+    the radio map's; what was done (``used``, ``positions`` ...); warnings. A map sharing no access
+    point with the recording is not used (:data:`NO_FIT`): ``rec`` comes back unchanged."""
+    none = np.zeros(0 if rec.fixes is None else len(rec.fixes), bool)
+    info: dict[str, Any] = {"used": False, "access_points_in_map": len(rmap.bssids)}
+    if rec.wifi is None:
+        why = "the recording has no Wi-Fi scans"
+        return rec, none, info | {"why": why}, [f"{rec.name}: {why}: the radio map is not used"]
+    if not rmap.fits(rec):
+        return rec, none, info | {"why": NO_FIT}, [f"{rec.name}: {NO_FIT}"]
+    pos = rmap.locate(rec.wifi)
+    info |= pos.info
+    if not len(pos):
+        why = f"no scan shares {rmap.cfg.min_common_aps} access points with the radio map"
+        return rec, none, info | {"why": why}, [f"{rec.name}: {why}: the radio map is not used"]
+    floors, counts = np.unique(pos.floor, return_counts=True)
+    info |= {
+        "used": True,
+        "median_sigma_m": round(float(np.median(pos.sigma_m)), 2),
+        "floors": {str(int(f)): int(n) for f, n in zip(floors, counts)},
+    }
+    old = rec.fixes
+    if old is None:
+        t, xy, acc, fl, radio = pos.t, pos.xy, pos.accuracy_m, pos.floor, np.ones(len(pos), bool)
+    else:
+        old_floor = old.floor if old.floor is not None else np.full(len(old), np.nan)
+        t = np.concatenate([old.t, pos.t])
+        xy = np.concatenate([old.pos[:, :2], pos.xy])
+        acc = np.concatenate([old.accuracy, pos.accuracy_m])
+        fl = np.concatenate([old_floor, pos.floor])
+        radio = np.concatenate([np.zeros(len(old), bool), np.ones(len(pos), bool)])
+    order = np.lexsort((radio, t))
+    t = t[order].copy()
+    for k in range(1, t.size):  # a fix and a scan at one instant: the scan a millisecond later
+        if t[k] <= t[k - 1]:
+            t[k] = t[k - 1] + 1e-3
+    fixes = Fixes(t, xy[order], acc[order], fl[order])
+    return dataclasses.replace(rec, fixes=fixes), radio[order], info, []
+
+
+def floor_at(t_fix: np.ndarray, floor_fix: np.ndarray, times: np.ndarray, window_s: float = 10.0) -> np.ndarray:
+    """The floor at ``times``: at the nearest fix with a floor, the most frequent floor of those
+    fixes within ``window_s`` s of it (one wrong scan does not change floor); NaN without any."""
+    ok = np.isfinite(floor_fix)
+    t_fix, floor_fix = t_fix[ok], floor_fix[ok]
+    times = np.asarray(times, np.float64)
+    if t_fix.size == 0:
+        return np.full(times.shape, np.nan)
+    lo = np.searchsorted(t_fix, t_fix - window_s)
+    hi = np.searchsorted(t_fix, t_fix + window_s, side="right")
+    smooth = np.empty(t_fix.size)
+    for i, (a, b) in enumerate(zip(lo, hi)):
+        vals, n = np.unique(floor_fix[a:b], return_counts=True)
+        smooth[i] = vals[np.argmax(n)]
+    k = (
+        np.clip(np.searchsorted(t_fix, times), 1, max(t_fix.size - 1, 1))
+        if t_fix.size > 1
+        else np.zeros(times.shape, int)
+    )
+    if t_fix.size > 1:
+        k = np.where(np.abs(t_fix[k - 1] - times) <= np.abs(t_fix[k] - times), k - 1, k)
+    return smooth[k]

@@ -1,0 +1,219 @@
+"""The radio map (issue 60 §2–§3) on a tiny synthetic building whose truth is known: the survey
+placement between surveyed points, the map's accuracy and calibrated σ on held-out walks, a map of
+another site that does not fit, radio positions as location fixes, and the CLI end to end."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+
+from conftest import make_stream, run_cli
+from wearnav.dataset import DatasetWriter
+from wearnav.errors import FormatError
+from wearnav.fuse import radiomap
+from wearnav.fuse.survey import positions_between
+from wearnav.recording import Fixes, Recording, Trajectory, WifiScans
+
+# 16 access points on two floors of a 40 m × 20 m building; RSSI = -35 - 25 log10(d) - 18 dB per floor
+# between, plus 2 dB noise; below -95 dBm a phone does not hear it.
+AP_XY = [(x, y) for x in (0.0, 13.0, 26.0, 40.0) for y in (0.0, 20.0)]
+APS = {f"02:00:00:00:{f:02x}:{k:02x}": (x, y, f) for f in (0, 1) for k, (x, y) in enumerate(AP_XY)}
+SCAN_S = 2.0
+
+
+def rssi_at(xy: np.ndarray, floor: int, rng, aps=APS) -> tuple[list[str], list[float]]:
+    names, values = [], []
+    for name, (x, y, f) in aps.items():
+        d = max(float(np.hypot(xy[0] - x, xy[1] - y)), 1.0)
+        r = -35 - 25 * np.log10(d) - 18 * abs(f - floor) + 2 * rng.standard_normal()
+        if r > -95:
+            names.append(name)
+            values.append(float(round(r)))
+    return names, values
+
+
+def synthetic_walk(name: str, corners, floor: int, seed: int, aps=APS, fixes=False) -> Recording:
+    """A walk at 1.2 m/s along ``corners`` on ``floor``: surveyed points every second (so the straight
+    line between them is the truth), a scan every 2 s, a phone IMU standing still (the survey's PDR
+    then barely moves and the straight line is used)."""
+    rng = np.random.default_rng(seed)
+    corners = np.asarray(corners, np.float64)
+    seg = np.linalg.norm(np.diff(corners, axis=0), axis=1)
+    s_at = np.concatenate([[0], np.cumsum(seg)])
+    duration = s_at[-1] / 1.2
+    t_truth = np.arange(0.0, duration, 1.0)
+    pos = np.stack([np.interp(t_truth * 1.2, s_at, corners[:, j]) for j in range(2)], axis=1)
+    t, bssid, rssi = [], [], []
+    for ts in np.arange(1.0, duration - 1.0, SCAN_S):
+        xy = np.array([np.interp(ts * 1.2, s_at, corners[:, j]) for j in range(2)])
+        names, values = rssi_at(xy, floor, rng, aps)
+        t += [ts] * len(names)
+        bssid += names
+        rssi += values
+    n = len(t)
+    wifi = WifiScans(t, bssid, ["site"] * n, np.full(n, 2437.0), rssi, np.array(t) - 0.1)
+    truth = Trajectory(t_truth, pos, floor=np.full(t_truth.size, float(floor)))
+    fx = Fixes(t_truth[::5], pos[::5] + 3.0, np.full(pos[::5].shape[0], 8.0)) if fixes else None
+    stream = make_stream(int(duration * 50), 50.0, seed=seed)
+    return Recording(
+        name=name, devices={"phone": stream}, truth=truth, wifi=wifi, fixes=fx, meta={"source": "synthetic"}
+    )
+
+
+def survey(n_lines=6):
+    """Survey walks: lanes along x at several y on both floors, out and back."""
+    walks = []
+    for f in (0, 1):
+        for k, y in enumerate(np.linspace(1.0, 19.0, n_lines)):
+            walks.append(
+                synthetic_walk(f"survey_f{f}_{k}", [(1.0, y), (39.0, y), (39.0, 20 - y), (1.0, 20 - y)], f, 10 * f + k)
+            )
+    return walks
+
+
+@pytest.fixture(scope="module")
+def built():
+    return radiomap.build(survey(), radiomap.RadioMapConfig(cv_folds=4))
+
+
+# ---- the survey placement ----------------------------------------------------------------------
+
+
+def test_placement_follows_the_odometry_around_a_corner_the_straight_line_cuts():
+    # truth at A (t=0) and C (t=20): the walker went A → B (t=10) → C, an L; the odometry is that L
+    # turned by 30° and 20 % short, from (0, 0)
+    a, b, c = np.array([0.0, 0.0]), np.array([12.0, 0.0]), np.array([12.0, 12.0])
+    t_odo = np.linspace(0, 20, 201)
+    true = np.where(t_odo[:, None] <= 10, a + (b - a) * t_odo[:, None] / 10, b + (c - b) * (t_odo[:, None] - 10) / 10)
+    rot = np.array([[np.cos(0.5236), -np.sin(0.5236)], [np.sin(0.5236), np.cos(0.5236)]])
+    odo = 0.8 * true @ rot.T
+    truth = Trajectory([0.0, 20.0], np.stack([a, c]), floor=[0.0, 0.0])
+    xy, floor, ok, info = positions_between(truth, t_odo, odo, np.array([5.0, 10.0, 15.0]))
+    np.testing.assert_allclose(xy, [[6.0, 0.0], [12.0, 0.0], [12.0, 6.0]], atol=1e-9)
+    assert ok.all() and info["segments_odometry"] == 1
+    line, _, _, info = positions_between(truth, np.empty(0), np.empty((0, 2)), np.array([10.0]))
+    np.testing.assert_allclose(line, [[6.0, 6.0]])  # what a straight line says: 8.5 m off the corner
+    assert info["segments_straight"] == 1
+
+
+def test_placement_leaves_out_floor_changes_long_gaps_and_outside_times():
+    truth = Trajectory([0.0, 10.0, 20.0, 400.0], [[0, 0], [10, 0], [10, 10], [0, 10]], floor=[0, 0, 1, 1])
+    xy, floor, ok, info = positions_between(
+        truth, np.empty(0), np.empty((0, 2)), np.array([-1.0, 5.0, 15.0, 100.0, 401.0])
+    )
+    np.testing.assert_array_equal(ok, [False, True, False, False, False])
+    np.testing.assert_allclose(xy[1], [5.0, 0.0])
+    assert floor[1] == 0 and info["segments_not_placed"] == 2
+
+
+# ---- the map -------------------------------------------------------------------------------------
+
+
+def test_map_places_held_out_walks_of_a_known_building(built):
+    card = built.card
+    assert card["scans"] > 200 and len(card["access_points"]) == len(APS)
+    assert card["validation"]["floor_right"] >= 0.95
+    errors, right, inside = [], [], []
+    for f in (0, 1):  # diagonal walks, never surveyed
+        rec = synthetic_walk(f"test_f{f}", [(2.0, 2.0), (38.0, 18.0), (20.0, 10.0)], f, 99 + f)
+        pos = built.locate(rec.wifi)
+        assert len(pos) == pos.info["scans"] > 10
+        true = np.stack([np.interp(pos.t, rec.truth.t, rec.truth.pos[:, j]) for j in range(2)], axis=1)
+        err = np.linalg.norm(pos.xy - true, axis=1)
+        errors.append(err)
+        right.append(pos.floor == f)
+        inside.append(err <= pos.accuracy_m)
+    err = np.concatenate(errors)
+    assert np.median(err) < 2.5 and np.percentile(err, 95) < 6.0
+    assert np.mean(np.concatenate(right)) >= 0.95
+    assert 0.45 <= np.mean(np.concatenate(inside)) <= 0.9  # σ calibrated to 68 % on held-out survey walks
+
+
+def test_map_round_trips_through_its_folder(built, tmp_path):
+    folder = built.save(tmp_path / "map")
+    assert {p.name for p in folder.iterdir()} == {"radiomap.npz", "card.json", "README.md"}
+    back = radiomap.RadioMap.load(folder)
+    rec = synthetic_walk("probe", [(5.0, 5.0), (30.0, 15.0)], 1, 7)
+    a, b = built.locate(rec.wifi), back.locate(rec.wifi)
+    np.testing.assert_allclose(a.xy, b.xy)
+    np.testing.assert_allclose(a.sigma_m, b.sigma_m)
+    assert "access points" in (folder / "README.md").read_text()
+    (tmp_path / "bad").mkdir()
+    with pytest.raises(FormatError, match="not a radio map folder"):
+        radiomap.RadioMap.load(tmp_path / "bad")
+
+
+def test_a_map_of_another_site_does_not_fit(built):
+    other = {name.replace("02:", "0a:", 1): v for name, v in APS.items()}
+    rec = synthetic_walk("elsewhere", [(2.0, 2.0), (30.0, 10.0)], 0, 5, aps=other, fixes=True)
+    assert not built.fits(rec) and len(built.locate(rec.wifi)) == 0
+    same, radio, info, warns = radiomap.with_radio_fixes(rec, built)
+    assert same is rec and not radio.any() and info["used"] is False
+    assert warns == [f"elsewhere: {radiomap.NO_FIT}"]
+
+
+def test_radio_positions_join_the_fixes(built):
+    rec = synthetic_walk("joined", [(2.0, 2.0), (30.0, 10.0)], 1, 6, fixes=True)
+    out, radio, info, warns = radiomap.with_radio_fixes(rec, built)
+    assert not warns and info["used"] and info["positions"] == radio.sum() > 5
+    assert len(out.fixes) == len(rec.fixes) + radio.sum() and np.all(np.diff(out.fixes.t) > 0)
+    assert np.all(np.isnan(out.fixes.floor[~radio])) and np.all(out.fixes.floor[radio] == 1)
+    np.testing.assert_array_equal(out.fixes.t[~radio], rec.fixes.t)  # the phone's fixes unchanged
+    bare = radiomap.with_radio_fixes(synthetic_walk("bare", [(2.0, 2.0), (30.0, 10.0)], 0, 8), built)[0]
+    assert bare.fixes is not None and np.all(np.isfinite(bare.fixes.accuracy))  # no GNSS: the radio is the start
+    floors = radiomap.floor_at(np.array([0.0, 2.0, 4.0, 6.0]), np.array([0.0, 1.0, 0.0, 0.0]), np.array([2.0, 50.0]))
+    np.testing.assert_array_equal(floors, [0.0, 0.0])  # one odd scan does not change floor
+
+
+# ---- the command line ----------------------------------------------------------------------------
+
+
+def test_cli_builds_a_map_of_a_tiny_dataset_in_seconds(tmp_path, monkeypatch, capsys):
+    data, out = tmp_path / "survey", tmp_path / "map"
+    with DatasetWriter(data) as w:
+        for rec in survey(n_lines=3):
+            w.add(rec)
+    start = time.perf_counter()
+    code, stdout, err = run_cli(monkeypatch, capsys, "radiomap", "build", data, "--out", out)
+    assert code == 0, err
+    assert time.perf_counter() - start < 15
+    said = json.loads(stdout)
+    card = json.loads((out / "card.json").read_text())
+    assert said["walks"] == len(card["walks"]) == 6 and said["access_points"] == len(APS)
+    assert card["validation"]["n"] > 0 and card["config"]["model"] == "knn"
+    code, _, err = run_cli(monkeypatch, capsys, "radiomap", "build", data, "--out", data)
+    assert code == 2 and "exists and is not a radio map folder" in err
+
+
+@pytest.mark.slow  # two `track` runs: ~13 s on two busy cores
+def test_track_takes_radio_positions_and_says_when_a_map_does_not_fit(built, tmp_path):
+    from wearnav.track import track
+
+    folder = built.save(tmp_path / "map")
+    # no GNSS, no start: the radio positions alone place the path
+    rec = synthetic_walk("radio_only", [(2.0, 2.0), (38.0, 2.0)], 0, 11)
+    rec = Recording(rec.name, rec.devices, wifi=rec.wifi, meta=rec.meta)  # no truth either
+    summary = track(rec.save(tmp_path / "radio_only.h5"), "pdr", tmp_path / "t1", radiomap=folder)
+    assert summary["radiomap"]["used"] and summary["radiomap"]["positions"] > 10
+    # placed (the IMU of this walk stands still, so the smoother may fall back to a rigid fit)
+    assert summary["anchoring"]["method"] in ("smooth", "rigid") and summary["path"]["frame"].startswith("placed")
+    fixes = (tmp_path / "t1" / "fixes.csv").read_text().splitlines()
+    assert fixes[0].endswith("source,floor") and all(",radio map," in row for row in fixes[1:])
+    traj = np.genfromtxt(tmp_path / "t1" / "trajectory.csv", delimiter=",", names=True)
+    assert set(np.unique(traj["floor"])) == {0.0}
+    assert np.median(np.abs(traj["north"] - 2.0)) < 3.0  # on the corridor the walk took
+    # a map of another site: a warning, not used, the phone's fixes place the path
+    other = {name.replace("02:", "0a:", 1): v for name, v in APS.items()}
+    away = synthetic_walk("away", [(2.0, 2.0), (30.0, 10.0)], 0, 12, aps=other, fixes=True)
+    with pytest.warns(UserWarning, match="does not fit this recording: no access point in common"):
+        summary = track(away.save(tmp_path / "away.h5"), "pdr", tmp_path / "t2", radiomap=folder)
+    assert summary["radiomap"] == {
+        "map": str(folder),
+        "used": False,
+        "access_points_in_map": len(APS),
+        "why": radiomap.NO_FIT,
+    }
+    assert summary["anchoring"]["fix_status"]["used"] > 0
