@@ -186,6 +186,7 @@ def test_a_phone_only_walk_tracks_as_before(walk, monkeypatch):
     new, old = SessionBuffer("s", rp.platform, rp.standardised), BeforeBuffer("s", rp.platform, rp.standardised)
     tr_new, tr_old = LiveTracker(), LiveTracker()
     tr_old.odo = BeforeOdometry()
+    tr_old.batched = False  # the importer's step and align, session by session, as before issue 61 §2
     read: list[float | None] = []
     recording = SessionBuffer.recording
 
@@ -193,6 +194,13 @@ def test_a_phone_only_walk_tracks_as_before(walk, monkeypatch):
         read.append(t_from)
         return recording(self, t_from)
 
+    lean = live_tracker.lean_recording
+
+    def lean_spy(buf, t_from, template):  # the slices it makes from the buffer's arrays (issue 61 §2)
+        read.append(t_from)
+        return lean(buf, t_from, template)
+
+    monkeypatch.setattr(live_tracker, "lean_recording", lean_spy)
     SessionBuffer.recording = spy  # type: ignore[method-assign]
     try:
         for payload in payloads:

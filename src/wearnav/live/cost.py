@@ -202,7 +202,8 @@ def _stages() -> list[tuple[Any, str, str]]:
 
     return [
         (buffer.SessionBuffer, "recording", "the update's Recording from the buffer"),
-        (tracker.LiveTracker, "_windows", "aligning and windowing"),
+        (tracker, "lean_recording", "the update's Recording from the buffer"),  # its arrays (issue 61 §2)
+        (tracker.LiveTracker, "align_steps", "aligning and windowing (batched)"),
         (crowd.Crowd, "_forward", "the odometry model (batched)"),
         (tracker.LiveTracker, "_grow", "growing the path"),
         (tracker.LiveTracker, "_take_fixes", "taking the fixes"),

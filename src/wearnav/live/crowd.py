@@ -3,7 +3,8 @@
 One thread runs ticks. A tick takes every session poked since the last one (a push acknowledged)
 and every session quiet for ``SESSION_END_S`` (its last windows made final, once), runs the first
 half of each tracker's update (:meth:`wearnav.live.tracker.LiveTracker.begin`: the new input and
-its windows), then the model **once** for all the windows of all those sessions (one forward pass
+its windows; their input aligned once for all of them, issue 61 §2: ``align_steps``), then the
+model **once** for all the windows of all those sessions (one forward pass
 per model: phone-only sessions share their default model, three-device ones the shipped one; on the device
 :class:`wearnav.live.models.SharedModels` chose), and hands each session its velocities
 (:meth:`~wearnav.live.tracker.LiveTracker.finish`: path, fusion, activity, page). Ticks start at
@@ -141,7 +142,8 @@ class Crowd:
                 whole.append((s, final, since))
                 continue
             try:
-                step = s.tracker.begin(s.buf, final)
+                batched = hasattr(type(s.tracker), "align_steps")
+                step = s.tracker.begin(s.buf, final, batch=True) if batched else s.tracker.begin(s.buf, final)
             except Exception as exc:
                 self._failed(s, exc)
                 continue
@@ -149,6 +151,7 @@ class Crowd:
                 self._still_pending(s, since)
             else:
                 steps.append((s, step, since))
+        steps = self._align(steps)
         vels = self._forward([(s.tracker.model, step) for s, step, _ in steps])
         acts = self._activities([(s, step) for s, step, _ in steps])
         for (s, step, since), vel, act in zip(steps, vels, acts):
@@ -168,6 +171,29 @@ class Crowd:
                 changed = False
             self._done(s, since, changed)
         return len(due)
+
+    def _align(self, steps: list[tuple[_Session, Any, float | None]]) -> list[tuple[_Session, Any, float | None]]:
+        """Every step's input aligned and windowed at once, per tracker class
+        (``align_steps``: one rotation and one stacked low-pass for all due sessions, issue 61 §2);
+        where that fails, each session alone, so that one session's bad input fails only its own."""
+        groups: dict[type, list[tuple[Any, Any]]] = {}
+        for s, step, _ in steps:
+            if getattr(step, "job", None) is not None:
+                groups.setdefault(type(s.tracker), []).append((s.tracker, step))
+        failed: set[int] = set()
+        for cls, work in groups.items():
+            try:
+                cls.align_steps(work)  # type: ignore[attr-defined]
+            except Exception:
+                for s, step, _ in steps:
+                    if getattr(step, "job", None) is None or type(s.tracker) is not cls:
+                        continue
+                    try:
+                        cls.align_steps([(s.tracker, step)])
+                    except Exception as exc:
+                        self._failed(s, exc)
+                        failed.add(id(step))
+        return [x for x in steps if id(x[1]) not in failed]
 
     @staticmethod
     def _forward(work: list[tuple[Any, Any]]) -> list[np.ndarray | None]:
@@ -199,9 +225,19 @@ class Crowd:
         pass per classifier over every step's windows (:func:`wearnav.live.models.classify_windows`)."""
         out: list[tuple[Any, np.ndarray] | None] = [None] * len(work)
         groups: dict[int, list[tuple[int, Any]]] = {}
+        found: dict[int, Any] = {}
+        by_class: dict[type, list[int]] = {}  # trackers that window many sessions at once (issue 61 §2)
+        for i, (s, _step) in enumerate(work):
+            if getattr(s.tracker, "batched", False) and hasattr(type(s.tracker), "activity_windows_many"):
+                by_class.setdefault(type(s.tracker), []).append(i)
+        for cls, idx in by_class.items():
+            try:
+                found.update(zip(idx, cls.activity_windows_many([(work[i][0].tracker, work[i][1]) for i in idx])))  # type: ignore[attr-defined]
+            except Exception:  # each on its own below: one session's failure is its own
+                pass
         for i, (s, step) in enumerate(work):
             try:
-                w = s.tracker.activity_windows(step)
+                w = found[i] if i in found else s.tracker.activity_windows(step)
             except Exception as exc:  # this session's label is skipped, its path still finishes
                 log.warning("session %s: activity failed: %s: %s", s.buf.session_id, type(exc).__name__, exc)
                 continue

@@ -31,11 +31,20 @@ as ``classify`` runs it (:func:`wearnav.train.labelling.window_classes`). Warnin
 gives (:func:`wearnav.track.trust.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
 the smoother's; the walk-plausibility check of ``track`` needs the whole walk and is left to it.
 
+Issue 61 §2, for a crowd: an update's Recording is made straight from the buffer's arrays where the
+session is Sensor Logger's phone-only input (:func:`lean_recording`, the importer's step's numbers
+bit for bit), and the aligning is left to :meth:`LiveTracker.align_steps`, which a
+:class:`wearnav.live.crowd.Crowd` runs once for every due session
+(:func:`wearnav.preprocess.batch.align_many`: one rotation and one stacked low-pass for all, ``align``'s
+output to round-off), as it does the activity windows (:meth:`LiveTracker.activity_windows_many`).
+``LiveTracker.batched = False`` keeps the per-session path (tests/test_live_batched.py compares them).
+
 Decision: docs/decisions/0022-live-tracking.md.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import time
 from pathlib import Path
@@ -45,13 +54,16 @@ import numpy as np
 
 from wearnav import fuse, plans, pretrained
 from wearnav.core import geo
-from wearnav.errors import ValidationError
+from wearnav.core.rotations import from_wxyz, to_wxyz
+from wearnav.core.timeseries import interp_onto
+from wearnav.errors import FormatError, ValidationError
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
-from wearnav.live.buffer import derived, sliced
+from wearnav.live.buffer import MARGIN_S, NS, cut, derived, sliced
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
-from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
+from wearnav.preprocess import Aligned, PreprocessConfig, align, clock, common_span
+from wearnav.preprocess.batch import align_many
 from wearnav.preprocess.windows import WindowConfig, WindowDataset, turn
 from wearnav.recording import Recording
 from wearnav.report.trajectory_page import page_points
@@ -138,6 +150,9 @@ class Step:
     x: Any = None  # torch.Tensor
     mask: Any = None  # torch.Tensor
     yaw: np.ndarray | None = None  # each window's heading ψ where the model has a heading frame
+    # the alignment due (LiveTracker.align_steps): the preprocessing, the clock (s), its first
+    # sample's index and the last clock sample a window may use; None: done or none due
+    job: tuple | None = None
 
 
 class LiveTracker:
@@ -189,6 +204,7 @@ class LiveTracker:
         self._fix_t = -np.inf  # the latest fix time taken, s
         self._pending: list[tuple[float, float, float, float]] = []  # fixes before an origin: t, lat, lon, acc
         self.fixes: list[tuple[float, float, float, float]] = []  # t, east, north, accuracy
+        self._fix_page: list[list] = []  # the fixes rounded for the page (_fix_rows)
         self.activity: dict | None = None
         self._activity_at = -np.inf
         self.warnings: list[str] = []
@@ -199,6 +215,11 @@ class LiveTracker:
         self._tail = (np.empty(0), np.empty((0, 2)))  # the provisional path after the final one: t, xy
         self._multi = False  # the session has shown several of the model's devices (_several)
         self._seen_s = self._fused_s = -np.inf  # session time of the last update's data, of the last fusion
+        # issue 61 §2: the update's Recording from the buffer's arrays where the session's input allows
+        # (lean_recording) and its input aligned with every due session's (align_steps); False:
+        # the importer's step and align, session by session, as before (the tests compare the two)
+        self.batched = True
+        self._template: Recording | None = None  # the latest Recording the importer's step made
 
     # ---- setup -------------------------------------------------------------------------------
 
@@ -245,9 +266,11 @@ class LiveTracker:
         act = None if w is None or self.classifier is None else (w, classify_windows(self.classifier[0], [w])[0])
         return self.finish(step, vel, act)
 
-    def begin(self, buf, final: bool = False) -> Step | None:
+    def begin(self, buf, final: bool = False, batch: bool = False) -> Step | None:
         """The first half of :meth:`update`: the session's new input and its windows (``Step.x``,
-        None when no window is due); None when there is nothing to do yet."""
+        None when no window is due); None when there is nothing to do yet. ``batch``: the input is
+        left to align (``Step.job``) for :meth:`align_steps`, which a
+        :class:`wearnav.live.crowd.Crowd` runs once for every due session."""
         tic = time.perf_counter()
         whole = None
         if self.clock0 is None:
@@ -264,7 +287,12 @@ class LiveTracker:
         g_a = max(0, self._next - self._context(pcfg))  # the first clock sample aligned
         t_from = self.clock0 + g_a / rate
         # a second more than the clock needs: the interpolation's samples before its start
-        rec = whole if whole is not None else buf.recording(t_from - 1.0)
+        if whole is not None:
+            rec = self._template = whole
+        else:
+            rec = lean_recording(buf, t_from - 1.0, self._template) if self.batched and self._template else None
+            if rec is None:
+                rec = self._template = buf.recording(t_from - 1.0)
         changed = self._take_fixes(rec)
         end = common_span(rec, pcfg.devices, pcfg.edge_tolerance)[1] if final else covered
         g_end = int(np.floor((end - self.clock0) * rate + 1e-9))  # the clock's last sample (align's clock())
@@ -273,6 +301,8 @@ class LiveTracker:
         step = Step(tic, final, rec, covered, changed, g_final=g_end - int(np.ceil(lag * rate)))
         if g_last - self._next + 1 >= L:
             self._windows(step, pcfg, g_a, g_end, g_last)
+            if not batch:
+                self.align_steps([(self, step)])
         return step
 
     def finish(self, step: Step, vel: np.ndarray | None, activity: tuple[Windows, np.ndarray] | None = None) -> bool:
@@ -316,12 +346,35 @@ class LiveTracker:
         return int(round(ctx * pcfg.rate))
 
     def _windows(self, step: Step, pcfg, g_a: int, g_end: int, g_last: int) -> None:
-        """Align the clock from ``g_a`` (the context) to ``g_end`` and cut the windows inside
-        ``g_last`` (as :func:`wearnav.evaluate.predict_sequence` cuts them) into ``step``."""
-        assert self.clock0 is not None and self.cfg is not None  # set by _start
-        rate, L, S = pcfg.rate, self.cfg.window, self.cfg.stride
-        clock = self.clock0 + np.arange(g_a, g_end + 1) / rate  # align's clock(): t0 + k / rate
-        seq = align(step.rec, pcfg, clock)
+        """The clock from ``g_a`` (the context) to ``g_end`` to align, and the windows inside
+        ``g_last`` to cut from it, as ``step``'s job (:meth:`align_steps`)."""
+        assert self.clock0 is not None  # set by _start
+        clock = self.clock0 + np.arange(g_a, g_end + 1) / pcfg.rate  # align's clock(): t0 + k / rate
+        step.job = (pcfg, clock, g_a, g_last)
+
+    @staticmethod
+    def align_steps(work: list[tuple[LiveTracker, Step]]) -> None:
+        """Every step's job (:meth:`_windows`) done: the input of all of them aligned at once
+        (:func:`wearnav.preprocess.batch.align_many`, ``align``'s output to round-off: one rotation
+        and one stacked low-pass for all due sessions, issue 61 §2) and each step's windows cut
+        (as :func:`wearnav.evaluate.predict_sequence` cuts them) into it."""
+        jobs = [(tr, st) for tr, st in work if st.job is not None]
+        if not jobs:
+            return
+        many = [(tr, st) for tr, st in jobs if tr.batched]
+        seqs = align_many([(st.rec, st.job[0], st.job[1]) for _, st in many if st.job is not None])
+        for (tr, st), seq in zip(many, seqs):
+            tr._cut(st, seq)
+        for tr, st in jobs:
+            if st.job is not None:  # not batched: align, session by session
+                tr._cut(st, align(st.rec, st.job[0], st.job[1]))
+
+    def _cut(self, step: Step, seq: Aligned) -> None:
+        """``step``'s windows from its aligned input ``seq``."""
+        assert self.cfg is not None and step.job is not None  # set by _start, _windows
+        g_a, g_last = step.job[2:]
+        step.job = None
+        L, S = self.cfg.window, self.cfg.stride
         part = slice(self._next - g_a, g_last - g_a + 1)
         yaw = seq.yaw[part] if seq.yaw is not None else None  # PreprocessConfig.heading_frame
         seq = Aligned(seq.name, seq.t[part], seq.devices, seq.imu[:, part], seq.mask[:, part], None, seq.meta, yaw=yaw)
@@ -433,11 +486,54 @@ class LiveTracker:
         rec = _tail(step.rec, step.covered - span - 2.0)  # those windows and the filters' edges
         if not all(d in rec.devices for d in cfg.devices):
             return None
+        if self.batched:
+            return self.activity_windows_many([(self, step)])[0]
         try:
             w = class_windows(model, cfg, rec, last=1)
         except ValidationError:  # too little of a device yet (align's span checks)
             return None
         return w if w.keep else None
+
+    def _activity_job(self, step: Step) -> tuple | None:
+        """What :meth:`activity_windows` aligns (``class_windows``' recording, preprocessing and
+        clock), or None where no label is due or the input is too short for one."""
+        if self.classifier is None or step.covered - self._activity_at < ACTIVITY_EVERY_S:
+            return None
+        model, cfg, _ = self.classifier
+        k = getattr(model, "context_windows", 1)
+        span = (cfg.window + (k // 2) * max(1, cfg.window // 2)) / cfg.rate
+        rec = _tail(step.rec, step.covered - span - 2.0)
+        if not all(d in rec.devices for d in cfg.devices):
+            return None
+        pcfg = cfg.preprocess_config()
+        try:
+            t = clock(*common_span(rec, pcfg.devices, pcfg.edge_tolerance), pcfg.rate)
+        except ValidationError:  # too little of a device yet (align's span checks)
+            return None
+        return (rec, pcfg, t) if t.size >= 2 else None
+
+    @staticmethod
+    def activity_windows_many(work: list[tuple[LiveTracker, Step]]) -> list[Windows | None]:
+        """:meth:`activity_windows` of every step, their inputs aligned at once
+        (:func:`wearnav.preprocess.batch.align_many`), then windowed as
+        :func:`wearnav.train.labelling.class_windows` windows them (issue 61 §2)."""
+        from wearnav.preprocess.augment import moving_average
+
+        jobs = [tr._activity_job(st) for tr, st in work]
+        due = [i for i, j in enumerate(jobs) if j is not None]
+        out: list[Windows | None] = [None] * len(work)
+        for i, seq in zip(due, align_many([j for j in jobs if j is not None])):
+            got = work[i][0].classifier
+            assert got is not None  # a job is made only with one
+            model, cfg, _ = got
+            if cfg.denoise > 1:
+                seq = dataclasses.replace(seq, imu=moving_average(seq.imu, cfg.denoise, axis=1).astype(seq.imu.dtype))
+            wds = WindowDataset([seq], WindowConfig(window=cfg.window, stride=max(1, cfg.window // 2), target=None))
+            k = getattr(model, "context_windows", 1)
+            index = np.arange(max(0, len(wds) - 1 - k // 2), len(wds))
+            w = Windows(seq, wds, index, min(1, len(wds)))
+            out[i] = w if w.keep else None
+        return out
 
     def _label(self, w: Windows, prob: np.ndarray, covered: float) -> bool:
         """The latest window's activity from the classifier's probabilities ``prob`` of ``w``."""
@@ -488,6 +584,16 @@ class LiveTracker:
             self._plan_rings = (self.origin, _plan_state(self._plan_file, self.origin))
         return self._plan_rings[1]
 
+    def _fix_rows(self) -> list:
+        """The fixes as the page has them, a new list each time (a state once handed out stays as it
+        was); the rows rounded once each, as they arrive (``fixes`` only grows), not at every update."""
+        rows = self._fix_page
+        rows += [
+            [round(t, 3), round(e, 3), round(n, 3), round(a, 2) if np.isfinite(a) else None]
+            for t, e, n, a in self.fixes[len(rows) :]
+        ]
+        return list(rows)
+
     def _snapshot(self) -> dict:
         t, xy, sig, anchor = self.path()
         return {
@@ -496,10 +602,7 @@ class LiveTracker:
             "anchor": anchor,
             # the path after this time is provisional: predicted again as data arrives (FRAME_LAG_S)
             "final_t_s": round(float(self.odo.t[-1]), 3) if self.odo.t else None,
-            "fixes": [
-                [round(t, 3), round(e, 3), round(n, 3), round(a, 2) if np.isfinite(a) else None]
-                for t, e, n, a in self.fixes
-            ],
+            "fixes": self._fix_rows(),
             "activity": self.activity,
             "plan": self._plan_drawn(),
             "warnings": self.warnings
@@ -542,6 +645,87 @@ def _tail(rec: Recording, t_from: float) -> Recording:
         if k.sum() >= 2:
             devices[name] = sliced(s, k)  # a slice of a checked stream, not checked again
     return derived(rec, devices, None) if devices else derived(rec, dict(rec.devices), None)
+
+
+# The phone-only session's update Recording from the buffer's arrays (issue 61 §2): the importer's
+# phone step (:func:`wearnav.importers.sensorlogger_build.build_recording`) for the one input the
+# crowd mostly sees (Sensor Logger's Accelerometer + Gravity, Gyroscope, Orientation, Location, the
+# quaternion direction decided), without the checks a slice of checked data does not need (the
+# DeviceStream's and the Recording's, the quaternion direction's) and without the meta that only
+# the whole session's import uses (its own for each slice: rates, gaps, dropped counts; the template's
+# are kept). Any other input, or anything the lean step cannot read, goes the importer's way.
+_LEAN_FILES = frozenset({"Accelerometer.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv", "Location.csv"})
+_LEAN_NEEDS = frozenset({"Accelerometer.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv"})
+
+
+def lean_recording(buf, t_from: float, template: Recording) -> Recording | None:
+    """``buf.recording(t_from)``'s devices and fixes made straight from ``buf``'s arrays (the block
+    comment above), ``template`` (an earlier Recording of the session) giving the rest; None where
+    the session is not the phone-only input this handles (the caller asks ``buf.recording``)."""
+    from wearnav.importers import sensorlogger_build as slb
+    from wearnav.importers.common import MAX_INTERP_GAP_S
+    from wearnav.importers.sensorlogger_map import ORIENTATION_COLS, XYZ, acceleration_convention
+
+    inverted = getattr(buf, "_quat_inverted", None)
+    if inverted is None or set(template.devices) != {"phone"}:
+        return None
+    _version, snap = buf._snapshot()
+    if not (set(snap) <= _LEAN_FILES and _LEAN_NEEDS <= set(snap)) or buf.t0_unix_ns is None:
+        return None
+    t0 = int(buf.t0_unix_ns)
+    lo = t0 + int(round((t_from - MARGIN_S) * NS))
+    tabs = buf._tables(snap, lo)
+    if not _LEAN_NEEDS <= set(tabs):
+        return None
+    acc_t, grav, gyro, ori = (tabs[f] for f in ("Accelerometer.csv", "Gravity.csv", "Gyroscope.csv", "Orientation.csv"))
+
+    def sec(t_ns: np.ndarray) -> np.ndarray:
+        return (t_ns - t0).astype(np.float64) * 1e-9
+
+    t = sec(acc_t.t_ns)
+    g, keep = interp_onto(t, sec(grav.t_ns), grav.values(XYZ), max_gap=MAX_INTERP_GAP_S)
+    acc = acc_t.values(XYZ) + g
+    w, ok = interp_onto(t, sec(gyro.t_ns), gyro.values(XYZ), max_gap=MAX_INTERP_GAP_S)
+    keep = keep & ok
+    try:
+        q_src = slb._unit_quats(ori.values(ORIENTATION_COLS), ori.path)
+    except FormatError:
+        return None
+    q, ok = interp_onto(t, sec(ori.t_ns), q_src, max_gap=MAX_INTERP_GAP_S, quaternion=True)
+    keep = keep & ok
+    if keep.sum() < 2:
+        return None
+    if not keep.all():
+        t, acc, w, q = t[keep], acc[keep], w[keep], q[keep]
+    if "phone" in inverted:
+        q = to_wxyz(from_wxyz(q).inv())
+    s, _ = acceleration_convention(buf.platform, buf.standardised)
+    stream = copy.copy(template.devices["phone"])  # no __init__: a slice of checked data (as buffer.sliced)
+    stream.t, stream.acc = t, (s * acc).astype(np.float32)
+    stream.gyro, stream.quat, stream.worn = np.asarray(w, np.float32), np.asarray(q, np.float32), None
+    meta = dict(template.meta)
+    meta["t0_unix_ns"] = t0
+    fixes = None
+    loc = tabs.get("Location.csv")
+    if loc is not None:
+        motion0 = min(int(x.t_ns[0]) for x in (acc_t, grav, gyro, ori))
+        stale = slb.stale_fixes(loc, motion0)
+        if stale.any():
+            loc = loc.rows(~stale)
+        if len(loc.t_ns):
+            full_loc = snap["Location.csv"]
+            k = buf._first_fresh_row(full_loc, int(min(v[0][0] for f, v in snap.items() if f != "Location.csv")))
+            if k is None:
+                return None
+            lat, lon = (full_loc[2].index(c) for c in ("latitude", "longitude"))
+            try:
+                fixes, where = slb._fixes(loc, sec(loc.t_ns), (float(full_loc[1][k, lat]), float(full_loc[1][k, lon])))
+            except FormatError:
+                return None
+            meta.update(where)
+    rec = derived(template, {"phone": stream}, fixes)
+    rec.meta = meta
+    return cut(rec, t_from)
 
 
 __all__ = ["LiveTracker", "Step", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]

@@ -1,0 +1,195 @@
+"""Issue 61 §2: a crowd tick's preprocessing for every due session at once, kept equal to the
+per-session path it replaces.
+
+The pieces (each against the step it replaces, on a simulated phone-only Sensor Logger session
+pushed in 0.2-s messages): the update's Recording from the buffer's arrays
+(:func:`wearnav.live.tracker.lean_recording` vs the importer's step, ``SessionBuffer.recording``),
+the stacked zero-phase low-pass (:func:`wearnav.preprocess.batch.lowpass_many` vs scipy's
+``sosfiltfilt``) and the batched alignment (:func:`~wearnav.preprocess.batch.align_many` vs
+``align``); and the whole: the same pushes through a :class:`wearnav.live.crowd.Crowd` (batched)
+and through one :class:`~wearnav.live.tracker.LiveTracker` per session updated alone the way
+before (``batched = False``), the paths compared.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from wearnav.importers.sensorlogger_export import simulated_export
+from wearnav.live import crowd
+from wearnav.live.bench import walker_export
+from wearnav.live.buffer import SessionBuffer
+from wearnav.live.models import SharedModels
+from wearnav.live.replay import build
+from wearnav.live.tracker import LiveTracker, lean_recording
+from wearnav.preprocess import _lowpass, align
+from wearnav.preprocess.batch import align_many, lowpass_many
+from wearnav.track import odometry_preprocess
+
+MESSAGES = 250  # 50 s of pushes: past the quaternion decision (10 s), several fixes and smoother solves
+CROWD_MESSAGES = 160  # 32 s of each of three sessions: three smoother solves, the input's warnings (30 s)
+
+
+@pytest.fixture(scope="module")
+def replay(tmp_path_factory):
+    root = tmp_path_factory.mktemp("live_batched")
+    simulated_export(root / "export", seed=5, duration_s=60.0)
+    return build(walker_export(root / "export", "phone"), batch_s=0.2, start_ns=time.time_ns())
+
+
+@pytest.fixture(scope="module")
+def models():
+    m = SharedModels("cpu")
+    m.preload()
+    return m
+
+
+def slices(rp, every: int = 11):
+    """(buffer, t_from) as an update asks for them: a growing session, slices of different lengths."""
+    buf = SessionBuffer("s", rp.platform, rp.standardised)
+    for i, msg in enumerate(rp.messages[:MESSAGES]):
+        buf.add(msg["payload"])
+        if i >= 60 and i % every == 0:
+            covered = buf.covered_until()
+            yield buf, max(0.0, covered - 11.0 - (i % 7) * 0.7)
+
+
+def test_lean_recording_is_the_importers_step(replay):
+    buf = SessionBuffer("s", replay.platform, replay.standardised)
+    template, compared = None, 0
+    for i, msg in enumerate(replay.messages[:MESSAGES]):
+        buf.add(msg["payload"])
+        if i % 9:
+            continue
+        if template is None:
+            template = buf.recording()
+            continue
+        t_from = max(0.0, buf.covered_until() - 12.0)
+        lean, rec = lean_recording(buf, t_from, template), buf.recording(t_from)
+        if i * 0.2 > 12.0:  # the quaternion direction is decided after 10 s: from then on always lean
+            assert lean is not None
+        if lean is None:
+            continue
+        compared += 1
+        a, b = lean.devices["phone"], rec.devices["phone"]
+        for name in ("t", "acc", "gyro", "quat"):
+            assert getattr(a, name).dtype == getattr(b, name).dtype
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        assert (lean.fixes is None) == (rec.fixes is None)
+        if rec.fixes is not None:
+            np.testing.assert_array_equal(lean.fixes.t, rec.fixes.t)
+            np.testing.assert_array_equal(lean.fixes.pos, rec.fixes.pos)
+        assert (lean.meta["origin_lat"], lean.meta["origin_lon"]) == (rec.meta["origin_lat"], rec.meta["origin_lon"])
+    assert compared > 20
+
+
+def test_stacked_lowpass_is_sosfiltfilt_for_ragged_lengths():
+    rng = np.random.default_rng(0)
+    xs = [rng.normal(size=(n, 6)) for n in (29, 30, 31, 47, 400, 1203)]
+    for x, y in zip(xs, lowpass_many(xs, 100.0, 25.0)):
+        np.testing.assert_allclose(y, _lowpass(x, 100.0, 25.0), rtol=0, atol=1e-12)
+    assert np.abs(lowpass_many(xs, 100.0, 25.0)[-1] - xs[-1]).max() > 0.1  # it filtered
+
+
+@pytest.mark.parametrize("task", ["odometry", "classify"])
+def test_align_many_is_align_on_the_trackers_slices(replay, models, task):
+    """The phone model's input (world frame, its common frame and heading frame) and the activity
+    classifier's (the device's own axes)."""
+    from wearnav import pretrained
+
+    if task == "odometry":
+        _, cfg = models.resolve(pretrained.model_path(None, "odometry", ("phone",), True), "odometry")
+        pcfg = odometry_preprocess(cfg)
+    else:
+        pcfg = models.resolve(pretrained.model_path("activity", "classify"), "classify")[1].preprocess_config()
+    items = []
+    for buf, t_from in slices(replay):
+        rec = buf.recording(t_from)
+        t = np.arange(int(np.ceil((t_from + 1.0) * pcfg.rate)), int(buf.covered_until() * pcfg.rate)) / pcfg.rate
+        items.append((rec, pcfg, t))
+    assert len({len(t) for _, _, t in items}) > 3  # ragged
+    for (rec, c, t), got in zip(items, align_many(items)):
+        want = align(rec, c, t)
+        np.testing.assert_array_equal(got.mask, want.mask)
+        np.testing.assert_allclose(got.imu, want.imu, rtol=0, atol=1e-5)
+        assert (got.yaw is None) == (want.yaw is None) == (not pcfg.heading_frame)
+        if want.yaw is not None:  # the phone model's heading frame
+            np.testing.assert_allclose(got.yaw, want.yaw, rtol=0, atol=1e-9)
+        assert got.meta.keys() == want.meta.keys()
+
+
+def test_a_batched_crowd_keeps_every_sessions_path_within_a_tenth_of_a_metre(replay, models):
+    """Three sessions of one walk, started 0, 7 and 19 pushes apart (so a tick stacks slices of
+    different lengths), through one Crowd (lean Recording, one alignment for all) and through a
+    tracker per session updated alone the old way: the same path, final and provisional, and the
+    same activity label."""
+    starts = {"a": 0, "b": 7, "c": 19}
+    old = {sid: LiveTracker(models=models) for sid in starts}
+    for tr in old.values():
+        tr.batched = False
+    cr = crowd.Crowd(lambda: LiveTracker(models=models))
+    cr.stop()  # ticks run here
+    bufs = {sid: tuple(SessionBuffer(sid, replay.platform, replay.standardised) for _ in "nb") for sid in starts}
+    worst, checked = 0.0, 0
+    for k in range(CROWD_MESSAGES + max(starts.values())):
+        for sid, s0 in starts.items():
+            i = k - s0
+            if 0 <= i < CROWD_MESSAGES:
+                for b in bufs[sid]:
+                    b.add(replay.messages[i]["payload"])
+                cr.poke(sid, bufs[sid][0])
+                old[sid].update(bufs[sid][1])
+        cr.tick()
+        if k % 25 == 0:
+            for sid in starts:
+                if sid in cr.sessions and cr.sessions[sid].tracker is not None:
+                    t_new, xy_new, *_ = cr.sessions[sid].tracker.path()
+                    t_old, xy_old, *_ = old[sid].path()
+                    assert len(t_new) == len(t_old)
+                    if len(t_new):
+                        np.testing.assert_allclose(t_new, t_old, rtol=0, atol=1e-9)
+                        worst = max(worst, float(np.abs(xy_new - xy_old).max()))
+                        checked += 1
+    for sess in cr.sessions.values():  # the sessions end: their last windows made final
+        sess.last_push -= 2 * crowd.SESSION_END_S
+    cr.tick()
+    for sid in starts:
+        old[sid].update(bufs[sid][1], final=True)
+        new = cr.sessions[sid].tracker
+        assert new.batched and new.fixes
+        assert new.activity is not None and new.activity == old[sid].activity  # the label, its time, confidence
+        t_new, xy_new, _, method = new.path()
+        t_old, xy_old, _, method_old = old[sid].path()
+        assert method == method_old != "none" and len(t_new) == len(t_old) > 600
+        worst = max(worst, float(np.abs(xy_new - xy_old).max()))
+        checked += 1
+    print(f"batched crowd vs per-session: {checked} paths compared, largest difference {worst:.2e} m")
+    assert checked > 20 and worst < 0.1
+
+
+def test_one_sessions_failing_alignment_fails_only_that_session(replay, models, monkeypatch):
+    """The batched alignment raising (one session's input) is retried session by session: that
+    session's page says why, the other's path grows."""
+    from wearnav.live import tracker as live_tracker
+
+    real = live_tracker.align_many
+
+    def picky(items):
+        if any(rec.name == "bad" for rec, _, _ in items):
+            raise ValueError("bad input")
+        return real(items)
+
+    monkeypatch.setattr(live_tracker, "align_many", picky)
+    cr = crowd.Crowd(lambda: LiveTracker(models=models, activity_model=None))
+    cr.stop()
+    bufs = {sid: SessionBuffer(sid, replay.platform, replay.standardised) for sid in ("good", "bad")}
+    for msg in replay.messages[:100]:
+        for sid, buf in bufs.items():
+            buf.add(msg["payload"])
+            cr.poke(sid, buf)
+        cr.tick()
+    assert len(cr.sessions["good"].tracker.odo.t) > 100 and cr.sessions["good"].error is None
+    assert not cr.sessions["bad"].tracker.odo.t and "bad input" in cr.state("bad")["warnings"][-1]
