@@ -11,7 +11,7 @@ message must be acknowledged and stored (counted in the store afterwards).
 :func:`tracker_cost` pushes ``walkers`` phone-only sessions of a simulated walk message by message
 into session buffers (no HTTP) and runs one :class:`wearnav.live.crowd.Crowd`'s ticks in this
 thread after each round of messages: the tracking CPU (this process's, ``time.process_time``) per
-walker-second of data, as ``scripts/live_walker_cost.py`` measured it before.
+walker-second of data, as ``scripts/live_walker_cost.py`` measured it before (this replaces it).
 """
 
 from __future__ import annotations
