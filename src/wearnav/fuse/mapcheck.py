@@ -14,8 +14,10 @@ from the same start, and says:
               than the map-less one;
 ``no fit``    the plan has no walkable space within the given start's σ (``start_sigma_m``: the plan,
               or the start, is misplaced: a plan shifted by a corridor's width), or the walls took most of the weight
-              at the average step (:data:`NO_FIT_KILL`): the walk does not fit the plan; the map-less
-              path is used instead, with a warning.
+              at the average step (:data:`NO_FIT_KILL`): the walk does not fit the plan; or, where
+              fixes were weighed in, the path lies outside most fixes' 68 % radius (their median
+              distance over it above 1: the walls and the fixes disagree); the map-less path (or
+              the fixes' smoothed one) is used instead, with a warning.
 
 With it, :func:`diagnostics` gives one number per cause the issue names (what the walls did, the cloud's
 collapse and spread, the start heading's correction, how open the space was), so a bench can say why
@@ -28,6 +30,7 @@ import dataclasses
 
 import numpy as np
 
+from wearnav.fuse.config import RADIUS_68
 from wearnav.fuse.particles import MapConfig, MapResult
 
 # The walls took more than half of the particles' weight at the average step: no tuning, the majority.
@@ -84,6 +87,20 @@ def check_map_path(res: MapResult, cfg: MapConfig = MapConfig()) -> MapVerdict:
             "start) is misplaced; the path is placed without the plan",
             figures | {"start_walkable": False},
         )
+    if "fix_t" in res.steps:  # the fixes weighed in: how far the path lies from them, in their 68 % radii
+        ft, fxy = np.asarray(res.steps["fix_t"]), np.asarray(res.steps["fix_xy"])
+        path, tk = np.asarray(res.steps["path_xy"]), np.asarray(res.steps["t"])
+        at = np.stack([np.interp(ft, tk, path[:, 0]), np.interp(ft, tk, path[:, 1])], axis=1)
+        radii = np.linalg.norm(at - fxy, axis=1) / (RADIUS_68 * np.asarray(res.steps["fix_sigma_m"]))
+        figures["fixes_off_in_68_radii"] = round(float(np.median(radii)), 2)
+        if figures["fixes_off_in_68_radii"] > 1.0:
+            return MapVerdict(
+                NO_FIT,
+                f"the floor plan and the location fixes disagree: the map-aware path lies outside most fixes' "
+                f"68 % radius (the median fix {figures['fixes_off_in_68_radii']:.1f} radii away); the path is "
+                "placed without the plan",
+                figures,
+            )
     if figures["wall_kill_mean"] > NO_FIT_KILL:
         return MapVerdict(
             NO_FIT,

@@ -383,4 +383,8 @@ def map_filter(
         diag["start_walkable"] = np.asarray(bool(first_plan.inside(pts).any()))
     if referee is not None:
         diag["referee"] = referee
+    diag["path_xy"] = mean  # the smoothed path at the steps (the lineages' mean)
+    if fx_t is not None and fx_t.size:  # the fixes weighed in, where the walker was when each was taken
+        assert fx_pos is not None and fx_sig is not None
+        diag["fix_t"], diag["fix_xy"], diag["fix_sigma_m"] = fx_t - cfg.fix_lag_s, fx_pos, fx_sig
     return MapResult(out, np.interp(t, tk, spread), np.interp(t, tk, floors), info, diag)
