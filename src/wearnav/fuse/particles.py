@@ -35,6 +35,10 @@ Where the walls are the only evidence (a known start, no fix, no beacon: ``track
 the scale is not a state but fixed (``walls_only_scale``: with a heading offset the walls keep the
 particles that walk short); with fixes or beacons it stays a state.
 
+With a known start and heading, a referee bounds the cloud: a particle farther from the map-less path
+than the odometry's measured drift allows costs like a wall; :mod:`wearnav.fuse.mapcheck` reads the
+per-step record (``MapResult.steps``) to say whether the path can be trusted (issue 57).
+
 The floor is not a particle state: the caller gives the floor over time (a barometer's floor track,
 or the recording's one floor), and each step is constrained by that floor's plan; a floor without
 a plan constrains nothing.
@@ -89,7 +93,7 @@ class MapConfig:
     # would select short scales (module docstring); 1.04 was the best of 1.00–1.08 on ILC2's training floors.
     walls_only_scale: float | None = 1.04
     # ... and its heading walk and relative step noise are these (leave one floor of ILC2 site 1 out, five
-    # folds, 12 settings each: every fold chose 0.5 °/√s and 0.2 on its four other floors; decision 0046)
+    # folds, 12 settings each: three folds chose 0.5 °/√s, two 1 °/√s; all five 0.2; decision 0046)
     walls_only_heading_walk_deg_per_sqrt_s: float = 0.5
     walls_only_step_sigma_rel: float = 0.2
     step_sigma_rel: float = 0.1  # noise per step, relative to the step's length, per axis
