@@ -60,9 +60,13 @@ from wearnav.errors import FormatError, ValidationError
 from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
+from wearnav.importers import sensorlogger_build as slb
+from wearnav.importers.common import MAX_INTERP_GAP_S
+from wearnav.importers.sensorlogger_map import ORIENTATION_COLS, XYZ, acceleration_convention
 from wearnav.live.buffer import MARGIN_S, NS, cut, derived, sliced
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
 from wearnav.preprocess import Aligned, PreprocessConfig, align, clock, common_span
+from wearnav.preprocess.augment import moving_average
 from wearnav.preprocess.batch import align_many
 from wearnav.preprocess.windows import WindowConfig, WindowDataset, turn
 from wearnav.recording import Recording
@@ -517,7 +521,6 @@ class LiveTracker:
         """:meth:`activity_windows` of every step, their inputs aligned at once
         (:func:`wearnav.preprocess.batch.align_many`), then windowed as
         :func:`wearnav.train.labelling.class_windows` windows them (issue 61 §2)."""
-        from wearnav.preprocess.augment import moving_average
 
         jobs = [tr._activity_job(st) for tr, st in work]
         due = [i for i, j in enumerate(jobs) if j is not None]
@@ -662,9 +665,6 @@ def lean_recording(buf, t_from: float, template: Recording) -> Recording | None:
     """``buf.recording(t_from)``'s devices and fixes made straight from ``buf``'s arrays (the block
     comment above), ``template`` (an earlier Recording of the session) giving the rest; None where
     the session is not the phone-only input this handles (the caller asks ``buf.recording``)."""
-    from wearnav.importers import sensorlogger_build as slb
-    from wearnav.importers.common import MAX_INTERP_GAP_S
-    from wearnav.importers.sensorlogger_map import ORIENTATION_COLS, XYZ, acceleration_convention
 
     inverted = getattr(buf, "_quat_inverted", None)
     if inverted is None or set(template.devices) != {"phone"}:
