@@ -103,6 +103,7 @@ LAYERS: dict[str, int] = {
     "wearnav.cli": 10,
     "wearnav.cli.bench": 10,
     "wearnav.cli.bench_fixes": 10,  # bench easytrack, easytrack-base, adapt (registered on cli_bench's app)
+    "wearnav.cli.bench_maps": 10,  # bench map-lofo (registered on cli_bench's app)
     "wearnav.cli.common": 10,
     "wearnav.cli.live": 10,
     "wearnav.cli.models": 10,

@@ -13,6 +13,7 @@ import typer
 from wearnav.bench import experiments  # data and stdlib only: no torch
 from wearnav.bench.executor import Backend
 from wearnav.cli.bench_fixes import register as register_fix_commands
+from wearnav.cli.bench_maps import register as register_map_commands
 from wearnav.cli.common import (
     ADDRESS_HELP,
     EXECUTOR_HELP,
@@ -293,31 +294,6 @@ def bench_real_odometry(
             data, out, **where, bench=bench, progress=progress_enabled(), echo=typer.echo, execution=execution
         )
     typer.echo(f"wrote {page}")
-
-
-@bench_app.command("map-lofo")
-def bench_map_lofo(
-    data: Path = typer.Option(
-        ..., "--data", help="An imported dataset whose walks carry surveyed points and floor plans (ILC2 site 1)."
-    ),
-    out: Path = typer.Option(Path("runs/map-lofo"), "--out", help="Suite folder (odometry/, folds/, results.md)."),
-    model: str = typer.Option("phone", "--model", help="The odometry: a shipped model name, a run folder or pdr."),
-) -> None:
-    """The map-aware path with every constant chosen by leaving one floor out (issue 57): each floor
-    scored with the filter's settings, the site yaw and the odometry's drift taken from the other
-    floors, beside the map-less path; plans moved, turned or another floor's, to show what the
-    verdict catches; per walk, why it went wrong. The data: `wearnav import ilc2
-    ../shared/data/ilc2_indoor_location --out data/ilc2`.
-
-    \b
-    Example:
-      wearnav bench map-lofo --data data/ilc2 --out runs/map-lofo
-    """
-    from wearnav.bench.map_lofo import run_suite
-
-    suite_folder(out, "bench map-lofo")
-    run_suite(data, out, model, progress_enabled())
-    typer.echo(f"wrote {out / 'results.md'}")
 
 
 @bench_app.command("efficiency")
@@ -614,3 +590,4 @@ def run_step(argv: list[str], out: Path, wearnav) -> None:
 
 
 register_fix_commands(bench_app)  # easytrack, easytrack-base, adapt (wearnav.cli.bench_fixes)
+register_map_commands(bench_app)  # map-lofo (wearnav.cli.bench_maps)
