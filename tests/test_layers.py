@@ -95,6 +95,8 @@ LAYERS: dict[str, int] = {
     "wearnav.track.maps": 8,  # track's map-aware path (--map, --start): the plans and the particle filter
     "wearnav.track.trust": 8,  # whether to trust a tracked path (track, and the live tracker above it)
     "wearnav.track.write": 8,  # what track writes: the placed path, its files and page
+    # runs `track` itself on held-out walks (the user's path with a radio map; only cli.bench_maps imports it)
+    "wearnav.bench.radio_track": 8,
     # 9 wearnav live: the receiver; its tracker runs track's steps as data arrives
     "wearnav.live": 9,
     "wearnav.live.crowd": 9,  # every session's tracker in batched ticks: imports live.tracker
@@ -103,7 +105,7 @@ LAYERS: dict[str, int] = {
     "wearnav.cli": 10,
     "wearnav.cli.bench": 10,
     "wearnav.cli.bench_fixes": 10,  # bench easytrack, easytrack-base, adapt (registered on cli_bench's app)
-    "wearnav.cli.bench_maps": 10,  # bench map-lofo (registered on cli_bench's app)
+    "wearnav.cli.bench_maps": 10,  # bench map-lofo, radio-track (registered on cli_bench's app)
     "wearnav.cli.common": 10,
     "wearnav.cli.live": 10,
     "wearnav.cli.models": 10,
