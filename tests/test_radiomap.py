@@ -217,3 +217,36 @@ def test_track_takes_radio_positions_and_says_when_a_map_does_not_fit(built, tmp
         "why": radiomap.NO_FIT,
     }
     assert summary["anchoring"]["fix_status"]["used"] > 0
+
+
+def test_the_barometer_follows_the_floor_from_the_start_most_wifi_votes_agree_with():
+    from wearnav.fuse.floors import FloorLevels
+    from wearnav.recording import Pressure
+
+    # 0-120 s on floor 0, a stair down to -1 at 120-130 s, on -1 until 240 s; 0.4 hPa per floor
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 240.0, 0.5)
+    level = np.interp(t, [0, 120, 130, 240], [0.0, 0.0, 0.4, 0.4])
+    pressure = Pressure(t, 1000.0 + level + 0.01 * rng.standard_normal(t.size))
+    levels = FloorLevels({0: 0.0, -1: 0.4, -2: 0.8}, 0.4)
+    t_scan = np.arange(2.0, 240.0, 4.0)
+    truth = np.where(t_scan < 125.0, 0.0, -1.0)
+    votes = truth.copy()
+    wrong = rng.random(t_scan.size) < 0.35  # a third of the Wi-Fi votes name the floor above or below
+    votes[wrong] = np.clip(truth[wrong] + rng.choice([-1.0, 1.0], wrong.sum()), -2, 0)
+    times = np.arange(0.0, 240.0, 1.0)
+    want = np.where(times < 125.0, 0.0, -1.0)
+    got, info = radiomap.floor_over_time(pressure, levels, t_scan, votes, times)
+    assert info["start_floor"] == 0 and np.mean(got == want) > 0.97  # wrong only around the stair
+    alone, info = radiomap.floor_over_time(None, levels, t_scan, votes, times)
+    assert info["floor_by"] == "Wi-Fi votes" and np.mean(alone == want) < np.mean(got == want)
+
+
+def test_a_map_keeps_the_floor_levels_of_survey_walks_with_a_barometer(built, tmp_path):
+    assert built.floor_levels is None  # the synthetic survey has no barometer: the votes alone
+    built.card["floor_levels"] = {"levels_hpa": {"0": 0.0, "1": -0.4}, "step_hpa": 0.4, "fit": {}}
+    try:
+        again = radiomap.RadioMap.load(built.save(tmp_path / "m"))
+        assert again.floor_levels is not None and again.floor_levels.levels_hpa == {0: 0.0, 1: -0.4}
+    finally:
+        built.card["floor_levels"] = None

@@ -26,6 +26,12 @@ positions, floors and walks: the learner is fitted again on load, so no pickle i
 for a person). Use (:meth:`RadioMap.locate`): a recording's scans → positions with σ and floor
 (:class:`RadioPositions`); a scan sharing fewer than ``min_common_aps`` access points with the map
 gets none; a recording of which no scan shares one is another site (:meth:`RadioMap.fits`).
+
+The floor (:func:`floor_over_time`): where the survey walks carry a barometer and surveyed floors, the
+map keeps the site's floor levels (:func:`wearnav.fuse.floors.fit_floor_levels`, on its card); a
+walk with a barometer then follows the barometer's floor track from the start floor that agrees with
+most of its scans' floor votes (Wi-Fi says which floor, the barometer when it changes), else the votes
+alone, smoothed (:func:`floor_at`).
 Decision: docs/decisions/0048-radio-map.md.
 """
 
@@ -44,8 +50,9 @@ from wearnav.core.fileio import atomic_path, write_text_atomic
 from wearnav.core.textio import read_json
 from wearnav.errors import ConfigError, FormatError, ValidationError
 from wearnav.fuse.config import RADIUS_68
+from wearnav.fuse.floors import FloorLevels, fit_floor_levels, floor_track
 from wearnav.fuse.survey import SURVEY_ODOMETRY, odometry_path, positions_between
-from wearnav.recording import Fixes, Recording, WifiScans
+from wearnav.recording import Fixes, Pressure, Recording, WifiScans
 
 FORMAT = "wearnav.radiomap"
 FORMAT_VERSION = 1
@@ -300,6 +307,12 @@ class RadioMap:
         x, _ = fingerprints(scans, self.bssids, cfg.missing_dbm)
         self._learner = _Learner(x, scans.xy, scans.floor, cfg)
 
+    @property
+    def floor_levels(self) -> FloorLevels | None:
+        """The site's floor levels measured on the map's walks (None: they had no barometer or one floor)."""
+        d = self.card.get("floor_levels")
+        return None if d is None else FloorLevels.from_dict(d)
+
     # ---- use --------------------------------------------------------------------------------
 
     def common_aps(self, wifi: WifiScans | None) -> int:
@@ -479,7 +492,12 @@ def build(
             parts.append(s)
     if not parts:
         raise ValidationError("no survey walk with Wi-Fi scans and surveyed points to build a radio map from")
-    return from_scans(Scans.concat(parts), cfg, infos, source, groups, group_by)
+    rmap = from_scans(Scans.concat(parts), cfg, infos, source, groups, group_by)
+    try:
+        rmap.card["floor_levels"] = fit_floor_levels(recordings).to_dict()
+    except ValidationError:  # no walk over two floors with a barometer: the Wi-Fi votes alone give the floor
+        rmap.card["floor_levels"] = None
+    return rmap
 
 
 def card_markdown(card: dict[str, Any]) -> str:
@@ -572,3 +590,30 @@ def floor_at(t_fix: np.ndarray, floor_fix: np.ndarray, times: np.ndarray, window
     if t_fix.size > 1:
         k = np.where(np.abs(t_fix[k - 1] - times) <= np.abs(t_fix[k] - times), k - 1, k)
     return smooth[k]
+
+
+def floor_over_time(
+    pressure: Pressure | None,
+    levels: FloorLevels | None,
+    t_radio: np.ndarray,
+    floor_radio: np.ndarray,
+    times: np.ndarray,
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """The floor at ``times`` (module docstring): with a barometer and the site's floor ``levels``, the
+    barometer's floor track (:func:`wearnav.fuse.floors.floor_track`) from the start floor whose track
+    agrees with the most radio floor votes (``floor_radio`` at ``t_radio``; a tie goes to the floor
+    the first votes name); else the votes alone (:func:`floor_at`). Also what was done."""
+    ok = np.isfinite(floor_radio)
+    t_radio, floor_radio = np.asarray(t_radio)[ok], np.asarray(floor_radio)[ok]
+    if pressure is None or len(pressure) < 2 or levels is None or not t_radio.size:
+        return floor_at(t_radio, floor_radio, times), {"floor_by": "Wi-Fi votes"}
+    candidates = levels.floors or sorted({int(f) for f in floor_radio})
+    first = floor_at(t_radio, floor_radio, t_radio[:1])[0]
+    agree = {f: int(np.sum(floor_track(pressure, f, t_radio, levels) == floor_radio)) for f in candidates}
+    start = max(candidates, key=lambda f: (agree[f], f == first))
+    out = floor_track(pressure, start, np.asarray(times, np.float64), levels).astype(np.float64)
+    return out, {
+        "floor_by": "barometer from the start floor most Wi-Fi votes agree with",
+        "start_floor": int(start),
+        "votes_agreeing": round(agree[start] / t_radio.size, 3),
+    }

@@ -265,7 +265,11 @@ def track(
     for k, dev in enumerate(seq.devices):
         table[dev] = (present[nearest, k] > 0).astype(int)
     if radio_fix is not None and radio_fix.any() and rec.fixes is not None and rec.fixes.floor is not None:
-        table["floor"] = radiomap_mod.floor_at(rec.fixes.t[radio_fix], rec.fixes.floor[radio_fix], t)
+        assert rmap is not None and radio_info is not None
+        table["floor"], floor_info = radiomap_mod.floor_over_time(
+            rec.pressure, rmap.floor_levels, rec.fixes.t[radio_fix], rec.fixes.floor[radio_fix], t
+        )
+        radio_info |= floor_info
     share = {dev: round(float((present[:, k] > 0).mean()), 3) for k, dev in enumerate(seq.devices)}
     used = devices_used(cfg, seq.devices, present)
     frame = seq.meta.get("frame", {})
