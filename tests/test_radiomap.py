@@ -250,3 +250,49 @@ def test_a_map_keeps_the_floor_levels_of_survey_walks_with_a_barometer(built, tm
         assert again.floor_levels is not None and again.floor_levels.levels_hpa == {0: 0.0, 1: -0.4}
     finally:
         built.card["floor_levels"] = None
+
+
+def test_phone_fixes_that_disagree_with_the_radio_positions_lose_weight():
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 120.0, 1.0)
+    truth = np.stack([1.2 * t, np.zeros_like(t)], axis=1)
+    scan_t = np.arange(0.5, 120.0, 3.0)
+    sigma = np.full(scan_t.size, 2.0)
+    pos = radiomap.RadioPositions(
+        scan_t,
+        np.stack([1.2 * scan_t, np.zeros_like(scan_t)], axis=1) + 2.0 * rng.standard_normal((scan_t.size, 2)),
+        sigma,
+        np.zeros(scan_t.size),
+        np.full(scan_t.size, 10),
+        {},
+    )
+    claimed = np.full(t.size, 5.0)  # a 68 % radius of 5 m: σ 3.3 m per axis
+    honest = truth + (5.0 / radiomap.RADIUS_68) * rng.standard_normal(truth.shape)
+    assert radiomap.phone_accuracy_scale(t, honest, claimed, pos) < 1.2  # honest fixes: barely touched (sampling)
+    off = truth + 12.0 * rng.standard_normal(truth.shape)  # ~4x worse than claimed (underground)
+    scale = radiomap.phone_accuracy_scale(t, off, claimed, pos)
+    assert scale is not None and 2.5 < scale < 6.0
+    # with the grown accuracy, 68 % of the distances fall inside the combined 68 % radius
+    k = np.abs(scan_t[None, :] - t[:, None]).argmin(axis=1)
+    near = np.abs(scan_t[k] - t) <= radiomap.PAIR_S
+    d = np.linalg.norm(off[near] - pos.xy[k[near]], axis=1)
+    combined = radiomap.RADIUS_68 * np.hypot(scale * claimed[near] / radiomap.RADIUS_68, sigma[k[near]])
+    assert abs(np.mean(d <= combined) - 0.68) < 0.05
+    assert radiomap.phone_accuracy_scale(t[:3], off[:3], claimed[:3], pos) is None  # too few pairs
+
+
+def test_sigma_is_calibrated_per_group_of_raw_sigma_not_by_one_scale():
+    rng = np.random.default_rng(7)
+    raw = rng.uniform(1.0, 20.0, 4000)
+    true_sigma = 3.0 + 0.3 * raw  # the errors grow with the raw σ, but far slower than in proportion
+    err = true_sigma * np.sqrt(rng.chisquare(2, raw.size))  # a circular Gaussian's radius
+    cal = radiomap.sigma_calibration(raw, err)
+    assert cal is not None and np.all(np.diff(cal["sigma_m"]) >= 0) and np.all(np.diff(cal["sigma_raw_m"]) > 0)
+    sigma = np.interp(raw, cal["sigma_raw_m"], cal["sigma_m"])
+    for lo, hi in ((1, 5), (8, 12), (16, 20)):  # 68 % inside the 68 % radius in every part of the range
+        k = (raw >= lo) & (raw < hi)
+        assert abs(np.mean(err[k] <= radiomap.RADIUS_68 * sigma[k]) - 0.68) < 0.08
+    one_scale = np.percentile(err / raw, 68) / radiomap.RADIUS_68 * raw
+    k = raw > 16
+    assert np.mean(err[k] <= radiomap.RADIUS_68 * one_scale[k]) > 0.85  # one scale overstates the widest
+    assert radiomap.sigma_calibration(raw[:20], err[:20]) is None

@@ -14,11 +14,15 @@ distance-weighted k-nearest-neighbour mean over the scans of that floor
 (:class:`~sklearn.neighbors.KNeighborsRegressor`; ``model="extra-trees"``:
 :class:`~sklearn.ensemble.ExtraTreesRegressor`, kept for the comparison of
 :mod:`wearnav.bench.radiomap`). Its 1-σ per axis: the neighbours' weighted spread about the
-estimate (the trees' spread for extra trees), at least ``min_sigma_m``, times ``sigma_scale``,
-calibrated by a ``cv_folds``-fold cross-validation over the map's own walks (each walk held out
-whole): the scale that puts 68 % of the held-out errors inside the 68 % radius
-(:data:`wearnav.fuse.RADIUS_68` σ), as a fix's reported accuracy is. The same cross-validation
-gives the card's validation numbers.
+estimate (the trees' spread for extra trees), at least ``min_sigma_m``, mapped to a calibrated σ
+by a ``cv_folds``-fold cross-validation over the map's own walks (each walk held out whole): the
+held-out scans are cut into :data:`SIGMA_BINS` equal groups by their raw σ, and each group's σ is the
+one that puts 68 % of its errors inside the 68 % radius (:data:`wearnav.fuse.RADIUS_68` σ), as a
+fix's reported accuracy is; between the groups' middles σ is interpolated (never falling as the raw
+σ grows). One scale for all (``sigma_scale``, kept on the card) overstated the σ of the widest
+neighbourhoods: on IPIN 2023 the top fifth's errors had a 68 % radius of 15.7 m, the one scale gave
+them 25–95 m, so the phone's fixes outweighed the radio map where they were worst (underground).
+The same cross-validation gives the card's validation numbers.
 
 Storage (:meth:`RadioMap.save`): a folder holding ``radiomap.npz`` (the fingerprints, their
 positions, floors and walks: the learner is fitted again on load, so no pickle is read),
@@ -59,6 +63,10 @@ FORMAT_VERSION = 1
 MAP_NPZ, CARD_JSON, CARD_MD = "radiomap.npz", "card.json", "README.md"
 MODELS = ("knn", "extra-trees")
 NO_FIT = "the radio map does not fit this recording: no access point in common"
+PAIR_S = 1.0  # a phone fix and a radio position this close in time are compared (phone_accuracy_scale)
+MIN_PAIRS = 5  # fewer pairs: the phone's accuracy is kept as reported
+SIGMA_BINS = 5  # the radio map's σ calibration: groups of held-out scans by their raw σ
+MAX_ACCURACY_SCALE = 30.0  # the phone's accuracy grows at most this much (a fix is then all but ignored)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -327,7 +335,10 @@ class RadioMap:
         """Fingerprints (N, A) over :attr:`bssids` (:func:`fingerprints`) → positions (N, 2), σ (N,) m
         per axis (calibrated), floors (N,)."""
         xy, sigma_raw, floor = self._learner.predict(x)
-        return xy, sigma_raw * self.sigma_scale, floor
+        cal = self.card.get("sigma_calibration")
+        if not cal:  # a map of too few scans to calibrate by groups: one scale
+            return xy, sigma_raw * self.sigma_scale, floor
+        return xy, np.interp(sigma_raw, cal["sigma_raw_m"], cal["sigma_m"]), floor
 
     def locate(self, wifi: WifiScans | None) -> RadioPositions:
         """Every scan sharing ``min_common_aps`` access points with the map → position, σ, floor."""
@@ -406,6 +417,20 @@ class RadioMap:
         return cls(scans, bssids, cfg, float(card["sigma_scale"]), card)
 
 
+def sigma_calibration(sigma_raw: np.ndarray, error: np.ndarray) -> dict[str, list[float]] | None:
+    """Raw σ → calibrated σ per axis (module docstring): per group of held-out scans by raw σ, the
+    group's median raw σ and the σ whose 68 % radius holds 68 % of its errors, non-decreasing; None
+    with fewer than 10 scans a group."""
+    if error.size < 10 * SIGMA_BINS:
+        return None
+    order = np.argsort(sigma_raw, kind="stable")
+    groups = np.array_split(order, SIGMA_BINS)
+    x = np.array([float(np.median(sigma_raw[g])) for g in groups])
+    y = np.maximum.accumulate([float(np.percentile(error[g], 68)) / RADIUS_68 for g in groups])
+    x = np.maximum.accumulate(x + 1e-9 * np.arange(x.size))  # strictly increasing for np.interp
+    return {"sigma_raw_m": [round(float(v), 4) for v in x], "sigma_m": [round(float(v), 4) for v in y]}
+
+
 def map_access_points(scans: Scans, min_scans: int) -> list[str]:
     """The access points heard in at least ``min_scans`` scans, sorted."""
     counts = pd.Series(scans.bssid).value_counts()
@@ -431,7 +456,12 @@ def from_scans(
     cv = cross_validate(scans, bssids, cfg, cfg.cv_folds, groups)
     ratio = cv["error_m"] / cv["sigma_raw_m"] if cv["error_m"].size else np.empty(0)
     scale = float(np.percentile(ratio, 68) / RADIUS_68) if ratio.size >= 10 else 1.0
-    inside = float(np.mean(cv["error_m"] <= RADIUS_68 * scale * cv["sigma_raw_m"])) if ratio.size else None
+    calibration = sigma_calibration(cv["sigma_raw_m"], cv["error_m"])
+    if calibration:
+        sigma = np.interp(cv["sigma_raw_m"], calibration["sigma_raw_m"], calibration["sigma_m"])
+    else:
+        sigma = scale * cv["sigma_raw_m"]
+    inside = float(np.mean(cv["error_m"] <= RADIUS_68 * sigma)) if ratio.size else None
     assert scans.walk is not None and scans.floor is not None
     walks = sorted(set(scans.walk.astype(str)))
     n_groups = len({(groups or {}).get(w, w) for w in walks})
@@ -441,6 +471,7 @@ def from_scans(
         "source": source,
         "config": dataclasses.asdict(cfg),
         "sigma_scale": scale,  # exact: the map read back gives the same σ
+        "sigma_calibration": calibration,  # raw σ → σ (m), by groups (module docstring); None: the scale
         "walks": walks,
         "positions": "per floor (the floors' frames differ)"
         if cfg.per_floor is not False
@@ -528,7 +559,8 @@ def card_markdown(card: dict[str, Any]) -> str:
 
 def with_radio_fixes(rec: Recording, rmap: RadioMap) -> tuple[Recording, np.ndarray, dict[str, Any], list[str]]:
     """``rec`` with its scans' radio positions added to its location fixes (accuracy: the 68 % radius;
-    floor: the map's), for the smoother and the particle filter as any fix; (M,) bool which fixes are
+    floor: the map's), for the smoother and the particle filter as any fix, the phone's own fixes'
+    accuracy grown where they disagree with the radio positions (:func:`phone_accuracy_scale`); (M,) bool which fixes are
     the radio map's; what was done (``used``, ``positions`` ...); warnings. A map sharing no access
     point with the recording is not used (:data:`NO_FIT`): ``rec`` comes back unchanged."""
     none = np.zeros(0 if rec.fixes is None else len(rec.fixes), bool)
@@ -554,9 +586,11 @@ def with_radio_fixes(rec: Recording, rmap: RadioMap) -> tuple[Recording, np.ndar
         t, xy, acc, fl, radio = pos.t, pos.xy, pos.accuracy_m, pos.floor, np.ones(len(pos), bool)
     else:
         old_floor = old.floor if old.floor is not None else np.full(len(old), np.nan)
+        scale = phone_accuracy_scale(old.t, old.pos[:, :2], old.accuracy, pos)
+        info["phone_accuracy_scale"] = None if scale is None else round(scale, 3)
         t = np.concatenate([old.t, pos.t])
         xy = np.concatenate([old.pos[:, :2], pos.xy])
-        acc = np.concatenate([old.accuracy, pos.accuracy_m])
+        acc = np.concatenate([old.accuracy * (scale or 1.0), pos.accuracy_m])
         fl = np.concatenate([old_floor, pos.floor])
         radio = np.concatenate([np.zeros(len(old), bool), np.ones(len(pos), bool)])
     order = np.lexsort((radio, t))
@@ -566,6 +600,41 @@ def with_radio_fixes(rec: Recording, rmap: RadioMap) -> tuple[Recording, np.ndar
             t[k] = t[k - 1] + 1e-3
     fixes = Fixes(t, xy[order], acc[order], fl[order])
     return dataclasses.replace(rec, fixes=fixes), radio[order], info, []
+
+
+def phone_accuracy_scale(
+    fix_t: np.ndarray, fix_xy: np.ndarray, fix_accuracy: np.ndarray, pos: RadioPositions
+) -> float | None:
+    """How many times the phone's reported accuracy must grow for its fixes to agree with the radio
+    positions as two independent estimates should: the smallest scale s ≥ 1 that puts 68 % of the
+    distances between a fix and the radio position nearest in time (within :data:`PAIR_S`) inside
+    the 68 % radius of their combined σ, √((s σ_fix)² + σ_radio²). The radio map's σ is calibrated on
+    walks it never saw; the phone's accuracy is its own claim, and underground (IPIN 2023's floor −2)
+    it claims 5–10 m for fixes 9–15 m off. At most :data:`MAX_ACCURACY_SCALE`; None with fewer than
+    :data:`MIN_PAIRS` pairs."""
+    if not len(pos) or not len(fix_t):
+        return None
+    k = np.clip(np.searchsorted(pos.t, fix_t), 1, max(len(pos) - 1, 1)) if len(pos) > 1 else np.zeros(len(fix_t), int)
+    if len(pos) > 1:
+        k = np.where(np.abs(pos.t[k - 1] - fix_t) <= np.abs(pos.t[k] - fix_t), k - 1, k)
+    near = np.abs(pos.t[k] - fix_t) <= PAIR_S
+    if near.sum() < MIN_PAIRS:
+        return None
+    d = np.linalg.norm(fix_xy[near] - pos.xy[k[near]], axis=1)
+    s_fix, s_radio = fix_accuracy[near] / RADIUS_68, pos.sigma_m[k[near]]
+
+    def inside(scale: float) -> float:
+        return float(np.mean(d <= RADIUS_68 * np.hypot(scale * s_fix, s_radio)))
+
+    if inside(1.0) >= 0.68:
+        return 1.0
+    if inside(MAX_ACCURACY_SCALE) < 0.68:
+        return MAX_ACCURACY_SCALE
+    lo, hi = 1.0, MAX_ACCURACY_SCALE
+    for _ in range(40):  # bisection: inside() grows with the scale
+        mid = float(np.sqrt(lo * hi))
+        lo, hi = (lo, mid) if inside(mid) >= 0.68 else (mid, hi)
+    return hi
 
 
 def floor_at(t_fix: np.ndarray, floor_fix: np.ndarray, times: np.ndarray, window_s: float = 10.0) -> np.ndarray:
