@@ -296,3 +296,30 @@ def test_sigma_is_calibrated_per_group_of_raw_sigma_not_by_one_scale():
     k = raw > 16
     assert np.mean(err[k] <= radiomap.RADIUS_68 * one_scale[k]) > 0.85  # one scale overstates the widest
     assert radiomap.sigma_calibration(raw[:20], err[:20]) is None
+
+
+def test_a_walks_floor_votes_become_one_sequence_that_changes_only_where_the_votes_stay_changed():
+    rng = np.random.default_rng(11)
+    truth = np.r_[np.zeros(40), np.ones(40)]  # one floor change halfway
+    votes = truth.copy()
+    stray = rng.choice(80, 12, replace=False)  # 15 % of the votes name the other floor
+    votes[stray] = 1 - votes[stray]
+    floors = np.array([0.0, 1.0])
+    got = radiomap.floor_sequence(votes, floors, vote_right=0.85, switch=0.01)
+    assert np.mean(got == truth) >= 0.95 and np.count_nonzero(np.diff(got)) == 1
+    # a survey that never changed floor within a walk still lets a long-held change through
+    assert radiomap.floor_sequence(truth, floors, 0.99, 1e-5).tolist() == truth.tolist()
+    assert radiomap.floor_sequence(np.r_[np.zeros(30), [1.0], np.zeros(30)], floors, 0.99, 1e-5).max() == 0.0
+
+
+def test_floor_switch_rate_counts_changes_between_a_walks_consecutive_scans():
+    scans = radiomap.Scans(
+        t=np.array([0.0, 2.0, 4.0, 6.0, 0.0, 2.0]),
+        scan=np.arange(6),
+        bssid=np.array(["a"] * 6, dtype=object),
+        rssi_dbm=np.full(6, -60.0),
+        xy=np.zeros((6, 2)),
+        floor=np.array([0.0, 0.0, 1.0, 1.0, 2.0, 2.0]),
+        walk=np.array(["w1"] * 4 + ["w2"] * 2, dtype=object),
+    )
+    assert radiomap.floor_switch_rate(scans) == pytest.approx((1 + 1) / (4 + 2))  # 1 change in 4 pairs

@@ -31,6 +31,11 @@ for a person). Use (:meth:`RadioMap.locate`): a recording's scans → positions 
 (:class:`RadioPositions`); a scan sharing fewer than ``min_common_aps`` access points with the map
 gets none; a recording of which no scan shares one is another site (:meth:`RadioMap.fits`).
 
+A walk's scans get their floors as one sequence (:func:`floor_sequence`, a hidden floor that changes
+as rarely as it did between the survey walks' consecutive scans, each vote as right as the map's
+cross-validation found), and each position comes from its floor's scans: a stray vote no longer
+puts a scan in another floor's frame (ILC2's floors each have their own).
+
 The floor (:func:`floor_over_time`): where the survey walks carry a barometer and surveyed floors, the
 map keeps the site's floor levels (:func:`wearnav.fuse.floors.fit_floor_levels`, on its card); a
 walk with a barometer then follows the barometer's floor track from the start floor that agrees with
@@ -237,9 +242,13 @@ class _Learner:
                 model = ExtraTreesRegressor(cfg.trees, min_samples_leaf=2, random_state=0, n_jobs=1).fit(x[on], xy[on])
             self.by_floor[None if f is None else float(f)] = (model, xy[on])
 
-    def predict(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(N, 2) positions, (N,) raw σ (per axis, before the map's scale), (N,) floors."""
-        floor = np.full(len(x), float(self.floors[0])) if self.vote is None else self.vote.predict(x).astype(np.float64)
+    def predict(self, x: np.ndarray, floor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(N, 2) positions, (N,) raw σ (per axis, before the map's scale), (N,) floors: the vote's,
+        or ``floor`` where given (the position then from that floor's scans)."""
+        if floor is None:
+            floor = (
+                np.full(len(x), float(self.floors[0])) if self.vote is None else self.vote.predict(x).astype(np.float64)
+            )
         xy, sigma = np.zeros((len(x), 2)), np.zeros(len(x))
         for f, (model, train_xy) in self.by_floor.items():
             on = floor == f if f is not None else np.ones(len(x), bool)
@@ -331,10 +340,10 @@ class RadioMap:
         """Whether any access point of the map is in the recording's scans (a map of another site: no)."""
         return self.common_aps(rec.wifi) > 0
 
-    def predict(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def predict(self, x: np.ndarray, floor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Fingerprints (N, A) over :attr:`bssids` (:func:`fingerprints`) → positions (N, 2), σ (N,) m
-        per axis (calibrated), floors (N,)."""
-        xy, sigma_raw, floor = self._learner.predict(x)
+        per axis (calibrated), floors (N,): each scan's own floor vote, or ``floor`` where given."""
+        xy, sigma_raw, floor = self._learner.predict(x, floor)
         cal = self.card.get("sigma_calibration")
         if not cal:  # a map of too few scans to calibrate by groups: one scale
             return xy, sigma_raw * self.sigma_scale, floor
@@ -349,6 +358,13 @@ class RadioMap:
         x, common = fingerprints(scans, self.bssids, self.cfg.missing_dbm)
         use = common >= self.cfg.min_common_aps
         xy, sigma, floor = self.predict(x[use]) if use.any() else (np.empty((0, 2)), empty, empty)
+        switch = self.card.get("floor_switch_per_scan")
+        floor_right = self.card.get("validation", {}).get("floor_right")
+        if floor.size > 1 and switch is not None and floor_right is not None and len(self._learner.floors) > 1:
+            votes = floor
+            floor = floor_sequence(votes, self._learner.floors.astype(np.float64), float(floor_right), float(switch))
+            if (floor != votes).any():  # a scan's position from the floor of the sequence
+                xy, sigma, floor = self.predict(x[use], floor)
         info = {
             "scans": len(scans),
             "positions": int(use.sum()),
@@ -523,7 +539,9 @@ def build(
             parts.append(s)
     if not parts:
         raise ValidationError("no survey walk with Wi-Fi scans and surveyed points to build a radio map from")
-    rmap = from_scans(Scans.concat(parts), cfg, infos, source, groups, group_by)
+    scans = Scans.concat(parts)
+    rmap = from_scans(scans, cfg, infos, source, groups, group_by)
+    rmap.card["floor_switch_per_scan"] = floor_switch_rate(scans)
     try:
         rmap.card["floor_levels"] = fit_floor_levels(recordings).to_dict()
     except ValidationError:  # no walk over two floors with a barometer: the Wi-Fi votes alone give the floor
@@ -659,6 +677,41 @@ def floor_at(t_fix: np.ndarray, floor_fix: np.ndarray, times: np.ndarray, window
     if t_fix.size > 1:
         k = np.where(np.abs(t_fix[k - 1] - times) <= np.abs(t_fix[k] - times), k - 1, k)
     return smooth[k]
+
+
+def floor_switch_rate(scans: Scans) -> float:
+    """How often the floor changes from one scan of a survey walk to its next (Laplace's rule, so a
+    survey that never changes floor still allows a change: (changes + 1) / (pairs + 2))."""
+    assert scans.walk is not None and scans.floor is not None
+    order = np.lexsort((scans.t, scans.walk.astype(str)))
+    walk, floor = scans.walk.astype(str)[order], scans.floor[order]
+    same_walk = walk[1:] == walk[:-1]
+    changes = int(np.sum(same_walk & (floor[1:] != floor[:-1])))
+    return (changes + 1) / (int(same_walk.sum()) + 2)
+
+
+def floor_sequence(votes: np.ndarray, floors: np.ndarray, vote_right: float, switch: float) -> np.ndarray:
+    """The most likely floor of each scan of one walk (Viterbi): a hidden floor that changes from one
+    scan to the next with probability ``switch`` (to any other floor alike), each scan's vote right
+    with probability ``vote_right`` (the map's cross-validated floor accuracy), else any other floor
+    alike. A single wrong vote, or a run of a few in a long walk, does not change floor."""
+    n, m = votes.size, floors.size
+    right = float(np.clip(vote_right, 0.5, 0.999))
+    switch = float(np.clip(switch, 1e-9, 0.5))
+    log_emit = np.where(votes[:, None] == floors[None, :], np.log(right), np.log((1 - right) / max(m - 1, 1)))
+    log_stay, log_move = np.log(1 - switch), np.log(switch / max(m - 1, 1))
+    trans = np.where(np.eye(m, dtype=bool), log_stay, log_move)
+    score = log_emit[0] - np.log(m)
+    back = np.zeros((n, m), np.int64)
+    for i in range(1, n):
+        cand = score[:, None] + trans  # from (rows) → to (columns)
+        back[i] = np.argmax(cand, axis=0)
+        score = cand[back[i], np.arange(m)] + log_emit[i]
+    path = np.empty(n, np.int64)
+    path[-1] = int(np.argmax(score))
+    for i in range(n - 1, 0, -1):
+        path[i - 1] = back[i, path[i]]
+    return floors[path]
 
 
 def floor_over_time(
