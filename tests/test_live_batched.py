@@ -27,6 +27,7 @@ from wearnav.live.replay import build
 from wearnav.live.tracker import LiveTracker, lean_recording
 from wearnav.preprocess import _lowpass, align
 from wearnav.preprocess.batch import align_many, lowpass_many
+from wearnav.report.trajectory_page import page_points
 from wearnav.track import odometry_preprocess
 
 MESSAGES = 250  # 50 s of pushes: past the quaternion decision (10 s), several fixes and smoother solves
@@ -86,6 +87,23 @@ def test_lean_recording_is_the_importers_step(replay):
     assert compared > 20
 
 
+def test_motion_span_bounds_every_streams_span(replay):
+    """``SessionBuffer.motion_span_s`` (from the raw sample times) is never less than the span of a
+    device's stream in the Recording, so a tracker skipping the Recording while it is too short
+    to start (``LiveTracker.begin``) skips only what ``_start`` would refuse."""
+    buf = SessionBuffer("s", replay.platform, replay.standardised)
+    compared = 0
+    for i, msg in enumerate(replay.messages[:40]):
+        buf.add(msg["payload"])
+        if i < 2:
+            continue
+        span = buf.motion_span_s()
+        for s in buf.recording().devices.values():
+            assert float(s.t[-1] - s.t[0]) <= span + 1e-9
+            compared += 1
+    assert compared > 30 and buf.motion_span_s() > 5.0
+
+
 def test_stacked_lowpass_is_sosfiltfilt_for_ragged_lengths():
     rng = np.random.default_rng(0)
     xs = [rng.normal(size=(n, 6)) for n in (29, 30, 31, 47, 400, 1203)]
@@ -118,7 +136,7 @@ def test_align_many_is_align_on_the_trackers_slices(replay, models, task):
         assert (got.yaw is None) == (want.yaw is None) == (not pcfg.heading_frame)
         if want.yaw is not None:  # the phone model's heading frame
             np.testing.assert_allclose(got.yaw, want.yaw, rtol=0, atol=1e-9)
-        assert got.meta.keys() == want.meta.keys()
+        assert got.meta == want.meta  # the frame's record too (one device: its own frame)
 
 
 def test_a_batched_crowd_keeps_every_sessions_path_within_a_tenth_of_a_metre(replay, models):
@@ -146,8 +164,12 @@ def test_a_batched_crowd_keeps_every_sessions_path_within_a_tenth_of_a_metre(rep
         if k % 25 == 0:
             for sid in starts:
                 if sid in cr.sessions and cr.sessions[sid].tracker is not None:
-                    t_new, xy_new, *_ = cr.sessions[sid].tracker.path()
+                    tr = cr.sessions[sid].tracker
+                    t_new, xy_new, sig_new, _ = tr.path()
                     t_old, xy_old, *_ = old[sid].path()
+                    # the page's points, settled ones kept between updates: page_points of the whole path
+                    if tr.cfg is not None:
+                        assert tr._snapshot()["path"] == page_points(t_new, xy_new, sig_new, tr.cfg.rate)
                     assert len(t_new) == len(t_old)
                     if len(t_new):
                         np.testing.assert_allclose(t_new, t_old, rtol=0, atol=1e-9)
@@ -161,8 +183,9 @@ def test_a_batched_crowd_keeps_every_sessions_path_within_a_tenth_of_a_metre(rep
         new = cr.sessions[sid].tracker
         assert new.batched and new.fixes
         assert new.activity is not None and new.activity == old[sid].activity  # the label, its time, confidence
-        t_new, xy_new, _, method = new.path()
+        t_new, xy_new, sig_new, method = new.path()
         t_old, xy_old, _, method_old = old[sid].path()
+        assert new._snapshot()["path"] == page_points(t_new, xy_new, sig_new, new.cfg.rate)
         assert method == method_old != "none" and len(t_new) == len(t_old) > 600
         worst = max(worst, float(np.abs(xy_new - xy_old).max()))
         checked += 1

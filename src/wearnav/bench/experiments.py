@@ -423,6 +423,15 @@ EXPERIMENTS: tuple[Experiment, ...] = (
         "0046",
         ("ilc2",),
     ),
+    Experiment(
+        "radio-track",
+        "the user's path with a radio map of other walks: IPIN 2023 each trial held out, ILC2 walks held out in 5 groups (20 a floor)",
+        ("bench", "radio-track", "--ipin", "{data}/ipin", "--ilc2", "{data}/ilc2", "--out", "{out}"),
+        ("radio-track",),
+        SHIPPED,
+        "0048",
+        ("ipin", "ilc2"),
+    ),
 )
 
 _PLACEHOLDER = re.compile(r"\{(\w+)\}")

@@ -124,6 +124,17 @@ QUESTIONS: tuple[Question, ...] = (
         tuple(Pick(f"{f} held out", rf"^{f}$", "median ratio", "Every floor") for f in ("B1", "F1", "F2", "F3", "F4")),
     ),
     Question(
+        "radio-track",
+        "The user's path",
+        "Indoors, where fixes fail: how close does a radio map of other walks bring the user's path (no start, no truth), with the shipped model and with PDR?",
+        ("radio-track",),
+        (
+            Pick("IPIN 2023: fixes + radio map", r"^fixes \+ radio map · phone$", "median (m)"),
+            Pick("raw fixes", r"^raw phone fixes$", "median (m)"),
+            Pick("ILC2: radio map + plan, no GNSS", r"^radio map \+ plan · phone$", "median (m)"),
+        ),
+    ),
+    Question(
         "sim-fusion",
         "The user's path",
         "On the simulator's dense truth, what do the fixes and the smoother add to the shipped `phone` model?",

@@ -84,6 +84,9 @@ class _Sensor:
             else np.array([y for c in self.chunks for y in (c[2] or [None] * len(c[0]))], object)
         )
         self.chunks = []
+        if t.size and (not self.n or t[0] > self._t[self.n - 1]) and bool((t[1:] > t[:-1]).all()):
+            self._append(t, v, x)  # the usual message: later than everything so far, in order, no repeats
+            return
         if self.n and t.min() <= self._t[self.n - 1]:  # out of order: merge with the rows from t.min() on
             i = int(np.searchsorted(self.t, t.min(), side="left"))
             t, v = np.concatenate([self._t[i : self.n], t]), np.concatenate([self._v[i : self.n], v])
@@ -98,6 +101,10 @@ class _Sensor:
         t, v = t[keep], v[keep]
         if x is not None:
             x = x[order][keep]
+        self._append(t, v, x)
+
+    def _append(self, t: np.ndarray, v: np.ndarray, x: np.ndarray | None) -> None:
+        """Rows ``t`` (sorted, all later than the rows kept) after the rows kept."""
         need = self.n + t.size
         if need > self._t.size:  # grow by doubling (new arrays)
             cap = max(need, 2 * self._t.size, 1024)
@@ -130,6 +137,9 @@ class SessionBuffer:
         self._cache: tuple | None = None
         self._snap: tuple[int, dict[str, tuple]] | None = None  # the latest _snapshot, by version
         self._fresh_cache: tuple[tuple, np.ndarray] | None = None  # _first_fresh_row's last answer
+        self._covered: tuple[int, float] | None = None  # covered_until's last answer, by version
+        # the live tracker's last fixes in metres (wearnav.live.tracker._lean_fixes): origin, times, (N, 2)
+        self.fix_metres: tuple[tuple[float, float], np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def from_store(cls, store, session_id: str) -> SessionBuffer:
@@ -346,7 +356,10 @@ class SessionBuffer:
         earliest of its sensors' latest, as its stream needs them all). Connected: its latest
         sample is within ``CONNECTED_S`` of the newest of any device (sample time, so that a replay
         or a restart sees what the live session saw): earbuds taken out do not stop the path."""
-        _, snap = self._snapshot()
+        version, snap = self._snapshot()
+        got = self._covered
+        if got is not None and got[0] == version:  # asked again before anything was added
+            return got[1]
         last: dict[str, int] = {}
         for fname, entry in snap.items():
             dev = SENSORS[fname].device
@@ -355,7 +368,19 @@ class SessionBuffer:
         if not last or self.t0_unix_ns is None:
             return 0.0
         newest = max(last.values())
-        return (min(t for t in last.values() if t >= newest - CONNECTED_S * NS) - self.t0_unix_ns) / NS
+        covered = (min(t for t in last.values() if t >= newest - CONNECTED_S * NS) - self.t0_unix_ns) / NS
+        self._covered = (version, covered)
+        return covered
+
+    def motion_span_s(self) -> float:
+        """s from the earliest to the latest motion sample (any device's sensors): no device's stream
+        spans more (each is made of its sensors' samples), so a tracker can tell without building a
+        Recording that the session is still too short to start."""
+        _, snap = self._snapshot()
+        motion = [entry[0] for fname, entry in snap.items() if SENSORS[fname].device is not None]
+        if not motion:
+            return 0.0
+        return (max(int(t[-1]) for t in motion) - min(int(t[0]) for t in motion)) / NS
 
     def devices(self) -> dict[str, dict]:
         """{"phone": {"rate_hz": 99.8, "last_seen_unix_s": ..., "samples": n}, ...}: each device's
@@ -460,9 +485,9 @@ def cut(rec: Recording, t_from: float) -> Recording:
     """``rec`` from ``t_from`` (s) on: every stream and the fixes."""
     devices = {}
     for dev, s in rec.devices.items():
-        k = s.t >= t_from
-        if k.any():
-            devices[dev] = sliced(s, k, worn=False)
+        i = int(np.searchsorted(s.t, t_from, side="left"))  # times increase: the rows from i on
+        if i < len(s.t):
+            devices[dev] = sliced(s, slice(i, None), worn=False)
     fixes = None
     if rec.fixes is not None and (k := rec.fixes.t >= t_from).any():
         fixes = Fixes(t=rec.fixes.t[k], pos=rec.fixes.pos[k], accuracy=rec.fixes.accuracy[k])
@@ -471,9 +496,10 @@ def cut(rec: Recording, t_from: float) -> Recording:
     return derived(rec, devices, fixes)
 
 
-def sliced(s: DeviceStream, k: np.ndarray, worn: bool = True) -> DeviceStream:
-    """``s`` at the samples ``k`` (a mask or indices in order), not validated again: a slice of a
-    valid stream is valid, and its checks would change nothing (its times still increase, its values
+def sliced(s: DeviceStream, k: np.ndarray | slice, worn: bool = True) -> DeviceStream:
+    """``s`` at the samples ``k`` (a mask, indices in order, or a slice: views of ``s``'s arrays, which
+    nothing writes to), not validated again: a slice of a valid stream is valid, and its checks would
+    change nothing (its times still increase, its values
     are finite and in range, its quaternions as unit as they were; the units check is off, as for
     any slice). ``worn`` False leaves the worn flags out. A DeviceStream's checks of every slice were
     a tenth of building an update's Recording."""

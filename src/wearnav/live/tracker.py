@@ -61,7 +61,7 @@ from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
 from wearnav.importers import sensorlogger_build as slb
-from wearnav.importers.common import MAX_INTERP_GAP_S
+from wearnav.importers.common import MAX_INTERP_GAP_S, check_latlon
 from wearnav.importers.sensorlogger_map import ORIENTATION_COLS, XYZ, acceleration_convention
 from wearnav.live.buffer import MARGIN_S, NS, cut, derived, sliced
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
@@ -69,8 +69,8 @@ from wearnav.preprocess import Aligned, PreprocessConfig, align, clock, common_s
 from wearnav.preprocess.augment import moving_average
 from wearnav.preprocess.batch import align_many
 from wearnav.preprocess.windows import WindowConfig, WindowDataset, turn
-from wearnav.recording import Recording
-from wearnav.report.trajectory_page import page_points
+from wearnav.recording import Fixes, Recording
+from wearnav.report.trajectory_page import POINT_S, page_points
 from wearnav.track import odometry_preprocess, path_times
 from wearnav.track.trust import input_warnings
 from wearnav.train.labelling import UNKNOWN_INDEX, Windows, class_name, class_windows, decide_classes, unknown_note
@@ -85,8 +85,10 @@ CONTEXT_S = 90.0
 # low-pass's edge (wearnav.preprocess: 4th-order Butterworth at 0.4 × the model rate, 10 Hz for 25 Hz:
 # its transient is gone within a second) and the stream's interpolation. Aligning 90 s for every
 # update was most of a phone-only session's cost; 10 s keeps each window's input track's to round-off
-# (tests/test_live_tracker.py, 1e-4 m).
-ONE_DEVICE_CONTEXT_S = 10.0
+# (tests/test_live_tracker.py, 1e-4 m), and so does 3 s (issue 61: with the update's Recording and its
+# alignment made from arrays, their cost follows the length aligned; 3 s instead of 10 took 0.7-1.5 ms
+# off a walker-second, docs/live-scaling.md).
+ONE_DEVICE_CONTEXT_S = 3.0
 LAG_S = 1.0  # a window is predicted once the data reaches this far past its end (zero-phase filters)
 # Several devices: a window is final once the data reaches this far past it (the common frame's yaw,
 # wearnav.preprocess.frames, is a 20-s Gaussian kernel estimate: 3 σ); until then it is predicted again at
@@ -104,7 +106,11 @@ STEP_S = 0.5
 # for issue 37), the final path (the session's end) is a solve as before.
 FUSE_EVERY_S = 10.0
 PLACE_S = 10.0  # ... on the last this many seconds of the smoothed path (wearnav.fuse.rigid_fit)
-ACTIVITY_EVERY_S = 1.0  # the activity label is refreshed at most this often (s of session time)
+# The activity label is refreshed at most this often (s of session time). Issue 61: 2 s instead of 1 s
+# halves the classifier's share of a walker's tracking (its three-member ensemble sees three windows
+# per label: a quarter of the tracking CPU at 1 s); the label is decided over five 2.56-s windows
+# (about 6 s of walk: classify's context_windows), so refreshing it every second added little.
+ACTIVITY_EVERY_S = 2.0
 TRUST_AFTER_S = 30.0  # the input's warnings once this much of the session has arrived
 # The model and the clock are chosen once the data reaches this far past align's edge tolerance
 # (a device starting later than that after the first counts as put on mid-walk), for the devices'
@@ -209,6 +215,7 @@ class LiveTracker:
         self._pending: list[tuple[float, float, float, float]] = []  # fixes before an origin: t, lat, lon, acc
         self.fixes: list[tuple[float, float, float, float]] = []  # t, east, north, accuracy
         self._fix_page: list[list] = []  # the fixes rounded for the page (_fix_rows)
+        self._page_rows: tuple[Any, list] = (None, [])  # the path's settled points for the page (_page_path)
         self.activity: dict | None = None
         self._activity_at = -np.inf
         self.warnings: list[str] = []
@@ -278,6 +285,9 @@ class LiveTracker:
         tic = time.perf_counter()
         whole = None
         if self.clock0 is None:
+            tol = (odometry_preprocess(self.cfg) if self.cfg is not None else PreprocessConfig()).edge_tolerance
+            if hasattr(buf, "motion_span_s") and buf.motion_span_s() < tol + START_MARGIN_S - 1e-6:
+                return None  # too short for _start, whose streams span no more than this: no Recording yet
             whole = buf.recording()  # the session so far (short): the clock's start, and every fix so far
             if not self._start(whole):
                 return None
@@ -429,8 +439,11 @@ class LiveTracker:
         self._fix_t = float(fx.t[new][-1])
         pos, acc, ft = fx.pos[new, :2], fx.accuracy[new], fx.t[new]
         lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
-        if lat0 is None or lon0 is None:  # metres without a place on Earth: taken as they are
-            for row in zip(ft, pos[:, 0], pos[:, 1], acc):
+        same = self.origin is not None and self.origin == (lat0, lon0) and not self._pending
+        if lat0 is None or lon0 is None or same:
+            # metres without a place on Earth, or already in the frame of the session's origin (no
+            # round trip through lat/lon: it gave back the same metres to 1e-9 m, at 1 ms an update)
+            for row in zip(ft.tolist(), pos[:, 0].tolist(), pos[:, 1].tolist(), acc.tolist()):
                 self._add_fix(*row)
             return True
         lat, lon = geo.local_to_latlon(pos, float(lat0), float(lon0))
@@ -597,11 +610,34 @@ class LiveTracker:
         ]
         return list(rows)
 
-    def _snapshot(self) -> dict:
+    def _page_path(self) -> tuple[list, str]:
+        """:func:`page_points` of :meth:`path`, and what placed it, with the points of the path's
+        settled part kept from the last update rather than rounded again (they grew with the
+        session): the final odometry while nothing is fused, the smoothed path of one solve while
+        it is the same solve (a new solve places them anew). The same rows as ``page_points`` of the
+        whole path (tests/test_live_batched.py)."""
         t, xy, sig, anchor = self.path()
+        rate = self.cfg.rate if self.cfg is not None else 1.0
+        step = max(1, int(round(POINT_S * rate)))
+        res = self._fused if anchor != "none" else None
+        settled = len(self.odo.t) if res is None else min(len(res.xy), len(self.odo.t))
+        key, rows = self._page_rows
+        if key is not res:
+            rows = []
+        # the cached rows are the grid points 0, step, ...; the rest from the grid point i0 on, which
+        # is at most the path's last sample (page_points' own last point, where it is off the grid)
+        i0 = min(len(rows), max(0, len(t) - 1) // step) * step
+        rows = rows[: i0 // step]
+        new = page_points(t[i0:], xy[i0:], sig[i0:], rate)
+        keep = min(max(0, -(-(settled - i0) // step)), len(new))  # the grid points before ``settled``
+        self._page_rows = (res, rows + new[:keep])
+        return rows + new, anchor
+
+    def _snapshot(self) -> dict:
+        path, anchor = self._page_path()
         return {
             "origin": list(self.origin) if self.origin is not None else None,
-            "path": page_points(t, xy, sig, self.cfg.rate if self.cfg is not None else 1.0),
+            "path": path,
             "anchor": anchor,
             # the path after this time is provisional: predicted again as data arrives (FRAME_LAG_S)
             "final_t_s": round(float(self.odo.t[-1]), 3) if self.odo.t else None,
@@ -719,13 +755,45 @@ def lean_recording(buf, t_from: float, template: Recording) -> Recording | None:
                 return None
             lat, lon = (full_loc[2].index(c) for c in ("latitude", "longitude"))
             try:
-                fixes, where = slb._fixes(loc, sec(loc.t_ns), (float(full_loc[1][k, lat]), float(full_loc[1][k, lon])))
+                fixes, where = _lean_fixes(
+                    buf, loc, sec(loc.t_ns), (float(full_loc[1][k, lat]), float(full_loc[1][k, lon]))
+                )
             except FormatError:
                 return None
             meta.update(where)
     rec = derived(template, {"phone": stream}, fixes)
     rec.meta = meta
     return cut(rec, t_from)
+
+
+def _lean_fixes(buf, loc, t: np.ndarray, origin: tuple[float, float]) -> tuple[Fixes, dict]:
+    """The importer's fixes (:func:`wearnav.importers.sensorlogger_build._fixes`) of ``loc`` in the
+    frame at ``origin``, each row's metres converted once: an update's slice holds the last seconds'
+    fixes, nearly all of which the previous update converted (``buf.fix_metres``: the rows it
+    converted, by sample time). The converter works row by row, so a row's metres are the same
+    whichever rows it is converted with (tests/test_live_batched.py compares them bit for bit)."""
+    lat, lon = loc.column("latitude"), loc.column("longitude")
+    check_latlon(lat, lon, "Location", loc.path)
+    if loc.has("horizontalAccuracy"):
+        accuracy = loc.column("horizontalAccuracy")
+        accuracy = np.where(accuracy >= 0, accuracy, np.nan)  # negative = invalid (UNITS.md)
+    else:
+        accuracy = np.full(len(t), np.nan)
+    t_ns, pos = loc.t_ns, np.empty((len(t), 2))
+    had = buf.fix_metres
+    hit = np.zeros(len(t_ns), bool)
+    if had is not None and had[0] == origin and len(had[1]):
+        i = np.minimum(np.searchsorted(had[1], t_ns), len(had[1]) - 1)
+        hit = had[1][i] == t_ns
+        pos[hit] = had[2][i[hit]]
+    if not hit.all():
+        pos[~hit] = geo.latlon_to_local(lat[~hit], lon[~hit], *origin)
+    buf.fix_metres = (origin, np.array(t_ns), pos.copy())
+    try:
+        fixes = Fixes(t=t, pos=pos, accuracy=accuracy)
+    except ValidationError as exc:
+        raise FormatError(exc.reason, loc.path) from None
+    return fixes, {"origin_lat": origin[0], "origin_lon": origin[1], "projection": geo.PROJECTION}
 
 
 __all__ = ["LiveTracker", "Step", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]

@@ -8,8 +8,9 @@ filter passes, each over a few hundred samples. Here every session's streams are
 over all streams of one rate stacked (:func:`lowpass_many`, ragged lengths kept exact: each
 stream's forward pass starts at its own first sample, its backward pass at its own last), the
 rest (interpolation onto each clock, the common frame, the headings) per recording as
-:func:`~wearnav.preprocess.align` does it. Every output equals ``align``'s to round-off
-(tests/test_preprocess_batch.py).
+:func:`~wearnav.preprocess.align` does it, except where one device is present: its common frame is
+its own, not estimated (:func:`_one_device_frame`). Every output equals ``align``'s to round-off
+(tests/test_live_batched.py).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from wearnav.preprocess import (
     align,
     nominal_rate,
 )
-from wearnav.preprocess.frames import frame_yaws, rotate_stacked, turn_devices
+from wearnav.preprocess.frames import frame_yaws, reference_index, rotate_stacked, turn_devices
 from wearnav.recording import Recording
 
 
@@ -123,12 +124,13 @@ def align_many(items: list[tuple[Recording, PreprocessConfig, np.ndarray]]) -> l
         if any(items[streams[k][0]][1].heading_frame for k in world):
             for k, part in zip(world, np.split(rot.apply(HEADING_AXIS), cuts)):
                 heads[k] = part
+    rates = [s.rate for _, _, s in streams]  # a median of the stream's intervals: once each
     # the low-pass: one stacked pass per (stream rate, clock rate)
     groups: dict[tuple[float, float], list[int]] = {}
-    for k, (i, _d, s) in enumerate(streams):
+    for k, (i, _d, _s) in enumerate(streams):
         cfg = items[i][1]
         if cfg.lowpass:
-            groups.setdefault((nominal_rate(s.rate), cfg.rate), []).append(k)
+            groups.setdefault((nominal_rate(rates[k]), cfg.rate), []).append(k)
     for (fs, rate), ks in groups.items():
         for k, y in zip(ks, lowpass_many([xs[k] for k in ks], fs, rate)):
             xs[k] = y
@@ -139,19 +141,22 @@ def align_many(items: list[tuple[Recording, PreprocessConfig, np.ndarray]]) -> l
         rec, cfg, t = items[i]
         imu = np.zeros((len(cfg.devices), t.size, 6), np.float32)
         mask = np.zeros((len(cfg.devices), t.size), bool)
-        hs: dict[int, np.ndarray] = {}
+        hs: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         for k in per_item.get(i, []):
             _, d, s = streams[k]
-            imu[d], mask[d] = _to_clock(s, xs[k], t)
-            h = heads[k]
+            imu[d], mask[d], h = _to_clock(s, xs[k], t, rates[k], heads[k])
             if h is not None:
                 hs[d] = h
         meta = dict(rec.meta)
         turned = None
         if cfg.frame == "world" and cfg.frame_align != "none":
-            turned, meta["frame"] = frame_yaws(imu, mask, tuple(cfg.devices), cfg.rate, None, cfg.frame_align)
-            if turned is not None:
-                imu = turn_devices(imu, mask, turned)
+            one = _one_device_frame(mask, tuple(cfg.devices))
+            if one is not None:  # nothing to turn: the one device is its own frame
+                turned, meta["frame"] = one
+            else:
+                turned, meta["frame"] = frame_yaws(imu, mask, tuple(cfg.devices), cfg.rate, None, cfg.frame_align)
+                if turned is not None:
+                    imu = turn_devices(imu, mask, turned)
         if cfg.yaw_deg:
             imu = np.stack([rotate_stacked(x, -np.deg2rad(cfg.yaw_deg)) for x in imu]).astype(np.float32)
         yaws = _headings(rec, cfg, t, mask, turned, hs) if cfg.heading_frame else None
@@ -160,30 +165,50 @@ def align_many(items: list[tuple[Recording, PreprocessConfig, np.ndarray]]) -> l
     return out  # type: ignore[return-value]
 
 
-def _to_clock(s, x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`wearnav.preprocess.stream_to_clock` after its rotation and low-pass (``x``)."""
-    out, mask = interp_onto(t, s.t, x, max_gap=periods(STREAM_MAX_GAP_PERIODS, s.rate))
-    out = np.array(out, dtype=np.float64)
+def _one_device_frame(mask: np.ndarray, devices: tuple[str, ...]) -> tuple[np.ndarray, dict] | None:
+    """:func:`~wearnav.preprocess.frames.frame_yaws` without truth where exactly one device is present
+    (a phone-only session): that device is the reference, every yaw 0 and turning by it changes
+    nothing, so it is not done (the frame's estimate, per time step, was a tenth of a phone-only
+    session's alignment); None where more or none are present (``frame_yaws`` decides)."""
+    present = mask.any(axis=1)
+    if int(present.sum()) != 1:
+        return None
+    ref = reference_index(devices, mask)
+    return np.zeros(mask.shape), {"frame": "common", "reference": devices[ref], "devices": {}, "truth": None}
+
+
+def _to_clock(
+    s, x: np.ndarray, t: np.ndarray, rate: float, head: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+    """:func:`wearnav.preprocess.stream_to_clock` after its rotation and low-pass (``x``; the
+    stream's ``rate``), and where ``head`` (the rotated heading axis, (n, 3)) is given, the
+    heading interpolated onto ``t`` with its mask (:func:`_headings`): in the same call, each
+    column interpolated alone as before."""
+    if head is not None:  # (as _device_headings: a heading too short to tell is NaN)
+        h = head[:, 0] + 1j * head[:, 1]
+        h = np.where(np.abs(h) >= MIN_HEADING_NORM, h, np.nan)
+        x = np.concatenate([x, h.real[:, None], h.imag[:, None]], axis=1)
+    both, mask = interp_onto(t, s.t, x, max_gap=periods(STREAM_MAX_GAP_PERIODS, rate))
+    both = np.asarray(both, dtype=np.float64)
+    heading = None if head is None else (both[:, 6] + 1j * both[:, 7], mask.copy())
+    out = np.array(both[:, :6], dtype=np.float64)
     if s.worn is not None:
         nearest = np.clip(np.searchsorted(s.t, t), 0, len(s.t) - 1)
         mask &= s.worn[nearest]
     if s.gyro is None:
         out[:, 3:] = 0.0
     out[~mask] = 0.0
-    return out.astype(np.float32), mask
+    return out.astype(np.float32), mask, heading
 
 
-def _headings(rec, cfg, t, mask, turned, hs: dict[int, np.ndarray]) -> np.ndarray:
-    """:func:`wearnav.preprocess._device_headings` from each device's rotated heading axis ``hs``."""
+def _headings(rec, cfg, t, mask, turned, hs: dict[int, tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """:func:`wearnav.preprocess._device_headings` from each device's heading on the clock and its
+    mask, ``hs`` (:func:`_to_clock`)."""
     yaws = np.full((len(cfg.devices), t.size), np.nan)
     for d, dev in enumerate(cfg.devices):
         if dev not in rec.devices or not mask[d].any():
             continue
-        s, a = rec.devices[dev], hs[d]
-        h = a[:, 0] + 1j * a[:, 1]
-        h = np.where(np.abs(h) >= MIN_HEADING_NORM, h, np.nan)
-        v, ok = interp_onto(t, s.t, np.stack([h.real, h.imag], 1), max_gap=periods(STREAM_MAX_GAP_PERIODS, s.rate))
-        v = np.asarray(v)[:, 0] + 1j * np.asarray(v)[:, 1]
+        v, ok = hs[d]
         v = np.where(ok & (np.abs(v) > 0), v, np.nan)
         with np.errstate(invalid="ignore"):
             psi = np.angle(v / np.abs(v))
