@@ -4,6 +4,7 @@ another site that does not fit, radio positions as location fixes, and the CLI e
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 
@@ -164,6 +165,10 @@ def test_radio_positions_join_the_fixes(built):
     np.testing.assert_array_equal(out.fixes.t[~radio], rec.fixes.t)  # the phone's fixes unchanged
     bare = radiomap.with_radio_fixes(synthetic_walk("bare", [(2.0, 2.0), (30.0, 10.0)], 0, 8), built)[0]
     assert bare.fixes is not None and np.all(np.isfinite(bare.fixes.accuracy))  # no GNSS: the radio is the start
+    # beside the phone's fixes a radio position weighs as RADIO_BESIDE_FIXES of its radius; alone, its radius
+    alone = radiomap.with_radio_fixes(dataclasses.replace(rec, fixes=None), built)[0].fixes
+    assert alone is not None
+    np.testing.assert_allclose(out.fixes.accuracy[radio], radiomap.RADIO_BESIDE_FIXES * alone.accuracy)
     floors = radiomap.floor_at(np.array([0.0, 2.0, 4.0, 6.0]), np.array([0.0, 1.0, 0.0, 0.0]), np.array([2.0, 50.0]))
     np.testing.assert_array_equal(floors, [0.0, 0.0])  # one odd scan does not change floor
 
