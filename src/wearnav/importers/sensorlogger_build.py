@@ -62,7 +62,7 @@ Sensor Logger records no ground truth: ``truth`` is None and ``labels`` is empty
 from __future__ import annotations
 
 import warnings
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from pathlib import Path
 
 import numpy as np
@@ -473,7 +473,11 @@ def _gyro_residual(rot: Rotation, gyro: np.ndarray | None, t: np.ndarray) -> flo
     return float(np.sum(err[keep]) / np.sum(w[keep] ** 2))
 
 
-def _fixes(loc: Table, t: np.ndarray, origin: tuple[float, float] | None = None) -> tuple[Fixes, dict]:
+def _fixes(
+    loc: Table, t: np.ndarray, origin: tuple[float, float] | None = None, to_local: Callable | None = None
+) -> tuple[Fixes, dict]:
+    """The fixes of ``loc`` in metres about ``origin`` (default: its first fix); ``to_local`` in place of
+    :func:`wearnav.core.geo.latlon_to_local` (the live tracker's, which reuses the rows it converted)."""
     lat, lon = loc.column("latitude"), loc.column("longitude")
     check_latlon(lat, lon, "Location", loc.path)
     if loc.has("horizontalAccuracy"):
@@ -482,7 +486,7 @@ def _fixes(loc: Table, t: np.ndarray, origin: tuple[float, float] | None = None)
     else:
         accuracy = np.full(len(t), np.nan)
     lat0, lon0 = (float(lat[0]), float(lon[0])) if origin is None else origin
-    pos = geo.latlon_to_local(lat, lon, lat0, lon0)
+    pos = (to_local or geo.latlon_to_local)(lat, lon, lat0, lon0)
     try:
         fixes = Fixes(t=t, pos=pos, accuracy=accuracy)
     except ValidationError as exc:

@@ -61,7 +61,7 @@ from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
 from wearnav.importers import sensorlogger_build as slb
-from wearnav.importers.common import MAX_INTERP_GAP_S, check_latlon
+from wearnav.importers.common import MAX_INTERP_GAP_S
 from wearnav.importers.sensorlogger_map import ORIENTATION_COLS, XYZ, acceleration_convention
 from wearnav.live.buffer import MARGIN_S, NS, cut, derived, sliced
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
@@ -772,28 +772,21 @@ def _lean_fixes(buf, loc, t: np.ndarray, origin: tuple[float, float]) -> tuple[F
     fixes, nearly all of which the previous update converted (``buf.fix_metres``: the rows it
     converted, by sample time). The converter works row by row, so a row's metres are the same
     whichever rows it is converted with (tests/test_live_batched.py compares them bit for bit)."""
-    lat, lon = loc.column("latitude"), loc.column("longitude")
-    check_latlon(lat, lon, "Location", loc.path)
-    if loc.has("horizontalAccuracy"):
-        accuracy = loc.column("horizontalAccuracy")
-        accuracy = np.where(accuracy >= 0, accuracy, np.nan)  # negative = invalid (UNITS.md)
-    else:
-        accuracy = np.full(len(t), np.nan)
-    t_ns, pos = loc.t_ns, np.empty((len(t), 2))
-    had = buf.fix_metres
-    hit = np.zeros(len(t_ns), bool)
-    if had is not None and had[0] == origin and len(had[1]):
-        i = np.minimum(np.searchsorted(had[1], t_ns), len(had[1]) - 1)
-        hit = had[1][i] == t_ns
-        pos[hit] = had[2][i[hit]]
-    if not hit.all():
-        pos[~hit] = geo.latlon_to_local(lat[~hit], lon[~hit], *origin)
-    buf.fix_metres = (origin, np.array(t_ns), pos.copy())
-    try:
-        fixes = Fixes(t=t, pos=pos, accuracy=accuracy)
-    except ValidationError as exc:
-        raise FormatError(exc.reason, loc.path) from None
-    return fixes, {"origin_lat": origin[0], "origin_lon": origin[1], "projection": geo.PROJECTION}
+    t_ns = loc.t_ns
+
+    def to_local(lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float) -> np.ndarray:
+        pos, had = np.empty((len(lat), 2)), buf.fix_metres
+        hit = np.zeros(len(t_ns), bool)
+        if had is not None and had[0] == (lat0, lon0) and len(had[1]):
+            i = np.minimum(np.searchsorted(had[1], t_ns), len(had[1]) - 1)
+            hit = had[1][i] == t_ns
+            pos[hit] = had[2][i[hit]]
+        if not hit.all():
+            pos[~hit] = geo.latlon_to_local(lat[~hit], lon[~hit], lat0, lon0)
+        buf.fix_metres = ((lat0, lon0), np.array(t_ns), pos.copy())
+        return pos
+
+    return slb._fixes(loc, t, origin, to_local)
 
 
 __all__ = ["LiveTracker", "Step", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]
