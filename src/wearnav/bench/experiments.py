@@ -429,7 +429,7 @@ EXPERIMENTS: tuple[Experiment, ...] = (
         ("bench", "radio-track", "--ipin", "{data}/ipin", "--ilc2", "{data}/ilc2", "--out", "{out}"),
         ("radio-track",),
         SHIPPED,
-        "0048",
+        "0049",
         ("ipin", "ilc2"),
     ),
 )

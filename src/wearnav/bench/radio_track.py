@@ -277,7 +277,7 @@ def page(summary: dict[str, Any], meta: dict[str, Any]) -> str:
         "`phone`: the shipped phone model (trained on the simulator only); `pdr`: step detection × 0.67 m. "
         "No known-start rows: a start taken from the survey is truth in a test input. The weight of radio "
         "positions beside GNSS (`RADIO_BESIDE_FIXES`) was chosen on IPIN's trials, each left out in turn: "
-        "docs/decisions/0048-radio-map.md gives that choice's score on the trials left out.",
+        "docs/decisions/0049-radio-map-bench-floor-weights.md gives that choice's score on the trials left out.",
     ]
     for site, s in summary.items():
         lines += [

@@ -41,7 +41,7 @@ map keeps the site's floor levels (:func:`wearnav.fuse.floors.fit_floor_levels`,
 walk with a barometer then follows the barometer's floor track from the start floor that agrees with
 most of its scans' floor votes (Wi-Fi says which floor, the barometer when it changes), else the votes
 alone, smoothed (:func:`floor_at`).
-Decision: docs/decisions/0048-radio-map.md.
+Decisions: docs/decisions/0048-radio-map.md, docs/decisions/0049-radio-map-bench-floor-weights.md.
 """
 
 from __future__ import annotations
