@@ -14,7 +14,7 @@ import pytest
 from conftest import make_stream, run_cli
 from wearnav.dataset import DatasetWriter
 from wearnav.errors import FormatError
-from wearnav.fuse import radiomap
+from wearnav.fuse import radiofloor, radiomap
 from wearnav.fuse.survey import positions_between
 from wearnav.recording import Fixes, Recording, Trajectory, WifiScans
 
@@ -169,7 +169,7 @@ def test_radio_positions_join_the_fixes(built):
     alone = radiomap.with_radio_fixes(dataclasses.replace(rec, fixes=None), built)[0].fixes
     assert alone is not None
     np.testing.assert_allclose(out.fixes.accuracy[radio], radiomap.RADIO_BESIDE_FIXES * alone.accuracy)
-    floors = radiomap.floor_at(np.array([0.0, 2.0, 4.0, 6.0]), np.array([0.0, 1.0, 0.0, 0.0]), np.array([2.0, 50.0]))
+    floors = radiofloor.floor_at(np.array([0.0, 2.0, 4.0, 6.0]), np.array([0.0, 1.0, 0.0, 0.0]), np.array([2.0, 50.0]))
     np.testing.assert_array_equal(floors, [0.0, 0.0])  # one odd scan does not change floor
 
 
@@ -241,9 +241,9 @@ def test_the_barometer_follows_the_floor_from_the_start_most_wifi_votes_agree_wi
     votes[wrong] = np.clip(truth[wrong] + rng.choice([-1.0, 1.0], wrong.sum()), -2, 0)
     times = np.arange(0.0, 240.0, 1.0)
     want = np.where(times < 125.0, 0.0, -1.0)
-    got, info = radiomap.floor_over_time(pressure, levels, t_scan, votes, times)
+    got, info = radiofloor.floor_over_time(pressure, levels, t_scan, votes, times)
     assert info["start_floor"] == 0 and np.mean(got == want) > 0.97  # wrong only around the stair
-    alone, info = radiomap.floor_over_time(None, levels, t_scan, votes, times)
+    alone, info = radiofloor.floor_over_time(None, levels, t_scan, votes, times)
     assert info["floor_by"] == "Wi-Fi votes" and np.mean(alone == want) < np.mean(got == want)
 
 
@@ -310,11 +310,11 @@ def test_a_walks_floor_votes_become_one_sequence_that_changes_only_where_the_vot
     stray = rng.choice(80, 12, replace=False)  # 15 % of the votes name the other floor
     votes[stray] = 1 - votes[stray]
     floors = np.array([0.0, 1.0])
-    got = radiomap.floor_sequence(votes, floors, vote_right=0.85, switch=0.01)
+    got = radiofloor.floor_sequence(votes, floors, vote_right=0.85, switch=0.01)
     assert np.mean(got == truth) >= 0.95 and np.count_nonzero(np.diff(got)) == 1
     # a survey that never changed floor within a walk still lets a long-held change through
-    assert radiomap.floor_sequence(truth, floors, 0.99, 1e-5).tolist() == truth.tolist()
-    assert radiomap.floor_sequence(np.r_[np.zeros(30), [1.0], np.zeros(30)], floors, 0.99, 1e-5).max() == 0.0
+    assert radiofloor.floor_sequence(truth, floors, 0.99, 1e-5).tolist() == truth.tolist()
+    assert radiofloor.floor_sequence(np.r_[np.zeros(30), [1.0], np.zeros(30)], floors, 0.99, 1e-5).max() == 0.0
 
 
 def test_floor_switch_rate_counts_changes_between_a_walks_consecutive_scans():
@@ -327,4 +327,6 @@ def test_floor_switch_rate_counts_changes_between_a_walks_consecutive_scans():
         floor=np.array([0.0, 0.0, 1.0, 1.0, 2.0, 2.0]),
         walk=np.array(["w1"] * 4 + ["w2"] * 2, dtype=object),
     )
-    assert radiomap.floor_switch_rate(scans) == pytest.approx((1 + 1) / (4 + 2))  # 1 change in 4 pairs
+    assert radiofloor.floor_switch_rate(scans.t, scans.walk, scans.floor) == pytest.approx(
+        (1 + 1) / (4 + 2)
+    )  # 1 change in 4 pairs

@@ -26,7 +26,7 @@ from wearnav.fuse.calibrate import known_heading_deg
 from wearnav.fuse.config import FuseConfig
 from wearnav.fuse.floors import FloorLevels, fit_floor_levels, floor_track, start_floor
 from wearnav.fuse.particles import Beacons, MapConfig, MapResult, map_filter, start_heading_offset
-from wearnav.fuse.radiomap import floor_at
+from wearnav.fuse.radiofloor import floor_at
 from wearnav.plans import Walkable
 from wearnav.recording import FloorPlan, Recording
 
@@ -94,7 +94,7 @@ def floors_over_time(rec: Recording, site: SiteModels) -> tuple[Callable[[np.nda
 
 
 def _fix_floors(t_fix: np.ndarray, floor_fix: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """The floor over time from the fixes that carry one (:func:`wearnav.fuse.radiomap.floor_at`)."""
+    """The floor over time from the fixes that carry one (:func:`wearnav.fuse.radiofloor.floor_at`)."""
     return lambda times: floor_at(t_fix, floor_fix, np.asarray(times, np.float64))
 
 

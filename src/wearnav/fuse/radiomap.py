@@ -31,16 +31,16 @@ for a person). Use (:meth:`RadioMap.locate`): a recording's scans → positions 
 (:class:`RadioPositions`); a scan sharing fewer than ``min_common_aps`` access points with the map
 gets none; a recording of which no scan shares one is another site (:meth:`RadioMap.fits`).
 
-A walk's scans get their floors as one sequence (:func:`floor_sequence`, a hidden floor that changes
+A walk's scans get their floors as one sequence (:func:`wearnav.fuse.radiofloor.floor_sequence`, a hidden floor that changes
 as rarely as it did between the survey walks' consecutive scans, each vote as right as the map's
 cross-validation found), and each position comes from its floor's scans: a stray vote no longer
 puts a scan in another floor's frame (ILC2's floors each have their own).
 
-The floor (:func:`floor_over_time`): where the survey walks carry a barometer and surveyed floors, the
+The floor (:func:`wearnav.fuse.radiofloor.floor_over_time`): where the survey walks carry a barometer and surveyed floors, the
 map keeps the site's floor levels (:func:`wearnav.fuse.floors.fit_floor_levels`, on its card); a
 walk with a barometer then follows the barometer's floor track from the start floor that agrees with
 most of its scans' floor votes (Wi-Fi says which floor, the barometer when it changes), else the votes
-alone, smoothed (:func:`floor_at`).
+alone, smoothed.
 Decisions: docs/decisions/0048-radio-map.md, docs/decisions/0049-radio-map-bench-floor-weights.md.
 """
 
@@ -59,9 +59,10 @@ from wearnav.core.fileio import atomic_path, write_text_atomic
 from wearnav.core.textio import read_json
 from wearnav.errors import ConfigError, FormatError, ValidationError
 from wearnav.fuse.config import RADIUS_68
-from wearnav.fuse.floors import FloorLevels, fit_floor_levels, floor_track
+from wearnav.fuse.floors import FloorLevels, fit_floor_levels
+from wearnav.fuse.radiofloor import floor_sequence, floor_switch_rate
 from wearnav.fuse.survey import SURVEY_ODOMETRY, odometry_path, positions_between
-from wearnav.recording import Fixes, Pressure, Recording, WifiScans
+from wearnav.recording import Fixes, Recording, WifiScans
 
 FORMAT = "wearnav.radiomap"
 FORMAT_VERSION = 1
@@ -549,7 +550,8 @@ def build(
         raise ValidationError("no survey walk with Wi-Fi scans and surveyed points to build a radio map from")
     scans = Scans.concat(parts)
     rmap = from_scans(scans, cfg, infos, source, groups, group_by)
-    rmap.card["floor_switch_per_scan"] = floor_switch_rate(scans)
+    assert scans.walk is not None and scans.floor is not None
+    rmap.card["floor_switch_per_scan"] = floor_switch_rate(scans.t, scans.walk, scans.floor)
     try:
         rmap.card["floor_levels"] = fit_floor_levels(recordings).to_dict()
     except ValidationError:  # no walk over two floors with a barometer: the Wi-Fi votes alone give the floor
@@ -662,89 +664,3 @@ def phone_accuracy_scale(
         mid = float(np.sqrt(lo * hi))
         lo, hi = (lo, mid) if inside(mid) >= 0.68 else (mid, hi)
     return hi
-
-
-def floor_at(t_fix: np.ndarray, floor_fix: np.ndarray, times: np.ndarray, window_s: float = 10.0) -> np.ndarray:
-    """The floor at ``times``: at the nearest fix with a floor, the most frequent floor of those
-    fixes within ``window_s`` s of it (one wrong scan does not change floor); NaN without any."""
-    ok = np.isfinite(floor_fix)
-    t_fix, floor_fix = t_fix[ok], floor_fix[ok]
-    times = np.asarray(times, np.float64)
-    if t_fix.size == 0:
-        return np.full(times.shape, np.nan)
-    lo = np.searchsorted(t_fix, t_fix - window_s)
-    hi = np.searchsorted(t_fix, t_fix + window_s, side="right")
-    smooth = np.empty(t_fix.size)
-    for i, (a, b) in enumerate(zip(lo, hi)):
-        vals, n = np.unique(floor_fix[a:b], return_counts=True)
-        smooth[i] = vals[np.argmax(n)]
-    k = (
-        np.clip(np.searchsorted(t_fix, times), 1, max(t_fix.size - 1, 1))
-        if t_fix.size > 1
-        else np.zeros(times.shape, int)
-    )
-    if t_fix.size > 1:
-        k = np.where(np.abs(t_fix[k - 1] - times) <= np.abs(t_fix[k] - times), k - 1, k)
-    return smooth[k]
-
-
-def floor_switch_rate(scans: Scans) -> float:
-    """How often the floor changes from one scan of a survey walk to its next (Laplace's rule, so a
-    survey that never changes floor still allows a change: (changes + 1) / (pairs + 2))."""
-    assert scans.walk is not None and scans.floor is not None
-    order = np.lexsort((scans.t, scans.walk.astype(str)))
-    walk, floor = scans.walk.astype(str)[order], scans.floor[order]
-    same_walk = walk[1:] == walk[:-1]
-    changes = int(np.sum(same_walk & (floor[1:] != floor[:-1])))
-    return (changes + 1) / (int(same_walk.sum()) + 2)
-
-
-def floor_sequence(votes: np.ndarray, floors: np.ndarray, vote_right: float, switch: float) -> np.ndarray:
-    """The most likely floor of each scan of one walk (Viterbi): a hidden floor that changes from one
-    scan to the next with probability ``switch`` (to any other floor alike), each scan's vote right
-    with probability ``vote_right`` (the map's cross-validated floor accuracy), else any other floor
-    alike. A single wrong vote, or a run of a few in a long walk, does not change floor."""
-    n, m = votes.size, floors.size
-    right = float(np.clip(vote_right, 0.5, 0.999))
-    switch = float(np.clip(switch, 1e-9, 0.5))
-    log_emit = np.where(votes[:, None] == floors[None, :], np.log(right), np.log((1 - right) / max(m - 1, 1)))
-    log_stay, log_move = np.log(1 - switch), np.log(switch / max(m - 1, 1))
-    trans = np.where(np.eye(m, dtype=bool), log_stay, log_move)
-    score = log_emit[0] - np.log(m)
-    back = np.zeros((n, m), np.int64)
-    for i in range(1, n):
-        cand = score[:, None] + trans  # from (rows) → to (columns)
-        back[i] = np.argmax(cand, axis=0)
-        score = cand[back[i], np.arange(m)] + log_emit[i]
-    path = np.empty(n, np.int64)
-    path[-1] = int(np.argmax(score))
-    for i in range(n - 1, 0, -1):
-        path[i - 1] = back[i, path[i]]
-    return floors[path]
-
-
-def floor_over_time(
-    pressure: Pressure | None,
-    levels: FloorLevels | None,
-    t_radio: np.ndarray,
-    floor_radio: np.ndarray,
-    times: np.ndarray,
-) -> tuple[np.ndarray, dict[str, Any]]:
-    """The floor at ``times`` (module docstring): with a barometer and the site's floor ``levels``, the
-    barometer's floor track (:func:`wearnav.fuse.floors.floor_track`) from the start floor whose track
-    agrees with the most radio floor votes (``floor_radio`` at ``t_radio``; a tie goes to the floor
-    the first votes name); else the votes alone (:func:`floor_at`). Also what was done."""
-    ok = np.isfinite(floor_radio)
-    t_radio, floor_radio = np.asarray(t_radio)[ok], np.asarray(floor_radio)[ok]
-    if pressure is None or len(pressure) < 2 or levels is None or not t_radio.size:
-        return floor_at(t_radio, floor_radio, times), {"floor_by": "Wi-Fi votes"}
-    candidates = levels.floors or sorted({int(f) for f in floor_radio})
-    first = floor_at(t_radio, floor_radio, t_radio[:1])[0]
-    agree = {f: int(np.sum(floor_track(pressure, f, t_radio, levels) == floor_radio)) for f in candidates}
-    start = max(candidates, key=lambda f: (agree[f], f == first))
-    out = floor_track(pressure, start, np.asarray(times, np.float64), levels).astype(np.float64)
-    return out, {
-        "floor_by": "barometer from the start floor most Wi-Fi votes agree with",
-        "start_floor": int(start),
-        "votes_agreeing": round(agree[start] / t_radio.size, 3),
-    }

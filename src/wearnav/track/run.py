@@ -105,6 +105,7 @@ from wearnav.evaluate import odometry as odometry  # re-exported with the two be
 from wearnav.evaluate import odometry_preprocess as odometry_preprocess
 from wearnav.evaluate import path_times as path_times
 from wearnav.fuse import radiomap as radiomap_mod
+from wearnav.fuse.radiofloor import floor_over_time
 from wearnav.models import registry
 from wearnav.outputs import check_out_folder, staged_output
 from wearnav.recording import Recording
@@ -266,7 +267,7 @@ def track(
         table[dev] = (present[nearest, k] > 0).astype(int)
     if radio_fix is not None and radio_fix.any() and rec.fixes is not None and rec.fixes.floor is not None:
         assert rmap is not None and radio_info is not None
-        table["floor"], floor_info = radiomap_mod.floor_over_time(
+        table["floor"], floor_info = floor_over_time(
             rec.pressure, rmap.floor_levels, rec.fixes.t[radio_fix], rec.fixes.floor[radio_fix], t
         )
         radio_info |= floor_info
