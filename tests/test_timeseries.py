@@ -6,7 +6,16 @@ import numpy as np
 import pytest
 
 from wearnav.core import rotations
-from wearnav.core.timeseries import covered, drop_duplicate_times, interp_onto, period, periods, rate, sampling
+from wearnav.core.timeseries import (
+    covered,
+    drop_duplicate_times,
+    interp_onto,
+    nearest,
+    period,
+    periods,
+    rate,
+    sampling,
+)
 from wearnav.errors import ConfigError, ValidationError
 
 T_SRC = np.array([0.0, 0.1, 0.2, 1.2, 1.3])  # a 1-s hole between 0.2 and 1.2
@@ -97,3 +106,11 @@ def test_duplicate_policy_keeps_first_and_counts():
     assert keep.tolist() == [0] and n == 1
     with pytest.raises(ValidationError, match="backwards at row 2"):
         drop_duplicate_times(np.array([0.0, 1.0, 0.5]), "ACC")
+
+
+def test_nearest_is_the_closest_sample_and_the_earlier_at_a_tie():
+    src = np.array([0.0, 1.0, 2.0, 4.0])
+    dst = np.array([-5.0, 0.4, 0.5, 0.6, 3.0, 3.1, 9.0])
+    want = np.array([np.abs(src - x).argmin() for x in dst])  # argmin: the first (earlier) of equals
+    assert np.array_equal(nearest(src, dst), want) and list(want) == [0, 0, 0, 1, 2, 3, 3]
+    assert np.array_equal(nearest([7.0], dst), np.zeros(dst.size, int))

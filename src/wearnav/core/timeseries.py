@@ -17,6 +17,8 @@ The only implementations in wearnav of
   :func:`periods` writes a gap rule relative to the source rate ("k sample periods").
 * :func:`rate` / :func:`sampling`: the sampling rate is 1 / median interval (robust to the odd
   late sample); jitter is the interquartile range of the intervals.
+* :func:`nearest`: the index of the nearest sample of a sorted clock (a fix, a scan, a beacon
+  reading at another stream's times).
 * :func:`drop_duplicate_times`: the one policy for repeated timestamps (keep the first of each
   run, count the rest; refuse time going backwards or too many repeats).
 
@@ -102,6 +104,16 @@ def sampling(dt) -> Sampling:
 
 
 # ---- one clock onto another ----------------------------------------------------------------
+
+
+def nearest(t_src, t_dst) -> np.ndarray:
+    """For each time of ``t_dst``, the index of the nearest time in ``t_src`` (sorted ascending; at a
+    tie the earlier). ``t_src`` must not be empty."""
+    t_src, t_dst = np.asarray(t_src, np.float64), np.asarray(t_dst, np.float64)
+    if t_src.size < 2:
+        return np.zeros(t_dst.shape, np.intp)
+    k = np.clip(np.searchsorted(t_src, t_dst), 1, t_src.size - 1)
+    return np.where(np.abs(t_src[k - 1] - t_dst) <= np.abs(t_src[k] - t_dst), k - 1, k)
 
 
 def covered(t_dst, t_src, max_gap: float, rule: str = "hole") -> np.ndarray:

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 from scipy import special, stats
 
+from wearnav.core.timeseries import nearest
 from wearnav.errors import ValidationError
 from wearnav.recording import Recording, Trajectory
 
@@ -159,11 +160,10 @@ def truth_at(
         out_floor[span] = floor[i][span]
     else:
         span = np.zeros(t.size, bool)
-    k = np.clip(np.searchsorted(tt, t), 1, len(tt) - 1) if len(tt) > 1 else np.zeros(t.size, int)
-    nearest = np.where(np.abs(tt[k - 1] - t) <= np.abs(tt[k] - t), k - 1, k) if len(tt) > 1 else k
-    held = ~span & (np.abs(tt[nearest] - t) <= margin_s)
-    out_pos[held] = pos[nearest[held]]
-    out_floor[held] = floor[nearest[held]]
+    k = nearest(tt, t)
+    held = ~span & (np.abs(tt[k] - t) <= margin_s)
+    out_pos[held] = pos[k[held]]
+    out_floor[held] = floor[k[held]]
     return out_pos, out_floor, span | held
 
 

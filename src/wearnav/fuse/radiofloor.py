@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from wearnav.core.timeseries import nearest
 from wearnav.fuse.floors import FloorLevels, floor_track
 from wearnav.recording import Pressure
 
@@ -30,14 +31,7 @@ def floor_at(t_fix: np.ndarray, floor_fix: np.ndarray, times: np.ndarray, window
     for i, (a, b) in enumerate(zip(lo, hi)):
         vals, n = np.unique(floor_fix[a:b], return_counts=True)
         smooth[i] = vals[np.argmax(n)]
-    k = (
-        np.clip(np.searchsorted(t_fix, times), 1, max(t_fix.size - 1, 1))
-        if t_fix.size > 1
-        else np.zeros(times.shape, int)
-    )
-    if t_fix.size > 1:
-        k = np.where(np.abs(t_fix[k - 1] - times) <= np.abs(t_fix[k] - times), k - 1, k)
-    return smooth[k]
+    return smooth[nearest(t_fix, times)]
 
 
 def floor_switch_rate(t: np.ndarray, walk: np.ndarray, floor: np.ndarray) -> float:

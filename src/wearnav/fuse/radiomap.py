@@ -57,6 +57,7 @@ import pandas as pd
 
 from wearnav.core.fileio import atomic_path, write_text_atomic
 from wearnav.core.textio import read_json
+from wearnav.core.timeseries import nearest
 from wearnav.errors import ConfigError, FormatError, ValidationError
 from wearnav.fuse.config import RADIUS_68
 from wearnav.fuse.floors import FloorLevels, fit_floor_levels
@@ -643,9 +644,7 @@ def phone_accuracy_scale(
     :data:`MIN_PAIRS` pairs."""
     if not len(pos) or not len(fix_t):
         return None
-    k = np.clip(np.searchsorted(pos.t, fix_t), 1, max(len(pos) - 1, 1)) if len(pos) > 1 else np.zeros(len(fix_t), int)
-    if len(pos) > 1:
-        k = np.where(np.abs(pos.t[k - 1] - fix_t) <= np.abs(pos.t[k] - fix_t), k - 1, k)
+    k = nearest(pos.t, fix_t)
     near = np.abs(pos.t[k] - fix_t) <= PAIR_S
     if near.sum() < MIN_PAIRS:
         return None
