@@ -165,10 +165,14 @@ def test_radio_positions_join_the_fixes(built):
     np.testing.assert_array_equal(out.fixes.t[~radio], rec.fixes.t)  # the phone's fixes unchanged
     bare = radiomap.with_radio_fixes(synthetic_walk("bare", [(2.0, 2.0), (30.0, 10.0)], 0, 8), built)[0]
     assert bare.fixes is not None and np.all(np.isfinite(bare.fixes.accuracy))  # no GNSS: the radio is the start
-    # beside the phone's fixes a radio position weighs as RADIO_BESIDE_FIXES of its radius; alone, its radius
+    # beside the phone's fixes a radio position weighs as RADIO_BESIDE_FIXES of its radius (σ by groups);
+    # alone, its radius (σ by the one scale)
     alone = radiomap.with_radio_fixes(dataclasses.replace(rec, fixes=None), built)[0].fixes
     assert alone is not None
-    np.testing.assert_allclose(out.fixes.accuracy[radio], radiomap.RADIO_BESIDE_FIXES * alone.accuracy)
+    grouped, scaled = (built.locate(rec.wifi, by_group=g).accuracy_m for g in (True, False))
+    assert built.card["sigma_calibration"] and not np.allclose(grouped, scaled)  # the two differ here
+    np.testing.assert_allclose(out.fixes.accuracy[radio], radiomap.RADIO_BESIDE_FIXES * grouped)
+    np.testing.assert_allclose(alone.accuracy, scaled)
     floors = radiofloor.floor_at(np.array([0.0, 2.0, 4.0, 6.0]), np.array([0.0, 1.0, 0.0, 0.0]), np.array([2.0, 50.0]))
     np.testing.assert_array_equal(floors, [0.0, 0.0])  # one odd scan does not change floor
 

@@ -277,7 +277,10 @@ def page(summary: dict[str, Any], meta: dict[str, Any]) -> str:
         "`phone`: the shipped phone model (trained on the simulator only); `pdr`: step detection × 0.67 m. "
         "No known-start rows: a start taken from the survey is truth in a test input. The weight of radio "
         "positions beside GNSS (`RADIO_BESIDE_FIXES`) was chosen on IPIN's trials, each left out in turn: "
-        "docs/decisions/0049-radio-map-bench-floor-weights.md gives that choice's score on the trials left out.",
+        "docs/decisions/0049-radio-map-bench-floor-weights.md gives that choice's score on the trials left out. "
+        "A radio position's σ is calibrated by groups beside GNSS and by the map's one scale without it "
+        "(every ILC2 row): chosen on IPIN's rows without GNSS, before ILC2 was scored with it "
+        "(docs/decisions/0050-radio-sigma-without-gnss.md).",
     ]
     for site, s in summary.items():
         lines += [

@@ -21,8 +21,8 @@ one that puts 68 % of its errors inside the 68 % radius (:data:`wearnav.fuse.RAD
 fix's reported accuracy is; between the groups' middles σ is interpolated (never falling as the raw
 σ grows). One scale for all (``sigma_scale``, kept on the card) overstated the σ of the widest
 neighbourhoods: on IPIN 2023 the top fifth's errors had a 68 % radius of 15.7 m, the one scale gave
-them 25–95 m, so the phone's fixes outweighed the radio map where they were worst (underground).
-The same cross-validation gives the card's validation numbers.
+them 25–95 m, so the phone's fixes outweighed the radio map where they were worst (underground);
+without the phone's fixes the one scale is kept. The same cross-validation gives the card's numbers.
 
 Storage (:meth:`RadioMap.save`): a folder holding ``radiomap.npz`` (the fingerprints, their
 positions, floors and walks: the learner is fitted again on load, so no pickle is read),
@@ -40,8 +40,8 @@ The floor (:func:`wearnav.fuse.radiofloor.floor_over_time`): where the survey wa
 map keeps the site's floor levels (:func:`wearnav.fuse.floors.fit_floor_levels`, on its card); a
 walk with a barometer then follows the barometer's floor track from the start floor that agrees with
 most of its scans' floor votes (Wi-Fi says which floor, the barometer when it changes), else the votes
-alone, smoothed.
-Decisions: docs/decisions/0048-radio-map.md, docs/decisions/0049-radio-map-bench-floor-weights.md.
+alone, smoothed. Decisions: docs/decisions/0048-radio-map.md, 0049-radio-map-bench-floor-weights.md,
+0050-radio-sigma-without-gnss.md.
 """
 
 from __future__ import annotations
@@ -350,24 +350,28 @@ class RadioMap:
         """Whether any access point of the map is in the recording's scans (a map of another site: no)."""
         return self.common_aps(rec.wifi) > 0
 
-    def predict(self, x: np.ndarray, floor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def predict(
+        self, x: np.ndarray, floor: np.ndarray | None = None, by_group: bool = True
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Fingerprints (N, A) over :attr:`bssids` (:func:`fingerprints`) → positions (N, 2), σ (N,) m
-        per axis (calibrated), floors (N,): each scan's own floor vote, or ``floor`` where given."""
+        per axis (calibrated by groups; ``by_group`` False: by the one scale), floors (N,): each
+        scan's own floor vote, or ``floor`` where given."""
         xy, sigma_raw, floor = self._learner.predict(x, floor)
         cal = self.card.get("sigma_calibration")
-        if not cal:  # a map of too few scans to calibrate by groups: one scale
+        if not cal or not by_group:  # one scale (a map of too few scans to calibrate by groups, or asked)
             return xy, sigma_raw * self.sigma_scale, floor
         return xy, np.interp(sigma_raw, cal["sigma_raw_m"], cal["sigma_m"]), floor
 
-    def locate(self, wifi: WifiScans | None) -> RadioPositions:
-        """Every scan sharing ``min_common_aps`` access points with the map → position, σ, floor."""
+    def locate(self, wifi: WifiScans | None, by_group: bool = True) -> RadioPositions:
+        """Every scan sharing ``min_common_aps`` access points with the map → position, σ (``by_group``:
+        :meth:`predict`), floor."""
         empty = np.empty(0)
         if wifi is None:
             return RadioPositions(empty, np.empty((0, 2)), empty, empty, empty, {"scans": 0, "positions": 0})
         scans = scans_of(wifi, self.cfg.stale_s)
         x, common = fingerprints(scans, self.bssids, self.cfg.missing_dbm)
         use = common >= self.cfg.min_common_aps
-        xy, sigma, floor = self.predict(x[use]) if use.any() else (np.empty((0, 2)), empty, empty)
+        xy, sigma, floor = self.predict(x[use], by_group=by_group) if use.any() else (np.empty((0, 2)), empty, empty)
         switch = self.card.get("floor_switch_per_scan")
         floor_right = self.card.get("validation", {}).get("floor_right")
         if floor.size > 1 and switch is not None and floor_right is not None and len(self._learner.floors) > 1:
@@ -600,7 +604,8 @@ def with_radio_fixes(rec: Recording, rmap: RadioMap) -> tuple[Recording, np.ndar
         return rec, none, info | {"why": why}, [f"{rec.name}: {why}: the radio map is not used"]
     if not rmap.fits(rec):
         return rec, none, info | {"why": NO_FIT}, [f"{rec.name}: {NO_FIT}"]
-    pos = rmap.locate(rec.wifi)
+    # σ by groups beside the phone's fixes, the one scale without them (module docstring)
+    pos = rmap.locate(rec.wifi, by_group=rec.fixes is not None)
     info |= pos.info
     if not len(pos):
         why = f"no scan shares {rmap.cfg.min_common_aps} access points with the radio map"
