@@ -281,7 +281,8 @@ def test_finetune_turns_a_heading_frame_models_windows_back_before_integrating(w
 @pytest.mark.slow
 def test_cli_adapts_a_learned_run_by_finetune_and_track_takes_it(walks, tmp_path, monkeypatch, capsys):
     root, recs, _ = walks
-    cfg = TrainConfig(model="suitein", data=str(root / "ds"), devices=("phone",), epochs=1, stride=50, seed=0)
+    # windows side by side (stride = window): half of stride 50's, a learned run all the same
+    cfg = TrainConfig(model="suitein", data=str(root / "ds"), devices=("phone",), epochs=1, stride=100, seed=0)
     run = prepare_run(cfg, tmp_path / "suitein")
     fit(cfg, run, progress=False)
     code, out, err = run_cli(
@@ -358,7 +359,7 @@ def test_bench_adapt_writes_a_page_results_can_stitch(tmp_path):
 
     with DatasetWriter(tmp_path / "site", {"made_by": "test_adapt"}) as w:
         for k, trial in enumerate((3, 5, 6, 7, 4, 24, 52)):
-            rec = simulate_recording(WalkConfig(name=f"T{trial}", duration_s=150, noise_level="L1"), seed=10 + k)
+            rec = simulate_recording(WalkConfig(name=f"T{trial}", duration_s=100, noise_level="L1"), seed=10 + k)
             keep = np.arange(0, len(rec.truth.t), 1000)  # 100-Hz truth → a point every 10 s
             rec = dataclasses.replace(
                 rec,

@@ -17,12 +17,13 @@ from wearnav.bench.real import RealBench, run_benchmark
 from wearnav.bench.real_page import frame_name
 from wearnav.bench.real_sites import estimate_site_yaw, prepare_data, split_of
 from wearnav.core.rotations import from_wxyz, to_wxyz
-from wearnav.dataset import Dataset, write_dataset
+from wearnav.dataset import Dataset, DatasetWriter, write_dataset
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.preprocess.frames import rotate_stacked
 from wearnav.recording import Trajectory
-from wearnav.simulate import simulate_dataset
+from wearnav.simulate import plan_dataset, simulate_walk
+from wearnav.train.odometry import load_model
 
 POINT_EVERY_S = 5.0
 
@@ -45,11 +46,26 @@ def _building(recs, yaw_deg: float):
     return out
 
 
+def _simulate(dest, seed: int, modes: tuple[str, ...], n: int | None = None, **walk) -> Dataset:
+    """The first ``n`` walks in ``modes`` of the "tiny" preset for ``seed``, as
+    ``simulate_dataset("tiny", dest, seed=seed)`` makes them (same configs, walk seeds and splits;
+    ``walk``: WalkConfig fields changed, e.g. corridor_m), without simulating the rest of the preset."""
+    plan = [w for w in plan_dataset("tiny", seed) if w.config.mode in modes][:n]
+    with DatasetWriter(dest, {"generator": "wearnav.simulate", "preset": "tiny", "seed": seed}) as writer:
+        for w in plan:
+            rec = simulate_walk(w.config.replace(**walk), w.seed).recording
+            rec.meta.update({"split": w.split, "preset": "tiny", "dataset_seed": seed})
+            writer.add(rec, split=w.split)
+    return Dataset.open(dest)
+
+
 @pytest.fixture(scope="module")
-def building(tmp_path_factory, tiny_dataset):
+def building(tmp_path_factory):
+    """Seven walks (two held out on "F9", the rest split into train and val), and another building
+    of the same walks in reverse order; ``sim``: the simulator's dataset they came from."""
     root = tmp_path_factory.mktemp("real")
-    sim = Dataset.open(tiny_dataset(2, root / "sim"))
-    recs = [sim.load(n) for n in sim.filter(mode=["STW", "DRW"]).names]
+    sim = _simulate(root / "sim", 2, ("STW", "DRW"), 7)
+    recs = [sim.load(n) for n in sim.names]
     write_dataset(root / "building", _building(recs, 40.0))
     write_dataset(root / "other", _building(recs[::-1], -25.0))
     return root
@@ -171,6 +187,13 @@ def test_benchmark_end_to_end_resumes_and_reports_both_buildings(building, tmp_p
     # the other building is scored with its own yaw
     mo = runs.read_metrics(next((out / "runs").glob("pdr-*")) / "eval_other")
     assert mo["preprocess"]["yaw_deg"] == doc["sites"]["other"]["yaw"]["yaw_deg"] != m["preprocess"]["yaw_deg"]
+    # a world-frame learned run is not scored along where the phone points, nor can it be loaded so
+    # (issue 34: only a heading-frame model's speed is one along the phone's pointing)
+    world_run = next((out / "runs").glob("suitein++-*"))
+    assert not (world_run / "eval_main_pointing").exists() and not (world_run / "eval_main_snapped").exists()
+    for speed in ("pointing", "snapped"):
+        with pytest.raises(ConfigError, match="heading frame"):
+            load_model(world_run, speed=speed)
     msgs.clear()
     run_benchmark(building / "building", out, building / "other", echo=msgs.append, **kw)
     assert sum("complete, skipped" in s for s in msgs) == 2
@@ -264,9 +287,8 @@ def test_cli_real_odometry_reports_progress_without_a_terminal(building, tmp_pat
 def test_a_heading_frame_model_is_also_scored_as_its_speed_along_the_phones_pointing(building, tmp_path):
     """issue 34: a learned heading-frame model's path, its PDR-speed hybrid, and its own speed along
     where the phone points, the last with its own site yaw (as pdr-pointing's) from the training
-    traces; a world-frame run cannot be loaded that way."""
-    from wearnav.train.odometry import load_model
-
+    traces. (That a world-frame run is not scored so and cannot be loaded that way is checked on
+    the world-frame suitein++ run of test_benchmark_end_to_end_resumes_and_reports_both_buildings.)"""
     out = tmp_path / "bench"
     bench = RealBench(models=("ronin",), epochs=1, stride=25, heading_frame=True)
     run_benchmark(
@@ -296,15 +318,6 @@ def test_a_heading_frame_model_is_also_scored_as_its_speed_along_the_phones_poin
             xy = np.loadtxt(run / ev / "trajectories" / "test" / f.name, delimiter=",", skiprows=1, usecols=(1, 2))
             lengths.append(np.linalg.norm(np.diff(xy, axis=0), axis=1).sum())
         assert lengths[1] == pytest.approx(lengths[0], rel=0.02)
-    world = RealBench(models=("ronin",), epochs=1, stride=25)
-    run_benchmark(
-        building / "building", out, group_by="floor_name", test_groups=("F9",), bench=world, progress=False, echo=print
-    )
-    world_run = next(p for p in (out / "runs").glob("ronin-*") if p != run)
-    assert not (world_run / "eval_main_pointing").exists() and not (world_run / "eval_main_snapped").exists()
-    for speed in ("pointing", "snapped"):
-        with pytest.raises(ConfigError, match="heading frame"):
-            load_model(world_run, speed=speed)
 
 
 @pytest.mark.slow
@@ -367,8 +380,8 @@ def _calibrations(suite) -> list[dict]:
 def test_map_aware_rows_where_the_site_has_floor_plans(tmp_path):
     """A site whose recordings carry floor plans (here: the simulator's corridors along each route)
     scores every path also map-aware, at the same points, with the walk-paired difference on the page."""
-    sim = simulate_dataset("tiny", tmp_path / "sim", seed=3, progress=False, corridor_m=3.0)
-    recs = [sim.load(n) for n in sim.filter(mode=["STW"]).names]
+    sim = _simulate(tmp_path / "sim", 3, ("STW",), corridor_m=3.0)
+    recs = [sim.load(n) for n in sim.names]
     built = _building(recs, 40.0)
     for rec, _ in built:
         assert rec.plans  # the corridors survive the stand-in's rewrite

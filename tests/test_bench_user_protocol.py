@@ -79,7 +79,7 @@ def test_user_protocol_keeps_each_walks_errors_and_pairs_the_smoother_by_walk(mo
     from wearnav.simulate.walk import simulate_recording
 
     recs = [
-        simulate_recording(WalkConfig(name=f"w{k}", mode="STW", placement="HD", duration_s=120.0), seed=k)
+        simulate_recording(WalkConfig(name=f"w{k}", mode="STW", placement="HD", duration_s=60.0), seed=k)
         for k in range(3)
     ]
 

@@ -228,8 +228,12 @@ def test_split_view_has_no_subject_on_both_sides(tmp_path):
 
 
 @pytest.mark.slow
-def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
+def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path, monkeypatch, capsys):
+    """The first `bench har --quick` runs as a process of its own (its console and exit code); the
+    resumed run and `classify` run in-process (what they print and write is under test, not the process)."""
     import json
+
+    from conftest import run_cli
 
     env_py = {"PYTHONPATH": str(ROOT / "src")}
     import os
@@ -287,8 +291,8 @@ def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
     m = json.loads((base_run / "metrics.json").read_text())
     assert set(m["test_subjects"]) == te
     # a second invocation resumes: every run is complete and skipped
-    r2 = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
-    assert r2.returncode == 0 and "done in" not in r2.stdout and "skipped" in r2.stdout
+    code2, out2, _ = run_cli(monkeypatch, capsys, *cmd[3:])
+    assert code2 == 0 and "done in" not in out2 and "skipped" in out2
 
     # wearnav classify on one (cropped) recording
     rec = ds.load(ds.names[0])
@@ -304,27 +308,11 @@ def test_quick_bench_and_classify_end_to_end(shared_data, tmp_path):
         meta={"subject": "x"},
     )
     h5 = small.save(tmp_path / "tiny.h5")
-    r3 = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "wearnav",
-            "classify",
-            str(h5),
-            "--model",
-            str(base_run),
-            "--out",
-            str(tmp_path / "lab"),
-        ],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
-    assert r3.returncode == 0, r3.stderr
-    assert f"labels the model knows: {', '.join(m['classes'])}" in r3.stdout
+    code3, out3, err3 = run_cli(monkeypatch, capsys, "classify", h5, "--model", base_run, "--out", tmp_path / "lab")
+    assert code3 == 0, err3
+    assert f"labels the model knows: {', '.join(m['classes'])}" in out3
     assert isinstance(m["beats_trivial"], bool) and 0 < m["trivial_accuracy"] < 1
-    assert ("did not learn" in r3.stderr) is (not m["beats_trivial"])
+    assert ("did not learn" in err3) is (not m["beats_trivial"])
     iv = pd.read_csv(tmp_path / "lab" / "tiny_intervals.csv")
     assert set(iv["label"]) <= set(m["classes"]) and iv["windows"].sum() == (30 * 50 - 128) // 64 + 1
     assert (iv["end_s"] > iv["start_s"]).all() and np.allclose(iv["start_s"].iloc[1:], iv["end_s"].iloc[:-1])

@@ -1,14 +1,11 @@
-"""wearnav.trust: the pure checks, and `wearnav track` / `wearnav classify` run as a user runs them
-(a subprocess) printing one ``warning:`` line per reason not to trust their result (issue 22, §1)."""
+"""wearnav.trust: the pure checks, and `wearnav track` / `wearnav classify` run through the command
+line (in-process: the CLI's main, stdout and stderr captured) printing one ``warning:`` line per
+reason not to trust their result (issue 22, §1)."""
 
 from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,15 +17,7 @@ from wearnav.recording import DeviceStream, Recording
 from wearnav.simulate import WalkConfig, simulate_recording
 from wearnav.track import track
 
-SRC = Path(__file__).resolve().parents[1] / "src"
 G = 9.80665
-
-
-def _wearnav(*args) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"}
-    return subprocess.run(
-        [sys.executable, "-m", "wearnav", *map(str, args)], capture_output=True, text=True, env=env, timeout=300
-    )
 
 
 def _warnings(err: str) -> list[str]:
@@ -168,7 +157,9 @@ def odometry_run(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_track_warns_when_the_model_is_out_of_its_depth(odometry_run, tmp_path):
+def test_track_warns_when_the_model_is_out_of_its_depth(odometry_run, tmp_path, monkeypatch, capsys):
+    from conftest import run_cli
+
     root, rec, run, record = odometry_run
     assert record["beats_trivial"] is False  # the untrained network is worse than standing still
     assert record["trivial_val_vel_mse"] > 0.5 and record["best_val_vel_mse"] >= record["trivial_val_vel_mse"]
@@ -177,9 +168,11 @@ def test_track_warns_when_the_model_is_out_of_its_depth(odometry_run, tmp_path):
     phone = _rotate_device(rec.devices["phone"], every=2)
     other = Recording(name="mine", devices={"phone": phone}, meta={"placement": "waist"})
     other.save(tmp_path / "mine.h5")
-    r = _wearnav("track", tmp_path / "mine.h5", "--model", run, "--out", tmp_path / "out")
-    assert r.returncode == 0, r.stderr
-    lines = _warnings(r.stderr)
+    code, _, err = run_cli(
+        monkeypatch, capsys, "track", tmp_path / "mine.h5", "--model", run, "--out", tmp_path / "out"
+    )
+    assert code == 0, err
+    lines = _warnings(err)
     expect = [
         "warning: mine: the model was trained on phone and watch; this recording has no watch (its input there "
         "is zeros the model never saw in training): track it with a model trained on the devices it has "
@@ -261,7 +254,11 @@ def classifier_run(odometry_run):
 
 
 @pytest.mark.slow
-def test_classify_warns_outside_its_domain_and_shows_its_labels(classifier_run, odometry_run, tmp_path):
+def test_classify_warns_outside_its_domain_and_shows_its_labels(
+    classifier_run, odometry_run, tmp_path, monkeypatch, capsys
+):
+    from conftest import run_cli
+
     run, metrics = classifier_run
     _, rec, _, _ = odometry_run
     # the untrained network (lr 1e-9) does no better than always answering the majority class
@@ -272,11 +269,13 @@ def test_classify_warns_outside_its_domain_and_shows_its_labels(classifier_run, 
         name="mine", devices={"phone": _rotate_device(rec.devices["phone"], every=4)}, meta={"placement": "waist"}
     )
     mine.save(tmp_path / "mine.h5")
-    r = _wearnav("classify", tmp_path / "mine.h5", "--model", run, "--out", tmp_path / "lab")
-    assert r.returncode == 0, r.stderr
-    assert f"labels the model knows: {', '.join(classes)}" in r.stdout.splitlines()
+    code, out, err = run_cli(
+        monkeypatch, capsys, "classify", tmp_path / "mine.h5", "--model", run, "--out", tmp_path / "lab"
+    )
+    assert code == 0, err
+    assert f"labels the model knows: {', '.join(classes)}" in out.splitlines()
     advice = "the labels may be wrong: use a classifier trained on recordings like this one"
-    lines = _warnings(r.stderr)
+    lines = _warnings(err)
     assert lines[:3] == [
         f"warning: mine: the recording's placement is 'waist'; the model's training data had HD and MP: {advice}",
         f"warning: mine: phone is sampled at 25 Hz; the model's training data at 100 Hz: {advice}",
