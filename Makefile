@@ -40,8 +40,9 @@ lint: $(VENV)/.installed-dev
 check: lint
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not slow"
 
+# --durations: CI's log names the 25 slowest tests (CI must stay under 25 min on 2 cores)
 test: lint
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=25
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache
