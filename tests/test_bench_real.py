@@ -17,12 +17,12 @@ from wearnav.bench.real import RealBench, run_benchmark
 from wearnav.bench.real_page import frame_name
 from wearnav.bench.real_sites import estimate_site_yaw, prepare_data, split_of
 from wearnav.core.rotations import from_wxyz, to_wxyz
-from wearnav.dataset import Dataset, DatasetWriter, write_dataset
+from wearnav.dataset import Dataset, write_dataset
 from wearnav.errors import ConfigError, ValidationError
 from wearnav.preprocess import PreprocessConfig, align
 from wearnav.preprocess.frames import rotate_stacked
 from wearnav.recording import Trajectory
-from wearnav.simulate import plan_dataset, simulate_walk
+from wearnav.simulate import simulate_dataset
 from wearnav.train.odometry import load_model
 
 POINT_EVERY_S = 5.0
@@ -46,17 +46,12 @@ def _building(recs, yaw_deg: float):
     return out
 
 
-def _simulate(dest, seed: int, modes: tuple[str, ...], n: int | None = None, **walk) -> Dataset:
-    """The first ``n`` walks in ``modes`` of the "tiny" preset for ``seed``, as
-    ``simulate_dataset("tiny", dest, seed=seed)`` makes them (same configs, walk seeds and splits;
-    ``walk``: WalkConfig fields changed, e.g. corridor_m), without simulating the rest of the preset."""
-    plan = [w for w in plan_dataset("tiny", seed) if w.config.mode in modes][:n]
-    with DatasetWriter(dest, {"generator": "wearnav.simulate", "preset": "tiny", "seed": seed}) as writer:
-        for w in plan:
-            rec = simulate_walk(w.config.replace(**walk), w.seed).recording
-            rec.meta.update({"split": w.split, "preset": "tiny", "dataset_seed": seed})
-            writer.add(rec, split=w.split)
-    return Dataset.open(dest)
+def _simulate(dest, seed: int, modes: tuple[str, ...], n: int | None = None, **kw) -> Dataset:
+    """The first ``n`` walks in ``modes`` of the "tiny" preset for ``seed``, each as the whole preset
+    makes it, without simulating the rest (``kw``: :func:`simulate_dataset`'s, e.g. corridor_m)."""
+    return simulate_dataset(
+        "tiny", dest, seed, progress=False, select=lambda plan: [w for w in plan if w.config.mode in modes][:n], **kw
+    )
 
 
 @pytest.fixture(scope="module")

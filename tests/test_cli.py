@@ -11,8 +11,13 @@ run = run_cli
 
 
 def test_simulate_info_plot(tmp_path, monkeypatch, capsys):
+    """`wearnav simulate` (its dataset records what made it), then `info` and `plot` on what it wrote."""
+    from wearnav.dataset import Dataset
+
     code, out, _ = run(monkeypatch, capsys, "simulate", "--preset", "tiny", "--out", tmp_path / "sim", "--seed", "3")
     assert code == 0
+    prov = Dataset.open(tmp_path / "sim").provenance  # one simulation (~10 s) serves both claims
+    assert prov["generator"] == "wearnav.simulate" and prov["seed"] == 3 and prov["preset"]["name"] == "tiny"
     summary = json.loads(out)
     assert set(summary["modes"]) == {"STW", "PVW", "MVW", "DRW", "DLW"}
     assert set(summary["devices"]) == {"phone", "watch", "earbuds"}
@@ -119,11 +124,3 @@ def test_corrupt_h5_is_one_line(tmp_path, monkeypatch, capsys):
     bad.write_bytes(b"\x89HDF\r\n\x1a\n truncated")
     code, _, err = run(monkeypatch, capsys, "info", bad)
     assert code == 2 and err.count("\n") == 1 and "bad.h5" in err
-
-
-def test_simulated_dataset_records_what_made_it(tmp_path, monkeypatch, capsys):
-    from wearnav.dataset import Dataset
-
-    run(monkeypatch, capsys, "simulate", "--preset", "tiny", "--out", tmp_path / "sim", "--seed", "5")
-    prov = Dataset.open(tmp_path / "sim").provenance
-    assert prov["generator"] == "wearnav.simulate" and prov["seed"] == 5 and prov["preset"]["name"] == "tiny"

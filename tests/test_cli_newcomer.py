@@ -41,12 +41,37 @@ def wearnav(*args, cwd: Path, timeout: float = 120, **env) -> subprocess.Complet
 
 
 @pytest.fixture(scope="module")
-def sim(tmp_path_factory) -> Path:
-    """A tiny simulated dataset written by the command itself (``data/sim`` of a work folder)."""
-    work = tmp_path_factory.mktemp("newcomer")
-    res = wearnav("simulate", "--preset", "tiny", "--out", "data/sim", cwd=work)
+def simulated(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
+    """`wearnav simulate`'s --help example (``simulate --preset tiny --out data/sim``, the first of the
+    cheap examples) run in a work folder, with progress lines every 0.05 s: (work folder, process).
+    One simulation shared by the tests below (each costs ~10 s)."""
+    work = tmp_path_factory.mktemp("newcomer") / "work"
+    work.mkdir()
+    res = wearnav(*_example(("simulate",)), cwd=work, WEARNAV_PROGRESS_INTERVAL_S="0.05")
     assert res.returncode == 0, res.stderr
-    return work / "data" / "sim"
+    return work, res
+
+
+@pytest.fixture(scope="module")
+def sim(simulated) -> Path:
+    """A tiny simulated dataset written by the command itself (``data/sim`` of a work folder)."""
+    args = _example(("simulate",))
+    return simulated[0] / args[args.index("--out") + 1]
+
+
+def write_demo_data(sim: Path, dest: Path, train: int = 1) -> Path:
+    """The first recording of each split of ``sim`` (the data the demo simulates first: the tiny
+    preset, seed 0; ``train`` of the training split) as the demo folder's ``data`` at ``dest``: the
+    demo reuses it, and so loads, trains on and plots a few recordings instead of 32 (the demo's
+    words do not depend on how many)."""
+    from wearnav.dataset import Dataset, DatasetWriter
+
+    ds = Dataset.open(sim)
+    with DatasetWriter(dest, {k: ds.provenance[k] for k in ("generator", "preset", "seed")}) as w:
+        for split, names in ds.manifest.groupby("split", sort=False)["name"]:
+            for name in list(names)[: train if split == "train" else 1]:
+                w.add(ds.load(name), split=split)
+    return dest
 
 
 # ---- §3 nothing of the user's lost ------------------------------------------------------------
@@ -73,9 +98,18 @@ def export(sim, tmp_path_factory) -> Path:
     return write_export(ds.load(ds.names[0]), tmp_path_factory.mktemp("export") / "walk", platform="android")
 
 
-def test_import_refuses_an_existing_dataset_and_overwrite_replaces_it(tmp_path, export):
-    out = tmp_path / "ds"
-    assert wearnav("import", "sensorlogger", export, "--out", out, cwd=tmp_path).returncode == 0
+@pytest.fixture(scope="module")
+def imported(export, tmp_path_factory) -> Path:
+    """``export`` imported by `wearnav import sensorlogger` (the same recording again, should a test
+    replace it with --overwrite)."""
+    out = tmp_path_factory.mktemp("imported") / "ds"
+    res = wearnav("import", "sensorlogger", export, "--out", out, cwd=out.parent)
+    assert res.returncode == 0, res.stderr
+    return out
+
+
+def test_import_refuses_an_existing_dataset_and_overwrite_replaces_it(tmp_path, export, imported):
+    out = imported  # imported there by the command (exit 0)
     stamp = (out / "dataset.yaml").read_text()
     res = wearnav("import", "sensorlogger", export, "--out", out, cwd=tmp_path)
     assert res.returncode == 2 and "already holds a wearnav dataset (1 recordings); add --overwrite" in res.stderr
@@ -124,39 +158,42 @@ def _wait_for_training(proc: subprocess.Popen, epochs: float = 0.0, timeout_s: f
     raise AssertionError(f"no training progress line: {lines}")
 
 
-@pytest.mark.parametrize(
-    "sig, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated (SIGTERM)")]
-)
-@pytest.mark.slow
-def test_demo_interrupted_says_what_was_kept_and_resumes(tmp_path, tiny_dataset, sig, code, word):
-    # the data the demo would simulate first (seed 0), there already: the signals come during training
-    tiny_dataset(0, tmp_path / "demo" / "data")
-    proc = _start_demo(tmp_path, "demo")
-    _wait_for_training(proc, epochs=1.1 if sig == signal.SIGINT else 0.0)  # SIGINT: a checkpoint to resume from
-    deadline = time.monotonic() + 60  # on a busy machine the progress line can come before the checkpoint
-    while sig == signal.SIGINT and not list(tmp_path.glob("demo/runs/ronin-*/checkpoints/last.ckpt")):
-        assert time.monotonic() < deadline and proc.poll() is None, "no checkpoint to resume from"
-        time.sleep(0.1)
-    proc.send_signal(sig)
+def _stopped_saying_what_was_kept(proc: subprocess.Popen, code: int, word: str) -> None:
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == code, err
     assert err.strip().splitlines()[-1] == (
         f"error: {word}; finished runs are kept in demo; run the same command again to resume"
     )
-    if sig == signal.SIGINT:  # the same command again resumes, and says so
-        proc = _start_demo(tmp_path, "demo")
-        lines = _wait_for_training(proc)
-        proc.send_signal(signal.SIGTERM)
-        proc.communicate(timeout=60)
-        assert any(re.match(r"ronin-\w+: resuming from \S+last\.ckpt \(\d+ epoch\(s\) done\)", l) for l in lines), lines
+
+
+@pytest.mark.slow
+def test_demo_interrupted_says_what_was_kept_and_resumes(tmp_path, sim):
+    """Ctrl-C during the demo's training exits 130 saying what was kept; the same command again
+    resumes and says so; SIGTERM during its training exits 143 with the same words."""
+    # data of the kind the demo would simulate first, there already: the signals come during training
+    # (3 training recordings: two batches per epoch, ~1 s)
+    write_demo_data(sim, tmp_path / "demo" / "data", train=3)
+    proc = _start_demo(tmp_path, "demo")
+    _wait_for_training(proc, epochs=1.1)  # a checkpoint to resume from
+    deadline = time.monotonic() + 60  # on a busy machine the progress line can come before the checkpoint
+    while not list(tmp_path.glob("demo/runs/ronin-*/checkpoints/last.ckpt")):
+        assert time.monotonic() < deadline and proc.poll() is None, "no checkpoint to resume from"
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    _stopped_saying_what_was_kept(proc, 130, "interrupted")
+    # the same command again resumes, and says so; SIGTERM comes during its training
+    proc = _start_demo(tmp_path, "demo")
+    lines = _wait_for_training(proc)
+    proc.send_signal(signal.SIGTERM)
+    _stopped_saying_what_was_kept(proc, 143, "terminated (SIGTERM)")
+    assert any(re.match(r"ronin-\w+: resuming from \S+last\.ckpt \(\d+ epoch\(s\) done\)", l) for l in lines), lines
 
 
 # ---- §3 no silence ------------------------------------------------------------------------------
 
 
-def test_progress_without_a_terminal_is_log_lines_with_an_estimate(tmp_path):
-    res = wearnav("simulate", "--preset", "tiny", "--out", "d", cwd=tmp_path, WEARNAV_PROGRESS_INTERVAL_S="0.05")
-    assert res.returncode == 0, res.stderr
+def test_progress_without_a_terminal_is_log_lines_with_an_estimate(simulated):
+    res = simulated[1]  # `wearnav simulate --preset tiny`, stderr a pipe, progress every 0.05 s
     lines = [l for l in res.stderr.splitlines() if l.startswith("simulate tiny: ")]
     assert lines, res.stderr
     assert all(re.fullmatch(r"simulate tiny: \d+/32 rec, \d+ s elapsed, about \d+ s left", l) for l in lines), lines
@@ -229,17 +266,19 @@ def test_every_command_has_an_example_that_parses():
 
 
 @pytest.mark.slow
-def test_the_cheap_examples_run(tmp_path, shared_data):
-    work = tmp_path / "work"
-    work.mkdir()
-    (tmp_path / "shared").mkdir()
-    (tmp_path / "shared" / "data").symlink_to(shared_data)  # the README's ../shared/data
-    for path in RUN:
+def test_the_cheap_examples_run(simulated, shared_data):
+    from wearnav.dataset import Dataset
+
+    work, res = simulated  # the first example, `wearnav simulate`, ran there (exit 0) in the fixture
+    assert RUN[0] == ("simulate",) and res.args[3:] == _example(RUN[0])
+    (work.parent / "shared").mkdir()
+    (work.parent / "shared" / "data").symlink_to(shared_data)  # the README's ../shared/data
+    for path in RUN[1:]:
         args = _example(path)
         res = wearnav(*args, cwd=work, timeout=300)
         assert res.returncode == 0, f"wearnav {' '.join(args)}: {res.stderr}"
     assert (work / "sim.png").is_file() and (work / "labels" / "label_noise_cdf.png").is_file()
-    assert json.loads(wearnav("info", "data/ilc2", cwd=work).stdout)["recordings"] == 2
+    assert len(Dataset.open(work / "data" / "ilc2").names) == 2
 
 
 def test_flags_read_as_flags_and_seed_is_documented():
@@ -279,9 +318,8 @@ def test_plot_and_info_list_the_recordings(sim):
     assert info["names"].startswith("u1_") and info["names"].endswith("(32 recordings)")
 
 
-def test_label_from_fixes_without_truth_says_why_there_is_no_figure(tmp_path, export):
-    assert wearnav("import", "sensorlogger", export, "--out", tmp_path / "ds", cwd=tmp_path).returncode == 0
-    res = wearnav("label-from-fixes", tmp_path / "ds", "--out", tmp_path / "labels", cwd=tmp_path)
+def test_label_from_fixes_without_truth_says_why_there_is_no_figure(tmp_path, imported):
+    res = wearnav("label-from-fixes", imported, "--out", tmp_path / "labels", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     assert "None cm" not in res.stdout
     assert res.stdout.splitlines()[-1].endswith(
@@ -297,7 +335,8 @@ def test_data_folder_is_ignored_by_git():
 
 
 @pytest.mark.slow
-def test_demo_report_has_its_own_title_and_explains_its_numbers(tmp_path):
+def test_demo_report_has_its_own_title_and_explains_its_numbers(tmp_path, sim):
+    write_demo_data(sim, tmp_path / "d" / "data")  # reused: the page's words are the same for any data
     res = wearnav("demo", "--out", "d", "--preset", "tiny", "--models", "pdr", cwd=tmp_path, timeout=300)
     assert res.returncode == 0, res.stderr
     page = (tmp_path / "d" / "results.md").read_text()

@@ -99,9 +99,15 @@ def test_fit_takes_the_lock(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 @linux_only
-def test_two_train_commands_on_one_folder(tmp_path, tiny_dataset):
+def test_two_train_commands_on_one_folder(tmp_path):
     """Two real `wearnav train` processes on one --out: the second exits 2 with one line."""
-    data = tiny_dataset(0, tmp_path / "tiny")
+    from wearnav.dataset import DatasetWriter
+    from wearnav.simulate import WalkConfig, simulate_recording
+
+    data = tmp_path / "walks"  # three short walks: enough to train on (the first trains until stopped)
+    with DatasetWriter(data, {"made_by": "test_runs"}) as w:
+        for i, split in enumerate(("train", "train", "val")):
+            w.add(simulate_recording(WalkConfig(name=f"walk{i}", duration_s=20), seed=i), split=split)
     run = tmp_path / "R"
     cmd = [
         sys.executable,
@@ -129,11 +135,16 @@ def test_two_train_commands_on_one_folder(tmp_path, tiny_dataset):
             assert first.poll() is None, first.stderr.read()
             assert time.monotonic() < deadline, "the first process never took the lock"
             time.sleep(0.2)
+        # paused while the second runs (it holds the lock all the same): its training would only
+        # take the second's CPU (a ~10 s start, twice that beside a training process)
+        first.send_signal(signal.SIGSTOP)
         second = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
         assert second.returncode == 2
         assert second.stderr == f"error: {run}: another wearnav process is using this run folder (pid {first.pid})\n"
-        assert first.poll() is None  # the first one trains on, undisturbed
+        first.send_signal(signal.SIGCONT)
+        assert first.poll() is None and runs.lock_holder(run) == first.pid  # the first trains on, undisturbed
     finally:
+        first.send_signal(signal.SIGCONT)  # (a stopped process acts on SIGTERM only once continued)
         first.send_signal(signal.SIGTERM)
         first.wait(timeout=60)
         first.stderr.close()

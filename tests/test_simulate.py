@@ -614,3 +614,19 @@ def test_label_noise_has_a_heavy_tail_that_survives_the_filter(label_chains, lev
     mag = np.linalg.norm(noise, axis=1)
     assert np.mean(mag > 1.0) >= 0.01 and np.mean(mag > 2.0) >= 0.002
     assert dropped / (dropped + mag.size) < 0.005  # the filter drops only gross jumps
+
+
+def test_simulate_dataset_select_makes_those_walks_as_the_whole_preset_would(tmp_path):
+    """``select``: only the chosen planned walks are simulated, each the walk the whole preset makes
+    (same config and seed, so the same data), and the provenance says how many of the plan were."""
+    import yaml
+
+    plan = plan_dataset("tiny", 4)
+    ds = simulate_dataset("tiny", tmp_path / "part", seed=4, progress=False, select=lambda p: p[3:5])
+    assert set(ds.names) == {w.config.name for w in plan[3:5]} and len(ds.names) == 2
+    want = simulate_walk(plan[3].config, plan[3].seed).recording
+    got = ds.load(plan[3].config.name)
+    np.testing.assert_array_equal(got.devices["phone"].acc, want.devices["phone"].acc)
+    assert got.meta["split"] == plan[3].split
+    made_by = yaml.safe_load((tmp_path / "part" / "dataset.yaml").read_text())
+    assert made_by["walks_simulated"] == f"2 of {len(plan)}"

@@ -14,6 +14,7 @@ be regenerated with ``simulate_recording(WalkConfig.from_dict(meta["config"]), m
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -130,18 +131,30 @@ def plan_dataset(preset: str | Preset, seed: int = 0) -> list[PlannedWalk]:
 
 
 def simulate_dataset(
-    preset: str, out: str | Path, seed: int = 0, progress: bool = True, corridor_m: float | None = None
+    preset: str,
+    out: str | Path,
+    seed: int = 0,
+    progress: bool = True,
+    corridor_m: float | None = None,
+    select: Callable[[list[PlannedWalk]], list[PlannedWalk]] | None = None,
 ) -> Dataset:
     """Simulate a preset into the dataset folder ``out`` and open it; ``corridor_m``: every walk carries
-    a floor plan of corridors that wide along its route (:func:`wearnav.simulate.walk.corridor_plan`)."""
+    a floor plan of corridors that wide along its route (:func:`wearnav.simulate.walk.corridor_plan`);
+    ``select``: which of the preset's planned walks to simulate (each as the whole preset would make
+    it; the rest are not simulated, and ``made_by`` says how many were)."""
     p = get_preset(preset)
     plan = plan_dataset(p, seed)
+    planned = len(plan)
+    if select is not None:
+        plan = select(plan)
     if corridor_m is not None:
         plan = [dataclasses.replace(w, config=w.config.replace(corridor_m=corridor_m)) for w in plan]
     out = Path(out)
     made_by = {"generator": "wearnav.simulate", "preset": dataclasses.asdict(p), "seed": int(seed)}
     if corridor_m is not None:
         made_by["corridor_m"] = corridor_m
+    if select is not None:
+        made_by["walks_simulated"] = f"{len(plan)} of {planned}"
     with DatasetWriter(out, made_by) as writer:
         for item in report_progress(plan, desc=f"simulate {p.name}", unit="rec", enabled=progress):
             rec = simulate_walk(item.config, item.seed).recording
