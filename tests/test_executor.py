@@ -31,6 +31,17 @@ def write_run(config: dict, folder: Path) -> Path:
     return folder
 
 
+def _small(tiny_dataset, dest: Path) -> Path:
+    """One training, one validation and one test recording of the tiny dataset (seed 0) at ``dest``:
+    what a suite job (PDR, evaluated on the test split) reads, at a sixth of the evaluation."""
+    from wearnav.dataset import Dataset, write_dataset
+
+    ds = Dataset.open(tiny_dataset(0))
+    split = ds.manifest.set_index("name")["split"]
+    pick = [next(n for n in ds.names if split[n] == s) for s in ("train", "val", "test")]
+    return write_dataset(dest, [(ds.load(n), split[n]) for n in pick]).root
+
+
 def _jobs(root: Path, n: int = 3, **kw) -> list[Job]:
     return [Job(write_run, {"x": i, **kw}, root / f"run{i}", cost=i) for i in range(n)]
 
@@ -125,7 +136,7 @@ def test_cli_executor_options_one_line_errors(tmp_path, monkeypatch, capsys, tin
     code, _, err = run_cli(monkeypatch, capsys, "bench", "har", "--executor", "slurm")
     assert code == 2 and "local" in err and "ray" in err
     # without Ray installed, --executor ray is one line naming the extra, exit 2, nothing run
-    data = tiny_dataset(0, tmp_path / "tiny")
+    data = _small(tiny_dataset, tmp_path / "small")
     capsys.readouterr()
     monkeypatch.setitem(sys.modules, "ray", None)
     code, _, err = run_cli(
@@ -207,7 +218,7 @@ def test_ray_runs_jobs_and_a_real_suite_then_resumes(local_ray, tmp_path, tiny_d
         run_jobs([Job(write_run, {"fail": True}, tmp_path / "bad")], Execution(backend="ray"), echo=lines.append)
     assert str(err.value) == f"{tmp_path / 'bad'}: this job fails"
     # a real suite job (PDR: evaluated, not trained) through Ray, then the same folder resumed locally
-    data = tiny_dataset(0, tmp_path / "tiny")
+    data = _small(tiny_dataset, tmp_path / "small")
     cfgs = odometry.suite_configs(data, ("pdr",))
     folders = odometry.run_suite(
         cfgs,
