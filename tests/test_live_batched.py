@@ -3,7 +3,7 @@ per-session path it replaces.
 
 The pieces (each against the step it replaces, on a simulated phone-only Sensor Logger session
 pushed in 0.2-s messages): the update's Recording from the buffer's arrays
-(:func:`wearnav.live.tracker.lean_recording` vs the importer's step, ``SessionBuffer.recording``),
+(:func:`wearnav.live.lean.lean_recording` vs the importer's step, ``SessionBuffer.recording``),
 the stacked zero-phase low-pass (:func:`wearnav.preprocess.batch.lowpass_many` vs scipy's
 ``sosfiltfilt``) and the batched alignment (:func:`~wearnav.preprocess.batch.align_many` vs
 ``align``); and the whole: the same pushes through a :class:`wearnav.live.crowd.Crowd` (batched)
@@ -22,9 +22,10 @@ from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import crowd
 from wearnav.live.bench import walker_export
 from wearnav.live.buffer import SessionBuffer
+from wearnav.live.lean import lean_recording
 from wearnav.live.models import SharedModels
 from wearnav.live.replay import build
-from wearnav.live.tracker import LiveTracker, lean_recording
+from wearnav.live.tracker import LiveTracker
 from wearnav.preprocess import _lowpass, align
 from wearnav.preprocess.batch import align_many, lowpass_many
 from wearnav.report.trajectory_page import page_points

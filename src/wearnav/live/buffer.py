@@ -138,7 +138,7 @@ class SessionBuffer:
         self._snap: tuple[int, dict[str, tuple]] | None = None  # the latest _snapshot, by version
         self._fresh_cache: tuple[tuple, np.ndarray] | None = None  # _first_fresh_row's last answer
         self._covered: tuple[int, float] | None = None  # covered_until's last answer, by version
-        # the live tracker's last fixes in metres (wearnav.live.tracker._lean_fixes): origin, times, (N, 2)
+        # the live tracker's last fixes in metres (wearnav.live.lean._lean_fixes): origin, times, (N, 2)
         self.fix_metres: tuple[tuple[float, float], np.ndarray, np.ndarray] | None = None
 
     @classmethod
