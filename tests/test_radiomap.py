@@ -14,7 +14,7 @@ import pytest
 from conftest import make_stream, run_cli
 from wearnav.dataset import DatasetWriter
 from wearnav.errors import FormatError
-from wearnav.fuse import radiofloor, radiomap
+from wearnav.fuse import radiofixes, radiofloor, radiomap
 from wearnav.fuse.survey import positions_between
 from wearnav.recording import Fixes, Recording, Trajectory, WifiScans
 
@@ -151,27 +151,27 @@ def test_a_map_of_another_site_does_not_fit(built):
     other = {name.replace("02:", "0a:", 1): v for name, v in APS.items()}
     rec = synthetic_walk("elsewhere", [(2.0, 2.0), (30.0, 10.0)], 0, 5, aps=other, fixes=True)
     assert not built.fits(rec) and len(built.locate(rec.wifi)) == 0
-    same, radio, info, warns = radiomap.with_radio_fixes(rec, built)
+    same, radio, info, warns = radiofixes.with_radio_fixes(rec, built)
     assert same is rec and not radio.any() and info["used"] is False
     assert warns == [f"elsewhere: {radiomap.NO_FIT}"]
 
 
 def test_radio_positions_join_the_fixes(built):
     rec = synthetic_walk("joined", [(2.0, 2.0), (30.0, 10.0)], 1, 6, fixes=True)
-    out, radio, info, warns = radiomap.with_radio_fixes(rec, built)
+    out, radio, info, warns = radiofixes.with_radio_fixes(rec, built)
     assert not warns and info["used"] and info["positions"] == radio.sum() > 5
     assert len(out.fixes) == len(rec.fixes) + radio.sum() and np.all(np.diff(out.fixes.t) > 0)
     assert np.all(np.isnan(out.fixes.floor[~radio])) and np.all(out.fixes.floor[radio] == 1)
     np.testing.assert_array_equal(out.fixes.t[~radio], rec.fixes.t)  # the phone's fixes unchanged
-    bare = radiomap.with_radio_fixes(synthetic_walk("bare", [(2.0, 2.0), (30.0, 10.0)], 0, 8), built)[0]
+    bare = radiofixes.with_radio_fixes(synthetic_walk("bare", [(2.0, 2.0), (30.0, 10.0)], 0, 8), built)[0]
     assert bare.fixes is not None and np.all(np.isfinite(bare.fixes.accuracy))  # no GNSS: the radio is the start
     # beside the phone's fixes a radio position weighs as RADIO_BESIDE_FIXES of its radius (σ by groups);
     # alone, its radius (σ by the one scale)
-    alone = radiomap.with_radio_fixes(dataclasses.replace(rec, fixes=None), built)[0].fixes
+    alone = radiofixes.with_radio_fixes(dataclasses.replace(rec, fixes=None), built)[0].fixes
     assert alone is not None
     grouped, scaled = (built.locate(rec.wifi, by_group=g).accuracy_m for g in (True, False))
     assert built.card["sigma_calibration"] and not np.allclose(grouped, scaled)  # the two differ here
-    np.testing.assert_allclose(out.fixes.accuracy[radio], radiomap.RADIO_BESIDE_FIXES * grouped)
+    np.testing.assert_allclose(out.fixes.accuracy[radio], radiofixes.RADIO_BESIDE_FIXES * grouped)
     np.testing.assert_allclose(alone.accuracy, scaled)
     floors = radiofloor.floor_at(np.array([0.0, 2.0, 4.0, 6.0]), np.array([0.0, 1.0, 0.0, 0.0]), np.array([2.0, 50.0]))
     np.testing.assert_array_equal(floors, [0.0, 0.0])  # one odd scan does not change floor
@@ -277,17 +277,17 @@ def test_phone_fixes_that_disagree_with_the_radio_positions_lose_weight():
     )
     claimed = np.full(t.size, 5.0)  # a 68 % radius of 5 m: σ 3.3 m per axis
     honest = truth + (5.0 / radiomap.RADIUS_68) * rng.standard_normal(truth.shape)
-    assert radiomap.phone_accuracy_scale(t, honest, claimed, pos) < 1.2  # honest fixes: barely touched (sampling)
+    assert radiofixes.phone_accuracy_scale(t, honest, claimed, pos) < 1.2  # honest fixes: barely touched (sampling)
     off = truth + 12.0 * rng.standard_normal(truth.shape)  # ~4x worse than claimed (underground)
-    scale = radiomap.phone_accuracy_scale(t, off, claimed, pos)
+    scale = radiofixes.phone_accuracy_scale(t, off, claimed, pos)
     assert scale is not None and 2.5 < scale < 6.0
     # with the grown accuracy, 68 % of the distances fall inside the combined 68 % radius
     k = np.abs(scan_t[None, :] - t[:, None]).argmin(axis=1)
-    near = np.abs(scan_t[k] - t) <= radiomap.PAIR_S
+    near = np.abs(scan_t[k] - t) <= radiofixes.PAIR_S
     d = np.linalg.norm(off[near] - pos.xy[k[near]], axis=1)
     combined = radiomap.RADIUS_68 * np.hypot(scale * claimed[near] / radiomap.RADIUS_68, sigma[k[near]])
     assert abs(np.mean(d <= combined) - 0.68) < 0.05
-    assert radiomap.phone_accuracy_scale(t[:3], off[:3], claimed[:3], pos) is None  # too few pairs
+    assert radiofixes.phone_accuracy_scale(t[:3], off[:3], claimed[:3], pos) is None  # too few pairs
 
 
 def test_sigma_is_calibrated_per_group_of_raw_sigma_not_by_one_scale():

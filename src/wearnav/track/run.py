@@ -105,6 +105,7 @@ from wearnav.evaluate import odometry as odometry  # re-exported with the two be
 from wearnav.evaluate import odometry_preprocess as odometry_preprocess
 from wearnav.evaluate import path_times as path_times
 from wearnav.fuse import radiomap as radiomap_mod
+from wearnav.fuse.radiofixes import with_radio_fixes
 from wearnav.fuse.radiofloor import floor_over_time
 from wearnav.models import registry
 from wearnav.outputs import check_out_folder, staged_output
@@ -214,7 +215,7 @@ def track(
     records, :func:`wearnav.pretrained.recorded_speed`, or a file of `wearnav export` carries); ``fix_lag_s``: how many seconds the fixes lag
     the walker (:func:`wearnav.track.write.write_track`); ``radiomap``: a radio map folder of
     `wearnav radiomap build` whose positions of the recording's Wi-Fi scans join its fixes
-    (:func:`wearnav.fuse.radiomap.with_radio_fixes`, issue 60 §3; ``track.json`` ``radiomap``); returns
+    (:func:`wearnav.fuse.radiofixes.with_radio_fixes`, issue 60 §3; ``track.json`` ``radiomap``); returns
     what ``track.json`` holds."""
     out = Path(out)
     if anchor not in fuse.ANCHORS:
@@ -235,7 +236,7 @@ def track(
     radio_info: dict | None = None
     radio_warnings: list[str] = []
     if rmap is not None:  # the radio map's positions of the scans join the fixes (issue 60 §3)
-        rec, radio_fix, radio_info, radio_warnings = radiomap_mod.with_radio_fixes(rec, rmap)
+        rec, radio_fix, radio_info, radio_warnings = with_radio_fixes(rec, rmap)
     choice = "given with --model"
     # without --model: the default for the devices and fixes the recording has, and why (pretrained.default_model)
     if model_path is None:
