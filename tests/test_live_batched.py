@@ -21,7 +21,7 @@ import pytest
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import crowd
 from wearnav.live.bench import walker_export
-from wearnav.live.buffer import SessionBuffer
+from wearnav.live.buffer import DECIDE_S, RECHECK_S, SessionBuffer
 from wearnav.live.lean import lean_recording
 from wearnav.live.models import SharedModels
 from wearnav.live.replay import build
@@ -70,8 +70,11 @@ def test_lean_recording_is_the_importers_step(replay):
             template = buf.recording()
             continue
         t_from = max(0.0, buf.covered_until() - 12.0)
-        lean, rec = lean_recording(buf, t_from, template), buf.recording(t_from)
-        if i * 0.2 > 12.0:  # the quaternion direction is decided after 10 s: from then on always lean
+        rec = buf.recording(t_from)  # first: before the decision, it checks the direction lean then reads in
+        lean = lean_recording(buf, t_from, template)
+        # the quaternion direction is decided after 10-12 s (DECIDE_S + the session's phase ×
+        # RECHECK_S): from then on always lean
+        if i * 0.2 > DECIDE_S + RECHECK_S + 1.0:
             assert lean is not None
         if lean is None:
             continue
@@ -217,3 +220,51 @@ def test_one_sessions_failing_alignment_fails_only_that_session(replay, models, 
         cr.tick()
     assert len(cr.sessions["good"].tracker.odo.t) > 100 and cr.sessions["good"].error is None
     assert not cr.sessions["bad"].tracker.odo.t and "bad input" in cr.state("bad")["warnings"][-1]
+
+
+def test_the_quaternion_checks_fall_on_each_sessions_own_grid(replay):
+    """Before the decision the whole session is checked once per ``RECHECK_S`` of data, on a grid
+    offset by the session's phase (slices in between read in the direction last found), and the
+    direction is decided at ``DECIDE_S`` + phase × ``RECHECK_S``: sessions that start together
+    check in different ticks (issue 61)."""
+    checks: dict[str, list[float]] = {}
+    for sid in ("walker-1", "walker-2", "walker-3"):
+        buf = SessionBuffer(sid, replay.platform, replay.standardised)
+        assert 0.0 <= buf.phase < 1.0
+        full = buf._full
+        buf._full = lambda snap, buf=buf, full=full: (
+            checks.setdefault(buf.session_id, []).append(buf.covered_until()) or full(snap)
+        )  # type: ignore[method-assign]
+        for msg in replay.messages[:80]:  # 16 s
+            buf.add(msg["payload"])
+            if buf.covered_until() > 1.0:
+                buf.recording(max(0.0, buf.covered_until() - 4.0))
+        at = np.asarray(checks[sid])
+        decide = DECIDE_S + buf.phase * RECHECK_S
+        assert buf._quat_inverted is not None and at[-1] >= decide and at[-1] < decide + 0.5  # decided once, then
+        slots = np.floor(at[:-1] / RECHECK_S + buf.phase)
+        assert len(at) <= 7 and np.all(np.diff(slots) >= 1)  # at most one check per slot of the grid
+    phases = sorted(SessionBuffer(s, replay.platform, replay.standardised).phase for s in checks)
+    assert phases[-1] - phases[0] > 0.1  # three ids, three places on the grid
+
+
+def test_each_sessions_second_solve_comes_early_by_its_phase(replay, models):
+    """The smoother is solved at a session's first update, then ``FUSE_EVERY_S`` of data apart,
+    the second solve early by the session's phase × ``FUSE_EVERY_S`` (issue 61: sessions that start
+    together do not all solve in one tick)."""
+    from wearnav.live.tracker import FUSE_EVERY_S, STEP_S
+
+    for sid in ("walker-1", "walker-2"):
+        buf = SessionBuffer(sid, replay.platform, replay.standardised)
+        tr = LiveTracker(models=models)
+        solved: list[float] = []
+        fuse = tr._fuse
+        tr._fuse = lambda fuse=fuse, tr=tr, solved=solved: solved.append(tr._seen_s) or fuse()  # type: ignore[method-assign]
+        for msg in replay.messages[:200]:  # 40 s
+            buf.add(msg["payload"])
+            tr.update(buf)
+        at = np.asarray(solved)  # the covered time of each solve's update
+        assert len(at) >= 3
+        gaps = np.diff(at)
+        early = (1.0 - buf.phase) * FUSE_EVERY_S
+        assert abs(gaps[0] - early) <= STEP_S + 0.3 and np.all(np.abs(gaps[1:] - FUSE_EVERY_S) <= STEP_S + 0.3)

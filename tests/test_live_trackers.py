@@ -214,3 +214,42 @@ def test_trackers_placed_on_ray_lose_nothing(local_ray, tmp_path, phone_export):
     for sid in SESSIONS:
         assert states[sid]["tracker"] == f"{shard_of(sid, 2)}/2"
         assert states[sid]["tracked_messages"] == n and states[sid]["path"]
+
+
+def test_a_state_is_made_again_only_when_its_tracker_changed_or_a_second_passed(tmp_path, monkeypatch):
+    """``TrackerProcess.write_states`` makes a session's state (its devices, JSON) again when its
+    tracker's state changed, or every ``DEVICES_EVERY_S`` while messages arrive (issue 61: four
+    times a second for every session was 9 % of a tracker process)."""
+    from wearnav.live import trackers
+    from wearnav.live.buffer import SessionBuffer
+
+    class StandIn:  # a tracker without begin/finish: its state is what the test sets
+        def __init__(self):
+            self.st = {"path": []}
+
+        def update(self, buf, final=False):
+            return True
+
+        def state(self):
+            return self.st
+
+    proc = trackers.TrackerProcess(tmp_path / "s.db", StandIn)
+    proc.crowd.stop()
+    buf = proc.buffers["a"] = SessionBuffer("a", "ios", False)
+    proc.crowd.poke("a", buf)
+    proc.crowd.tick()
+    made: list[str] = []
+    devices = SessionBuffer.devices
+    monkeypatch.setattr(SessionBuffer, "devices", lambda self: made.append(self.session_id) or devices(self))
+    clock = [100.0]
+    monkeypatch.setattr(trackers.time, "monotonic", lambda: clock[0])
+    assert proc.write_states() == 1 and len(made) == 1
+    assert proc.write_states() == 0 and len(made) == 1  # nothing changed: not made again
+    buf.messages += 1  # a message arrived, the tracker's state unchanged: made again a second later
+    clock[0] += 0.5
+    assert proc.write_states() == 0 and len(made) == 1
+    clock[0] += trackers.DEVICES_EVERY_S
+    assert proc.write_states() == 1 and len(made) == 2
+    proc.crowd.sessions["a"].tracker.st = {"path": [[1.0, 2.0]]}  # the tracker changed: made at once
+    assert proc.write_states() == 1 and len(made) == 3
+    assert proc.store.state("a")["path"] == [[1.0, 2.0]]

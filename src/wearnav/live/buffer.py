@@ -17,6 +17,8 @@ so every slice lies in one frame.
 from __future__ import annotations
 
 import copy
+import hashlib
+import math
 import threading
 import time
 import warnings
@@ -33,6 +35,13 @@ from wearnav.recording import DeviceStream, Fixes, Recording
 
 NS = 1_000_000_000
 DECIDE_S = 10.0  # seconds of data after which the quaternion direction is decided for good
+# Before the decision, the whole session's checked build (the importer's, some 8 ms whatever its
+# length) is redone every RECHECK_S of data; in between, slices are read in the direction it last
+# found (issue 61: it was redone at every update, 2 ms of a 30-s phone-only walker's 10.6 ms a
+# second). A direction that the next check turns is taken from then on, as at every update before.
+# The checks fall on a grid offset by the session's phase, and the decision at DECIDE_S + phase ×
+# RECHECK_S: sessions that start together (a crowd's may) do not all build in one tick.
+RECHECK_S = 2.0
 MARGIN_S = 2.0  # a slice reads this much earlier data, for interpolation at its start
 AUTO = "auto"  # a session whose push URL gave no platform: decided from its data
 CONNECTED_S = 5.0  # a device this far behind the newest (sample time) no longer holds the path back
@@ -134,6 +143,9 @@ class SessionBuffer:
         self._sensors: dict[str, _Sensor] = {}
         self._lock = threading.Lock()
         self._quat_inverted: list[str] | None = None
+        self.phase = session_phase(session_id)
+        self._decide_s = DECIDE_S + self.phase * RECHECK_S
+        self._provisional: tuple[float, list[str]] | None = None  # (covered_until, direction) of the last check
         self._cache: tuple | None = None
         self._snap: tuple[int, dict[str, tuple]] | None = None  # the latest _snapshot, by version
         self._fresh_cache: tuple[tuple, np.ndarray] | None = None  # _first_fresh_row's last answer
@@ -286,7 +298,8 @@ class SessionBuffer:
             return self._cache[1]
         if self.t0_unix_ns is None:
             raise FormatError("no motion samples yet", f"live:{self.session_id}")
-        if t_from is None or self._quat_inverted is None:
+        inverted = self.quat_direction()
+        if t_from is None or inverted is None:
             rec = self._full(snap)
             if t_from is not None:
                 rec = cut(rec, t_from)
@@ -300,9 +313,25 @@ class SessionBuffer:
                     lat, lon = (full_loc[2].index(c) for c in ("latitude", "longitude"))
                     origin = (float(full_loc[1][k, lat]), float(full_loc[1][k, lon]))
             lo = self.t0_unix_ns + int(round((t_from - MARGIN_S) * NS))
-            rec = cut(self._build(self._tables(snap, lo), quat_inverted=self._quat_inverted, origin=origin), t_from)
+            rec = cut(self._build(self._tables(snap, lo), quat_inverted=inverted, origin=origin), t_from)
         self._cache = (key, rec)
         return rec
+
+    def quat_direction(self) -> list[str] | None:
+        """The devices whose quaternions slices read inverted: as decided on the first ``DECIDE_S``
+        seconds (and the session's phase), or before that as the whole session's last check found
+        until the next check (every ``RECHECK_S``, on a grid offset by the phase); None: a check of the whole session is due (:meth:`recording` runs it)."""
+        if self._quat_inverted is not None:
+            return self._quat_inverted
+        p = self._provisional
+        if p is None:
+            return None
+        span = self.covered_until()
+        if span >= self._decide_s or math.floor(span / RECHECK_S + self.phase) != math.floor(
+            p[0] / RECHECK_S + self.phase
+        ):
+            return None
+        return p[1]
 
     def _full(self, snap: dict) -> Recording:
         """The whole session with the importer's checks. Until ``DECIDE_S`` seconds are in, data too
@@ -312,7 +341,7 @@ class SessionBuffer:
         the orientation's up), provisionally until ``DECIDE_S`` seconds, for good after."""
         tables = self._tables(snap, None)
         span = self.covered_until()
-        decided = span >= DECIDE_S
+        decided = span >= self._decide_s
         tried = [(self.platform, self.standardised)] + (
             [c for c in CONVENTIONS if c != (self.platform, self.standardised)] if self.infer else []
         )
@@ -333,9 +362,11 @@ class SessionBuffer:
                     )
                 if self._quat_inverted is None:
                     self._quat_inverted = list(rec.meta.get("quat_inverted", []))
+            self._provisional = (span, list(rec.meta.get("quat_inverted", [])))
             return rec
         assert first_error is not None  # every convention tried (at least one) failed
         if not decided and not self.infer:
+            self._provisional = (span, [])
             return self._build(tables, quat_inverted=())
         if not decided:
             raise FormatError(
@@ -404,6 +435,12 @@ class SessionBuffer:
                 d["rate_hz"], d["samples"] = round(float(rate), 1), int(t.size)
             d["last_seen_unix_s"] = max(d["last_seen_unix_s"], seen[fname])
         return out
+
+
+def session_phase(session_id: str) -> float:
+    """A number in [0, 1) fixed by the session id: where in its period a session's periodic work
+    falls (issue 61: sessions that start together would otherwise all do it in the same tick)."""
+    return int.from_bytes(hashlib.blake2b(session_id.encode(), digest_size=8).digest(), "big") / 2.0**64
 
 
 def _table(session_id: str, fname: str, entry: tuple, i: int) -> Table:
@@ -521,4 +558,4 @@ def derived(rec: Recording, devices: dict[str, DeviceStream], fixes: Fixes | Non
     return out
 
 
-__all__ = ["AUTO", "CONVENTIONS", "DECIDE_S", "SessionBuffer", "cut", "derived", "sliced"]
+__all__ = ["AUTO", "CONVENTIONS", "DECIDE_S", "RECHECK_S", "SessionBuffer", "cut", "derived", "session_phase", "sliced"]

@@ -97,6 +97,14 @@ class Crowd:
             st["warnings"] = [*st.get("warnings", []), s.error]
         return st
 
+    def state_key(self, sid: str) -> tuple | None:
+        """What :meth:`state` is made from: (the tracker's state object, which an update replaces
+        when it changes: compare with ``is``; the error); None: no state yet."""
+        s = self.sessions.get(sid)
+        if s is None or (s.tracker is None and s.error is None):
+            return None
+        return (s.tracker.state() if s.tracker is not None else None, s.error)
+
     def latency_s(self) -> dict[str, list[float]]:
         return {sid: s.latency_s[-1000:] for sid, s in list(self.sessions.items())}
 

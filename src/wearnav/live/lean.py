@@ -34,7 +34,8 @@ def lean_recording(buf, t_from: float, template: Recording) -> Recording | None:
     comment above), ``template`` (an earlier Recording of the session) giving the rest; None where
     the session is not the phone-only input this handles (the caller asks ``buf.recording``)."""
 
-    inverted = getattr(buf, "_quat_inverted", None)
+    direction = getattr(buf, "quat_direction", None)  # decided, or provisional (buffer.RECHECK_S)
+    inverted = direction() if direction is not None else None
     if inverted is None or set(template.devices) != {"phone"}:
         return None
     _version, snap = buf._snapshot()

@@ -208,7 +208,8 @@ class LiveTracker:
         self._fused: FuseResult | None = None  # the latest
         self.origin: tuple[float, float] | None = None
         self._fix_t = -np.inf  # the latest fix time taken, s
-        self._pending: list[tuple[float, float, float, float]] = []  # fixes before an origin: t, lat, lon, acc
+        # fixes not yet taken (before an origin, or in another frame): (t, east/north, accuracy, their frame's origin)
+        self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[float, float]]] = []
         self.fixes: list[tuple[float, float, float, float]] = []  # t, east, north, accuracy
         self._fix_page: list[list] = []  # the fixes rounded for the page (_fix_rows)
         self._page_rows: tuple[Any, list] = (None, [])  # the path's settled points for the page (_page_path)
@@ -224,6 +225,7 @@ class LiveTracker:
         self._tail = (np.empty(0), np.empty((0, 2)))  # the provisional path after the final one: t, xy
         self._multi = False  # the session has shown several of the model's devices (_several)
         self._seen_s = self._fused_s = -np.inf  # session time of the last update's data, of the last fusion
+        self.fuse_phase = 0.0  # [0, 1): the share of FUSE_EVERY_S the second solve comes early (the buffer's phase)
         # issue 61 §2: the update's Recording from the buffer's arrays where the session's input allows
         # (lean_recording) and its input aligned with every due session's (align_steps); False:
         # the importer's step and align, session by session, as before (the tests compare the two)
@@ -283,6 +285,7 @@ class LiveTracker:
         tic, cpu_tic = time.perf_counter(), time.process_time()
         whole = None
         if self.clock0 is None:
+            self.fuse_phase = float(getattr(buf, "phase", 0.0))
             tol = (odometry_preprocess(self.cfg) if self.cfg is not None else PreprocessConfig()).edge_tolerance
             if hasattr(buf, "motion_span_s") and buf.motion_span_s() < tol + START_MARGIN_S - 1e-6:
                 return None  # too short for _start, whose streams span no more than this: no Recording yet
@@ -331,7 +334,9 @@ class LiveTracker:
         covered, rec, final = step.covered, step.rec, step.final
         if changed and (final or covered - self._fused_s >= FUSE_EVERY_S):
             self._fuse()
-            self._fused_s = covered
+            # the next solve FUSE_EVERY_S later; after the first, by the session's phase (issue 61:
+            # sessions that start together, as a crowd's may, do not all solve in one tick)
+            self._fused_s = covered - (self.fuse_phase * FUSE_EVERY_S if self._fused_s == -np.inf else 0.0)
         if activity is not None:
             changed |= self._label(*activity, covered)
         if not self._trusted and covered >= TRUST_AFTER_S:
@@ -445,28 +450,36 @@ class LiveTracker:
             for row in zip(ft.tolist(), pos[:, 0].tolist(), pos[:, 1].tolist(), acc.tolist()):
                 self._add_fix(*row)
             return True
-        lat, lon = geo.local_to_latlon(pos, float(lat0), float(lon0))
-        self._pending += list(zip(ft.tolist(), lat.tolist(), lon.tolist(), acc.tolist()))
+        self._pending.append((ft, pos, acc, (float(lat0), float(lon0))))
         if self.origin is None:
-            p = np.asarray(self._pending)
+            t, p, a = self._pending_in(self._pending[0][3])
             check = check_fixes(
-                -np.inf,
-                np.inf,
-                p[:, 0],
-                geo.latlon_to_local(p[:, 1], p[:, 2], p[0, 1], p[0, 2]),
-                p[:, 3],
-                self.fuser.cfg.wide_m if self.fuser else fuse.FuseConfig().wide_m,
+                -np.inf, np.inf, t, p, a, self.fuser.cfg.wide_m if self.fuser else fuse.FuseConfig().wide_m
             )
             if check.kept.sum() < ORIGIN_MIN_FIXES:
                 return False
             first = int(np.flatnonzero(check.kept)[0])
-            self.origin = (float(p[first, 1]), float(p[first, 2]))
-        p = np.asarray(self._pending)
-        en = geo.latlon_to_local(p[:, 1], p[:, 2], *self.origin)
-        for (t, _, _, a), (e, n) in zip(self._pending, en):
-            self._add_fix(t, e, n, a)
+            frame = self._pending[0][3]
+            # the first kept fix's place; a fix at its frame's origin is that origin (no round trip)
+            lat, lon = geo.local_to_latlon(p[first], *frame) if p[first].any() else ([frame[0]], [frame[1]])
+            self.origin = (float(lat[0]), float(lon[0]))
+        t, en, a = self._pending_in(self.origin)
+        for row in zip(t.tolist(), en[:, 0].tolist(), en[:, 1].tolist(), a.tolist()):
+            self._add_fix(*row)
         self._pending = []
         return True
+
+    def _pending_in(self, origin: tuple[float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The pending fixes' times, east/north in the frame at ``origin`` and accuracies: each
+        group already in that frame as it is, the others through latitude and longitude."""
+        t, en, a = [], [], []
+        for ft, pos, acc, frame in self._pending:
+            if frame != origin:
+                pos = geo.latlon_to_local(*geo.local_to_latlon(pos, *frame), *origin)
+            t.append(ft)
+            en.append(pos)
+            a.append(acc)
+        return np.concatenate(t), np.concatenate(en), np.concatenate(a)
 
     def _add_fix(self, t, e, n, a) -> None:
         self.fixes.append((float(t), float(e), float(n), float(a)))
