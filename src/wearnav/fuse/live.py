@@ -83,10 +83,11 @@ class IncrementalFuser:
     is therefore bounded by the window, however long the session. Until the first solution (two
     fixes that spread) the walk so far is fused by :func:`smooth`, with its fallbacks."""
 
-    def __init__(self, cfg: FuseConfig = FuseConfig(), lag_s: float = 300.0, step_s: float = 30.0):
+    def __init__(self, cfg: FuseConfig = FuseConfig(), lag_s: float = 300.0, step_s: float = 30.0, dense: bool = True):
         if step_s < cfg.node_s or lag_s < step_s:
             raise ValidationError(f"the fixed lag needs lag_s ≥ step_s ≥ node_s; got {lag_s}, {step_s}")
         self.cfg, self.lag_s, self.step_s = cfg, float(lag_s), float(step_s)
+        self.dense = dense  # the window's steps solved densely (smoother.solve's dense)
         self._odo = _Rows(3)  # t (s), x, y (m)
         self._fix = _Rows(4)  # t (s), east, north, accuracy (m)
         self._start: float | None = None  # the window's first node, s (None: not started)
@@ -142,7 +143,7 @@ class IncrementalFuser:
             self._advance()
         t, xy, ft, fz, sig = self._arrays(self._start)
         prob = build_problem(t, xy, ft, fz, sig, self._start, t_end, self.cfg, self._prior)
-        sol = solve(prob, _init_from(prob, *self._last))
+        sol = solve(prob, _init_from(prob, *self._last), dense=self.dense)
         self._last = (prob, sol.x)
         pn = prob.path(sol.x)
         r = np.abs(prob.fix_residual(sol.x))
@@ -183,7 +184,7 @@ class IncrementalFuser:
         )
         t, xy, ft, fz, sig = self._arrays(self._start)
         piece = build_problem(t, xy, ft, fz, sig, self._start, new_start, self.cfg, self._prior)
-        sol = solve(piece, _init_from(piece, prob_w, x_w))
+        sol = solve(piece, _init_from(piece, prob_w, x_w), dense=self.dense)
         self._prior = _marginal_at_end(piece, sol)
         self._start = new_start
         self.marginalised += 1
