@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from wearnav.live.bench_page import costs
+from wearnav.live.bench_page import _cost_rows, costs
 from wearnav.live.cost import receiver_cost
 
 
@@ -20,20 +20,29 @@ def test_receiver_cost_posts_every_message_and_reads_the_receivers_cpu(tmp_path)
 
 
 def test_the_page_turns_costs_into_capacity():
-    """Receiver: CPU share × wall / messages; tracking: a row's CPU less its messages at that cost,
-    per walker-second; capacity: a core's worth of each, and the machine's cores over both."""
+    """Costs from the rows that kept up only, measured, not subtracted: a row's CPU per walker-second;
+    with tracker processes the receiver's own CPU per message and the trackers' per walker-second;
+    capacity from the largest crowd kept up."""
     r = {
         "load": {"cpu_share_of_one_core": 0.1, "wall_s": 60.0, "messages": 3000},  # 2 ms a message
         "machine": {"cores": 2},
         "walkers": [
             {"tracking": True, "kept_up": True, "walkers": 10, "seconds": 30.0, "messages": 1500,
-             "cpu_share_of_one_core": 0.4, "devices": "phone"},  # 12 s CPU, 3 s of it receiving: 30 ms/walker-s
-            {"tracking": True, "kept_up": False, "walkers": 20, "seconds": 30.0, "messages": 3000,
+             "cpu_share_of_one_core": 0.4, "devices": "phone"},  # in the receiver: 40 ms/walker-s in all
+            {"tracking": True, "kept_up": True, "walkers": 20, "seconds": 30.0, "messages": 3000,
+             "cpu_share_of_one_core": 0.6, "receiver_cpu_share_of_one_core": 0.1,
+             "devices": "phone"},  # tracker processes: 1 ms a message, 25 ms/walker-s tracking
+            {"tracking": True, "kept_up": False, "walkers": 40, "seconds": 30.0, "messages": 6000,
              "cpu_share_of_one_core": 0.9, "devices": "phone"},  # not kept up: not a cost
         ],
     }  # fmt: skip
     c = costs(r)
-    assert c["receiver_ms_per_message"] == 2.0 and c["tracker_ms_per_walker_s"] == {"phone-10": 30.0}
-    assert c["messages_per_s_per_receiver_core"] == 500 and c["walkers_per_receiver_core"] == 100
-    assert c["walkers_per_tracker_core"] == 33
-    assert c["walkers_per_machine"] == int(2 / (0.002 * 5 + 0.030))  # 50
+    assert c["load_receiver_ms_per_message"] == 2.0
+    assert c["server_ms_per_walker_s"] == {"phone-10": 40.0, "phone-20": 30.0}
+    assert c["receiver_ms_per_message"] == {"phone-20": 1.0} and c["tracker_ms_per_walker_s"] == {"phone-20": 25.0}
+    assert c["largest_kept_up"] == "phone-20" and c["walkers_per_core"] == 33
+    assert c["walkers_per_tracker_core"] == 40 and c["messages_per_s_per_receiver_core"] == 1000
+    assert c["walkers_per_machine_estimate"] == 66
+    text = "\n".join(_cost_rows(c, 2))
+    assert "1 (the receiver process at 20 walkers)" in text and "25 (the tracker processes at 20 walkers)" in text
+    assert "measured: 20 walkers kept up" in text

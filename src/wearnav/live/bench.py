@@ -253,7 +253,7 @@ def walkers_phase(
                 parts = [srv.cpu_s(), *(cpu_s(p.pid) for p in procs)]
                 return None if any(c is None for c in parts) else sum(c for c in parts if c is not None)
 
-            c0, w0, s0 = used(), time.perf_counter(), time.process_time()
+            r0, c0, w0, s0 = srv.cpu_s(), used(), time.perf_counter(), time.process_time()
             url = replay.push_url(f"{srv.url}/push", base)
 
             def walk(i: int) -> None:
@@ -269,7 +269,7 @@ def walkers_phase(
                 t.start()
             for t in threads:
                 t.join()
-            c1, w1, s1 = used(), time.perf_counter(), time.process_time()
+            r1, c1, w1, s1 = srv.cpu_s(), used(), time.perf_counter(), time.process_time()
             time.sleep(1.0 + (2 * STATS_EVERY_S if procs else 0.0))  # the last updates (and the trackers' summaries)
             try:  # a receiver that fell far behind may answer late, or not at all: then nothing is known of its updates
                 stats = httpx.get(f"{srv.url}/stats", timeout=60.0).json()
@@ -299,6 +299,10 @@ def walkers_phase(
         "messages": n * walkers,
         "tracking": tracking,
         "cpu_share_of_one_core": None if c0 is None or c1 is None else round((c1 - c0) / (w1 - w0), 4),
+        # with tracker processes: the receiver's own share (the rest is the trackers')
+        "receiver_cpu_share_of_one_core": None
+        if not procs or r0 is None or r1 is None
+        else round((r1 - r0) / (w1 - w0), 4),
         # the walkers' senders (threads of this process) share the machine: what they took
         "senders_cpu_share_of_one_core": round((s1 - s0) / (w1 - w0), 4),
         "ack_ms": {"p50": _pct(acks, 50), "p99": _pct(acks, 99)},

@@ -46,37 +46,93 @@ BEFORE_TRACKER_MS = (16.0, 42.0)
 
 
 def costs(r: dict) -> dict:
-    """The receiver's CPU per message (ms; the load phase, storing only) and, per walkers row that
-    tracked, the tracking CPU per walker-second (ms: the row's CPU less its messages at the receiver's
-    cost, over walkers × seconds), and what they make of a process and of this machine: messages a
-    second per receiver core, walkers per tracker core, and walkers the machine's cores could carry
-    (receiving and tracking; the senders elsewhere)."""
+    """What receiving and tracking cost, from the rows that kept up (a row that fell behind did less
+    than it was given, so its CPU per walker says nothing), and what that makes a core and this
+    machine. Measured, not subtracted: ``server_ms_per_walker_s`` per tracking row is its CPU
+    (receiver and trackers) per walker-second; with tracker processes the receiver's own CPU gives
+    its ``receiver_ms_per_message`` at that crowd's rate and the trackers' the
+    ``tracker_ms_per_walker_s``; without them the receiver and the tracking share a process and
+    only their sum is known. ``load_receiver_ms_per_message``: the load phase's (one sender at 50
+    messages a second: its idle wake-ups included, not a crowd's rate)."""
     ld, cores = r["load"], r["machine"].get("cores") or 1
     share = ld.get("cpu_share_of_one_core")
-    rx = None if share is None or not ld["messages"] else 1e3 * share * ld["wall_s"] / ld["messages"]
-    out: dict = {"receiver_ms_per_message": None if rx is None else round(rx, 3), "tracker_ms_per_walker_s": {}}
-    for w in r["walkers"]:
-        if not w.get("tracking") or w.get("cpu_share_of_one_core") is None or rx is None or not w["kept_up"]:
-            continue
-        cpu_ms = 1e3 * w["cpu_share_of_one_core"] * w["seconds"]
-        per = (cpu_ms - w["messages"] * rx) / (w["walkers"] * w["seconds"])
-        out["tracker_ms_per_walker_s"][f"{w['devices']}-{w['walkers']}"] = round(per, 2)
-    trk = sorted(out["tracker_ms_per_walker_s"].values())
-    if rx is not None:
-        out["messages_per_s_per_receiver_core"] = int(1e3 / rx)
-        out["walkers_per_receiver_core"] = int(1e3 / rx * BATCH_S)
-    if trk:
-        med = trk[len(trk) // 2]
-        out["walkers_per_tracker_core"] = int(1e3 / med) if med > 0 else None
-        if rx is not None and med > 0:
-            out["walkers_per_machine"] = int(cores / (rx / BATCH_S / 1e3 + med / 1e3))
+    out: dict = {
+        "load_receiver_ms_per_message": None
+        if share is None or not ld["messages"]
+        else round(1e3 * share * ld["wall_s"] / ld["messages"], 3),
+        "server_ms_per_walker_s": {},
+        "receiver_ms_per_message": {},
+        "tracker_ms_per_walker_s": {},
+    }
+    kept = [
+        w for w in r["walkers"] if w.get("tracking") and w["kept_up"] and w.get("cpu_share_of_one_core") is not None
+    ]
+    for w in kept:
+        key = f"{w['devices']}-{w['walkers']}"
+        out["server_ms_per_walker_s"][key] = round(1e3 * w["cpu_share_of_one_core"] / w["walkers"], 2)
+        rx = w.get("receiver_cpu_share_of_one_core")
+        if rx is not None and w["messages"]:
+            out["receiver_ms_per_message"][key] = round(1e3 * rx * w["seconds"] / w["messages"], 3)
+            out["tracker_ms_per_walker_s"][key] = round(1e3 * (w["cpu_share_of_one_core"] - rx) / w["walkers"], 2)
+    if kept:  # the largest crowd kept up: where the costs of a crowd show (fixed costs spread the most)
+        big = max(kept, key=lambda w: w["walkers"])
+        key = f"{big['devices']}-{big['walkers']}"
+        per = out["server_ms_per_walker_s"][key]
+        out["largest_kept_up"] = key
+        out["walkers_per_core"] = int(1e3 / per) if per > 0 else None
+        out["walkers_per_machine_estimate"] = int(cores * 1e3 / per) if per > 0 else None
+        if key in out["tracker_ms_per_walker_s"] and out["tracker_ms_per_walker_s"][key] > 0:
+            out["walkers_per_tracker_core"] = int(1e3 / out["tracker_ms_per_walker_s"][key])
+            out["messages_per_s_per_receiver_core"] = int(1e3 / out["receiver_ms_per_message"][key])
     return out
+
+
+def _cost_rows(cost: dict, cores: int) -> list[str]:
+    """The summary table's cost and capacity rows (:func:`costs`)."""
+    big = cost.get("largest_kept_up")
+    rx, trk = cost["receiver_ms_per_message"].get(big), cost["tracker_ms_per_walker_s"].get(big)
+    n = None if big is None else big.rsplit("-", 1)[1]  # the walkers of the largest crowd kept up
+    load_rx = cost["load_receiver_ms_per_message"]
+    rows = [
+        f"| receiver CPU per message (ms; {BEFORE_RECEIVER_MS:g} before issue 61) | "
+        + (
+            f"{rx:g} (the receiver process at {n} walkers)"
+            if rx is not None
+            else f"{'?' if load_rx is None else f'{load_rx:g}'} (the load phase: one sender at 50 messages a second, its idle wake-ups included)"
+        )
+        + " |",
+        f"| tracking CPU per walker-second (ms; {BEFORE_TRACKER_MS[0]:g}–{BEFORE_TRACKER_MS[1]:g} before issue 61) | "
+        + (
+            f"{trk:g} (the tracker processes at {n} walkers)"
+            if trk is not None
+            else "not apart from receiving (one process): see the next row"
+        )
+        + " |",
+    ]
+    if big is not None:
+        per = cost["server_ms_per_walker_s"][big]
+        rows.append(f"| receiving and tracking CPU per walker-second (ms; at {n} walkers) | {per:g} |")
+        rows.append(
+            "| capacity per process | "
+            + (
+                f"a tracker core: {cost['walkers_per_tracker_core']} walkers; a receiver core: "
+                f"{cost['messages_per_s_per_receiver_core']} messages a second"
+                if cost.get("walkers_per_tracker_core")
+                else f"a core receiving and tracking: {cost['walkers_per_core']} walkers"
+            )
+            + " (from the largest crowd kept up) |"
+        )
+        rows.append(
+            f"| capacity of this machine ({cores} cores) | measured: {n} walkers kept up; "
+            f"the cores' worth at that cost: {cost['walkers_per_machine_estimate']} (the senders and the "
+            "latency goal not counted) |"
+        )
+    return rows
 
 
 def page(r: dict) -> str:
     ld, rows, p = r["load"], r["walkers"], r["provenance"]
     cost = costs(r)
-    trk = sorted(cost["tracker_ms_per_walker_s"].values())
     bad, fl = r["bad_inputs"], r["faults"]
     lost = sum(d["lost"] for d in ld["devices"].values())
     dup = sum(d["duplicated"] for d in ld["devices"].values())
@@ -129,31 +185,7 @@ def page(r: dict) -> str:
             f"| server CPU, one walker (% of one core) | {'?' if one['cpu_share_of_one_core'] is None else round(100 * one['cpu_share_of_one_core'], 1)} |",
             *([f"| tracker update p95, one walker (ms) | {one['update_ms']['p95']} |"] if tracking else []),
             *[f"| {WALKER_NAMES[k]} walkers kept up at real time | {max(kept[k]) if kept[k] else 0} |" for k in kinds],
-            f"| receiver CPU per message (ms; {BEFORE_RECEIVER_MS:g} before issue 61) | "
-            f"{cost['receiver_ms_per_message'] if cost['receiver_ms_per_message'] is not None else '?'} |",
-            f"| tracking CPU per walker-second (ms; {BEFORE_TRACKER_MS[0]:g}–{BEFORE_TRACKER_MS[1]:g} before issue 61) | "
-            f"{'–' if not trk else (f'{trk[0]:g}' if len(trk) == 1 else f'{trk[0]:g}–{trk[-1]:g}')} |",
-            "| capacity per process | "
-            + (
-                f"a receiver core: {cost['messages_per_s_per_receiver_core']} messages a second "
-                f"({cost['walkers_per_receiver_core']} walkers' pushes)"
-                if "messages_per_s_per_receiver_core" in cost
-                else "?"
-            )
-            + (
-                f"; a tracker core: {cost['walkers_per_tracker_core']} walkers"
-                if cost.get("walkers_per_tracker_core")
-                else ""
-            )
-            + " |",
-            *(
-                [
-                    f"| capacity of this machine ({r['machine']['cores']} cores, receiving and tracking) | "
-                    f"{cost['walkers_per_machine']} walkers |"
-                ]
-                if cost.get("walkers_per_machine")
-                else []
-            ),
+            *_cost_rows(cost, r["machine"].get("cores") or 1),
             f"| bad inputs refused as expected | {bad['catalogue'] - len(bad['catalogue_wrong'])} |",
             f"| acknowledged messages lost in {fl['kills']} SIGKILLs | {fl['acknowledged_missing']} |",
             "",
