@@ -320,7 +320,8 @@ class SessionBuffer:
     def quat_direction(self) -> list[str] | None:
         """The devices whose quaternions slices read inverted: as decided on the first ``DECIDE_S``
         seconds (and the session's phase), or before that as the whole session's last check found
-        until the next check (every ``RECHECK_S``, on a grid offset by the phase); None: a check of the whole session is due (:meth:`recording` runs it)."""
+        until the next check (every ``RECHECK_S``, on a grid offset by the phase); None: a check of
+        the whole session is due (:meth:`recording` runs it)."""
         if self._quat_inverted is not None:
             return self._quat_inverted
         p = self._provisional
