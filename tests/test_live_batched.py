@@ -248,23 +248,26 @@ def test_the_quaternion_checks_fall_on_each_sessions_own_grid(replay):
     assert phases[-1] - phases[0] > 0.1  # three ids, three places on the grid
 
 
-def test_each_sessions_second_solve_comes_early_by_its_phase(replay, models):
+def test_each_sessions_second_solve_and_label_come_early_by_its_phase(replay, models):
     """The smoother is solved at a session's first update, then ``FUSE_EVERY_S`` of data apart,
-    the second solve early by the session's phase × ``FUSE_EVERY_S`` (issue 61: sessions that start
-    together do not all solve in one tick)."""
-    from wearnav.live.tracker import FUSE_EVERY_S, STEP_S
+    the second solve early by the session's phase × ``FUSE_EVERY_S``; the activity label likewise
+    every ``ACTIVITY_EVERY_S`` (issue 61: sessions that start together do not all solve or label in
+    one tick)."""
+    from wearnav.live.tracker import ACTIVITY_EVERY_S, FUSE_EVERY_S, STEP_S
 
     for sid in ("walker-1", "walker-2"):
         buf = SessionBuffer(sid, replay.platform, replay.standardised)
         tr = LiveTracker(models=models)
         solved: list[float] = []
-        fuse = tr._fuse
+        labelled: list[float] = []
+        fuse, label = tr._fuse, tr._label
         tr._fuse = lambda fuse=fuse, tr=tr, solved=solved: solved.append(tr._seen_s) or fuse()  # type: ignore[method-assign]
+        tr._label = lambda w, p, c, label=label, labelled=labelled: labelled.append(c) or label(w, p, c)  # type: ignore[method-assign]
         for msg in replay.messages[:200]:  # 40 s
             buf.add(msg["payload"])
             tr.update(buf)
-        at = np.asarray(solved)  # the covered time of each solve's update
-        assert len(at) >= 3
-        gaps = np.diff(at)
-        early = (1.0 - buf.phase) * FUSE_EVERY_S
-        assert abs(gaps[0] - early) <= STEP_S + 0.3 and np.all(np.abs(gaps[1:] - FUSE_EVERY_S) <= STEP_S + 0.3)
+        for done, period in ((solved, FUSE_EVERY_S), (labelled, ACTIVITY_EVERY_S)):
+            gaps = np.diff(done)  # the covered time of each run's update
+            assert len(gaps) >= 2
+            early = (1.0 - buf.phase) * period
+            assert abs(gaps[0] - early) <= STEP_S + 0.3 and np.all(np.abs(gaps[1:] - period) <= STEP_S + 0.3)

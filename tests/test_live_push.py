@@ -405,6 +405,15 @@ def assert_fast_agrees(raw: bytes) -> None:
         assert (again.value.status, again.value.message) == (refused.status, refused.message)
         return
     slow_cols, slow_ignored = push_module.columns_of(slow.payload)
+    # stored (it passed the rules), then read again by a tracker process without them: the same
+    stored = push_module.parse_stored(raw)
+    assert (stored.session_id, stored.device_id, stored.message_id) == (
+        slow.session_id,
+        slow.device_id,
+        slow.message_id,
+    )
+    assert stored.payload == slow.payload and stored.ignored == slow_ignored
+    assert _same_columns(stored.columns, slow_cols)
     if fast is not None:
         assert (fast.session_id, fast.device_id, fast.message_id) == (slow.session_id, slow.device_id, slow.message_id)
         assert fast.payload == slow.payload and fast.ignored == slow_ignored

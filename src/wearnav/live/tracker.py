@@ -225,7 +225,7 @@ class LiveTracker:
         self._tail = (np.empty(0), np.empty((0, 2)))  # the provisional path after the final one: t, xy
         self._multi = False  # the session has shown several of the model's devices (_several)
         self._seen_s = self._fused_s = -np.inf  # session time of the last update's data, of the last fusion
-        self.fuse_phase = 0.0  # [0, 1): the share of FUSE_EVERY_S the second solve comes early (the buffer's phase)
+        self.phase = 0.0  # [0, 1): the session's phase (the buffer's), which offsets its periodic work (_phased)
         # issue 61 §2: the update's Recording from the buffer's arrays where the session's input allows
         # (lean_recording) and its input aligned with every due session's (align_steps); False:
         # the importer's step and align, session by session, as before (the tests compare the two)
@@ -285,7 +285,7 @@ class LiveTracker:
         tic, cpu_tic = time.perf_counter(), time.process_time()
         whole = None
         if self.clock0 is None:
-            self.fuse_phase = float(getattr(buf, "phase", 0.0))
+            self.phase = float(getattr(buf, "phase", 0.0))
             tol = (odometry_preprocess(self.cfg) if self.cfg is not None else PreprocessConfig()).edge_tolerance
             if hasattr(buf, "motion_span_s") and buf.motion_span_s() < tol + START_MARGIN_S - 1e-6:
                 return None  # too short for _start, whose streams span no more than this: no Recording yet
@@ -334,9 +334,7 @@ class LiveTracker:
         covered, rec, final = step.covered, step.rec, step.final
         if changed and (final or covered - self._fused_s >= FUSE_EVERY_S):
             self._fuse()
-            # the next solve FUSE_EVERY_S later; after the first, by the session's phase (issue 61:
-            # sessions that start together, as a crowd's may, do not all solve in one tick)
-            self._fused_s = covered - (self.fuse_phase * FUSE_EVERY_S if self._fused_s == -np.inf else 0.0)
+            self._fused_s = self._phased(self._fused_s, covered, FUSE_EVERY_S)
         if activity is not None:
             changed |= self._label(*activity, covered)
         if not self._trusted and covered >= TRUST_AFTER_S:
@@ -348,6 +346,14 @@ class LiveTracker:
             self.timings.append(time.perf_counter() - step.tic)
             self.cpu_timings.append(time.process_time() - step.cpu_tic)
         return changed
+
+    def _phased(self, last: float, covered: float, period: float) -> float:
+        """When a job done every ``period`` of session time (the smoother's solve, the activity
+        label) counts as last done, now that it is done at ``covered``: ``covered``, but the first
+        time ``covered`` less the session's phase of a period, so that its second run comes early
+        by that much (issue 61: sessions that start together, as a crowd's may, do not all run it
+        in one tick)."""
+        return covered - (self.phase * period if last == -np.inf else 0.0)
 
     def _several(self, rec, pcfg) -> bool:
         """Whether the session has shown more than one of the model's devices so far (once it has,
@@ -568,7 +574,7 @@ class LiveTracker:
         assert self.classifier is not None  # w came from activity_windows
         model, _, classes = self.classifier
         t, cls, conf = decide_classes(model, w, prob)
-        self._activity_at = covered
+        self._activity_at = self._phased(self._activity_at, covered, ACTIVITY_EVERY_S)
         label = {
             "label": class_name(classes, int(cls[-1])),
             "t_s": round(float(t[-1, 1]), 3),
