@@ -25,8 +25,8 @@ Fusion: the final path feeds :class:`wearnav.fuse.live.IncrementalFuser` (``trac
 fixed-lag smoother; before the first final window the provisional path is smoothed whole by
 :func:`wearnav.fuse.smooth`), solved at most every ``FUSE_EVERY_S``; the path since the last solve is
 placed by a rigid fit (:func:`wearnav.fuse.rigid_fit`) on the last ``PLACE_S`` of the smoothed one.
-Everything is in the east/north frame of the first good fix (:mod:`wearnav.fixcheck`; fixes converted
-by :mod:`wearnav.core.geo`). Activity: the phone's latest window classified by the shipped activity model
+Everything is in the east/north frame of the first good fix (:class:`wearnav.live.fixframe.FixFrame`).
+Activity: the phone's latest window classified by the shipped activity model
 as ``classify`` runs it (:func:`wearnav.train.labelling.window_classes`). Warnings: those the input
 gives (:func:`wearnav.track.trust.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
 the smoother's; the walk-plausibility check of ``track`` needs the whole walk and is left to it.
@@ -52,12 +52,11 @@ from typing import Any
 import numpy as np
 
 from wearnav import fuse, plans, pretrained
-from wearnav.core import geo
 from wearnav.errors import ValidationError
-from wearnav.fixcheck import check_fixes
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
 from wearnav.live.buffer import derived, sliced
+from wearnav.live.fixframe import FixFrame
 from wearnav.live.lean import lean_recording
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
 from wearnav.preprocess import Aligned, PreprocessConfig, align, clock, common_span
@@ -111,7 +110,6 @@ TRUST_AFTER_S = 30.0  # the input's warnings once this much of the session has a
 # (a device starting later than that after the first counts as put on mid-walk), for the devices'
 # batches to have arrived.
 START_MARGIN_S = 1.0
-ORIGIN_MIN_FIXES = 3  # the origin is the first good fix once this many fixes are kept
 
 
 @dataclasses.dataclass
@@ -206,11 +204,7 @@ class LiveTracker:
         self.odo = _Odometry()
         self.fuser: IncrementalFuser | None = None
         self._fused: FuseResult | None = None  # the latest
-        self.origin: tuple[float, float] | None = None
-        self._fix_t = -np.inf  # the latest fix time taken, s
-        # fixes not yet taken (before an origin, or in another frame): (t, east/north, accuracy, their frame's origin)
-        self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[float, float]]] = []
-        self.fixes: list[tuple[float, float, float, float]] = []  # t, east, north, accuracy
+        self._frame = FixFrame()  # the fixes taken (t, east, north, accuracy) and their frame's origin
         self._fix_page: list[list] = []  # the fixes rounded for the page (_fix_rows)
         self._page_rows: tuple[Any, list] = (None, [])  # the path's settled points for the page (_page_path)
         self.activity: dict | None = None
@@ -437,60 +431,23 @@ class LiveTracker:
 
     # ---- fixes and fusion ----------------------------------------------------------------------
 
+    @property
+    def origin(self) -> tuple[float, float] | None:
+        """The session's frame: the first good fix (lat, lon), None until chosen (:class:`FixFrame`)."""
+        return self._frame.origin
+
+    @property
+    def fixes(self) -> list[tuple[float, float, float, float]]:
+        """The fixes taken so far: t, east, north, accuracy."""
+        return self._frame.fixes
+
     def _take_fixes(self, rec) -> bool:
-        """The fixes newer than the last taken, into the frame of the first good fix (a fix arriving
-        late, older than the latest taken or than ``rec``'s start, is not taken)."""
-        fx = rec.fixes
-        if fx is None or len(fx) == 0:
-            return False
-        new = fx.t > self._fix_t
-        if not new.any():
-            return False
-        self._fix_t = float(fx.t[new][-1])
-        pos, acc, ft = fx.pos[new, :2], fx.accuracy[new], fx.t[new]
-        lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
-        same = self.origin is not None and self.origin == (lat0, lon0) and not self._pending
-        if lat0 is None or lon0 is None or same:
-            # metres without a place on Earth, or already in the frame of the session's origin (no
-            # round trip through lat/lon: it gave back the same metres to 1e-9 m, at 1 ms an update)
-            for row in zip(ft.tolist(), pos[:, 0].tolist(), pos[:, 1].tolist(), acc.tolist()):
-                self._add_fix(*row)
-            return True
-        self._pending.append((ft, pos, acc, (float(lat0), float(lon0))))
-        if self.origin is None:
-            t, p, a = self._pending_in(self._pending[0][3])
-            check = check_fixes(
-                -np.inf, np.inf, t, p, a, self.fuser.cfg.wide_m if self.fuser else fuse.FuseConfig().wide_m
-            )
-            if check.kept.sum() < ORIGIN_MIN_FIXES:
-                return False
-            first = int(np.flatnonzero(check.kept)[0])
-            frame = self._pending[0][3]
-            # the first kept fix's place; a fix at its frame's origin is that origin (no round trip)
-            lat, lon = geo.local_to_latlon(p[first], *frame) if p[first].any() else ([frame[0]], [frame[1]])
-            self.origin = (float(lat[0]), float(lon[0]))
-        t, en, a = self._pending_in(self.origin)
-        for row in zip(t.tolist(), en[:, 0].tolist(), en[:, 1].tolist(), a.tolist()):
-            self._add_fix(*row)
-        self._pending = []
-        return True
-
-    def _pending_in(self, origin: tuple[float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The pending fixes' times, east/north in the frame at ``origin`` and accuracies: each
-        group already in that frame as it is, the others through latitude and longitude."""
-        t, en, a = [], [], []
-        for ft, pos, acc, frame in self._pending:
-            if frame != origin:
-                pos = geo.latlon_to_local(*geo.local_to_latlon(pos, *frame), *origin)
-            t.append(ft)
-            en.append(pos)
-            a.append(acc)
-        return np.concatenate(t), np.concatenate(en), np.concatenate(a)
-
-    def _add_fix(self, t, e, n, a) -> None:
-        self.fixes.append((float(t), float(e), float(n), float(a)))
-        assert self.fuser is not None  # set by _start, which comes before any fix is taken
-        self.fuser.add_fix(float(t), float(e), float(n), float(a))
+        """The fixes newer than the last taken, into the session's frame and the smoother."""
+        rows = self._frame.take(rec, self.fuser.cfg.wide_m if self.fuser else fuse.FuseConfig().wide_m)
+        for t, e, n, a in rows:
+            assert self.fuser is not None  # set by _start, which comes before any fix is taken
+            self.fuser.add_fix(t, e, n, a)
+        return bool(rows)
 
     def _fuse(self) -> None:
         """The smoother's path: the fixed-lag smoother's over the final path, or before there is one
