@@ -501,15 +501,7 @@ def solve(prob: Problem, x0: np.ndarray, dense: bool = False):
     solver's tolerances (the live smoother's path on a 6-min walk within 1.74 mm at every update:
     tests/test_fuse_smoother.py), half the CPU for a window of the live fixed-lag smoother's size
     (issue 61); the batch smoother keeps LSMR (a whole walk's Jacobian can be large)."""
-    if dense:
-        return least_squares(
-            prob.residuals,
-            x0,
-            jac=lambda x: prob.jacobian(x).toarray(),
-            method="trf",
-            x_scale="jac",
-            ftol=1e-6,
-            xtol=1e-6,
-            tr_solver="exact",
-        )
-    return least_squares(prob.residuals, x0, jac=prob.jacobian, method="trf", x_scale="jac", ftol=1e-6, xtol=1e-6)
+    steps: dict = (
+        {"jac": lambda x: prob.jacobian(x).toarray(), "tr_solver": "exact"} if dense else {"jac": prob.jacobian}
+    )
+    return least_squares(prob.residuals, x0, method="trf", x_scale="jac", ftol=1e-6, xtol=1e-6, **steps)

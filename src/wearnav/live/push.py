@@ -360,14 +360,8 @@ def _stored(raw: bytes) -> Push | None:
             v = np.array(list(map(_SPEC[name][2], vals)), np.float64).reshape(len(vals), len(sensor.cols))
             seen = frozenset(c for c in sensor.optional if any(c in d for d in vals))
             if sensor.optional:
-                opt = np.full((len(vals), len(sensor.optional)), np.nan)
-                for j, c in enumerate(sensor.optional):
-                    if c in seen:
-                        opt[:, j] = [np.nan if d.get(c) is None else d[c] for d in vals]
-                v = np.concatenate([v, opt], axis=1)
-            tc = TEXT_COLS.get(sensor.file)
-            times = np.array([it["time"] for it in items], np.int64)
-            columns[sensor.file] = Columns(times, v, seen, [d.get(tc) for d in vals] if tc else None)
+                v = np.concatenate([v, _optional(sensor, vals, seen, checked=False)], axis=1)
+            columns[sensor.file] = _columns(sensor, items, vals, v, seen)
         return Push(doc["sessionId"], doc["deviceId"], doc["messageId"], payload, columns, ignored)
     except (orjson.JSONDecodeError, KeyError, TypeError, ValueError, OverflowError, AttributeError):
         return None
@@ -408,13 +402,9 @@ def _sensor_columns(name: str, sensor: Sensor, items: list[dict]) -> Columns | N
             return None
     seen = frozenset(c for c in sensor.optional if c in keys)
     if sensor.optional:
-        opt = np.full((len(vals), len(sensor.optional)), np.nan)
-        for j, c in enumerate(sensor.optional):
-            if c in seen:
-                col = [d.get(c) for d in vals]
-                if not set(map(type, col)) <= _OPTIONAL:
-                    return None
-                opt[:, j] = [np.nan if x is None else x for x in col]
+        opt = _optional(sensor, vals, seen, checked=True)
+        if opt is None:
+            return None
         v = np.concatenate([v, opt], axis=1)
     if name == "location":
         if np.abs(v[:, 0]).max() > 90 or np.abs(v[:, 1]).max() > 180:
@@ -422,6 +412,24 @@ def _sensor_columns(name: str, sensor: Sensor, items: list[dict]) -> Columns | N
         k = sensor.optional.index("horizontalAccuracy") + len(sensor.cols)
         if np.nanmax(v[:, k], initial=-np.inf) > POS_ABS_MAX:
             return None
+    return _columns(sensor, items, vals, v, seen)
+
+
+def _optional(sensor: Sensor, vals: list[dict], seen: frozenset, checked: bool) -> np.ndarray | None:
+    """The sensor's optional columns of samples ``vals`` (NaN where a sample has none, or null);
+    ``checked``: None where one is not a number or null."""
+    opt = np.full((len(vals), len(sensor.optional)), np.nan)
+    for j, c in enumerate(sensor.optional):
+        if c in seen:
+            col = [d.get(c) for d in vals]
+            if checked and not set(map(type, col)) <= _OPTIONAL:
+                return None
+            opt[:, j] = [np.nan if x is None else x for x in col]
+    return opt
+
+
+def _columns(sensor: Sensor, items: list[dict], vals: list[dict], v: np.ndarray, seen: frozenset) -> Columns:
+    """One sensor's :class:`Columns` of ``items`` (their ``values``: ``vals``), its numbers ``v``."""
     tc = TEXT_COLS.get(sensor.file)
     times = np.array([it["time"] for it in items], np.int64)
     return Columns(times, v, seen, [d.get(tc) for d in vals] if tc else None)
