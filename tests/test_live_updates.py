@@ -28,6 +28,7 @@ from wearnav.errors import FormatError
 from wearnav.importers.sensorlogger_build import stale_fixes
 from wearnav.importers.sensorlogger_export import simulated_export, write_export
 from wearnav.importers.sensorlogger_map import SENSORS, Table
+from wearnav.live import activity as live_activity
 from wearnav.live import tracker as live_tracker
 from wearnav.live.bench import walker_export
 from wearnav.live.buffer import DECIDE_S, MARGIN_S, RECHECK_S, TEXT_COLS, SessionBuffer, derived
@@ -127,7 +128,7 @@ def butter_every_time(cutoff, fs):
 
 
 def tail_before(rec, t_from):
-    """tracker._tail as it was: the slices checked again."""
+    """live.activity._tail (once tracker._tail) as it was: the slices checked again."""
     devices = {}
     for name, s in rec.devices.items():
         k = s.t >= t_from
@@ -146,7 +147,7 @@ def tail_before(rec, t_from):
 def as_before(m) -> None:
     """Inside ``monkeypatch.context()`` ``m``: the tracker's helpers as they were."""
     m.setattr(preprocess, "_butter", butter_every_time)
-    m.setattr(live_tracker, "_tail", tail_before)
+    m.setattr(live_activity, "_tail", tail_before)
 
 
 def assert_same_recording(a, b, whole_meta: bool = True) -> None:

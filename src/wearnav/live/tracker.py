@@ -27,7 +27,8 @@ fixed-lag smoother; before the first final window the provisional path is smooth
 placed by a rigid fit (:func:`wearnav.fuse.rigid_fit`) on the last ``PLACE_S`` of the smoothed one.
 Everything is in the east/north frame of the first good fix (:class:`wearnav.live.fixframe.FixFrame`).
 Activity: the phone's latest window classified by the shipped activity model
-as ``classify`` runs it (:func:`wearnav.train.labelling.window_classes`). Warnings: those the input
+as ``classify`` runs it (:func:`wearnav.train.labelling.window_classes`; its input:
+:mod:`wearnav.live.activity`). Warnings: those the input
 gives (:func:`wearnav.track.trust.input_warnings`) once ``TRUST_AFTER_S`` of the session has arrived, and
 the smoother's; the walk-plausibility check of ``track`` needs the whole walk and is left to it.
 
@@ -52,22 +53,20 @@ from typing import Any
 import numpy as np
 
 from wearnav import fuse, plans, pretrained
-from wearnav.errors import ValidationError
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
-from wearnav.live.buffer import derived, sliced
+from wearnav.live.activity import Job, label_job, label_windows, label_windows_many
 from wearnav.live.fixframe import FixFrame
 from wearnav.live.lean import lean_recording
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
-from wearnav.preprocess import Aligned, PreprocessConfig, align, clock, common_span
-from wearnav.preprocess.augment import moving_average
+from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.preprocess.batch import align_many
 from wearnav.preprocess.windows import WindowConfig, WindowDataset, turn
 from wearnav.recording import Recording
 from wearnav.report.trajectory_page import POINT_S, page_points
 from wearnav.track import odometry_preprocess, path_times
 from wearnav.track.trust import input_warnings
-from wearnav.train.labelling import UNKNOWN_INDEX, Windows, class_name, class_windows, decide_classes, unknown_note
+from wearnav.train.labelling import UNKNOWN_INDEX, Windows, class_name, decide_classes, unknown_note
 from wearnav.train.odometry import TrainConfig
 from wearnav.trajectory import integrate_velocity
 
@@ -465,66 +464,33 @@ class LiveTracker:
     # ---- activity ----------------------------------------------------------------------------
 
     def activity_windows(self, step: Step) -> Windows | None:
-        """The windows the activity classifier is to see at ``step`` (the latest window and its
-        context, :func:`wearnav.train.labelling.class_windows`): at most every ``ACTIVITY_EVERY_S``;
-        None when no label is due. A :class:`wearnav.live.crowd.Crowd` runs the classifier once for
-        many sessions' windows (:func:`classify_windows`)."""
-        if self.classifier is None or step.covered - self._activity_at < ACTIVITY_EVERY_S:
-            return None
-        model, cfg, _ = self.classifier
-        # the last window's label is decided over its context: itself and the k // 2 before it
-        k = getattr(model, "context_windows", 1)
-        span = (cfg.window + (k // 2) * max(1, cfg.window // 2)) / cfg.rate
-        rec = _tail(step.rec, step.covered - span - 2.0)  # those windows and the filters' edges
-        if not all(d in rec.devices for d in cfg.devices):
+        """The windows the activity classifier is to see at ``step`` (:mod:`wearnav.live.activity`): at
+        most every ``ACTIVITY_EVERY_S``; None when no label is due. A :class:`wearnav.live.crowd.Crowd`
+        runs the classifier once for many sessions' windows (:func:`classify_windows`)."""
+        if not self._label_due(step):
             return None
         if self.batched:
             return self.activity_windows_many([(self, step)])[0]
-        try:
-            w = class_windows(model, cfg, rec, last=1)
-        except ValidationError:  # too little of a device yet (align's span checks)
-            return None
-        return w if w.keep else None
+        assert self.classifier is not None  # _label_due
+        return label_windows(self.classifier, step.rec, step.covered)
 
-    def _activity_job(self, step: Step) -> tuple | None:
-        """What :meth:`activity_windows` aligns (``class_windows``' recording, preprocessing and
-        clock), or None where no label is due or the input is too short for one."""
-        if self.classifier is None or step.covered - self._activity_at < ACTIVITY_EVERY_S:
+    def _label_due(self, step: Step) -> bool:
+        """Whether the activity label is due at ``step`` (at most every ``ACTIVITY_EVERY_S``)."""
+        return self.classifier is not None and step.covered - self._activity_at >= ACTIVITY_EVERY_S
+
+    def _activity_job(self, step: Step) -> tuple[tuple, Job] | None:
+        """The classifier and what :func:`wearnav.live.activity.label_windows_many` aligns for ``step``;
+        None where no label is due or the input is too short for one."""
+        if self.classifier is None or not self._label_due(step):
             return None
-        model, cfg, _ = self.classifier
-        k = getattr(model, "context_windows", 1)
-        span = (cfg.window + (k // 2) * max(1, cfg.window // 2)) / cfg.rate
-        rec = _tail(step.rec, step.covered - span - 2.0)
-        if not all(d in rec.devices for d in cfg.devices):
-            return None
-        pcfg = cfg.preprocess_config()
-        try:
-            t = clock(*common_span(rec, pcfg.devices, pcfg.edge_tolerance), pcfg.rate)
-        except ValidationError:  # too little of a device yet (align's span checks)
-            return None
-        return (rec, pcfg, t) if t.size >= 2 else None
+        job = label_job(self.classifier, step.rec, step.covered)
+        return None if job is None else (self.classifier, job)
 
     @staticmethod
     def activity_windows_many(work: list[tuple[LiveTracker, Step]]) -> list[Windows | None]:
         """:meth:`activity_windows` of every step, their inputs aligned at once
-        (:func:`wearnav.preprocess.batch.align_many`), then windowed as
-        :func:`wearnav.train.labelling.class_windows` windows them (issue 61 §2)."""
-
-        jobs = [tr._activity_job(st) for tr, st in work]
-        due = [i for i, j in enumerate(jobs) if j is not None]
-        out: list[Windows | None] = [None] * len(work)
-        for i, seq in zip(due, align_many([j for j in jobs if j is not None])):
-            got = work[i][0].classifier
-            assert got is not None  # a job is made only with one
-            model, cfg, _ = got
-            if cfg.denoise > 1:
-                seq = dataclasses.replace(seq, imu=moving_average(seq.imu, cfg.denoise, axis=1).astype(seq.imu.dtype))
-            wds = WindowDataset([seq], WindowConfig(window=cfg.window, stride=max(1, cfg.window // 2), target=None))
-            k = getattr(model, "context_windows", 1)
-            index = np.arange(max(0, len(wds) - 1 - k // 2), len(wds))
-            w = Windows(seq, wds, index, min(1, len(wds)))
-            out[i] = w if w.keep else None
-        return out
+        (:func:`wearnav.live.activity.label_windows_many`, issue 61 §2)."""
+        return label_windows_many([tr._activity_job(st) for tr, st in work])
 
     def _label(self, w: Windows, prob: np.ndarray, covered: float) -> bool:
         """The latest window's activity from the classifier's probabilities ``prob`` of ``w``."""
@@ -649,16 +615,6 @@ def _integrate_on(clock_t: np.ndarray, tc: np.ndarray, v: np.ndarray, n_old: int
     t_new = clock_t[(clock_t > t_prev[-1]) & (clock_t <= tc[-1])]
     xy = integrate_velocity(tc[k:], v[k:], np.concatenate([[t_prev[-1]], t_new]), np.asarray(xy_prev[-1]))
     return t_new, xy[1:]
-
-
-def _tail(rec: Recording, t_from: float) -> Recording:
-    """``rec``'s device streams from ``t_from`` on (no fixes)."""
-    devices = {}
-    for name, s in rec.devices.items():
-        k = s.t >= t_from
-        if k.sum() >= 2:
-            devices[name] = sliced(s, k)  # a slice of a checked stream, not checked again
-    return derived(rec, devices, None) if devices else derived(rec, dict(rec.devices), None)
 
 
 __all__ = ["LiveTracker", "Step", "CONTEXT_S", "LAG_S", "FRAME_LAG_S"]
