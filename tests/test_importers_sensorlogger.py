@@ -401,3 +401,26 @@ def test_gravity_counted_twice_is_caught(rec, tmp_path):
     )
     with pytest.raises(FormatError, match=r"Headphone\.csv: mean vertical specific force .* 19\.\d m/s²"):
         list(read(folder))
+
+
+def test_the_orientation_check_says_whether_the_data_told_the_directions_apart(tmp_path):
+    """A phone turning while tilted tells world←device from its inverse (one passes, the other
+    fails: clear); one lying still and level passes both ways (too little rotation: the documented
+    direction, not clear). The live receiver rechecks only the latter before its decision (issue 61)."""
+    from pathlib import Path
+
+    from scipy.spatial.transform import Rotation
+
+    from wearnav.core.rotations import to_wxyz
+    from wearnav.importers import sensorlogger_build as slb
+
+    t = np.arange(0.0, 10.0, 0.01)
+    turning = Rotation.from_euler("z", t[:, None]) * Rotation.from_euler("x", 60, degrees=True)
+    for rot, gyro, clear in (
+        (turning, np.tile(Rotation.from_euler("x", 60, degrees=True).inv().apply([0, 0, 1.0]), (len(t), 1)), True),
+        (Rotation.from_euler("z", np.full((len(t), 1), 0.7)), np.zeros((len(t), 3)), False),
+    ):
+        acc = rot.inv().apply([0.0, 0.0, 9.81])
+        q, label, told = slb._check_orientation(to_wxyz(rot), acc, gyro, t, Path("Orientation.csv"))
+        assert label == "world<-device" and told is clear
+        np.testing.assert_allclose(np.abs(np.sum(q * to_wxyz(rot), axis=1)), 1.0, atol=1e-9)

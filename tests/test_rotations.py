@@ -120,3 +120,20 @@ def test_rotate_about_vertical_numpy_and_torch():
     # Norms and the vertical component are kept.
     np.testing.assert_allclose(np.linalg.norm(out, axis=-1), np.linalg.norm(v, axis=-1))
     np.testing.assert_array_equal(out[..., 2], v[..., 2])
+
+
+def test_increments_are_scipys_relative_rotations():
+    """rot.increments: the rotation vectors of q_i⁻¹·q_{i+1} (and of the inverted sequence's), as
+    scipy computes them, on random rotations, with q and −q mixed and near-identity steps."""
+    r = Rotation.random(400, random_state=3)
+    small = r * Rotation.from_rotvec(np.random.default_rng(4).normal(0, 1e-9, (400, 3)))
+    seq = Rotation.concatenate([r, small])
+    q = rot.to_wxyz(seq)
+    q[::3] *= -1  # the same rotations written with the other sign
+    for inverse in (False, True):
+        s = seq.inv() if inverse else seq
+        want = (s[:-1].inv() * s[1:]).as_rotvec()
+        got = rot.increments(q, inverse=inverse)
+        assert got.shape == (len(q) - 1, 3)
+        np.testing.assert_allclose(got, want, atol=1e-12)
+    assert rot.increments(q[:1]).shape == (0, 3)

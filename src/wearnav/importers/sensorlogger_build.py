@@ -66,10 +66,9 @@ from collections.abc import Callable, Collection
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from wearnav.core import geo
-from wearnav.core.rotations import NotUnitQuaternion, from_wxyz, normalize_wxyz, to_wxyz
+from wearnav.core.rotations import NotUnitQuaternion, from_wxyz, increments, normalize_wxyz, to_wxyz
 from wearnav.core.timeseries import interp_onto
 from wearnav.errors import FormatError, ValidationError, WearnavError, WearnavWarning
 from wearnav.importers.common import MAX_INTERP_GAP_S, check_latlon
@@ -122,6 +121,7 @@ def build_recording(
     quat_inverted: Collection[str] | None = None,
     t0_ns: int | None = None,
     origin: tuple[float, float] | None = None,
+    unclear: list[str] | None = None,
 ) -> Recording:
     """One Recording from an export's tables (by file name, e.g. ``"WristMotion.csv"``).
 
@@ -130,7 +130,10 @@ def build_recording(
     a collection skips the checks and takes those devices' quaternions as inverted, the others'
     as written (the receiver decides once, on enough data, and keeps to it). ``t0_ns`` (ns since the
     epoch) replaces the earliest sample as the time origin and ``origin`` (lat, lon) the first fix as
-    the local frame's origin: the receiver's slices of a session keep the session's."""
+    the local frame's origin: the receiver's slices of a session keep the session's. ``unclear`` (a
+    list) is given the devices whose checked quaternions passed both ways (too little rotation to
+    tell: the documented direction taken), so that the receiver knows which checks more data may
+    turn."""
     info = info or {}
     s, u = acceleration_convention(platform, standardised)
     units = (
@@ -165,6 +168,7 @@ def build_recording(
         return (t_ns - t0).astype(np.float64) * 1e-9
 
     inverted: list[str] = []
+    unclear = [] if unclear is None else unclear
     uncovered: dict[str, int] = {}
     devices: dict[str, DeviceStream] = {}
     left_out: dict[str, str] = {}
@@ -216,6 +220,7 @@ def build_recording(
             "phone acceleration is m/s² in every export (UNITS.md)",
             inverted,
             quat_inverted,
+            unclear,
         )
 
     def wearable(dev: str, tab) -> DeviceStream:
@@ -231,6 +236,7 @@ def build_recording(
             units,
             inverted,
             quat_inverted,
+            unclear,
         )
 
     def watch() -> DeviceStream:
@@ -379,6 +385,7 @@ def _stream(
     units: str,
     inverted: list[str],
     forced: Collection[str] | None = None,
+    unclear: list[str] | None = None,
 ) -> DeviceStream:
     try:
         stream = DeviceStream(t=t, acc=acc, gyro=gyro, quat=None)
@@ -390,7 +397,9 @@ def _stream(
             quat = to_wxyz(from_wxyz(quat).inv()) if dev in forced else quat
         else:
             assert qpath is not None  # an orientation comes from a file
-            quat, convention = _check_orientation(quat, acc, gyro, t, qpath)
+            quat, convention, clear = _check_orientation(quat, acc, gyro, t, qpath)
+            if not clear and unclear is not None:
+                unclear.append(dev)
         if convention != "world<-device":
             inverted.append(dev)
         stream.quat = quat
@@ -400,8 +409,9 @@ def _stream(
 
 def _check_orientation(
     q_wxyz: np.ndarray, acc: np.ndarray, gyro: np.ndarray | None, t: np.ndarray, path: Path
-) -> tuple[np.ndarray, str]:
-    """Pick the quaternion direction the data agrees with (see module docstring), or fail.
+) -> tuple[np.ndarray, str, bool]:
+    """Pick the quaternion direction the data agrees with (see module docstring), or fail; and
+    whether the data told the two apart (False: both passed).
 
     A direction passes when the world-frame mean of the specific force lies within
     TILT_TOLERANCE_DEG of +z and, where the gyro saw enough rotation, the quaternions' rotation
@@ -411,10 +421,13 @@ def _check_orientation(
     """
     rot = from_wxyz(q_wxyz)
     found = []
-    for label, r in (("world<-device", rot), ("device<-world (inverted on import)", rot.inv())):
+    for label, r, inverse in (
+        ("world<-device", rot, False),
+        ("device<-world (inverted on import)", rot.inv(), True),
+    ):
         mean_world = r.apply(acc).mean(axis=0)
         tilt = float(np.degrees(np.arccos(np.clip(mean_world[2] / np.linalg.norm(mean_world), -1, 1))))
-        res = _gyro_residual(r, gyro, t)
+        res = _gyro_residual(q_wxyz, inverse, gyro, t)
         ok = tilt <= TILT_TOLERANCE_DEG and (res is None or res <= MAX_GYRO_RESIDUAL)
         found.append((ok, res if res is not None else 0.0, label, r, tilt, res))
     passing = [f for f in found if f[0]]
@@ -430,7 +443,7 @@ def _check_orientation(
                 f"{G:.1f} (gravity counted twice or missing?)",
                 path,
             )
-        return to_wxyz(r), label
+        return to_wxyz(r), label, len(passing) == 1
     (_, _, _, _, tilt_a, res_a), (_, _, _, _, tilt_b, res_b) = found
     gyro_note = "" if res_a is None else f", gyro residual {res_a:.2f} ({res_b:.2f} inverse)"
     if min(tilt_a, tilt_b) <= TILT_TOLERANCE_DEG:
@@ -451,9 +464,9 @@ def _check_orientation(
     )
 
 
-def _gyro_residual(rot: Rotation, gyro: np.ndarray | None, t: np.ndarray) -> float | None:
-    """Σ|Δθ_quat − Δθ_gyro|² / Σ|Δθ_gyro|² over successive samples (body-frame increments),
-    leaving out the worst GYRO_RESIDUAL_TRIM of the increments (at least 2) from both sums.
+def _gyro_residual(q_wxyz: np.ndarray, inverse: bool, gyro: np.ndarray | None, t: np.ndarray) -> float | None:
+    """Σ|Δθ_quat − Δθ_gyro|² / Σ|Δθ_gyro|² over successive samples (body-frame increments of the
+    quaternions ``q_wxyz``, ``inverse``: of their inverses), leaving out the worst GYRO_RESIDUAL_TRIM of the increments (at least 2) from both sums.
 
     Near 0 when the quaternions are world←device and agree with the gyro; None when there is
     no gyro or too little rotation to tell. The trimmed sums make one glitched quaternion (two
@@ -463,7 +476,7 @@ def _gyro_residual(rot: Rotation, gyro: np.ndarray | None, t: np.ndarray) -> flo
         return None
     dt = np.diff(t)
     step = dt <= 2 * np.median(dt)  # across a gap the two increments need not match
-    inc = (rot[:-1][step].inv() * rot[1:][step]).as_rotvec()
+    inc = increments(q_wxyz, inverse)[step]
     w = 0.5 * (gyro[:-1] + gyro[1:])[step] * dt[step, None]
     if np.linalg.norm(w, axis=1).sum() < MIN_ROTATION_FOR_CHECK:
         return None

@@ -40,7 +40,11 @@ DECIDE_S = 10.0  # seconds of data after which the quaternion direction is decid
 # found (issue 61: it was redone at every update, 2 ms of a 30-s phone-only walker's 10.6 ms a
 # second). A direction that the next check turns is taken from then on, as at every update before.
 # The checks fall on a grid offset by the session's phase, and the decision at DECIDE_S + phase ×
-# RECHECK_S: sessions that start together (a crowd's may) do not all build in one tick.
+# RECHECK_S: sessions that start together (a crowd's may) do not all build in one tick. A check
+# whose data told every device's two directions apart (one passed, the other failed; the platform
+# given) is not redone before the decision: only a check that both directions passed (too little
+# rotation to tell) can be turned by more data (issue 61: the rechecks were a third of a starting
+# session's tracking CPU in a crowd).
 RECHECK_S = 2.0
 MARGIN_S = 2.0  # a slice reads this much earlier data, for interpolation at its start
 AUTO = "auto"  # a session whose push URL gave no platform: decided from its data
@@ -145,7 +149,9 @@ class SessionBuffer:
         self._quat_inverted: list[str] | None = None
         self.phase = session_phase(session_id)
         self._decide_s = DECIDE_S + self.phase * RECHECK_S
-        self._provisional: tuple[float, list[str]] | None = None  # (covered_until, direction) of the last check
+        # (covered_until, direction, clear) of the last check; clear: the data told every device's
+        # directions apart (one passed, the other failed), the platform given
+        self._provisional: tuple[float, list[str], bool] | None = None
         self._cache: tuple | None = None
         self._snap: tuple[int, dict[str, tuple]] | None = None  # the latest _snapshot, by version
         self._fresh_cache: tuple[tuple, np.ndarray] | None = None  # _first_fresh_row's last answer
@@ -320,16 +326,17 @@ class SessionBuffer:
     def quat_direction(self) -> list[str] | None:
         """The devices whose quaternions slices read inverted: as decided on the first ``DECIDE_S``
         seconds (and the session's phase), or before that as the whole session's last check found
-        until the next check (every ``RECHECK_S``, on a grid offset by the phase); None: a check of
-        the whole session is due (:meth:`recording` runs it)."""
+        until the next check (every ``RECHECK_S``, on a grid offset by the phase, where that check
+        could not tell the directions apart; else the decision); None: a check of the whole session
+        is due (:meth:`recording` runs it)."""
         if self._quat_inverted is not None:
             return self._quat_inverted
         p = self._provisional
         if p is None:
             return None
         span = self.covered_until()
-        if span >= self._decide_s or math.floor(span / RECHECK_S + self.phase) != math.floor(
-            p[0] / RECHECK_S + self.phase
+        if span >= self._decide_s or (
+            not p[2] and math.floor(span / RECHECK_S + self.phase) != math.floor(p[0] / RECHECK_S + self.phase)
         ):
             return None
         return p[1]
@@ -348,8 +355,9 @@ class SessionBuffer:
         )
         first_error = None
         for convention in tried:
+            unclear: list[str] = []
             try:
-                rec = self._build(tables, convention)
+                rec = self._build(tables, convention, unclear=unclear)
             except FormatError as exc:
                 first_error = first_error or exc
                 continue
@@ -363,11 +371,11 @@ class SessionBuffer:
                     )
                 if self._quat_inverted is None:
                     self._quat_inverted = list(rec.meta.get("quat_inverted", []))
-            self._provisional = (span, list(rec.meta.get("quat_inverted", [])))
+            self._provisional = (span, list(rec.meta.get("quat_inverted", [])), not unclear and not self.infer)
             return rec
         assert first_error is not None  # every convention tried (at least one) failed
         if not decided and not self.infer:
-            self._provisional = (span, [])
+            self._provisional = (span, [], False)
             return self._build(tables, quat_inverted=())
         if not decided:
             raise FormatError(
