@@ -22,7 +22,7 @@ from wearnav.live import replay
 from wearnav.live.bench import walker_export
 from wearnav.live.process import SRC, LiveServer, start_tracker
 from wearnav.live.store import Store, open_store
-from wearnav.live.trackers import parse_shard, shard_of
+from wearnav.live.trackers import TrackerProcess, parse_shard
 
 WALK_S = 30.0
 SPEED = 5.0
@@ -79,9 +79,41 @@ def wait_for_states(db: Path | str, acked: dict[str, list[int]], timeout_s: floa
         time.sleep(0.25)
 
 
-def test_shards_split_the_sessions_and_parse():
-    assert {shard_of(s, 2) for s in SESSIONS} == {0, 1}
-    assert all(shard_of(s, 1) == 0 for s in SESSIONS)
+def arrival_shards(where: Path | str, n: int) -> dict[str, int]:
+    """Each session's shard of ``n`` by its order of arrival in the store (its first message's row)."""
+    store = open_store(where)
+    try:
+        order: dict[str, int] = {}
+        rowid = 0
+        while rows := store.messages_after(rowid):
+            for row in rows:
+                order.setdefault(row[1], len(order))
+            rowid = rows[-1][0]
+        return {sid: k % n for sid, k in order.items()}
+    finally:
+        store.close()
+
+
+def test_shards_split_the_sessions_by_arrival_and_parse(tmp_path):
+    """The k-th session to arrive in the store is shard k mod n's, whatever its id: n trackers hold
+    sessions that differ in number by at most one (issue 61: a hash of the ids split 100 walkers
+    45 / 55), and a session stays with its tracker as its messages go on arriving."""
+    db = tmp_path / "s.db"
+    store = open_store(db)
+    ids = [f"walker-{k}" for k in range(101)]
+    for rnd in range(3):  # the sessions' messages interleaved, in three rounds
+        body = '{{"messageId": {m}, "sessionId": "{s}", "deviceId": "d", "payload": []}}'
+        store.add_many([(sid, "d", rnd, body.format(m=rnd, s=sid), "ios", False) for sid in ids])
+    store.close()
+    held = []
+    for i in range(2):
+        proc = TrackerProcess(db, lambda: None, (i, 2))
+        proc.crowd.stop()
+        proc.poll()
+        held.append(set(proc.buffers))
+        proc.store.close()
+    assert held[0] == set(ids[0::2]) and held[1] == set(ids[1::2])  # 51 and 50
+    assert arrival_shards(db, 2) == {sid: k % 2 for k, sid in enumerate(ids)}
     assert parse_shard("1/2") == (1, 2)
     for bad in ("2/2", "x", "1/0", "-1/2"):
         with pytest.raises(Exception, match="--shard"):
@@ -154,8 +186,9 @@ def test_receiver_and_two_trackers_killed_and_restarted_lose_nothing(tmp_path, p
             p.wait(10)
     assert count(store_where) == n * len(SESSIONS)
     assert set(states) == set(SESSIONS), log.read_text()[-3000:]
+    shards = arrival_shards(store_where, 2)
     for sid in SESSIONS:
-        assert states[sid]["tracker"] == f"{shard_of(sid, 2)}/2"
+        assert states[sid]["tracker"] == f"{shards[sid]}/2"
         assert states[sid]["tracked_messages"] == n and len(states[sid]["path"]) > 5
     assert {states[s]["tracker"] for s in SESSIONS} == {"0/2", "1/2"}  # both processes tracked
     assert served["path"] and served["messages"] == n and set(served["devices"]) == {"phone"}
@@ -211,8 +244,9 @@ def test_trackers_placed_on_ray_lose_nothing(local_ray, tmp_path, phone_export):
                 local_ray.cancel(ref, force=True)
     n = len(replay.build(phone_export).messages)
     assert set(states) == set(SESSIONS), f"tracked {sorted(states)}; trackers ended early: {ended_why}"
+    shards = arrival_shards(db, 2)
     for sid in SESSIONS:
-        assert states[sid]["tracker"] == f"{shard_of(sid, 2)}/2"
+        assert states[sid]["tracker"] == f"{shards[sid]}/2"
         assert states[sid]["tracked_messages"] == n and states[sid]["path"]
 
 

@@ -294,7 +294,9 @@ def live_track(
     store: str = typer.Option(
         "runs/live/live.db", "--store", help="The receiver's session store (" + STORE_KINDS + ")."
     ),
-    shard: str = typer.Option("0/1", "--shard", help="i/n: track the sessions of shard i of n (a hash of the id)."),
+    shard: str = typer.Option(
+        "0/1", "--shard", help="i/n: track the sessions of shard i of n (the k-th session to arrive: shard k mod n)."
+    ),
     model: Path | None = typer.Option(None, "--model", help="Odometry model (as for `wearnav track`)."),
     executor: str = typer.Option(
         "local", "--executor", help="local (this process tracks --shard) or ray (--trackers processes on Ray)."

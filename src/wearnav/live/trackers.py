@@ -3,8 +3,10 @@
 A receiver started with ``--no-track`` only stores (every message committed before its 200) and
 serves; trackers run as separate processes that share its store. Each reads the messages by row id
 as they are committed (:meth:`wearnav.live.store.Store.messages_after`, polled every ``POLL_S``),
-keeps the sessions of its shard (``--shard i/n``: a session belongs to shard :func:`shard_of`, so
-every session has exactly one tracker and none is tracked twice), updates them with a
+keeps the sessions of its shard (``--shard i/n``: the k-th session to arrive in the store, by its
+first message's row id, belongs to shard k mod n; every tracker reads the same rows in the same
+order, so every session has exactly one tracker and none is tracked twice, and n trackers hold
+sessions that differ in number by at most one), updates them with a
 :class:`wearnav.live.crowd.Crowd` (the model once per tick for all of them) and writes each
 session's page state into the store every ``STATE_EVERY_S``, where the receiver's ``/state`` and
 ``/events`` find it. A tracker that is restarted reads the store from the start again and resumes
@@ -21,7 +23,6 @@ Decision: docs/decisions/0028-live-crowd.md.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import threading
@@ -48,14 +49,6 @@ STATS_EVERY_S = 1.0  # a tracker's summary (--stats) is rewritten this often
 # messages arrive (the devices' rates and last-seen times, the messages counted). Issue 61: making
 # and comparing every session's state four times a second was 9 % of a tracker process's CPU.
 DEVICES_EVERY_S = 1.0
-
-
-def shard_of(session_id: str, shards: int) -> int:
-    """The shard (0 .. ``shards`` − 1) a session belongs to: stable across processes and runs (a
-    cryptographic hash: CRC32 is linear, and ids that differ in their last character, walker-0,
-    walker-1 ..., all fall in one shard of two)."""
-    digest = hashlib.blake2b(session_id.encode("utf-8"), digest_size=8).digest()
-    return int.from_bytes(digest, "big") % shards
 
 
 def parse_shard(text: str) -> tuple[int, int]:
@@ -85,6 +78,9 @@ class TrackerProcess:
         self.crowd = Crowd(tracker_factory)
         self.buffers: dict[str, SessionBuffer] = {}
         self.last_rowid = 0
+        # every session in the store → its place in the order of arrival (module docstring: the shards).
+        # Issue 61: a hash of the id split 100 walkers 45 / 55, and the process of 55 was the slow one.
+        self.arrived: dict[str, int] = {}
         self.messages = 0
         self._written: dict[str, str] = {}
         self._made: dict[str, tuple] = {}  # session → (its Crowd.state_key, messages, monotonic time) when made
@@ -97,7 +93,7 @@ class TrackerProcess:
         while rows := self.store.messages_after(self.last_rowid):
             for rowid, sid, platform, standardised, received_ns, body in rows:
                 self.last_rowid = rowid
-                if shard_of(sid, n) != i:
+                if self.arrived.setdefault(sid, len(self.arrived)) % n != i:
                     continue
                 buf = self.buffers.get(sid)
                 if buf is None:
@@ -220,4 +216,4 @@ def place_on_ray(
     return [task.remote(path, (i, trackers), model_arg, max_s, model_device=model_device) for i in range(trackers)]
 
 
-__all__ = ["TrackerProcess", "parse_shard", "place_on_ray", "run_tracker", "shard_of"]
+__all__ = ["TrackerProcess", "parse_shard", "place_on_ray", "run_tracker"]
