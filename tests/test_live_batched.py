@@ -262,11 +262,12 @@ def test_the_quaternion_checks_fall_on_each_sessions_own_grid(replay, monkeypatc
 def test_a_clear_quaternion_check_is_not_redone_before_the_decision(replay):
     """A walk rotates the phone enough for its first check to tell the two directions apart (one
     passes, the other fails): the next whole-session check is the decision, at ``DECIDE_S`` + phase ×
-    ``RECHECK_S`` (issue 61), and the slices read in between are the importer's reading of them."""
+    ``RECHECK_S`` (issue 61); a slice then reads the quaternions as the whole session's checked
+    reading does."""
     at, buf = _checks(replay, "walker-1")
     decide = DECIDE_S + buf.phase * RECHECK_S
     assert len(at) == 2 and at[0] < RECHECK_S + 1.0 and decide <= at[1] < decide + 0.5
-    assert buf._quat_inverted == buf._provisional[1]
+    assert buf._provisional is not None and buf._quat_inverted == buf._provisional[1]
     whole = buf.recording()  # the importer's checked reading of the whole session
     part = buf.recording(4.0)
     np.testing.assert_allclose(part.devices["phone"].quat, whole.devices["phone"].quat[-len(part.devices["phone"].t) :])

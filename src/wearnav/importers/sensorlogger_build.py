@@ -466,7 +466,8 @@ def _check_orientation(
 
 def _gyro_residual(q_wxyz: np.ndarray, inverse: bool, gyro: np.ndarray | None, t: np.ndarray) -> float | None:
     """Σ|Δθ_quat − Δθ_gyro|² / Σ|Δθ_gyro|² over successive samples (body-frame increments of the
-    quaternions ``q_wxyz``, ``inverse``: of their inverses), leaving out the worst GYRO_RESIDUAL_TRIM of the increments (at least 2) from both sums.
+    quaternions ``q_wxyz``, ``inverse``: of their inverses), leaving out the worst
+    GYRO_RESIDUAL_TRIM of the increments (at least 2) from both sums.
 
     Near 0 when the quaternions are world←device and agree with the gyro; None when there is
     no gyro or too little rotation to tell. The trimmed sums make one glitched quaternion (two
