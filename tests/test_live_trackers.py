@@ -20,7 +20,7 @@ import live_stores
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import replay
 from wearnav.live.bench import walker_export
-from wearnav.live.process import SRC, LiveServer, start_tracker
+from wearnav.live.process import SRC, LiveServer, children, start_tracker
 from wearnav.live.store import Store, open_store
 from wearnav.live.trackers import TrackerProcess, parse_shard
 
@@ -193,6 +193,44 @@ def test_receiver_and_two_trackers_killed_and_restarted_lose_nothing(tmp_path, p
     assert {states[s]["tracker"] for s in SESSIONS} == {"0/2", "1/2"}  # both processes tracked
     assert served["path"] and served["messages"] == n and set(served["devices"]) == {"phone"}
     assert served["tracker"] == states[SESSIONS[1]]["tracker"]  # the receiver serves the tracker's path
+
+
+def test_live_trackers_options_one_line_errors(tmp_path, monkeypatch, capsys):
+    from conftest import run_cli
+
+    db = tmp_path / "live.db"
+    code, _, err = run_cli(monkeypatch, capsys, "live", "--store", db, "--trackers", "2", "--no-track")
+    assert code == 2 and "one or the other" in err and err.count("\n") == 1
+    code, _, err = run_cli(monkeypatch, capsys, "live", "--store", db, "--executor", "ray", "--trackers", "0")
+    assert code == 2 and "at least 1 with --executor ray" in err and err.count("\n") == 1
+    assert not db.exists()  # refused before anything was made
+
+
+def test_live_starts_and_stops_its_own_tracker_processes(tmp_path, phone_export):
+    """``wearnav live --trackers 2`` stores and serves, and every session is tracked by one of the
+    two ``wearnav live track`` processes it started (the page's state from the store); they stop
+    with it (SIGTERM, as a service manager stops it)."""
+    db = tmp_path / "live.db"
+    srv = LiveServer(db, "--trackers", "2").start()
+    try:
+        assert srv.proc is not None
+        kids = children(srv.proc.pid)
+        acked = push_sessions(f"{srv.url}/push", phone_export)
+        states = wait_for_states(db, acked, timeout_s=150.0)
+        served = httpx.get(f"{srv.url}/state", params={"session": SESSIONS[0]}).json()
+    finally:
+        code = srv.stop()
+    assert len(kids) == 2 and code == 0, srv.log.read_text()[-2000:]
+    assert set(states) == set(SESSIONS), srv.log.read_text()[-3000:]
+    shards = arrival_shards(db, 2)
+    assert all(states[sid]["tracker"] == f"{shards[sid]}/2" for sid in SESSIONS)
+    assert served["path"] and served["tracker"] == states[SESSIONS[0]]["tracker"]
+    deadline = time.monotonic() + 15
+    while any(Path(f"/proc/{pid}").exists() for pid in kids) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not any(
+        Path(f"/proc/{pid}/cmdline").exists() and b"track" in Path(f"/proc/{pid}/cmdline").read_bytes() for pid in kids
+    )
 
 
 @pytest.fixture(scope="module")

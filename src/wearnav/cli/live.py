@@ -84,6 +84,17 @@ def _start_workers(workers: int, token: str | None) -> list[subprocess.Popen]:
     ]
 
 
+def _start_trackers(
+    store: str, n: int, model: Path | None, plan: Path | None, model_device: str
+) -> list[subprocess.Popen]:
+    """``n`` ``wearnav live track --store STORE --shard i/n`` processes (stopped with this one)."""
+    import sys
+
+    extra = [*(["--model", str(model)] if model else []), *(["--map", str(plan)] if plan else [])]
+    cmd = [sys.executable, "-m", "wearnav", "live", "track", "--store", store, "--model-device", model_device, *extra]
+    return [subprocess.Popen([*cmd, "--shard", f"{i}/{n}"]) for i in range(n)]
+
+
 MODEL_DEVICE_HELP = (
     "Where the odometry models run: cpu, cuda or auto (CUDA where there is one). The CPU is the default: "
     "on the GPU machine measured, the receiver kept up more walkers with them there (docs/live-scaling.md)."
@@ -167,7 +178,14 @@ def live(
         "sharing --store; this process only stores and serves).",
     ),
     address: str | None = typer.Option(None, "--address", help="The Ray cluster (as ray.init's; --executor ray)."),
-    trackers: int = typer.Option(2, "--trackers", min=1, help="Tracker processes to place (--executor ray)."),
+    trackers: int | None = typer.Option(
+        None,
+        "--trackers",
+        min=0,
+        help="Track in this many `wearnav live track` processes that this command starts and stops with itself "
+        "(sharing --store; this process then stores and serves only: a multi-core machine's other cores); "
+        "with --executor ray, processes placed on Ray (default 2). Default: track in this process.",
+    ),
     workers: int = typer.Option(
         1,
         "--workers",
@@ -207,17 +225,23 @@ def live(
         raise typer.BadParameter("--executor: local or ray")
     if address is not None and executor != "ray":
         raise ConfigError("--address is for --executor ray only")
+    if executor == "ray" and trackers == 0:
+        raise ConfigError("--trackers: at least 1 with --executor ray")
+    local = (trackers or 0) if executor == "local" else 0  # tracker processes this command starts
+    if local and no_track:
+        raise ConfigError("--no-track tracks nowhere and --trackers starts tracker processes: one or the other")
     _check_plan(plan)
     if plan is not None and executor == "ray":
         raise ConfigError("--map is drawn by trackers in this process: not with --executor ray")
-    if workers > 1 and not no_track and executor != "ray":
+    stores_only = no_track or executor == "ray" or local > 0
+    if workers > 1 and not stores_only:
         raise ConfigError(
-            "--workers above 1 store and serve only: add --no-track and track in `wearnav live track` processes"
+            "--workers above 1 store and serve only: add --trackers N (or --no-track and `wearnav live track` processes)"
         )
-    if reuse_port and not no_track:
+    if reuse_port and not stores_only:
         raise ConfigError("--reuse-port is for --workers' receivers, which store and serve only (--no-track)")
     sock = _reuse_port_socket(host, port) if workers > 1 or reuse_port else None
-    factory = None if no_track or executor == "ray" else _tracker_factory(model, plan, model_device)
+    factory = None if stores_only else _tracker_factory(model, plan, model_device)
     app = create_app(
         store,
         token=token,
@@ -237,8 +261,8 @@ def live(
     if executor == "ray" and not no_track:
         from wearnav.live.trackers import place_on_ray
 
-        placed = place_on_ray(store, trackers, model, address, model_device=model_device)
-        typer.echo(f"{trackers} tracker processes placed on Ray (sharing {shown_store})")
+        placed = place_on_ray(store, trackers or 2, model, address, model_device=model_device)
+        typer.echo(f"{trackers or 2} tracker processes placed on Ray (sharing {shown_store})")
     shown = _lan_address() if host in ("0.0.0.0", "::") else host
     query = "" if token is None else (f"?token={token}" if made else "?token=<your token>")
     if not reuse_port:  # (a --workers child says nothing: its parent has said it)
@@ -250,6 +274,9 @@ def live(
             typer.echo(f"{workers} receiver processes share port {port} and the store")
     on_interrupt(f"stopped; every acknowledged message is in {shown_store} (`wearnav live` resumes its sessions)")
     children = _start_workers(workers, token) if workers > 1 else []
+    if local and not reuse_port:  # (a --workers child starts none: its parent has)
+        children += _start_trackers(store, local, model, plan, model_device)
+        typer.echo(f"{local} tracker processes (`wearnav live track --shard i/{local}`) track the sessions")
     # Ctrl-C and SIGTERM are how a server is stopped: uvicorn shuts down cleanly (open requests
     # answered, every acknowledged message stored) and raises the signal again once it has stopped;
     # it is noted here, and the command ends with one neutral line and exit 0 (README, "wearnav live").
