@@ -6,7 +6,8 @@ as they are committed (:meth:`wearnav.live.store.Store.messages_after`, polled e
 keeps the sessions of its shard (``--shard i/n``: the k-th session to arrive in the store, by its
 first message's row id, belongs to shard k mod n; every tracker reads the same rows in the same
 order, so every session has exactly one tracker and none is tracked twice, and n trackers hold
-sessions that differ in number by at most one), updates them with a
+sessions that differ in number by at most one; this rests on the store never deleting a message,
+which it does not), updates them with a
 :class:`wearnav.live.crowd.Crowd` (the model once per tick for all of them) and writes each
 session's page state into the store every ``STATE_EVERY_S``, where the receiver's ``/state`` and
 ``/events`` find it. A tracker that is restarted reads the store from the start again and resumes
