@@ -52,18 +52,18 @@ from typing import Any
 
 import numpy as np
 
-from wearnav import fuse, plans, pretrained
+from wearnav import fuse, pretrained
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
 from wearnav.live.activity import Job, label_job, label_windows, label_windows_many
 from wearnav.live.fixframe import FixFrame
 from wearnav.live.lean import lean_recording
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
+from wearnav.live.pagestate import PageRows
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.preprocess.batch import align_many
 from wearnav.preprocess.windows import WindowConfig, WindowDataset, turn
 from wearnav.recording import Recording
-from wearnav.report.trajectory_page import POINT_S, page_points
 from wearnav.track import odometry_preprocess, path_times
 from wearnav.track.trust import input_warnings
 from wearnav.train.labelling import UNKNOWN_INDEX, Windows, class_name, decide_classes, unknown_note
@@ -182,10 +182,7 @@ class LiveTracker:
         plan: str | Path | None = None,
     ):
         self._model_arg = model
-        # a GeoJSON floor plan (wearnav.plans.read_geojson_plan) drawn under the path once the session
-        # has a lat/lon origin (its first fix); placed in that origin's frame once
-        self._plan_file = None if plan is None else Path(plan)
-        self._plan_rings: tuple[tuple[float, float], list] | None = None
+        self._page = PageRows(plan)  # what the page draws, kept between updates (the plan drawn under the path)
         self._models = models if models is not None else SharedModels("cpu")
         self.context_s, self.lag_s, self.step_s = float(context_s), float(lag_s), float(step_s)
         self.frame_lag_s = float(frame_lag_s)
@@ -204,8 +201,6 @@ class LiveTracker:
         self.fuser: IncrementalFuser | None = None
         self._fused: FuseResult | None = None  # the latest
         self._frame = FixFrame()  # the fixes taken (t, east, north, accuracy) and their frame's origin
-        self._fix_page: list[list] = []  # the fixes rounded for the page (_fix_rows)
-        self._page_rows: tuple[Any, list] = (None, [])  # the path's settled points for the page (_page_path)
         self.activity: dict | None = None
         self._activity_at = -np.inf
         self.warnings: list[str] = []
@@ -533,58 +528,20 @@ class LiveTracker:
         """The JSON-able state the page renders (the live contract), as of the latest update."""
         return self._state if self._state is not None else self._snapshot()
 
-    def _plan_drawn(self) -> list:
-        """The plan's rings in the session's frame (empty without a plan or before the first fix)."""
-        if self._plan_file is None or self.origin is None:
-            return []
-        if self._plan_rings is None or self._plan_rings[0] != self.origin:
-            self._plan_rings = (self.origin, _plan_state(self._plan_file, self.origin))
-        return self._plan_rings[1]
-
-    def _fix_rows(self) -> list:
-        """The fixes as the page has them, a new list each time (a state once handed out stays as it
-        was); the rows rounded once each, as they arrive (``fixes`` only grows), not at every update."""
-        rows = self._fix_page
-        rows += [
-            [round(t, 3), round(e, 3), round(n, 3), round(a, 2) if np.isfinite(a) else None]
-            for t, e, n, a in self.fixes[len(rows) :]
-        ]
-        return list(rows)
-
-    def _page_path(self) -> tuple[list, str]:
-        """:func:`page_points` of :meth:`path`, and what placed it, with the points of the path's
-        settled part kept from the last update rather than rounded again (they grew with the
-        session): the final odometry while nothing is fused, the smoothed path of one solve while
-        it is the same solve (a new solve places them anew). The same rows as ``page_points`` of the
-        whole path (tests/test_live_batched.py)."""
+    def _snapshot(self) -> dict:
         t, xy, sig, anchor = self.path()
-        rate = self.cfg.rate if self.cfg is not None else 1.0
-        step = max(1, int(round(POINT_S * rate)))
         res = self._fused if anchor != "none" else None
         settled = len(self.odo.t) if res is None else min(len(res.xy), len(self.odo.t))
-        key, rows = self._page_rows
-        if key is not res:
-            rows = []
-        # the cached rows are the grid points 0, step, ...; the rest from the grid point i0 on, which
-        # is at most the path's last sample (page_points' own last point, where it is off the grid)
-        i0 = min(len(rows), max(0, len(t) - 1) // step) * step
-        rows = rows[: i0 // step]
-        new = page_points(t[i0:], xy[i0:], sig[i0:], rate)
-        keep = min(max(0, -(-(settled - i0) // step)), len(new))  # the grid points before ``settled``
-        self._page_rows = (res, rows + new[:keep])
-        return rows + new, anchor
-
-    def _snapshot(self) -> dict:
-        path, anchor = self._page_path()
+        rate = self.cfg.rate if self.cfg is not None else 1.0
         return {
             "origin": list(self.origin) if self.origin is not None else None,
-            "path": path,
+            "path": self._page.path(t, xy, sig, rate, res, settled),
             "anchor": anchor,
             # the path after this time is provisional: predicted again as data arrives (FRAME_LAG_S)
             "final_t_s": round(float(self.odo.t[-1]), 3) if self.odo.t else None,
-            "fixes": self._fix_rows(),
+            "fixes": self._page.fixes(self.fixes),
             "activity": self.activity,
-            "plan": self._plan_drawn(),
+            "plan": self._page.plan(self.origin),
             "warnings": self.warnings
             + (self._fused.warnings if self._fused is not None else [])
             + (
@@ -594,13 +551,6 @@ class LiveTracker:
             ),
             "t_s": round(float(self.t_s), 3),
         }
-
-
-def _plan_state(path: Path, origin: tuple[float, float]) -> list:
-    """A GeoJSON plan's walkable polygons in the local frame at ``origin``, as the page draws them."""
-    return [
-        [[np.round(r, 2).tolist() for r in poly] for poly in p.polygons] for p in plans.read_geojson_plan(path, *origin)
-    ]
 
 
 def _integrate_on(clock_t: np.ndarray, tc: np.ndarray, v: np.ndarray, n_old: int, t_prev: list, xy_prev: list):
