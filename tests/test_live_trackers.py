@@ -157,7 +157,7 @@ def test_receiver_and_two_trackers_killed_and_restarted_lose_nothing(tmp_path, p
     srv = LiveServer(db, "--no-track", store_url=store_where).start()
 
     def tracker(i: int):
-        return start_tracker(store_where, (i, 2), tmp_path / f"t{i}.json", log)
+        return start_tracker(store_where, (i, 2), stats=tmp_path / f"t{i}.json", log=log)
 
     procs = [tracker(0), tracker(1)]
     out: dict = {}

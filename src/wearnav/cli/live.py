@@ -88,11 +88,10 @@ def _start_trackers(
     store: str, n: int, model: Path | None, plan: Path | None, model_device: str
 ) -> list[subprocess.Popen]:
     """``n`` ``wearnav live track --store STORE --shard i/n`` processes (stopped with this one)."""
-    import sys
+    from wearnav.live.process import start_tracker
 
     extra = [*(["--model", str(model)] if model else []), *(["--map", str(plan)] if plan else [])]
-    cmd = [sys.executable, "-m", "wearnav", "live", "track", "--store", store, "--model-device", model_device, *extra]
-    return [subprocess.Popen([*cmd, "--shard", f"{i}/{n}"]) for i in range(n)]
+    return [start_tracker(store, (i, n), "--model-device", model_device, *extra) for i in range(n)]
 
 
 MODEL_DEVICE_HELP = (

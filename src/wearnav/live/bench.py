@@ -241,7 +241,8 @@ def walkers_phase(
     on = ["--model-device", model_device]
     with LiveServer(db, *limit, *(on if tracking and not trackers else ["--no-track"])) as srv:
         procs = [
-            start_tracker(db, (i, len(stats_files)), f, f.with_suffix(".log"), *on) for i, f in enumerate(stats_files)
+            start_tracker(db, (i, len(stats_files)), *on, stats=f, log=f.with_suffix(".log"))
+            for i, f in enumerate(stats_files)
         ]
         try:
             deadline = time.monotonic() + 60.0

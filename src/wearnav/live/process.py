@@ -11,8 +11,6 @@ import sys
 import time
 from pathlib import Path
 
-import httpx
-
 SRC = Path(__file__).resolve().parents[2]  # the folder holding the wearnav package
 
 
@@ -50,12 +48,18 @@ def children(pid: int) -> list[int]:
     return out
 
 
-def start_tracker(store: Path | str, shard: tuple[int, int], stats: Path, log: Path, *args: str) -> subprocess.Popen:
-    """``wearnav live track --store STORE --shard i/n --stats STATS ARGS`` beside a receiver on ``store``."""
+def start_tracker(
+    store: Path | str, shard: tuple[int, int], *args: str, stats: Path | None = None, log: Path | None = None
+) -> subprocess.Popen:
+    """``wearnav live track --store STORE --shard i/n ARGS [--stats STATS]`` beside a receiver on
+    ``store`` (``wearnav live --trackers``, the bench, the tests); its output to ``log`` (appended),
+    or this process's."""
     cmd = [sys.executable, "-m", "wearnav", "live", "track", "--store", str(store), "--shard", f"{shard[0]}/{shard[1]}"]
-    cmd += list(args)
+    cmd += [*args, *(["--stats", str(stats)] if stats is not None else [])]
+    if log is None:
+        return subprocess.Popen(cmd, env=env())
     with open(log, "ab") as out:
-        return subprocess.Popen([*cmd, "--stats", str(stats)], stdout=out, stderr=subprocess.STDOUT, env=env())
+        return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env())
 
 
 class LiveServer:
@@ -79,6 +83,8 @@ class LiveServer:
         self.proc: subprocess.Popen | None = None
 
     def start(self, timeout_s: float = 30.0) -> LiveServer:
+        import httpx  # (the bench's and the tests' client; `wearnav live --trackers` uses start_tracker only)
+
         cmd = [
             sys.executable,
             "-m",
