@@ -22,8 +22,9 @@ from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import crowd
 from wearnav.live.bench import walker_export
 from wearnav.live.buffer import DECIDE_S, RECHECK_S, SessionBuffer
+from wearnav.live.activity import label_windows
 from wearnav.live.lean import lean_recording
-from wearnav.live.models import SharedModels
+from wearnav.live.models import SharedModels, classify_windows, predict_windows
 from wearnav.live.replay import build
 from wearnav.live.tracker import LiveTracker
 from wearnav.preprocess import _lowpass, align
@@ -141,6 +142,31 @@ def test_align_many_is_align_on_the_trackers_slices(replay, models, task):
         if want.yaw is not None:  # the phone model's heading frame
             np.testing.assert_allclose(got.yaw, want.yaw, rtol=0, atol=1e-9)
         assert got.meta == want.meta  # the frame's record too (one device: its own frame)
+
+
+def test_a_due_labels_input_is_the_whole_sessions(replay, models):
+    """The update's Recording starts a short context before the odometry's first window not yet final
+    (ONE_DEVICE_CONTEXT_S); where an activity label is due it reaches back as far as the label's
+    windows and their filters' edges need (:func:`wearnav.live.activity.label_input`), so the
+    classifier sees the windows the whole session gives at that time, every label."""
+    tr = LiveTracker(models=models)
+    buf = SessionBuffer("s", replay.platform, replay.standardised)
+    labels = 0
+    for msg in replay.messages[:MESSAGES]:
+        buf.add(msg["payload"])
+        step = tr.begin(buf)
+        if step is None:
+            continue
+        got = tr.activity_windows(step)  # None where no label is due
+        if got is not None:
+            want = label_windows(tr.classifier, buf.recording(), step.covered)
+            assert want is not None
+            a, b = got.inputs()["x"].numpy(), want.inputs()["x"].numpy()
+            assert a.shape == b.shape and np.abs(a - b).max() < 1e-5
+            labels += 1
+        vel = predict_windows(tr.model, step.x, step.mask) if step.x is not None else None
+        tr.finish(step, vel, None if got is None else (got, classify_windows(tr.classifier[0], [got])[0]))
+    assert labels >= 15  # 50 s of pushes, a label every ACTIVITY_EVERY_S
 
 
 def test_a_batched_crowd_keeps_every_sessions_path_within_a_tenth_of_a_metre(replay, models):
