@@ -20,9 +20,9 @@ import pytest
 
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import crowd
+from wearnav.live.activity import label_windows
 from wearnav.live.bench import walker_export
 from wearnav.live.buffer import DECIDE_S, RECHECK_S, SessionBuffer
-from wearnav.live.activity import label_windows
 from wearnav.live.lean import lean_recording
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
 from wearnav.live.replay import build
