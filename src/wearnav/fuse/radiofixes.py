@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from wearnav.core import geo
 from wearnav.core.timeseries import nearest
 from wearnav.fuse.config import RADIUS_68
 from wearnav.fuse.radiomap import NO_FIT, RadioMap, RadioPositions
@@ -26,6 +27,10 @@ MIN_PAIRS = 5  # fewer pairs: the phone's accuracy is kept as reported
 # measured worse (4.04 / 5.78 / 10.38). Without phone fixes the radio positions keep their radius:
 # against the odometry alone a smaller one made IPIN's radio-only path worse. Only IPIN has both.
 RADIO_BESIDE_FIXES = 0.35
+# A radio map and a recording whose positions cannot be put in one frame (in_recordings_frame)
+NO_PLACE = (
+    "the radio map's positions and this recording's are not in one frame (one has a lat/lon origin, the other none)"
+)
 MAX_ACCURACY_SCALE = 30.0  # the phone's accuracy grows at most this much (a fix is then all but ignored)
 
 
@@ -49,6 +54,9 @@ def with_radio_fixes(rec: Recording, rmap: RadioMap) -> tuple[Recording, np.ndar
     if not len(pos):
         why = f"no scan shares {rmap.cfg.min_common_aps} access points with the radio map"
         return rec, none, info | {"why": why}, [f"{rec.name}: {why}: the radio map is not used"]
+    rec, pos, apart = in_recordings_frame(rec, rmap, pos)
+    if apart is not None:
+        return rec, none, info | {"why": apart}, [f"{rec.name}: {apart}: the radio map is not used"]
     floors, counts = np.unique(pos.floor, return_counts=True)
     info |= {
         "used": True,
@@ -74,6 +82,34 @@ def with_radio_fixes(rec: Recording, rmap: RadioMap) -> tuple[Recording, np.ndar
             t[k] = t[k - 1] + 1e-3
     fixes = Fixes(t, xy[order], acc[order], fl[order])
     return dataclasses.replace(rec, fixes=fixes), radio[order], info, []
+
+
+def in_recordings_frame(
+    rec: Recording, rmap: RadioMap, pos: RadioPositions
+) -> tuple[Recording, RadioPositions, str | None]:
+    """``pos`` (the map's frame) in ``rec``'s: unchanged where both are about one lat/lon origin (or
+    neither has one: one local frame, as a site plan's walks and their map); converted through lat/lon
+    where both have one (a user's own recording, about its first fix, with a map of a venue); a
+    recording without fixes and without an origin takes the map's (its path then lies where the map
+    does). A map without an origin cannot join a recording that has one: the reason (third item)."""
+    lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
+    rec_o = None if lat0 is None or lon0 is None else (float(lat0), float(lon0))
+    map_o = rmap.origin
+    if map_o == rec_o or (map_o is not None and rec_o is not None and np.allclose(map_o, rec_o, rtol=0, atol=1e-10)):
+        return rec, pos, None
+    if map_o is None:  # a map whose card predates its origin says so
+        return (
+            rec,
+            pos,
+            NO_PLACE + ("" if "origin" in rmap.card else " (this map's card predates its origin: build it again)"),
+        )
+    if rec_o is None:
+        if rec.fixes is not None:  # fixes in a local frame of no known place: they cannot be related
+            return rec, pos, NO_PLACE
+        meta = {**rec.meta, "origin_lat": map_o[0], "origin_lon": map_o[1], "projection": geo.PROJECTION}
+        return dataclasses.replace(rec, meta=meta), pos, None
+    lat, lon = geo.local_to_latlon(pos.xy, *map_o)
+    return rec, dataclasses.replace(pos, xy=geo.latlon_to_local(lat, lon, *rec_o)), None
 
 
 def phone_accuracy_scale(

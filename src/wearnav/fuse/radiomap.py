@@ -323,6 +323,14 @@ class RadioMap:
         self._learner = _Learner(x, scans.xy, scans.floor, cfg)
 
     @property
+    def origin(self) -> tuple[float, float] | None:
+        """The lat/lon (degrees) its positions' east/north are about (:func:`wearnav.core.geo.latlon_to_local`'s
+        frame), where its survey walks shared one; None: a frame with no place on Earth (a site plan's),
+        or a map built before the card kept it."""
+        o = self.card.get("origin")
+        return None if o is None else (float(o[0]), float(o[1]))
+
+    @property
     def floor_levels(self) -> FloorLevels | None:
         """The site's floor levels measured on the map's walks (None: they had no barometer or one floor)."""
         d = self.card.get("floor_levels")
@@ -513,8 +521,17 @@ def from_scans(
 def shared_frame(recs: Sequence[Recording]) -> bool:
     """Whether every walk's positions are in one frame across floors: one lat/lon origin for all
     (IPIN's venue); else (ILC2: each floor's plan its own frame) positions are per floor."""
+    return common_origin(recs) is not None
+
+
+def common_origin(recs: Sequence[Recording]) -> tuple[float, float] | None:
+    """The lat/lon origin (degrees) every walk's positions are about, where they share one: the map's
+    place on Earth (:attr:`RadioMap.origin`); None where they have none (a site plan's frame) or several."""
     origins = {(r.meta.get("origin_lat"), r.meta.get("origin_lon")) for r in recs}
-    return len(origins) == 1 and None not in next(iter(origins))
+    if len(origins) != 1:
+        return None
+    lat, lon = next(iter(origins))
+    return None if lat is None or lon is None else (float(lat), float(lon))
 
 
 def walk_group(rec: Recording, group_by: str) -> str:
@@ -545,6 +562,8 @@ def build(
     rmap = from_scans(scans, cfg, infos, source, groups, group_by)
     assert scans.walk is not None and scans.floor is not None
     rmap.card["floor_switch_per_scan"] = floor_switch_rate(scans.t, scans.walk, scans.floor)
+    origin = common_origin(recordings)
+    rmap.card["origin"] = None if origin is None else list(origin)
     try:
         rmap.card["floor_levels"] = fit_floor_levels(recordings).to_dict()
     except ValidationError:  # no walk over two floors with a barometer: the Wi-Fi votes alone give the floor
@@ -564,6 +583,15 @@ def card_markdown(card: dict[str, Any]) -> str:
         f"{len(card['access_points'])} access points, floors {', '.join(card['floors'])}.",
         "",
         f"Model: {card['config']['model']} (k = {card['config']['k']}), scikit-learn; σ scale {card['sigma_scale']}.",
+        "",
+        "Positions: east/north (m) about "
+        + (
+            f"lat {card['origin'][0]:.7f}, lon {card['origin'][1]:.7f} (WGS-84 east-north-up): a recording about "
+            "another origin gets them converted"
+            if card.get("origin")
+            else "the survey walks' own frame (no lat/lon origin): they join only recordings without one"
+        )
+        + ".",
         "",
         f"Validation ({v['how']}): median {v.get('median_m')} m, p75 {v.get('p75_m')} m, p95 {v.get('p95_m')} m "
         f"over {v.get('n', 0)} scans; floor right {v.get('floor_right')}; share of errors inside the 68 % radius "

@@ -11,6 +11,8 @@ export folder, one zip, or a folder of several export folders / zips. The files 
     WristMotion.csv                       Apple Watch → device "watch"
     Headphone.csv                         AirPods → device "earbuds"
     Location.csv                          phone location fixes → Recording.fixes
+    WiFi.csv                              Wi-Fi scans (Android) → Recording.wifi, for a radio map
+                                          (:mod:`wearnav.importers.sensorlogger_radio`)
 
 Columns are found by name, never by position. Everything else in an export (Magnetometer,
 Barometer, Annotation, Activity, WatchLocation, ...) is ignored.
@@ -43,6 +45,7 @@ Sensor Logger records no ground truth: ``truth`` is None and ``labels`` is empty
 
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 import zipfile
 from collections.abc import Iterator
@@ -70,6 +73,7 @@ from wearnav.importers.sensorlogger_map import (
     Table,
     acceleration_convention,
 )
+from wearnav.importers.sensorlogger_radio import WIFI_FILE, read_wifi
 from wearnav.recording import Recording
 
 # ---- discovery ------------------------------------------------------------------------------
@@ -148,7 +152,7 @@ def _read_zip(zpath: Path, platform: str | None = None) -> Iterator[Recording]:
             p = PurePosixPath(info.filename)
             if info.is_dir() or "__MACOSX" in p.parts or p.name.startswith("._"):
                 continue
-            if strip_compression(Path(p.name)) in KNOWN_FILES:
+            if strip_compression(Path(p.name)) in (*KNOWN_FILES, WIFI_FILE):
                 groups.setdefault(str(p.parent), []).append(info)
         groups = {
             d: m
@@ -285,7 +289,9 @@ def export_tables(folder: Path, platform: str | None = None) -> tuple[str, bool,
 
 def _read_export(folder: Path, name: str, file: str, given_platform: str | None = None) -> Recording:
     platform, standardised, info, tables = export_tables(folder, given_platform)
-    return build_recording(tables, platform, standardised, folder, name, file, info)
+    rec = build_recording(tables, platform, standardised, folder, name, file, info)
+    wifi = read_wifi(folder, rec.meta["t0_unix_ns"], rec.meta)
+    return rec if wifi is None else dataclasses.replace(rec, wifi=wifi)
 
 
 __all__ = ["PLATFORMS", "Unusable", "acceleration_convention", "export_tables", "is_export", "read", "read_export"]

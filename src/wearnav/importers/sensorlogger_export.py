@@ -6,7 +6,7 @@ app's documentation (``shared/data/sensor_logger_format``: UNITS.md, COORDINATES
 CROSSPLATFORM.md): nanosecond ``time``, columns in the app's order (``z,y,x``), user acceleration
 and gravity split, g units on the Apple wearables when "Standardise Units & Frames" is off, iOS's
 flipped acceleration sign, lat/lon from local metres by :func:`wearnav.core.geo.local_to_latlon` (about
-``ORIGIN``).
+the recording's own origin, else ``ORIGIN``).
 
 :func:`simulated_export` writes one simulated walk (phone, watch, earbuds and GPS fixes) this way,
 marked as simulated in ``Metadata.csv`` (``device name``): what ``wearnav simulate --format
@@ -86,7 +86,8 @@ def write_export(
     watch_extras: bool = False,
     device_name: str = "test phone",
 ) -> Path:
-    """Write ``rec`` (devices phone / watch / earbuds, fixes) into ``folder`` as Sensor Logger would.
+    """Write ``rec`` (devices phone / watch / earbuds, fixes, Wi-Fi scans) into ``folder`` as Sensor
+    Logger would; fixes at their place on Earth where ``rec`` has a lat/lon origin, else about ``ORIGIN``.
 
     ``total_acceleration`` writes Android's TotalAcceleration.csv too. ``quat_inverted`` writes
     device←world quaternions (to test the importer's convention check). ``platform="watchos"``
@@ -147,9 +148,12 @@ def write_export(
         pd.DataFrame(cols).to_csv(folder / fname, index=False)
         sensors.append("Wrist Motion" if dev == "watch" else "Headphone")
 
+    # lat/lon about the recording's own origin where it has one (an imported walk written where it was)
+    lat0, lon0 = rec.meta.get("origin_lat"), rec.meta.get("origin_lon")
+    origin = (float(lat0), float(lon0)) if lat0 is not None and lon0 is not None else ORIGIN
     if rec.fixes is not None:
         f = rec.fixes
-        lat, lon = geo.local_to_latlon(f.pos[:, :2], *ORIGIN)
+        lat, lon = geo.local_to_latlon(f.pos[:, :2], *origin)
         acc = np.where(np.isfinite(f.accuracy), f.accuracy, -1.0)
         pd.DataFrame(
             {
@@ -166,6 +170,20 @@ def write_export(
             }
         ).to_csv(folder / "Location.csv", index=False)
         sensors.append("Location")
+
+    if rec.wifi is not None:  # Android's WiFi.csv (UNITS.md "WiFi"; wearnav.importers.sensorlogger_radio)
+        w = rec.wifi
+        pd.DataFrame(
+            {
+                **_time_cols(w.t, t_ref),
+                "ssid": w.ssid,
+                "bssid": w.bssid,
+                "frequency": np.round(w.freq_mhz).astype(np.int64),
+                "level": w.rssi_dbm,
+                "capabilities": "[WPA2-PSK-CCMP][ESS]",
+            }
+        ).to_csv(folder / "WiFi.csv", index=False)
+        sensors.append("WiFi")
 
     if watch_extras and "watch" in rec.devices:
         s = rec.devices["watch"]
