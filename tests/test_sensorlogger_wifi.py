@@ -25,7 +25,13 @@ from wearnav.importers.sensorlogger import read_export
 from wearnav.importers.sensorlogger_export import simulated_export, write_export, zip_export
 
 LOGS = "ipin2023_track3/01 Logfiles/01 IPIN2023_T3_TrainingTrials (training)"
-TRIAL03 = [f"IPIN2023_T3_TrainingTrial03_repetition0{i}.txt.xz" for i in (1, 2, 3, 4)]
+# three walks over floors 0, -1 and -2 for the map (its floor levels from their barometers) and a fourth
+SURVEY = [
+    "IPIN2023_T3_TrainingTrial51_repetition01.mat",
+    "IPIN2023_T3_TrainingTrial51_repetition02.txt.xz",
+    "IPIN2023_T3_TrainingTrial52_repetition02.mat",
+]
+HELD_OUT = "IPIN2023_T3_TrainingTrial52_repetition01.txt.xz"
 
 
 @pytest.fixture(scope="module")
@@ -79,6 +85,26 @@ def test_wifi_csv_becomes_the_recordings_scans_on_its_clock(export, tmp_path):
         np.testing.assert_array_equal(rec.fixes.pos, rec0.fixes.pos)
 
 
+def test_barometer_csv_becomes_the_recordings_pressure(export, tmp_path):
+    t0 = int(read_export(export).meta["t0_unix_ns"])
+    folder = tmp_path / "with_barometer"
+    folder.mkdir()
+    for f in export.iterdir():
+        (folder / f.name).write_bytes(f.read_bytes())
+    times = t0 + np.array([0, 10**9, 10**9, 2 * 10**9])  # one time written twice
+    rows = pd.DataFrame(
+        {"time": times, "seconds_elapsed": 0.0, "relativeAltitude": 0.0, "pressure": [977.2, 977.3, 977.3, 977.6]}
+    )
+    rows.to_csv(folder / "Barometer.csv", index=False)
+    rec = read_export(folder)
+    np.testing.assert_allclose(rec.pressure.t, [0.0, 1.0, 2.0])
+    np.testing.assert_allclose(rec.pressure.hpa, [977.2, 977.3, 977.6])
+    assert rec.meta["dropped_duplicates"]["Barometer.csv"] == 1
+    rows.assign(pressure=rows["pressure"] * 100).to_csv(folder / "Barometer.csv", index=False)  # Pa, not hPa
+    with pytest.raises(FormatError, match=r"Barometer\.csv.*is not an air pressure"):
+        read_export(folder)
+
+
 @pytest.mark.parametrize(
     "change, words",
     [
@@ -104,9 +130,9 @@ def test_a_bad_wifi_csv_is_refused_in_one_line_naming_the_file(export, tmp_path,
 
 @pytest.fixture(scope="module")
 def venue(shared_data, tmp_path_factory):
-    """A radio map of three repetitions of IPIN trial 3 (about the venue's origin) and the fourth,
+    """A radio map of three IPIN walks over three floors (about the venue's origin) and a fourth,
     imported from its log and from it written as an Android Sensor Logger export."""
-    recs = [ipin2023.read_log(shared_data / LOGS / name) for name in TRIAL03]
+    recs = [ipin2023.read_log(shared_data / LOGS / name) for name in [*SURVEY, HELD_OUT]]
     rmap = radiomap.build(recs[:3], radiomap.RadioMapConfig(cv_folds=3))
     root = tmp_path_factory.mktemp("venue")
     write_export(recs[3], root / "export", platform="android", standardised=True)
@@ -121,14 +147,17 @@ def _latlon(rec, xy: np.ndarray) -> np.ndarray:
 def test_a_venues_map_places_a_users_export_as_it_places_the_walk_imported_from_its_log(venue):
     rmap, ipin, user, _ = venue
     assert rmap.origin == (ipin.meta["origin_lat"], ipin.meta["origin_lon"])
-    # the export is about its first fix, the map about the venue's origin: ~13 m apart
+    # the export is about its first fix, the map about the venue's origin
     apart = geo.latlon_to_local([user.meta["origin_lat"]], [user.meta["origin_lon"]], *rmap.origin)
+    print(f"\nthe export's origin is {np.linalg.norm(apart):.1f} m from the map's")
     assert np.linalg.norm(apart) > 5.0
     # the same scans (times shifted by the two imports' different zero)
     shift = user.wifi.t[0] - ipin.wifi.t[0]
     np.testing.assert_allclose(user.wifi.t - shift, ipin.wifi.t, atol=1e-6)
     assert list(user.wifi.bssid) == [b.lower() for b in ipin.wifi.bssid]
     np.testing.assert_array_equal(user.wifi.rssi_dbm, ipin.wifi.rssi_dbm)
+    np.testing.assert_allclose(user.pressure.t - shift, ipin.pressure.t, atol=1e-6)
+    np.testing.assert_array_equal(user.pressure.hpa, ipin.pressure.hpa)
     a, radio_a, info_a, warn_a = radiofixes.with_radio_fixes(ipin, rmap)
     b, radio_b, info_b, warn_b = radiofixes.with_radio_fixes(user, rmap)
     assert not warn_a and not warn_b and info_a["positions"] == info_b["positions"] > 50
@@ -144,14 +173,18 @@ def test_track_with_a_venues_map_gives_a_users_export_the_path_of_the_imported_w
 
     rmap, ipin, user, root = venue
     folder = rmap.save(root / "map")
-    paths = {}
+    paths, floors = {}, {}
     for name, src in (("export", root / "export"), ("ipin", ipin.save(root / "ipin.h5"))):
         summary = track(src, "phone", root / f"track_{name}", radiomap=folder)
         assert summary["radiomap"]["used"] and summary["radiomap"]["positions"] > 50
         assert summary["anchoring"]["method"] == "smooth"
+        assert summary["radiomap"]["floor_by"].startswith("barometer")  # the export's Barometer.csv
+        floors[name] = pd.read_csv(root / f"track_{name}" / "trajectory.csv")["floor"].to_numpy()
         geojson = json.loads((root / f"track_{name}" / "trajectory.geojson").read_text())
         line = next(f for f in geojson["features"] if f["geometry"]["type"] == "LineString")
         paths[name] = np.asarray(line["geometry"]["coordinates"])  # lon, lat
+    np.testing.assert_array_equal(floors["export"], floors["ipin"])
+    assert set(np.unique(floors["ipin"])) == {-2.0, -1.0, 0.0}  # the walk goes down two floors and back
     a, b = paths["export"], paths["ipin"]
     assert a.shape == b.shape
     gap = np.linalg.norm(
@@ -160,7 +193,9 @@ def test_track_with_a_venues_map_gives_a_users_export_the_path_of_the_imported_w
         axis=1,
     )
     print(f"\nthe export's path vs the IPIN import's: median {np.median(gap):.3f} m, max {gap.max():.3f} m")
-    assert np.median(gap) < 0.5 and gap.max() < 1.5  # measured 0.14 / 0.37 m (IMU round trip in float32)
+    # measured 0.43 / 1.28 m with the export's origin 38.8 m from the map's: the odometry is the same to
+    # the millimetre (trajectory.csv x, y), the smoother's solution in the two local frames is not
+    assert np.median(gap) < 1.0 and gap.max() < 3.0
 
 
 @pytest.mark.real_data

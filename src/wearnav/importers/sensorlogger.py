@@ -11,11 +11,11 @@ export folder, one zip, or a folder of several export folders / zips. The files 
     WristMotion.csv                       Apple Watch → device "watch"
     Headphone.csv                         AirPods → device "earbuds"
     Location.csv                          phone location fixes → Recording.fixes
-    WiFi.csv                              Wi-Fi scans (Android) → Recording.wifi, for a radio map
-                                          (:mod:`wearnav.importers.sensorlogger_radio`)
+    WiFi.csv                              Wi-Fi scans (Android) → Recording.wifi (sensorlogger_radio)
+    Barometer.csv                         pressure (hPa, UNITS.md) → Recording.pressure: the floor
 
 Columns are found by name, never by position. Everything else in an export (Magnetometer,
-Barometer, Annotation, Activity, WatchLocation, ...) is ignored.
+Annotation, Activity, WatchLocation, Bluetooth, ...) is ignored.
 
 Unit and frame conversions, each with the line of the Sensor Logger documentation it rests on
 (``UNITS.md`` / ``COORDINATES.md`` of tszheichoi/awesome-sensor-logger at b10f5c5, copied to
@@ -55,7 +55,7 @@ import numpy as np
 import pandas as pd
 
 from wearnav.core.timeseries import drop_duplicate_times
-from wearnav.errors import ConfigError, FormatError, MissingFileError, WearnavError
+from wearnav.errors import ConfigError, FormatError, MissingFileError, ValidationError, WearnavError
 from wearnav.importers.common import (
     check_finite,
     check_source,
@@ -74,7 +74,9 @@ from wearnav.importers.sensorlogger_map import (
     acceleration_convention,
 )
 from wearnav.importers.sensorlogger_radio import WIFI_FILE, read_wifi
-from wearnav.recording import Recording
+from wearnav.recording import Pressure, Recording
+
+BAROMETER_FILE = "Barometer.csv"
 
 # ---- discovery ------------------------------------------------------------------------------
 
@@ -152,7 +154,7 @@ def _read_zip(zpath: Path, platform: str | None = None) -> Iterator[Recording]:
             p = PurePosixPath(info.filename)
             if info.is_dir() or "__MACOSX" in p.parts or p.name.startswith("._"):
                 continue
-            if strip_compression(Path(p.name)) in (*KNOWN_FILES, WIFI_FILE):
+            if strip_compression(Path(p.name)) in (*KNOWN_FILES, WIFI_FILE, BAROMETER_FILE):
                 groups.setdefault(str(p.parent), []).append(info)
         groups = {
             d: m
@@ -290,8 +292,26 @@ def export_tables(folder: Path, platform: str | None = None) -> tuple[str, bool,
 def _read_export(folder: Path, name: str, file: str, given_platform: str | None = None) -> Recording:
     platform, standardised, info, tables = export_tables(folder, given_platform)
     rec = build_recording(tables, platform, standardised, folder, name, file, info)
-    wifi = read_wifi(folder, rec.meta["t0_unix_ns"], rec.meta)
-    return rec if wifi is None else dataclasses.replace(rec, wifi=wifi)
+    t0 = int(rec.meta["t0_unix_ns"])
+    wifi, pressure = read_wifi(folder, t0, rec.meta), _pressure(folder, t0, rec.meta)
+    if wifi is None and pressure is None:
+        return rec
+    return dataclasses.replace(rec, wifi=wifi, pressure=pressure)
+
+
+def _pressure(folder: Path, t0_ns: int, meta: dict) -> Pressure | None:
+    """``Barometer.csv`` on the recording's clock (its rows as every sensor file's: a repeated time
+    dropped and counted in ``meta["dropped_duplicates"]``, time going backwards refused); a pressure
+    that is not one is refused naming the file. None without the file."""
+    table = _load(folder, BAROMETER_FILE, ["pressure"])
+    if table is None:
+        return None
+    if table.duplicates:
+        meta.setdefault("dropped_duplicates", {})[BAROMETER_FILE] = table.duplicates
+    try:
+        return Pressure((table.t_ns - t0_ns).astype(np.float64) * 1e-9, table.column("pressure"))
+    except ValidationError as exc:
+        raise FormatError(str(exc), table.path) from None
 
 
 __all__ = ["PLATFORMS", "Unusable", "acceleration_convention", "export_tables", "is_export", "read", "read_export"]

@@ -86,7 +86,7 @@ def write_export(
     watch_extras: bool = False,
     device_name: str = "test phone",
 ) -> Path:
-    """Write ``rec`` (devices phone / watch / earbuds, fixes, Wi-Fi scans) into ``folder`` as Sensor
+    """Write ``rec`` (devices phone / watch / earbuds, fixes, Wi-Fi scans, barometer) into ``folder`` as Sensor
     Logger would; fixes at their place on Earth where ``rec`` has a lat/lon origin, else about ``ORIGIN``.
 
     ``total_acceleration`` writes Android's TotalAcceleration.csv too. ``quat_inverted`` writes
@@ -184,6 +184,18 @@ def write_export(
             }
         ).to_csv(folder / "WiFi.csv", index=False)
         sensors.append("WiFi")
+
+    if rec.pressure is not None:  # UNITS.md "Barometer": hPa; relativeAltitude m since the start
+        p = rec.pressure
+        pd.DataFrame(
+            {
+                **_time_cols(p.t, t_ref),
+                # the standard atmosphere's height for a pressure change near sea level: 8.43 m per hPa
+                "relativeAltitude": 8.43 * (p.hpa[0] - p.hpa),
+                "pressure": p.hpa,
+            }
+        ).to_csv(folder / "Barometer.csv", index=False)
+        sensors.append("Barometer")
 
     if watch_extras and "watch" in rec.devices:
         s = rec.devices["watch"]
