@@ -334,3 +334,28 @@ def test_floor_switch_rate_counts_changes_between_a_walks_consecutive_scans():
     assert radiofloor.floor_switch_rate(scans.t, scans.walk, scans.floor) == pytest.approx(
         (1 + 1) / (4 + 2)
     )  # 1 change in 4 pairs
+
+
+def test_a_scan_whose_floor_the_sequence_changes_keeps_the_sigma_asked_for(built):
+    """`locate(by_group=False)` (without GNSS: the map's one scale, decision 0050) held for every scan,
+    also where the floor sequence overrules a stray vote and the positions are predicted again (that
+    second prediction had fallen back to σ by groups)."""
+    walk = synthetic_walk("down", [(2.0, 10.0), (38.0, 10.0)], 0, 21).wifi
+    stray = synthetic_walk("up", [(18.0, 10.0), (26.0, 10.0)], 1, 22).wifi  # its first scan: heard upstairs
+    k = stray.t == stray.t[0]
+    t_mid = float(np.median(np.unique(walk.t))) + 0.5
+    t = np.concatenate([walk.t[walk.t < t_mid], np.full(k.sum(), t_mid), walk.t[walk.t >= t_mid]])
+    pick = [walk.t < t_mid, None, walk.t >= t_mid]
+
+    def joined(a, b):
+        return np.concatenate([a[pick[0]], b[k], a[pick[2]]])
+
+    wifi = WifiScans(t, *(joined(getattr(walk, c), getattr(stray, c)) for c in ("bssid", "ssid", "freq_mhz", "rssi_dbm")))
+    scans = radiomap.scans_of(wifi, built.cfg.stale_s)
+    x, _ = radiomap.fingerprints(scans, built.bssids, built.cfg.missing_dbm)
+    votes = built.predict(x)[2]
+    assert votes.tolist().count(1.0) == 1  # the stray scan votes upstairs ...
+    scaled, grouped = built.locate(wifi, by_group=False), built.locate(wifi, by_group=True)
+    assert set(scaled.floor.tolist()) == {0.0}  # ... and the sequence puts it downstairs
+    np.testing.assert_allclose(scaled.sigma_m, built.predict(x, scaled.floor, by_group=False)[1])
+    assert not np.allclose(scaled.sigma_m, grouped.sigma_m)

@@ -374,7 +374,7 @@ class RadioMap:
             votes = floor
             floor = floor_sequence(votes, self._learner.floors.astype(np.float64), float(floor_right), float(switch))
             if (floor != votes).any():  # a scan's position from the floor of the sequence
-                xy, sigma, floor = self.predict(x[use], floor)
+                xy, sigma, floor = self.predict(x[use], floor, by_group=by_group)
         info = {
             "scans": len(scans),
             "positions": int(use.sum()),
