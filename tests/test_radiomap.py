@@ -350,7 +350,9 @@ def test_a_scan_whose_floor_the_sequence_changes_keeps_the_sigma_asked_for(built
     def joined(a, b):
         return np.concatenate([a[pick[0]], b[k], a[pick[2]]])
 
-    wifi = WifiScans(t, *(joined(getattr(walk, c), getattr(stray, c)) for c in ("bssid", "ssid", "freq_mhz", "rssi_dbm")))
+    wifi = WifiScans(
+        t, *(joined(getattr(walk, c), getattr(stray, c)) for c in ("bssid", "ssid", "freq_mhz", "rssi_dbm"))
+    )
     scans = radiomap.scans_of(wifi, built.cfg.stale_s)
     x, _ = radiomap.fingerprints(scans, built.bssids, built.cfg.missing_dbm)
     votes = built.predict(x)[2]

@@ -85,12 +85,13 @@ def _start_workers(workers: int, token: str | None) -> list[subprocess.Popen]:
 
 
 def _start_trackers(
-    store: str, n: int, model: Path | None, plan: Path | None, model_device: str
+    store: str, n: int, model: Path | None, plan: Path | None, model_device: str, radiomap: Path | None = None
 ) -> list[subprocess.Popen]:
     """``n`` ``wearnav live track --store STORE --shard i/n`` processes (stopped with this one)."""
     from wearnav.live.process import start_tracker
 
     extra = [*(["--model", str(model)] if model else []), *(["--map", str(plan)] if plan else [])]
+    extra += ["--radiomap", str(radiomap)] if radiomap else []
     return [start_tracker(store, (i, n), "--model-device", model_device, *extra) for i in range(n)]
 
 
@@ -100,14 +101,28 @@ MODEL_DEVICE_HELP = (
 )
 
 
-def _tracker_factory(model: Path | None, plan: Path | None = None, model_device: str = "cpu"):
+def _tracker_factory(model: Path | None, plan: Path | None = None, model_device: str = "cpu", radiomap=None):
     """Trackers sharing one set of models (loaded once, on ``model_device``, while the server starts:
-    ``SharedModels.preload``); ``plan``: a GeoJSON floor plan every session's page draws under its path."""
+    ``SharedModels.preload``); ``plan``: a GeoJSON floor plan every session's page draws under its path;
+    ``radiomap``: a loaded radio map (:func:`_load_radiomap`) whose positions of each session's Wi-Fi
+    scans join its fixes."""
     from wearnav.live import models, tracker  # torch: only where the server tracks
 
     shared = models.SharedModels(model_device)
     threading.Thread(target=shared.preload, args=(model,), name="live-preload", daemon=True).start()
-    return lambda: tracker.LiveTracker(model=model, models=shared, plan=plan)
+    return lambda: tracker.LiveTracker(model=model, models=shared, plan=plan, radiomap=radiomap)
+
+
+def _load_radiomap(radiomap: Path | None, executor: str):
+    """The ``--radiomap`` folder loaded once (a bad one said in one line before the server starts);
+    not with Ray, whose tasks may not see the folder."""
+    if radiomap is None:
+        return None
+    if executor == "ray":
+        raise ConfigError("--radiomap is for --executor local (a Ray task may not see the folder)")
+    from wearnav.fuse.radiomap import RadioMap
+
+    return RadioMap.load(radiomap)
 
 
 def _check_plan(plan: Path | None) -> None:
@@ -164,6 +179,12 @@ def live(
         None,
         "--map",
         help="A GeoJSON floor plan (as `wearnav track --map`) drawn under every session's path once it has a fix.",
+    ),
+    radiomap: Path | None = typer.Option(
+        None,
+        "--radiomap",
+        help="A radio map folder (`wearnav radiomap build`): each session's Wi-Fi scans (Android Sensor Logger's "
+        "WiFi sensor) become fixes beside the phone's, as for `wearnav track --radiomap`.",
     ),
     no_track: bool = typer.Option(False, "--no-track", help="Store and serve only; no live path."),
     model_device: str = typer.Option("cpu", "--model-device", help=MODEL_DEVICE_HELP),
@@ -232,6 +253,7 @@ def live(
     _check_plan(plan)
     if plan is not None and executor == "ray":
         raise ConfigError("--map is drawn by trackers in this process: not with --executor ray")
+    rmap = _load_radiomap(radiomap, executor)
     stores_only = no_track or executor == "ray" or local > 0
     if workers > 1 and not stores_only:
         raise ConfigError(
@@ -240,7 +262,7 @@ def live(
     if reuse_port and not stores_only:
         raise ConfigError("--reuse-port is for --workers' receivers, which store and serve only (--no-track)")
     sock = _reuse_port_socket(host, port) if workers > 1 or reuse_port else None
-    factory = None if stores_only else _tracker_factory(model, plan, model_device)
+    factory = None if stores_only else _tracker_factory(model, plan, model_device, rmap)
     app = create_app(
         store,
         token=token,
@@ -274,7 +296,7 @@ def live(
     on_interrupt(f"stopped; every acknowledged message is in {shown_store} (`wearnav live` resumes its sessions)")
     children = _start_workers(workers, token) if workers > 1 else []
     if local and not reuse_port:  # (a --workers child starts none: its parent has)
-        children += _start_trackers(store, local, model, plan, model_device)
+        children += _start_trackers(store, local, model, plan, model_device, radiomap)
         typer.echo(f"{local} tracker processes (`wearnav live track --shard i/{local}`) track the sessions")
     # Ctrl-C and SIGTERM are how a server is stopped: uvicorn shuts down cleanly (open requests
     # answered, every acknowledged message stored) and raises the signal again once it has stopped;
@@ -335,6 +357,12 @@ def live_track(
     plan: Path | None = typer.Option(
         None, "--map", help="A GeoJSON floor plan drawn under every session's path (as `wearnav live --map`)."
     ),
+    radiomap: Path | None = typer.Option(
+        None,
+        "--radiomap",
+        help="A radio map folder (`wearnav radiomap build`): each session's Wi-Fi scans (Android Sensor Logger's "
+        "WiFi sensor) become fixes beside the phone's, as `wearnav live --radiomap`.",
+    ),
     model_device: str = typer.Option("cpu", "--model-device", help=MODEL_DEVICE_HELP),
 ):
     """Track the sessions a receiver stores, in a process of its own (the receiver runs --no-track).
@@ -359,6 +387,7 @@ def live_track(
     _check_plan(plan)
     if plan is not None and executor == "ray":
         raise ConfigError("--map is for --executor local (a Ray task may not see the file)")
+    _load_radiomap(radiomap, executor)  # a bad folder said here; run_tracker loads it for its trackers
     if executor == "local":
         run_tracker(
             str(store),
@@ -367,6 +396,7 @@ def live_track(
             stats=None if stats is None else str(stats),
             plan=None if plan is None else str(plan),
             model_device=model_device,
+            radiomap=None if radiomap is None else str(radiomap),
         )
         return
     import ray

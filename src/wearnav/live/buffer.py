@@ -31,6 +31,8 @@ from wearnav.errors import FormatError, MissingFileError
 from wearnav.importers.sensorlogger_build import build_recording, stale_fixes
 from wearnav.importers.sensorlogger_map import SENSORS, Table
 from wearnav.live.push import TEXT_COLS, Columns, Push, columns_of, parse_stored
+from wearnav.live.wifi import PUSH_NAME as WIFI
+from wearnav.live.wifi import WifiRows
 from wearnav.recording import DeviceStream, Fixes, Recording
 
 NS = 1_000_000_000
@@ -144,6 +146,7 @@ class SessionBuffer:
         self.messages = 0
         self.ignored: dict[str, int] = {}  # unknown sensor names → samples (stored, not read)
         self.warnings: list[str] = []
+        self.wifi = WifiRows()  # the Wi-Fi scans' readings (wearnav.live.wifi), for a radio map
         self._sensors: dict[str, _Sensor] = {}
         self._lock = threading.Lock()
         self._quat_inverted: list[str] | None = None
@@ -178,11 +181,15 @@ class SessionBuffer:
         """Add one accepted message's payload (checked by :func:`wearnav.live.push.parse`);
         returns how many samples of known sensors it held."""
         columns, ignored = columns_of(payload)
+        if WIFI in ignored:  # stored unread by the receiver; the tracker's radio map reads them
+            self.wifi.add(payload)
         return self.add_columns(columns, ignored, received_unix_s)
 
     def add_push(self, push: Push, received_unix_s: float | None = None) -> int:
         """Add one accepted message (:func:`wearnav.live.push.parse`'s, or
         :func:`~wearnav.live.push.parse_stored`'s), as the arrays it was checked as."""
+        if WIFI in push.ignored:
+            self.wifi.add(push.payload)
         return self.add_columns(push.columns, push.ignored, received_unix_s)
 
     def add_body(self, body: str | bytes, received_unix_s: float | None = None) -> int:

@@ -3,7 +3,7 @@
 The export (folder or ``.zip``, as :func:`wearnav.importers.sensorlogger_export.write_export`
 writes it) is read with the importer's own CSV reader, so the values sent are the values the
 importer reads. Every sensor's rows (phone, watch, earbuds, location: interleaved by sample time)
-go out in batches of ``batch_s`` of sample time, one message per batch with ``messageId``
+(and ``WiFi.csv``'s scans, as entries named ``wifi``) go out in batches of ``batch_s`` of sample time, one message per batch with ``messageId``
 0, 1, 2, ..., one ``sessionId`` and one ``deviceId`` (PUSHING.md), ``values`` holding the file's
 columns but ``time`` / ``seconds_elapsed``. Sample times are shifted by one constant so that the
 export's last sample is the moment the replay starts (the receiver refuses times from the
@@ -32,10 +32,13 @@ from urllib.parse import parse_qsl, urlencode, urlsplit, urlunsplit
 import httpx
 import numpy as np
 
-from wearnav.errors import ConfigError, FormatError
+from wearnav.errors import ConfigError, FormatError, MissingFileError
 from wearnav.importers import sensorlogger
+from wearnav.importers.common import find_file, read_csv
 from wearnav.importers.sensorlogger_map import KNOWN_FILES, PUSH_NAMES
+from wearnav.importers.sensorlogger_radio import WIFI_FILE, read_wifi
 from wearnav.live.push import ID_RE
+from wearnav.live.wifi import PUSH_NAME as WIFI
 
 SKIP_COLS = ("time", "seconds_elapsed")  # the push has neither as a value (UNITS.md)
 
@@ -61,6 +64,20 @@ class Result:
     late_s: float = 0.0  # how far behind schedule the last message went out
 
 
+def _wifi_rows(folder: Path) -> list[tuple[int, str, dict]]:
+    """``WiFi.csv``'s readings as the app pushes them (entries named ``wifi``: wearnav.live.wifi),
+    checked as the importer checks them (:func:`wearnav.importers.sensorlogger_radio.read_wifi`)."""
+    try:
+        path = find_file(folder / WIFI_FILE)
+    except MissingFileError:
+        return []
+    read_wifi(folder, 0, {})  # the importer's one-line refusals, before anything is sent
+    df = read_csv(path, required=["time"], dtype={"bssid": str, "ssid": str}, keep_default_na=False)
+    cols = [c for c in df.columns if c not in SKIP_COLS]
+    times = df["time"].astype("int64").tolist()
+    return [(t, WIFI, {k: _plain(v) for k, v in rec.items()}) for t, rec in zip(times, df[cols].to_dict("records"))]
+
+
 @contextmanager
 def export_folder(src: str | Path) -> Iterator[Path]:
     """``src`` itself, or a temporary folder holding the known files of the one export in a zip."""
@@ -73,7 +90,7 @@ def export_folder(src: str | Path) -> Iterator[Path]:
     with zipfile.ZipFile(src) as zf, tempfile.TemporaryDirectory(prefix="wearnav-replay-") as tmp:
         for info in zf.infolist():
             name = PurePosixPath(info.filename).name
-            if not info.is_dir() and name in KNOWN_FILES and "__MACOSX" not in info.filename:
+            if not info.is_dir() and name in (*KNOWN_FILES, WIFI_FILE) and "__MACOSX" not in info.filename:
                 (Path(tmp) / name).write_bytes(zf.read(info))
         yield Path(tmp)
 
@@ -91,6 +108,7 @@ def build(
         raise ConfigError(f"batch period {batch_s!r} s must be positive")
     with export_folder(src) as folder:
         platform, standardised, _info, tables = sensorlogger.export_tables(folder)
+        wifi = _wifi_rows(folder)
     rows = []  # (time_ns, name, values), in PUSH_NAMES order before sorting
     for name, sensor in PUSH_NAMES.items():
         table = tables.get(sensor.file)
@@ -99,6 +117,7 @@ def build(
         cols = [c for c in table.df.columns if c not in SKIP_COLS]
         for t, rec in zip(table.t_ns.tolist(), table.df[cols].to_dict("records")):
             rows.append((t, name, {k: _plain(v) for k, v in rec.items()}))
+    rows += wifi
     if not rows:
         raise FormatError("no sensor rows to replay", src)
     rows.sort(key=lambda r: r[0])  # stable: on equal times the file order above

@@ -25,7 +25,8 @@ Fusion: the final path feeds :class:`wearnav.fuse.live.IncrementalFuser` (``trac
 fixed-lag smoother; before the first final window the provisional path is smoothed whole by
 :func:`wearnav.fuse.smooth`), solved at most every ``FUSE_EVERY_S``; the path since the last solve is
 placed by a rigid fit (:func:`wearnav.fuse.rigid_fit`) on the last ``PLACE_S`` of the smoothed one.
-Everything is in the east/north frame of the first good fix (:class:`wearnav.live.fixframe.FixFrame`).
+Everything is in the east/north frame of the first good fix (:class:`wearnav.live.fixframe.FixFrame`);
+a radio map's positions of the Wi-Fi scans join the fixes (:class:`wearnav.live.wifi.RadioFixes`).
 Activity: the phone's latest window classified by the shipped activity model
 as ``classify`` runs it (:func:`wearnav.train.labelling.window_classes`; its input:
 :mod:`wearnav.live.activity`). Warnings: those the input
@@ -55,11 +56,13 @@ import numpy as np
 from wearnav import fuse, pretrained
 from wearnav.fuse.config import FuseResult
 from wearnav.fuse.live import IncrementalFuser
+from wearnav.fuse.radiomap import RadioMap
 from wearnav.live.activity import Job, label_job, label_windows, label_windows_many
 from wearnav.live.fixframe import FixFrame
 from wearnav.live.lean import lean_recording
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
 from wearnav.live.pagestate import PageRows
+from wearnav.live.wifi import RadioFixes
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.preprocess.batch import align_many
 from wearnav.preprocess.windows import WindowConfig, WindowDataset, turn
@@ -166,7 +169,9 @@ class LiveTracker:
     activity). ``context_s``, ``lag_s``, ``frame_lag_s``, ``step_s``: the module's ``CONTEXT_S``,
     ``LAG_S``, ``FRAME_LAG_S``, ``STEP_S``; ``fuse_lag_s`` / ``fuse_step_s``: the fixed-lag
     smoother's window and step. ``models``: where the models come from (:class:`SharedModels`;
-    None: loaded for this tracker alone, on the CPU)."""
+    None: loaded for this tracker alone, on the CPU). ``plan``: a GeoJSON floor plan the page draws;
+    ``radiomap``: a :class:`wearnav.fuse.radiomap.RadioMap` whose positions of the session's Wi-Fi
+    scans join its fixes."""
 
     def __init__(
         self,
@@ -180,8 +185,10 @@ class LiveTracker:
         fuse_step_s: float = 30.0,
         models: SharedModels | None = None,
         plan: str | Path | None = None,
+        radiomap: RadioMap | None = None,
     ):
         self._model_arg = model
+        self._radio = RadioFixes(radiomap) if radiomap is not None else None  # the scans' positions join the fixes
         self._page = PageRows(plan)  # what the page draws, kept between updates (the plan drawn under the path)
         self._models = models if models is not None else SharedModels("cpu")
         self.context_s, self.lag_s, self.step_s = float(context_s), float(lag_s), float(step_s)
@@ -296,6 +303,9 @@ class LiveTracker:
             rec = lean_recording(buf, t_from - 1.0, self._template) if self.batched and self._template else None
             if rec is None:
                 rec = self._template = buf.recording(t_from - 1.0)
+        if self._radio is not None:
+            rec, said = self._radio.join(rec, buf)
+            self.warnings += said
         changed = self._take_fixes(rec)
         end = common_span(rec, pcfg.devices, pcfg.edge_tolerance)[1] if final else covered
         g_end = int(np.floor((end - self.clock0) * rate + 1e-9))  # the clock's last sample (align's clock())

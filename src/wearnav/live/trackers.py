@@ -36,6 +36,7 @@ from typing import Any
 from wearnav.bench.executor import RAY_MISSING
 from wearnav.core.fileio import write_text_atomic
 from wearnav.errors import ConfigError
+from wearnav.fuse.radiomap import RadioMap
 from wearnav.live.buffer import NS, SessionBuffer
 from wearnav.live.crowd import Crowd
 from wearnav.live.models import SharedModels
@@ -184,16 +185,21 @@ def run_tracker(
     stats: str | None = None,
     plan: str | None = None,
     model_device: str | None = None,
+    radiomap: str | None = None,
 ) -> dict:
     """One tracker process's work (the CLI's and a Ray task's): LiveTrackers sharing one set of
     models (:class:`wearnav.live.models.SharedModels`, on ``model_device``: None, the
-    CPU); ``plan``: a GeoJSON floor plan each session's page draws."""
+    CPU); ``plan``: a GeoJSON floor plan each session's page draws; ``radiomap``: a radio map folder
+    whose positions of each session's Wi-Fi scans join its fixes (loaded once for all)."""
+    rmap = None if radiomap is None else RadioMap.load(radiomap)
     models = SharedModels(model_device)
     models.preload(model)  # before the first session, which would otherwise wait for it
     # The modules and models loaded so far out of the collector's sight, as the receiver's (issue 61):
     # ~450,000 objects, whose full collection paused a crowd's tick for 0.31 s (measured, 50 walkers).
     gc.freeze()
-    proc = TrackerProcess(store, lambda: LiveTracker(model=model, models=models, plan=plan), shard, stats)
+    proc = TrackerProcess(
+        store, lambda: LiveTracker(model=model, models=models, plan=plan, radiomap=rmap), shard, stats
+    )
     log.info("tracker %d/%d on %s", *shard, store)
     return proc.run(max_s=max_s)
 
