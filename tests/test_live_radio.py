@@ -27,6 +27,7 @@ from wearnav.importers import ipin2023
 from wearnav.importers.sensorlogger_export import write_export
 from wearnav.live import replay
 from wearnav.live.buffer import SessionBuffer, sliced
+from wearnav.live.export import export_session
 from wearnav.live.process import SRC, LiveServer
 from wearnav.live.tracker import LiveTracker
 from wearnav.live.wifi import WifiRows
@@ -199,6 +200,11 @@ def test_a_live_process_with_a_radio_map_places_a_session_pushed_over_http(venue
         assert state["origin"] is not None and not any("radio map" in w for w in state["warnings"])
     finally:
         srv.stop()
+    # the stored session exported keeps its scans: `track --radiomap` reads them as the live page did
+    rec = export_session(tmp_path / "live.db", session, tmp_path / "exported").load(session)
+    sent = pd.read_csv(venue["root"] / "indoor" / "WiFi.csv")
+    assert rec.wifi is not None and len(rec.wifi.t) == len(sent)
+    assert sorted(rec.wifi.bssid) == sorted(sent["bssid"].str.lower())
 
 
 def test_live_refuses_a_bad_radio_map_in_one_line(tmp_path, monkeypatch, capsys):

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from wearnav.dataset import Dataset, DatasetWriter
@@ -13,7 +14,7 @@ from wearnav.live.store_pg import is_url, redact
 
 
 def export_session(store_path: str | Path, session_id: str, out: str | Path):
-    """Write the whole session (the importer's checks included) as a one-recording dataset;
+    """Write the whole session (the importer's checks included; its Wi-Fi scans too) as a one-recording dataset;
     ``store_path``: a SQLite file or a ``postgresql://`` URL."""
     if store_missing(store_path):
         raise MissingFileError("no session store here", Path(store_path))
@@ -24,6 +25,10 @@ def export_session(store_path: str | Path, session_id: str, out: str | Path):
     finally:
         store.close()
     rec = buf.recording()
+    assert buf.t0_unix_ns is not None  # recording() has found the session's start
+    wifi = buf.wifi.scans(buf.t0_unix_ns)  # the Wi-Fi scans pushed (wearnav.live.wifi), for track --radiomap
+    if wifi is not None:
+        rec = dataclasses.replace(rec, wifi=wifi)
     with DatasetWriter(out, {"importer": "wearnav live", "store": str(where), "session": session_id}) as writer:
         writer.add(rec)
     return Dataset.open(out)

@@ -70,13 +70,14 @@ class WifiRows:
             self.dropped += dropped
         return len(rows)
 
-    def scans(self, t0_ns: int, t_from_s: float) -> WifiScans | None:
-        """The readings at or after ``t_from_s`` (s since ``t0_ns``, the session's clock) as
-        :class:`~wearnav.recording.WifiScans`, sorted by time; None where there are none."""
+    def scans(self, t0_ns: int, t_from_s: float | None = None) -> WifiScans | None:
+        """The readings at or after ``t_from_s`` (s since ``t0_ns``, the session's clock; None: all)
+        as :class:`~wearnav.recording.WifiScans`, sorted by time; None where there are none."""
         with self._lock:
             rows = list(self._rows)
-        lo = int(t0_ns) + int(round(t_from_s * NS))
-        rows = [r for r in rows if r[0] >= lo]
+        if t_from_s is not None:
+            lo = int(t0_ns) + int(round(t_from_s * NS))
+            rows = [r for r in rows if r[0] >= lo]
         if not rows:
             return None
         rows.sort(key=lambda r: r[0])  # stable: a scan's readings keep their order
