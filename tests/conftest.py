@@ -12,6 +12,15 @@ from wearnav.simulate import simulate_dataset
 ROOT = Path(__file__).resolve().parents[1]
 # WEARNAV_DATA points elsewhere, e.g. from a git worktree that is not beside shared/.
 SHARED_DATA = Path(os.environ.get("WEARNAV_DATA") or ROOT / ".." / "shared" / "data").resolve()
+# IPIN 2023 walks for a radio map of the venue (floors 0, -1, -2, their barometers giving the floor
+# levels) and a walk of the same routes held out from it (tests of a user's own Wi-Fi, issue 60 §3)
+IPIN_LOGS = "ipin2023_track3/01 Logfiles/01 IPIN2023_T3_TrainingTrials (training)"
+IPIN_SURVEY = (
+    "IPIN2023_T3_TrainingTrial51_repetition01.mat",
+    "IPIN2023_T3_TrainingTrial51_repetition02.txt.xz",
+    "IPIN2023_T3_TrainingTrial52_repetition02.mat",
+)
+IPIN_HELD_OUT = "IPIN2023_T3_TrainingTrial52_repetition01.txt.xz"
 
 
 def pytest_configure(config):

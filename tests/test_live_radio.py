@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from conftest import IPIN_HELD_OUT, IPIN_LOGS, IPIN_SURVEY
 from wearnav.core import geo
 from wearnav.fuse import radiomap
 from wearnav.fuse.config import RADIUS_68
@@ -33,13 +34,6 @@ from wearnav.live.tracker import LiveTracker
 from wearnav.live.wifi import WifiRows
 from wearnav.recording import Fixes, Pressure, Recording, WifiScans
 
-LOGS = "ipin2023_track3/01 Logfiles/01 IPIN2023_T3_TrainingTrials (training)"
-SURVEY = [
-    "IPIN2023_T3_TrainingTrial51_repetition01.mat",
-    "IPIN2023_T3_TrainingTrial51_repetition02.txt.xz",
-    "IPIN2023_T3_TrainingTrial52_repetition02.mat",
-]
-HELD_OUT = "IPIN2023_T3_TrainingTrial52_repetition01.txt.xz"
 FROM_S, TO_S = 35.0, 95.0
 
 
@@ -67,7 +61,7 @@ def venue(shared_data, tmp_path_factory):
     each with `track --radiomap`'s result."""
     from wearnav.track import track
 
-    recs = [ipin2023.read_log(shared_data / LOGS / name) for name in [*SURVEY, HELD_OUT]]
+    recs = [ipin2023.read_log(shared_data / IPIN_LOGS / name) for name in [*IPIN_SURVEY, IPIN_HELD_OUT]]
     root = tmp_path_factory.mktemp("live_radio")
     rmap = radiomap.build(recs[:3], radiomap.RadioMapConfig(cv_folds=3))
     folder = rmap.save(root / "map")

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from conftest import IPIN_HELD_OUT, IPIN_LOGS, IPIN_SURVEY
 from wearnav.core import geo
 from wearnav.errors import FormatError, ValidationError
 from wearnav.fuse import radiofixes, radiomap
@@ -23,15 +24,6 @@ from wearnav.importers import ipin2023
 from wearnav.importers.sensorlogger import read as read_sensorlogger
 from wearnav.importers.sensorlogger import read_export
 from wearnav.importers.sensorlogger_export import simulated_export, write_export, zip_export
-
-LOGS = "ipin2023_track3/01 Logfiles/01 IPIN2023_T3_TrainingTrials (training)"
-# three walks over floors 0, -1 and -2 for the map (its floor levels from their barometers) and a fourth
-SURVEY = [
-    "IPIN2023_T3_TrainingTrial51_repetition01.mat",
-    "IPIN2023_T3_TrainingTrial51_repetition02.txt.xz",
-    "IPIN2023_T3_TrainingTrial52_repetition02.mat",
-]
-HELD_OUT = "IPIN2023_T3_TrainingTrial52_repetition01.txt.xz"
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +124,7 @@ def test_a_bad_wifi_csv_is_refused_in_one_line_naming_the_file(export, tmp_path,
 def venue(shared_data, tmp_path_factory):
     """A radio map of three IPIN walks over three floors (about the venue's origin) and a fourth,
     imported from its log and from it written as an Android Sensor Logger export."""
-    recs = [ipin2023.read_log(shared_data / LOGS / name) for name in [*SURVEY, HELD_OUT]]
+    recs = [ipin2023.read_log(shared_data / IPIN_LOGS / name) for name in [*IPIN_SURVEY, IPIN_HELD_OUT]]
     rmap = radiomap.build(recs[:3], radiomap.RadioMapConfig(cv_folds=3))
     root = tmp_path_factory.mktemp("venue")
     write_export(recs[3], root / "export", platform="android", standardised=True)
