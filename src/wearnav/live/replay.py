@@ -2,10 +2,10 @@
 
 The export (folder or ``.zip``, as :func:`wearnav.importers.sensorlogger_export.write_export`
 writes it) is read with the importer's own CSV reader, so the values sent are the values the
-importer reads. Every sensor's rows (phone, watch, earbuds, location: interleaved by sample time)
-(and ``WiFi.csv``'s scans, as entries named ``wifi``) go out in batches of ``batch_s`` of sample time, one message per batch with ``messageId``
-0, 1, 2, ..., one ``sessionId`` and one ``deviceId`` (PUSHING.md), ``values`` holding the file's
-columns but ``time`` / ``seconds_elapsed``. Sample times are shifted by one constant so that the
+importer reads. Every sensor's rows (phone, watch, earbuds, location, and ``WiFi.csv``'s scans as
+entries named ``wifi``: interleaved by sample time) go out in batches of ``batch_s`` of sample time,
+one message per batch with ``messageId`` 0, 1, 2, ..., one ``sessionId`` and one ``deviceId``
+(PUSHING.md), ``values`` holding the file's columns but ``time`` / ``seconds_elapsed``. Sample times are shifted by one constant so that the
 export's last sample is the moment the replay starts (the receiver refuses times from the
 future), which leaves every time difference as it was. The export's platform and
 standardisation (Metadata.csv; the app does not push them) go in the URL's query, as a user

@@ -13,6 +13,7 @@ it reached the store unchecked. A reading repeated within a scan (same time and 
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import threading
 
@@ -35,7 +36,8 @@ class WifiRows:
     """The session's Wi-Fi readings so far: time (ns), BSSID, SSID, frequency (MHz), level (dBm)."""
 
     def __init__(self) -> None:
-        self._rows: list[tuple[int, str, str, float, float]] = []
+        self._rows: list[tuple[int, str, str, float, float]] = []  # in time order
+        self._times: list[int] = []  # their times (ns), for the start of a slice
         self._lock = threading.Lock()
         self.dropped = 0
 
@@ -66,21 +68,25 @@ class WifiRows:
             ssid = v.get("ssid")
             rows.append((t, bssid, ssid if isinstance(ssid, str) else "", freq, level))
         with self._lock:
-            self._rows += rows
+            for r in sorted(rows, key=lambda r: r[0]):  # kept in time order (stable: a scan's order kept)
+                if not self._times or r[0] >= self._times[-1]:
+                    self._times.append(r[0])
+                    self._rows.append(r)
+                else:  # a late message: in its place
+                    i = bisect.bisect_right(self._times, r[0])
+                    self._times.insert(i, r[0])
+                    self._rows.insert(i, r)
             self.dropped += dropped
         return len(rows)
 
     def scans(self, t0_ns: int, t_from_s: float | None = None) -> WifiScans | None:
         """The readings at or after ``t_from_s`` (s since ``t0_ns``, the session's clock; None: all)
         as :class:`~wearnav.recording.WifiScans`, sorted by time; None where there are none."""
+        lo = 0 if t_from_s is None else bisect.bisect_left(self._times, int(t0_ns) + int(round(t_from_s * NS)))
         with self._lock:
-            rows = list(self._rows)
-        if t_from_s is not None:
-            lo = int(t0_ns) + int(round(t_from_s * NS))
-            rows = [r for r in rows if r[0] >= lo]
+            rows = self._rows[lo:]
         if not rows:
             return None
-        rows.sort(key=lambda r: r[0])  # stable: a scan's readings keep their order
         t = (np.array([r[0] for r in rows], np.int64) - int(t0_ns)).astype(np.float64) / NS
         bssid = np.array([r[1] for r in rows], object)
         keep = np.ones(len(rows), bool)
