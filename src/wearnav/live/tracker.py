@@ -26,7 +26,7 @@ fixed-lag smoother; before the first final window the provisional path is smooth
 :func:`wearnav.fuse.smooth`), solved at most every ``FUSE_EVERY_S``; the path since the last solve is
 placed by a rigid fit (:func:`wearnav.fuse.rigid_fit`) on the last ``PLACE_S`` of the smoothed one.
 Everything is in the east/north frame of the first good fix (:class:`wearnav.live.fixframe.FixFrame`);
-a radio map's positions of the Wi-Fi scans join the fixes (:class:`wearnav.live.wifi.RadioFixes`).
+a radio map's positions of the Wi-Fi scans join the fixes (:class:`wearnav.live.radio.RadioFixes`).
 Activity: the phone's latest window classified by the shipped activity model
 as ``classify`` runs it (:func:`wearnav.train.labelling.window_classes`; its input:
 :mod:`wearnav.live.activity`). Warnings: those the input
@@ -62,7 +62,7 @@ from wearnav.live.fixframe import FixFrame
 from wearnav.live.lean import lean_recording
 from wearnav.live.models import SharedModels, classify_windows, predict_windows
 from wearnav.live.pagestate import PageRows
-from wearnav.live.wifi import RadioFixes
+from wearnav.live.radio import RadioFixes
 from wearnav.preprocess import Aligned, PreprocessConfig, align, common_span
 from wearnav.preprocess.batch import align_many
 from wearnav.preprocess.windows import WindowConfig, WindowDataset, turn

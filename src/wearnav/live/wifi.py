@@ -6,7 +6,8 @@ MHz, ``level`` dBm; :mod:`wearnav.importers.sensorlogger_radio`). The receiver s
 stores every sensor it does not read (:mod:`wearnav.live.push`: any JSON values, the body kept
 whole); the session buffer hands each message's ``wifi`` entries here, and the tracker asks for the
 scans since an update's start (:meth:`WifiRows.scans`) to turn them into radio positions
-among the update's fixes (:class:`RadioFixes`, :func:`wearnav.fuse.radiofixes.with_radio_fixes`). A reading the importer would refuse (no BSSID, a
+among the update's fixes (:class:`wearnav.live.radio.RadioFixes`). Light on purpose: the receiver
+imports it, and a receiver that only stores (``--no-track``) never loads torch. A reading the importer would refuse (no BSSID, a
 level or frequency that is not one) is left out and counted (``dropped``), never failing the session:
 it reached the store unchecked. A reading repeated within a scan (same time and BSSID) counts once.
 """
@@ -14,14 +15,11 @@ it reached the store unchecked. A reading repeated within a scan (same time and 
 from __future__ import annotations
 
 import bisect
-import dataclasses
 import threading
 
 import numpy as np
 
-from wearnav.fuse.radiofixes import with_radio_fixes
-from wearnav.fuse.radiomap import RadioMap
-from wearnav.recording import Recording, WifiScans
+from wearnav.recording import WifiScans
 from wearnav.recording.radio import RSSI_DBM_RANGE, WIFI_FREQ_MHZ_RANGE, repeated_readings
 
 PUSH_NAME = "wifi"
@@ -96,29 +94,4 @@ class WifiRows:
         return WifiScans(t[keep], bssid[keep], ssid[keep], freq[keep], level[keep])
 
 
-class RadioFixes:
-    """A radio map's positions of a session's scans among each update's fixes (``LiveTracker(radiomap=)``)."""
-
-    def __init__(self, rmap: RadioMap):
-        self.rmap = rmap
-        self._said: set[str] = set()
-
-    def join(self, rec: Recording, buf) -> tuple[Recording, list[str]]:
-        """``rec`` (an update's slice of the session) with the positions of the session's scans since
-        its start among its fixes (:func:`wearnav.fuse.radiofixes.with_radio_fixes`: in ``rec``'s frame,
-        beside the phone's fixes as ``track --radiomap`` weighs them); and the map's warnings not said
-        before (without the recording's name: the session's page says whose)."""
-        wifi = getattr(buf, "wifi", None)
-        if wifi is None or buf.t0_unix_ns is None:
-            return rec, []
-        scans = wifi.scans(buf.t0_unix_ns, min(float(s.t[0]) for s in rec.devices.values()))
-        if scans is None:
-            return rec, []
-        out, _, _, warnings = with_radio_fixes(dataclasses.replace(rec, wifi=scans), self.rmap)
-        new = [w.split(": ", 1)[1] for w in warnings]
-        new = [w for w in new if w not in self._said]
-        self._said.update(new)
-        return out, new
-
-
-__all__ = ["PUSH_NAME", "RadioFixes", "WifiRows"]
+__all__ = ["PUSH_NAME", "WifiRows"]
