@@ -98,6 +98,29 @@ def test_barometer_csv_becomes_the_recordings_pressure(export, tmp_path):
 
 
 @pytest.mark.parametrize(
+    "name, header, attribute",
+    [
+        ("WiFi.csv", "time,seconds_elapsed,ssid,bssid,frequency,level,capabilities", "wifi"),
+        ("Barometer.csv", "time,seconds_elapsed,relativeAltitude,pressure", "pressure"),
+        ("Location.csv", None, "fixes"),  # indoors, not one fix: the app writes the header alone
+    ],
+)
+def test_a_side_file_with_a_header_alone_reads_as_none(export, tmp_path, name, header, attribute):
+    folder = tmp_path / "header_only"
+    folder.mkdir()
+    for f in export.iterdir():
+        (folder / f.name).write_bytes(f.read_bytes())
+    if header is None:  # the file's own header
+        header = (folder / name).read_text().splitlines()[0]
+    (folder / name).write_text(header + "\n")
+    rec = read_export(folder)
+    assert getattr(rec, attribute) is None and len(rec.devices["phone"].t) > 100
+    (folder / "Gravity.csv").write_text((folder / "Gravity.csv").read_text().splitlines()[0] + "\n")
+    with pytest.raises(FormatError, match="Gravity.csv: no data rows"):  # a motion file's rows are needed
+        read_export(folder)
+
+
+@pytest.mark.parametrize(
     "change, words",
     [
         (lambda df: df.drop(columns="level"), "missing columns ['level']"),

@@ -64,8 +64,10 @@ def read_text(path: str | Path) -> str:
         raise FormatError(f"truncated or corrupt file ({exc})", path) from None
 
 
-def read_csv(path: str | Path, required: Iterable[str] = (), **kwargs) -> pd.DataFrame:
-    """pandas.read_csv over plain/.gz/.xz with a one-line error for empty files or missing columns."""
+def read_csv(path: str | Path, required: Iterable[str] = (), empty_ok: bool = False, **kwargs) -> pd.DataFrame:
+    """pandas.read_csv over plain/.gz/.xz with a one-line error for empty files or missing columns;
+    ``empty_ok``: a header without rows is an empty table (an optional sensor that recorded nothing),
+    not an error."""
     path = find_file(path)
     try:
         with open_text(path) as f:
@@ -75,7 +77,7 @@ def read_csv(path: str | Path, required: Iterable[str] = (), **kwargs) -> pd.Dat
     except (pd.errors.ParserError, ValueError, OSError, EOFError, lzma.LZMAError) as exc:
         raise FormatError(f"cannot parse as CSV ({exc})", path) from None
     require_columns(df, required, path)
-    if df.empty:
+    if df.empty and not empty_ok:
         raise FormatError("no data rows", path)
     return df
 

@@ -10,7 +10,7 @@ export folder, one zip, or a folder of several export folders / zips. The files 
     Orientation.csv                       phone, time,seconds_elapsed,qz,qy,qx,qw,roll,pitch,yaw
     WristMotion.csv                       Apple Watch → device "watch"
     Headphone.csv                         AirPods → device "earbuds"
-    Location.csv                          phone location fixes → Recording.fixes
+    Location.csv                          phone location fixes → Recording.fixes (a header alone: none)
     WiFi.csv                              Wi-Fi scans (Android) → Recording.wifi (sensorlogger_radio)
     Barometer.csv                         pressure (hPa, UNITS.md) → Recording.pressure: the floor
 
@@ -187,13 +187,18 @@ def _read_zip(zpath: Path, platform: str | None = None) -> Iterator[Recording]:
 # ---- one export -----------------------------------------------------------------------------
 
 
-def _load(folder: Path, fname: str, cols: list[str], optional_cols: tuple[str, ...] = ()) -> Table | None:
-    """Read one CSV (None if absent): required columns numeric and finite, time increasing."""
+def _load(
+    folder: Path, fname: str, cols: list[str], optional_cols: tuple[str, ...] = (), empty_ok: bool = False
+) -> Table | None:
+    """Read one CSV (None if absent, or where ``empty_ok`` a header without rows: a side sensor that
+    recorded nothing, as Location.csv indoors): required columns numeric and finite, time increasing."""
     try:
         path = find_file(folder / fname)
     except MissingFileError:
         return None
-    df = read_csv(path, required=["time", *cols])
+    df = read_csv(path, required=["time", *cols], empty_ok=empty_ok)
+    if df.empty:
+        return None
     for c in ["time", *cols, *[c for c in optional_cols if c in df.columns]]:
         if not pd.api.types.is_numeric_dtype(df[c]):
             df[c] = pd.to_numeric(df[c], errors="coerce")
@@ -283,7 +288,8 @@ def export_tables(folder: Path, platform: str | None = None) -> tuple[str, bool,
     platform, standardised, info = _metadata(folder, platform)
     tables = {}
     for fname, sensor in SENSORS.items():
-        table = _load(folder, fname, list(sensor.cols), optional_cols=sensor.optional)
+        # the location fixes may be absent (indoors, no fix at all): their file's header alone reads as none
+        table = _load(folder, fname, list(sensor.cols), optional_cols=sensor.optional, empty_ok=sensor.device is None)
         if table is not None:
             tables[fname] = table
     return platform, standardised, info, tables
@@ -303,7 +309,7 @@ def _pressure(folder: Path, t0_ns: int, meta: dict) -> Pressure | None:
     """``Barometer.csv`` on the recording's clock (its rows as every sensor file's: a repeated time
     dropped and counted in ``meta["dropped_duplicates"]``, time going backwards refused); a pressure
     that is not one is refused naming the file. None without the file."""
-    table = _load(folder, BAROMETER_FILE, ["pressure"])
+    table = _load(folder, BAROMETER_FILE, ["pressure"], empty_ok=True)
     if table is None:
         return None
     if table.duplicates:

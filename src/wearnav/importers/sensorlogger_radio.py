@@ -41,7 +41,9 @@ def read_wifi(folder: Path, t0_ns: int, meta: dict) -> WifiScans | None:
         path = find_file(Path(folder) / WIFI_FILE)
     except MissingFileError:
         return None
-    df = read_csv(path, required=WIFI_COLS, dtype={"bssid": str, "ssid": str}, keep_default_na=False)
+    df = read_csv(path, required=WIFI_COLS, empty_ok=True, dtype={"bssid": str, "ssid": str}, keep_default_na=False)
+    if df.empty:  # the Wi-Fi sensor on, no scan delivered (Wi-Fi off, or throttled)
+        return None
     num = df[["time", "level", "frequency"]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
     bad = ~np.isfinite(num).all(axis=1)
     if bad.any() and np.flatnonzero(bad)[0] == len(df) - 1:
