@@ -110,6 +110,17 @@ class Unusable(FormatError):
     still imported."""
 
 
+class VerticalForceError(FormatError):
+    """The orientation puts gravity up, but the mean vertical specific force (``vertical``, m/s²) is
+    not g: gravity counted twice (~19.6) or missing (~0) over a walk; over a few seconds of hard
+    motion (a compass calibration's figure eights) also an orientation that lags the motion (the live
+    receiver waits for more data then: :mod:`wearnav.live.buffer`)."""
+
+    def __init__(self, reason: str, source, vertical: float):
+        super().__init__(reason, source)
+        self.vertical = vertical
+
+
 def build_recording(
     tables: dict[str, Table],
     platform: str,
@@ -438,10 +449,11 @@ def _check_orientation(
         # median |acc| looks plausible.
         vertical = float(r.apply(acc)[:, 2].mean())
         if abs(vertical - G) > MAX_VERTICAL_ERROR:
-            raise FormatError(
+            raise VerticalForceError(
                 f"mean vertical specific force in the world frame is {vertical:.1f} m/s², expected "
                 f"{G:.1f} (gravity counted twice or missing?)",
                 path,
+                vertical,
             )
         return to_wxyz(r), label, len(passing) == 1
     (_, _, _, _, tilt_a, res_a), (_, _, _, _, tilt_b, res_b) = found
