@@ -14,7 +14,7 @@ import pytest
 from conftest import make_stream, run_cli
 from wearnav.dataset import DatasetWriter
 from wearnav.errors import FormatError
-from wearnav.fuse import radiofixes, radiofloor, radiomap
+from wearnav.fuse import radiofixes, radiofloor, radiomap, radioscans
 from wearnav.fuse.survey import positions_between
 from wearnav.recording import Fixes, Recording, Trajectory, WifiScans
 
@@ -322,7 +322,7 @@ def test_a_walks_floor_votes_become_one_sequence_that_changes_only_where_the_vot
 
 
 def test_floor_switch_rate_counts_changes_between_a_walks_consecutive_scans():
-    scans = radiomap.Scans(
+    scans = radioscans.Scans(
         t=np.array([0.0, 2.0, 4.0, 6.0, 0.0, 2.0]),
         scan=np.arange(6),
         bssid=np.array(["a"] * 6, dtype=object),
@@ -353,8 +353,8 @@ def test_a_scan_whose_floor_the_sequence_changes_keeps_the_sigma_asked_for(built
     wifi = WifiScans(
         t, *(joined(getattr(walk, c), getattr(stray, c)) for c in ("bssid", "ssid", "freq_mhz", "rssi_dbm"))
     )
-    scans = radiomap.scans_of(wifi, built.cfg.stale_s)
-    x, _ = radiomap.fingerprints(scans, built.bssids, built.cfg.missing_dbm)
+    scans = radioscans.scans_of(wifi, built.cfg.stale_s)
+    x, _ = radioscans.fingerprints(scans, built.bssids, built.cfg.missing_dbm)
     votes = built.predict(x)[2]
     assert votes.tolist().count(1.0) == 1  # the stray scan votes upstairs ...
     scaled, grouped = built.locate(wifi, by_group=False), built.locate(wifi, by_group=True)

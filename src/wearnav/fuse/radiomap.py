@@ -3,7 +3,7 @@
 Build (:func:`build`): every Wi-Fi scan of the survey walks (:class:`~wearnav.recording.WifiScans`)
 is placed where the walker was at its time (:mod:`wearnav.fuse.survey`: the walk's PDR path warped
 onto its surveyed points) and becomes a fingerprint, one RSSI per access point of the map
-(:func:`fingerprints`). A scan is the readings sharing one time; of an access point heard twice in
+(:func:`wearnav.fuse.radioscans.fingerprints`). A scan is the readings sharing one time; of an access point heard twice in
 a scan the fresher reading counts; readings older than ``stale_s`` (cached by the phone,
 ``t − t_seen``) are left out; an access point the scan did not hear reads ``missing_dbm``. The map
 keeps the access points heard in at least ``min_scans_per_ap`` of its scans.
@@ -61,6 +61,7 @@ from wearnav.errors import ConfigError, FormatError, ValidationError
 from wearnav.fuse.config import RADIUS_68
 from wearnav.fuse.floors import FloorLevels, fit_floor_levels
 from wearnav.fuse.radiofloor import floor_sequence, floor_switch_rate
+from wearnav.fuse.radioscans import Scans, fingerprints, scans_of
 from wearnav.fuse.survey import SURVEY_ODOMETRY, odometry_path, positions_between
 from wearnav.recording import Recording, WifiScans
 
@@ -108,67 +109,6 @@ class RadioMapConfig:
 # ---- scans -------------------------------------------------------------------------------------
 
 
-@dataclasses.dataclass
-class Scans:
-    """Scans as a long table: scan ``t`` (S,), and per reading its scan index ``scan`` (R,), ``bssid``
-    (R,) and ``rssi_dbm`` (R,) (stale readings already left out, one reading per access point and
-    scan). Survey scans also carry ``xy`` (S, 2), ``floor`` (S,) and ``walk`` (S,) names."""
-
-    t: np.ndarray
-    scan: np.ndarray
-    bssid: np.ndarray
-    rssi_dbm: np.ndarray
-    xy: np.ndarray | None = None
-    floor: np.ndarray | None = None
-    walk: np.ndarray | None = None
-
-    def __len__(self) -> int:
-        return int(self.t.size)
-
-    def subset(self, keep: np.ndarray) -> Scans:
-        """The scans where ``keep`` (S,) bool, renumbered."""
-        new = np.full(self.t.size, -1)
-        new[keep] = np.arange(int(keep.sum()))
-        r = keep[self.scan]
-        opt = {
-            k: None if v is None else v[keep] for k, v in (("xy", self.xy), ("floor", self.floor), ("walk", self.walk))
-        }
-        return Scans(self.t[keep], new[self.scan[r]], self.bssid[r], self.rssi_dbm[r], **opt)
-
-    @classmethod
-    def concat(cls, parts: Sequence[Scans]) -> Scans:
-        offsets = np.cumsum([0] + [len(p) for p in parts[:-1]])
-        cat = np.concatenate
-        return cls(
-            cat([p.t for p in parts]),
-            cat([p.scan + o for p, o in zip(parts, offsets)]).astype(np.int64),
-            cat([p.bssid for p in parts]),
-            cat([p.rssi_dbm for p in parts]),
-            *(
-                None if any(getattr(p, k) is None for p in parts) else cat([getattr(p, k) for p in parts])
-                for k in ("xy", "floor", "walk")
-            ),
-        )
-
-
-def scans_of(wifi: WifiScans, stale_s: float) -> Scans:
-    """A recording's scans (readings sharing one time), readings older than ``stale_s`` left out and,
-    of an access point heard twice in a scan, the fresher reading kept (the louder where equally fresh)."""
-    starts = wifi.scan_starts
-    scan = np.repeat(np.arange(starts.size - 1), np.diff(starts))
-    age = np.zeros(len(wifi)) if wifi.t_seen is None else np.nan_to_num(wifi.t - wifi.t_seen, nan=0.0)
-    fresh = age <= stale_s
-    df = pd.DataFrame({"scan": scan, "bssid": wifi.bssid, "rssi": wifi.rssi_dbm, "age": age})[fresh]
-    df = df.sort_values(["scan", "bssid", "age", "rssi"], ascending=[True, True, True, False], kind="stable")
-    df = df.drop_duplicates(["scan", "bssid"])
-    return Scans(
-        wifi.t[starts[:-1]],
-        df["scan"].to_numpy(np.int64),
-        df["bssid"].to_numpy(object),
-        df["rssi"].to_numpy(np.float64),
-    )
-
-
 def survey_scans(rec: Recording, cfg: RadioMapConfig) -> tuple[Scans | None, dict[str, Any]]:
     """A survey walk's scans with the walker's position and floor at each (:mod:`wearnav.fuse.survey`),
     those that could not be placed left out; None where the walk has no Wi-Fi or no surveyed points."""
@@ -182,16 +122,6 @@ def survey_scans(rec: Recording, cfg: RadioMapConfig) -> tuple[Scans | None, dic
         scans, xy=xy, floor=np.nan_to_num(floor, nan=0.0), walk=np.full(len(scans), rec.name, dtype=object)
     )
     return placed.subset(ok), {"walk": rec.name, "scans": int(ok.sum()), "scans_not_placed": int((~ok).sum()), **info}
-
-
-def fingerprints(scans: Scans, bssids: Sequence[str], missing_dbm: float) -> tuple[np.ndarray, np.ndarray]:
-    """(S, A) RSSI of each scan at each of ``bssids`` (``missing_dbm`` where not heard, weaker readings
-    clipped to it) and (S,) how many of them each scan heard."""
-    col = pd.Index(list(bssids)).get_indexer(scans.bssid)
-    known = col >= 0
-    x = np.full((len(scans), len(bssids)), missing_dbm, np.float32)
-    x[scans.scan[known], col[known]] = np.maximum(scans.rssi_dbm[known], missing_dbm)
-    return x, np.bincount(scans.scan[known], minlength=len(scans))
 
 
 # ---- the model ----------------------------------------------------------------------------------
@@ -349,7 +279,7 @@ class RadioMap:
     def predict(
         self, x: np.ndarray, floor: np.ndarray | None = None, by_group: bool = True
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Fingerprints (N, A) over :attr:`bssids` (:func:`fingerprints`) → positions (N, 2), σ (N,) m
+        """Fingerprints (N, A) over :attr:`bssids` (:func:`wearnav.fuse.radioscans.fingerprints`) → positions (N, 2), σ (N,) m
         per axis (calibrated by groups; ``by_group`` False: by the one scale), floors (N,): each
         scan's own floor vote, or ``floor`` where given."""
         xy, sigma_raw, floor = self._learner.predict(x, floor)
