@@ -1,4 +1,4 @@
-"""SIGTERM during ``wearnav import``: exit 143 and one line, wherever the signal lands (issue 38 §2).
+"""SIGTERM during ``wearnav import`` (and before a training): exit 143 and one line, wherever the signal lands (issue 38 §2).
 
 A robustness run once saw ``wearnav import ilc2`` stopped by SIGTERM exit 0, printing only
 ``Exception ignored in: <function WeakValueDictionary…>``: the handler's exception was raised
@@ -54,6 +54,19 @@ def test_an_interrupt_a_finalizer_swallowed_is_raised_at_the_next_check(capsys):
             raise_lost_interrupt()
         raise_lost_interrupt()  # raised once, then forgotten
     assert "Exception ignored" not in capsys.readouterr().err
+
+
+def test_training_stops_at_its_next_batch_for_a_sigterm_a_finalizer_swallowed_before_it():
+    """A SIGTERM that landed in a finalizer while the data loaded (before fit's own handler): the
+    training's batch-boundary check raises it (it had run on until --max-time: a fresh clone's
+    test_two_train_commands_on_one_folder waited 60 s in vain for the process to stop)."""
+    from wearnav.train.interrupt import StopOnSignal
+
+    with noting_lost_interrupts():
+        _swallowed_sigterm()
+        with pytest.raises(Terminated, match="SIGTERM"):
+            StopOnSignal().on_train_batch_end(None, None, None, None, 0)
+        StopOnSignal().check()  # raised once: the next check stops nothing
 
 
 def test_outside_the_block_nothing_is_kept():
