@@ -316,8 +316,10 @@ def test_a_receiver_that_only_stores_loads_no_torch():
     stores) import neither torch nor scikit-learn: a `--no-track` receiver (or one of `--workers`)
     starts in under a second, and a second worker binds its port before the first pushes come.
     (The live Wi-Fi readings once brought the radio map, and with it torch, into the buffer's imports:
-    5.8 s instead of 0.8 s.)"""
+    5.8 s instead of 0.8 s.) Nor does a radio map (`--radiomap`, checked where the sessions are stored):
+    only building one runs the survey walks' odometry."""
     code = "import sys, wearnav.cli.live, wearnav.live.app; print('torch' in sys.modules, 'sklearn' in sys.modules)"
+    code += "\nimport wearnav.fuse.radiomap; print('torch' in sys.modules)"  # --radiomap, loaded where it stores
     out = subprocess.run(
         [sys.executable, "-c", code],
         capture_output=True,
@@ -326,4 +328,4 @@ def test_a_receiver_that_only_stores_loads_no_torch():
         env={**os.environ, "PYTHONPATH": str(SRC)},
     )
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["False", "False"]
+    assert out.stdout.split() == ["False", "False", "False"]

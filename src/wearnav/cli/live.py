@@ -16,6 +16,7 @@ import typer
 
 from wearnav.cli.common import echo_json, on_interrupt, split_list
 from wearnav.errors import ConfigError
+from wearnav.live.process import start_tracker  # stdlib only: 8 ms at the command line's start
 from wearnav.outputs import check_new_dataset, check_suite_folder
 
 # The signals that stop `wearnav live` cleanly (exit 0), as its stop line names them.
@@ -88,8 +89,6 @@ def _start_trackers(
     store: str, n: int, model: Path | None, plan: Path | None, model_device: str, radiomap: Path | None = None
 ) -> list[subprocess.Popen]:
     """``n`` ``wearnav live track --store STORE --shard i/n`` processes (stopped with this one)."""
-    from wearnav.live.process import start_tracker
-
     extra = [*(["--model", str(model)] if model else []), *(["--map", str(plan)] if plan else [])]
     extra += ["--radiomap", str(radiomap)] if radiomap else []
     return [start_tracker(store, (i, n), "--model-device", model_device, *extra) for i in range(n)]
@@ -120,7 +119,7 @@ def _load_radiomap(radiomap: Path | None, executor: str):
         return None
     if executor == "ray":
         raise ConfigError("--radiomap is for --executor local (a Ray task may not see the folder)")
-    from wearnav.fuse.radiomap import RadioMap
+    from wearnav.fuse.radiomap import RadioMap  # pandas, scikit-learn: ~1.4 s, not at every command's start
 
     return RadioMap.load(radiomap)
 
