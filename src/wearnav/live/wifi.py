@@ -80,8 +80,8 @@ class WifiRows:
     def scans(self, t0_ns: int, t_from_s: float | None = None) -> WifiScans | None:
         """The readings at or after ``t_from_s`` (s since ``t0_ns``, the session's clock; None: all)
         as :class:`~wearnav.recording.WifiScans`, sorted by time; None where there are none."""
-        lo = 0 if t_from_s is None else bisect.bisect_left(self._times, int(t0_ns) + int(round(t_from_s * NS)))
-        with self._lock:
+        with self._lock:  # the receiver's thread may be adding
+            lo = 0 if t_from_s is None else bisect.bisect_left(self._times, int(t0_ns) + int(round(t_from_s * NS)))
             rows = self._rows[lo:]
         if not rows:
             return None
