@@ -19,6 +19,18 @@ def test_receiver_cost_posts_every_message_and_reads_the_receivers_cpu(tmp_path)
     assert r["store"] == "sqlite"
 
 
+@pytest.mark.slow  # ~25 s on 2 cores: a simulated walk, then the receiver and the floor's server start
+def test_receiver_cost_measures_the_http_servers_floor_under_the_same_pushes(tmp_path):
+    """``--floor``: the same pushes, each answered 200 by a real uvicorn process serving an app that
+    only reads the body (a sender that got anything else fails the call); its CPU a message beside
+    the receiver's, and the difference."""
+    r = receiver_cost(messages=200, walkers=10, senders=4, rate=400.0, work=tmp_path, floor=True)
+    assert r["stored"] == 200
+    floor = r["server_floor_ms_per_message"]
+    assert 0 < floor < 100  # 200 bodies of ~14 kB read over HTTP: some CPU, counted from /proc
+    assert r["receiver_above_floor_ms_per_message"] == pytest.approx(r["receiver_ms_per_message"] - floor, abs=1e-3)
+
+
 def test_the_page_turns_costs_into_capacity():
     """Costs from the rows that kept up only, measured, not subtracted: a row's CPU per walker-second;
     with tracker processes the receiver's own CPU per message and the trackers' per walker-second;

@@ -497,6 +497,12 @@ def cost_receiver(
         None, "--store", help="The receiver's store (default a SQLite file in a tmp dir)."
     ),
     workers: int = typer.Option(1, "--workers", min=1, help="Receiver processes sharing the port."),
+    floor: bool = typer.Option(
+        False,
+        "--floor",
+        help="Then the same pushes to an app that only reads each body and answers 200, under the same "
+        "HTTP server: what no receiver on it goes below here (server_floor_ms_per_message).",
+    ),
 ):
     """Post MESSAGES pushes over HTTP to a real `wearnav live --no-track` on 127.0.0.1 and print its
     CPU per message (user + system, /proc), every message acknowledged and stored.
@@ -509,7 +515,7 @@ def cost_receiver(
 
     _needs_live_extra()
     args = ("--workers", str(workers)) if workers > 1 else ()
-    echo_json(receiver_cost(messages, walkers, senders, rate, store=store, server_args=args))
+    echo_json(receiver_cost(messages, walkers, senders, rate, store=store, server_args=args, floor=floor))
 
 
 @cost_app.command("tracker")

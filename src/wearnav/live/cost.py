@@ -6,7 +6,11 @@ a fix a second) over real HTTP to a real ``wearnav live --no-track`` process on 
 over ``walkers`` sessions and sent by ``senders`` keep-alive connections at ``rate`` messages a
 second (the pace of ``rate / 5`` walkers), and reads the receiver's CPU time (user + system,
 ``/proc``) before and after: the receiver's CPU per message, with its start-up left out. Every
-message must be acknowledged and stored (counted in the store afterwards).
+message must be acknowledged and stored (counted in the store afterwards). With ``floor``, the same
+pushes then go to :func:`floor_app` under the same HTTP server (uvicorn, httptools and uvloop where
+installed, as ``wearnav live`` runs): an app that only reads each body and answers 200, whose CPU a
+message is what no receiver on that server goes below on this machine at that minute (issue 61's
+0.3 ms sat at it: docs/live-scaling.md).
 
 :func:`tracker_cost` pushes ``walkers`` phone-only sessions of a simulated walk message by message
 into session buffers (no HTTP) and runs one :class:`wearnav.live.crowd.Crowd`'s ticks in this
@@ -19,6 +23,8 @@ from __future__ import annotations
 import http.client
 import json
 import os
+import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -30,7 +36,7 @@ import numpy as np
 from wearnav.errors import ConfigError
 from wearnav.importers.sensorlogger_export import simulated_export
 from wearnav.live import replay
-from wearnav.live.process import LiveServer
+from wearnav.live.process import LiveServer, cpu_s, env, free_port
 
 BATCH_S = 0.2  # s of walk per push, as the app batches (wearnav.live.bench_page.BATCH_S)
 
@@ -106,6 +112,74 @@ def _send(port: int, target: str, bodies: list[bytes], due: list[float], t0: flo
         conn.close()
 
 
+def _post_all(port: int, target: str, lanes: list[tuple[list[bytes], list[float]]]) -> float:
+    """Every lane's bodies POSTed on its own keep-alive connection at their due times; the wall time
+    (s). Any sender that failed: ConfigError."""
+    errors: list[str] = []
+    w0 = time.perf_counter()
+    threads = [threading.Thread(target=_send, args=(port, target, b, d, w0 + 0.05, errors)) for b, d in lanes]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    if errors:
+        raise ConfigError(f"receiver cost: {len(errors)} sender(s) failed, the first: {errors[0]}")
+    return time.perf_counter() - w0
+
+
+_FLOOR_START = {"type": "http.response.start", "status": 200, "headers": [(b"content-length", b"2")]}
+_FLOOR_BODY = {"type": "http.response.body", "body": b"{}"}
+
+
+async def floor_app(scope, receive, send) -> None:
+    """The HTTP server's floor (module docstring): reads a request's body, answers 200 ``{}``."""
+    if scope["type"] != "http":  # (lifespan: uvicorn goes on without it)
+        return
+    more = True
+    while more:
+        message = await receive()
+        if message["type"] == "http.disconnect":
+            return
+        more = message.get("more_body", False)
+    await send(_FLOOR_START)
+    await send(_FLOOR_BODY)
+
+
+def _floor_ms(lanes: list[tuple[list[bytes], list[float]]], n: int, timeout_s: float = 30.0) -> float:
+    """:func:`floor_app`'s CPU a message (ms) under ``lanes`` (``n`` messages in all), served by
+    uvicorn in a process of its own as ``wearnav live`` serves (no access log, no proxy headers)."""
+    port = free_port()
+    cmd = [sys.executable, "-m", "uvicorn", "wearnav.live.cost:floor_app", "--host", "127.0.0.1"]
+    cmd += ["--port", str(port), "--no-access-log", "--no-proxy-headers", "--log-level", "warning"]
+    proc = subprocess.Popen(cmd, env=env())
+    try:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            conn = http.client.HTTPConnection("127.0.0.1", port, timeout=1.0)
+            try:
+                conn.request("GET", "/")
+                conn.getresponse().read()
+                break
+            except (OSError, http.client.HTTPException):
+                if proc.poll() is not None or time.monotonic() > deadline:
+                    raise ConfigError(f"receiver cost: the floor's server did not start ({' '.join(cmd)})") from None
+                time.sleep(0.2)
+            finally:
+                conn.close()
+        used0 = cpu_s(proc.pid)
+        _post_all(port, "/push", lanes)
+        used1 = cpu_s(proc.pid)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    if used0 is None or used1 is None:
+        raise ConfigError("receiver cost: the floor's CPU time is not readable here (Linux /proc)")
+    return 1e3 * (used1 - used0) / n
+
+
 def receiver_cost(
     messages: int = 5000,
     walkers: int = 100,
@@ -114,10 +188,12 @@ def receiver_cost(
     store: str | None = None,
     server_args: tuple[str, ...] = (),
     work: str | Path | None = None,
+    floor: bool = False,
 ) -> dict:
     """The receiver's CPU per message (module docstring). ``rate`` 0: as fast as the senders go;
     ``store``: the receiver's ``--store`` (default a SQLite file in ``work``); ``server_args``: more
-    ``wearnav live`` options (``--workers 2``, say)."""
+    ``wearnav live`` options (``--workers 2``, say); ``floor``: also the HTTP server's floor, the
+    same pushes sent to :func:`floor_app` afterwards."""
     if messages < walkers or walkers < 1 or senders < 1:
         raise ConfigError("receiver cost: at least one message per walker, one walker and one sender")
     work = Path(work) if work is not None else Path(tempfile.mkdtemp(prefix="wearnav-receiver-cost-"))
@@ -140,23 +216,13 @@ def receiver_cost(
     with LiveServer(db, "--no-track", *limit, *server_args, store_url=store_arg) as srv:
         time.sleep(1.0)  # start-up done
         _wait_for_workers(srv, server_args)
-        errors: list[str] = []
-        c0, w0, s0, k0 = srv.cpu_s(), time.perf_counter(), time.process_time(), _system_s(srv)
-        threads = [
-            threading.Thread(target=_send, args=(srv.port, f"/push?{query}", b, d, w0 + 0.05, errors)) for b, d in lanes
-        ]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
-        c1, w1, s1, k1 = srv.cpu_s(), time.perf_counter(), time.process_time(), _system_s(srv)
+        c0, s0, k0 = srv.cpu_s(), time.process_time(), _system_s(srv)
+        wall = _post_all(srv.port, f"/push?{query}", lanes)
+        c1, s1, k1 = srv.cpu_s(), time.process_time(), _system_s(srv)
         stored = srv.stored()
-    if errors:
-        raise ConfigError(f"receiver cost: {len(errors)} sender(s) failed, the first: {errors[0]}")
     if c0 is None or c1 is None:
         raise ConfigError("receiver cost: the receiver's CPU time is not readable here (Linux /proc)")
-    wall = w1 - w0
-    return {
+    out = {
         "messages": n,
         "walkers": walkers,
         "senders": senders,
@@ -175,6 +241,11 @@ def receiver_cost(
         "senders_cpu_s": round(s1 - s0, 3),
         "load_1min": round(os.getloadavg()[0], 2),
     }
+    if floor:
+        f = _floor_ms(lanes, n)
+        out["server_floor_ms_per_message"] = round(f, 4)
+        out["receiver_above_floor_ms_per_message"] = round(out["receiver_ms_per_message"] - f, 4)
+    return out
 
 
 def _timed(owner, name: str, label: str, spent: dict) -> None:
