@@ -22,7 +22,7 @@ import pytest
 
 from conftest import IPIN_HELD_OUT, IPIN_LOGS, IPIN_SURVEY
 from wearnav.core import geo
-from wearnav.fuse import radiomap
+from wearnav.fuse import radiobuild, radiomap
 from wearnav.fuse.config import RADIUS_68
 from wearnav.importers import ipin2023
 from wearnav.importers.sensorlogger_export import write_export
@@ -63,7 +63,7 @@ def venue(shared_data, tmp_path_factory):
 
     recs = [ipin2023.read_log(shared_data / IPIN_LOGS / name) for name in [*IPIN_SURVEY, IPIN_HELD_OUT]]
     root = tmp_path_factory.mktemp("live_radio")
-    rmap = radiomap.build(recs[:3], radiomap.RadioMapConfig(cv_folds=3))
+    rmap = radiobuild.build(recs[:3], radiomap.RadioMapConfig(cv_folds=3))
     folder = rmap.save(root / "map")
     out = {"map": rmap, "folder": folder, "root": root}
     for name, fixes in (("gnss", True), ("indoor", False)):

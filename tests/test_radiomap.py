@@ -14,7 +14,7 @@ import pytest
 from conftest import make_stream, run_cli
 from wearnav.dataset import DatasetWriter
 from wearnav.errors import FormatError
-from wearnav.fuse import radiofixes, radiofloor, radiomap, radioscans
+from wearnav.fuse import radiobuild, radiofixes, radiofloor, radiomap, radioscans
 from wearnav.fuse.survey import positions_between
 from wearnav.recording import Fixes, Recording, Trajectory, WifiScans
 
@@ -77,7 +77,7 @@ def survey(n_lines=6):
 
 @pytest.fixture(scope="module")
 def built():
-    return radiomap.build(survey(), radiomap.RadioMapConfig(cv_folds=4))
+    return radiobuild.build(survey(), radiomap.RadioMapConfig(cv_folds=4))
 
 
 # ---- the survey placement ----------------------------------------------------------------------

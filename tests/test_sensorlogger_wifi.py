@@ -19,7 +19,7 @@ import pytest
 from conftest import IPIN_HELD_OUT, IPIN_LOGS, IPIN_SURVEY
 from wearnav.core import geo
 from wearnav.errors import FormatError, ValidationError
-from wearnav.fuse import radiofixes, radiomap
+from wearnav.fuse import radiobuild, radiofixes, radiomap
 from wearnav.importers import ipin2023
 from wearnav.importers.sensorlogger import read as read_sensorlogger
 from wearnav.importers.sensorlogger import read_export
@@ -148,7 +148,7 @@ def venue(shared_data, tmp_path_factory):
     """A radio map of three IPIN walks over three floors (about the venue's origin) and a fourth,
     imported from its log and from it written as an Android Sensor Logger export."""
     recs = [ipin2023.read_log(shared_data / IPIN_LOGS / name) for name in [*IPIN_SURVEY, IPIN_HELD_OUT]]
-    rmap = radiomap.build(recs[:3], radiomap.RadioMapConfig(cv_folds=3))
+    rmap = radiobuild.build(recs[:3], radiomap.RadioMapConfig(cv_folds=3))
     root = tmp_path_factory.mktemp("venue")
     write_export(recs[3], root / "export", platform="android", standardised=True)
     return rmap, recs[3], read_export(root / "export"), root

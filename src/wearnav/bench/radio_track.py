@@ -41,8 +41,8 @@ from wearnav.bench.user_protocol import fix_point_errors, score_path
 from wearnav.core.provenance import provenance
 from wearnav.core.textio import read_json
 from wearnav.errors import ValidationError, WearnavWarning
+from wearnav.fuse.radiobuild import build as build_map
 from wearnav.fuse.radiomap import RadioMapConfig, walk_group
-from wearnav.fuse.radiomap import build as build_map
 from wearnav.recording import Recording
 from wearnav.stats import difference_cells, walk_bootstrap_difference
 from wearnav.track import track as track_

@@ -30,14 +30,8 @@ import numpy as np
 
 from wearnav.core.fileio import write_text_atomic
 from wearnav.fuse.config import RADIUS_68
-from wearnav.fuse.radiomap import (
-    RadioMapConfig,
-    error_summary,
-    from_scans,
-    shared_frame,
-    survey_scans,
-    walk_group,
-)
+from wearnav.fuse.radiobuild import survey_scans
+from wearnav.fuse.radiomap import RadioMapConfig, error_summary, from_scans, shared_frame, walk_group
 from wearnav.fuse.radioscans import Scans, fingerprints
 from wearnav.fuse.survey import odometry_path, skip_one_errors
 from wearnav.recording import Recording

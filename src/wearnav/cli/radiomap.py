@@ -71,8 +71,8 @@ def build(
     Example:
       wearnav radiomap build data/ipin2023 --group-by trial --out maps/ipin
     """
+    from wearnav.fuse.radiobuild import build as build_map
     from wearnav.fuse.radiomap import CARD_JSON, RadioMapConfig
-    from wearnav.fuse.radiomap import build as build_map
 
     if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not (out / CARD_JSON).is_file())):
         raise ConfigError(f"--out {out}: exists and is not a radio map folder: choose a new one")

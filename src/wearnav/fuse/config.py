@@ -9,6 +9,7 @@ import numpy as np
 from wearnav.errors import ValidationError
 from wearnav.fixcheck import FixCheck
 
+SURVEY_ODOMETRY = "pdr-pointing-cadence"  # where survey walks run between their surveyed points (fuse.survey)
 RADIUS_68 = 1.515  # 68 % radius of a unit circular Gaussian (accuracy = RADIUS_68 · σ per axis)
 RAYLEIGH_MEDIAN = float(np.sqrt(2 * np.log(2)))  # its median radius
 MIN_SIGMA_M = 0.5  # no fix is trusted to better than this per axis (phones report 1–3 m at best)

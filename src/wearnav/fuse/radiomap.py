@@ -1,6 +1,6 @@
 """A Wi-Fi radio map from survey walks, and the positions it gives a walk's scans (issue 60 §2–§3).
 
-Build (:func:`build`): every Wi-Fi scan of the survey walks (:class:`~wearnav.recording.WifiScans`)
+Build (:func:`wearnav.fuse.radiobuild.build`): every Wi-Fi scan of the survey walks (:class:`~wearnav.recording.WifiScans`)
 is placed where the walker was at its time (:mod:`wearnav.fuse.survey`: the walk's PDR path warped
 onto its surveyed points) and becomes a fingerprint, one RSSI per access point of the map
 (:func:`wearnav.fuse.radioscans.fingerprints`). A scan is the readings sharing one time; of an access point heard twice in
@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -58,11 +58,10 @@ import pandas as pd
 from wearnav.core.fileio import atomic_path, write_text_atomic
 from wearnav.core.textio import read_json
 from wearnav.errors import ConfigError, FormatError, ValidationError
-from wearnav.fuse.config import RADIUS_68
-from wearnav.fuse.floors import FloorLevels, fit_floor_levels
-from wearnav.fuse.radiofloor import floor_sequence, floor_switch_rate
+from wearnav.fuse.config import RADIUS_68, SURVEY_ODOMETRY
+from wearnav.fuse.floors import FloorLevels
+from wearnav.fuse.radiofloor import floor_sequence
 from wearnav.fuse.radioscans import Scans, fingerprints, scans_of
-from wearnav.fuse.survey import SURVEY_ODOMETRY, odometry_path, positions_between
 from wearnav.recording import Recording, WifiScans
 
 FORMAT = "wearnav.radiomap"
@@ -104,24 +103,6 @@ class RadioMapConfig:
             raise ConfigError("radio map config: k, min_scans_per_ap, min_common_aps >= 1 and cv_folds >= 2")
         if not -130.0 <= self.missing_dbm <= -50.0 or not self.stale_s > 0 or not self.min_sigma_m > 0:
             raise ConfigError("radio map config: missing_dbm in -130..-50 dBm, stale_s and min_sigma_m > 0")
-
-
-# ---- scans -------------------------------------------------------------------------------------
-
-
-def survey_scans(rec: Recording, cfg: RadioMapConfig) -> tuple[Scans | None, dict[str, Any]]:
-    """A survey walk's scans with the walker's position and floor at each (:mod:`wearnav.fuse.survey`),
-    those that could not be placed left out; None where the walk has no Wi-Fi or no surveyed points."""
-    if rec.wifi is None or rec.truth is None or len(rec.truth) < 2:
-        return None, {"walk": rec.name, "scans": 0, "why": "no Wi-Fi scans or fewer than 2 surveyed points"}
-    t_odo, xy_odo = odometry_path(rec, cfg.odometry)
-    scans = scans_of(rec.wifi, cfg.stale_s)
-    xy, floor, ok, info = positions_between(rec.truth, t_odo, xy_odo, scans.t)
-    ok &= np.bincount(scans.scan, minlength=len(scans)) > 0
-    placed = dataclasses.replace(
-        scans, xy=xy, floor=np.nan_to_num(floor, nan=0.0), walk=np.full(len(scans), rec.name, dtype=object)
-    )
-    return placed.subset(ok), {"walk": rec.name, "scans": int(ok.sum()), "scans_not_placed": int((~ok).sum()), **info}
 
 
 # ---- the model ----------------------------------------------------------------------------------
@@ -469,36 +450,6 @@ def walk_group(rec: Recording, group_by: str) -> str:
     ``trial``: its repetitions walk one route), the walk itself for ``walk`` or where meta lacks it."""
     value = rec.meta.get(group_by) if group_by != "walk" else None
     return rec.name if value is None else f"{group_by} {value}"
-
-
-def build(
-    recordings: Iterable[Recording], cfg: RadioMapConfig = RadioMapConfig(), source: str = "", group_by: str = "walk"
-) -> RadioMap:
-    """A radio map from survey walks (recordings with Wi-Fi and surveyed points; others are skipped);
-    ``group_by``: a meta key whose walks are held out together in the validation (:func:`walk_group`)."""
-    recordings = list(recordings)
-    if cfg.per_floor is None:
-        cfg = dataclasses.replace(cfg, per_floor=not shared_frame(recordings))
-    parts, infos, groups = [], [], {}
-    for rec in recordings:
-        s, info = survey_scans(rec, cfg)
-        infos.append(info)
-        groups[rec.name] = walk_group(rec, group_by)
-        if s is not None and len(s):
-            parts.append(s)
-    if not parts:
-        raise ValidationError("no survey walk with Wi-Fi scans and surveyed points to build a radio map from")
-    scans = Scans.concat(parts)
-    rmap = from_scans(scans, cfg, infos, source, groups, group_by)
-    assert scans.walk is not None and scans.floor is not None
-    rmap.card["floor_switch_per_scan"] = floor_switch_rate(scans.t, scans.walk, scans.floor)
-    origin = common_origin(recordings)
-    rmap.card["origin"] = None if origin is None else list(origin)
-    try:
-        rmap.card["floor_levels"] = fit_floor_levels(recordings).to_dict()
-    except ValidationError:  # no walk over two floors with a barometer: the Wi-Fi votes alone give the floor
-        rmap.card["floor_levels"] = None
-    return rmap
 
 
 def card_markdown(card: dict[str, Any]) -> str:

@@ -32,9 +32,10 @@ from typing import Any
 
 import numpy as np
 
+from wearnav.evaluate import odometry
+from wearnav.fuse.config import SURVEY_ODOMETRY  # the registry's PDR that measured best above
 from wearnav.recording import Recording, Trajectory
 
-SURVEY_ODOMETRY = "pdr-pointing-cadence"  # the registry's PDR that measured best above
 MAX_SPAN_S = 120.0  # longer gaps between surveyed points are not placed
 MIN_ODO_M = 0.5  # the odometry moved less than this over a segment: the straight line
 SCALE_RANGE = (1 / 3, 3.0)  # |m| outside: the step count is off, the straight line instead
@@ -52,8 +53,6 @@ def odometry_path(rec: Recording, model_name: str = SURVEY_ODOMETRY) -> tuple[np
     """The registry model ``model_name``'s path of ``rec`` (times (N,), positions (N, 2) from (0, 0),
     in the recording's world frame), as `wearnav track` integrates it; empty where the walk is
     shorter than one window."""
-    from wearnav.evaluate import odometry  # torch: only where a survey walk is placed (a map built), not to load one
-
     model, cfg = _model(model_name)
     *_, t, xy = odometry(model, cfg, rec)  # as `wearnav track` runs it (:func:`wearnav.evaluate.odometry`)
     return t, xy
